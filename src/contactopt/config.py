@@ -1,0 +1,258 @@
+"""Configuration model: a TOML file (or a built-in example name) validated up front.
+
+Every problem is collected and reported at once in a :class:`ConfigError`, each naming the key
+and the allowed values. The resolved configuration is a plain nested dict (``Config.data``) with
+every default filled in, so it can be written back to TOML for a run directory.
+"""
+
+from __future__ import annotations
+
+import copy
+import math
+import tomllib
+from dataclasses import dataclass
+from importlib import resources
+from pathlib import Path
+
+from .errors import ConfigError
+
+EXAMPLES = ("example1", "example2", "example3")
+
+_NUM = (int, float)
+
+
+def _pos(x):
+    return isinstance(x, _NUM) and not isinstance(x, bool) and math.isfinite(x) and x > 0
+
+
+def _nonneg(x):
+    return isinstance(x, _NUM) and not isinstance(x, bool) and math.isfinite(x) and x >= 0
+
+
+def _finite(x):
+    return isinstance(x, _NUM) and not isinstance(x, bool) and math.isfinite(x)
+
+
+def _posint(x):
+    return isinstance(x, int) and not isinstance(x, bool) and x >= 1
+
+
+def _vec3(x):
+    return isinstance(x, (list, tuple)) and len(x) == 3 and all(_finite(v) for v in x)
+
+
+def _oneof(*options):
+    def check(x):
+        return x in options
+    check.__doc__ = "one of " + ", ".join(repr(o) for o in options)
+    return check
+
+
+# section -> key -> (default, check, description of the allowed values)
+SCHEMA = {
+    "geometry": {
+        "a": (2.0, _pos, "a number > 0 (length in x1)"),
+        "b": (1.0, _pos, "a number > 0 (length in x2)"),
+        "c": (1.0, _pos, "a number > 0 (height of the top face)"),
+    },
+    "mesh": {
+        "nx": (32, _posint, "an integer ≥ 1"),
+        "ny": (15, _posint, "an integer ≥ 1"),
+        "nz": (9, _posint, "an integer ≥ 1"),
+    },
+    "material": {
+        "E": (21.19, _pos, "a number > 0 (Young's modulus)"),
+        "nu": (0.277, lambda x: _finite(x) and -1.0 < x < 0.5, "a number in (−1, 0.5) (Poisson's ratio)"),
+    },
+    "friction": {
+        "coefficient": (0.3, _nonneg, "a number ≥ 0 (Coulomb coefficient F)"),
+    },
+    "loads": {
+        "top_traction": ([0.0, 0.0, -8e-2], _vec3, "a list of 3 numbers (traction on x3 = c)"),
+        "right_traction": ([-5e-2, 0.0, 0.0], _vec3, "a list of 3 numbers (traction on x1 = a)"),
+        "body_force": ([0.0, 0.0, 0.0], _vec3, "a list of 3 numbers (force per unit volume)"),
+    },
+    "design": {
+        "degree": ([7, 3], lambda x: isinstance(x, list) and len(x) == 2 and all(_posint(v) for v in x),
+                   "a list of 2 integers ≥ 1 (Bézier degrees d1, d2)"),
+        "C0": (0.75, _pos, "a number > 0 (upper bound of the control points)"),
+        "C1": (0.5, _pos, "a number > 0 (slope bound)"),
+        "C2": (0.01, _nonneg, "a number ≥ 0 (mean control point: the volume constraint)"),
+        "slope_divisor": ("degree", _oneof("degree", "count"), "'degree' or 'count'"),
+        "initial": (0.01, lambda x: _finite(x) or isinstance(x, list),
+                    "a number (all control points) or a (d1+1)×(d2+1) nested list"),
+    },
+    "objective": {
+        "type": ("target_normal_force",
+                 _oneof("target_normal_force", "compliance", "pressure_uniformity"),
+                 "'target_normal_force', 'compliance' or 'pressure_uniformity'"),
+        "target": ({"kind": "constant", "value": 0.0}, lambda x: isinstance(x, dict),
+                   "a table with 'kind' = 'constant' | 'step' | 'values' | 'design'"),
+        "scale": (1.0, _pos, "a number > 0 (multiplies the objective)"),
+    },
+    "state": {
+        "method": ("newton", _oneof("newton", "fixed-point"), "'newton' or 'fixed-point'"),
+        "tol": (1e-10, lambda x: _pos(x) and x < 1, "a number in (0, 1)"),
+        "max_iter": (200, _posint, "an integer ≥ 1"),
+    },
+    "linear_solver": {
+        "backend": ("auto", _oneof("auto", "pardiso", "scipy"), "'auto', 'pardiso' or 'scipy'"),
+    },
+    "optimizer": {
+        "eps": (1e-4, lambda x: _pos(x) and x < 1, "a number in (0, 1) (BT stopping parameter ε)"),
+        "max_iter": (400, _posint, "an integer ≥ 1"),
+    },
+}
+TOP_LEVEL = {"name": ("custom", lambda x: isinstance(x, str) and x != "", "a non-empty string"),
+             "description": ("", lambda x: isinstance(x, str), "a string")}
+
+
+@dataclass
+class Config:
+    """A validated configuration; ``data`` is the resolved nested dict, ``source`` where it came from."""
+
+    data: dict
+    source: str = "<dict>"
+
+    def __getitem__(self, key):
+        return self.data[key]
+
+    @property
+    def name(self) -> str:
+        return self.data["name"]
+
+    def with_updates(self, updates: dict) -> "Config":
+        """A new validated Config with nested keys of ``updates`` replaced."""
+        merged = copy.deepcopy(self.data)
+        for sec, vals in updates.items():
+            if isinstance(vals, dict) and isinstance(merged.get(sec), dict):
+                merged[sec].update(copy.deepcopy(vals))
+            else:
+                merged[sec] = copy.deepcopy(vals)
+        return validate(merged, self.source)
+
+    def to_toml(self) -> str:
+        import tomli_w
+        return tomli_w.dumps(self.data)
+
+
+def _check_target(target, d1d2, problems):
+    kind = target.get("kind")
+    allowed = {"constant": {"kind", "value"},
+               "step": {"kind", "default", "regions"},
+               "values": {"kind", "values"},
+               "design": {"kind", "alpha"}}
+    if kind not in allowed:
+        problems.append(f"objective.target.kind = {kind!r}: must be one of {sorted(allowed)}")
+        return
+    for k in set(target) - allowed[kind]:
+        problems.append(f"objective.target.{k}: unknown key for kind {kind!r} (allowed: {sorted(allowed[kind])})")
+    if kind == "constant" and not _finite(target.get("value", 0.0)):
+        problems.append("objective.target.value: must be a finite number")
+    if kind == "step":
+        if not _finite(target.get("default", 0.0)):
+            problems.append("objective.target.default: must be a finite number")
+        regions = target.get("regions", [])
+        if not isinstance(regions, list):
+            problems.append("objective.target.regions: must be a list of tables {x1=[lo,hi], x2=[lo,hi], value}")
+            regions = []
+        for n, r in enumerate(regions):
+            if not isinstance(r, dict) or set(r) - {"x1", "x2", "value"} or "value" not in r:
+                problems.append(f"objective.target.regions[{n}]: must be a table with keys x1, x2 (optional) and value")
+                continue
+            for ax in ("x1", "x2"):
+                iv = r.get(ax, [-math.inf, math.inf])
+                if not (isinstance(iv, list) and len(iv) == 2 and all(isinstance(v, _NUM) for v in iv) and iv[0] <= iv[1]):
+                    problems.append(f"objective.target.regions[{n}].{ax}: must be [lo, hi] with lo ≤ hi")
+            if not _finite(r["value"]):
+                problems.append(f"objective.target.regions[{n}].value: must be a finite number")
+    if kind == "values":
+        vals = target.get("values")
+        if not (isinstance(vals, list) and all(_finite(v) for v in vals)):
+            problems.append("objective.target.values: must be a list of numbers, one per contact node")
+    if kind == "design":
+        _check_matrix(target.get("alpha"), d1d2, "objective.target.alpha", problems)
+
+
+def _check_matrix(value, d1d2, key, problems):
+    if d1d2 is None:
+        return
+    n1, n2 = d1d2[0] + 1, d1d2[1] + 1
+    if _finite(value):
+        return
+    ok = (isinstance(value, list) and len(value) == n1
+          and all(isinstance(r, list) and len(r) == n2 and all(_finite(v) for v in r) for r in value))
+    if not ok:
+        problems.append(f"{key}: must be a number or a {n1}×{n2} nested list of numbers")
+
+
+def validate(raw: dict, source: str = "<dict>") -> Config:
+    """Fill defaults and check every key; raise ConfigError listing all problems at once."""
+    if not isinstance(raw, dict):
+        raise ConfigError([f"{source}: the configuration must be a table"])
+    problems = []
+    data = {}
+    for key in raw:
+        if key not in SCHEMA and key not in TOP_LEVEL:
+            problems.append(f"{key}: unknown section (allowed: {', '.join(list(TOP_LEVEL) + list(SCHEMA))})")
+    for key, (default, check, desc) in TOP_LEVEL.items():
+        val = raw.get(key, default)
+        if not check(val):
+            problems.append(f"{key} = {val!r}: must be {desc}")
+        data[key] = val
+    for sec, keys in SCHEMA.items():
+        given = raw.get(sec, {})
+        if not isinstance(given, dict):
+            problems.append(f"[{sec}]: must be a table")
+            given = {}
+        for k in given:
+            if k not in keys:
+                problems.append(f"{sec}.{k}: unknown key (allowed: {', '.join(keys)})")
+        out = {}
+        for k, (default, check, desc) in keys.items():
+            val = given.get(k, copy.deepcopy(default))
+            try:
+                ok = check(val)
+            except Exception:
+                ok = False
+            if not ok:
+                problems.append(f"{sec}.{k} = {val!r}: must be {desc}")
+            out[k] = float(val) if isinstance(val, int) and isinstance(default, float) and not isinstance(val, bool) else val
+        data[sec] = out
+    deg = data["design"]["degree"]
+    d1d2 = deg if isinstance(deg, list) and len(deg) == 2 and all(_posint(v) for v in deg) else None
+    _check_matrix(data["design"]["initial"], d1d2, "design.initial", problems)
+    if isinstance(data["objective"]["target"], dict):
+        _check_target(data["objective"]["target"], d1d2, problems)
+    g = data["geometry"]
+    if _pos(g["c"]) and _pos(data["design"]["C0"]) and data["design"]["C0"] >= g["c"]:
+        problems.append(f"design.C0 = {data['design']['C0']}: must be < geometry.c = {g['c']} "
+                        "(a surface reaching the top face inverts the mesh)")
+    if problems:
+        raise ConfigError([f"{source}: {p}" for p in problems])
+    return Config(data, source)
+
+
+def load_config(path_or_name) -> Config:
+    """Load a TOML file or a built-in example (``example1``, ``example2``, ``example3``)."""
+    if isinstance(path_or_name, Config):
+        return path_or_name
+    if isinstance(path_or_name, dict):
+        return validate(path_or_name)
+    name = str(path_or_name)
+    if name in EXAMPLES:
+        text = resources.files("contactopt").joinpath("examples", f"{name}.toml").read_text()
+        source = f"built-in {name}"
+    else:
+        p = Path(name)
+        if not p.exists():
+            raise ConfigError([f"{name}: no such file, and not a built-in example ({', '.join(EXAMPLES)})"])
+        if p.is_dir():
+            raise ConfigError([f"{name}: is a directory, expected a TOML file"])
+        text = p.read_text()
+        source = str(p)
+    try:
+        raw = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        raise ConfigError([f"{source}: not valid TOML: {exc}"]) from None
+    return validate(raw, source)

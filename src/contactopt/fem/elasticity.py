@@ -1,0 +1,163 @@
+"""Vectorised Q1 linear elasticity: stiffness assembly and its design-derivative contractions.
+
+Conventions: displacement DOF 3n + m (node n, component m ∈ {x1, x2, x3}); element-local DOF
+3a + m for vertex a. The stiffness is the matrix of a(u, v) = ∫ σ(u):ε(v) dx (paper (2.8)) with
+isotropic Hooke's law σ = λ tr(ε) I + 2μ ε. Dirichlet DOFs are eliminated: A acts on the free
+DOFs only. The CSR index pattern is built once; a new design only recomputes values
+(``values → np.bincount`` onto the pattern).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import scipy.sparse as sp
+
+from ..errors import MeshError
+
+_G = 1.0 / np.sqrt(3.0)
+GAUSS_1D = np.array([-_G, _G])
+
+
+def lame(E: float, nu: float) -> tuple[float, float]:
+    """Lamé constants (λ, μ) from Young's modulus and Poisson's ratio."""
+    return E * nu / ((1 + nu) * (1 - 2 * nu)), E / (2 * (1 + nu))
+
+
+def hex_shape(q: np.ndarray):
+    """Q1 shape functions N (Q, 8) and gradients dN/dξ (Q, 8, 3) at reference points q (Q, 3) in [−1,1]³."""
+    from ..mesh.hexmesh import HEX_OFFSETS
+    signs = 2.0 * HEX_OFFSETS - 1.0                      # vertex coordinates in [−1,1]³
+    q = np.atleast_2d(np.asarray(q, float))
+    lin = 1.0 + q[:, None, :] * signs[None, :, :]         # (Q, 8, 3) factors (1 ± ξ_m)
+    N = np.prod(lin, axis=2) / 8.0
+    dN = np.empty((q.shape[0], 8, 3))
+    for m in range(3):
+        others = np.prod(np.delete(lin, m, axis=2), axis=2)
+        dN[:, :, m] = signs[None, :, m] * others / 8.0
+    return N, dN
+
+
+def gauss_hex(order: int = 2):
+    """Tensor Gauss–Legendre rule on [−1,1]³: points (order³, 3) and weights, x fastest."""
+    x, w = np.polynomial.legendre.leggauss(order)
+    q = np.array([(a, b, c) for c in x for b in x for a in x])
+    wq = np.array([wa * wb * wc for wc in w for wb in w for wa in w])
+    return q, wq
+
+
+def hex_reference():
+    """Q1 shape functions N (8 gp, 8), gradients dN/dξ (8 gp, 8, 3), weights (8,): 2×2×2 Gauss."""
+    q, w = gauss_hex(2)
+    N, dN = hex_shape(q)
+    return N, dN, w
+
+
+def element_geometry(X: np.ndarray, dN: np.ndarray):
+    """Physical gradients G = dN/dx (E, Q, 8, 3) and det J (E, Q) for element coordinates X (E, 8, 3).
+
+    Raises MeshError if any Jacobian determinant is not positive (inverted element).
+    """
+    J = np.einsum("eam,qan->eqmn", X, dN)                 # J_mn = ∂x_m/∂ξ_n
+    det = np.linalg.det(J)
+    if not np.all(det > 0):
+        bad = np.unique(np.nonzero(~(det > 0))[0])
+        raise MeshError(f"{bad.size} element(s) inverted or degenerate (det J ≤ 0), first: {bad[:5].tolist()}")
+    Jinv = np.linalg.inv(J)
+    G = np.einsum("qan,eqnm->eqam", dN, Jinv)             # ∂N_a/∂x_m = Σ_n ∂N_a/∂ξ_n ∂ξ_n/∂x_m
+    return G, det
+
+
+class ElasticityAssembler:
+    """Assembly of A on the free DOFs for a fixed topology (elements, Dirichlet set)."""
+
+    def __init__(self, elements: np.ndarray, n_nodes: int, fixed_dofs: np.ndarray, E: float, nu: float):
+        self.elements = np.asarray(elements)
+        self.n_nodes = int(n_nodes)
+        self.n_full = 3 * self.n_nodes
+        self.lam, self.mu = lame(E, nu)
+        self.N, self.dN, self.w = hex_reference()
+        fixed = np.zeros(self.n_full, bool)
+        fixed[np.asarray(fixed_dofs, int)] = True
+        self.free = np.flatnonzero(~fixed)
+        self.full_to_free = np.full(self.n_full, -1)
+        self.full_to_free[self.free] = np.arange(self.free.size)
+        self.n_free = self.free.size
+        edofs = (3 * self.elements[:, :, None] + np.arange(3)).reshape(len(self.elements), 24)
+        self.edofs = edofs
+        fr = self.full_to_free[edofs]
+        rows = np.broadcast_to(fr[:, :, None], (len(fr), 24, 24)).ravel()
+        cols = np.broadcast_to(fr[:, None, :], (len(fr), 24, 24)).ravel()
+        keep = (rows >= 0) & (cols >= 0)
+        self._keep = keep
+        key = rows[keep].astype(np.int64) * self.n_free + cols[keep]
+        ukey, self._inverse = np.unique(key, return_inverse=True)
+        self._indices = (ukey % self.n_free).astype(np.int32)
+        r = ukey // self.n_free
+        self._indptr = np.concatenate([[0], np.cumsum(np.bincount(r, minlength=self.n_free))]).astype(np.int32)
+        self._nnz = ukey.size
+
+    # ------------------------------------------------------------------ stiffness
+    def element_matrices(self, X: np.ndarray) -> np.ndarray:
+        """Element stiffness matrices (E, 24, 24) for element coordinates X (E, 8, 3)."""
+        G, det = element_geometry(X, self.dN)
+        wd = det * self.w
+        E = X.shape[0]
+        Gw = (G * wd[:, :, None, None]).reshape(E, -1, 24)
+        T = np.einsum("eqx,eqy->exy", Gw, G.reshape(E, -1, 24)).reshape(E, 8, 3, 8, 3)
+        K = self.lam * T + self.mu * T.transpose(0, 1, 4, 3, 2)
+        lap = np.einsum("eakbk->eab", T)
+        K[:, :, np.arange(3), :, np.arange(3)] += self.mu * lap[None]
+        return K.reshape(E, 24, 24)
+
+    def stiffness(self, coords: np.ndarray) -> sp.csr_matrix:
+        """A on the free DOFs (CSR, symmetric positive definite when Γ_u is non-empty)."""
+        Ke = self.element_matrices(coords[self.elements])
+        data = np.bincount(self._inverse, weights=Ke.ravel()[self._keep], minlength=self._nnz)
+        return sp.csr_matrix((data, self._indices, self._indptr), shape=(self.n_free, self.n_free))
+
+    def full_stiffness(self, coords: np.ndarray) -> sp.csr_matrix:
+        """A on all 3·n_nodes DOFs, without Dirichlet elimination (singular: 6 rigid modes)."""
+        Ke = self.element_matrices(coords[self.elements])
+        r = np.repeat(self.edofs, 24, axis=1).ravel()
+        c = np.tile(self.edofs, (1, 24)).ravel()
+        return sp.csr_matrix((Ke.ravel(), (r, c)), shape=(self.n_full, self.n_full))
+
+    # ------------------------------------------------------------------ vectors
+    def to_full(self, u_free: np.ndarray) -> np.ndarray:
+        """Extend a free-DOF vector by zeros on the Dirichlet DOFs."""
+        u = np.zeros(self.n_full)
+        u[self.free] = u_free
+        return u
+
+    # ------------------------------------------------------------------ design derivatives
+    def stiffness_shape_contraction(self, coords: np.ndarray, u_full: np.ndarray, v_full: np.ndarray) -> np.ndarray:
+        """vᵀ (∂A/∂x_{c,m}) u for every node c and coordinate m: array (n_nodes, 3).
+
+        Shape derivative of a(u, v) = ∫ C∇u:∇v for the nodal mesh velocity V = N_c e_m:
+            ∫ [ (σ(u):∇v) div V − σ(u):(∇v ∇V) − σ(v):(∇u ∇V) ] dx,
+        evaluated element by element with the same 2×2×2 Gauss rule as the assembly, so it is the
+        exact derivative of the assembled matrix (DESIGN.md §2).
+        """
+        X = coords[self.elements]
+        G, det = element_geometry(X, self.dN)
+        wd = det * self.w
+        ue = u_full[self.edofs].reshape(-1, 8, 3)
+        ve = v_full[self.edofs].reshape(-1, 8, 3)
+        Hu = np.einsum("eai,eqaj->eqij", ue, G)
+        Hv = np.einsum("eai,eqaj->eqij", ve, G)
+        su = self._stress(Hu)
+        sv = self._stress(Hv)
+        energy = np.einsum("eqij,eqij->eq", su, Hv)
+        M = np.einsum("eqim,eqij->eqmj", Hv, su) + np.einsum("eqim,eqij->eqmj", Hu, sv)
+        dloc = energy[:, :, None, None] * G - np.einsum("eqmj,eqcj->eqcm", M, G)
+        de = np.einsum("eq,eqcm->ecm", wd, dloc)
+        out = np.zeros((self.n_nodes, 3))
+        for m in range(3):
+            out[:, m] = np.bincount(self.elements.ravel(), weights=de[:, :, m].ravel(), minlength=self.n_nodes)
+        return out
+
+    def _stress(self, H: np.ndarray) -> np.ndarray:
+        tr = np.einsum("...ii->...", H)
+        s = self.mu * (H + np.swapaxes(H, -1, -2))
+        s[..., np.arange(3), np.arange(3)] += self.lam * tr[..., None]
+        return s
