@@ -1,1 +1,28 @@
-__version__ = '0.1.0'
+"""contactopt: shape optimization of 3D elastic bodies in contact with Coulomb friction.
+
+Public interface (DESIGN.md §7): :func:`load_config`, :class:`ShapeProblem`, and the
+sub-packages ``contactopt.contact`` (``solve_local``) and ``contactopt.optimize``
+(``minimize_bundle``).
+"""
+
+from importlib.metadata import PackageNotFoundError, version
+
+from .config import Config, load_config
+from .errors import (CheckpointError, ConfigError, ContactNotConverged, ContactOptError,
+                     InfeasibleDesignError, MeshError, SolverError)
+
+try:
+    __version__ = version("contactopt")
+except PackageNotFoundError:  # pragma: no cover - running from a source tree
+    __version__ = "0.0.0"
+
+
+def __getattr__(name):
+    if name == "ShapeProblem":
+        from .problem import ShapeProblem
+        return ShapeProblem
+    raise AttributeError(name)
+
+
+__all__ = ["Config", "load_config", "ShapeProblem", "ContactOptError", "ConfigError",
+           "ContactNotConverged", "InfeasibleDesignError", "MeshError", "SolverError", "CheckpointError"]

@@ -44,3 +44,15 @@ class ContactNotConverged(SolverError):
 
 class CheckpointError(ContactOptError):
     """A checkpoint file is missing, corrupt or belongs to another run."""
+
+
+class OptimizerError(ContactOptError):
+    """The optimizer cannot proceed: empty feasible set, failed QP subproblem, bad oracle value."""
+
+
+class ProblemDataError(ContactOptError, ValueError):
+    """Invalid data of a contact problem: wrong shapes, non-finite entries, negative friction."""
+
+
+class FclibError(ContactOptError):
+    """A file that cannot be read as, or written to, an FCLIB local problem."""

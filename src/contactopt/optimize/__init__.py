@@ -1,0 +1,5 @@
+"""Nonsmooth optimization: the bundle-trust method over a polyhedron (DESIGN.md §7)."""
+
+from .bundle import BTOptions, BundleResult, BundleState, minimize_bundle
+
+__all__ = ["minimize_bundle", "BundleResult", "BundleState", "BTOptions"]

@@ -1,0 +1,166 @@
+"""Command-line interface: ``contactopt run | state | check-gradient | solve-fclib``.
+
+Only this module prints. Errors of the library (``ContactOptError``) end with a one-paragraph
+message on stderr and exit code 2; nothing is written for input that is rejected.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import logging
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+from .errors import ContactOptError, ConfigError
+
+log = logging.getLogger("contactopt")
+
+
+def _read_alpha(path: str, model) -> np.ndarray:
+    p = Path(path)
+    if not p.exists():
+        raise ConfigError([f"--alpha {path}: no such file"])
+    try:
+        if p.suffix == ".npy":
+            arr = np.load(p)
+        elif p.suffix == ".npz":
+            with np.load(p) as z:
+                arr = z["alpha"]
+        elif p.suffix == ".json":
+            obj = json.loads(p.read_text())
+            arr = np.asarray(obj["alpha"] if isinstance(obj, dict) else obj, float)
+        else:
+            arr = np.loadtxt(p, ndmin=1)
+    except (ValueError, KeyError, OSError) as exc:
+        raise ConfigError([f"--alpha {path}: cannot read a design from it ({exc})"]) from None
+    arr = np.asarray(arr, float)
+    if arr.size != model.n_design:
+        raise ConfigError([f"--alpha {path}: has {arr.size} numbers, the design has {model.n_design} "
+                           f"control points ({model.surface.shape[0]}×{model.surface.shape[1]})"])
+    return arr.reshape(-1)
+
+
+def _cmd_state(args) -> int:
+    from .io.statefiles import write_state
+    from .io.rundir import prepare_output_dir
+    from .problem import ShapeProblem
+    problem = ShapeProblem(args.config, method=args.method)
+    model = problem.model
+    alpha = _read_alpha(args.alpha, model) if args.alpha else model.initial_design()
+    model.admissible.require_feasible(alpha, tol=1e-8)
+    model.mesh.coordinates(alpha)                       # mesh validity before any output
+    out = prepare_output_dir(args.out or f"state-{problem.config.name}", overwrite=args.overwrite)
+    t0 = time.perf_counter()
+    state = problem.solve_state(alpha)
+    bound = problem.uniqueness_bound(alpha)
+    state.info["uniqueness_bound_F0"] = bound
+    write_state(out, model, state, config=problem.config)
+    s = state.summary()
+    print(f"state of {problem.config.name} ({problem.config.source}) — method {state.method}, "
+          f"backend {s.get('backend')}")
+    print(f"  iterations {state.iterations}, residual {state.residual:.2e}, contact conditions {state.complementarity:.2e}")
+    print(f"  nodes: " + ", ".join(f"{k} {v}" for k, v in s['node_classes'].items()))
+    print(f"  total normal force {s['total_normal_force']:.6g}, max {s['max_normal_force']:.4g}")
+    print(f"  uniqueness bound (3.16) F0 ≈ {bound:.3g} (F = {state.friction}; pessimistic)")
+    print("  time: " + ", ".join(f"{k} {v:.3f}s" for k, v in state.timings.items()))
+    print(f"  wrote {out}/ (state.json, state.npz, body.vtu, lambda.png, classes.png) in {time.perf_counter() - t0:.1f}s")
+    return 0
+
+
+def _cmd_check_gradient(args) -> int:
+    from .problem import ShapeProblem
+    from .sensitivity.check import check_gradient
+    problem = ShapeProblem(args.config)
+    model = problem.model
+    alpha = _read_alpha(args.alpha, model) if args.alpha else model.initial_design()
+    model.admissible.require_feasible(alpha, tol=1e-8)
+    rep = check_gradient(problem, alpha, seed=args.seed, n_directions=args.directions, h=args.h)
+    print(f"gradient check of {problem.config.name}: Θ = {rep.value:.8e}, degenerate nodes {rep.n_degenerate} "
+          f"{rep.counts}")
+    print(f"{'dir':>4} {'finite difference':>18} {'predicted':>18} {'rel. diff':>10}")
+    for k, (fd, pr, rel) in enumerate(zip(rep.fd, rep.predicted, rep.rel_errors)):
+        print(f"{k:4d} {fd:18.10e} {pr:18.10e} {rel:10.2e}")
+    print("Taylor remainder |Θ(α+hd) − Θ(α) − h ξᵀd| (direction 0):")
+    for h, r in zip(rep.taylor_h, rep.taylor_remainder):
+        print(f"  h = {h:9.2e}   remainder {r:10.3e}")
+    print(f"  observed order {rep.taylor_rate:.2f} (2 expected where Θ is smooth)")
+    print(("PASSED" if rep.passed else "FAILED") + f": max relative difference {max(rep.rel_errors):.2e} "
+          f"(tolerance {rep.tol:.0e})")
+    return 0 if rep.passed else 1
+
+
+def _cmd_solve_fclib(args) -> int:
+    from .io.fclib import solve_fclib
+    t0 = time.perf_counter()
+    res = solve_fclib(args.file, method=args.method, tol=args.tol)
+    dt = time.perf_counter() - t0
+    print(f"{args.file}: method {res.method}, error {res.error:.3e}, iterations {res.iterations}, "
+          f"converged {res.converged}, time {dt:.3f}s")
+    return 0 if res.converged else 1
+
+
+def _cmd_run(args) -> int:
+    from .runner import run_from_cli
+    return run_from_cli(args)
+
+
+def build_parser() -> argparse.ArgumentParser:
+    ap = argparse.ArgumentParser(prog="contactopt", description=(
+        "Shape optimization of 3D elastic bodies in unilateral contact with Coulomb friction "
+        "(Beremlijski, Haslinger, Kočvara, Kučera, Outrata, SIAM J. Optim. 2009)."))
+    ap.add_argument("-v", "--verbose", action="count", default=0, help="more log output (-vv for debug)")
+    sub = ap.add_subparsers(dest="command", required=True)
+
+    r = sub.add_parser("run", help="optimize the contact surface of a configuration")
+    r.add_argument("config", help="TOML file or built-in example (example1, example2, example3)")
+    r.add_argument("--out", help="output directory (default runs/<name>)")
+    r.add_argument("--max-iter", type=int, help="maximum bundle-trust iterations")
+    r.add_argument("--eps", type=float, help="BT stopping parameter ε")
+    r.add_argument("--resume", action="store_true", help="continue the run in --out from its checkpoint")
+    r.add_argument("--overwrite", action="store_true", help="replace the contents of a non-empty --out")
+    r.set_defaults(func=_cmd_run)
+
+    s = sub.add_parser("state", help="solve the contact problem for one design")
+    s.add_argument("config")
+    s.add_argument("--alpha", help="design file (.json, .npy, .npz with 'alpha', or text); default α0")
+    s.add_argument("--out", help="output directory (default state-<name>)")
+    s.add_argument("--method", choices=["newton", "fixed-point"], help="contact solver")
+    s.add_argument("--overwrite", action="store_true")
+    s.set_defaults(func=_cmd_state)
+
+    g = sub.add_parser("check-gradient", help="subgradient vs finite differences")
+    g.add_argument("config")
+    g.add_argument("--seed", type=int, default=0)
+    g.add_argument("--directions", type=int, default=10)
+    g.add_argument("--h", type=float, default=1e-4, help="finite-difference step (relative to |α|)")
+    g.add_argument("--alpha", help="design file; default α0")
+    g.set_defaults(func=_cmd_check_gradient)
+
+    f = sub.add_parser("solve-fclib", help="solve an FCLIB local frictional-contact problem")
+    f.add_argument("file")
+    f.add_argument("--method", default="newton", choices=["newton", "fixed-point"])
+    f.add_argument("--tol", type=float, default=1e-8)
+    f.set_defaults(func=_cmd_solve_fclib)
+    return ap
+
+
+def main(argv=None) -> int:
+    args = build_parser().parse_args(argv)
+    level = [logging.WARNING, logging.INFO, logging.DEBUG][min(args.verbose, 2)]
+    logging.basicConfig(level=level, format="%(levelname)s %(name)s: %(message)s")
+    try:
+        return args.func(args)
+    except ContactOptError as exc:
+        print(f"contactopt: error: {exc}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        print("contactopt: interrupted", file=sys.stderr)
+        return 130
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,155 @@
+"""The local (Delassus) form of the contact problem with Coulomb friction and its driver.
+
+Problem (FCLIB / Siconos convention): given the Delassus operator ``W`` (``3p x 3p``), the
+free displacement ``q`` (``3p``) and friction coefficients ``mu`` (``p``), find ``r, u`` with
+
+    u = W r + q,   K_mu ∋ r  ⊥  u + mu ||u_T|| e_N ∈ K_mu*,
+
+contact by contact, each ordered (normal, tangent1, tangent2). In the shape problem ``r`` is
+the contact force on the body (``r_N = lambda >= 0``, ``r_T = tau``), ``u`` the contact
+displacement with the initial gap added to its normal component, ``W = S^{-1}`` the inverse of
+the condensed stiffness (the paper's ``Q`` in (5.1)). The conditions say: ``r_N >= 0``,
+``u_N >= 0``, ``r_N u_N = 0``, ``||r_T|| <= mu r_N`` and ``r_T = -mu r_N u_T/||u_T||`` where
+``u_T != 0``.
+
+:func:`solve_local` dispatches to :func:`contactopt.contact.newton.solve_newton` (semismooth
+Newton, default) or :func:`contactopt.contact.fixed_point.solve_fixed_point` (the paper's
+successive approximations, Cor. 3.9, with Kučera's Algorithm 1 inside).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+import scipy.sparse as sp
+import scipy.sparse.linalg as spla
+
+from ..errors import ProblemDataError
+from .cones import node_class
+
+__all__ = ["LocalResult", "solve_local", "check_problem"]
+
+METHODS = ("newton", "fixed-point")
+
+
+@dataclass
+class LocalResult:
+    """Outcome of a local contact solve.
+
+    Attributes
+    ----------
+    r, u : reactions and displacements (``u = W r + q``), stacked per contact (N, T1, T2).
+    iterations : main iterations: Newton steps (all proximal rounds together) for
+        ``"newton"``, Tresca solves (outer successive approximations) for ``"fixed-point"``.
+    error : Siconos error of the returned ``r`` (see :func:`contactopt.contact.cones.siconos_error`).
+    converged : ``error <= tol``.
+    history : error after each main iteration (``len(history) == iterations``).
+    method, time_s, message : solver name, wall time, a stop message naming the criterion.
+    outer_iterations, inner_iterations : for ``"fixed-point"`` the Tresca solves and the total
+        number of iterations of Kučera's algorithm; for ``"newton"`` the proximal-point rounds
+        (0 when plain Newton sufficed) and the Newton steps.
+    stats : method-specific counters (factorizations, line-search evaluations, step types...).
+    """
+
+    r: np.ndarray
+    u: np.ndarray
+    iterations: int
+    error: float
+    converged: bool
+    history: list[float]
+    method: str
+    time_s: float
+    message: str = ""
+    outer_iterations: int = 0
+    inner_iterations: int = 0
+    stats: dict = field(default_factory=dict)
+
+    @property
+    def success(self) -> bool:
+        """Alias of ``converged`` (scipy style)."""
+        return self.converged
+
+    def node_classes(self, mu, *, rtol: float = 1e-8) -> np.ndarray:
+        """Table 4.1 class of every contact (see :func:`contactopt.contact.cones.node_class`)."""
+        return node_class(self.r, self.u, mu, rtol=rtol)
+
+
+def check_problem(W, q, mu, *, r0=None):
+    """Validate and normalise ``(W, q, mu, r0)``; raise :class:`ProblemDataError` listing problems.
+
+    ``W`` may be a dense array, a scipy sparse matrix or a ``LinearOperator`` (the latter is
+    accepted by the fixed-point solver only). Returns ``(W, q, mu, r0)`` with ``q`` a float
+    vector of length ``3p``, ``mu`` a float vector of length ``p`` and ``r0`` ``None`` or a
+    float vector of length ``3p``.
+    """
+    problems = []
+    q = np.asarray(q, dtype=float)
+    if q.ndim != 1 or q.size == 0 or q.size % 3:
+        problems.append(f"q must be a non-empty vector of length 3p, got shape {q.shape}")
+    elif not np.all(np.isfinite(q)):
+        problems.append("q has non-finite entries")
+    n = q.size
+    p = n // 3
+    mu_arr = np.asarray(mu, dtype=float)
+    if mu_arr.ndim == 0:
+        mu_arr = np.full(p, float(mu_arr))
+    if mu_arr.shape != (p,):
+        problems.append(f"mu must be a scalar or have length p = {p}, got shape {mu_arr.shape}")
+    elif not np.all(np.isfinite(mu_arr)) or np.any(mu_arr < 0):
+        problems.append("mu must be finite and non-negative")
+    if isinstance(W, spla.LinearOperator):
+        if W.shape != (n, n):
+            problems.append(f"W must be {n} x {n}, got {W.shape}")
+    elif sp.issparse(W):
+        if W.shape != (n, n):
+            problems.append(f"W must be {n} x {n}, got {W.shape}")
+        elif not np.all(np.isfinite(W.data)):
+            problems.append("W has non-finite entries")
+        W = W.tocsr().astype(float)
+    else:
+        W = np.asarray(W, dtype=float)
+        if W.shape != (n, n):
+            problems.append(f"W must be {n} x {n}, got {W.shape}")
+        elif not np.all(np.isfinite(W)):
+            problems.append("W has non-finite entries")
+    if r0 is not None:
+        r0 = np.asarray(r0, dtype=float)
+        if r0.shape != (n,):
+            problems.append(f"r0 must have length {n}, got shape {r0.shape}")
+        elif not np.all(np.isfinite(r0)):
+            problems.append("r0 has non-finite entries")
+    if problems:
+        raise ProblemDataError("invalid contact problem: " + "; ".join(problems))
+    return W, q, mu_arr, r0
+
+
+def solve_local(W, q, mu, *, method: str = "newton", tol: float = 1e-8, max_iter=None,
+                r0=None, raise_on_failure: bool = True, **options) -> LocalResult:
+    """Solve the local Coulomb friction problem ``u = W r + q``, ``K_mu ∋ r ⊥ u~ ∈ K_mu*``.
+
+    Parameters
+    ----------
+    W : (3p, 3p) Delassus operator (dense, sparse, or ``LinearOperator`` for fixed-point).
+    q : (3p,) free displacement/velocity; per contact (normal, tangent1, tangent2).
+    mu : friction coefficient, scalar or (p,).
+    method : ``"newton"`` (semismooth Alart–Curnier Newton with a proximal fallback) or
+        ``"fixed-point"`` (successive approximations of Cor. 3.9, each a Tresca problem (5.1)
+        solved by Kučera's Algorithm 1).
+    tol : target Siconos error.
+    max_iter : Newton steps / Tresca solves; method default when ``None``.
+    r0 : warm start (reactions).
+    raise_on_failure : raise :class:`contactopt.errors.ContactNotConverged` (carrying the error
+        history) when ``tol`` is not reached; with ``False`` return ``converged=False`` instead.
+    options : passed on to the method (see ``solve_newton`` and ``solve_fixed_point``).
+    """
+    if method == "newton":
+        from .newton import solve_newton as solver
+    elif method in ("fixed-point", "fixed_point", "fp"):
+        from .fixed_point import solve_fixed_point as solver
+    else:
+        raise ProblemDataError(f"unknown method {method!r}; choose one of {', '.join(METHODS)}")
+    kwargs = dict(tol=tol, r0=r0, raise_on_failure=raise_on_failure, **options)
+    if max_iter is not None:
+        kwargs["max_iter"] = max_iter
+    return solver(W, q, mu, **kwargs)

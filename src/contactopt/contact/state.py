@@ -1,0 +1,132 @@
+"""The contact state of one design and the node classes of Table 4.1.
+
+Conventions (every array is in contact-node order, see :mod:`contactopt.fem.model`):
+
+* ``u_c[m] = (u1, u2, u3)``: displacement of contact node m; tangential part u_t = (u1, u2),
+  normal part u_ν = u3 (the foundation x3 ≤ 0 has normal e3);
+* ``gap[m] = ϑ_α(x'_m)``: initial distance to the foundation; non-penetration u_ν + g ≥ 0;
+* ``lam[m] = λ_m = (S u_c − ℓ)_ν ≥ 0``: normal contact force on the body (paper (3.17));
+* ``tau[m] = τ_m = −(S u_c − ℓ)_t``: the paper's tangential contact force, so that
+  ‖τ_m‖ ≤ F λ_m and u_t ≠ 0 ⇒ τ_m = F λ_m u_t/‖u_t‖ (the friction force acting on the body
+  is −τ_m, opposite to the slip).
+
+Table 4.1 classes of node m, with a = (u_t, u_ν, λ) and b = (τ, 0, −(u_ν + g)):
+
+    L   no contact (λ = 0, u_ν + g > 0)          M1  sliding (u_t ≠ 0) with contact (λ > 0)
+    M2  sliding, weak contact (λ = 0 = u_ν + g)  M3+ sticking, ‖τ‖ < Fλ, contact
+    M3− weak sticking ‖τ‖ = Fλ, u_t = 0, contact M4  weak sticking, weak contact
+
+A quantity counts as zero below ``rtol`` times its scale: displacements against the largest of
+|u_c| and g, forces against the largest |λ| (or |ℓ| when nothing is in contact).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+CLASS_NAMES = ("L", "M1", "M2", "M3+", "M3-", "M4")
+CLASS_CODES = {name: k for k, name in enumerate(CLASS_NAMES)}
+DEGENERATE = ("M2", "M3-", "M4")
+
+
+def classify_nodes(u_c: np.ndarray, lam: np.ndarray, tau: np.ndarray, gap: np.ndarray,
+                   friction: float, rtol: float = 1e-7, force_scale: float | None = None) -> np.ndarray:
+    """Class code (index into CLASS_NAMES) of every contact node, Table 4.1."""
+    u_c = np.asarray(u_c).reshape(-1, 3)
+    u_scale = max(np.abs(u_c).max(initial=0.0), np.abs(gap).max(initial=0.0), 1e-300)
+    f_scale = force_scale if force_scale is not None else max(np.abs(lam).max(initial=0.0), 1e-300)
+    tol_u, tol_f = rtol * u_scale, rtol * f_scale
+    slide = np.linalg.norm(u_c[:, :2], axis=1) > tol_u
+    clearance = u_c[:, 2] + gap
+    pos_force = lam > tol_f
+    open_gap = clearance > tol_u
+    strong = pos_force & ~open_gap
+    weak = ~pos_force & ~open_gap
+    none = ~pos_force & open_gap
+    slack = friction * lam - np.linalg.norm(tau, axis=1)
+    stick_strong = ~slide & (slack > tol_f)
+    out = np.full(lam.shape, CLASS_CODES["M4"])
+    out[none] = CLASS_CODES["L"]
+    out[strong & slide] = CLASS_CODES["M1"]
+    out[weak & slide] = CLASS_CODES["M2"]
+    out[strong & stick_strong] = CLASS_CODES["M3+"]
+    out[strong & ~slide & ~stick_strong] = CLASS_CODES["M3-"]
+    out[weak & ~slide] = CLASS_CODES["M4"]
+    if friction == 0.0:
+        # without friction every node in contact "slides" freely: treat sticking as sliding
+        out[strong & ~slide] = CLASS_CODES["M1"]
+    return out
+
+
+def class_counts(codes: np.ndarray) -> dict:
+    return {name: int(np.sum(codes == k)) for k, name in enumerate(CLASS_NAMES)}
+
+
+@dataclass
+class State:
+    """Solution of the discrete Coulomb contact problem for one design (see module docstring)."""
+
+    alpha: np.ndarray
+    coords: np.ndarray            # node coordinates of Ω(α), (n_nodes, 3)
+    u: np.ndarray                 # full displacement, (3·n_nodes,), zero on Γ_u
+    u_c: np.ndarray               # (p, 3)
+    lam: np.ndarray               # (p,)
+    tau: np.ndarray               # (p, 2)
+    gap: np.ndarray               # (p,)
+    classes: np.ndarray           # (p,) codes into CLASS_NAMES
+    friction: float
+    method: str
+    iterations: int
+    residual: float               # Siconos error of the local problem
+    complementarity: float        # max violation of the contact conditions, relative
+    converged: bool
+    timings: dict = field(default_factory=dict)
+    info: dict = field(default_factory=dict)
+
+    @property
+    def class_names(self) -> np.ndarray:
+        return np.array(CLASS_NAMES, dtype=object)[self.classes]
+
+    @property
+    def counts(self) -> dict:
+        return class_counts(self.classes)
+
+    @property
+    def n_degenerate(self) -> int:
+        return int(sum(self.counts[n] for n in DEGENERATE))
+
+    def summary(self) -> dict:
+        """JSON-ready summary (no large arrays)."""
+        return {
+            "method": self.method, "iterations": int(self.iterations), "converged": bool(self.converged),
+            "residual": float(self.residual), "complementarity": float(self.complementarity),
+            "friction": float(self.friction), "node_classes": self.counts,
+            "degenerate_nodes": self.n_degenerate,
+            "total_normal_force": float(self.lam.sum()), "max_normal_force": float(self.lam.max(initial=0)),
+            "nodes_in_contact": int(np.sum(self.lam > 0)),
+            "max_displacement": float(np.abs(self.u).max(initial=0)),
+            "timings_s": {k: float(v) for k, v in self.timings.items()},
+            **{k: v for k, v in self.info.items() if isinstance(v, (int, float, str, bool))},
+        }
+
+
+def contact_conditions_violation(u_c, lam, tau, gap, friction) -> float:
+    """Largest violation of the conditions of DESIGN.md §4, relative to the force/displacement scales.
+
+    λ ≥ 0, u_ν + g ≥ 0, λ(u_ν + g) = 0, ‖τ‖ ≤ Fλ, and ‖τ‖·‖u_t‖ = Fλ·‖u_t‖ with τ ∥ u_t
+    (i.e. τ‖u_t‖ − Fλ u_t = 0).
+    """
+    u_c = np.asarray(u_c).reshape(-1, 3)
+    fs = max(np.abs(lam).max(initial=0.0), 1e-300)
+    us = max(np.abs(u_c).max(initial=0.0), np.abs(gap).max(initial=0.0), 1e-300)
+    clear = u_c[:, 2] + gap
+    ut = u_c[:, :2]
+    nut = np.linalg.norm(ut, axis=1)
+    v = [np.max(-lam, initial=0.0) / fs,
+         np.max(-clear, initial=0.0) / us,
+         np.max(np.abs(lam * clear), initial=0.0) / (fs * us),
+         np.max(np.linalg.norm(tau, axis=1) - friction * lam, initial=0.0) / fs,
+         np.max(np.linalg.norm(tau * nut[:, None] - friction * lam[:, None] * ut, axis=1), initial=0.0) / (fs * us)]
+    return float(max(v))

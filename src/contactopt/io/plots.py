@@ -1,0 +1,299 @@
+"""Figures of a state and of a run (PNG, matplotlib Agg; nothing is ever shown on screen).
+
+Figures are built with the object API (``matplotlib.figure.Figure`` on an Agg canvas), never
+through ``pyplot``: no global figure registry, nothing to leak, safe to call from worker threads.
+Every file is written atomically (temporary file + rename, :mod:`contactopt.io.atomic`).
+
+Contact-surface maps use the contact-node grid of :class:`~contactopt.mesh.hexmesh.HexMesh`:
+contact node m = i−1 + nx·j (i = 1..nx along x1, j = 0..ny along x2), so a per-contact-node array
+reshapes to (ny+1, nx). Each node is drawn as the cell of points closer to it than to any other
+node (its dual cell), clipped to the rectangle [0,a]×[0,b]; the strip next to the clamped edge
+x1 = 0 belongs to the clamped nodes and stays empty.
+
+Sign conventions of the plotted fields (see :mod:`contactopt.contact.state`): λ_m = (S u_c − ℓ)_ν ≥ 0
+is the normal contact force on the body; τ_m = −(S u_c − ℓ)_t with ‖τ_m‖ ≤ F λ_m; the gap is
+g_m = ϑ_α(x'_m) ≥ 0 above the foundation x3 ≤ 0.
+"""
+
+from __future__ import annotations
+
+import logging
+from pathlib import Path
+
+import numpy as np
+from matplotlib import colormaps
+from matplotlib.backends.backend_agg import FigureCanvasAgg
+from matplotlib.colors import BoundaryNorm, ListedColormap
+from matplotlib.figure import Figure
+from matplotlib.patches import Patch
+
+from ..contact.state import CLASS_NAMES
+from .atomic import atomic_output
+
+log = logging.getLogger(__name__)
+
+__all__ = ["contact_grid", "plot_contact_field", "plot_node_classes", "plot_stress_comparison",
+           "plot_surface", "plot_history", "CLASS_LABELS", "CLASS_COLORS"]
+
+# display names (typographic minus) and colours of Table 4.1's classes, in CLASS_NAMES order
+CLASS_LABELS = ("L", "M1", "M2", "M3+", "M3\u2212", "M4")
+CLASS_COLORS = ("#d9d9d9", "#1f77b4", "#9ecae1", "#d62728", "#ff9896", "#ff7f0e")
+CLASS_DESCRIPTIONS = ("no contact", "sliding, contact", "sliding, weak contact", "sticking",
+                      "weak sticking", "weak sticking, weak contact")
+DPI = 120
+
+
+def _new_figure(figsize) -> Figure:
+    fig = Figure(figsize=figsize, layout="constrained")
+    FigureCanvasAgg(fig)
+    return fig
+
+
+def _save(fig: Figure, path) -> Path:
+    path = Path(path)
+    with atomic_output(path) as tmp:
+        fig.savefig(tmp, format="png", dpi=DPI)
+    log.info("wrote %s", path)
+    return path
+
+
+def contact_grid(model, values=None):
+    """Node coordinates X1, X2 of the contact grid, each (ny+1, nx), and ``values`` reshaped alike.
+
+    Raises ``ValueError`` if ``values`` is not one number per contact node, or if the contact nodes
+    of the mesh are not the structured grid this module assumes.
+    """
+    mesh = model.mesh
+    nx, ny = mesh.nx, mesh.ny
+    pts = np.asarray(mesh.contact_points(), float)
+    if pts.shape != ((ny + 1) * nx, 2):
+        raise ValueError(f"expected {(ny + 1) * nx} contact nodes on an {nx}×{ny + 1} grid, got {pts.shape[0]}")
+    X1 = pts[:, 0].reshape(ny + 1, nx)
+    X2 = pts[:, 1].reshape(ny + 1, nx)
+    if not (np.allclose(X1, X1[:1]) and np.allclose(X2, X2[:, :1])):
+        raise ValueError("contact nodes are not ordered i fastest, then j")
+    if values is None:
+        return X1, X2, None
+    v = np.asarray(values)
+    if v.shape != (pts.shape[0],):
+        raise ValueError(f"expected one value per contact node ({pts.shape[0]},), got shape {v.shape}")
+    return X1, X2, v.reshape(ny + 1, nx)
+
+
+def _dual_edges(nodes: np.ndarray, lo: float, hi: float) -> np.ndarray:
+    """Cell edges around sorted node positions: midpoints inside, half a spacing outside, clipped."""
+    if nodes.size == 1:
+        return np.array([lo, hi])
+    mid = 0.5 * (nodes[1:] + nodes[:-1])
+    first = nodes[0] - 0.5 * (nodes[1] - nodes[0])
+    last = nodes[-1] + 0.5 * (nodes[-1] - nodes[-2])
+    return np.clip(np.concatenate([[first], mid, [last]]), lo, hi)
+
+
+def _map_axes(fig, model):
+    a, b = model.surface.a, model.surface.b
+    ax = fig.add_subplot()
+    ax.set_xlim(0.0, a)
+    ax.set_ylim(0.0, b)
+    ax.set_aspect("equal")
+    ax.set_xlabel("$x_1$")
+    ax.set_ylabel("$x_2$")
+    return ax
+
+
+def _pcolor(ax, model, grid, **kw):
+    X1, X2, _ = contact_grid(model)
+    e1 = _dual_edges(X1[0], 0.0, model.surface.a)
+    e2 = _dual_edges(X2[:, 0], 0.0, model.surface.b)
+    return ax.pcolormesh(e1, e2, grid, shading="flat", **kw)
+
+
+def _figsize_map(model, extra_width=1.6):
+    ratio = model.surface.b / model.surface.a
+    w = 6.0
+    return (w + extra_width, max(2.6, w * ratio + 1.1))
+
+
+def plot_contact_field(path, model, values, title, cmap="viridis", label=None, *,
+                       vmin=None, vmax=None) -> Path:
+    """Map of a per-contact-node field over the contact surface [0,a]×[0,b] (one cell per node).
+
+    ``values``: (p,) in contact-node order (e.g. λ, ‖τ‖, the gap). ``label`` names the colour bar.
+    Non-finite values are refused (``ValueError``). Returns the path of the PNG.
+    """
+    _, _, grid = contact_grid(model, values)
+    grid = np.asarray(grid, float)
+    if not np.all(np.isfinite(grid)):
+        raise ValueError(f"plot_contact_field({title!r}): the field has non-finite values")
+    fig = _new_figure(_figsize_map(model))
+    ax = _map_axes(fig, model)
+    mesh = _pcolor(ax, model, grid, cmap=cmap, vmin=vmin, vmax=vmax)
+    fig.colorbar(mesh, ax=ax, label=label or "", shrink=0.9)
+    ax.set_title(f"{title}\nmin {grid.min():.4g}, max {grid.max():.4g}", fontsize=10)
+    return _save(fig, path)
+
+
+def plot_node_classes(path, model, classes, title="Contact node classes (Table 4.1)") -> Path:
+    """Categorical map of the node classes (codes 0..5 into L, M1, M2, M3+, M3−, M4) with a legend.
+
+    The legend names every class with its count, including the classes that do not occur.
+    """
+    _, _, grid = contact_grid(model, classes)
+    codes = np.asarray(grid)
+    if codes.dtype.kind not in "iu" and not np.all(np.equal(np.mod(codes, 1), 0)):
+        raise ValueError("node classes must be integer codes")
+    codes = codes.astype(int)
+    if codes.size and (codes.min() < 0 or codes.max() >= len(CLASS_NAMES)):
+        raise ValueError(f"node class codes must lie in 0..{len(CLASS_NAMES) - 1}, "
+                         f"got {codes.min()}..{codes.max()}")
+    cmap = ListedColormap(CLASS_COLORS, name="node_classes")
+    norm = BoundaryNorm(np.arange(-0.5, len(CLASS_NAMES) + 0.5), cmap.N)
+    fig = _new_figure(_figsize_map(model, extra_width=2.6))
+    ax = _map_axes(fig, model)
+    _pcolor(ax, model, codes, cmap=cmap, norm=norm, edgecolors="white", linewidth=0.3)
+    handles = [Patch(facecolor=CLASS_COLORS[k], edgecolor="0.4",
+                     label=f"{CLASS_LABELS[k]} ({int(np.sum(codes == k))}): {CLASS_DESCRIPTIONS[k]}")
+               for k in range(len(CLASS_NAMES))]
+    ax.legend(handles=handles, loc="upper left", bbox_to_anchor=(1.02, 1.0), fontsize=8,
+              title="class (count)", title_fontsize=8, frameon=False)
+    ax.set_title(title, fontsize=10)
+    return _save(fig, path)
+
+
+def plot_stress_comparison(path, model, target, initial, optimal, *,
+                           titles=("target", "initial design", "optimal design"),
+                           zlabel="normal force $\\lambda$", suptitle=None) -> Path:
+    """Three 3D bar plots side by side, as in the paper's Figures 5.2–5.10, with shared z-limits.
+
+    ``target``, ``initial``, ``optimal``: one value per contact node (λ̄, λ(α0), λ(α_opt));
+    each bar stands on the dual cell of its contact node.
+    """
+    grids = [np.asarray(contact_grid(model, v)[2], float) for v in (target, initial, optimal)]
+    for name, g in zip(titles, grids):
+        if not np.all(np.isfinite(g)):
+            raise ValueError(f"plot_stress_comparison: {name!r} has non-finite values")
+    X1, X2, _ = contact_grid(model)
+    e1 = _dual_edges(X1[0], 0.0, model.surface.a)
+    e2 = _dual_edges(X2[:, 0], 0.0, model.surface.b)
+    # leave a gap between bars so the individual nodes stay readable
+    dx = 0.8 * np.diff(e1)
+    dy = 0.8 * np.diff(e2)
+    x0 = X1 - 0.5 * dx[None, :]
+    y0 = X2 - 0.5 * dy[:, None]
+    DX, DY = np.broadcast_to(dx[None, :], X1.shape), np.broadcast_to(dy[:, None], X1.shape)
+    zmin = min(0.0, *(g.min() for g in grids))
+    zmax = max(0.0, *(g.max() for g in grids))
+    if zmax == zmin:
+        zmax = zmin + 1.0
+    pad = 0.05 * (zmax - zmin)
+    cm = colormaps["viridis"]
+    fig = _new_figure((15.0, 4.8))
+    for n, (g, title) in enumerate(zip(grids, titles)):
+        ax = fig.add_subplot(1, 3, n + 1, projection="3d")
+        colors = cm((g.ravel() - zmin) / (zmax - zmin))
+        ax.bar3d(x0.ravel(), y0.ravel(), np.zeros(g.size), DX.ravel(), DY.ravel(), g.ravel(),
+                 color=colors, shade=True, linewidth=0.0)
+        ax.set_xlim(0.0, model.surface.a)
+        ax.set_ylim(0.0, model.surface.b)
+        ax.set_zlim(zmin - (pad if zmin < 0 else 0.0), zmax + pad)
+        ax.set_box_aspect((model.surface.a, model.surface.b, 0.8 * max(model.surface.a, model.surface.b)))
+        ax.set_xlabel("$x_1$")
+        ax.set_ylabel("$x_2$")
+        ax.set_zlabel(zlabel, fontsize=8, labelpad=12)
+        ax.tick_params(labelsize=7)
+        ax.tick_params(axis="z", pad=6)
+        ax.set_title(f"{title}\nsum {g.sum():.4g}, max {g.max():.4g}", fontsize=10)
+        ax.view_init(elev=28, azim=-60)
+    if suptitle:
+        fig.suptitle(suptitle)
+    return _save(fig, path)
+
+
+def plot_surface(path, model, alpha, *, resolution=(81, 41), title="Contact surface $\\vartheta_\\alpha$") -> Path:
+    """The contact surface ϑ_α(x1, x2) as a 3D surface with the Bézier control points and net.
+
+    Control point α_ij is drawn at (a·i/d1, b·j/d2, α_ij), where the linear-precision property of
+    Bernstein polynomials puts it (the surface of a planar control net is that plane).
+    """
+    surf = model.surface
+    A = surf.as_matrix(alpha)
+    if not np.all(np.isfinite(A)):
+        raise ValueError("plot_surface: the design has non-finite entries")
+    x1 = np.linspace(0.0, surf.a, resolution[0])
+    x2 = np.linspace(0.0, surf.b, resolution[1])
+    G1, G2 = np.meshgrid(x1, x2)
+    Z = surf.evaluate(A, G1.ravel(), G2.ravel()).reshape(G1.shape)
+    c1 = surf.a * np.arange(surf.d1 + 1) / max(surf.d1, 1)
+    c2 = surf.b * np.arange(surf.d2 + 1) / max(surf.d2, 1)
+    C1, C2 = np.meshgrid(c1, c2, indexing="ij")
+    fig = _new_figure((9.0, 6.0))
+    ax = fig.add_subplot(projection="3d")
+    sm = ax.plot_surface(G1, G2, Z, cmap="terrain", linewidth=0, antialiased=True, alpha=0.85)
+    ax.plot_wireframe(C1, C2, A, color="0.25", linewidth=0.6)
+    ax.scatter(C1.ravel(), C2.ravel(), A.ravel(), color="crimson", s=14, depthshade=False,
+               label=f"control points ({A.shape[0]}×{A.shape[1]})")
+    ax.set_xlabel("$x_1$")
+    ax.set_ylabel("$x_2$")
+    ax.set_zlabel("$x_3$")
+    lo, hi = min(0.0, Z.min(), A.min()), max(Z.max(), A.max())
+    ax.set_zlim(lo, hi + 0.05 * (hi - lo) if hi > lo else lo + 1.0)
+    ax.set_box_aspect((surf.a, surf.b, 0.6 * max(surf.a, surf.b)))
+    ax.legend(loc="upper left", fontsize=8)
+    fig.colorbar(sm, ax=ax, shrink=0.6, label="$\\vartheta_\\alpha$")
+    ax.set_title(f"{title}\nmin {Z.min():.4g}, max {Z.max():.4g}", fontsize=10)
+    ax.view_init(elev=25, azim=-60)
+    return _save(fig, path)
+
+
+def plot_history(path, history_rows, *, title="Convergence history") -> Path:
+    """Convergence of a bundle run: Θ per iteration (log axis), serious steps marked, stationarity.
+
+    ``history_rows``: list of dicts with keys ``iteration``, ``f`` (Θ at the trial point),
+    ``kind`` (``'serious'`` or ``'null'``) and optionally ``stationarity`` (None or missing on some
+    rows is fine). The line joins the serious steps, i.e. the accepted iterates. Θ is drawn on a
+    log axis when every value is positive, on a linear axis otherwise (logged).
+    """
+    rows = list(history_rows)
+    fig = _new_figure((8.0, 4.8))
+    ax = fig.add_subplot()
+    ax.set_xlabel("iteration")
+    ax.set_ylabel("$\\Theta$")
+    ax.set_title(title, fontsize=10)
+    if not rows:
+        ax.text(0.5, 0.5, "no iterations recorded", ha="center", va="center", transform=ax.transAxes)
+        log.warning("plot_history: empty history, writing an empty figure to %s", path)
+        return _save(fig, path)
+    missing = [n for n, r in enumerate(rows) if not {"iteration", "f", "kind"} <= set(r)]
+    if missing:
+        raise ValueError(f"plot_history: rows {missing[:5]} lack one of 'iteration', 'f', 'kind'")
+    it = np.array([float(r["iteration"]) for r in rows])
+    f = np.array([float(r["f"]) for r in rows])
+    kind = np.array([str(r["kind"]) for r in rows])
+    serious = kind == "serious"
+    finite = np.isfinite(f)
+    if not np.all(finite):
+        log.warning("plot_history: %d non-finite objective value(s) left out", int(np.sum(~finite)))
+    if np.all(f[finite] > 0):
+        ax.set_yscale("log")
+    else:
+        log.info("plot_history: objective values ≤ 0, using a linear axis")
+    ax.plot(it[serious & finite], f[serious & finite], "-o", color="C0", ms=3.5, lw=1.2,
+            label=f"serious steps ({int(serious.sum())})")
+    null = ~serious & finite
+    if np.any(null):
+        ax.plot(it[null], f[null], "x", color="0.55", ms=3.5, label=f"null steps ({int(null.sum())})")
+    stat = np.array([np.nan if r.get("stationarity") is None else float(r["stationarity"]) for r in rows])
+    has_stat = np.isfinite(stat)
+    handles, labels = ax.get_legend_handles_labels()
+    if np.any(has_stat):
+        ax2 = ax.twinx()
+        if np.all(stat[has_stat] > 0):
+            ax2.set_yscale("log")
+        ax2.plot(it[has_stat], stat[has_stat], "-", color="C3", lw=1.0, alpha=0.8, label="stationarity")
+        ax2.set_ylabel("stationarity measure", color="C3")
+        ax2.tick_params(axis="y", colors="C3")
+        h2, l2 = ax2.get_legend_handles_labels()
+        handles, labels = handles + h2, labels + l2
+    ax.legend(handles, labels, loc="upper right", fontsize=8)
+    ax.grid(True, which="major", alpha=0.3)
+    return _save(fig, path)

@@ -1,0 +1,181 @@
+"""The files of one state solve: state.json, state.npz, body.vtu, lambda.png, classes.png.
+
+:func:`write_state` is all-or-nothing: every file is first built in a temporary sibling directory
+of ``outdir``; only when all of them succeeded are they moved into ``outdir`` (each by an atomic
+rename; when ``outdir`` does not exist yet, the whole directory is renamed at once). A failure
+part-way leaves ``outdir`` exactly as it was and removes the temporary directory.
+
+Conventions of the stored contact arrays (contact-node order m = 0..p−1, see
+:mod:`contactopt.contact.state`):
+
+* ``u_c[m] = (u1, u2, u3)``: tangential part u_t = (u1, u2), normal part u_ν = u3 (the foundation
+  x3 ≤ 0 has normal e3);
+* ``gap[m] = ϑ_α(x'_m)``: initial distance to the foundation; non-penetration u_ν + g ≥ 0;
+* ``lam[m] = λ_m = (S u_c − ℓ)_ν ≥ 0``: normal contact force on the body (paper (3.17));
+* ``tau[m] = τ_m = −(S u_c − ℓ)_t``: the paper's tangential contact force, ‖τ_m‖ ≤ F λ_m and
+  u_t ≠ 0 ⇒ τ_m = F λ_m u_t/‖u_t‖ (the friction force on the body is −τ_m);
+* ``classes[m]``: index into ("L", "M1", "M2", "M3+", "M3-", "M4") of Table 4.1.
+"""
+
+from __future__ import annotations
+
+import json
+import logging
+import os
+import shutil
+import tempfile
+from pathlib import Path
+
+import numpy as np
+
+from ..contact.state import CLASS_NAMES, State
+from . import plots, vtk
+from .atomic import atomic_savez, atomic_write_json, fsync_dir, to_jsonable
+
+log = logging.getLogger(__name__)
+
+__all__ = ["STATE_FILES", "write_state", "read_state_npz", "state_json"]
+
+STATE_FILES = ("state.json", "state.npz", "body.vtu", "lambda.png", "classes.png")
+FORMAT_VERSION = 1
+
+CONVENTIONS = {
+    "ordering": "contact-node order m = 0..p-1 (mesh node set 'contact': i fastest, then j, i >= 1)",
+    "u_c": "(u1, u2, u3): tangential u_t = (u1, u2), normal u_nu = u3; foundation x3 <= 0 with normal e3",
+    "gap": "g_m = theta_alpha(x'_m) >= 0; non-penetration u_nu + g >= 0",
+    "lam": "lambda_m = (S u_c - l)_nu >= 0: normal contact force on the body (paper (3.17))",
+    "tau": "tau_m = -(S u_c - l)_t, |tau_m| <= F lambda_m; friction force on the body is -tau_m",
+    "classes": "index into class_names (Table 4.1)",
+    "alpha": "control points alpha_ij, (d1+1) x (d2+1), row i along x1",
+}
+
+
+def state_json(model, state: State, config=None) -> dict:
+    """The content of state.json: summary, design, contact arrays as lists, conventions."""
+    doc = {
+        "format_version": FORMAT_VERSION,
+        "summary": state.summary(),
+        "alpha": model.surface.as_matrix(state.alpha).tolist(),
+        "n_nodes": int(model.mesh.n_nodes),
+        "n_contact": int(model.n_contact),
+        "class_names": list(CLASS_NAMES),
+        "conventions": CONVENTIONS,
+        "contact": {
+            "node": np.asarray(model.contact_nodes).tolist(),
+            "x1": model.mesh.contact_points()[:, 0].tolist(),
+            "x2": model.mesh.contact_points()[:, 1].tolist(),
+            "lam": np.asarray(state.lam, float).tolist(),
+            "tau": np.asarray(state.tau, float).tolist(),
+            "u_c": np.asarray(state.u_c, float).tolist(),
+            "gap": np.asarray(state.gap, float).tolist(),
+            "classes": np.asarray(state.classes, int).tolist(),
+            "class": [CLASS_NAMES[k] for k in np.asarray(state.classes, int)],
+        },
+    }
+    if config is not None:
+        doc["config"] = getattr(config, "data", config)
+    return doc
+
+
+def _state_arrays(model, state: State) -> dict:
+    scalars = {k: v for k, v in state.info.items() if isinstance(v, (int, float, str, bool))}
+    return {
+        "format_version": np.int64(FORMAT_VERSION),
+        "alpha": np.asarray(state.alpha, float),
+        "coords": np.asarray(state.coords, float),
+        "u": np.asarray(state.u, float),
+        "u_c": np.asarray(state.u_c, float),
+        "lam": np.asarray(state.lam, float),
+        "tau": np.asarray(state.tau, float),
+        "gap": np.asarray(state.gap, float),
+        "classes": np.asarray(state.classes, np.int64),
+        "class_names": np.array(CLASS_NAMES),
+        "contact_nodes": np.asarray(model.contact_nodes, np.int64),
+        "contact_points": np.asarray(model.mesh.contact_points(), float),
+        "friction": np.float64(state.friction),
+        "method": np.array(str(state.method)),
+        "iterations": np.int64(state.iterations),
+        "residual": np.float64(state.residual),
+        "complementarity": np.float64(state.complementarity),
+        "converged": np.bool_(state.converged),
+        "timings_json": np.array(json.dumps(to_jsonable(state.timings))),
+        "info_json": np.array(json.dumps(to_jsonable(scalars))),
+    }
+
+
+def _check_finite(state: State) -> None:
+    for name in ("alpha", "coords", "u", "u_c", "lam", "tau", "gap"):
+        arr = np.asarray(getattr(state, name), float)
+        if not np.all(np.isfinite(arr)):
+            raise ValueError(f"state.{name} has non-finite values; refusing to write the state")
+
+
+def _move_into(tmpdir: Path, outdir: Path) -> None:
+    """Move the finished files of ``tmpdir`` into ``outdir``; rename the whole directory if it is new."""
+    if not outdir.exists():
+        os.chmod(tmpdir, 0o755)               # mkdtemp makes 0o700
+        try:
+            os.rename(tmpdir, outdir)         # the whole directory appears at once
+            fsync_dir(outdir.parent)
+            return
+        except OSError:
+            if not outdir.is_dir():           # not a race with another writer creating it
+                raise
+    if not outdir.is_dir():
+        raise NotADirectoryError(f"{outdir} exists and is not a directory")
+    for name in STATE_FILES:
+        os.replace(tmpdir / name, outdir / name)
+    fsync_dir(outdir)
+
+
+def write_state(outdir, model, state: State, *, config=None) -> dict:
+    """Write the files of :data:`STATE_FILES` into ``outdir``, all or nothing.
+
+    ``config`` (a :class:`~contactopt.config.Config` or a plain dict), when given, is stored
+    resolved in state.json under ``"config"``. Existing files of the same names are replaced;
+    other files in ``outdir`` are left alone. Returns ``{file name: Path}`` of the written files.
+    Raises ``ValueError`` for a state with non-finite arrays (nothing is written).
+    """
+    outdir = Path(outdir)
+    _check_finite(state)
+    parent = outdir.parent
+    parent.mkdir(parents=True, exist_ok=True)
+    tmpdir = Path(tempfile.mkdtemp(prefix=f".{outdir.name}.", suffix=".tmp", dir=parent))
+    try:
+        atomic_write_json(tmpdir / "state.json", state_json(model, state, config))
+        atomic_savez(tmpdir / "state.npz", **_state_arrays(model, state))
+        vtk.write_body_vtu(tmpdir / "body.vtu", model, state)
+        plots.plot_contact_field(tmpdir / "lambda.png", model, state.lam,
+                                 "Normal contact force $\\lambda$", cmap="viridis", label="$\\lambda$")
+        plots.plot_node_classes(tmpdir / "classes.png", model, state.classes)
+        built = sorted(p.name for p in tmpdir.iterdir())
+        if built != sorted(STATE_FILES):
+            raise RuntimeError(f"write_state built {built}, expected {sorted(STATE_FILES)}")
+        _move_into(tmpdir, outdir)
+    finally:
+        if tmpdir.exists():
+            shutil.rmtree(tmpdir, ignore_errors=True)
+    log.info("wrote the state files %s into %s", ", ".join(STATE_FILES), outdir)
+    return {name: outdir / name for name in STATE_FILES}
+
+
+_NPZ_KEYS = ("alpha", "coords", "u", "u_c", "lam", "tau", "gap", "classes", "friction", "method",
+             "iterations", "residual", "complementarity", "converged", "timings_json", "info_json")
+
+
+def read_state_npz(path) -> State:
+    """Read a state.npz written by :func:`write_state` back into a :class:`State` (no pickles).
+
+    ``info`` holds only the scalar entries of the original ``State.info`` (the ones summary() keeps).
+    """
+    path = Path(path)
+    with np.load(path, allow_pickle=False) as z:
+        missing = [k for k in _NPZ_KEYS if k not in z.files]
+        if missing:
+            raise ValueError(f"{path}: not a contactopt state file, missing arrays {missing}")
+        return State(
+            alpha=z["alpha"], coords=z["coords"], u=z["u"], u_c=z["u_c"], lam=z["lam"], tau=z["tau"],
+            gap=z["gap"], classes=z["classes"].astype(int), friction=float(z["friction"]),
+            method=str(z["method"]), iterations=int(z["iterations"]), residual=float(z["residual"]),
+            complementarity=float(z["complementarity"]), converged=bool(z["converged"]),
+            timings=json.loads(str(z["timings_json"])), info=json.loads(str(z["info_json"])))

@@ -1,0 +1,154 @@
+"""ParaView output: the body Ω(α) with its displacement and contact fields (VTU), and collections (PVD).
+
+Fields written by :func:`write_body_vtu` as point data on *every* node of the mesh; on nodes off the
+contact surface the contact fields are 0 (``node_class`` −1), never NaN:
+
+* ``displacement`` (n_nodes, 3): u = (u1, u2, u3), zero on Γ_u (x1 = 0). The points are the
+  reference coordinates of Ω(α) (the undeformed body of the design); in ParaView apply
+  "Warp By Vector" with ``displacement`` to see the deformed body (or pass ``deformed=True``).
+* ``normal_force`` λ: λ_m = (S u_c − ℓ)_ν ≥ 0, the normal contact force on the body (paper (3.17)).
+* ``tangential_force`` (τ1, τ2, 0): τ_m = −(S u_c − ℓ)_t, the paper's tangential contact force,
+  so that ‖τ_m‖ ≤ F λ_m and u_t ≠ 0 ⇒ τ_m = F λ_m u_t/‖u_t‖. The friction force acting on the
+  body is −τ_m, opposite to the slip.
+* ``node_class``: index into ("L", "M1", "M2", "M3+", "M3-", "M4") of Table 4.1, −1 off contact.
+* ``gap`` g_m = ϑ_α(x'_m): initial distance to the foundation x3 ≤ 0; non-penetration u_ν + g ≥ 0
+  with u_ν = u3.
+* ``contact_node``: 1 on contact nodes, 0 elsewhere (to threshold the contact surface).
+
+The foundation is the half-space x3 ≤ 0 with normal e3, so tangential = (x1, x2), normal = x3.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+import os
+import xml.etree.ElementTree as ET
+from pathlib import Path, PurePosixPath
+
+import numpy as np
+
+from .atomic import atomic_output, atomic_write_text
+
+log = logging.getLogger(__name__)
+
+__all__ = ["body_point_data", "write_body_vtu", "write_pvd"]
+
+
+def _finite(name: str, arr: np.ndarray) -> np.ndarray:
+    if not np.all(np.isfinite(arr)):
+        bad = int(np.size(arr) - np.count_nonzero(np.isfinite(arr)))
+        raise ValueError(f"field {name!r} has {bad} non-finite value(s); refusing to write it")
+    return arr
+
+
+def _on_nodes(name: str, values, n_nodes: int, contact_nodes: np.ndarray, fill=0.0) -> np.ndarray:
+    """A point-data array on all nodes: given per node, or per contact node (``fill`` elsewhere)."""
+    v = np.asarray(values)
+    p = contact_nodes.size
+    if v.shape[:1] == (n_nodes,):
+        out = v
+    elif v.shape[:1] == (p,):
+        out = np.full((n_nodes,) + v.shape[1:], fill, dtype=np.result_type(v.dtype, type(fill)))
+        out[contact_nodes] = v
+    else:
+        raise ValueError(f"field {name!r} has shape {v.shape}: expected ({n_nodes}, ...) per node "
+                         f"or ({p}, ...) per contact node")
+    if out.ndim > 2:
+        raise ValueError(f"field {name!r}: at most one component axis is supported, got shape {out.shape}")
+    if out.dtype.kind not in "biuf":
+        raise ValueError(f"field {name!r}: numeric data expected, got dtype {out.dtype}")
+    return _finite(name, out)
+
+
+def body_point_data(model, state, extra_point_data=None) -> dict:
+    """The point-data dict written by :func:`write_body_vtu` (see the module docstring).
+
+    ``extra_point_data`` maps names to arrays given per node (n_nodes, ...) or per contact node
+    (p, ...); the latter are scattered onto the contact nodes with 0 elsewhere.
+    """
+    n = model.mesh.n_nodes
+    cn = np.asarray(model.contact_nodes)
+    p = cn.size
+    u = np.asarray(state.u, float)
+    if u.size != 3 * n:
+        raise ValueError(f"state.u has {u.size} entries, the mesh needs 3·{n} = {3 * n}")
+    for name, arr, shape in (("lam", state.lam, (p,)), ("tau", state.tau, (p, 2)),
+                             ("gap", state.gap, (p,)), ("classes", state.classes, (p,))):
+        if np.shape(arr) != shape:
+            raise ValueError(f"state.{name} has shape {np.shape(arr)}, expected {shape} (p = {p} contact nodes)")
+    tau3 = np.zeros((p, 3))
+    tau3[:, :2] = state.tau
+    data = {
+        "displacement": _finite("displacement", u.reshape(n, 3)),
+        "normal_force": _on_nodes("normal_force", np.asarray(state.lam, float), n, cn),
+        "tangential_force": _on_nodes("tangential_force", tau3, n, cn),
+        "node_class": _on_nodes("node_class", np.asarray(state.classes, np.int32), n, cn, fill=np.int32(-1)),
+        "gap": _on_nodes("gap", np.asarray(state.gap, float), n, cn),
+        "contact_node": _on_nodes("contact_node", np.ones(p, np.int8), n, cn, fill=np.int8(0)),
+    }
+    for name, values in (extra_point_data or {}).items():
+        if name in data:
+            raise ValueError(f"extra point data {name!r} would overwrite a standard field")
+        data[name] = _on_nodes(name, values, n, cn)
+    return data
+
+
+def write_body_vtu(path, model, state, extra_point_data=None, *, deformed: bool = False) -> Path:
+    """Write the body of ``state`` as an unstructured-grid VTU (Q1 hexahedra), atomically.
+
+    Points are the reference coordinates of Ω(α) (``state.coords``), or the deformed ones
+    x + u when ``deformed`` is true. Point data: see the module docstring for every field and its
+    sign convention. Returns the path.
+    """
+    import meshio
+
+    path = Path(path)
+    coords = np.asarray(state.coords, float)
+    n = model.mesh.n_nodes
+    if coords.shape != (n, 3):
+        raise ValueError(f"state.coords has shape {coords.shape}, expected ({n}, 3)")
+    _finite("coords", coords)
+    point_data = body_point_data(model, state, extra_point_data)
+    points = coords + point_data["displacement"] if deformed else coords
+    # HexMesh vertices are already in VTK_HEXAHEDRON order
+    mesh = meshio.Mesh(points, [("hexahedron", np.asarray(model.mesh.elements, np.int64))],
+                       point_data=point_data)
+    with atomic_output(path) as tmp:
+        meshio.write(tmp, mesh, file_format="vtu")
+    log.info("wrote %s (%d nodes, %d hexahedra, %s)", path, n, model.mesh.n_elements,
+             "deformed" if deformed else "reference configuration")
+    return path
+
+
+def write_pvd(path, entries) -> Path:
+    """Write a ParaView collection (.pvd) listing VTU files, atomically.
+
+    ``entries``: iterable of ``(time_or_index, filename)``; the filename is relative to the
+    directory of the .pvd file (absolute names are refused: the collection must stay valid when the
+    run directory is moved). ParaView shows the entries as time steps ``time_or_index``.
+    """
+    path = Path(path)
+    root = ET.Element("VTKFile", type="Collection", version="0.1", byte_order="LittleEndian")
+    coll = ET.SubElement(root, "Collection")
+    for n, entry in enumerate(entries):
+        try:
+            time, fname = entry
+        except (TypeError, ValueError):
+            raise ValueError(f"pvd entry {n}: expected (time_or_index, filename), got {entry!r}") from None
+        try:
+            t = float(time)
+        except (TypeError, ValueError):
+            raise ValueError(f"pvd entry {n}: time {time!r} is not a number") from None
+        if not math.isfinite(t):
+            raise ValueError(f"pvd entry {n}: time {time!r} is not finite")
+        fname = os.fspath(fname)
+        if os.path.isabs(fname) or PurePosixPath(fname.replace("\\", "/")).is_absolute():
+            raise ValueError(f"pvd entry {n}: {fname!r} must be relative to the .pvd file's directory")
+        ET.SubElement(coll, "DataSet", timestep=repr(t) if not t.is_integer() else str(int(t)),
+                      group="", part="0", file=fname.replace(os.sep, "/"))
+    ET.indent(root, space="  ")
+    text = '<?xml version="1.0"?>\n' + ET.tostring(root, encoding="unicode") + "\n"
+    atomic_write_text(path, text)
+    log.info("wrote %s (%d data sets)", path, len(coll))
+    return path

@@ -1,0 +1,175 @@
+"""The shape problem of a configuration: state solves and the oracle Θ(α), ∂Θ(α).
+
+Data flow (DESIGN.md §8): α → mesh → A(α), L(α) → Schur complement S, ℓ on the contact DOFs →
+Coulomb contact state → objective → adjoint (4.15) → subgradient.
+
+Condensed contact system (paper (3.17)), per contact node m in the order (t1, t2, ν) = (x1, x2, x3):
+    r = S u_c − ℓ  is the contact force on the body, λ = r_ν ≥ 0, τ = −r_t,
+    u_ν + g ≥ 0, λ(u_ν + g) = 0, ‖τ‖ ≤ Fλ, u_t ≠ 0 ⇒ τ = Fλ u_t/‖u_t‖.
+It is handed to the local solvers in the FCLIB convention (normal first): with W = S⁻¹,
+    u_loc = P(u_c) + (g, 0, 0) = W_loc r_loc + q,   W_loc = P W Pᵀ,  q = P W ℓ + (g, 0, 0),
+where P reorders each node's (t1, t2, ν) to (ν, t1, t2); the FCLIB friction law r_T = −μ r_N u_T/‖u_T‖
+is exactly the Coulomb law above.
+"""
+
+from __future__ import annotations
+
+import logging
+import time
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.linalg as sla
+
+from .config import Config, load_config
+from .contact.state import State, classify_nodes, contact_conditions_violation
+from .errors import SolverError
+from .fem.model import Assembled, ElasticModel
+
+log = logging.getLogger(__name__)
+
+
+@dataclass
+class Condensed:
+    """The condensed system of one design (see the module docstring)."""
+
+    assembled: Assembled
+    factor: object           # contactopt.fem.linsolve condensed factorization
+    S: np.ndarray            # (3p, 3p), per node (t1, t2, ν)
+    ell: np.ndarray          # (3p,)
+    W: np.ndarray            # S⁻¹
+    gap: np.ndarray          # (p,)
+    timings: dict
+
+
+def local_permutation(p: int) -> np.ndarray:
+    """Index array P with x_loc = x[P]: per node (t1, t2, ν) → (ν, t1, t2)."""
+    return (3 * np.arange(p)[:, None] + np.array([2, 0, 1])).ravel()
+
+
+def spd_inverse(S: np.ndarray) -> np.ndarray:
+    """Inverse of a dense SPD matrix by Cholesky (LAPACK potrf/potri), symmetrised."""
+    c, info = sla.lapack.dpotrf(S, lower=False, clean=True)
+    if info != 0:
+        raise SolverError(f"condensed stiffness is not positive definite (potrf info {info})")
+    inv, info = sla.lapack.dpotri(c, lower=False)
+    if info != 0:
+        raise SolverError(f"inverting the condensed stiffness failed (potri info {info})")
+    return np.triu(inv) + np.triu(inv, 1).T
+
+
+class ShapeProblem:
+    """Discrete shape optimization problem (P̃) of a configuration.
+
+    ``solve_state(alpha)`` returns the :class:`~contactopt.contact.state.State`;
+    ``evaluate(alpha)`` returns (Θ(α), one Clarke subgradient) — see
+    :mod:`contactopt.sensitivity.adjoint`.
+    """
+
+    def __init__(self, config, *, method: str | None = None, backend: str | None = None):
+        self.config = config if isinstance(config, Config) else load_config(config)
+        self.model = ElasticModel(self.config)
+        self.friction = float(self.config["friction"]["coefficient"])
+        st = self.config["state"]
+        self.method = method or st["method"]
+        self.tol = st["tol"]
+        self.max_iter = st["max_iter"]
+        self.backend = backend or self.config["linear_solver"]["backend"]
+        self._perm = local_permutation(self.model.n_contact)
+        self._warm = None          # last contact forces (local ordering) for warm starts
+        self._cache = None         # (alpha bytes, Condensed, State)
+        self.n_state_solves = 0
+        from .sensitivity.objectives import make_objective
+        self.objective = make_objective(self.config, self)
+
+    # ------------------------------------------------------------------ condensation
+    def condensed_system(self, alpha) -> Condensed:
+        from .fem.linsolve import condense
+        t0 = time.perf_counter()
+        asm = self.model.assemble(alpha)
+        t1 = time.perf_counter()
+        fac = condense(asm.A, self.model.contact_dofs, backend=self.backend)
+        t2 = time.perf_counter()
+        ell = fac.condense_load(asm.L)
+        S = fac.S
+        W = spd_inverse(S)
+        t3 = time.perf_counter()
+        return Condensed(asm, fac, S, ell, W, asm.gap,
+                         {"assembly": t1 - t0, "schur": t2 - t1, "delassus": t3 - t2})
+
+    # ------------------------------------------------------------------ state
+    def solve_state(self, alpha, *, method: str | None = None, warm_start: bool = True,
+                    tol: float | None = None) -> State:
+        """Solve the discrete Coulomb problem (P) at α (α need not be in U, but the mesh must be valid)."""
+        from .contact.local import solve_local
+        alpha = self.model.surface.as_vector(alpha)
+        if not np.all(np.isfinite(alpha)):
+            raise SolverError("design contains NaN or infinite entries")
+        key = alpha.tobytes()
+        method = method or self.method
+        if self._cache is not None and self._cache[0] == key and self._cache[2].method == method:
+            return self._cache[2]
+        cond = self.condensed_system(alpha)
+        p = self.model.n_contact
+        P = self._perm
+        W_loc = cond.W[np.ix_(P, P)]
+        q = (cond.W @ cond.ell)[P]
+        q[0::3] += cond.gap
+        r0 = self._warm if (warm_start and self._warm is not None) else None
+        t0 = time.perf_counter()
+        res = solve_local(W_loc, q, self.friction, method=method, tol=tol or self.tol,
+                          max_iter=self.max_iter, r0=r0)
+        t1 = time.perf_counter()
+        r = np.empty(3 * p)
+        r[P] = res.r
+        u_c = cond.W @ (r + cond.ell)
+        u_free = cond.factor.recover(cond.assembled.L, u_c)
+        u = self.model.assembler.to_full(u_free)
+        t2 = time.perf_counter()
+        r3, u3 = r.reshape(p, 3), u_c.reshape(p, 3)
+        lam, tau = r3[:, 2].copy(), -r3[:, :2]
+        fscale = max(np.abs(lam).max(initial=0.0), np.abs(cond.ell).max(initial=0.0))
+        classes = classify_nodes(u3, lam, tau, cond.gap, self.friction, force_scale=fscale if lam.max(initial=0) <= 0 else None)
+        timings = dict(cond.timings, contact=t1 - t0, recovery=t2 - t1)
+        timings["total"] = sum(timings.values())
+        state = State(alpha=alpha, coords=cond.assembled.coords, u=u, u_c=u3, lam=lam, tau=tau,
+                      gap=cond.gap, classes=classes, friction=self.friction, method=method,
+                      iterations=res.iterations, residual=res.error,
+                      complementarity=contact_conditions_violation(u3, lam, tau, cond.gap, self.friction),
+                      converged=res.converged, timings=timings,
+                      info={"backend": getattr(cond.factor, "backend", "?")})
+        self._warm = res.r.copy()
+        self._cache = (key, cond, state)
+        self.n_state_solves += 1
+        log.debug("state: %s %d it, residual %.2e, %.3f s", method, res.iterations, res.error, timings["total"])
+        return state
+
+    def cached_condensed(self, alpha) -> Condensed:
+        """The condensed system of the last state solve at α (solving the state if needed)."""
+        alpha = self.model.surface.as_vector(alpha)
+        self.solve_state(alpha)
+        return self._cache[1]
+
+    def uniqueness_bound(self, alpha) -> float:
+        """Estimate of the bound (3.16) on F applied to the condensed system: F0 = γ/‖S‖.
+
+        With A := S (the condensed Coulomb problem (3.17)), N and T select components so β = ‖T‖ = 1
+        and (3.16) reads F < λ_min(S)/λ_max(S). Known to be very pessimistic.
+        """
+        from scipy.sparse.linalg import eigsh
+        cond = self.cached_condensed(alpha)
+        lmax = eigsh(cond.S, k=1, which="LA", return_eigenvectors=False, tol=1e-6)[0]
+        wmax = eigsh(cond.W, k=1, which="LA", return_eigenvectors=False, tol=1e-6)[0]
+        return float((1.0 / wmax) / lmax)
+
+    # ------------------------------------------------------------------ oracle
+    def evaluate_value(self, alpha) -> float:
+        """Θ(α) alone (one state solve)."""
+        state = self.solve_state(alpha)
+        return float(self.objective.evaluate(state, self._cache[1])[0])
+
+    def evaluate(self, alpha):
+        """(Θ(α), ξ) with ξ a Clarke subgradient from the adjoint system (4.15)."""
+        from .sensitivity.adjoint import subgradient
+        res = subgradient(self, alpha)
+        return res.value, res.gradient

@@ -1,0 +1,276 @@
+"""One optimization run = one output directory (resolved config, log, history, checkpoint, results).
+
+Layout of a run directory::
+
+    config.toml        the resolved configuration, with package versions
+    run.log            the log of the run
+    history.csv        one row per evaluation of Θ
+    checkpoint.npz     optimizer + oracle state after the last serious step (written atomically)
+    summary.json       DESIGN.md §7 fields
+    alpha.json         optimal control points;  surface.csv  ϑ_α on a grid
+    stress.png, surface.png, history.png, classes.png
+    initial.vtu, optimal.vtu, bodies.pvd
+
+Resuming (``resume=True``) restores the optimizer state and the warm start of the state solver
+saved with the last checkpoint, truncates history.csv to the evaluations before it, and goes on:
+the iterates that follow are those of an uninterrupted run.
+"""
+
+from __future__ import annotations
+
+import csv
+import hashlib
+import logging
+import time
+from dataclasses import dataclass
+from importlib.metadata import PackageNotFoundError, version
+from pathlib import Path
+
+import numpy as np
+
+from .config import Config, load_config
+from .errors import CheckpointError, ConfigError, ContactOptError, SolverError
+from .io.atomic import atomic_savez, atomic_write_json, atomic_write_text
+from .io.rundir import prepare_output_dir
+
+log = logging.getLogger(__name__)
+
+HISTORY_FIELDS = ["evaluation", "iteration", "f", "subgradient_norm", "degenerate_nodes", "contact_nodes",
+                  "state_iterations", "state_residual", "time_s"]
+
+
+class RunAborted(ContactOptError):
+    """The run stopped early because a state solve failed; the last checkpoint is kept."""
+
+
+def package_versions() -> dict:
+    out = {}
+    for name in ("contactopt", "numpy", "scipy", "daqp", "mkl", "meshio", "matplotlib", "h5py"):
+        try:
+            out[name] = version(name)
+        except PackageNotFoundError:
+            out[name] = "not installed"
+    return out
+
+
+def config_fingerprint(config: Config) -> str:
+    return hashlib.sha256(config.to_toml().encode()).hexdigest()[:16]
+
+
+@dataclass
+class RunResult:
+    outdir: Path
+    summary: dict
+
+
+class _Oracle:
+    """Θ and a subgradient, with bookkeeping: evaluation count, history rows, timings."""
+
+    def __init__(self, problem, history_path: Path, t_start: float):
+        self.problem = problem
+        self.history_path = history_path
+        self.t_start = t_start
+        self.count = 0
+        self.iteration = 0
+        self.last_good = None
+        self.time = {"state": 0.0, "adjoint": 0.0, "design_terms": 0.0}
+
+    def __call__(self, x):
+        from .sensitivity.adjoint import subgradient
+        try:
+            res = subgradient(self.problem, x)
+        except SolverError as exc:
+            raise RunAborted(f"state/subgradient failed at evaluation {self.count + 1}: {exc}") from exc
+        for k in self.time:
+            self.time[k] += res.timings.get(k, 0.0)
+        self.count += 1
+        st = res.state
+        row = [self.count, self.iteration, repr(float(res.value)), f"{np.linalg.norm(res.gradient):.6e}",
+               res.n_degenerate, int(np.sum(st.lam > 0)), st.iterations, f"{st.residual:.3e}",
+               f"{time.perf_counter() - self.t_start:.3f}"]
+        with open(self.history_path, "a", newline="") as fh:
+            csv.writer(fh).writerow(row)
+        return res.value, res.gradient
+
+
+def _write_checkpoint(path: Path, bstate, oracle: _Oracle, fingerprint: str, elapsed: float):
+    d = bstate.to_dict()
+    warm = oracle.problem._warm
+    arrays = {f"bundle_{k}": np.asarray(v) for k, v in d.items()}
+    arrays.update(meta_fingerprint=np.array(fingerprint), meta_evaluations=np.array(oracle.count),
+                  meta_elapsed=np.array(elapsed), warm=np.asarray(warm if warm is not None else np.zeros(0)))
+    atomic_savez(path, **arrays)
+
+
+def _read_checkpoint(path: Path, fingerprint: str):
+    from .optimize import BundleState
+    if not path.exists():
+        raise CheckpointError(f"--resume: no checkpoint in {path.parent} (expected {path.name})")
+    try:
+        with np.load(path, allow_pickle=False) as z:
+            data = {k: z[k] for k in z.files}
+    except Exception as exc:  # zip/npz corruption surfaces as many exception types
+        raise CheckpointError(f"checkpoint {path} is corrupt or unreadable: {exc}") from None
+    if "meta_fingerprint" not in data:
+        raise CheckpointError(f"checkpoint {path} is not a contactopt checkpoint")
+    if str(data["meta_fingerprint"]) != fingerprint:
+        raise CheckpointError(f"checkpoint {path} belongs to a run with another configuration")
+    bundle = {k[len("bundle_"):]: v for k, v in data.items() if k.startswith("bundle_")}
+    try:
+        bstate = BundleState.from_dict(bundle)
+    except ContactOptError as exc:
+        raise CheckpointError(f"checkpoint {path}: {exc}") from None
+    warm = data["warm"] if data["warm"].size else None
+    return bstate, int(data["meta_evaluations"]), float(data["meta_elapsed"]), warm
+
+
+def _truncate_history(path: Path, n_rows: int):
+    rows = []
+    if path.exists():
+        with open(path, newline="") as fh:
+            rows = list(csv.reader(fh))
+    body = rows[1:1 + n_rows] if rows else []
+    atomic_write_text(path, ",".join(HISTORY_FIELDS) + "\n" + "".join(",".join(r) + "\n" for r in body))
+
+
+def resolve_config(config, *, eps=None, max_iter=None) -> Config:
+    cfg = load_config(config)
+    upd = {}
+    if eps is not None:
+        upd["eps"] = eps
+    if max_iter is not None:
+        upd["max_iter"] = max_iter
+    return cfg.with_updates({"optimizer": upd}) if upd else cfg
+
+
+def run_optimization(config, outdir=None, *, eps=None, max_iter=None, resume=False, overwrite=False,
+                     progress=None) -> RunResult:
+    """Optimize the contact surface of a configuration; see the module docstring for the outputs."""
+    from .optimize import minimize_bundle
+    from .problem import ShapeProblem
+    cfg = resolve_config(config, eps=eps, max_iter=max_iter)
+    problem = ShapeProblem(cfg)
+    model = problem.model
+    alpha0 = model.initial_design()
+    model.admissible.require_feasible(alpha0, tol=1e-9)
+    model.mesh.coordinates(alpha0)
+    fingerprint = config_fingerprint(cfg.with_updates({"optimizer": {"max_iter": 1}}))
+    out = Path(outdir or Path("runs") / cfg.name)
+    ckpt = out / "checkpoint.npz"
+    if resume:
+        bstate, n_eval, elapsed0, warm = _read_checkpoint(ckpt, fingerprint)
+    out = prepare_output_dir(out, overwrite=overwrite, resume=resume)
+    handler = logging.FileHandler(out / "run.log")
+    handler.setFormatter(logging.Formatter("%(asctime)s %(levelname)s %(name)s: %(message)s"))
+    logging.getLogger("contactopt").addHandler(handler)
+    root = logging.getLogger("contactopt")
+    old_level = root.level
+    if root.getEffectiveLevel() > logging.INFO:
+        root.setLevel(logging.INFO)
+    try:
+        vers = package_versions()
+        atomic_write_text(out / "config.toml", "# resolved configuration of this run\n# versions: "
+                          + ", ".join(f"{k} {v}" for k, v in vers.items()) + "\n" + cfg.to_toml())
+        t_start = time.perf_counter()
+        hist = out / "history.csv"
+        oracle = _Oracle(problem, hist, t_start)
+        state_kw = {}
+        if resume:
+            _truncate_history(hist, n_eval)
+            oracle.count = n_eval
+            oracle.t_start -= elapsed0
+            problem._warm = warm
+            state_kw["state"] = bstate
+            log.info("resuming %s at iteration %d (%d evaluations)", out, bstate.nit, n_eval)
+        else:
+            atomic_write_text(hist, ",".join(HISTORY_FIELDS) + "\n")
+            log.info("run %s in %s", cfg.name, out)
+
+        def callback(inter):
+            st = inter.state
+            oracle.iteration = st.nit
+            h = st.history[-1] if st.history else {}
+            if h.get("step") == "serious" or st.nit == 0:
+                _write_checkpoint(ckpt, st, oracle, fingerprint, time.perf_counter() - oracle.t_start)
+            if progress:
+                progress(dict(iteration=st.nit, f=st.f, step=h.get("step", ""), t=st.t,
+                              stationarity=st.stationarity, nfev=oracle.count,
+                              elapsed=time.perf_counter() - oracle.t_start))
+
+        opt = cfg["optimizer"]
+        res = minimize_bundle(oracle, alpha0, **model.admissible.constraints(), eps=opt["eps"],
+                              max_iter=opt["max_iter"], callback=callback,
+                              **state_kw)
+        if res.status is not None and res.success:
+            log.info("finished: %s", res.message)
+        _write_checkpoint(ckpt, res.state, oracle, fingerprint, time.perf_counter() - oracle.t_start)
+        summary = _finish(out, problem, alpha0, res, oracle, t_start)
+    finally:
+        logging.getLogger("contactopt").removeHandler(handler)
+        handler.close()
+        root.setLevel(old_level)
+    return RunResult(out, summary)
+
+
+def _finish(out: Path, problem, alpha0, res, oracle, t_start) -> dict:
+    from .io.plots import plot_history, plot_node_classes, plot_stress_comparison, plot_surface
+    from .io.vtk import write_body_vtu, write_pvd
+    model = problem.model
+    x = np.asarray(res.x)
+    t0 = time.perf_counter()
+    s0 = problem.solve_state(alpha0, warm_start=False)
+    cond0 = problem._cache[1]
+    J0 = float(problem.objective.evaluate(s0, cond0)[0])
+    s1 = problem.solve_state(x, warm_start=False)
+    J = float(problem.objective.evaluate(s1, problem._cache[1])[0])
+    target = getattr(problem.objective, "target", None)
+    write_body_vtu(out / "initial.vtu", model, s0)
+    write_body_vtu(out / "optimal.vtu", model, s1)
+    write_pvd(out / "bodies.pvd", [(0, "initial.vtu"), (1, "optimal.vtu")])
+    plot_stress_comparison(out / "stress.png", model, target if target is not None else np.zeros_like(s0.lam),
+                           s0.lam, s1.lam)
+    plot_surface(out / "surface.png", model, x)
+    plot_node_classes(out / "classes.png", model, s1.classes)
+    plot_history(out / "history.png", res.history)
+    amat = model.surface.as_matrix(x)
+    atomic_write_json(out / "alpha.json", {"alpha": amat.tolist(), "shape": list(amat.shape)})
+    g1, g2 = np.meshgrid(np.linspace(0, model.surface.a, 41), np.linspace(0, model.surface.b, 21))
+    h = model.surface.evaluate(x, g1.ravel(), g2.ravel())
+    atomic_write_text(out / "surface.csv", "x1,x2,theta\n" + "".join(
+        f"{a:.6g},{b:.6g},{c:.10g}\n" for a, b, c in zip(g1.ravel(), g2.ravel(), h)))
+    wall = time.perf_counter() - oracle.t_start
+    summary = {
+        "name": problem.config.name, "J0": J0, "J": J, "ratio": J / J0 if J0 else None,
+        "iterations": int(res.nit), "evaluations": int(oracle.count), "serious_steps": int(res.n_serious),
+        "null_steps": int(res.n_null), "success": bool(res.success), "message": str(res.message),
+        "alpha": amat.tolist(), "feasible": bool(model.admissible.is_feasible(x, tol=1e-8)),
+        "wall_time_s": wall,
+        "time_breakdown_s": {**oracle.time, "outputs": time.perf_counter() - t0},
+        "final_state": s1.summary(),
+    }
+    atomic_write_json(out / "summary.json", summary)
+    return summary
+
+
+def run_from_cli(args) -> int:
+    """``contactopt run``: prints one progress line per iteration."""
+    def progress(p):
+        print(f"it {p['iteration']:4d}  Θ {p['f']:.8e}  {p['step']:>7}  t {p['t']:.2e}  "
+              f"stat {p['stationarity']:.2e}  evals {p['nfev']:4d}  {p['elapsed']:7.1f}s", flush=True)
+    if args.max_iter is not None and args.max_iter < 1:
+        raise ConfigError([f"--max-iter {args.max_iter}: must be an integer ≥ 1"])
+    if args.eps is not None and not (0 < args.eps < 1):
+        raise ConfigError([f"--eps {args.eps}: must be in (0, 1)"])
+    try:
+        rr = run_optimization(args.config, args.out, eps=args.eps, max_iter=args.max_iter,
+                              resume=args.resume, overwrite=args.overwrite, progress=progress)
+    except RunAborted as exc:
+        print(f"contactopt: run stopped: {exc}; the last checkpoint is kept", flush=True)
+        raise
+    s = rr.summary
+    print(f"{s['message']}")
+    print(f"J0 = {s['J0']:.8e}  J = {s['J']:.8e}  J/J0 = {s['ratio']:.4g}  iterations {s['iterations']} "
+          f"(serious {s['serious_steps']}, null {s['null_steps']}), evaluations {s['evaluations']}, "
+          f"{s['wall_time_s']:.1f}s")
+    print(f"results in {rr.outdir}/")
+    return 0

@@ -1,0 +1,175 @@
+"""Clarke subgradients of Θ(α) = J(α, S(α)) from the adjoint generalized equation (paper §4).
+
+The GE (3.18) is 0 ∈ F(α)y − l(α) + Q(y) with y^i = (u_t^i, u_ν^i, λ^i). Its adjoint (4.3),
+with the per-node linear subspaces L_i ⊂ Gr D*Φ of (4.4)–(4.14), is the linear system (4.15):
+
+    0 = y* + F(α)ᵀ v + w,   (w^i, v^i) ∈ L_i,
+
+and ξ = ∇_α J + (∇_α(F(α)ȳ − l(α)))ᵀ v is a subgradient (Theorem 4.1). Writing v = (v_u, v_λ),
+v_u = (v_t, v_ν) ∈ R^{3p} (per node (t1, t2, ν)) and w = (w_u, w_λ), (4.15) reads
+
+    y*_u + S v_u + (0, v_λ) + w_u = 0,      y*_λ − v_ν + w_λ = 0,
+
+and per node class (â = u_t/‖u_t‖, w̄ = τ/(Fλ), C = Fλ/‖u_t‖ (I − ââᵀ)):
+
+    L   (4.4)   w_u = 0, v_λ = 0                          → the 3 rows of node i hold, v_u^i free
+    M1  (4.5)   w_t = C v_t, w_ν = 0, w_λ = F âᵀv_t       → v_ν = y*_λ + F âᵀv_t, 2 t-rows with C
+    M3+ (4.6)   v_t = 0, w_ν = w_λ = 0                    → v_u^i = (0, 0, y*_λ) fixed
+    M2  (4.10)  choice ``"L"``: b*_4 = 0 (as L), or ``"M1"``: the limit a_4 ↓ 0 of M1 (C = 0)
+    M3− (4.14)  choice ``"M3+"``: b*_12 = 0 (as M3+), or ``"M1"``: the limit of M1 as u_t → 0,
+                v_t = t w̄, w_t ⊥ w̄, w_λ = F t            → 1 unknown, the row w̄ᵀ(t-rows)
+    M4          choice ``"L"`` or ``"M3+"`` (no formula in the paper; a single point of Gr Φ)
+
+L, M1, M3+ give an exact element of ∂Θ; the degenerate classes (M2, M3−, M4) give a one-sided
+limit, i.e. the gradient of Θ restricted to one adjacent smooth piece (paper remark after (4.15)).
+Then v_λ = −(S v_u + y*_u)_ν where v_λ is free, and
+
+    ξ_k = ∂J/∂α_k + ṽᵀ(∂A/∂α_k ũ − ∂L/∂α_k) + v_λᵀ ∂g/∂α_k,   ṽ = (v_u, −A_ii⁻¹A_ic v_u),
+
+which needs no derivative of S (DESIGN.md §5).
+"""
+
+from __future__ import annotations
+
+import logging
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+import scipy.linalg as sla
+import scipy.sparse as sp
+
+from ..contact.state import CLASS_CODES, State
+from ..errors import SolverError
+
+log = logging.getLogger(__name__)
+
+DEFAULT_CHOICES = {"M2": "L", "M3-": "M3+", "M4": "L"}
+
+
+@dataclass
+class SubgradientResult:
+    """Θ(α), one subgradient and what it was built from."""
+
+    value: float
+    gradient: np.ndarray
+    state: State
+    v_u: np.ndarray
+    v_lam: np.ndarray
+    n_degenerate: int
+    exact: bool                       # True when no node is degenerate (ξ ∈ ∂Θ exactly)
+    choices: dict = field(default_factory=dict)
+    timings: dict = field(default_factory=dict)
+
+
+def _effective_classes(classes: np.ndarray, choices: dict) -> np.ndarray:
+    """Map degenerate classes onto the subspace they use: returns codes among L, M1, M1lim, M3+, M3-lim."""
+    eff = np.array(classes, copy=True)
+    c = CLASS_CODES
+    m2 = classes == c["M2"]
+    eff[m2] = c["L"] if choices["M2"] == "L" else -1          # -1: M1 with C = 0
+    m3 = classes == c["M3-"]
+    eff[m3] = c["M3+"] if choices["M3-"] == "M3+" else -2     # -2: M1 limit, v_t ∥ w̄
+    m4 = classes == c["M4"]
+    eff[m4] = c["L"] if choices["M4"] == "L" else c["M3+"]
+    return eff
+
+
+def solve_adjoint(S: np.ndarray, state: State, y_u: np.ndarray, y_lam: np.ndarray, choices=None):
+    """Solve the adjoint system (4.15) on the condensed contact system; returns (v_u, v_λ)."""
+    choices = {**DEFAULT_CHOICES, **(choices or {})}
+    for k, allowed in (("M2", ("L", "M1")), ("M3-", ("M3+", "M1")), ("M4", ("L", "M3+"))):
+        if choices[k] not in allowed:
+            raise ValueError(f"degenerate choice for {k} must be one of {allowed}")
+    p = state.lam.size
+    F = state.friction
+    eff = _effective_classes(state.classes, choices)
+    c = CLASS_CODES
+    ut = state.u_c[:, :2]
+    nut = np.linalg.norm(ut, axis=1)
+    v0 = np.zeros(3 * p)
+    Zr, Zc, Zv = [], [], []        # v_u = Z z + v0
+    Rr, Rc, Rv = [], [], []        # rows Rᵀ(·)
+    Cblocks = []                   # (col indices, 2×2 block)
+    nz = 0
+    for i in range(p):
+        e = eff[i]
+        base = 3 * i
+        if e == c["L"]:
+            for m in range(3):
+                Zr.append(base + m), Zc.append(nz + m), Zv.append(1.0)
+                Rr.append(base + m), Rc.append(nz + m), Rv.append(1.0)
+            nz += 3
+            continue
+        v0[base + 2] = y_lam[i]
+        if e == c["M3+"]:
+            continue
+        if e in (c["M1"], -1):
+            ahat = ut[i] / nut[i] if nut[i] > 0 else np.zeros(2)
+            for m in range(2):
+                Zr.append(base + m), Zc.append(nz + m), Zv.append(1.0)
+                Zr.append(base + 2), Zc.append(nz + m), Zv.append(F * ahat[m])
+                Rr.append(base + m), Rc.append(nz + m), Rv.append(1.0)
+            if e == c["M1"]:
+                Cb = F * state.lam[i] / nut[i] * (np.eye(2) - np.outer(ahat, ahat))
+                Cblocks.append((nz, Cb))
+            nz += 2
+            continue
+        if e == -2:
+            wbar = state.tau[i] / (F * state.lam[i])
+            wbar = wbar / np.linalg.norm(wbar)
+            for m in range(2):
+                Zr.append(base + m), Zc.append(nz), Zv.append(wbar[m])
+                Rr.append(base + m), Rc.append(nz), Rv.append(wbar[m])
+            Zr.append(base + 2), Zc.append(nz), Zv.append(F)
+            nz += 1
+            continue
+        raise AssertionError(e)
+    Z = sp.csr_matrix((Zv, (Zr, Zc)), shape=(3 * p, nz))
+    R = sp.csr_matrix((Rv, (Rr, Rc)), shape=(3 * p, nz))
+    if nz:
+        SZ = np.asarray((Z.T @ S).T)                    # S symmetric
+        M = np.asarray(R.T @ SZ)
+        for j, Cb in Cblocks:
+            M[j:j + 2, j:j + 2] += Cb
+        rhs = -np.asarray(R.T @ (S @ v0 + y_u)).ravel()
+        try:
+            lu = sla.lu_factor(M, check_finite=True)
+            z = sla.lu_solve(lu, rhs)
+        except (ValueError, sla.LinAlgError) as exc:
+            raise SolverError(f"adjoint system (4.15) could not be solved: {exc}") from None
+        if not np.all(np.isfinite(z)):
+            raise SolverError("adjoint system (4.15) is singular (non-finite solution)")
+        v_u = Z @ z + v0
+    else:
+        v_u = v0
+    resid = S @ v_u + y_u
+    free_lam = ~np.isin(eff, [c["L"]])
+    v_lam = np.where(free_lam, -resid[2::3], 0.0)
+    return v_u, v_lam
+
+
+def subgradient(problem, alpha, *, choices=None) -> SubgradientResult:
+    """Θ(α) and one Clarke subgradient for a :class:`contactopt.problem.ShapeProblem`."""
+    t0 = time.perf_counter()
+    state = problem.solve_state(alpha)
+    cond = problem.cached_condensed(alpha)
+    t1 = time.perf_counter()
+    value, y_u, y_lam, dJ_da = problem.objective.evaluate(state, cond)
+    if not np.isfinite(value):
+        raise SolverError(f"objective is not finite at this design ({value})")
+    v_u, v_lam = solve_adjoint(cond.S, state, y_u, y_lam, choices)
+    t2 = time.perf_counter()
+    model = problem.model
+    vt_free = cond.factor.extend(v_u)
+    v_full = model.assembler.to_full(vt_free)
+    g = dJ_da + model.design_contraction(cond.assembled.coords, state.u, v_full) + model.gap_matrix.T @ v_lam
+    t3 = time.perf_counter()
+    if not np.all(np.isfinite(g)):
+        raise SolverError("subgradient has non-finite entries")
+    nd = state.n_degenerate
+    if nd:
+        log.info("subgradient at a design with %d degenerate node(s) %s", nd, state.counts)
+    ch = {**DEFAULT_CHOICES, **(choices or {})}
+    return SubgradientResult(value, g, state, v_u, v_lam, nd, nd == 0, ch,
+                             {"state": t1 - t0, "adjoint": t2 - t1, "design_terms": t3 - t2})

@@ -1,0 +1,131 @@
+"""Objectives J(α, y) as pluggable pieces with value and partial gradients.
+
+An objective sees the state (λ, τ, u_c; conventions in :mod:`contactopt.contact.state`) and the
+condensed system of the design, and returns
+
+    value,  ∂J/∂u_c (3p, per node (t1, t2, ν)),  ∂J/∂λ (p,),  ∂J/∂α at fixed (u_c, λ) (n_design,).
+
+The adjoint (:mod:`contactopt.sensitivity.adjoint`) turns these into a Clarke subgradient of
+Θ(α) = J(α, S(α)). To add an objective, subclass :class:`Objective` and register it in
+``OBJECTIVES``; nothing in the solver changes.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..errors import ConfigError
+
+
+class Objective:
+    """Base class: ``evaluate(state, cond) -> (value, dJ_du (3p,), dJ_dlam (p,), dJ_dalpha (n_design,))``."""
+
+    name = "objective"
+
+    def __init__(self, problem, scale: float = 1.0):
+        self.problem = problem
+        self.scale = float(scale)
+
+    def evaluate(self, state, cond):
+        raise NotImplementedError
+
+
+class TargetNormalForce(Objective):
+    """J = Σ_i (λ̄_i − λ_i)², λ̄ a prescribed normal contact force per contact node (paper §5.2)."""
+
+    name = "target_normal_force"
+
+    def __init__(self, problem, target_spec: dict, scale: float = 1.0):
+        super().__init__(problem, scale)
+        self.spec = target_spec
+        self._target = None
+
+    @property
+    def target(self) -> np.ndarray:
+        if self._target is None:
+            self._target = target_values(self.spec, self.problem)
+        return self._target
+
+    def evaluate(self, state, cond):
+        d = self.target - state.lam
+        p = state.lam.size
+        return (self.scale * float(d @ d), np.zeros(3 * p), -2.0 * self.scale * d,
+                np.zeros(state.alpha.size))
+
+
+class PressureUniformity(Objective):
+    """J = Σ_i (λ_i − mean λ)²: the spread of the normal contact forces (zero for uniform pressure)."""
+
+    name = "pressure_uniformity"
+
+    def evaluate(self, state, cond):
+        d = state.lam - state.lam.mean()
+        p = state.lam.size
+        # Σ d_i = 0, so the derivative of the mean drops out
+        return self.scale * float(d @ d), np.zeros(3 * p), 2.0 * self.scale * d, np.zeros(state.alpha.size)
+
+
+class Compliance(Objective):
+    """J = L(α)ᵀu: work of the external load on the equilibrium displacement.
+
+    In condensed form J = ℓᵀu_c + L_iᵀA_ii⁻¹L_i, so ∂J/∂u_c = ℓ and, with ẑ = (0, A_ii⁻¹L_i) and
+    u the full displacement, ∂J/∂α|_{u_c} = −ĉ(ẑ, u) − ĉ(0, ẑ) where ĉ(a, b) = bᵀ(∂A a − ∂L).
+    """
+
+    name = "compliance"
+
+    def evaluate(self, state, cond):
+        model = self.problem.model
+        asm = cond.assembled
+        value = float(asm.L_full @ state.u)
+        zhat = model.assembler.to_full(cond.factor.recover(asm.L, np.zeros(3 * state.lam.size)))
+        dc = model.design_contraction
+        dalpha = -dc(asm.coords, zhat, state.u) - dc(asm.coords, np.zeros_like(zhat), zhat)
+        return (self.scale * value, self.scale * cond.ell.copy(), np.zeros(state.lam.size), self.scale * dalpha)
+
+
+OBJECTIVES = {"target_normal_force": TargetNormalForce, "pressure_uniformity": PressureUniformity,
+              "compliance": Compliance}
+
+
+def make_objective(config, problem) -> Objective:
+    obj = config["objective"]
+    cls = OBJECTIVES[obj["type"]]
+    if cls is TargetNormalForce:
+        return cls(problem, obj["target"], obj["scale"])
+    return cls(problem, obj["scale"])
+
+
+def target_values(spec: dict, problem) -> np.ndarray:
+    """Target normal force λ̄ per contact node from a target table of the configuration.
+
+    kinds: ``constant`` (value), ``step`` (default, then regions {x1 = [lo, hi], x2 = [lo, hi], value}
+    applied in order, bounds inclusive, later regions win), ``values`` (one number per contact node),
+    ``design`` (manufactured target λ̄ = λ(α*) for the given control points α*).
+    """
+    model = problem.model
+    xy = model.mesh.contact_points()
+    p = xy.shape[0]
+    kind = spec["kind"]
+    if kind == "constant":
+        return np.full(p, float(spec.get("value", 0.0)))
+    if kind == "step":
+        out = np.full(p, float(spec.get("default", 0.0)))
+        eps = 1e-12
+        for reg in spec.get("regions", []):
+            lo1, hi1 = reg.get("x1", [-np.inf, np.inf])
+            lo2, hi2 = reg.get("x2", [-np.inf, np.inf])
+            inside = ((xy[:, 0] >= lo1 - eps) & (xy[:, 0] <= hi1 + eps)
+                      & (xy[:, 1] >= lo2 - eps) & (xy[:, 1] <= hi2 + eps))
+            out[inside] = float(reg["value"])
+        return out
+    if kind == "values":
+        vals = np.asarray(spec["values"], float)
+        if vals.size != p:
+            raise ConfigError([f"objective.target.values: has {vals.size} numbers, the mesh has {p} contact nodes"])
+        return vals
+    if kind == "design":
+        alpha_star = model.surface.as_vector(spec["alpha"]) if not np.isscalar(spec["alpha"]) \
+            else np.full(model.n_design, float(spec["alpha"]))
+        return problem.solve_state(alpha_star, warm_start=False).lam.copy()
+    raise ConfigError([f"objective.target.kind = {kind!r} is not known"])
