@@ -175,19 +175,18 @@ def plot_stress_comparison(path, model, target, initial, optimal, *,
     X1, X2, _ = contact_grid(model)
     e1 = _dual_edges(X1[0], 0.0, model.surface.a)
     e2 = _dual_edges(X2[:, 0], 0.0, model.surface.b)
-    # leave a gap between bars so the individual nodes stay readable
-    dx = 0.8 * np.diff(e1)
-    dy = 0.8 * np.diff(e2)
-    x0 = X1 - 0.5 * dx[None, :]
-    y0 = X2 - 0.5 * dy[:, None]
-    DX, DY = np.broadcast_to(dx[None, :], X1.shape), np.broadcast_to(dy[:, None], X1.shape)
+    # each bar fills 80 % of its node's dual cell (clipped to the rectangle), centred in it
+    dx, dy = 0.8 * np.diff(e1), 0.8 * np.diff(e2)
+    c1, c2 = 0.5 * (e1[1:] + e1[:-1]), 0.5 * (e2[1:] + e2[:-1])
+    x0, y0 = np.meshgrid(c1 - 0.5 * dx, c2 - 0.5 * dy)
+    DX, DY = np.meshgrid(dx, dy)
     zmin = min(0.0, *(g.min() for g in grids))
     zmax = max(0.0, *(g.max() for g in grids))
     if zmax == zmin:
         zmax = zmin + 1.0
     pad = 0.05 * (zmax - zmin)
     cm = colormaps["viridis"]
-    fig = _new_figure((15.0, 4.8))
+    fig = _new_figure((15.5, 4.8))
     for n, (g, title) in enumerate(zip(grids, titles)):
         ax = fig.add_subplot(1, 3, n + 1, projection="3d")
         colors = cm((g.ravel() - zmin) / (zmax - zmin))
@@ -199,7 +198,7 @@ def plot_stress_comparison(path, model, target, initial, optimal, *,
         ax.set_box_aspect((model.surface.a, model.surface.b, 0.8 * max(model.surface.a, model.surface.b)))
         ax.set_xlabel("$x_1$")
         ax.set_ylabel("$x_2$")
-        ax.set_zlabel(zlabel, fontsize=8, labelpad=12)
+        ax.set_zlabel(zlabel, fontsize=8, labelpad=8)
         ax.tick_params(labelsize=7)
         ax.tick_params(axis="z", pad=6)
         ax.set_title(f"{title}\nsum {g.sum():.4g}, max {g.max():.4g}", fontsize=10)

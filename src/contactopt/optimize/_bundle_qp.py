@@ -24,7 +24,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
+import logging
+
 from ..errors import OptimizerError
+
+logger = logging.getLogger(__name__)
 
 try:  # DAQP is a hard dependency; import lazily so that the error names it
     import daqp as _daqp
@@ -69,7 +73,7 @@ class DirectionQP:
     p: np.ndarray
     xi: np.ndarray
     sigma: float
-    qp_iterations: int
+    solver: str
 
 
 class Polyhedron:
@@ -183,50 +187,194 @@ class Polyhedron:
 
     # ------------------------------------------------------------------ BT subproblem
     def direction(self, x, G, alpha, t) -> DirectionQP:
-        """Solve the BT direction-finding QP at x for bundle (G, alpha) and parameter t."""
-        n, m = self.n, G.shape[0]
+        """Solve the BT direction-finding QP at x for bundle (G, alpha) and parameter t.
+
+        The QP is scaled to O(1) data before it reaches the solver: with a subgradient scale
+        γ_s, ``d = t·γ_s·d̃`` and ``v = t·γ_s²·ṽ`` turn the objective into ``ṽ + ½‖d̃‖²`` and
+        the bundle rows into ``(g_j/γ_s)ᵀd̃ − ṽ ≤ α_j/(t·γ_s²)``; the bundle multipliers are
+        unchanged and the constraint multipliers scale by γ_s.  Attempts, in order: DAQP with
+        γ_s the largest, then the smallest nonzero ‖g_j‖ (degenerate bundles can make the
+        active-set method cycle at one scale and not at the other), then a dense interior-point
+        method.  Each answer is accepted only if it passes a KKT check.
+        """
+        n = self.n
+        keep, G_u, alpha_u = _dedup(G, alpha)
+        norms = np.linalg.norm(G_u, axis=1)
+        nz = norms[norms > 0]
+        scales = [float(nz.max()), float(nz.min())] if nz.size else [1.0]
+        failures = []
+        for attempt, (solver, gs) in enumerate(
+                [("daqp", g) for g in dict.fromkeys(scales)] + [("ipm", scales[0])]):
+            prob = _ScaledQP(self, x, G_u, alpha_u, t, gs)
+            sol = prob.solve_daqp() if solver == "daqp" else prob.solve_ipm()
+            if isinstance(sol, str):
+                failures.append(f"{solver} (scale {gs:.2e}): {sol}")
+                continue
+            if attempt:
+                logger.debug("direction QP solved by %s at scale %.2e after: %s", solver, gs,
+                             "; ".join(failures))
+            d_s, lam_u, mu_up, mu_lo, mu_ub = sol
+            d = prob.delta * d_s
+            lam = np.zeros(G.shape[0])
+            lam[keep] = lam_u
+            xi = lam @ G
+            # complementarity gap μᵀ(b − Cx) ≥ 0 of the constraint multipliers at x
+            sigma = gs * (float(mu_up @ _finite(self.ub - x)) + float(mu_lo @ _finite(x - self.lb))
+                          + float(mu_ub @ np.maximum(self.b_ub - self.A_ub @ x, 0.0)))
+            v = float(np.max(G @ d - alpha))
+            return DirectionQP(d=d, v=v, lam=lam, p=-d / t, xi=xi, sigma=sigma, solver=solver)
+        raise OptimizerError(
+            f"the direction-finding QP failed (t = {t:.3e}, bundle size {G.shape[0]}, "
+            f"{self.n_ub} inequality and {self.n_eq} equality rows): " + "; ".join(failures))
+
+
+def _finite(v):
+    return np.where(np.isfinite(v), np.maximum(v, 0.0), 0.0)
+
+
+def _dedup(G, alpha):
+    """Drop bundle rows with a duplicate subgradient, keeping the smallest α (same QP)."""
+    order = np.lexsort((np.arange(alpha.size), alpha))        # by α, then index
+    _, first = np.unique(G[order], axis=0, return_index=True)
+    keep = np.sort(order[first])
+    return keep, G[keep], alpha[keep]
+
+
+class _ScaledQP:
+    """The BT QP in scaled variables (d̃, ṽ), see :meth:`Polyhedron.direction`."""
+
+    def __init__(self, poly: Polyhedron, x, G, alpha, t, gs):
+        n, m = poly.n, G.shape[0]
+        self.poly, self.n, self.m = poly, n, m
+        self.delta = t * gs
+        nu = t * gs * gs
+        self.Gs = G / gs
+        self.alpha_s = alpha / nu
+        self.r_ub = (poly.b_ub - poly.A_ub @ x) / self.delta
+        self.r_eq = (poly.b_eq - poly.A_eq @ x) / self.delta
+        self.lo = (poly.lb - x) / self.delta
+        self.hi = (poly.ub - x) / self.delta
+
+    def _kkt_ok(self, z, lam, mu_up, mu_lo, mu_ub, mu_eq):
+        """Accept a solution only if it satisfies the KKT conditions to a tight tolerance."""
+        n, P = self.n, self.poly
+        d, v = z[:n], z[n]
+        tol = 1e-9
+        row = self.Gs @ d - v - self.alpha_s
+        viol = [np.max(row / (1 + np.abs(self.alpha_s)), initial=-np.inf)]
+        if P.n_ub:
+            viol.append(np.max((P.A_ub @ d - self.r_ub) / (1 + np.abs(self.r_ub))))
+        if P.n_eq:
+            viol.append(np.max(np.abs(P.A_eq @ d - self.r_eq) / (1 + np.abs(self.r_eq))))
+        il, iu = np.isfinite(self.lo), np.isfinite(self.hi)
+        viol.append(np.max((self.lo[il] - d[il]) / (1 + np.abs(self.lo[il])), initial=-np.inf))
+        viol.append(np.max((d[iu] - self.hi[iu]) / (1 + np.abs(self.hi[iu])), initial=-np.inf))
+        if not max(viol) <= tol:
+            return f"infeasible solution ({max(viol):.1e})"
+        if abs(lam.sum() - 1.0) > 1e-8:
+            return f"bundle multipliers sum to {lam.sum():.12g}, not 1"
+        grad = d + self.Gs.T @ lam + mu_up - mu_lo + P.A_ub.T @ mu_ub + P.A_eq.T @ mu_eq
+        if np.linalg.norm(grad) > 1e-8 * (1 + np.linalg.norm(d) + np.linalg.norm(self.Gs.T @ lam)):
+            return f"stationarity residual {np.linalg.norm(grad):.1e}"
+        return None
+
+    def solve_daqp(self):
+        n, m, P = self.n, self.m, self.poly
         H = np.zeros((n + 1, n + 1))
         H[np.arange(n), np.arange(n)] = 1.0
         f = np.zeros(n + 1)
-        f[n] = t
-        Ab = np.hstack([G, -np.ones((m, 1))])
-        Ac, bu_c, bl_c = self._constraint_block(x, 1)
-        A = np.vstack([Ab, Ac])
-        bu = np.concatenate([alpha, bu_c])
-        bl = np.concatenate([np.full(m, -np.inf), bl_c])
-        nb = 0
-        if self.has_bounds:
-            nb = n
-            bu = np.concatenate([self.ub - x, bu])
-            bl = np.concatenate([self.lb - x, bl])
-        sense = np.zeros(bu.size, dtype=np.int32)
-        sense[nb + m + self.n_ub:] = 5
-        z, flag, lam_all, info = _solve(H, f, A, bu, bl, sense)
-        if flag not in (1, 2) or not np.all(np.isfinite(z)):
-            raise OptimizerError(
-                f"the direction-finding QP failed (t = {t:.3e}, bundle size {m}, "
-                f"{self.n_ub} inequality and {self.n_eq} equality rows): DAQP exit flag "
-                f"{flag} ({_DAQP_FLAGS.get(flag, 'unknown')})")
-        d = z[:n]
-        lam_all = lam_all / t
-        lam = np.maximum(lam_all[nb:nb + m], 0.0)
-        total = lam.sum()
-        if not total > 0.5:  # Σλ = 1 by the KKT conditions; anything else is a QP failure
-            raise OptimizerError(f"the direction-finding QP returned bundle multipliers "
-                                 f"summing to {total:.3e} instead of 1 (t = {t:.3e})")
-        lam = lam / total
-        xi = lam @ G
-        # complementarity gap μᵀ(b − Cx) ≥ 0 of the constraint multipliers at x
-        sigma = 0.0
+        f[n] = 1.0
+        A = np.vstack([np.hstack([self.Gs, -np.ones((m, 1))]),
+                       np.hstack([P.A_ub, np.zeros((P.n_ub, 1))]),
+                       np.hstack([P.A_eq, np.zeros((P.n_eq, 1))])])
+        bu = np.concatenate([self.alpha_s, self.r_ub, self.r_eq])
+        bl = np.concatenate([np.full(m + P.n_ub, -np.inf), self.r_eq])
+        nb = n if P.has_bounds else 0
         if nb:
-            mu_b = lam_all[:nb]
-            up = np.where(mu_b > 0, self.ub - x, 0.0)
-            lo = np.where(mu_b < 0, x - self.lb, 0.0)
-            sigma += float(np.sum(np.maximum(mu_b, 0.0) * np.where(np.isfinite(up), up, 0.0)))
-            sigma += float(np.sum(np.maximum(-mu_b, 0.0) * np.where(np.isfinite(lo), lo, 0.0)))
-        if self.n_ub:
-            mu = np.maximum(lam_all[nb + m:nb + m + self.n_ub], 0.0)
-            sigma += float(mu @ np.maximum(self.b_ub - self.A_ub @ x, 0.0))
-        v = float(np.max(G @ d - alpha))
-        return DirectionQP(d=d, v=v, lam=lam, p=-d / t, xi=xi, sigma=sigma,
-                           qp_iterations=int(info.get("iterations", 0)))
+            bu = np.concatenate([self.hi, bu])
+            bl = np.concatenate([self.lo, bl])
+        sense = np.zeros(bu.size, dtype=np.int32)
+        sense[nb + m + P.n_ub:] = 5
+        z, flag, lam_all, _ = _solve(H, f, A, bu, bl, sense)
+        if flag not in (1, 2) or not np.all(np.isfinite(z)):
+            return f"exit flag {flag} ({_DAQP_FLAGS.get(flag, 'unknown')})"
+        mu_b = lam_all[:nb] if nb else np.zeros(n)
+        mu_up, mu_lo = np.maximum(mu_b, 0.0), np.maximum(-mu_b, 0.0)
+        lam = lam_all[nb:nb + m]
+        mu_ub = lam_all[nb + m:nb + m + P.n_ub]
+        mu_eq = lam_all[nb + m + P.n_ub:]
+        return self._finish(z, lam, mu_up, mu_lo, mu_ub, mu_eq)
+
+    def solve_ipm(self):
+        n, m, P = self.n, self.m, self.poly
+        N = n + 1
+        H = np.zeros((N, N))
+        H[np.arange(n), np.arange(n)] = 1.0
+        f = np.zeros(N)
+        f[n] = 1.0
+        iu = np.flatnonzero(np.isfinite(self.hi))
+        il = np.flatnonzero(np.isfinite(self.lo))
+        eye = np.eye(N)
+        A = np.vstack([np.hstack([self.Gs, -np.ones((m, 1))]),
+                       np.hstack([P.A_ub, np.zeros((P.n_ub, 1))]), eye[iu], -eye[il]])
+        b = np.concatenate([self.alpha_s, self.r_ub, self.hi[iu], -self.lo[il]])
+        E = np.hstack([P.A_eq, np.zeros((P.n_eq, 1))])
+        try:
+            z, lam_all, mu_eq = _ipm(H, f, A, b, E, self.r_eq)
+        except (np.linalg.LinAlgError, FloatingPointError, RuntimeError) as exc:
+            return f"interior point failed ({exc})"
+        mu_up, mu_lo = np.zeros(n), np.zeros(n)
+        k = m + P.n_ub
+        mu_up[iu] = lam_all[k:k + iu.size]
+        mu_lo[il] = lam_all[k + iu.size:]
+        return self._finish(z, lam_all[:m], mu_up, mu_lo, lam_all[m:k], mu_eq)
+
+    def _finish(self, z, lam, mu_up, mu_lo, mu_ub, mu_eq):
+        bad = self._kkt_ok(z, lam, mu_up, mu_lo, mu_ub, mu_eq)
+        if bad:
+            return bad
+        lam = np.maximum(lam, 0.0)
+        return z[:self.n], lam / lam.sum(), mu_up, mu_lo, np.maximum(mu_ub, 0.0)
+
+
+def _ipm(H, f, A, b, E, e, tol=1e-13, max_iter=200):
+    """Dense Mehrotra predictor-corrector for min ½zᵀHz + fᵀz s.t. Az ≤ b, Ez = e.
+
+    Fallback for degenerate bundles on which the active-set method cycles; H may be
+    singular as long as H + AᵀDA is not (true here: every bundle row contains ṽ).
+    """
+    N, m, p = H.shape[0], A.shape[0], E.shape[0]
+    z = np.zeros(N)
+    s = np.maximum(b - A @ z, 1.0)
+    lam = np.ones(m)
+    y = np.zeros(p)
+    scale = 1.0 + max(np.abs(b).max(initial=0.0), np.abs(e).max(initial=0.0))
+    for _ in range(max_iter):
+        rd = H @ z + f + A.T @ lam + E.T @ y
+        rp = A @ z + s - b
+        re = E @ z - e
+        mu = float(s @ lam) / m
+        res = max(np.abs(rd).max(), np.abs(rp).max(initial=0.0), np.abs(re).max(initial=0.0))
+        if res <= tol * scale and mu <= tol * scale:
+            return z, lam, y
+        D = lam / s
+        K = np.block([[H + A.T @ (D[:, None] * A), E.T], [E, np.zeros((p, p))]])
+
+        def newton(rc):
+            rhs = np.concatenate([-rd - A.T @ ((rc + lam * rp) / s), -re])
+            sol = np.linalg.solve(K, rhs)
+            dz = sol[:N]
+            ds = -rp - A @ dz
+            return dz, ds, (rc - lam * ds) / s, sol[N:]
+
+        def max_step(v, dv):
+            neg = dv < 0
+            return min(1.0, float(np.min(-v[neg] / dv[neg]))) if np.any(neg) else 1.0
+
+        dz, ds, dl, dy = newton(-s * lam)
+        a = min(max_step(s, ds), max_step(lam, dl))
+        sigma = (float((s + a * ds) @ (lam + a * dl)) / m / mu) ** 3
+        dz, ds, dl, dy = newton(-s * lam - ds * dl + sigma * mu)
+        a = min(1.0, 0.99 * min(max_step(s, ds), max_step(lam, dl)))
+        z, s, lam, y = z + a * dz, s + a * ds, lam + a * dl, y + a * dy
+    raise RuntimeError(f"no convergence in {max_iter} iterations")

@@ -263,14 +263,7 @@ def _bt_iteration(oracle, poly: Polyhedron, st: BundleState, o: BTOptions, eps: 
         if trial == 0:
             alpha_p = float(qp.lam @ alpha)
             st.xi = qp.xi
-            import os
-            mode = os.environ.get("BTSTOP", "tp2")
-            if mode == "tp2":
-                st.stationarity = t * float(qp.p @ qp.p) + alpha_p + qp.sigma
-            elif mode == "two":
-                st.stationarity = max(float(np.linalg.norm(qp.p)), alpha_p + qp.sigma)
-            elif mode == "plain":
-                st.stationarity = 0.5 * float(qp.p @ qp.p) + alpha_p + qp.sigma
+            st.stationarity = max(float(np.linalg.norm(qp.p)), alpha_p + qp.sigma)
             logger.debug("stop-test t|p|^2=%.2e alpha_p=%.2e sigma=%.2e", t * float(qp.p @ qp.p), alpha_p, qp.sigma)
             if st.stationarity <= eps:
                 return _Step("converged", qp, t)

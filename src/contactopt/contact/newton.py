@@ -1,0 +1,332 @@
+"""Semismooth Newton method for the local Coulomb problem (Alart–Curnier), with a PROX fallback.
+
+Convention of :mod:`contactopt.contact.local`: ``u = W r + q``, per contact (normal, t1, t2).
+
+Formulation. Per contact, with a scalar ``rho_i > 0``, ``x_N = r_N - rho u_N`` and
+``x_T = r_T - rho u_T``, the Alart–Curnier function is
+
+    Phi_N = r_N - max(0, x_N),      Phi_T = r_T - P_{D(mu max(0, x_N))}(x_T),
+
+where ``P_D(s)`` projects onto the disc of radius ``s``; ``Phi(r) = 0`` exactly at solutions.
+Why this map rather than the natural map or Fischer–Burmeister of the SOCCP: it is piecewise
+smooth with three closed-form pieces per contact, and on each piece the Newton rows are cheap
+and well structured: *separated* contacts (``x_N <= 0``) give ``Phi = r``, identity rows, so
+their unknowns decouple (``dr_i = -r_i``) and each step solves a dense system on the contacts
+in contact only; *sticking* contacts give ``Phi = rho u``, i.e. plain rows of ``W`` (no
+nonsmooth ``||u_T||`` at the solution, unlike the natural map, whose sticking rows carry the
+kink of ``mu ||u_T||`` exactly where the solution sits); *sliding* contacts give rows that mix
+one normal and two tangential rows of ``W`` with a rank-one correction. It is also the map of
+the NSN_AC solver used as reference in DESIGN.md §4.
+
+Newton step. With ``dPhi = A dr + B du`` (3x3 blocks per contact) and ``du = W dr``, the step
+solves ``(A + B W) d = -Phi``; separated contacts are eliminated and the remaining dense
+system (rows scaled by ``1/rho``) is factorised by LAPACK ``getrf``.
+
+Globalisation. Armijo backtracking on the merit ``1/2 ||Phi||^2`` (non-monotone over the last
+few values). When plain Newton fails (line search exhausted, singular Jacobian — rigid-body
+FCLIB problems have singular ``W`` — or stagnation), the solver switches to the proximal point
+method of Siconos' PROX: round ``k`` solves, by the same Newton iteration, the problem with
+``W + alpha_k I`` and ``q - alpha_k r_k`` (same solution set at convergence, a nonsingular
+Jacobian for ``alpha_k > 0``), with ``alpha_k = sigma * error_k * mean(diag W)`` shrinking as the
+error falls and growing tenfold after a failed round.
+"""
+
+from __future__ import annotations
+
+import logging
+import time
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.sparse as sp
+import scipy.sparse.linalg as spla
+from scipy.linalg import lapack
+
+from ..errors import ContactNotConverged, ProblemDataError
+from .cones import siconos_error
+from .local import LocalResult, check_problem
+
+__all__ = ["solve_newton", "alart_curnier"]
+
+log = logging.getLogger(__name__)
+
+_RCOND_MIN = 1e-13       # reciprocal condition below which a Newton matrix counts as singular
+
+
+@dataclass
+class _Piece:
+    """Which smooth piece of Phi each contact is on, and the data of its Jacobian."""
+
+    active: np.ndarray   # (p,) x_N > 0: in contact
+    slip: np.ndarray     # (p,) ||x_T|| > mu x_N, or a zero disc (mu x_N = 0)
+    nvec: np.ndarray     # (p, 2) x_T / ||x_T|| (0 where x_T = 0)
+    c: np.ndarray        # (p,) mu max(0, x_N) / ||x_T|| on sliding contacts, else 0
+
+
+def alart_curnier(r, u, mu, rho):
+    """Alart–Curnier function ``Phi(r)`` (stacked (N, T1, T2)) and its smooth piece."""
+    R = r.reshape(-1, 3)
+    U = u.reshape(-1, 3)
+    xn = R[:, 0] - rho * U[:, 0]
+    xt = R[:, 1:] - rho[:, None] * U[:, 1:]
+    pn = np.maximum(xn, 0.0)
+    rad = mu * pn
+    nxt = np.hypot(xt[:, 0], xt[:, 1])
+    slip = (nxt > rad) | (rad <= 0.0)
+    safe = np.where(nxt > 0, nxt, 1.0)
+    nvec = xt / safe[:, None]
+    c = np.where(slip, rad / safe, 0.0)
+    Phi = np.empty_like(R)
+    Phi[:, 0] = R[:, 0] - pn
+    Phi[:, 1:] = np.where(slip[:, None], R[:, 1:] - c[:, None] * xt, R[:, 1:] - xt)
+    return Phi.reshape(-1), _Piece(active=xn > 0, slip=slip, nvec=nvec, c=c)
+
+
+def _apply_bhat(V, piece_idx, mu, nvec, c):
+    """Rows ``(B/rho) V`` of sliding contacts in place: ``V`` is (k, 3, m), rows (N, T1, T2)."""
+    if piece_idx.size == 0:
+        return
+    vn = V[piece_idx, 0, :]
+    v1 = V[piece_idx, 1, :]
+    v2 = V[piece_idx, 2, :]
+    n1 = nvec[:, 0][:, None]
+    n2 = nvec[:, 1][:, None]
+    cc = c[:, None]
+    mu_ = mu[:, None]
+    # c (I - n n^T) v_T + mu n v_N
+    proj = n1 * v1 + n2 * v2
+    V[piece_idx, 1, :] = cc * (v1 - n1 * proj) + mu_ * n1 * vn
+    V[piece_idx, 2, :] = cc * (v2 - n2 * proj) + mu_ * n2 * vn
+
+
+class _Solver:
+    """Holds the dense problem and the counters shared by the plain and proximal phases."""
+
+    def __init__(self, W, q, mu, tol):
+        self.W = W
+        self.q = q
+        self.mu = mu
+        self.tol = tol
+        self.n = q.size
+        self.p = q.size // 3
+        idx = np.arange(self.p)
+        diag_blocks = W.reshape(self.p, 3, self.p, 3)[idx, :, idx, :]      # (p, 3, 3)
+        self.wdiag = np.trace(diag_blocks, axis1=1, axis2=2) / 3.0
+        # ||M||_inf of every Newton matrix is within a small factor of this bound; dgecon
+        # only needs the order of magnitude to flag singular matrices.
+        self.wnorm_inf = float(np.abs(W).sum(axis=1).max())
+        self.mu_max = float(mu.max(initial=0.0))
+        self.wscale = float(np.mean(np.abs(self.wdiag))) or 1.0
+        self.history: list[float] = []
+        self.best = (np.inf, None, None)
+        self.counts = {"factorizations": 0, "line_search_evals": 0, "singular": 0,
+                       "line_search_failures": 0}
+        self.active_trace: list[tuple[int, int]] = []
+
+    def rho(self, alpha):
+        d = self.wdiag + alpha
+        return 1.0 / np.where(d > 0, d, self.wscale + alpha)
+
+    # -- one Newton direction ------------------------------------------------------------
+    def direction(self, r, Phi, piece, rho, alpha):
+        """Solve ``(A + B (W + alpha I)) d = -Phi``; return ``d`` or ``None`` if singular."""
+        W = self.W
+        act = piece.active
+        A = np.flatnonzero(act)
+        d = -Phi.copy()                      # separated contacts: Phi = r, d = -r
+        k = A.size
+        self.active_trace.append((int(k), int(np.count_nonzero(act & ~piece.slip))))
+        if k == 0:
+            return d
+        ia = (3 * A[:, None] + np.arange(3)).ravel()
+        dI = d.copy()
+        dI[ia] = 0.0
+        b = -(Phi[ia] * np.repeat(rho[A], 3))
+        if k == self.p:
+            M = W.copy()
+            cross = None
+        else:
+            M = W[np.ix_(ia, ia)]
+            cross = (W[ia] @ dI) if np.any(dI) else None
+        if alpha:
+            M.flat[:: 3 * k + 1] += alpha
+        sl = np.flatnonzero(piece.slip[A])   # local indices of sliding contacts
+        gl = A[sl]
+        Mv = M.reshape(k, 3, 3 * k)
+        _apply_bhat(Mv, sl, self.mu[gl], piece.nvec[gl], piece.c[gl])
+        if sl.size:
+            # + A/rho on the diagonal blocks of sliding rows: [-mu n, I - c (I - n n^T)] / rho
+            nv = piece.nvec[gl]
+            cc = piece.c[gl]
+            ir = rho[gl]
+            cols = 3 * sl
+            Mv[sl, 1, cols] += -self.mu[gl] * nv[:, 0] * ir
+            Mv[sl, 2, cols] += -self.mu[gl] * nv[:, 1] * ir
+            Mv[sl, 1, cols + 1] += (1.0 - cc * (1.0 - nv[:, 0] ** 2)) * ir
+            Mv[sl, 1, cols + 2] += (cc * nv[:, 0] * nv[:, 1]) * ir
+            Mv[sl, 2, cols + 1] += (cc * nv[:, 0] * nv[:, 1]) * ir
+            Mv[sl, 2, cols + 2] += (1.0 - cc * (1.0 - nv[:, 1] ** 2)) * ir
+        if cross is not None:
+            Cv = cross.reshape(k, 3, 1)
+            _apply_bhat(Cv, sl, self.mu[gl], piece.nvec[gl], piece.c[gl])
+            b -= Cv.reshape(-1)
+        # M is C-ordered, so M.T is Fortran-ordered: factor M^T without a copy, solve with trans.
+        anorm = (1.0 + self.mu_max) * self.wnorm_inf + alpha + 2.0 / float(rho.min())
+        lu, piv, info = lapack.dgetrf(M.T, overwrite_a=True)
+        self.counts["factorizations"] += 1
+        if info != 0:
+            self.counts["singular"] += 1
+            return None
+        rcond, _ = lapack.dgecon(lu, anorm, norm="1")
+        if not rcond > _RCOND_MIN:
+            self.counts["singular"] += 1
+            return None
+        x, info = lapack.dgetrs(lu, piv, b, trans=1)
+        if info != 0 or not np.all(np.isfinite(x)):
+            self.counts["singular"] += 1
+            return None
+        d[ia] = x
+        return d
+
+    # -- Newton iterations on the problem (W + alpha I, q - alpha rc) ----------------------
+    def newton(self, r, alpha, rc, inner_tol, max_steps, budget):
+        """Run Newton steps; return ``(r, status)`` with status in
+        ``converged | inner | max | singular | linesearch | stagnation | budget``."""
+        W, q, mu = self.W, self.q, self.mu
+        rho = self.rho(alpha)
+        u = W @ r + q
+        qa = q - alpha * rc if alpha else q
+        ua = u + alpha * (r - rc) if alpha else u
+        Phi, piece = alart_curnier(r, ua, mu, rho)
+        theta = 0.5 * float(Phi @ Phi)
+        recent = [theta]
+        err_hist = []
+        steps = 0
+        while True:
+            if steps >= max_steps:
+                return r, "max"
+            if len(self.history) >= budget:
+                return r, "budget"
+            d = self.direction(r, Phi, piece, rho, alpha)
+            if d is None:
+                return r, "singular"
+            Wd = W @ d
+            Wad = Wd + alpha * d if alpha else Wd
+            t = 1.0
+            ref = max(recent[-4:])
+            for _ in range(30):
+                self.counts["line_search_evals"] += 1
+                r_t = r + t * d
+                ua_t = ua + t * Wad
+                Phi_t, piece_t = alart_curnier(r_t, ua_t, mu, rho)
+                theta_t = 0.5 * float(Phi_t @ Phi_t)
+                if theta_t <= ref - 2e-4 * t * theta:
+                    break
+                t *= 0.5
+            else:
+                self.counts["line_search_failures"] += 1
+                return r, "linesearch"
+            r, ua, Phi, piece, theta = r_t, ua_t, Phi_t, piece_t, theta_t
+            u = u + t * Wd
+            recent.append(theta)
+            steps += 1
+            if not (np.all(np.isfinite(r)) and np.all(np.isfinite(u))):
+                raise ContactNotConverged("Newton produced non-finite values", self.history)
+            err = siconos_error(r, u, q, mu)
+            self.history.append(err)
+            err_hist.append(err)
+            if err < self.best[0]:
+                self.best = (err, r.copy(), u.copy())
+            log.debug("newton step %d (alpha %.2e): error %.3e, step %.3g, active %d",
+                      len(self.history), alpha, err, t, self.active_trace[-1][0])
+            if err <= self.tol:
+                return r, "converged"
+            if alpha and siconos_error(r, ua, qa, mu) <= inner_tol:
+                return r, "inner"
+            if len(err_hist) > 10 and err > 0.5 * err_hist[-11]:
+                return r, "stagnation"
+
+
+def solve_newton(W, q, mu, *, tol: float = 1e-8, max_iter: int = 200, r0=None,
+                 proximal: str = "auto", plain_max_iter: int = 50, prox_sigma: float = 5.0,
+                 prox_inner_max_iter: int = 25, raise_on_failure: bool = True) -> LocalResult:
+    """Semismooth Newton (Alart–Curnier) for ``u = W r + q``, ``K_mu ∋ r ⊥ u~ ∈ K_mu*``.
+
+    Parameters
+    ----------
+    W : (3p, 3p) Delassus operator, dense or sparse (densified: the steps use dense LAPACK);
+        need not be symmetric nor nonsingular.
+    q, mu : see :func:`contactopt.contact.local.solve_local`.
+    tol : target Siconos error.
+    max_iter : total number of Newton steps (plain and proximal together).
+    r0 : warm start (e.g. the solution for a nearby ``q``).
+    proximal : ``"auto"`` (plain Newton, PROX fallback), ``"never"`` or ``"always"``.
+    plain_max_iter : Newton steps of the plain phase before switching to PROX.
+    prox_sigma : ``alpha_k = prox_sigma * error_k * mean(diag W)``.
+    prox_inner_max_iter : Newton steps per proximal round.
+    raise_on_failure : raise :class:`ContactNotConverged` (with the error history) on failure.
+    """
+    t0 = time.perf_counter()
+    if isinstance(W, spla.LinearOperator):
+        raise ProblemDataError("the Newton solver needs W as a matrix, not a LinearOperator")
+    W, q, mu, r0 = check_problem(W, q, mu, r0=r0)
+    if proximal not in ("auto", "never", "always"):
+        raise ProblemDataError(f"proximal must be 'auto', 'never' or 'always', got {proximal!r}")
+    if sp.issparse(W):
+        W = W.toarray()
+    W = np.ascontiguousarray(W)
+    S = _Solver(W, q, mu, tol)
+    r = np.zeros(q.size) if r0 is None else r0.copy()
+    u = W @ r + q
+    err0 = siconos_error(r, u, q, mu)
+    S.best = (err0, r.copy(), u.copy())
+    status = "converged" if err0 <= tol else ""
+    phase = "plain"
+    prox_rounds = 0
+    alphas: list[float] = []
+    if not status and proximal != "always":
+        r, status = S.newton(r, 0.0, None, 0.0, min(plain_max_iter, max_iter), max_iter)
+        if status != "converged":
+            log.debug("plain Newton stopped (%s) after %d steps, error %.3e",
+                      status, len(S.history), S.best[0])
+    if status != "converged" and proximal != "never":
+        phase = "proximal"
+        err, r, _ = S.best
+        alpha = prox_sigma * err * S.wscale
+        while len(S.history) < max_iter:
+            prox_rounds += 1
+            alphas.append(alpha)
+            rc = r.copy()
+            inner_tol = max(0.1 * err, 0.1 * tol)
+            r, status = S.newton(r, alpha, rc, inner_tol, prox_inner_max_iter, max_iter)
+            if status == "converged":
+                break
+            err_new = siconos_error(r, W @ r + q, q, mu)
+            if status in ("inner", "max", "stagnation") and err_new < err:
+                err = err_new
+                alpha = prox_sigma * err * S.wscale
+            else:
+                r = rc if err_new > err else r
+                err = min(err, err_new)
+                alpha *= 10.0
+            log.debug("PROX round %d: status %s, error %.3e, next alpha %.2e",
+                      prox_rounds, status, err, alpha)
+    err, r, u = S.best
+    converged = err <= tol
+    elapsed = time.perf_counter() - t0
+    n_steps = len(S.history)
+    if converged:
+        msg = f"converged: Siconos error {err:.3e} <= tol {tol:.1e} ({phase} Newton)"
+    else:
+        msg = (f"not converged: Siconos error {err:.3e} > tol {tol:.1e} after {n_steps} Newton "
+               f"steps ({phase} phase, last status '{status}')")
+    result = LocalResult(
+        r=r, u=u, iterations=n_steps, error=err, converged=converged, history=list(S.history),
+        method="newton", time_s=elapsed, message=msg, outer_iterations=prox_rounds,
+        inner_iterations=n_steps,
+        stats={**S.counts, "phase": phase, "alphas": alphas, "last_status": status,
+               "active_contacts": [a for a, _ in S.active_trace],
+               "sticking_contacts": [s for _, s in S.active_trace]})
+    if not converged and raise_on_failure:
+        raise ContactNotConverged(msg, S.history)
+    return result
