@@ -5,7 +5,13 @@ sub-packages ``contactopt.contact`` (``solve_local``) and ``contactopt.optimize`
 (``minimize_bundle``).
 """
 
+import os
 from importlib.metadata import PackageNotFoundError, version
+
+# MKL's OpenMP threads (PARDISO) spin for 200 ms after each parallel region by default and then
+# compete with NumPy's BLAS threads for the same cores: on 2 cores that doubled the time of the
+# dense steps that follow a Schur complement. Must be set before libmkl_rt is loaded.
+os.environ.setdefault("KMP_BLOCKTIME", "0")
 
 from .config import Config, load_config
 from .errors import (CheckpointError, ConfigError, ContactNotConverged, ContactOptError,

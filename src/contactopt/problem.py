@@ -55,7 +55,11 @@ def spd_inverse(S: np.ndarray) -> np.ndarray:
     inv, info = sla.lapack.dpotri(c, lower=False)
     if info != 0:
         raise SolverError(f"inverting the condensed stiffness failed (potri info {info})")
-    return np.triu(inv) + np.triu(inv, 1).T
+    # potri fills the upper triangle; the lower one is still the zeros of the cleaned factor
+    d = inv.diagonal().copy()
+    inv += inv.T
+    inv[np.diag_indices_from(inv)] = d
+    return inv
 
 
 class ShapeProblem:

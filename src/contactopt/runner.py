@@ -231,7 +231,7 @@ def _finish(out: Path, problem, alpha0, res, oracle, t_start) -> dict:
                            s0.lam, s1.lam)
     plot_surface(out / "surface.png", model, x)
     plot_node_classes(out / "classes.png", model, s1.classes)
-    plot_history(out / "history.png", res.history)
+    plot_history(out / "history.png", [{**r, "kind": r.get("step")} for r in res.history])
     amat = model.surface.as_matrix(x)
     atomic_write_json(out / "alpha.json", {"alpha": amat.tolist(), "shape": list(amat.shape)})
     g1, g2 = np.meshgrid(np.linspace(0, model.surface.a, 41), np.linspace(0, model.surface.b, 21))

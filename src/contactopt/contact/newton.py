@@ -83,20 +83,18 @@ def alart_curnier(r, u, mu, rho):
 
 
 def _apply_bhat(V, piece_idx, mu, nvec, c):
-    """Rows ``(B/rho) V`` of sliding contacts in place: ``V`` is (k, 3, m), rows (N, T1, T2)."""
+    """Rows ``(B/rho) V`` of sliding contacts in place: ``V`` is (k, 3, m), rows (N, T1, T2).
+
+    The tangential rows of ``B/rho`` are ``[mu n, c (I - n n^T)]``; the normal row is ``e_N``.
+    """
     if piece_idx.size == 0:
         return
-    vn = V[piece_idx, 0, :]
-    v1 = V[piece_idx, 1, :]
-    v2 = V[piece_idx, 2, :]
-    n1 = nvec[:, 0][:, None]
-    n2 = nvec[:, 1][:, None]
-    cc = c[:, None]
-    mu_ = mu[:, None]
-    # c (I - n n^T) v_T + mu n v_N
-    proj = n1 * v1 + n2 * v2
-    V[piece_idx, 1, :] = cc * (v1 - n1 * proj) + mu_ * n1 * vn
-    V[piece_idx, 2, :] = cc * (v2 - n2 * proj) + mu_ * n2 * vn
+    T = np.empty((piece_idx.size, 2, 3))
+    T[:, :, 0] = mu[:, None] * nvec
+    T[:, :, 1:] = -c[:, None, None] * nvec[:, :, None] * nvec[:, None, :]
+    T[:, 0, 1] += c
+    T[:, 1, 2] += c
+    V[piece_idx, 1:, :] = np.matmul(T, V[piece_idx])
 
 
 class _Solver:
@@ -141,13 +139,13 @@ class _Solver:
         ia = (3 * A[:, None] + np.arange(3)).ravel()
         dI = d.copy()
         dI[ia] = 0.0
-        b = -(Phi[ia] * np.repeat(rho[A], 3))
+        b = -(Phi[ia] / np.repeat(rho[A], 3))
         if k == self.p:
             M = W.copy()
             cross = None
         else:
             M = W[np.ix_(ia, ia)]
-            cross = (W[ia] @ dI) if np.any(dI) else None
+            cross = (W @ dI)[ia] if np.any(dI) else None
         if alpha:
             M.flat[:: 3 * k + 1] += alpha
         sl = np.flatnonzero(piece.slip[A])   # local indices of sliding contacts
@@ -158,7 +156,7 @@ class _Solver:
             # + A/rho on the diagonal blocks of sliding rows: [-mu n, I - c (I - n n^T)] / rho
             nv = piece.nvec[gl]
             cc = piece.c[gl]
-            ir = rho[gl]
+            ir = 1.0 / rho[gl]
             cols = 3 * sl
             Mv[sl, 1, cols] += -self.mu[gl] * nv[:, 0] * ir
             Mv[sl, 2, cols] += -self.mu[gl] * nv[:, 1] * ir

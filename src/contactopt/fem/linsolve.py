@@ -67,6 +67,14 @@ def _check_matrix(A):
         A = A.sorted_indices()
     if not np.all(np.isfinite(A.data)):
         raise SolverError("A has non-finite entries (nan or inf)")
+    # Both backends read one triangle only: catch an unsymmetric A by a randomized test
+    # (two products, a few ms) instead of forming A − Aᵀ.
+    rng = np.random.default_rng(0)
+    x, y = rng.standard_normal((2, A.shape[0]))
+    Ax, Ay = A @ x, A @ y
+    if abs(y @ Ax - x @ Ay) > 1e-10 * (np.linalg.norm(Ax) * np.linalg.norm(y)
+                                       + np.linalg.norm(Ay) * np.linalg.norm(x)):
+        raise SolverError("A is not symmetric")
     diag = A.diagonal()
     bad = np.flatnonzero(~(diag > 0))
     if bad.size:
@@ -105,6 +113,16 @@ def _pick_backend(backend):
         backend = "pardiso" if _pardiso.available() else "scipy"
         logger.info("linear solver backend: %s", backend)
     return backend
+
+
+def _check_S(S):
+    """The Schur block itself is not factorized: catch the cheap symptoms of a non-SPD A."""
+    d = np.diagonal(S)
+    if not np.all(np.isfinite(S)):
+        raise SolverError("the condensed stiffness S has non-finite entries")
+    if not np.all(d > 0):
+        raise SolverError("A is not positive definite: the condensed stiffness S has "
+                          f"{np.sum(~(d > 0))} diagonal entries <= 0")
 
 
 # ----------------------------------------------------------------------- common interface
@@ -204,6 +222,7 @@ class PardisoCondensation(Condensation):
                      self._ps.mflops_factor, t1 - t0, t2 - t1)
 
     def _set_S(self, S):
+        _check_S(S)
         self.S = S if self._rank is None else S[np.ix_(self._rank, self._rank)]
 
     def refactor(self, A):
@@ -272,9 +291,13 @@ def _supervariable_order(A):
     h = np.zeros(n, dtype=np.uint64)
     np.add.at(h, row, weights[A.indices])  # wraps mod 2**64: a hash of the row pattern
     key = np.stack([h, np.diff(A.indptr).astype(np.uint64)], axis=1)
-    _, sv = np.unique(key, axis=0, return_inverse=True)
-    sv = sv.ravel()
-    n_sv = int(sv.max()) + 1
+    _, first, sv = np.unique(key, axis=0, return_index=True, return_inverse=True)
+    # number the supervariables in order of their first DOF: minimum degree breaks ties by
+    # the initial numbering, and the mesh numbering is a much better start than hash order
+    relabel = np.empty(len(first), dtype=np.int64)
+    relabel[np.argsort(first)] = np.arange(len(first))
+    sv = relabel[sv.ravel()]
+    n_sv = len(first)
     P = sp.csr_matrix((np.ones(n), (np.arange(n), sv)), shape=(n, n_sv))
     Q = (P.T @ (abs(A) > 0).astype(np.float64) @ P).tocsr()
     Q.data[:] = -1.0
@@ -287,6 +310,18 @@ def _supervariable_order(A):
     # perm_c[s] is the new position of supervariable s; a DOF inherits it (stable sort keeps
     # the DOFs of one supervariable together and in order)
     return np.argsort(lu.perm_c[sv], kind="stable")
+
+
+def _trailing_block(T, m):
+    """Dense T[n-m:, n-m:] of a CSC factor (row slicing a large CSC matrix is slow)."""
+    n = T.shape[0]
+    start, stop = T.indptr[n - m], T.indptr[n]
+    rows = T.indices[start:stop]
+    cols = np.repeat(np.arange(m), np.diff(T.indptr[n - m:]))
+    keep = rows >= n - m
+    out = np.zeros((m, m))
+    out[rows[keep] - (n - m), cols[keep]] = T.data[start:stop][keep]
+    return out
 
 
 def _splu_natural(B):
@@ -332,11 +367,10 @@ class ScipyCondensation(Condensation):
         pos = lu.perm_c[n - m:] - (n - m)   # SuperLU may postorder; c must stay trailing
         if not np.array_equal(np.sort(pos), np.arange(m)):
             raise SolverError("SuperLU moved Schur DOFs out of the trailing block")
-        Lc = lu.L[n - m:, n - m:].toarray()
-        Uc = lu.U[n - m:, n - m:].toarray()
-        S = Lc @ Uc
-        self.S = S[np.ix_(pos, pos)]
-        self.S = 0.5 * (self.S + self.S.T)
+        S = _trailing_block(lu.L, m) @ _trailing_block(lu.U, m)
+        S = S[np.ix_(pos, pos)]
+        self.S = 0.5 * (S + S.T)
+        _check_S(self.S)
         self._lu = lu
         self.timings = {"analyze": t1 - t0, "factor_schur": time.perf_counter() - t1}
         logger.debug("SciPy Schur: n=%d n_c=%d nnz(L+U)=%d, %.3f s ordering, %.3f s factor",

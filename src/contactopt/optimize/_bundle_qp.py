@@ -61,7 +61,7 @@ def _solve(H, f, A, bupper, blower, sense):
 class DirectionQP:
     """Solution of the direction-finding QP for one trust parameter ``t``.
 
-    ``d`` the step, ``v = max_j (g_jᵀd − α_j)`` the model decrease (≤ 0), ``lam`` the convex
+    ``d`` the step, ``v = Σλ_j (g_jᵀd − α_j) = max_j (g_jᵀd − α_j)`` the model decrease (≤ 0), ``lam`` the convex
     weights of the bundle elements, ``p = −d/t = ξ + Cᵀμ`` the aggregate subgradient of
     f + indicator(U), ``xi = Σ λ_j g_j`` the aggregate subgradient of f, ``sigma = μᵀ(b − Cx)``
     the complementarity gap of the constraint multipliers at x (≥ 0).
@@ -189,39 +189,45 @@ class Polyhedron:
     def direction(self, x, G, alpha, t) -> DirectionQP:
         """Solve the BT direction-finding QP at x for bundle (G, alpha) and parameter t.
 
-        The QP is scaled to O(1) data before it reaches the solver: with a subgradient scale
-        γ_s, ``d = t·γ_s·d̃`` and ``v = t·γ_s²·ṽ`` turn the objective into ``ṽ + ½‖d̃‖²`` and
-        the bundle rows into ``(g_j/γ_s)ᵀd̃ − ṽ ≤ α_j/(t·γ_s²)``; the bundle multipliers are
-        unchanged and the constraint multipliers scale by γ_s.  Attempts, in order: DAQP with
-        γ_s the largest, then the smallest nonzero ‖g_j‖ (degenerate bundles can make the
-        active-set method cycle at one scale and not at the other), then a dense interior-point
-        method.  Each answer is accepted only if it passes a KKT check.
+        The QP reaches the solver scaled: with a subgradient scale γ_s, ``d = t·γ_s·d̃`` and
+        ``v = t·γ_s²·ṽ`` turn the objective into ``ṽ + ½‖d̃‖²`` and the bundle rows into
+        ``(g_j/γ_s)ᵀd̃ − ṽ ≤ α_j/(t·γ_s²)``; every row is then normalised to unit length
+        (multipliers are mapped back).  Attempts, in order: DAQP with γ_s = ‖g‖ of the element
+        with the smallest α (the subgradient at x), the largest and the smallest nonzero
+        ‖g_j‖ (degenerate bundles can make the active-set method cycle at one scale and not
+        at another), then a dense interior-point method.  Each answer must pass a KKT check.
         """
-        n = self.n
         keep, G_u, alpha_u = _dedup(G, alpha)
         norms = np.linalg.norm(G_u, axis=1)
-        nz = norms[norms > 0]
-        scales = [float(nz.max()), float(nz.min())] if nz.size else [1.0]
+        nz = norms > 0
+        if np.any(nz):
+            cur = int(np.flatnonzero(nz)[np.argmin(alpha_u[nz])])
+            scales = list(dict.fromkeys([float(norms[cur]), float(norms[nz].max()),
+                                         float(norms[nz].min())]))
+        else:
+            scales = [1.0]
         failures = []
-        for attempt, (solver, gs) in enumerate(
-                [("daqp", g) for g in dict.fromkeys(scales)] + [("ipm", scales[0])]):
+        attempts = [("daqp", g) for g in scales] + [("ipm", scales[0])]
+        for k, (solver, gs) in enumerate(attempts):
             prob = _ScaledQP(self, x, G_u, alpha_u, t, gs)
             sol = prob.solve_daqp() if solver == "daqp" else prob.solve_ipm()
             if isinstance(sol, str):
-                failures.append(f"{solver} (scale {gs:.2e}): {sol}")
+                failures.append(f"{solver} at scale {gs:.2e}: {sol}")
                 continue
-            if attempt:
+            if k:
                 logger.debug("direction QP solved by %s at scale %.2e after: %s", solver, gs,
                              "; ".join(failures))
             d_s, lam_u, mu_up, mu_lo, mu_ub = sol
             d = prob.delta * d_s
             lam = np.zeros(G.shape[0])
             lam[keep] = lam_u
-            xi = lam @ G
             # complementarity gap μᵀ(b − Cx) ≥ 0 of the constraint multipliers at x
             sigma = gs * (float(mu_up @ _finite(self.ub - x)) + float(mu_lo @ _finite(x - self.lb))
                           + float(mu_ub @ np.maximum(self.b_ub - self.A_ub @ x, 0.0)))
-            v = float(np.max(G @ d - alpha))
+            xi = lam @ G
+            # model value at d from the active cuts (max_j would amplify the solver tolerance
+            # on steep cuts): v = Σλ_j (g_jᵀd − α_j) = −t‖p‖² − α_p − μᵀC d ≤ 0
+            v = min(float(xi @ d - lam @ alpha), 0.0)
             return DirectionQP(d=d, v=v, lam=lam, p=-d / t, xi=xi, sigma=sigma, solver=solver)
         raise OptimizerError(
             f"the direction-finding QP failed (t = {t:.3e}, bundle size {G.shape[0]}, "
@@ -240,41 +246,51 @@ def _dedup(G, alpha):
     return keep, G[keep], alpha[keep]
 
 
+def _unit_rows(A, b):
+    w = np.linalg.norm(A, axis=1)
+    w[w == 0] = 1.0
+    return A / w[:, None], b / w, w
+
+
 class _ScaledQP:
-    """The BT QP in scaled variables (d̃, ṽ), see :meth:`Polyhedron.direction`."""
+    """The BT QP in scaled variables z = (d̃, ṽ) with unit rows, see Polyhedron.direction."""
 
     def __init__(self, poly: Polyhedron, x, G, alpha, t, gs):
         n, m = poly.n, G.shape[0]
         self.poly, self.n, self.m = poly, n, m
         self.delta = t * gs
         nu = t * gs * gs
-        self.Gs = G / gs
-        self.alpha_s = alpha / nu
-        self.r_ub = (poly.b_ub - poly.A_ub @ x) / self.delta
-        self.r_eq = (poly.b_eq - poly.A_eq @ x) / self.delta
+        self.B, self.bB, self.wB = _unit_rows(np.hstack([G / gs, -np.ones((m, 1))]), alpha / nu)
+        zc = np.zeros((poly.n_ub, 1))
+        self.C, self.bC, self.wC = _unit_rows(np.hstack([poly.A_ub, zc]),
+                                              (poly.b_ub - poly.A_ub @ x) / self.delta)
+        ze = np.zeros((poly.n_eq, 1))
+        self.E, self.bE, self.wE = _unit_rows(np.hstack([poly.A_eq, ze]),
+                                              (poly.b_eq - poly.A_eq @ x) / self.delta)
         self.lo = (poly.lb - x) / self.delta
         self.hi = (poly.ub - x) / self.delta
 
-    def _kkt_ok(self, z, lam, mu_up, mu_lo, mu_ub, mu_eq):
-        """Accept a solution only if it satisfies the KKT conditions to a tight tolerance."""
-        n, P = self.n, self.poly
-        d, v = z[:n], z[n]
-        tol = 1e-9
-        row = self.Gs @ d - v - self.alpha_s
-        viol = [np.max(row / (1 + np.abs(self.alpha_s)), initial=-np.inf)]
-        if P.n_ub:
-            viol.append(np.max((P.A_ub @ d - self.r_ub) / (1 + np.abs(self.r_ub))))
-        if P.n_eq:
-            viol.append(np.max(np.abs(P.A_eq @ d - self.r_eq) / (1 + np.abs(self.r_eq))))
+    def _kkt_error(self, z, lam, mu_up, mu_lo, mu_ub, mu_eq):
+        """None if (z, multipliers of the unit rows) satisfy the KKT conditions tightly."""
+        n = self.n
+        d = z[:n]
+        tol = 1e-9 * (1.0 + float(np.max(np.abs(z))))
         il, iu = np.isfinite(self.lo), np.isfinite(self.hi)
-        viol.append(np.max((self.lo[il] - d[il]) / (1 + np.abs(self.lo[il])), initial=-np.inf))
-        viol.append(np.max((d[iu] - self.hi[iu]) / (1 + np.abs(self.hi[iu])), initial=-np.inf))
-        if not max(viol) <= tol:
-            return f"infeasible solution ({max(viol):.1e})"
-        if abs(lam.sum() - 1.0) > 1e-8:
-            return f"bundle multipliers sum to {lam.sum():.12g}, not 1"
-        grad = d + self.Gs.T @ lam + mu_up - mu_lo + P.A_ub.T @ mu_ub + P.A_eq.T @ mu_eq
-        if np.linalg.norm(grad) > 1e-8 * (1 + np.linalg.norm(d) + np.linalg.norm(self.Gs.T @ lam)):
+        viol = max(np.max(self.B @ z - self.bB),
+                   np.max(self.C @ z - self.bC, initial=-np.inf),
+                   np.max(np.abs(self.E @ z - self.bE), initial=-np.inf),
+                   np.max(self.lo[il] - d[il], initial=-np.inf),
+                   np.max(d[iu] - self.hi[iu], initial=-np.inf))
+        if not viol <= tol:
+            return f"infeasible solution ({viol:.1e})"
+        total = float(lam @ (1.0 / self.wB))          # Σλ_j in the original rows
+        if not abs(total - 1.0) <= 1e-6:
+            return f"bundle multipliers sum to {total:.12g}, not 1"
+        grad = self.B.T @ lam + self.C.T @ mu_ub + self.E.T @ mu_eq
+        grad[:n] += d + mu_up - mu_lo
+        grad[n] += 1.0
+        ref = 1.0 + np.linalg.norm(d) + float(np.abs(lam).sum())
+        if not np.linalg.norm(grad) <= 1e-8 * ref:
             return f"stationarity residual {np.linalg.norm(grad):.1e}"
         return None
 
@@ -284,11 +300,9 @@ class _ScaledQP:
         H[np.arange(n), np.arange(n)] = 1.0
         f = np.zeros(n + 1)
         f[n] = 1.0
-        A = np.vstack([np.hstack([self.Gs, -np.ones((m, 1))]),
-                       np.hstack([P.A_ub, np.zeros((P.n_ub, 1))]),
-                       np.hstack([P.A_eq, np.zeros((P.n_eq, 1))])])
-        bu = np.concatenate([self.alpha_s, self.r_ub, self.r_eq])
-        bl = np.concatenate([np.full(m + P.n_ub, -np.inf), self.r_eq])
+        A = np.vstack([self.B, self.C, self.E])
+        bu = np.concatenate([self.bB, self.bC, self.bE])
+        bl = np.concatenate([np.full(m + P.n_ub, -np.inf), self.bE])
         nb = n if P.has_bounds else 0
         if nb:
             bu = np.concatenate([self.hi, bu])
@@ -299,11 +313,9 @@ class _ScaledQP:
         if flag not in (1, 2) or not np.all(np.isfinite(z)):
             return f"exit flag {flag} ({_DAQP_FLAGS.get(flag, 'unknown')})"
         mu_b = lam_all[:nb] if nb else np.zeros(n)
-        mu_up, mu_lo = np.maximum(mu_b, 0.0), np.maximum(-mu_b, 0.0)
-        lam = lam_all[nb:nb + m]
-        mu_ub = lam_all[nb + m:nb + m + P.n_ub]
-        mu_eq = lam_all[nb + m + P.n_ub:]
-        return self._finish(z, lam, mu_up, mu_lo, mu_ub, mu_eq)
+        k = nb + m + P.n_ub
+        return self._finish(z, lam_all[nb:nb + m], np.maximum(mu_b, 0.0),
+                            np.maximum(-mu_b, 0.0), lam_all[nb + m:k], lam_all[k:])
 
     def solve_ipm(self):
         n, m, P = self.n, self.m, self.poly
@@ -315,12 +327,10 @@ class _ScaledQP:
         iu = np.flatnonzero(np.isfinite(self.hi))
         il = np.flatnonzero(np.isfinite(self.lo))
         eye = np.eye(N)
-        A = np.vstack([np.hstack([self.Gs, -np.ones((m, 1))]),
-                       np.hstack([P.A_ub, np.zeros((P.n_ub, 1))]), eye[iu], -eye[il]])
-        b = np.concatenate([self.alpha_s, self.r_ub, self.hi[iu], -self.lo[il]])
-        E = np.hstack([P.A_eq, np.zeros((P.n_eq, 1))])
+        A = np.vstack([self.B, self.C, eye[iu], -eye[il]])
+        b = np.concatenate([self.bB, self.bC, self.hi[iu], -self.lo[il]])
         try:
-            z, lam_all, mu_eq = _ipm(H, f, A, b, E, self.r_eq)
+            z, lam_all, mu_eq = _ipm(H, f, A, b, self.E, self.bE)
         except (np.linalg.LinAlgError, FloatingPointError, RuntimeError) as exc:
             return f"interior point failed ({exc})"
         mu_up, mu_lo = np.zeros(n), np.zeros(n)
@@ -330,18 +340,20 @@ class _ScaledQP:
         return self._finish(z, lam_all[:m], mu_up, mu_lo, lam_all[m:k], mu_eq)
 
     def _finish(self, z, lam, mu_up, mu_lo, mu_ub, mu_eq):
-        bad = self._kkt_ok(z, lam, mu_up, mu_lo, mu_ub, mu_eq)
+        bad = self._kkt_error(z, lam, mu_up, mu_lo, mu_ub, mu_eq)
         if bad:
             return bad
-        lam = np.maximum(lam, 0.0)
-        return z[:self.n], lam / lam.sum(), mu_up, mu_lo, np.maximum(mu_ub, 0.0)
+        lam = np.maximum(lam, 0.0) / self.wB
+        mu_ub = np.maximum(mu_ub, 0.0) / self.wC
+        return z[:self.n], lam / lam.sum(), mu_up, mu_lo, mu_ub
 
 
-def _ipm(H, f, A, b, E, e, tol=1e-13, max_iter=200):
+def _ipm(H, f, A, b, E, e, tol=1e-12, max_iter=100):
     """Dense Mehrotra predictor-corrector for min ½zᵀHz + fᵀz s.t. Az ≤ b, Ez = e.
 
     Fallback for degenerate bundles on which the active-set method cycles; H may be
-    singular as long as H + AᵀDA is not (true here: every bundle row contains ṽ).
+    singular as long as H + AᵀDA is not (true here: every bundle row contains ṽ).  Returns
+    the iterate with the smallest KKT error (ill-conditioning ends the progress near 1e-12).
     """
     N, m, p = H.shape[0], A.shape[0], E.shape[0]
     z = np.zeros(N)
@@ -349,14 +361,18 @@ def _ipm(H, f, A, b, E, e, tol=1e-13, max_iter=200):
     lam = np.ones(m)
     y = np.zeros(p)
     scale = 1.0 + max(np.abs(b).max(initial=0.0), np.abs(e).max(initial=0.0))
+    best, best_err = None, np.inf
     for _ in range(max_iter):
         rd = H @ z + f + A.T @ lam + E.T @ y
         rp = A @ z + s - b
         re = E @ z - e
         mu = float(s @ lam) / m
-        res = max(np.abs(rd).max(), np.abs(rp).max(initial=0.0), np.abs(re).max(initial=0.0))
-        if res <= tol * scale and mu <= tol * scale:
-            return z, lam, y
+        err = max(np.abs(rd).max(), np.abs(rp).max(initial=0.0), np.abs(re).max(initial=0.0),
+                  mu) / scale
+        if err < best_err:
+            best, best_err = (z.copy(), lam.copy(), y.copy()), err
+        if err <= tol:
+            break
         D = lam / s
         K = np.block([[H + A.T @ (D[:, None] * A), E.T], [E, np.zeros((p, p))]])
 
@@ -371,10 +387,17 @@ def _ipm(H, f, A, b, E, e, tol=1e-13, max_iter=200):
             neg = dv < 0
             return min(1.0, float(np.min(-v[neg] / dv[neg]))) if np.any(neg) else 1.0
 
-        dz, ds, dl, dy = newton(-s * lam)
-        a = min(max_step(s, ds), max_step(lam, dl))
-        sigma = (float((s + a * ds) @ (lam + a * dl)) / m / mu) ** 3
-        dz, ds, dl, dy = newton(-s * lam - ds * dl + sigma * mu)
+        try:
+            dz, ds, dl, dy = newton(-s * lam)
+            a = min(max_step(s, ds), max_step(lam, dl))
+            sigma = (float((s + a * ds) @ (lam + a * dl)) / m / mu) ** 3
+            dz, ds, dl, dy = newton(-s * lam - ds * dl + sigma * mu)
+        except np.linalg.LinAlgError:
+            break
         a = min(1.0, 0.99 * min(max_step(s, ds), max_step(lam, dl)))
         z, s, lam, y = z + a * dz, s + a * ds, lam + a * dl, y + a * dy
-    raise RuntimeError(f"no convergence in {max_iter} iterations")
+        if not (np.all(np.isfinite(z)) and np.all(np.isfinite(lam))):
+            break
+    if best is None or best_err > 1e-7:
+        raise RuntimeError(f"KKT error {best_err:.1e} after {max_iter} iterations")
+    return best

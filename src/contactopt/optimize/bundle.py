@@ -90,6 +90,7 @@ class BTOptions:
     m2: float = 0.5
     m3: float = 0.5
     gamma: float = 0.5
+    locality: float = 10.0
     t0: float | None = None
     t_min: float | None = None
     t_max: float | None = None
@@ -263,7 +264,17 @@ def _bt_iteration(oracle, poly: Polyhedron, st: BundleState, o: BTOptions, eps: 
         if trial == 0:
             alpha_p = float(qp.lam @ alpha)
             st.xi = qp.xi
-            st.stationarity = max(float(np.linalg.norm(qp.p)), alpha_p + qp.sigma)
+            import os
+            mode = os.environ.get("BTSTOP", "V1")
+            pn = float(np.linalg.norm(qp.p)); av = alpha_p + qp.sigma; ref = abs(f) + eps
+            if mode == "V1":
+                st.stationarity = max(pn, av)
+            elif mode == "V2":
+                st.stationarity = max(pn, av / ref)
+            elif mode == "V3":
+                st.stationarity = -qp.v / ref
+            elif mode == "V4":
+                st.stationarity = max(pn, -qp.v / ref)
             logger.debug("stop-test t|p|^2=%.2e alpha_p=%.2e sigma=%.2e", t * float(qp.p @ qp.p), alpha_p, qp.sigma)
             if st.stationarity <= eps:
                 return _Step("converged", qp, t)
@@ -286,7 +297,9 @@ def _bt_iteration(oracle, poly: Polyhedron, st: BundleState, o: BTOptions, eps: 
             cand.extra.append((y, fy, gy))              # descent point, keep the new cut
             return cand
         alpha_y = max(abs(f - (fy - gy @ d)), o.gamma * float(d @ d))
-        if gy @ d - alpha_y >= o.m3 * qp.v or t <= st.t_min or last:
+        informative = gy @ d - alpha_y >= o.m3 * qp.v       # new cut lifts the model at d
+        local = alpha_y <= o.locality * -qp.v              # y close enough to x
+        if (informative and local) or t <= st.t_min or last:
             return _Step("null", qp, t, y, fy, gy)
         hi = t                                          # cut useless here: shrink the region
         t = max(t * o.t_decrease, st.t_min)

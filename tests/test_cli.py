@@ -1,0 +1,139 @@
+"""The command-line interface end to end on small configurations."""
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+
+import numpy as np
+import pytest
+import tomli_w
+
+from contactopt.cli import main
+from contactopt.config import load_config
+
+
+def small_toml(tmp_path, name="small", **updates):
+    """A small configuration file; ``updates`` are written unvalidated (bad values allowed)."""
+    data = load_config("example1").with_updates({"mesh": {"nx": 8, "ny": 4, "nz": 3}, "name": name}).data
+    for sec, vals in updates.items():
+        data[sec].update(vals)
+    path = tmp_path / f"{name}.toml"
+    path.write_text(tomli_w.dumps(data))
+    return path
+
+
+def test_state_command_writes_every_output(tmp_path, capsys):
+    cfg = small_toml(tmp_path)
+    out = tmp_path / "st"
+    assert main(["state", str(cfg), "--out", str(out)]) == 0
+    text = capsys.readouterr().out
+    assert "uniqueness bound" in text
+    for f in ("state.json", "state.npz", "body.vtu", "lambda.png", "classes.png"):
+        assert (out / f).stat().st_size > 0, f
+    data = json.loads((out / "state.json").read_text())
+    assert data["summary"]["converged"] if "summary" in data else data["converged"]
+
+
+@pytest.mark.parametrize("case", ["bad_value", "unknown_key", "infeasible", "inverted", "missing"])
+def test_bad_input_exit_code_2_and_nothing_written(tmp_path, capsys, case):
+    out = tmp_path / "out"
+    args = []
+    if case == "bad_value":
+        args = [str(small_toml(tmp_path, material={"E": -1.0}))]
+    elif case == "unknown_key":
+        p = tmp_path / "u.toml"
+        p.write_text("[mesh]\nnx = 4\nsize = 3\n")
+        args = [str(p)]
+    elif case == "infeasible":
+        alpha = tmp_path / "a.json"
+        alpha.write_text(json.dumps({"alpha": np.full((8, 4), 0.02).tolist()}))
+        args = [str(small_toml(tmp_path)), "--alpha", str(alpha)]
+    elif case == "inverted":
+        # C0 ≥ c would let the surface reach the top face and invert the mapped elements
+        args = [str(small_toml(tmp_path, geometry={"c": 0.5}))]
+    elif case == "missing":
+        args = [str(tmp_path / "nope.toml")]
+    code = main(["state", *args, "--out", str(out)])
+    err = capsys.readouterr().err
+    assert code == 2
+    assert err.startswith("contactopt: error:") and len(err.splitlines()) >= 1
+    assert not out.exists()
+    if case == "inverted":
+        assert "invert" in err
+
+
+def test_inverted_mesh_is_refused_by_the_mesh():
+    from contactopt.errors import MeshError
+    from contactopt.fem.model import ElasticModel
+    model = ElasticModel(load_config("example1").with_updates({"mesh": {"nx": 4, "ny": 2, "nz": 2}}))
+    alpha = np.full(model.n_design, 0.01)
+    alpha[:8] = 1.5                       # the edge x2 = 0 rises above c = 1
+    with pytest.raises(MeshError, match="reaches the top face"):
+        model.mesh.coordinates(alpha)
+
+
+def test_solve_fclib_command(capsys):
+    path = os.path.join(os.path.dirname(__file__), "..", "..", "shared", "data", "fclib", "local_problem_test.hdf5")
+    if not os.path.exists(path):
+        path = "/work/shared/data/fclib/local_problem_test.hdf5"
+    assert main(["solve-fclib", path]) == 0
+    assert "error" in capsys.readouterr().out
+
+
+def test_run_small_example_end_to_end(tmp_path, capsys):
+    cfg = small_toml(tmp_path)
+    out = tmp_path / "run"
+    assert main(["run", str(cfg), "--out", str(out), "--max-iter", "4"]) == 0
+    text = capsys.readouterr().out
+    assert "it    1" in text and "J0 =" in text
+    for f in ("config.toml", "run.log", "history.csv", "checkpoint.npz", "summary.json", "alpha.json",
+              "surface.csv", "stress.png", "surface.png", "history.png", "classes.png",
+              "initial.vtu", "optimal.vtu", "bodies.pvd"):
+        assert (out / f).stat().st_size > 0, f
+    s = json.loads((out / "summary.json").read_text())
+    for k in ("J0", "J", "iterations", "evaluations", "serious_steps", "null_steps", "success", "message",
+              "alpha", "wall_time_s", "time_breakdown_s"):
+        assert k in s
+    assert s["J"] <= s["J0"] and s["feasible"]
+    rows = (out / "history.csv").read_text().strip().splitlines()
+    assert len(rows) == 1 + s["evaluations"]
+    # refusing a non-empty directory without --overwrite/--resume
+    assert main(["run", str(cfg), "--out", str(out), "--max-iter", "1"]) == 2
+    assert "not empty" in capsys.readouterr().err
+
+
+def test_corrupt_checkpoint_is_refused(tmp_path, capsys):
+    cfg = small_toml(tmp_path)
+    out = tmp_path / "run"
+    assert main(["run", str(cfg), "--out", str(out), "--max-iter", "2"]) == 0
+    (out / "checkpoint.npz").write_bytes(b"not a zip file")
+    assert main(["run", str(cfg), "--out", str(out), "--resume"]) == 2
+    assert "corrupt" in capsys.readouterr().err
+
+
+def test_kill_and_resume_gives_the_uninterrupted_result(tmp_path):
+    cfg = small_toml(tmp_path)
+    ref = tmp_path / "ref"
+    assert main(["run", str(cfg), "--out", str(ref), "--max-iter", "12"]) == 0
+    out = tmp_path / "killed"
+    proc = subprocess.Popen([sys.executable, "-m", "contactopt.cli", "run", str(cfg), "--out", str(out),
+                             "--max-iter", "12"], stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+    deadline = time.time() + 120
+    seen = 0
+    for line in proc.stdout:
+        if line.startswith("it ") and "serious" in line:
+            seen += 1
+        if seen >= 3 or time.time() > deadline:
+            break
+    proc.send_signal(signal.SIGKILL)
+    proc.wait()
+    assert seen >= 3
+    assert main(["run", str(cfg), "--out", str(out), "--resume"]) == 0
+    a = json.loads((ref / "summary.json").read_text())
+    b = json.loads((out / "summary.json").read_text())
+    assert b["iterations"] == a["iterations"] and b["evaluations"] == a["evaluations"]
+    assert np.allclose(b["alpha"], a["alpha"], rtol=0, atol=1e-12)
+    assert b["J"] == pytest.approx(a["J"], rel=1e-10)
