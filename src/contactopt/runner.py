@@ -93,12 +93,22 @@ class _Oracle:
         return res.value, res.gradient
 
 
+def _saved_stopping(path: Path) -> dict:
+    try:
+        with np.load(path, allow_pickle=False) as z:
+            return {"eps": float(z["meta_eps"]), "max_iter": int(z["meta_max_iter"])}
+    except Exception:
+        return {}       # a missing or corrupt checkpoint is reported by _read_checkpoint
+
+
 def _write_checkpoint(path: Path, bstate, oracle: _Oracle, fingerprint: str, elapsed: float):
     d = bstate.to_dict()
+    opt = oracle.problem.config["optimizer"]
     warm = oracle.problem._warm
     arrays = {f"bundle_{k}": np.asarray(v) for k, v in d.items()}
     arrays.update(meta_fingerprint=np.array(fingerprint), meta_evaluations=np.array(oracle.count),
-                  meta_elapsed=np.array(elapsed), warm=np.asarray(warm if warm is not None else np.zeros(0)))
+                  meta_elapsed=np.array(elapsed), meta_eps=np.array(opt["eps"]),
+                  meta_max_iter=np.array(opt["max_iter"]), warm=np.asarray(warm if warm is not None else np.zeros(0)))
     atomic_savez(path, **arrays)
 
 
@@ -148,6 +158,11 @@ def run_optimization(config, outdir=None, *, eps=None, max_iter=None, resume=Fal
     """Optimize the contact surface of a configuration; see the module docstring for the outputs."""
     from .optimize import minimize_bundle
     from .problem import ShapeProblem
+    if resume and (eps is None or max_iter is None):
+        # a resumed run keeps the stopping parameters it was started with unless told otherwise
+        saved = _saved_stopping(Path(outdir or Path("runs") / load_config(config).name) / "checkpoint.npz")
+        eps = saved.get("eps") if eps is None else eps
+        max_iter = saved.get("max_iter") if max_iter is None else max_iter
     cfg = resolve_config(config, eps=eps, max_iter=max_iter)
     problem = ShapeProblem(cfg)
     model = problem.model

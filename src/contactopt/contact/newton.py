@@ -246,7 +246,7 @@ class _Solver:
 
 
 def solve_newton(W, q, mu, *, tol: float = 1e-8, max_iter: int = 200, r0=None,
-                 proximal: str = "auto", plain_max_iter: int = 50, prox_sigma: float = 5.0,
+                 proximal: str = "auto", plain_max_iter: int = 50, prox_sigma: float = 0.1,
                  prox_inner_max_iter: int = 25, raise_on_failure: bool = True) -> LocalResult:
     """Semismooth Newton (Alart–Curnier) for ``u = W r + q``, ``K_mu ∋ r ⊥ u~ ∈ K_mu*``.
 

@@ -153,6 +153,7 @@ class BundleState:
     nfev: int = 0
     n_serious: int = 0
     n_null: int = 0
+    n_stuck: int = 0
     history: list = field(default_factory=list)
 
     def copy(self) -> "BundleState":
@@ -165,7 +166,7 @@ class BundleState:
             d[name] = np.array(getattr(self, name), dtype=float)
         for name in ("f", "t", "t_min", "t_max", "stationarity"):
             d[name] = float(getattr(self, name))
-        for name in ("nit", "nfev", "n_serious", "n_null"):
+        for name in ("nit", "nfev", "n_serious", "n_null", "n_stuck"):
             d[name] = int(getattr(self, name))
         h = self.history
         d["history_iteration"] = np.array([r["iteration"] for r in h], dtype=np.int64)
@@ -199,7 +200,8 @@ class BundleState:
                      xi=arr["xi"], stationarity=float(np.asarray(d["stationarity"])),
                      nit=int(np.asarray(d["nit"])), nfev=int(np.asarray(d["nfev"])),
                      n_serious=int(np.asarray(d["n_serious"])),
-                     n_null=int(np.asarray(d["n_null"])), history=hist)
+                     n_null=int(np.asarray(d["n_null"])),
+                     n_stuck=int(np.asarray(d["n_stuck"])), history=hist)
         except (KeyError, TypeError, ValueError) as exc:
             raise OptimizerError(f"invalid bundle state: {exc}") from exc
         m = st.G.shape[0]
@@ -240,6 +242,7 @@ class _Step:
     fy: float = 0.0
     gy: np.ndarray | None = None
     extra: list = field(default_factory=list)   # further (y, f, g) for the bundle
+    stalled: bool = False      # null step whose cut was already in the bundle
 
 
 def _trial_point(poly: Polyhedron, x, d, feas_tol):
@@ -264,18 +267,7 @@ def _bt_iteration(oracle, poly: Polyhedron, st: BundleState, o: BTOptions, eps: 
         if trial == 0:
             alpha_p = float(qp.lam @ alpha)
             st.xi = qp.xi
-            import os
-            mode = os.environ.get("BTSTOP", "V1")
-            pn = float(np.linalg.norm(qp.p)); av = alpha_p + qp.sigma; ref = abs(f) + eps
-            if mode == "V1":
-                st.stationarity = max(pn, av)
-            elif mode == "V2":
-                st.stationarity = max(pn, av / ref)
-            elif mode == "V3":
-                st.stationarity = -qp.v / ref
-            elif mode == "V4":
-                st.stationarity = max(pn, -qp.v / ref)
-            logger.debug("stop-test t|p|^2=%.2e alpha_p=%.2e sigma=%.2e", t * float(qp.p @ qp.p), alpha_p, qp.sigma)
+            st.stationarity = max(float(np.linalg.norm(qp.p)), alpha_p + qp.sigma)
             if st.stationarity <= eps:
                 return _Step("converged", qp, t)
             if -qp.v <= 4 * np.finfo(float).eps * max(1.0, abs(f)):
@@ -297,10 +289,13 @@ def _bt_iteration(oracle, poly: Polyhedron, st: BundleState, o: BTOptions, eps: 
             cand.extra.append((y, fy, gy))              # descent point, keep the new cut
             return cand
         alpha_y = max(abs(f - (fy - gy @ d)), o.gamma * float(d @ d))
-        informative = gy @ d - alpha_y >= o.m3 * qp.v       # new cut lifts the model at d
+        # a cut already in the bundle (same g, no smaller α) leaves the model unchanged
+        same = np.all(st.G == gy, axis=1)
+        duplicate = bool(np.any(same)) and alpha_y >= float(np.min(alpha[same]))
+        informative = gy @ d - alpha_y >= o.m3 * qp.v and not duplicate
         local = alpha_y <= o.locality * -qp.v              # y close enough to x
         if (informative and local) or t <= st.t_min or last:
-            return _Step("null", qp, t, y, fy, gy)
+            return _Step("null", qp, t, y, fy, gy, stalled=duplicate)
         hi = t                                          # cut useless here: shrink the region
         t = max(t * o.t_decrease, st.t_min)
     raise AssertionError("unreachable")  # pragma: no cover
@@ -436,6 +431,7 @@ def minimize_bundle(oracle, x0, *, lb=None, ub=None, A_ub=None, b_ub=None, A_eq=
                        f"of f (stationarity {st.stationarity:.2e} > eps {eps:.0e})")
             break
         _update_bundle(st, step, max_bundle)
+        st.n_stuck = st.n_stuck + 1 if step.stalled else 0
         st.nit += 1
         if step.kind == "serious":
             st.n_serious += 1
@@ -445,6 +441,12 @@ def minimize_bundle(oracle, x0, *, lb=None, ub=None, A_ub=None, b_ub=None, A_eq=
                            "stationarity": st.stationarity, "nfev": st.nfev})
         logger.debug("it %d %s f=%.10g t=%.3e stat=%.3e nfev=%d", st.nit, step.kind, st.f,
                      st.t, st.stationarity, st.nfev)
+        if st.n_stuck >= 3:
+            status = 3
+            message = (f"stalled: {st.n_stuck} null steps in a row returned cuts already in the "
+                       f"bundle (the QP resolution is reached; stationarity "
+                       f"{st.stationarity:.2e} > eps {eps:.0e})")
+            break
         if callback is not None:
             try:
                 callback(_result(st, -1, f"iteration {st.nit}"))
