@@ -89,7 +89,7 @@ class BTOptions:
     m1: float = 0.01
     m2: float = 0.5
     m3: float = 0.5
-    gamma: float = 0.5
+    gamma: float = 1.0
     locality: float = 10.0
     t0: float | None = None
     t_min: float | None = None

@@ -43,11 +43,25 @@ def directional_fd(problem, alpha, d, h):
 
 
 def check_gradient(problem, alpha, *, seed: int = 0, n_directions: int = 10, h: float = 1e-4,
-                   tol: float = 1e-6, directions=None) -> GradientCheck:
+                   tol: float = 1e-6, directions=None, state_method: str = "fixed-point",
+                   state_tol: float = 1e-14) -> GradientCheck:
     """Compare ξᵀd with central differences in seeded random directions; Taylor table in d_0.
 
-    The step is h·max(|α|) so it is relative to the design's size.
+    The step is h·max(|α|) so it is relative to the design's size. A difference quotient divides
+    the state error by h, so every state of the check is solved to ``state_tol`` with
+    ``state_method`` (the successive approximations reach 1e-14; the Newton solver stops at its
+    round-off floor, about 1e-13, which costs the quotient a digit).
     """
+    saved = (problem.method, problem.tol, problem._cache)
+    problem.method, problem.tol, problem._cache = state_method, state_tol, None
+    try:
+        return _check(problem, alpha, seed, n_directions, h, tol, directions)
+    finally:
+        problem.method, problem.tol = saved[0], saved[1]
+        problem._cache = None
+
+
+def _check(problem, alpha, seed, n_directions, h, tol, directions) -> GradientCheck:
     alpha = np.asarray(alpha, float).reshape(-1)
     res = subgradient(problem, alpha)
     dirs = random_directions(problem.model, n_directions, seed) if directions is None else np.atleast_2d(directions)
