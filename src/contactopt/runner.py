@@ -68,6 +68,7 @@ class _Oracle:
 
     def __init__(self, problem, history_path: Path, t_start: float):
         self.problem = problem
+        self.scale = 1.0          # BT sees Θ/scale (scale = Θ(α0)), so its ε is relative
         self.history_path = history_path
         self.t_start = t_start
         self.count = 0
@@ -90,7 +91,7 @@ class _Oracle:
                f"{time.perf_counter() - self.t_start:.3f}"]
         with open(self.history_path, "a", newline="") as fh:
             csv.writer(fh).writerow(row)
-        return res.value, res.gradient
+        return res.value / self.scale, res.gradient / self.scale
 
 
 def _saved_stopping(path: Path) -> dict:
@@ -107,7 +108,7 @@ def _write_checkpoint(path: Path, bstate, oracle: _Oracle, fingerprint: str, ela
     warm = oracle.problem._warm
     arrays = {f"bundle_{k}": np.asarray(v) for k, v in d.items()}
     arrays.update(meta_fingerprint=np.array(fingerprint), meta_evaluations=np.array(oracle.count),
-                  meta_elapsed=np.array(elapsed), meta_eps=np.array(opt["eps"]),
+                  meta_elapsed=np.array(elapsed), meta_scale=np.array(oracle.scale), meta_eps=np.array(opt["eps"]),
                   meta_max_iter=np.array(opt["max_iter"]), warm=np.asarray(warm if warm is not None else np.zeros(0)))
     atomic_savez(path, **arrays)
 
@@ -131,7 +132,7 @@ def _read_checkpoint(path: Path, fingerprint: str):
     except ContactOptError as exc:
         raise CheckpointError(f"checkpoint {path}: {exc}") from None
     warm = data["warm"] if data["warm"].size else None
-    return bstate, int(data["meta_evaluations"]), float(data["meta_elapsed"]), warm
+    return bstate, int(data["meta_evaluations"]), float(data["meta_elapsed"]), warm, float(data["meta_scale"])
 
 
 def _truncate_history(path: Path, n_rows: int):
@@ -173,11 +174,12 @@ def run_optimization(config, outdir=None, *, eps=None, max_iter=None, resume=Fal
     out = Path(outdir or Path("runs") / cfg.name)
     ckpt = out / "checkpoint.npz"
     if resume:
-        bstate, n_eval, elapsed0, warm = _read_checkpoint(ckpt, fingerprint)
+        bstate, n_eval, elapsed0, warm, scale = _read_checkpoint(ckpt, fingerprint)
     out = prepare_output_dir(out, overwrite=overwrite, resume=resume)
     handler = logging.FileHandler(out / "run.log")
     handler.setFormatter(logging.Formatter("%(asctime)s %(levelname)s %(name)s: %(message)s"))
     logging.getLogger("contactopt").addHandler(handler)
+    handler.setLevel(logging.INFO)
     root = logging.getLogger("contactopt")
     old_level = root.level
     if root.getEffectiveLevel() > logging.INFO:
@@ -195,11 +197,17 @@ def run_optimization(config, outdir=None, *, eps=None, max_iter=None, resume=Fal
             oracle.count = n_eval
             oracle.t_start -= elapsed0
             problem._warm = warm
+            oracle.scale = scale
             state_kw["state"] = bstate
             log.info("resuming %s at iteration %d (%d evaluations)", out, bstate.nit, n_eval)
         else:
             atomic_write_text(hist, ",".join(HISTORY_FIELDS) + "\n")
             log.info("run %s in %s", cfg.name, out)
+            theta0 = problem.evaluate_value(alpha0)
+            if not np.isfinite(theta0):
+                raise SolverError(f"Θ(α0) is not finite ({theta0})")
+            oracle.scale = abs(theta0) if theta0 != 0 else 1.0
+            log.info("Θ(α0) = %.8e; the bundle method minimises Θ/Θ(α0), so ε is relative", theta0)
 
         def callback(inter):
             st = inter.state
@@ -208,7 +216,7 @@ def run_optimization(config, outdir=None, *, eps=None, max_iter=None, resume=Fal
             if h.get("step") == "serious" or st.nit == 0:
                 _write_checkpoint(ckpt, st, oracle, fingerprint, time.perf_counter() - oracle.t_start)
             if progress:
-                progress(dict(iteration=st.nit, f=st.f, step=h.get("step", ""), t=st.t,
+                progress(dict(iteration=st.nit, f=st.f * oracle.scale, step=h.get("step", ""), t=st.t,
                               stationarity=st.stationarity, nfev=oracle.count,
                               elapsed=time.perf_counter() - oracle.t_start))
 

@@ -100,7 +100,8 @@ def _apply_bhat(V, piece_idx, mu, nvec, c):
 class _Solver:
     """Holds the dense problem and the counters shared by the plain and proximal phases."""
 
-    def __init__(self, W, q, mu, tol):
+    def __init__(self, W, q, mu, tol, rho_scale=1.0):
+        self.rho_scale = rho_scale
         self.W = W
         self.q = q
         self.mu = mu
@@ -123,7 +124,7 @@ class _Solver:
 
     def rho(self, alpha):
         d = self.wdiag + alpha
-        return 1.0 / np.where(d > 0, d, self.wscale + alpha)
+        return self.rho_scale / np.where(d > 0, d, self.wscale + alpha)
 
     # -- one Newton direction ------------------------------------------------------------
     def direction(self, r, Phi, piece, rho, alpha):
@@ -247,7 +248,8 @@ class _Solver:
 
 def solve_newton(W, q, mu, *, tol: float = 1e-8, max_iter: int = 200, r0=None,
                  proximal: str = "auto", plain_max_iter: int = 50, prox_sigma: float = 0.1,
-                 prox_inner_max_iter: int = 25, raise_on_failure: bool = True) -> LocalResult:
+                 prox_inner_max_iter: int = 25, rho_scale: float = 0.5,
+                 raise_on_failure: bool = True) -> LocalResult:
     """Semismooth Newton (Alart–Curnier) for ``u = W r + q``, ``K_mu ∋ r ⊥ u~ ∈ K_mu*``.
 
     Parameters
@@ -273,7 +275,7 @@ def solve_newton(W, q, mu, *, tol: float = 1e-8, max_iter: int = 200, r0=None,
     if sp.issparse(W):
         W = W.toarray()
     W = np.ascontiguousarray(W)
-    S = _Solver(W, q, mu, tol)
+    S = _Solver(W, q, mu, tol, rho_scale)
     r = np.zeros(q.size) if r0 is None else r0.copy()
     u = W @ r + q
     err0 = siconos_error(r, u, q, mu)

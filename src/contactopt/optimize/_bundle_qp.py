@@ -1,30 +1,29 @@
 """The feasible polyhedron and the quadratic subproblems of the bundle-trust method.
 
-Both QPs are solved with DAQP (dual active-set, Arnström–Bemporad–Axehill 2022):
+* The BT direction-finding problem (Schramm–Zowe), in the primal variables ``(d, v)``::
 
-* the BT direction-finding problem, in the primal variables ``z = (d, v)``::
+      minimise    v + ‖d‖²/(2t)
+      subject to  g_jᵀd − v ≤ α_j                  j in the bundle      (multipliers λ_j)
+                  lb − x ≤ d ≤ ub − x              (simple bounds)      (μ)
+                  A_ub d ≤ b_ub − A_ub x                                (μ)
+                  A_eq d  = b_eq − A_eq x                               (μ, free sign)
 
-      minimise    t·v + ½‖d‖²                      (= t·[v + ‖d‖²/(2t)])
-      subject to  g_jᵀd − v ≤ α_j                  j in the bundle      (multiplier t·λ_j)
-                  lb − x ≤ d ≤ ub − x              (simple bounds)
-                  A_ub d ≤ b_ub − A_ub x
-                  A_eq d  = b_eq − A_eq x
-
-  Multiplying the BT objective by ``t`` keeps the Hessian ``diag(1,…,1,0)`` independent of
-  ``t``; DAQP regularises the zero block (proximal-point iterations) and returns exact
-  multipliers.  KKT: ``d = −t·(Σ λ_j g_j + Cᵀμ)``, ``Σ λ_j = 1``, so the multipliers divided
-  by ``t`` give the convex weights ``λ`` for aggregation and the constraint multipliers ``μ``;
-
-* the projection ``min ½‖x − x0‖²`` onto the polyhedron, used for an infeasible start.
+  KKT: ``d = −t·(Σ λ_j g_j + Cᵀμ)`` and ``Σ λ_j = 1``; λ are the convex weights of the
+  aggregation.  The Hessian is singular in v; DAQP (dual active-set, Arnström, Bemporad &
+  Axehill 2022) handles that by proximal-point iterations.  The QP is passed in scaled
+  variables with unit rows (see :meth:`Polyhedron.direction`); a dense interior-point method
+  is the fallback for the rare degenerate bundles on which DAQP cycles, and every answer must
+  pass a KKT check before it is used.
+* The projection ``min ½‖x − x0‖²`` onto the polyhedron, used for an infeasible start (DAQP;
+  an empty set is confirmed with ``scipy.optimize.linprog``).
 """
 
 from __future__ import annotations
 
+import logging
 from dataclasses import dataclass
 
 import numpy as np
-
-import logging
 
 from ..errors import OptimizerError
 
@@ -61,10 +60,11 @@ def _solve(H, f, A, bupper, blower, sense):
 class DirectionQP:
     """Solution of the direction-finding QP for one trust parameter ``t``.
 
-    ``d`` the step, ``v = Σλ_j (g_jᵀd − α_j) = max_j (g_jᵀd − α_j)`` the model decrease (≤ 0), ``lam`` the convex
-    weights of the bundle elements, ``p = −d/t = ξ + Cᵀμ`` the aggregate subgradient of
-    f + indicator(U), ``xi = Σ λ_j g_j`` the aggregate subgradient of f, ``sigma = μᵀ(b − Cx)``
-    the complementarity gap of the constraint multipliers at x (≥ 0).
+    ``d`` the step, ``v = Σλ_j (g_jᵀd − α_j) = max_j (g_jᵀd − α_j)`` the model decrease (≤ 0),
+    ``lam`` the convex weights of the bundle elements, ``p = −d/t = ξ + Cᵀμ`` the aggregate
+    subgradient of f + indicator(U), ``xi = Σ λ_j g_j`` the aggregate subgradient of f,
+    ``sigma = μᵀ(b − Cx)`` the complementarity gap of the constraint multipliers at x (≥ 0),
+    ``solver`` the solver that produced the answer ("daqp" or "ipm").
     """
 
     d: np.ndarray
@@ -91,7 +91,8 @@ class Polyhedron:
             problems.append(f"lb > ub for component {i} ({self.lb[i]:g} > {self.ub[i]:g}):"
                             " the feasible set is empty")
         if problems:
-            raise OptimizerError("invalid feasible set:\n" + "\n".join(f"  - {p}" for p in problems))
+            raise OptimizerError("invalid feasible set:\n"
+                                 + "\n".join(f"  - {p}" for p in problems))
         self.has_bounds = bool(np.any(np.isfinite(self.lb)) or np.any(np.isfinite(self.ub)))
         self.n_ub = self.A_ub.shape[0]
         self.n_eq = self.A_eq.shape[0]
@@ -165,9 +166,9 @@ class Polyhedron:
         sense = np.zeros(bu.size, dtype=np.int32)
         sense[n + self.n_ub:] = 5
         z, flag, _, _ = _solve(np.eye(n), -np.asarray(x0, dtype=float), A, bu, bl, sense)
-        if flag in (1, 2):
+        if flag in (1, 2) and np.all(np.isfinite(z)):
             return self.clip(z)
-        if flag == -1 and self._lp_infeasible():
+        if self._lp_infeasible():
             raise OptimizerError("the feasible set U is empty (DAQP and scipy.optimize.linprog "
                                  "both report infeasible constraints)")
         raise OptimizerError(f"projection of x0 onto the feasible set failed: DAQP exit flag "

@@ -4,41 +4,45 @@ The method of H. Schramm and J. Zowe, *A version of the bundle idea for minimizi
 nonsmooth function: conceptual idea, convergence analysis, numerical results*, SIAM J. Optim.
 2 (1992) 121–152 — the BT code used by Beremlijski et al. (2009, Sec. 5) to minimise Θ over
 the admissible set U of designs — with the linear constraints of U put into the
-direction-finding QP so that every iterate is feasible.
+direction-finding QP so that every iterate (and every trial point) lies in U.
 
-Notation (iteration k, current serious iterate x, bundle of elements j):
+Notation (current serious iterate x, bundle elements j):
 
-* ``f_j``, ``g_j`` value and one Clarke subgradient at a trial point ``y_j``; each element is
+* ``f_j``, ``g_j`` value and one Clarke subgradient at a trial point ``y_j``; an element is
   stored by its linearisation value at x, ``fhat_j = f_j + g_jᵀ(x − y_j)``, and a distance
-  measure ``s_j ≥ ‖x − y_j‖`` (updated by the triangle inequality after serious steps, as in
-  Kiwiel's aggregation);
-* the subgradient locality measure (Lemaréchal–Zowe / Schramm–Zowe, made safe for a
-  nonconvex f): ``α_j = max(|f(x) − fhat_j|, γ s_j²)``;
+  measure ``s_j ≥ ‖x − y_j‖`` (updated by the triangle inequality after serious steps, which
+  also serves the aggregate element, as in Kiwiel's aggregation);
+* the subgradient locality measure of Lemaréchal–Zowe / Schramm–Zowe, made safe for a
+  nonconvex f: ``α_j = max(|f(x) − fhat_j|, γ s_j²)``;
 * the BT QP with trust parameter t (solved by DAQP, see :mod:`._bundle_qp`)::
 
       min_d  max_j (g_jᵀd − α_j) + ‖d‖²/(2t)   subject to x + d ∈ U,
 
-  with solution d, model decrease ``v = max_j(g_jᵀd − α_j) < 0``, convex weights λ, aggregate
-  subgradient ``ξ = Σλ_j g_j``, aggregate error ``α_p = Σλ_j α_j``, constraint part
-  ``p = −d/t = ξ + Cᵀμ`` and complementarity gap ``σ = μᵀ(b − Cx)``;
-* inner loop of BT on t (one *iteration* = one serious or null step): the trial point
+  with solution d, convex weights λ, model decrease ``v = Σλ_j (g_jᵀd − α_j) < 0``, aggregate
+  subgradient ``ξ = Σλ_j g_j``, aggregate error ``α_p = Σλ_j α_j``, aggregate subgradient of
+  f + indicator(U) ``p = −d/t = ξ + Cᵀμ`` (μ the multipliers of the constraints) and
+  complementarity gap ``σ = μᵀ(b − Cx) ≥ 0`` of those multipliers at x;
+* inner loop of BT on t (one *iteration* = one serious or one null step): the trial point
   ``y = x + d(t)`` gives a **serious step** when ``f(y) − f(x) ≤ m1·v`` and either the slope
   test ``g(y)ᵀd ≥ m2·v`` holds or t cannot grow (t = t_max, or the trial limit); when the
   slope test fails, t is enlarged and the QP re-solved (a later failure falls back to the
-  last descent point).  Without descent, the step is a **null step** when the new cut
-  changes the model, ``g(y)ᵀd − α(x, y) ≥ m3·v``, or t has reached t_min; otherwise t is
-  reduced and the QP re-solved;
+  last descent point, keeping the new cut).  Without descent the step is a **null step**
+  when the new cut changes the model, ``g(y)ᵀd − α(x, y) ≥ m3·v``, and y is local,
+  ``α(x, y) ≤ locality·|v|`` (or t has reached t_min); otherwise t is reduced and the QP
+  re-solved.  t is carried to the next iteration;
 * aggregation: when the bundle is full it keeps the aggregate element ``(ξ, Σλ fhat, Σλ s)``
   plus the most recent elements.
 
-Stopping test (what ``eps`` means).  At the start of an iteration, with the current t,
+Stopping test (what ``eps`` means).  At the start of an iteration, with the current bundle,
 
-    stationarity = ½ t ‖p‖² + α_p + σ  ≤  eps,
+    stationarity = max(‖p‖, α_p + σ) ≤ eps,
 
-i.e. ``stationarity = f(x) − min_d [model(x + d) + ‖d‖²/(2t)]`` over x + d ∈ U: the decrease
-promised by the t-proximal cutting-plane model.  It bounds the aggregate ε-subgradient data
-(``‖p‖ ≤ sqrt(2·eps/t)`` and ``α_p + σ ≤ eps``) and has the units of f, so ``eps`` is an
-absolute tolerance on f.
+i.e. the aggregate subgradient of f + indicator(U) is shorter than eps and it is an
+eps-subgradient at x: for every z ∈ U (exactly so for a convex f, approximately otherwise)
+``f(z) ≥ f(x) − (α_p + σ) + pᵀ(z − x)``, hence ``f(x) − f(z) ≤ eps·(1 + ‖z − x‖)``.  ``eps`` is
+thus an absolute tolerance in the units of f (and of f per unit of x); scale f when its values
+are far from 1.  In double precision ``‖p‖`` cannot go much below ``sqrt(1e-16·|f|·curvature)``;
+a run that cannot certify its eps stops as *stalled* (status 3) with its best point.
 """
 
 from __future__ import annotations
@@ -58,7 +62,6 @@ __all__ = ["minimize_bundle", "BundleResult", "BundleState", "BTOptions"]
 logger = logging.getLogger(__name__)
 
 _STATE_VERSION = 1
-_HISTORY_KEYS = ("iteration", "f", "step", "t", "stationarity", "nfev")
 
 
 class BundleResult(OptimizeResult):
@@ -66,7 +69,7 @@ class BundleResult(OptimizeResult):
 
     Attributes: ``x``, ``fun``, ``jac`` (last aggregate subgradient ξ), ``nit``, ``nfev``,
     ``n_serious``, ``n_null``, ``success``, ``status`` (0 converged, 1 max_iter, 2 stopped by
-    the callback, 3 stalled), ``message``, ``stationarity``, ``t``, ``history`` (list of dicts
+    the callback, 3 stalled; −1 in the callback's intermediate result), ``message``, ``stationarity``, ``t``, ``history`` (list of dicts
     with keys iteration, f, step ('serious'/'null'), t, stationarity, nfev) and ``state`` (the
     :class:`BundleState` from which a run resumes).
     """
@@ -78,12 +81,16 @@ class BTOptions:
 
     m1: serious-step (descent) test f(y) − f(x) ≤ m1·v; m2 (> m1): slope test for enlarging t;
     m3: null-step test (the new cut must lift the model at d to at least m3·v);
-    gamma: weight of ‖x − y‖² in the locality measure (0 for convex f);
+    gamma: weight of ‖x − y‖² in the locality measure α (0 is exact for convex f);
+    locality: a null step needs α(x, y) ≤ locality·|v|, else t is reduced (far trial point);
     t0: initial t (default max(1, ‖x0‖∞)/‖g(x0)‖, a first step of length max(1, ‖x0‖∞));
     t_min, t_max: bounds of t (default 1e-8·t0 and 1e4·t0);
     t_increase, t_decrease: factors for the inner loop (bisection once bracketed);
     max_bundle: bundle size including the aggregate (default min(n + 3, 40), at least 5);
-    max_inner: trial points per iteration; feas_tol: scaled feasibility tolerance of iterates.
+    max_inner: trial points per iteration;
+    stall_window: stop (status 3) when over this many iterations f fell by no more than its
+    round-off and the stationarity measure did not halve (eps below the reachable precision);
+    feas_tol: scaled feasibility tolerance of iterates.
     """
 
     m1: float = 0.01
@@ -98,6 +105,7 @@ class BTOptions:
     t_decrease: float = 0.25
     max_bundle: int | None = None
     max_inner: int = 10
+    stall_window: int = 50
     feas_tol: float = 1e-9
 
     @classmethod
@@ -121,6 +129,8 @@ class BTOptions:
             problems.append(f"need max_bundle >= 3 (max_bundle={o.max_bundle})")
         if o.max_inner < 1:
             problems.append("need max_inner >= 1")
+        if o.stall_window < 2:
+            problems.append("need stall_window >= 2")
         for name in ("t0", "t_min", "t_max"):
             val = getattr(o, name)
             if val is not None and not (np.isfinite(val) and val > 0):
@@ -157,7 +167,11 @@ class BundleState:
     history: list = field(default_factory=list)
 
     def copy(self) -> "BundleState":
-        return BundleState.from_dict(self.to_dict())
+        kw = {f.name: getattr(self, f.name) for f in fields(self)}
+        for name in ("x", "G", "fhat", "s", "xi"):
+            kw[name] = np.array(kw[name], dtype=float)
+        kw["history"] = [dict(r) for r in self.history]
+        return BundleState(**kw)
 
     def to_dict(self) -> dict:
         """Plain dict of numpy arrays, floats and ints (for ``np.savez`` or JSON via lists)."""
@@ -211,7 +225,8 @@ class BundleState:
 
 
 # ---------------------------------------------------------------------- helpers
-def _evaluate(oracle, x):
+def _evaluate(oracle, x, trial=False):
+    """(f, g) from the oracle; at a trial point a non-finite answer returns None."""
     out = oracle(x.copy())
     try:
         f, g = out
@@ -223,6 +238,10 @@ def _evaluate(oracle, x):
         raise OptimizerError(f"the oracle returned a subgradient of shape {g.shape}, "
                              f"expected {x.shape}")
     if not (math.isfinite(f) and np.all(np.isfinite(g))):
+        if trial:
+            logger.warning("the oracle returned a non-finite value (f = %s) at a trial point; "
+                           "reducing the trust parameter", f)
+            return None
         raise OptimizerError(f"the oracle returned a non-finite value (f = {f}) at a feasible "
                              f"point; |x|max = {np.max(np.abs(x)):.3e}")
     return f, g
@@ -273,10 +292,20 @@ def _bt_iteration(oracle, poly: Polyhedron, st: BundleState, o: BTOptions, eps: 
             if -qp.v <= 4 * np.finfo(float).eps * max(1.0, abs(f)):
                 return _Step("stalled", qp, t)
         y = _trial_point(poly, x, qp.d, o.feas_tol)
-        fy, gy = _evaluate(oracle, y)
+        out = _evaluate(oracle, y, trial=True)
         st.nfev += 1
-        d = y - x
         last = trial == o.max_inner - 1
+        if out is None:                                 # f undefined at y: y is too far
+            if cand is not None:
+                return cand
+            if t <= st.t_min or last:
+                raise OptimizerError(f"the oracle returned non-finite values at every trial "
+                                     f"point down to t = {t:.3e}")
+            hi = t
+            t = max(t * o.t_decrease, st.t_min)
+            continue
+        fy, gy = out
+        d = y - x
         if fy - f <= o.m1 * qp.v:                       # descent: serious-step candidate
             cand = _Step("serious", qp, t, y, fy, gy)
             if gy @ d >= o.m2 * qp.v or t >= st.t_max or last:
@@ -299,6 +328,19 @@ def _bt_iteration(oracle, poly: Polyhedron, st: BundleState, o: BTOptions, eps: 
         hi = t                                          # cut useless here: shrink the region
         t = max(t * o.t_decrease, st.t_min)
     raise AssertionError("unreachable")  # pragma: no cover
+
+
+def _no_progress(history: list, window: int) -> bool:
+    """True when the last ``window`` iterations neither decreased f beyond its round-off nor
+    halved the best stationarity measure seen before them."""
+    if len(history) <= window:
+        return False
+    f_then, f_now = history[-window - 1]["f"], history[-1]["f"]
+    if f_then - f_now > 100 * np.finfo(float).eps * max(1.0, abs(f_now)):
+        return False
+    before = min(h["stationarity"] for h in history[:-window])
+    recent = min(h["stationarity"] for h in history[-window:])
+    return recent >= 0.5 * before
 
 
 def _update_bundle(st: BundleState, step: _Step, max_bundle: int) -> None:
@@ -377,8 +419,10 @@ def minimize_bundle(oracle, x0, *, lb=None, ub=None, A_ub=None, b_ub=None, A_eq=
     x0 : array (n,)
         Start; when infeasible it is replaced by its Euclidean projection onto U (logged).
     eps : float
-        Absolute tolerance on f: stop when the BT model promises a decrease
-        ``stationarity = ½ t‖p‖² + α_p + σ ≤ eps`` (see the module docstring).
+        Stop when ``stationarity = max(‖p‖, α_p + σ) ≤ eps``: the aggregate subgradient of
+        f + indicator(U) is shorter than eps and is an eps-subgradient at x, so that (for
+        convex f) ``f(x) − f(z) ≤ eps·(1 + ‖z − x‖)`` for all z ∈ U.  Absolute, in the units
+        of f; see the module docstring.
     max_iter : int
         Maximum number of iterations (serious + null steps), counted from the start of the
         run including iterations done before a restored ``state``.
@@ -427,8 +471,8 @@ def minimize_bundle(oracle, x0, *, lb=None, ub=None, A_ub=None, b_ub=None, A_eq=
             break
         if step.kind == "stalled":
             status = 3
-            message = (f"stalled: predicted decrease {-step.qp.v:.2e} is below the round-off "
-                       f"of f (stationarity {st.stationarity:.2e} > eps {eps:.0e})")
+            message = (f"stalled: predicted decrease {-step.qp.v:.2e} is at the round-off of f "
+                       f"(stationarity {st.stationarity:.2e} > eps {eps:.0e})")
             break
         _update_bundle(st, step, max_bundle)
         st.n_stuck = st.n_stuck + 1 if step.stalled else 0
@@ -441,17 +485,22 @@ def minimize_bundle(oracle, x0, *, lb=None, ub=None, A_ub=None, b_ub=None, A_eq=
                            "stationarity": st.stationarity, "nfev": st.nfev})
         logger.debug("it %d %s f=%.10g t=%.3e stat=%.3e nfev=%d", st.nit, step.kind, st.f,
                      st.t, st.stationarity, st.nfev)
-        if st.n_stuck >= 3:
-            status = 3
-            message = (f"stalled: {st.n_stuck} null steps in a row returned cuts already in the "
-                       f"bundle (the QP resolution is reached; stationarity "
-                       f"{st.stationarity:.2e} > eps {eps:.0e})")
-            break
         if callback is not None:
             try:
                 callback(_result(st, -1, f"iteration {st.nit}"))
             except StopIteration:
                 status, message = 2, f"stopped by the callback after iteration {st.nit}"
                 break
+        if st.n_stuck >= 3:
+            status = 3
+            message = (f"stalled: {st.n_stuck} null steps in a row returned cuts already in the "
+                       f"bundle (the QP resolution is reached; stationarity "
+                       f"{st.stationarity:.2e} > eps {eps:.0e})")
+            break
+        if _no_progress(st.history, o.stall_window):
+            status = 3
+            message = (f"stalled: no progress in the last {o.stall_window} iterations (f at its "
+                       f"round-off; stationarity {st.stationarity:.2e} > eps {eps:.0e})")
+            break
     logger.info("BT end: %s; f=%.10g nit=%d nfev=%d", message, st.f, st.nit, st.nfev)
     return _result(st, status, message)

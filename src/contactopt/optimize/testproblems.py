@@ -18,7 +18,8 @@ from typing import Callable
 
 import numpy as np
 
-__all__ = ["NonsmoothProblem", "PROBLEMS", "get_problem", "problem_names"]
+__all__ = ["NonsmoothProblem", "PROBLEMS", "get_problem", "problem_names",
+           "paper_admissible_set", "max_quadratics_problem"]
 
 
 @dataclass(frozen=True)
@@ -28,8 +29,8 @@ class NonsmoothProblem:
     name: str
     oracle: Callable[[np.ndarray], tuple[float, np.ndarray]] = field(repr=False)
     x0: np.ndarray = field(repr=False)
-    f_star: float
-    f_x0: float  # f(x0) as tabulated in the report (checks the formula)
+    f_star: float | None  # None when not tabulated (computed by the caller)
+    f_x0: float | None    # f(x0) as tabulated in the report (checks the formula)
     convex: bool
     lb: np.ndarray | None = field(default=None, repr=False)
     ub: np.ndarray | None = field(default=None, repr=False)
@@ -37,6 +38,7 @@ class NonsmoothProblem:
     b_ub: np.ndarray | None = field(default=None, repr=False)
     A_eq: np.ndarray | None = field(default=None, repr=False)
     b_eq: np.ndarray | None = field(default=None, repr=False)
+    data: dict | None = field(default=None, repr=False)  # problem data, e.g. the quadratics
 
     @property
     def n(self) -> int:
@@ -299,3 +301,51 @@ def get_problem(name: str) -> NonsmoothProblem:
         if key.lower() == name.lower():
             return prob
     raise KeyError(f"unknown test problem {name!r}; known: {', '.join(PROBLEMS)}")
+
+
+# ---------------------------------------------------------------- the paper's admissible set
+def paper_admissible_set(rows=8, cols=4, upper=0.75, d_row=0.5 * 2 / 7, d_col=0.5 / 3,
+                         volume=0.01 * 32) -> dict:
+    """Linear constraints of a design set with the structure of U in Beremlijski et al. (2009).
+
+    x = α.ravel() (row-major) for α of shape (rows, cols): ``0 ≤ α_ij ≤ upper``,
+    ``|α_{i+1,j} − α_ij| ≤ d_row``, ``|α_{i,j+1} − α_ij| ≤ d_col`` and ``Σ α_ij = volume``.
+    Returns the keyword arguments lb, ub, A_ub, b_ub, A_eq, b_eq of ``minimize_bundle``.
+    """
+    n = rows * cols
+    idx = np.arange(n).reshape(rows, cols)
+    pairs = [(idx[i + 1, j], idx[i, j], d_row) for i in range(rows - 1) for j in range(cols)]
+    pairs += [(idx[i, j + 1], idx[i, j], d_col) for i in range(rows) for j in range(cols - 1)]
+    A = np.zeros((2 * len(pairs), n))
+    b = np.zeros(2 * len(pairs))
+    for k, (a, c, bound) in enumerate(pairs):
+        A[2 * k, a], A[2 * k, c] = 1.0, -1.0
+        A[2 * k + 1, a], A[2 * k + 1, c] = -1.0, 1.0
+        b[2 * k] = b[2 * k + 1] = bound
+    return dict(lb=np.zeros(n), ub=np.full(n, float(upper)), A_ub=A, b_ub=b,
+                A_eq=np.ones((1, n)), b_eq=np.array([float(volume)]))
+
+
+def max_quadratics_problem(seed=4, pieces=5, rows=8, cols=4) -> NonsmoothProblem:
+    """f(x) = max_k ½(x − c_k)ᵀQ_k(x − c_k) + b_k over the paper-like set, from α = 0.01.
+
+    Convex and nonsmooth; Q_k = ½I + L_kL_kᵀ (L_k of rank 3), centres c_k concentrated on a few
+    components, so that at the minimiser several pieces, bounds and slope constraints are
+    active.  ``data`` holds Q, c, b (for an independent SOCP reference); f* is not tabulated.
+    """
+    n = rows * cols
+    rng = np.random.default_rng(seed)
+    L = [rng.normal(size=(n, 3)) * 0.6 for _ in range(pieces)]
+    Q = np.array([0.5 * np.eye(n) + Lk @ Lk.T for Lk in L])
+    c = np.array([rng.dirichlet(np.full(n, 0.1)) * 0.32 * 6.0 for _ in range(pieces)])
+    b = rng.uniform(0.0, 0.05, pieces)
+
+    def oracle(x):
+        r = x[None, :] - c
+        vals = 0.5 * np.einsum("ki,kij,kj->k", r, Q, r) + b
+        k = int(np.argmax(vals))
+        return float(vals[k]), Q[k] @ r[k]
+
+    cons = paper_admissible_set(rows, cols, volume=0.01 * n)
+    return NonsmoothProblem(f"MAXQUAD-U{n}", oracle, np.full(n, 0.01), None, None, True,
+                            data={"Q": Q, "c": c, "b": b}, **cons)
