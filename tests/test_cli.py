@@ -117,20 +117,20 @@ def test_corrupt_checkpoint_is_refused(tmp_path, capsys):
 def test_kill_and_resume_gives_the_uninterrupted_result(tmp_path):
     cfg = small_toml(tmp_path)
     ref = tmp_path / "ref"
-    assert main(["run", str(cfg), "--out", str(ref), "--max-iter", "12"]) == 0
+    assert main(["run", str(cfg), "--out", str(ref), "--max-iter", "16"]) == 0
     out = tmp_path / "killed"
     proc = subprocess.Popen([sys.executable, "-m", "contactopt.cli", "run", str(cfg), "--out", str(out),
-                             "--max-iter", "12"], stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+                             "--max-iter", "16"], stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
     deadline = time.time() + 120
     seen = 0
     for line in proc.stdout:
         if line.startswith("it ") and "serious" in line:
             seen += 1
-        if seen >= 3 or time.time() > deadline:
+        if seen >= 2 or time.time() > deadline:
             break
     proc.send_signal(signal.SIGKILL)
     proc.wait()
-    assert seen >= 3
+    assert seen >= 2
     assert main(["run", str(cfg), "--out", str(out), "--resume"]) == 0
     a = json.loads((ref / "summary.json").read_text())
     b = json.loads((out / "summary.json").read_text())

@@ -69,7 +69,7 @@ SCHEMA = {
     },
     "loads": {
         "top_traction": ([0.0, 0.0, -8e-2], _vec3, "a list of 3 numbers (traction on x3 = c)"),
-        "right_traction": ([-5e-2, 0.0, 0.0], _vec3, "a list of 3 numbers (traction on x1 = a)"),
+        "right_traction": ([5e-2, 0.0, 0.0], _vec3, "a list of 3 numbers (traction on x1 = a)"),
         "body_force": ([0.0, 0.0, 0.0], _vec3, "a list of 3 numbers (force per unit volume)"),
     },
     "design": {
@@ -139,7 +139,7 @@ class Config:
 def _check_target(target, d1d2, problems):
     kind = target.get("kind")
     allowed = {"constant": {"kind", "value"},
-               "step": {"kind", "default", "regions"},
+               "step": {"kind", "default", "regions", "per_area"},
                "values": {"kind", "values"},
                "design": {"kind", "alpha"}}
     if kind not in allowed:
@@ -152,6 +152,8 @@ def _check_target(target, d1d2, problems):
     if kind == "step":
         if not _finite(target.get("default", 0.0)):
             problems.append("objective.target.default: must be a finite number")
+        if not isinstance(target.get("per_area", False), bool):
+            problems.append("objective.target.per_area: must be true or false")
         regions = target.get("regions", [])
         if not isinstance(regions, list):
             problems.append("objective.target.regions: must be a list of tables {x1=[lo,hi], x2=[lo,hi], value}")

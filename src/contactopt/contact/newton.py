@@ -82,21 +82,6 @@ def alart_curnier(r, u, mu, rho):
     return Phi.reshape(-1), _Piece(active=xn > 0, slip=slip, nvec=nvec, c=c)
 
 
-def _apply_bhat(V, piece_idx, mu, nvec, c):
-    """Rows ``(B/rho) V`` of sliding contacts in place: ``V`` is (k, 3, m), rows (N, T1, T2).
-
-    The tangential rows of ``B/rho`` are ``[mu n, c (I - n n^T)]``; the normal row is ``e_N``.
-    """
-    if piece_idx.size == 0:
-        return
-    T = np.empty((piece_idx.size, 2, 3))
-    T[:, :, 0] = mu[:, None] * nvec
-    T[:, :, 1:] = -c[:, None, None] * nvec[:, :, None] * nvec[:, None, :]
-    T[:, 0, 1] += c
-    T[:, 1, 2] += c
-    V[piece_idx, 1:, :] = np.matmul(T, V[piece_idx])
-
-
 class _Solver:
     """Holds the dense problem and the counters shared by the plain and proximal phases."""
 
@@ -128,50 +113,70 @@ class _Solver:
 
     # -- one Newton direction ------------------------------------------------------------
     def direction(self, r, Phi, piece, rho, alpha):
-        """Solve ``(A + B (W + alpha I)) d = -Phi``; return ``d`` or ``None`` if singular."""
-        W = self.W
+        """Solve ``(A + B (W + alpha I)) d = -Phi``; return ``d`` or ``None`` if singular.
+
+        Rows scaled by ``1/rho``, ``f = -Phi/rho``, ``W_a = W + alpha I``:
+
+        * separated contacts: ``d_i = -r_i``;
+        * sticking contacts: ``(W_a d)_i = f_i``;
+        * sliding contacts, in the frame (e_N, n, t) with ``t`` orthogonal to the slip
+          direction ``n``: ``(W_a d)_N = f_N``; ``c (W_a d)_t + (1 - c) d_t / rho = f_t``; and
+          the ``n`` row, minus ``mu`` times the normal row, is local:
+          ``d_n = mu d_N + rho (f_n - mu f_N)``.
+
+        Eliminating ``d_n`` (and ``d_t`` when ``mu = 0``) leaves a dense system with 3 unknowns
+        per sticking and 2 per sliding contact, factorised by LAPACK ``getrf``.
+        """
+        W, mu = self.W, self.mu
         act = piece.active
         A = np.flatnonzero(act)
-        d = -Phi.copy()                      # separated contacts: Phi = r, d = -r
         k = A.size
+        d = -Phi.copy()                       # separated contacts: Phi = r, so d = -r
         self.active_trace.append((int(k), int(np.count_nonzero(act & ~piece.slip))))
         if k == 0:
             return d
         ia = (3 * A[:, None] + np.arange(3)).ravel()
-        dI = d.copy()
-        dI[ia] = 0.0
-        b = -(Phi[ia] / np.repeat(rho[A], 3))
-        if k == self.p:
-            M = W.copy()
-            cross = None
-        else:
-            M = W[np.ix_(ia, ia)]
-            cross = (W @ dI)[ia] if np.any(dI) else None
+        f = -(Phi[ia] / np.repeat(rho[A], 3)).reshape(k, 3)
+        S = np.flatnonzero(piece.slip[A])     # local indices of the sliding contacts
+        gS = A[S]
+        n = piece.nvec[gS]
+        t = np.column_stack((-n[:, 1], n[:, 0]))
+        c = piece.c[gS]
+        muS, rhoS = mu[gS], rho[gS]
+        fric = c > 0                          # mu = 0 on the others: their d_T is local
+        f_n = np.einsum("ij,ij->i", n, f[S, 1:])
+        f_t = np.einsum("ij,ij->i", t, f[S, 1:])
+        e = np.zeros((k, 3))                  # the part of d_A fixed by the local equations
+        e[S, 1:] = (rhoS * (f_n - muS * f[S, 0]))[:, None] * n
+        e[S[~fric], 1:] += (rhoS * f_t)[~fric, None] * t[~fric]
+        dfix = d.copy()
+        dfix[ia] = e.ravel()
+        v = ((W @ dfix)[ia].reshape(k, 3) + alpha * e) if np.any(dfix) else np.zeros((k, 3))
+        rhs = f - v
+        rhs[S[fric], 1] = f_t[fric] / c[fric] - np.einsum("ij,ij->i", t[fric], v[S[fric], 1:])
+        # Reduced matrix G^T W_a E: columns (e_N + mu n, t) and rows (e_N, t) of sliding contacts.
+        M = W.copy() if k == self.p else W[np.ix_(ia, ia)]
         if alpha:
             M.flat[:: 3 * k + 1] += alpha
-        sl = np.flatnonzero(piece.slip[A])   # local indices of sliding contacts
-        gl = A[sl]
-        Mv = M.reshape(k, 3, 3 * k)
-        _apply_bhat(Mv, sl, self.mu[gl], piece.nvec[gl], piece.c[gl])
-        if sl.size:
-            # + A/rho on the diagonal blocks of sliding rows: [-mu n, I - c (I - n n^T)] / rho
-            nv = piece.nvec[gl]
-            cc = piece.c[gl]
-            ir = 1.0 / rho[gl]
-            cols = 3 * sl
-            Mv[sl, 1, cols] += -self.mu[gl] * nv[:, 0] * ir
-            Mv[sl, 2, cols] += -self.mu[gl] * nv[:, 1] * ir
-            Mv[sl, 1, cols + 1] += (1.0 - cc * (1.0 - nv[:, 0] ** 2)) * ir
-            Mv[sl, 1, cols + 2] += (cc * nv[:, 0] * nv[:, 1]) * ir
-            Mv[sl, 2, cols + 1] += (cc * nv[:, 0] * nv[:, 1]) * ir
-            Mv[sl, 2, cols + 2] += (1.0 - cc * (1.0 - nv[:, 1] ** 2)) * ir
-        if cross is not None:
-            Cv = cross.reshape(k, 3, 1)
-            _apply_bhat(Cv, sl, self.mu[gl], piece.nvec[gl], piece.c[gl])
-            b -= Cv.reshape(-1)
-        # M is C-ordered, so M.T is Fortran-ordered: factor M^T without a copy, solve with trans.
-        anorm = (1.0 + self.mu_max) * self.wnorm_inf + alpha + 2.0 / float(rho.min())
-        lu, piv, info = lapack.dgetrf(M.T, overwrite_a=True)
+        if S.size:
+            Mc = M.reshape(3 * k, k, 3)
+            c1, c2 = Mc[:, S, 1], Mc[:, S, 2]
+            Mc[:, S, 0] += muS * (n[:, 0] * c1 + n[:, 1] * c2)
+            Mc[:, S, 1] = t[:, 0] * c1 + t[:, 1] * c2
+            Mr = M.reshape(k, 3, 3 * k)
+            Mr[S, 1, :] = t[:, 0, None] * Mr[S, 1, :] + t[:, 1, None] * Mr[S, 2, :]
+        keep = np.ones((k, 3), dtype=bool)
+        keep[S, 2] = False
+        keep[S[~fric], 1] = False
+        kk = np.flatnonzero(keep.ravel())
+        Mred = M[np.ix_(kk, kk)] if kk.size < 3 * k else M
+        pos = np.cumsum(keep.ravel()) - 1     # position of each kept unknown in Mred
+        dpos = pos[3 * S[fric] + 1]
+        dval = (1.0 - c[fric]) / (c[fric] * rhoS[fric])
+        Mred.flat[dpos * (kk.size + 1)] += dval
+        anorm = (1.0 + self.mu_max) * self.wnorm_inf + alpha + float(dval.max(initial=0.0))
+        # Mred is C-ordered, so Mred.T is Fortran-ordered: factor it, solve with trans=1.
+        lu, piv, info = lapack.dgetrf(Mred.T, overwrite_a=True)
         self.counts["factorizations"] += 1
         if info != 0:
             self.counts["singular"] += 1
@@ -180,11 +185,16 @@ class _Solver:
         if not rcond > _RCOND_MIN:
             self.counts["singular"] += 1
             return None
-        x, info = lapack.dgetrs(lu, piv, b, trans=1)
-        if info != 0 or not np.all(np.isfinite(x)):
+        z, info = lapack.dgetrs(lu, piv, rhs.ravel()[kk], trans=1)
+        if info != 0 or not np.all(np.isfinite(z)):
             self.counts["singular"] += 1
             return None
-        d[ia] = x
+        Z = np.zeros((k, 3))
+        Z.ravel()[kk] = z
+        dA = Z.copy()
+        # sliding: d_N = z_N, d_T = mu z_N n + z_t t + e_T
+        dA[S, 1:] = (muS * Z[S, 0])[:, None] * n + Z[S, 1, None] * t + e[S, 1:]
+        d[ia] = dA.ravel()
         return d
 
     # -- Newton iterations on the problem (W + alpha I, q - alpha rc) ----------------------
@@ -264,6 +274,10 @@ def solve_newton(W, q, mu, *, tol: float = 1e-8, max_iter: int = 200, r0=None,
     plain_max_iter : Newton steps of the plain phase before switching to PROX.
     prox_sigma : ``alpha_k = prox_sigma * error_k * mean(diag W)``.
     prox_inner_max_iter : Newton steps per proximal round.
+    rho_scale : the Alart–Curnier parameter is ``rho_i = rho_scale / (tr(W_ii)/3 + alpha)``
+        (``W_ii`` the diagonal 3x3 block of contact ``i``); 0.5 balanced the iteration counts
+        of the elastic and the FCLIB problems (smaller values misclassify fewer contacts in
+        the first steps of a cold start, larger ones suit the rigid-body problems).
     raise_on_failure : raise :class:`ContactNotConverged` (with the error history) on failure.
     """
     t0 = time.perf_counter()
@@ -293,7 +307,7 @@ def solve_newton(W, q, mu, *, tol: float = 1e-8, max_iter: int = 200, r0=None,
         phase = "proximal"
         err, r, _ = S.best
         alpha = prox_sigma * err * S.wscale
-        while len(S.history) < max_iter:
+        while len(S.history) < max_iter and prox_rounds < max_iter:
             prox_rounds += 1
             alphas.append(alpha)
             rc = r.copy()

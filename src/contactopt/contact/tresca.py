@@ -180,7 +180,6 @@ def solve_tresca(W, q, g, *, r0=None, tol: float = 1e-10, max_iter: int | None =
     n_cg_run = 0
     res = np.inf
     while len(history) < max_iter:
-        Gv = G.reshape(p, 3)
         free_n = X[:, 0] > 0
         free_t = np.hypot(X[:, 1], X[:, 2]) < (1.0 - _ACTIVE_RTOL) * g
         mask = np.column_stack((free_n, free_t, free_t)).reshape(-1)
@@ -253,7 +252,10 @@ def solve_tresca(W, q, g, *, r0=None, tol: float = 1e-10, max_iter: int | None =
         restart = True
         exact = True
         n_cg_run = 0
-    if not np.all(np.isfinite(x)):
+    if not exact:
+        G = matvec(x) + q
+        nmv += 1
+    if not (np.all(np.isfinite(x)) and np.all(np.isfinite(G))):
         raise ContactNotConverged("Tresca solver produced non-finite values", history)
     out = TrescaResult(r=x, u=G, iterations=len(history) - (1 if converged else 0),
                        residual=res, converged=converged, history=history, matvecs=nmv,

@@ -173,6 +173,8 @@ class PardisoSPD:
         self._finalizer.atexit = True
 
     def _set_values(self, upper):
+        if not upper.has_sorted_indices:
+            upper = upper.sorted_indices()
         self.a = np.ascontiguousarray(upper.data, dtype=np.float64)
         self.ia = np.ascontiguousarray(upper.indptr, dtype=self._int)
         self.ja = np.ascontiguousarray(upper.indices, dtype=self._int)

@@ -6,9 +6,12 @@ With the DOFs split into interior (i) and Schur/contact (c) DOFs, :func:`condens
     ℓ = L_c − A_ci A_ii⁻¹ L_i            (condensed load, :meth:`Condensation.condense_load`)
     u_i = A_ii⁻¹ (L_i − A_ic u_c)         (interior recovery, :meth:`Condensation.recover`)
 
-for a sparse symmetric positive definite A, at about the cost of one sparse factorization
-(S is *not* formed column by column). :func:`factorize` is the plain factorization of A, the
-timing reference of the benchmarks.
+for a sparse symmetric positive definite A with one sparse factorization in which the DOFs c
+are eliminated last (S is *not* formed column by column). Forcing c last costs fill: for a
+contact face of a 3D body, expect about twice the time of a plain factorization of A
+(``benchmarks/bench_schur.py``). :func:`factorize` is that plain factorization, the timing
+reference of the benchmarks. For a new A with the same sparsity pattern (a new design on the
+same mesh) :meth:`Condensation.refactor` reuses the ordering and symbolic analysis.
 
 Backends
 --------
@@ -63,11 +66,12 @@ def _check_matrix(A):
     if A.shape[0] != A.shape[1]:
         raise SolverError(f"A must be square, got shape {A.shape}")
     A = sp.csr_matrix(A, dtype=np.float64)
-    if not A.has_sorted_indices:
-        A = A.sorted_indices()
+    if not A.has_canonical_format:       # sorted, no duplicates (PARDISO needs both)
+        A = A.copy()
+        A.sum_duplicates()
     if not np.all(np.isfinite(A.data)):
         raise SolverError("A has non-finite entries (nan or inf)")
-    # Both backends read one triangle only: catch an unsymmetric A by a randomized test
+    # PARDISO reads the upper triangle only: catch an unsymmetric A by a randomized test
     # (two products, a few ms) instead of forming A − Aᵀ.
     rng = np.random.default_rng(0)
     x, y = rng.standard_normal((2, A.shape[0]))
@@ -162,6 +166,11 @@ class Condensation:
 
     def solve_interior(self, b_i):
         """A_ii⁻¹ b_i for ``b_i`` of shape (n_i,) or (n_i, k)."""
+        raise NotImplementedError
+
+    def refactor(self, A):
+        """Redo the factorization for new values of A with the same sparsity pattern, reusing
+        the ordering; updates ``S`` (a new array) and ``timings``; returns self."""
         raise NotImplementedError
 
     def close(self):
@@ -324,17 +333,22 @@ def _trailing_block(T, m):
     return out
 
 
-def _splu_natural(B):
-    """SuperLU of an SPD matrix in the given order (no pivoting, SymmetricMode)."""
+def _splu_natural(B, check_spd=True):
+    """SuperLU of an SPD matrix in the given order (no pivoting, SymmetricMode).
+
+    ``check_spd`` verifies that all pivots are positive, which needs the factor U as a SciPy
+    matrix (a conversion costing ~30 % of the factorization; free when U is needed anyway).
+    """
     try:
         lu = sla.splu(B.tocsc(), permc_spec="NATURAL", diag_pivot_thresh=0.0,
                       options=dict(SymmetricMode=True))
     except RuntimeError as exc:
         raise SolverError(f"SuperLU factorization failed: {exc}") from exc
-    d = lu.U.diagonal()
-    if not np.all(d > 0) or not np.array_equal(lu.perm_r, lu.perm_c):
-        raise SolverError("SuperLU: the matrix is not positive definite "
-                          f"(min pivot {d.min():g})")
+    if check_spd:
+        d = lu.U.diagonal()
+        if not np.all(d > 0) or not np.array_equal(lu.perm_r, lu.perm_c):
+            raise SolverError("SuperLU: the matrix is not positive definite "
+                              f"(min pivot {d.min():g})")
     return lu
 
 
@@ -356,12 +370,18 @@ class ScipyCondensation(Condensation):
 
     def __init__(self, A, c):
         super().__init__(A, c)
-        n, m = self.n, len(c)
         t0 = time.perf_counter()
         Aii = A[self.interior][:, self.interior]
-        order = np.concatenate([self.interior[_supervariable_order(Aii)], c])
-        self._order = order
-        B = A[order][:, order]
+        self._order = np.concatenate([self.interior[_supervariable_order(Aii)], c])
+        self._pattern = (A.indptr.copy(), A.indices.copy())
+        t_order = time.perf_counter() - t0
+        self._factor(A)
+        self.timings["analyze"] += t_order
+
+    def _factor(self, A):
+        n, m = self.n, len(self.c)
+        t0 = time.perf_counter()
+        B = A[self._order][:, self._order]
         t1 = time.perf_counter()
         lu = _splu_natural(B)
         pos = lu.perm_c[n - m:] - (n - m)   # SuperLU may postorder; c must stay trailing
@@ -369,12 +389,21 @@ class ScipyCondensation(Condensation):
             raise SolverError("SuperLU moved Schur DOFs out of the trailing block")
         S = _trailing_block(lu.L, m) @ _trailing_block(lu.U, m)
         S = S[np.ix_(pos, pos)]
-        self.S = 0.5 * (S + S.T)
-        _check_S(self.S)
-        self._lu = lu
+        S = 0.5 * (S + S.T)
+        _check_S(S)
+        self.S, self._lu = S, lu
         self.timings = {"analyze": t1 - t0, "factor_schur": time.perf_counter() - t1}
-        logger.debug("SciPy Schur: n=%d n_c=%d nnz(L+U)=%d, %.3f s ordering, %.3f s factor",
-                     n, m, lu.L.nnz + lu.U.nnz, t1 - t0, self.timings["factor_schur"])
+        logger.debug("SciPy Schur: n=%d n_c=%d nnz(L+U)=%d, %.3f s factor",
+                     n, m, lu.L.nnz + lu.U.nnz, self.timings["factor_schur"])
+
+    def refactor(self, A):
+        A = _check_matrix(A)
+        if (A.shape[0] != self.n or not np.array_equal(A.indptr, self._pattern[0])
+                or not np.array_equal(A.indices, self._pattern[1])):
+            raise SolverError("refactor needs a matrix with the same sparsity pattern; "
+                              "call condense() for a new pattern")
+        self._factor(A)
+        return self
 
     def _solve(self, f):
         """x = A⁻¹ f for full-length f (1 or 2-D), in the original DOF numbering."""
@@ -431,7 +460,11 @@ def condense(A, c, backend="auto") -> Condensation:
 
 
 class Factorization:
-    """A full sparse factorization of an SPD matrix; ``solve(b)`` for (n,) or (n, k) b."""
+    """A full sparse factorization of an SPD matrix; ``solve(b)`` for (n,) or (n, k) b.
+
+    PARDISO (Cholesky) rejects an indefinite A; SciPy's SuperLU (LU without pivoting) only
+    fails on a zero pivot and otherwise solves a nonsingular indefinite A correctly.
+    """
 
     def __init__(self, A, backend="auto"):
         A = _check_matrix(A)
@@ -448,8 +481,8 @@ class Factorization:
             self._order = _supervariable_order(A)
             B = A[self._order][:, self._order]
             t1 = time.perf_counter()
-            self._lu = _splu_natural(B)
-            self.nnz_factor = self._lu.L.nnz + self._lu.U.nnz
+            self._lu = _splu_natural(B, check_spd=False)
+            self.nnz_factor = self._lu.nnz
         self.timings = {"analyze": t1 - t0, "factor": time.perf_counter() - t1}
 
     def solve(self, b):

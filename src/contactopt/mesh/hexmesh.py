@@ -121,6 +121,15 @@ class HexMesh:
         """(x1, x2) of the contact nodes, in contact-node order."""
         return self.ref_coords[self.node_sets["contact"], :2]
 
+    def contact_areas(self) -> np.ndarray:
+        """Tributary areas of the contact nodes on the projected rectangle (halved on its edges),
+        which turn a contact stress σ into nodal forces λ_i ≈ σ(x'_i)·A_i."""
+        a, b = self.surface.a, self.surface.b
+        x1, x2 = self.contact_points().T
+        w1 = np.where(np.isclose(x1, a), 0.5, 1.0) * a / self.nx
+        w2 = np.where(np.isclose(x2, 0.0) | np.isclose(x2, b), 0.5, 1.0) * b / self.ny
+        return w1 * w2
+
     def gap_matrix(self) -> np.ndarray:
         """G with gap g = G α: the initial gap of contact node i is ϑ_α(x'_i) (foundation x3 ≤ 0)."""
         return self._basis[self.node_sets["contact"]]

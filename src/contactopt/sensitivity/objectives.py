@@ -100,7 +100,8 @@ def target_values(spec: dict, problem) -> np.ndarray:
     """Target normal force λ̄ per contact node from a target table of the configuration.
 
     kinds: ``constant`` (value), ``step`` (default, then regions {x1 = [lo, hi], x2 = [lo, hi], value}
-    applied in order, bounds inclusive, later regions win), ``values`` (one number per contact node),
+    applied in order, bounds inclusive, later regions win; with ``per_area = true`` the values are
+    contact stresses, multiplied by the nodes' tributary areas), ``values`` (one number per contact node),
     ``design`` (manufactured target λ̄ = λ(α*) for the given control points α*).
     """
     model = problem.model
@@ -118,6 +119,8 @@ def target_values(spec: dict, problem) -> np.ndarray:
             inside = ((xy[:, 0] >= lo1 - eps) & (xy[:, 0] <= hi1 + eps)
                       & (xy[:, 1] >= lo2 - eps) & (xy[:, 1] <= hi2 + eps))
             out[inside] = float(reg["value"])
+        if spec.get("per_area", False):
+            out *= model.mesh.contact_areas()      # values are contact stresses
         return out
     if kind == "values":
         vals = np.asarray(spec["values"], float)
