@@ -1,6 +1,7 @@
 """Benchmark of the local contact solvers (Newton and the paper's fixed point).
 
 Run:  python benchmarks/bench_local.py [--fclib-dir DIR] [--repeat N] [--no-fixed-point]
+                                      [--blas-threads N]
 
 Two parts, all figures measured in this one run:
 
@@ -25,8 +26,25 @@ import sys
 import time
 from pathlib import Path
 
-import numpy as np
-from scipy.linalg import lapack
+
+def _preset_blas_threads(argv):
+    """Apply ``--blas-threads N`` before numpy loads its BLAS (it reads the variables once)."""
+    for k, arg in enumerate(argv):
+        if arg == "--blas-threads" and k + 1 < len(argv):
+            value = argv[k + 1]
+        elif arg.startswith("--blas-threads="):
+            value = arg.split("=", 1)[1]
+        else:
+            continue
+        for var in ("OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "OMP_NUM_THREADS"):
+            os.environ[var] = value
+
+
+if __name__ == "__main__":
+    _preset_blas_threads(sys.argv)
+
+import numpy as np  # noqa: E402
+from scipy.linalg import lapack  # noqa: E402
 
 HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE))
@@ -52,7 +70,8 @@ def brick_problem(nx=32, ny=15, nz=9, *, a=2.0, b=1.0, c=1.0, pressure=-0.08,
     ii, jj, kk = np.meshgrid(np.arange(nx + 1), np.arange(ny + 1), np.arange(nz + 1),
                              indexing="ij")
     node = ii + (nx + 1) * (jj + (ny + 1) * kk)
-    wx, wy, wz = (np.where((v == 0) | (v == m), 0.5, 1.0) for v, m in ((ii, nx), (jj, ny), (kk, nz)))
+    wx, wy, wz = (np.where((v == 0) | (v == m), 0.5, 1.0)
+                  for v, m in ((ii, nx), (jj, ny), (kk, nz)))
     L = np.zeros(3 * B.n_nodes)
     top, right = kk == nz, ii == nx
     L[3 * node[top] + 2] += pressure * (a / nx) * (b / ny) * (wx * wy)[top]
@@ -143,9 +162,12 @@ def main(argv=None):
                                                           "/work/shared/data/fclib"))
     ap.add_argument("--repeat", type=int, default=3, help="timings are medians of REPEAT runs")
     ap.add_argument("--no-fixed-point", action="store_true", help="Newton only")
+    ap.add_argument("--blas-threads", type=int, default=None,
+                    help="BLAS threads (set before numpy loads; 1 is steadier on a busy machine)")
     args = ap.parse_args(argv)
     methods = ["newton"] if args.no_fixed_point else ["newton", "fixed-point"]
-    print(f"cores: {os.cpu_count()}, OPENBLAS_NUM_THREADS={os.environ.get('OPENBLAS_NUM_THREADS')}, "
+    threads = os.environ.get("OPENBLAS_NUM_THREADS")
+    print(f"cores: {os.cpu_count()}, OPENBLAS_NUM_THREADS={threads}, "
           f"load average: {os.getloadavg()[0]:.2f}")
     run_fclib(Path(args.fclib_dir), methods, args.repeat)
     run_brick(args.repeat, methods)

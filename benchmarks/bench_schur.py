@@ -12,7 +12,9 @@ machine, ratios much less), the script measures the minimum over ``--repeat`` ru
 * refactor: ``fac.refactor(A)`` (PARDISO only: new values, same pattern, analysis reused),
 * solve_i:  one ``solve_interior`` and one ``recover`` (single right-hand side),
 
-and prints Schur / factor. The goal on the Example 1 mesh is Schur <= 1.5 x factor (PARDISO).
+and prints Schur / factor, together with the ratios of factor sizes (nnz) and of PARDISO's
+factorization flop counts, which do not depend on the machine load. The goal on the Example 1
+mesh is Schur <= 1.5 x factor (PARDISO).
 """
 
 from __future__ import annotations
@@ -46,6 +48,7 @@ def bench_backend(A, c, backend, repeat, rng):
     for _ in range(repeat):
         t, f = _timed(lambda: factorize(A, backend))
         t_fact.append(t)
+        fact_stats = f.stats
         f.close()
         del f
         if fac is not None:
@@ -64,7 +67,9 @@ def bench_backend(A, c, backend, repeat, rng):
     u = fac.recover(L, u_c)
     res = np.linalg.norm((A @ u - L)[fac.interior]) / np.linalg.norm(L)
     row = dict(factor=min(t_fact), schur=min(t_schur), refactor=min(t_refac) if t_refac else None,
-               solve_i=t_si, recover=t_rec, residual=res, S=fac.S)
+               solve_i=t_si, recover=t_rec, residual=res, S=fac.S,
+               flop_ratio=(fac.stats["mflop"] / fact_stats["mflop"]) if "mflop" in fac.stats else None,
+               nnz_ratio=fac.stats["nnz_factor"] / fact_stats["nnz_factor"])
     fac.close()
     return row
 
@@ -83,7 +88,7 @@ def main(argv=None):
 
     header = (f"{'mesh':<10} {'n':>7} {'n_c':>5} {'backend':<8} {'factor[s]':>9} {'Schur[s]':>9} "
               f"{'Schur/fac':>9} {'refac[s]':>8} {'solve_i[ms]':>11} {'recover[ms]':>11} "
-              f"{'resid':>8}")
+              f"{'resid':>8} {'nnzL S/fac':>10} {'flop S/fac':>10}")
     print(header)
     print("-" * len(header))
     summary = []
@@ -97,13 +102,15 @@ def main(argv=None):
                 print(f"{name:<10} {A.shape[0]:>7} {len(c):>5} {backend:<8} "
                       "(skipped: minutes and ~12 GB; use --scipy-fine)")
                 continue
-            repeat = args.repeat if A.shape[0] < 50_000 else max(1, args.repeat // 3)
+            repeat = args.repeat if A.shape[0] < 50_000 else max(1, (args.repeat + 1) // 2)
             r = bench_backend(A, c, backend, repeat, rng)
             rows[backend] = r
             refac = f"{r['refactor']:8.3f}" if r["refactor"] is not None else f"{'-':>8}"
+            flops = f"{r['flop_ratio']:10.2f}" if r["flop_ratio"] is not None else f"{'-':>10}"
             print(f"{name:<10} {A.shape[0]:>7} {len(c):>5} {backend:<8} {r['factor']:9.3f} "
                   f"{r['schur']:9.3f} {r['schur'] / r['factor']:9.2f} {refac} "
-                  f"{1e3 * r['solve_i']:11.2f} {1e3 * r['recover']:11.2f} {r['residual']:8.1e}",
+                  f"{1e3 * r['solve_i']:11.2f} {1e3 * r['recover']:11.2f} {r['residual']:8.1e} "
+                  f"{r['nnz_ratio']:10.2f} {flops}",
                   flush=True)
         if len(rows) == 2:
             Sp, Ss = rows["pardiso"]["S"], rows["scipy"]["S"]

@@ -49,7 +49,8 @@ def lattice_problem(nx, ny, nz=4, *, mu=0.3, seed=0, shear=0.4):
     nn = nx * ny * nz
     rows, cols, vals = [], [], []
     for I, J, sgn in ((a, a, 1), (b, b, 1), (a, b, -1), (b, a, -1)):
-        rows.append(np.broadcast_to(3 * I[:, None, None] + np.arange(3)[:, None], blk.shape).ravel())
+        rows.append(np.broadcast_to(3 * I[:, None, None] + np.arange(3)[:, None],
+                                    blk.shape).ravel())
         cols.append(np.broadcast_to(3 * J[:, None, None] + np.arange(3), blk.shape).ravel())
         vals.append(sgn * blk.ravel())
     K = sp.csc_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))),
@@ -226,12 +227,14 @@ def test_tresca_warm_start_and_linear_operator():
 
 
 # ---------------------------------------------------------------- Coulomb
-COULOMB_CASES = [((6, 5), 0, 0.3, 0.4), ((10, 8), 1, 0.3, 0.1), ((10, 8), 2, 0.5, 0.4),
-                 ((12, 12), 3, 0.3, 0.2), ((12, 12), 4, 0.2, 0.6)]
+# (size, seed, mu, shear, some contacts stick); every case also has separated and sliding ones
+COULOMB_CASES = [((6, 5), 0, 0.3, 0.4, False), ((10, 8), 1, 0.3, 0.1, True),
+                 ((10, 8), 2, 0.5, 0.4, True), ((12, 12), 3, 0.3, 0.2, True),
+                 ((12, 12), 4, 0.2, 0.6, False)]
 
 
-@pytest.mark.parametrize("size,seed,mu,shear", COULOMB_CASES)
-def test_coulomb_newton_and_fixed_point_agree(size, seed, mu, shear):
+@pytest.mark.parametrize("size,seed,mu,shear,sticking", COULOMB_CASES)
+def test_coulomb_newton_and_fixed_point_agree(size, seed, mu, shear, sticking):
     W, q, mus = lattice_problem(*size, seed=seed, mu=mu, shear=shear)
     nt = solve_local(W, q, mus, method="newton", tol=1e-12)
     fp = solve_local(W, q, mus, method="fixed-point", tol=1e-11)
@@ -239,6 +242,7 @@ def test_coulomb_newton_and_fixed_point_agree(size, seed, mu, shear):
     assert rel(nt.r, fp.r) <= 1e-7
     classes = set(node_class(nt.r, nt.u, mus))
     assert "L" in classes and "M1" in classes                # separated and sliding contacts
+    assert ("M3+" in classes) == sticking
     # Contact conditions at the Newton solution, relative to the force/displacement scales.
     sr, su = np.abs(nt.r).max(), np.abs(nt.u).max()
     v = complementarity_violations(nt.r, nt.u, mus)

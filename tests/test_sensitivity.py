@@ -79,13 +79,21 @@ def test_degenerate_node_gives_a_one_sided_gradient():
     lo, hi = 0.0, 0.004
     c_lo = classes(lo)
     assert np.any(classes(hi) != c_lo), "no class change on the search interval"
-    for _ in range(60):
+    # bisection on "still the classes of lo"; the degenerate window between the two stable classes
+    # is reached when a midpoint has a degenerate node
+    s_star = None
+    for _ in range(80):
         mid = 0.5 * (lo + hi)
-        if np.array_equal(classes(mid), c_lo):
+        state = pr.solve_state(a0 + mid * d)
+        if state.n_degenerate:
+            s_star = mid
+            break
+        if np.array_equal(state.classes, c_lo):
             lo = mid
         else:
             hi = mid
-    alpha_star = a0 + 0.5 * (lo + hi) * d
+    assert s_star is not None, "bisection did not reach a degenerate node"
+    alpha_star = a0 + s_star * d
     res = subgradient(pr, alpha_star)
     assert res.n_degenerate >= 1 and not res.exact
     delta = 1e-6

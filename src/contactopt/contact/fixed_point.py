@@ -114,7 +114,8 @@ def solve_fixed_point(W, q, mu, *, tol: float = 1e-8, max_iter: int = 200, r0=No
     if converged:
         msg = f"converged: Siconos error {err:.3e} <= tol {tol:.1e}"
     else:
-        msg = f"not converged: Siconos error {err:.3e} > tol {tol:.1e} after {len(history)} Tresca solves"
+        msg = (f"not converged: Siconos error {err:.3e} > tol {tol:.1e} after {len(history)} "
+               f"Tresca solves")
     result = LocalResult(
         r=r, u=u, iterations=len(history), error=err, converged=converged, history=history,
         method="fixed-point", time_s=elapsed, message=msg, outer_iterations=len(history),

@@ -42,7 +42,7 @@ class LocalResult:
     r, u : reactions and displacements (``u = W r + q``), stacked per contact (N, T1, T2).
     iterations : main iterations: Newton steps (all proximal rounds together) for
         ``"newton"``, Tresca solves (outer successive approximations) for ``"fixed-point"``.
-    error : Siconos error of the returned ``r`` (see :func:`contactopt.contact.cones.siconos_error`).
+    error : Siconos error of the returned ``r`` (:func:`contactopt.contact.cones.siconos_error`).
     converged : ``error <= tol``.
     history : error after each main iteration (``len(history) == iterations``).
     method, time_s, message : solver name, wall time, a stop message naming the criterion.
@@ -73,6 +73,20 @@ class LocalResult:
     def node_classes(self, mu, *, rtol: float = 1e-8) -> np.ndarray:
         """Table 4.1 class of every contact (see :func:`contactopt.contact.cones.node_class`)."""
         return node_class(self.r, self.u, mu, rtol=rtol)
+
+    def summary(self) -> dict:
+        """JSON-ready scalars: method, converged, error, iteration counts, time, message."""
+        return {"method": self.method, "converged": bool(self.converged),
+                "error": float(self.error), "iterations": int(self.iterations),
+                "outer_iterations": int(self.outer_iterations),
+                "inner_iterations": int(self.inner_iterations),
+                "time_s": float(self.time_s), "message": self.message}
+
+    def __repr__(self) -> str:
+        return (f"LocalResult(method={self.method!r}, converged={self.converged}, "
+                f"error={self.error:.3e}, iterations={self.iterations}, "
+                f"outer/inner={self.outer_iterations}/{self.inner_iterations}, "
+                f"time_s={self.time_s:.4f}, contacts={self.r.size // 3})")
 
 
 def check_problem(W, q, mu, *, r0=None):

@@ -19,8 +19,10 @@ one normal and two tangential rows of ``W`` with a rank-one correction. It is al
 the NSN_AC solver used as reference in DESIGN.md §4.
 
 Newton step. With ``dPhi = A dr + B du`` (3x3 blocks per contact) and ``du = W dr``, the step
-solves ``(A + B W) d = -Phi``; separated contacts are eliminated and the remaining dense
-system (rows scaled by ``1/rho``) is factorised by LAPACK ``getrf``.
+solves ``(A + B W) d = -Phi``. Separated contacts are eliminated (``d_i = -r_i``); on a sliding
+contact the slip-direction row minus ``mu`` times the normal row is local and gives that
+component of ``d`` explicitly, so the dense system left has 3 unknowns per sticking and 2 per
+sliding contact (see ``_Solver.direction``); it is factorised by LAPACK ``getrf``.
 
 Globalisation. Armijo backtracking on the merit ``1/2 ||Phi||^2`` (non-monotone over the last
 few values). When plain Newton fails (line search exhausted, singular Jacobian — rigid-body
@@ -51,6 +53,14 @@ __all__ = ["solve_newton", "alart_curnier"]
 log = logging.getLogger(__name__)
 
 _RCOND_MIN = 1e-13       # reciprocal condition below which a Newton matrix counts as singular
+_REASONS = {
+    "max": "Newton step limit of the phase reached",
+    "budget": "max_iter Newton steps used",
+    "singular": "singular Newton matrix (W singular? use proximal='auto' or 'always')",
+    "linesearch": "line search found no decrease of the merit 1/2 ||Phi||^2",
+    "stagnation": "no progress over 10 Newton steps",
+    "inner": "proximal round converged, outer tolerance not reached",
+}
 
 
 @dataclass
@@ -153,7 +163,7 @@ class _Solver:
         dfix[ia] = e.ravel()
         v = ((W @ dfix)[ia].reshape(k, 3) + alpha * e) if np.any(dfix) else np.zeros((k, 3))
         rhs = f - v
-        rhs[S[fric], 1] = f_t[fric] / c[fric] - np.einsum("ij,ij->i", t[fric], v[S[fric], 1:])
+        rhs[S[fric], 1] = f_t[fric] - c[fric] * np.einsum("ij,ij->i", t[fric], v[S[fric], 1:])
         # Reduced matrix G^T W_a E: columns (e_N + mu n, t) and rows (e_N, t) of sliding contacts.
         M = W.copy() if k == self.p else W[np.ix_(ia, ia)]
         if alpha:
@@ -164,7 +174,7 @@ class _Solver:
             Mc[:, S, 0] += muS * (n[:, 0] * c1 + n[:, 1] * c2)
             Mc[:, S, 1] = t[:, 0] * c1 + t[:, 1] * c2
             Mr = M.reshape(k, 3, 3 * k)
-            Mr[S, 1, :] = t[:, 0, None] * Mr[S, 1, :] + t[:, 1, None] * Mr[S, 2, :]
+            Mr[S, 1, :] = c[:, None] * (t[:, 0, None] * Mr[S, 1, :] + t[:, 1, None] * Mr[S, 2, :])
         keep = np.ones((k, 3), dtype=bool)
         keep[S, 2] = False
         keep[S[~fric], 1] = False
@@ -172,7 +182,7 @@ class _Solver:
         Mred = M[np.ix_(kk, kk)] if kk.size < 3 * k else M
         pos = np.cumsum(keep.ravel()) - 1     # position of each kept unknown in Mred
         dpos = pos[3 * S[fric] + 1]
-        dval = (1.0 - c[fric]) / (c[fric] * rhoS[fric])
+        dval = (1.0 - c[fric]) / rhoS[fric]
         Mred.flat[dpos * (kk.size + 1)] += dval
         anorm = (1.0 + self.mu_max) * self.wnorm_inf + alpha + float(dval.max(initial=0.0))
         # Mred is C-ordered, so Mred.T is Fortran-ordered: factor it, solve with trans=1.
@@ -197,6 +207,23 @@ class _Solver:
         d[ia] = dA.ravel()
         return d
 
+    def _line_search(self, r, ua, theta, recent, d, rho, alpha):
+        """Non-monotone Armijo backtracking on 1/2 ||Phi||^2; ``None`` if no step is found."""
+        Wd = self.W @ d
+        Wad = Wd + alpha * d if alpha else Wd
+        t = 1.0
+        ref = max(recent[-4:])
+        for _ in range(30):
+            self.counts["line_search_evals"] += 1
+            r_t = r + t * d
+            ua_t = ua + t * Wad
+            Phi_t, piece_t = alart_curnier(r_t, ua_t, self.mu, rho)
+            theta_t = 0.5 * float(Phi_t @ Phi_t)
+            if theta_t <= ref - 2e-4 * t * theta:
+                return t, Wd, r_t, ua_t, Phi_t, piece_t, theta_t
+            t *= 0.5
+        return None
+
     # -- Newton iterations on the problem (W + alpha I, q - alpha rc) ----------------------
     def newton(self, r, alpha, rc, inner_tol, max_steps, budget):
         """Run Newton steps; return ``(r, status)`` with status in
@@ -219,22 +246,11 @@ class _Solver:
             d = self.direction(r, Phi, piece, rho, alpha)
             if d is None:
                 return r, "singular"
-            Wd = W @ d
-            Wad = Wd + alpha * d if alpha else Wd
-            t = 1.0
-            ref = max(recent[-4:])
-            for _ in range(30):
-                self.counts["line_search_evals"] += 1
-                r_t = r + t * d
-                ua_t = ua + t * Wad
-                Phi_t, piece_t = alart_curnier(r_t, ua_t, mu, rho)
-                theta_t = 0.5 * float(Phi_t @ Phi_t)
-                if theta_t <= ref - 2e-4 * t * theta:
-                    break
-                t *= 0.5
-            else:
+            step = self._line_search(r, ua, theta, recent, d, rho, alpha)
+            if step is None:
                 self.counts["line_search_failures"] += 1
                 return r, "linesearch"
+            t, Wd, r_t, ua_t, Phi_t, piece_t, theta_t = step
             r, ua, Phi, piece, theta = r_t, ua_t, Phi_t, piece_t, theta_t
             u = u + t * Wd
             recent.append(theta)
@@ -316,16 +332,20 @@ def solve_newton(W, q, mu, *, tol: float = 1e-8, max_iter: int = 200, r0=None,
             if status == "converged":
                 break
             err_new = siconos_error(r, W @ r + q, q, mu)
-            if status in ("inner", "max", "stagnation") and err_new < err:
+            if status == "inner" and err_new < err:
                 err = err_new
                 alpha = prox_sigma * err * S.wscale
+            elif status in ("max", "stagnation") and err_new < err:
+                err = err_new              # progress, but the inner Newton struggled: keep alpha
             else:
                 r = rc if err_new > err else r
                 err = min(err, err_new)
                 alpha *= 10.0
             log.debug("PROX round %d: status %s, error %.3e, next alpha %.2e",
                       prox_rounds, status, err, alpha)
-    err, r, u = S.best
+    err, r, _ = S.best
+    u = W @ r + q               # the iteration updates u incrementally: report the exact one
+    err = siconos_error(r, u, q, mu)
     converged = err <= tol
     elapsed = time.perf_counter() - t0
     n_steps = len(S.history)
@@ -333,7 +353,7 @@ def solve_newton(W, q, mu, *, tol: float = 1e-8, max_iter: int = 200, r0=None,
         msg = f"converged: Siconos error {err:.3e} <= tol {tol:.1e} ({phase} Newton)"
     else:
         msg = (f"not converged: Siconos error {err:.3e} > tol {tol:.1e} after {n_steps} Newton "
-               f"steps ({phase} phase, last status '{status}')")
+               f"steps ({phase} phase; last stop: {_REASONS.get(status, status)})")
     result = LocalResult(
         r=r, u=u, iterations=n_steps, error=err, converged=converged, history=list(S.history),
         method="newton", time_s=elapsed, message=msg, outer_iterations=prox_rounds,

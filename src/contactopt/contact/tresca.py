@@ -20,10 +20,16 @@ Algorithm 1 (Kučera [14, 15]; Dostál–Schöberl [5] for bounds): with ``A(r)`
 splits into the projected free gradient ``phi~`` (free components) and the projected boundary
 gradient ``beta~`` (active ones). If the releasing criterion (5.2)
 ``beta~^T g <= Gamma phi~^T g`` holds, a conjugate gradient step on the current face is tried and
-kept when it stays in the interior of the face; otherwise an expansion step is taken (as in
-[14]: the longest feasible CG step, then a projected step ``P(r - a phi)`` on the free
-components). If (5.2) fails, a proportioning step ``r - a beta~`` releases constraints. The
-iteration stops when ``||g~|| <= tol * max(||q||, tiny)``.
+kept when it stays in the interior of the face; otherwise an expansion step is taken: as in
+the MPRGP algorithm of [5] that Algorithm 1 generalises, the CG step is first cut at the
+boundary of ``S_g`` (the longest feasible step), then the projected step ``P(r - a phi)`` is
+made on the free components. If (5.2) fails, a proportioning step ``r - a beta~`` releases
+constraints. The iteration stops when ``||g~|| <= tol * max(||q||, tiny)``.
+
+Two numerical safeguards, both exact in exact arithmetic: (5.2) is evaluated with
+``max(v~^T g, ||v~||^2)`` (equal for a convex set, but the dot product of the disc components
+cancels to rounding noise near the solution), and the CG recurrence ``g <- g - a W p`` is
+replaced by ``W r + q`` every 25 CG steps and before accepting convergence.
 """
 
 from __future__ import annotations
@@ -135,7 +141,10 @@ def solve_tresca(W, q, g, *, r0=None, tol: float = 1e-10, max_iter: int | None =
     Parameters
     ----------
     W : (3p, 3p) symmetric positive (semi)definite Delassus operator: dense array, sparse
-        matrix or ``LinearOperator`` (only products ``W x`` are used).
+        matrix or ``LinearOperator`` (only products ``W x`` are used). For a slightly
+        nonsymmetric ``W`` (as in some FCLIB files) the same iteration is applied to the
+        variational inequality ``-(W r + q) ∈ N_{S_g}(r)``; the CG steps then lose their
+        minimisation property and convergence is not guaranteed.
     q : (3p,) linear term, per contact (normal, tangent1, tangent2).
     g : slip bounds, scalar or (p,), non-negative (``g = 0`` gives frictionless contact).
     r0 : starting point (projected onto ``S_g``); zero if ``None``.

@@ -135,7 +135,8 @@ class Condensation:
     """Condensation of an SPD system onto the DOFs ``c`` (see the module docstring).
 
     Attributes: ``S`` (dense, order of ``c``), ``c``, ``interior`` (sorted), ``n``,
-    ``backend``, ``timings`` (seconds per stage). Vectors are full length ``n`` unless named
+    ``backend``, ``timings`` (seconds per stage), ``stats`` (size of the factor, and for
+    PARDISO its factorization MFlop). Vectors are full length ``n`` unless named
     ``*_c`` (order of ``c``) or ``*_i`` (order of ``interior``).
     """
 
@@ -150,6 +151,7 @@ class Condensation:
         self.interior = np.flatnonzero(~mask)
         self.S = None
         self.timings = {}
+        self.stats = {}
 
     # -- to be provided by the backends
     def condense_load(self, L):
@@ -226,6 +228,7 @@ class PardisoCondensation(Condensation):
         self._set_S(self._ps.factor())
         t2 = time.perf_counter()
         self.timings = {"analyze": t1 - t0, "factor_schur": t2 - t1}
+        self.stats = {"nnz_factor": self._ps.nnz_factor, "mflop": self._ps.mflops_factor}
         logger.debug("PARDISO Schur: n=%d n_c=%d nnz(L)=%d %d MFlop, %.3f s analyze, "
                      "%.3f s factor", self.n, len(c), self._ps.nnz_factor,
                      self._ps.mflops_factor, t1 - t0, t2 - t1)
@@ -392,9 +395,10 @@ class ScipyCondensation(Condensation):
         S = 0.5 * (S + S.T)
         _check_S(S)
         self.S, self._lu = S, lu
+        self.stats = {"nnz_factor": lu.nnz}
         self.timings = {"analyze": t1 - t0, "factor_schur": time.perf_counter() - t1}
         logger.debug("SciPy Schur: n=%d n_c=%d nnz(L+U)=%d, %.3f s factor",
-                     n, m, lu.L.nnz + lu.U.nnz, self.timings["factor_schur"])
+                     n, m, lu.nnz, self.timings["factor_schur"])
 
     def refactor(self, A):
         A = _check_matrix(A)
@@ -476,13 +480,13 @@ class Factorization:
             self._ps.analyze()
             t1 = time.perf_counter()
             self._ps.factor()
-            self.nnz_factor = self._ps.nnz_factor
+            self.stats = {"nnz_factor": self._ps.nnz_factor, "mflop": self._ps.mflops_factor}
         else:
             self._order = _supervariable_order(A)
             B = A[self._order][:, self._order]
             t1 = time.perf_counter()
             self._lu = _splu_natural(B, check_spd=False)
-            self.nnz_factor = self._lu.nnz
+            self.stats = {"nnz_factor": self._lu.nnz}
         self.timings = {"analyze": t1 - t0, "factor": time.perf_counter() - t1}
 
     def solve(self, b):
