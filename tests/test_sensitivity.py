@@ -114,3 +114,24 @@ def test_degenerate_node_gives_a_one_sided_gradient():
 
 def test_class_codes_cover_table_4_1():
     assert set(CLASS_CODES) == {"L", "M1", "M2", "M3+", "M3-", "M4"}
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("name", ["example1", "example2", "example3"])
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_paper_examples_subgradient_vs_finite_differences(name, seed):
+    """Examples 1–3 at α0 (seed 0) and at random admissible designs: 10 directions, 1e-6, rate ≥ 1.9."""
+    from scipy.optimize import linprog
+    pr = ShapeProblem(name)
+    U = pr.model.admissible
+    a0 = pr.model.initial_design()
+    alpha = a0
+    if seed:
+        c = np.random.default_rng(seed).standard_normal(pr.model.n_design)
+        v = linprog(c, A_ub=U.A_ub, b_ub=U.b_ub, A_eq=U.A_eq, b_eq=U.b_eq, bounds=list(zip(U.lb, U.ub))).x
+        alpha = a0 + 0.02 * (v - a0)
+    assert U.is_feasible(alpha)
+    rep = check_gradient(pr, alpha, seed=seed, n_directions=10)
+    assert rep.n_degenerate == 0
+    assert rep.rel_errors.max() <= 1e-6, rep.rel_errors
+    assert rep.taylor_rate >= 1.9

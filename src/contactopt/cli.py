@@ -136,7 +136,7 @@ def build_parser() -> argparse.ArgumentParser:
     g.add_argument("config")
     g.add_argument("--seed", type=int, default=0)
     g.add_argument("--directions", type=int, default=10)
-    g.add_argument("--h", type=float, default=1e-4, help="finite-difference step (relative to |α|)")
+    g.add_argument("--h", type=float, default=1e-3, help="finite-difference step (relative to |α|)")
     g.add_argument("--alpha", help="design file; default α0")
     g.set_defaults(func=_cmd_check_gradient)
 
