@@ -126,21 +126,12 @@ def node_class(r: np.ndarray, u: np.ndarray, mu, *, rtol: float = 1e-8) -> np.nd
     weak sticking with weak contact. "Weak" means that both members of a complementarity pair
     vanish up to ``rtol`` times the largest entry of ``r`` (forces) or ``u`` (displacements).
     """
+    from .state import CLASS_NAMES, classify_nodes
     R = as_contacts(np.asarray(r, dtype=float))
     U = as_contacts(np.asarray(u, dtype=float))
     mu = np.broadcast_to(np.asarray(mu, dtype=float), (R.shape[0],))
-    tol_r = rtol * max(float(np.abs(R).max(initial=0.0)), np.finfo(float).tiny)
-    tol_u = rtol * max(float(np.abs(U).max(initial=0.0)), np.finfo(float).tiny)
-    strong_contact = R[:, 0] > tol_r
-    no_contact = ~strong_contact & (U[:, 0] > tol_u)
-    sliding = np.hypot(U[:, 1], U[:, 2]) > tol_u
-    strong_stick = np.hypot(R[:, 1], R[:, 2]) < mu * R[:, 0] - tol_r
-    out = np.empty(R.shape[0], dtype=object)
-    out[:] = "M4"
-    out[~no_contact & ~strong_contact & ~sliding] = "M4"
-    out[~no_contact & ~strong_contact & sliding] = "M2"
-    out[strong_contact & sliding] = "M1"
-    out[strong_contact & ~sliding & strong_stick] = "M3+"
-    out[strong_contact & ~sliding & ~strong_stick] = "M3-"
-    out[no_contact] = "L"
-    return out.astype(str)
+    # local u_N already contains the gap: hand the state classifier (u_T, u_N) with zero gap
+    u_c = np.column_stack([U[:, 1], U[:, 2], U[:, 0]])
+    codes = classify_nodes(u_c, R[:, 0], -R[:, 1:], np.zeros(R.shape[0]), mu, rtol=rtol,
+                           force_scale=max(float(np.abs(R).max(initial=0.0)), np.finfo(float).tiny))
+    return np.array(CLASS_NAMES)[codes]

@@ -54,7 +54,7 @@ def classify_nodes(u_c: np.ndarray, lam: np.ndarray, tau: np.ndarray, gap: np.nd
     out[strong & stick_strong] = CLASS_CODES["M3+"]
     out[strong & ~slide & ~stick_strong] = CLASS_CODES["M3-"]
     out[weak & ~slide] = CLASS_CODES["M4"]
-    if friction == 0.0:
+    if np.all(np.asarray(friction) == 0.0):
         # without friction every node in contact "slides" freely: treat sticking as sliding
         out[strong & ~slide] = CLASS_CODES["M1"]
     return out
