@@ -18,7 +18,7 @@ import numpy as np
 
 from contactopt.optimize import minimize_bundle
 from contactopt.optimize._bundle_qp import Polyhedron
-from contactopt.optimize.testproblems import (PROBLEMS, max_quadratics_problem,
+from contactopt.optimize.testproblems import (max_quadratics_reference, PROBLEMS, max_quadratics_problem,
                                               paper_admissible_set)
 
 
@@ -29,37 +29,11 @@ def _run(prob, eps, max_iter):
 
 
 def _socp_value(prob):
-    """min max_k quadratic over U with Clarabel (epigraph + second-order cones)."""
+    """Reference optimum from Clarabel, or None when it is not installed."""
     try:
-        import clarabel
-        import scipy.sparse as sp
+        return max_quadratics_reference(prob)[1]
     except ImportError:
         return None
-    n = prob.n
-    blocks, rhs = [np.hstack([prob.A_eq, np.zeros((1, 1))])], [prob.b_eq]
-    cones = [clarabel.ZeroConeT(1)]
-    lin = np.vstack([prob.A_ub, np.eye(n), -np.eye(n)])
-    blocks.append(np.hstack([lin, np.zeros((lin.shape[0], 1))]))
-    rhs.append(np.concatenate([prob.b_ub, prob.ub, -prob.lb]))
-    cones.append(clarabel.NonnegativeConeT(lin.shape[0]))
-    for Q, c, b in zip(prob.data["Q"], prob.data["c"], prob.data["b"]):
-        L = np.linalg.cholesky(Q)
-        A = np.zeros((n + 2, n + 1))
-        r = np.zeros(n + 2)
-        A[0, n], r[0] = -1.0, 1.0 - b
-        A[1:n + 1, :n], r[1:n + 1] = -np.sqrt(2) * L.T, -np.sqrt(2) * L.T @ c
-        A[n + 1, n], r[n + 1] = -1.0, -b - 1.0
-        blocks.append(A)
-        rhs.append(r)
-        cones.append(clarabel.SecondOrderConeT(n + 2))
-    q = np.zeros(n + 1)
-    q[n] = 1.0
-    s = clarabel.DefaultSettings()
-    s.verbose = False
-    s.tol_gap_abs = s.tol_gap_rel = s.tol_feas = 1e-11
-    sol = clarabel.DefaultSolver(sp.csc_matrix((n + 1, n + 1)), q, sp.csc_matrix(np.vstack(blocks)),
-                                 np.concatenate(rhs), cones, s).solve()
-    return prob(np.array(sol.x[:n]))[0]
 
 
 def _qp_timing(repeats=200):

@@ -12,7 +12,7 @@ import pytest
 from contactopt.errors import ContactOptError, OptimizerError
 from contactopt.optimize import BundleResult, BundleState, minimize_bundle
 from contactopt.optimize._bundle_qp import Polyhedron
-from contactopt.optimize.testproblems import (PROBLEMS, max_quadratics_problem,
+from contactopt.optimize.testproblems import (max_quadratics_reference, PROBLEMS, max_quadratics_problem,
                                               paper_admissible_set)
 
 FEAS_TOL = 1e-9
@@ -81,43 +81,6 @@ def test_reaches_f_star_at_eps_1e4_with_feasible_iterates(name):
 
 
 # ------------------------------------------------------------------ acceptance: 32 variables
-def _socp_reference(prob):
-    """min_x max_k ½(x−c_k)ᵀQ_k(x−c_k)+b_k over U as an SOCP with an epigraph variable s."""
-    clarabel = pytest.importorskip("clarabel")
-    import scipy.sparse as sp
-
-    n = prob.n
-    Q, c, b = prob.data["Q"], prob.data["c"], prob.data["b"]
-    blocks, rhs = [np.hstack([prob.A_eq, np.zeros((1, 1))])], [prob.b_eq]
-    cones = [clarabel.ZeroConeT(1)]
-    lin = np.vstack([prob.A_ub, np.eye(n), -np.eye(n)])
-    blocks.append(np.hstack([lin, np.zeros((lin.shape[0], 1))]))
-    rhs.append(np.concatenate([prob.b_ub, prob.ub, -prob.lb]))
-    cones.append(clarabel.NonnegativeConeT(lin.shape[0]))
-    for Qk, ck, bk in zip(Q, c, b):
-        # ½‖Lᵀ(x−c)‖² ≤ s − b  ⇔  (s−b+1, √2 Lᵀ(x−c), s−b−1) ∈ second-order cone
-        L = np.linalg.cholesky(Qk)
-        A = np.zeros((n + 2, n + 1))
-        r = np.zeros(n + 2)
-        A[0, n], r[0] = -1.0, 1.0 - bk
-        A[1:n + 1, :n], r[1:n + 1] = -np.sqrt(2) * L.T, -np.sqrt(2) * L.T @ ck
-        A[n + 1, n], r[n + 1] = -1.0, -bk - 1.0
-        blocks.append(A)
-        rhs.append(r)
-        cones.append(clarabel.SecondOrderConeT(n + 2))
-    q = np.zeros(n + 1)
-    q[n] = 1.0
-    settings = clarabel.DefaultSettings()
-    settings.verbose = False
-    settings.tol_gap_abs = settings.tol_gap_rel = settings.tol_feas = 1e-11
-    sol = clarabel.DefaultSolver(sp.csc_matrix((n + 1, n + 1)), q,
-                                 sp.csc_matrix(np.vstack(blocks)), np.concatenate(rhs),
-                                 cones, settings).solve()
-    assert str(sol.status) in ("Solved", "AlmostSolved"), sol.status
-    x = np.array(sol.x[:n])
-    return x, prob(x)[0]
-
-
 def test_paper_admissible_set_structure():
     cons = paper_admissible_set()
     assert cons["A_ub"].shape == (2 * (7 * 4 + 8 * 3), 32)
@@ -130,7 +93,8 @@ def test_paper_admissible_set_structure():
 
 def test_32_variable_paper_set_matches_clarabel():
     prob = max_quadratics_problem()
-    x_ref, f_ref = _socp_reference(prob)
+    pytest.importorskip("clarabel")
+    x_ref, f_ref = max_quadratics_reference(prob)
     oracle = CheckedOracle(prob)
     res = minimize_bundle(oracle, prob.x0, eps=1e-5, max_iter=2000, **prob.constraints())
     assert res.success, res.message

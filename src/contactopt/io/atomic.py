@@ -92,18 +92,25 @@ def atomic_output(path):
     log.debug("wrote %s", path)
 
 
-def atomic_write_bytes(path, data: bytes) -> Path:
-    """Write ``data`` to ``path`` atomically; returns the path."""
+def _write_atomically(path, write) -> Path:
+    """Call ``write(fh)`` on a temporary file beside ``path``, then move it into place; on any
+    failure the temporary file is removed and ``path`` keeps its old content."""
     path = Path(path)
     fd, tmp = _mkstemp(path)
     try:
         with os.fdopen(fd, "wb") as fh:
-            fh.write(data)
+            write(fh)
         _finish(tmp, path)
     except BaseException:
         with contextlib.suppress(FileNotFoundError):
             tmp.unlink()
         raise
+    return path
+
+
+def atomic_write_bytes(path, data: bytes) -> Path:
+    """Write ``data`` to ``path`` atomically; returns the path."""
+    path = _write_atomically(path, lambda fh: fh.write(data))
     log.debug("wrote %s (%d bytes)", path, len(data))
     return path
 
@@ -170,17 +177,9 @@ def atomic_write_json(path, obj, *, indent: int | None = 2, allow_nan: bool = Fa
 
 
 def _savez(path, arrays, compressed):
-    path = Path(path)
-    fd, tmp = _mkstemp(path)
-    try:
-        # a file object, not a name: np.savez would append ".npz" to a name without it
-        with os.fdopen(fd, "wb") as fh:
-            (np.savez_compressed if compressed else np.savez)(fh, **arrays)
-        _finish(tmp, path)
-    except BaseException:
-        with contextlib.suppress(FileNotFoundError):
-            tmp.unlink()
-        raise
+    # a file object, not a name: np.savez would append ".npz" to a name without it
+    saver = np.savez_compressed if compressed else np.savez
+    path = _write_atomically(path, lambda fh: saver(fh, **arrays))
     log.debug("wrote %s (%d arrays)", path, len(arrays))
     return path
 

@@ -349,3 +349,45 @@ def max_quadratics_problem(seed=4, pieces=5, rows=8, cols=4) -> NonsmoothProblem
     cons = paper_admissible_set(rows, cols, volume=0.01 * n)
     return NonsmoothProblem(f"MAXQUAD-U{n}", oracle, np.full(n, 0.01), None, None, True,
                             data={"Q": Q, "c": c, "b": b}, **cons)
+
+
+def max_quadratics_reference(prob):
+    """Independent optimum of :func:`max_quadratics_problem`: (x, f) from Clarabel.
+
+    min_x max_k ½(x−c_k)ᵀQ_k(x−c_k)+b_k over U as an SOCP with an epigraph variable s.
+    Clarabel is a test-only dependency: ImportError when it is not installed.
+    """
+    import clarabel
+    import scipy.sparse as sp
+
+    n = prob.n
+    Q, c, b = prob.data["Q"], prob.data["c"], prob.data["b"]
+    blocks, rhs = [np.hstack([prob.A_eq, np.zeros((1, 1))])], [prob.b_eq]
+    cones = [clarabel.ZeroConeT(1)]
+    lin = np.vstack([prob.A_ub, np.eye(n), -np.eye(n)])
+    blocks.append(np.hstack([lin, np.zeros((lin.shape[0], 1))]))
+    rhs.append(np.concatenate([prob.b_ub, prob.ub, -prob.lb]))
+    cones.append(clarabel.NonnegativeConeT(lin.shape[0]))
+    for Qk, ck, bk in zip(Q, c, b):
+        # ½‖Lᵀ(x−c)‖² ≤ s − b  ⇔  (s−b+1, √2 Lᵀ(x−c), s−b−1) ∈ second-order cone
+        L = np.linalg.cholesky(Qk)
+        A = np.zeros((n + 2, n + 1))
+        r = np.zeros(n + 2)
+        A[0, n], r[0] = -1.0, 1.0 - bk
+        A[1:n + 1, :n], r[1:n + 1] = -np.sqrt(2) * L.T, -np.sqrt(2) * L.T @ ck
+        A[n + 1, n], r[n + 1] = -1.0, -bk - 1.0
+        blocks.append(A)
+        rhs.append(r)
+        cones.append(clarabel.SecondOrderConeT(n + 2))
+    q = np.zeros(n + 1)
+    q[n] = 1.0
+    settings = clarabel.DefaultSettings()
+    settings.verbose = False
+    settings.tol_gap_abs = settings.tol_gap_rel = settings.tol_feas = 1e-11
+    sol = clarabel.DefaultSolver(sp.csc_matrix((n + 1, n + 1)), q,
+                                 sp.csc_matrix(np.vstack(blocks)), np.concatenate(rhs),
+                                 cones, settings).solve()
+    if str(sol.status) not in ("Solved", "AlmostSolved"):
+        raise RuntimeError(f"Clarabel did not solve the reference SOCP: {sol.status}")
+    x = np.array(sol.x[:n])
+    return x, prob(x)[0]
