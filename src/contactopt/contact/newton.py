@@ -52,6 +52,8 @@ __all__ = ["solve_newton", "alart_curnier"]
 
 log = logging.getLogger(__name__)
 
+_PREDICTOR_TOL = 1e-6    # Siconos error at which the frictionless predictor stops
+_PREDICTOR_STEPS = 20    # and its step budget
 _RCOND_MIN = 1e-13       # reciprocal condition below which a Newton matrix counts as singular
 _REASONS = {
     "max": "Newton step limit of the phase reached",
@@ -164,24 +166,32 @@ class _Solver:
         v = ((W @ dfix)[ia].reshape(k, 3) + alpha * e) if np.any(dfix) else np.zeros((k, 3))
         rhs = f - v
         rhs[S[fric], 1] = f_t[fric] - c[fric] * np.einsum("ij,ij->i", t[fric], v[S[fric], 1:])
-        # Reduced matrix G^T W_a E: columns (e_N + mu n, t) and rows (e_N, t) of sliding contacts.
-        M = W.copy() if k == self.p else W[np.ix_(ia, ia)]
+        # Reduced matrix G^T W_a E: columns (e_N + mu n, t) and rows (e_N, t) of sliding
+        # contacts. Only the rows and columns of W that enter it are gathered: the tangential
+        # ones of frictionless sliding contacts (d_T local) never do.
+        SF = S[fric]
+        gathered = np.ones((k, 3), dtype=bool)
+        gathered[S[~fric], 1:] = False
+        gl = np.flatnonzero(gathered.ravel())            # positions in ia of the gathered rows
+        gpos = np.full(3 * k, -1)
+        gpos[gl] = np.arange(gl.size)
+        gi = ia[gl]
+        M = W.copy() if gl.size == self.n else W[np.ix_(gi, gi)]
         if alpha:
-            M.flat[:: 3 * k + 1] += alpha
-        if S.size:
-            Mc = M.reshape(3 * k, k, 3)
-            c1, c2 = Mc[:, S, 1], Mc[:, S, 2]
-            Mc[:, S, 0] += muS * (n[:, 0] * c1 + n[:, 1] * c2)
-            Mc[:, S, 1] = t[:, 0] * c1 + t[:, 1] * c2
-            Mr = M.reshape(k, 3, 3 * k)
-            Mr[S, 1, :] = c[:, None] * (t[:, 0, None] * Mr[S, 1, :] + t[:, 1, None] * Mr[S, 2, :])
-        keep = np.ones((k, 3), dtype=bool)
-        keep[S, 2] = False
-        keep[S[~fric], 1] = False
-        kk = np.flatnonzero(keep.ravel())
-        Mred = M[np.ix_(kk, kk)] if kk.size < 3 * k else M
+            M.flat[:: gl.size + 1] += alpha
+        if SF.size:
+            nF, tF, cF = n[fric], t[fric], c[fric]
+            pN, p1, p2 = gpos[3 * SF], gpos[3 * SF + 1], gpos[3 * SF + 2]
+            c1, c2 = M[:, p1], M[:, p2]
+            M[:, pN] += muS[fric] * (nF[:, 0] * c1 + nF[:, 1] * c2)
+            M[:, p1] = tF[:, 0] * c1 + tF[:, 1] * c2
+            M[p1, :] = cF[:, None] * (tF[:, 0, None] * M[p1, :] + tF[:, 1, None] * M[p2, :])
+        keep = gathered.copy()
+        keep[SF, 2] = False
+        kk = np.flatnonzero(keep.ravel())                # kept unknowns, positions in ia
+        Mred = M if kk.size == gl.size else M[np.ix_(gpos[kk], gpos[kk])]
         pos = np.cumsum(keep.ravel()) - 1     # position of each kept unknown in Mred
-        dpos = pos[3 * S[fric] + 1]
+        dpos = pos[3 * SF + 1]
         dval = (1.0 - c[fric]) / rhoS[fric]
         Mred.flat[dpos * (kk.size + 1)] += dval
         anorm = (1.0 + self.mu_max) * self.wnorm_inf + alpha + float(dval.max(initial=0.0))
@@ -275,7 +285,7 @@ class _Solver:
 def solve_newton(W, q, mu, *, tol: float = 1e-8, max_iter: int = 200, r0=None,
                  proximal: str = "auto", plain_max_iter: int = 50, prox_sigma: float = 0.1,
                  prox_inner_max_iter: int = 25, rho_scale: float = 0.5,
-                 raise_on_failure: bool = True) -> LocalResult:
+                 predictor: str = "frictionless", raise_on_failure: bool = True) -> LocalResult:
     """Semismooth Newton (Alart–Curnier) for ``u = W r + q``, ``K_mu ∋ r ⊥ u~ ∈ K_mu*``.
 
     Parameters
@@ -294,6 +304,11 @@ def solve_newton(W, q, mu, *, tol: float = 1e-8, max_iter: int = 200, r0=None,
         (``W_ii`` the diagonal 3x3 block of contact ``i``); 0.5 balanced the iteration counts
         of the elastic and the FCLIB problems (smaller values misclassify fewer contacts in
         the first steps of a cold start, larger ones suit the rigid-body problems).
+    predictor : cold starts only (``r0`` None): ``"frictionless"`` first solves the problem
+        with ``mu = 0`` (one unknown per contact in contact, so its Newton steps cost a small
+        fraction of the Coulomb ones) to a loose tolerance and starts from its solution, which
+        already has the contact set nearly right; ``"none"`` starts from ``r = 0``. A predictor
+        that fails is ignored. Its steps are counted in ``stats["predictor_iterations"]``.
     raise_on_failure : raise :class:`ContactNotConverged` (with the error history) on failure.
     """
     t0 = time.perf_counter()
@@ -302,9 +317,18 @@ def solve_newton(W, q, mu, *, tol: float = 1e-8, max_iter: int = 200, r0=None,
     W, q, mu, r0 = check_problem(W, q, mu, r0=r0)
     if proximal not in ("auto", "never", "always"):
         raise ProblemDataError(f"proximal must be 'auto', 'never' or 'always', got {proximal!r}")
+    if predictor not in ("frictionless", "none"):
+        raise ProblemDataError(f"predictor must be 'frictionless' or 'none', got {predictor!r}")
     if sp.issparse(W):
         W = W.toarray()
     W = np.ascontiguousarray(W)
+    n_pred = 0
+    if r0 is None and predictor == "frictionless" and np.any(mu > 0):
+        pred = _Solver(W, q, np.zeros_like(mu), max(tol, _PREDICTOR_TOL), rho_scale)
+        r_p, _ = pred.newton(np.zeros(q.size), 0.0, None, 0.0, _PREDICTOR_STEPS, _PREDICTOR_STEPS)
+        n_pred = len(pred.history)
+        if pred.best[1] is not None and np.all(np.isfinite(pred.best[1])):
+            r0 = pred.best[1]
     S = _Solver(W, q, mu, tol, rho_scale)
     r = np.zeros(q.size) if r0 is None else r0.copy()
     u = W @ r + q
@@ -358,7 +382,7 @@ def solve_newton(W, q, mu, *, tol: float = 1e-8, max_iter: int = 200, r0=None,
         r=r, u=u, iterations=n_steps, error=err, converged=converged, history=list(S.history),
         method="newton", time_s=elapsed, message=msg, outer_iterations=prox_rounds,
         inner_iterations=n_steps,
-        stats={**S.counts, "phase": phase, "alphas": alphas, "last_status": status,
+        stats={**S.counts, "phase": phase, "predictor_iterations": n_pred, "alphas": alphas, "last_status": status,
                "active_contacts": [a for a, _ in S.active_trace],
                "sticking_contacts": [s for _, s in S.active_trace]})
     if not converged and raise_on_failure:

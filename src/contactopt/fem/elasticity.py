@@ -52,18 +52,42 @@ def hex_reference():
     return N, dN, w
 
 
+def det_inv_3x3(J: np.ndarray):
+    """Determinants and inverses of a stack of 3×3 matrices (..., 3, 3) by cofactors.
+
+    About ten times faster than ``np.linalg.det``/``inv`` on the small stacks of element
+    Jacobians; the inverse is only meaningful where the determinant is non-zero.
+    """
+    a, b, c = J[..., 0, 0], J[..., 0, 1], J[..., 0, 2]
+    d, e, f = J[..., 1, 0], J[..., 1, 1], J[..., 1, 2]
+    g, h, i = J[..., 2, 0], J[..., 2, 1], J[..., 2, 2]
+    C00, C01, C02 = e * i - f * h, f * g - d * i, d * h - e * g
+    det = a * C00 + b * C01 + c * C02
+    adj = np.empty_like(J)
+    adj[..., 0, 0], adj[..., 1, 0], adj[..., 2, 0] = C00, C01, C02
+    adj[..., 0, 1] = c * h - b * i
+    adj[..., 0, 2] = b * f - c * e
+    adj[..., 1, 1] = a * i - c * g
+    adj[..., 1, 2] = c * d - a * f
+    adj[..., 2, 1] = b * g - a * h
+    adj[..., 2, 2] = a * e - b * d
+    with np.errstate(divide="ignore", invalid="ignore"):
+        inv = adj / det[..., None, None]
+    return det, inv
+
+
 def element_geometry(X: np.ndarray, dN: np.ndarray):
     """Physical gradients G = dN/dx (E, Q, 8, 3) and det J (E, Q) for element coordinates X (E, 8, 3).
 
     Raises MeshError if any Jacobian determinant is not positive (inverted element).
     """
-    J = np.einsum("eam,qan->eqmn", X, dN)                 # J_mn = ∂x_m/∂ξ_n
-    det = np.linalg.det(J)
+    # J_mn = ∂x_m/∂ξ_n = Σ_a X_am dN_an, one BLAS product for all elements and points
+    J = np.tensordot(X, dN, axes=([1], [1])).transpose(0, 2, 1, 3)
+    det, Jinv = det_inv_3x3(J)
     if not np.all(det > 0):
         bad = np.unique(np.nonzero(~(det > 0))[0])
         raise MeshError(f"{bad.size} element(s) inverted or degenerate (det J ≤ 0), first: {bad[:5].tolist()}")
-    Jinv = np.linalg.inv(J)
-    G = np.einsum("qan,eqnm->eqam", dN, Jinv)             # ∂N_a/∂x_m = Σ_n ∂N_a/∂ξ_n ∂ξ_n/∂x_m
+    G = np.matmul(dN[None], Jinv)                          # ∂N_a/∂x_m = Σ_n ∂N_a/∂ξ_n ∂ξ_n/∂x_m
     return G, det
 
 
@@ -103,7 +127,7 @@ class ElasticityAssembler:
         wd = det * self.w
         E = X.shape[0]
         Gw = (G * wd[:, :, None, None]).reshape(E, -1, 24)
-        T = np.einsum("eqx,eqy->exy", Gw, G.reshape(E, -1, 24)).reshape(E, 8, 3, 8, 3)
+        T = np.matmul(Gw.transpose(0, 2, 1), G.reshape(E, -1, 24)).reshape(E, 8, 3, 8, 3)
         K = self.lam * T + self.mu * T.transpose(0, 1, 4, 3, 2)
         lap = np.einsum("eakbk->eab", T)
         K[:, :, np.arange(3), :, np.arange(3)] += self.mu * lap[None]
@@ -143,14 +167,15 @@ class ElasticityAssembler:
         wd = det * self.w
         ue = u_full[self.edofs].reshape(-1, 8, 3)
         ve = v_full[self.edofs].reshape(-1, 8, 3)
-        Hu = np.einsum("eai,eqaj->eqij", ue, G)
-        Hv = np.einsum("eai,eqaj->eqij", ve, G)
+        Hu = np.matmul(ue.transpose(0, 2, 1)[:, None], G)   # ∇u at the Gauss points (E, Q, 3, 3)
+        Hv = np.matmul(ve.transpose(0, 2, 1)[:, None], G)
         su = self._stress(Hu)
         sv = self._stress(Hv)
-        energy = np.einsum("eqij,eqij->eq", su, Hv)
-        M = np.einsum("eqim,eqij->eqmj", Hv, su) + np.einsum("eqim,eqij->eqmj", Hu, sv)
-        dloc = energy[:, :, None, None] * G - np.einsum("eqmj,eqcj->eqcm", M, G)
-        de = np.einsum("eq,eqcm->ecm", wd, dloc)
+        energy = (su * Hv).sum(axis=(2, 3))
+        M = np.matmul(Hv.swapaxes(2, 3), su) + np.matmul(Hu.swapaxes(2, 3), sv)
+        dloc = energy[:, :, None, None] * G - np.matmul(G, M.swapaxes(2, 3))
+        E, Q = wd.shape
+        de = np.matmul(wd[:, None, :], dloc.reshape(E, Q, 24)).reshape(E, 8, 3)
         out = np.zeros((self.n_nodes, 3))
         for m in range(3):
             out[:, m] = np.bincount(self.elements.ravel(), weights=de[:, :, m].ravel(), minlength=self.n_nodes)
