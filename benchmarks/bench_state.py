@@ -6,7 +6,8 @@ For each mesh: assembly of A(α), one full factorization of A (the reference mea
 run), the Schur complement S (PARDISO) and its ratio to the factorization, the Delassus inverse,
 the contact phase of both methods (newton, fixed-point), interior recovery, the whole state solve
 as a ratio to one factorization, a warm-started Newton solve after a small design change, and one
-subgradient as a ratio to the state solve. Times are medians over --repeat runs.
+subgradient as a ratio to the state solve. Times are medians over --repeat runs. The run keeps
+OpenBLAS sequential, as ShapeProblem does (contactopt._threads).
 """
 
 from __future__ import annotations
@@ -17,6 +18,7 @@ import time
 
 import numpy as np
 
+from contactopt._threads import sequential_openblas
 from contactopt.config import load_config
 from contactopt.fem.linsolve import condense, factorize
 from contactopt.problem import ShapeProblem
@@ -92,8 +94,10 @@ def main():
     ap.add_argument("--meshes", nargs="+", default=["example1", "example2", "fine"], choices=list(MESHES))
     ap.add_argument("--repeat", type=int, default=3)
     args = ap.parse_args()
-    for name in args.meshes:
-        bench(name, args.repeat, full=(name != "fine"))
+    # the whole benchmark, reference included, runs under the thread policy of ShapeProblem
+    with sequential_openblas():
+        for name in args.meshes:
+            bench(name, args.repeat, full=(name != "fine"))
 
 
 if __name__ == "__main__":

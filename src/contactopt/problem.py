@@ -21,6 +21,7 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.linalg as sla
 
+from ._threads import sequential_openblas
 from .config import Config, load_config
 from .contact.state import State, classify_nodes, contact_conditions_violation
 from .errors import SolverError
@@ -48,7 +49,13 @@ def local_permutation(p: int) -> np.ndarray:
 
 
 def spd_inverse(S: np.ndarray) -> np.ndarray:
-    """Inverse of a dense SPD matrix by Cholesky (LAPACK potrf/potri), symmetrised."""
+    """Inverse of a dense SPD matrix by Cholesky (LAPACK potrf/potri), symmetric.
+
+    MKL's LAPACK when MKL is loadable (same thread pool as PARDISO), else SciPy's.
+    """
+    from .fem import _pardiso
+    if _pardiso.available():
+        return _pardiso.spd_inverse(S)
     c, info = sla.lapack.dpotrf(S, lower=False, clean=True)
     if info != 0:
         raise SolverError(f"condensed stiffness is not positive definite (potrf info {info})")
@@ -112,6 +119,10 @@ class ShapeProblem:
     def solve_state(self, alpha, *, method: str | None = None, warm_start: bool = True,
                     tol: float | None = None) -> State:
         """Solve the discrete Coulomb problem (P) at α (α need not be in U, but the mesh must be valid)."""
+        with sequential_openblas():
+            return self._solve_state(alpha, method, warm_start, tol)
+
+    def _solve_state(self, alpha, method, warm_start, tol) -> State:
         from .contact.local import solve_local
         alpha = self.model.surface.as_vector(alpha)
         if not np.all(np.isfinite(alpha)):
@@ -182,5 +193,6 @@ class ShapeProblem:
     def evaluate(self, alpha):
         """(Θ(α), ξ) with ξ a Clarke subgradient from the adjoint system (4.15)."""
         from .sensitivity.adjoint import subgradient
-        res = subgradient(self, alpha)
+        with sequential_openblas():
+            res = subgradient(self, alpha)
         return res.value, res.gradient
