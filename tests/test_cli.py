@@ -91,7 +91,7 @@ def test_run_small_example_end_to_end(tmp_path, capsys):
     assert "it    1" in text and "J0 =" in text
     for f in ("config.toml", "run.log", "history.csv", "checkpoint.npz", "summary.json", "alpha.json",
               "surface.csv", "stress.png", "surface.png", "history.png", "classes.png",
-              "initial.vtu", "optimal.vtu", "bodies.pvd"):
+              "initial.vtu", "optimal.vtu", "bodies.pvd", "iterations.csv"):
         assert (out / f).stat().st_size > 0, f
     s = json.loads((out / "summary.json").read_text())
     for k in ("J0", "J", "iterations", "evaluations", "serious_steps", "null_steps", "success", "message",
@@ -100,6 +100,9 @@ def test_run_small_example_end_to_end(tmp_path, capsys):
     assert s["J"] <= s["J0"] and s["feasible"]
     rows = (out / "history.csv").read_text().strip().splitlines()
     assert len(rows) == 1 + s["evaluations"]
+    its = (out / "iterations.csv").read_text().strip().splitlines()
+    assert len(its) == 1 + s["iterations"] and its[-1].split(",")[0] == str(s["iterations"])
+    assert float(its[-1].split(",")[1]) == pytest.approx(s["J"], rel=1e-8)
     # refusing a non-empty directory without --overwrite/--resume
     assert main(["run", str(cfg), "--out", str(out), "--max-iter", "1"]) == 2
     assert "not empty" in capsys.readouterr().err
@@ -137,3 +140,38 @@ def test_kill_and_resume_gives_the_uninterrupted_result(tmp_path):
     assert b["iterations"] == a["iterations"] and b["evaluations"] == a["evaluations"]
     assert np.allclose(b["alpha"], a["alpha"], rtol=0, atol=1e-12)
     assert b["J"] == pytest.approx(a["J"], rel=1e-10)
+
+
+def test_state_failure_stops_the_run_and_keeps_the_checkpoint(tmp_path, capsys, monkeypatch):
+    """A state solve that does not converge mid-run: exit 2, a message naming it, the last good
+    checkpoint kept (and loadable: --resume finishes the run), no summary of an unfinished run."""
+    import contactopt.sensitivity.adjoint as adjoint
+    from contactopt.errors import ContactNotConverged
+    cfg = small_toml(tmp_path)
+    ref = tmp_path / "ref"
+    assert main(["run", str(cfg), "--out", str(ref), "--max-iter", "8"]) == 0
+    capsys.readouterr()
+    real = adjoint.subgradient
+    calls = {"n": 0}
+
+    def failing(problem, alpha, **kw):
+        calls["n"] += 1
+        if calls["n"] == 7:
+            raise ContactNotConverged("Newton: not converged (test)", [1e-3, 1e-4])
+        return real(problem, alpha, **kw)
+
+    monkeypatch.setattr(adjoint, "subgradient", failing)
+    out = tmp_path / "run"
+    assert main(["run", str(cfg), "--out", str(out), "--max-iter", "8"]) == 2
+    text = capsys.readouterr()
+    assert "evaluation 7" in text.err + text.out and "not converged" in text.err + text.out
+    assert "is kept (continue with --resume)" in text.out
+    assert (out / "checkpoint.npz").stat().st_size > 0
+    assert not (out / "summary.json").exists()
+    assert "not converged" in (out / "run.log").read_text()
+    monkeypatch.setattr(adjoint, "subgradient", real)
+    assert main(["run", str(cfg), "--out", str(out), "--resume"]) == 0
+    a = json.loads((ref / "summary.json").read_text())
+    b = json.loads((out / "summary.json").read_text())
+    assert b["iterations"] == a["iterations"]
+    assert np.allclose(b["alpha"], a["alpha"], rtol=0, atol=1e-12)

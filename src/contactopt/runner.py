@@ -40,7 +40,11 @@ HISTORY_FIELDS = ["evaluation", "iteration", "f", "subgradient_norm", "degenerat
 
 
 class RunAborted(ContactOptError):
-    """The run stopped early because a state solve failed; the last checkpoint is kept."""
+    """The run stopped early because a state solve failed; the last checkpoint is kept.
+
+    ``checkpoint`` is its path (None when no iteration had finished)."""
+
+    checkpoint = None
 
 
 def package_versions() -> dict:
@@ -213,17 +217,26 @@ def run_optimization(config, outdir=None, *, eps=None, max_iter=None, resume=Fal
             st = inter.state
             oracle.iteration = st.nit
             h = st.history[-1] if st.history else {}
-            if h.get("step") == "serious" or st.nit == 0:
-                _write_checkpoint(ckpt, st, oracle, fingerprint, time.perf_counter() - oracle.t_start)
+            # after every iteration (a few kB, atomic): a killed or aborted run loses at most
+            # the evaluations of one iteration
+            _write_checkpoint(ckpt, st, oracle, fingerprint, time.perf_counter() - oracle.t_start)
             if progress:
                 progress(dict(iteration=st.nit, f=st.f * oracle.scale, step=h.get("step", ""), t=st.t,
                               stationarity=st.stationarity, nfev=oracle.count,
                               elapsed=time.perf_counter() - oracle.t_start))
 
         opt = cfg["optimizer"]
-        res = minimize_bundle(oracle, alpha0, **model.admissible.constraints(), eps=opt["eps"],
-                              max_iter=opt["max_iter"], callback=callback,
-                              **state_kw)
+        try:
+            res = minimize_bundle(oracle, alpha0, **model.admissible.constraints(), eps=opt["eps"],
+                                  max_iter=opt["max_iter"], callback=callback,
+                                  **state_kw)
+        except RunAborted as exc:
+            exc.checkpoint = ckpt if ckpt.exists() else None
+            exc.args = (f"{exc.args[0]}; " + (f"the checkpoint of iteration {oracle.iteration} is kept "
+                        f"(continue with --resume)" if exc.checkpoint else
+                        "no iteration had finished, so there is no checkpoint"),)
+            log.error("run stopped: %s", exc)
+            raise
         if res.status is not None and res.success:
             log.info("finished: %s", res.message)
         _write_checkpoint(ckpt, res.state, oracle, fingerprint, time.perf_counter() - oracle.t_start)
@@ -255,6 +268,9 @@ def _finish(out: Path, problem, alpha0, res, oracle, t_start) -> dict:
     plot_surface(out / "surface.png", model, x)
     plot_node_classes(out / "classes.png", model, s1.classes)
     plot_history(out / "history.png", [{**r, "kind": r.get("step")} for r in res.history])
+    atomic_write_text(out / "iterations.csv", "iteration,J,step,t,stationarity,evaluations\n" + "".join(
+        f"{r['iteration']},{r['f'] * oracle.scale!r},{r['step']},{r['t']:.6e},{r['stationarity']:.6e},"
+        f"{r['nfev']}\n" for r in res.history))
     amat = model.surface.as_matrix(x)
     atomic_write_json(out / "alpha.json", {"alpha": amat.tolist(), "shape": list(amat.shape)})
     g1, g2 = np.meshgrid(np.linspace(0, model.surface.a, 41), np.linspace(0, model.surface.b, 21))
@@ -288,7 +304,7 @@ def run_from_cli(args) -> int:
         rr = run_optimization(args.config, args.out, eps=args.eps, max_iter=args.max_iter,
                               resume=args.resume, overwrite=args.overwrite, progress=progress)
     except RunAborted as exc:
-        print(f"contactopt: run stopped: {exc}; the last checkpoint is kept", flush=True)
+        print(f"contactopt: run stopped: {exc}", flush=True)
         raise
     s = rr.summary
     print(f"{s['message']}")
