@@ -130,4 +130,6 @@ def main(argv=None):
 
 
 if __name__ == "__main__":
-    main()
+    from contactopt._threads import sequential_openblas
+    with sequential_openblas():    # the thread policy of ShapeProblem (contactopt._threads)
+        main()

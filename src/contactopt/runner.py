@@ -5,14 +5,17 @@ Layout of a run directory::
     config.toml        the resolved configuration, with package versions
     run.log            the log of the run
     history.csv        one row per evaluation of Θ
-    checkpoint.npz     optimizer + oracle state after the last serious step (written atomically)
+    iterations.csv     one row per bundle-trust iteration: Θ, step kind, t, stationarity measure
+    checkpoint.npz     optimizer + oracle state after the last iteration (written atomically)
     summary.json       DESIGN.md §7 fields
     alpha.json         optimal control points;  surface.csv  ϑ_α on a grid
     stress.png, surface.png, history.png, classes.png
     initial.vtu, optimal.vtu, bodies.pvd
 
-Resuming (``resume=True``) restores the optimizer state and the warm start of the state solver
-saved with the last checkpoint, truncates history.csv to the evaluations before it, and goes on:
+A state solve that fails during the run (e.g. Newton does not converge) stops it with
+:class:`RunAborted`; the checkpoint of the last finished iteration stays and ``--resume``
+continues from it. Resuming (``resume=True``) restores the optimizer state and the warm start
+of the state solver saved with the last checkpoint, truncates history.csv to the evaluations before it, and goes on:
 the iterates that follow are those of an uninterrupted run.
 """
 

@@ -1,0 +1,106 @@
+"""Reproduction of the paper's Examples 1–3 and of the manufactured-target case (REPRODUCTION.md).
+
+    python benchmarks/reproduce.py [--cases example1 example2 example3 manufactured] [--out runs/reproduce]
+
+Each case is one ``contactopt run`` under ``/usr/bin/time -v`` (wall time and peak memory of the
+whole command, outputs included), in its own run directory. From the run directory the script
+reads summary.json and iterations.csv and reports, beside the paper's figures (DESIGN.md §1):
+J0, Jopt, Jopt/J0, iterations and evaluations, the iterations after which BT's stopping test
+would have held for ε = 1e-3 and 1e-4 (the test is made at the start of every iteration on the
+same deterministic sequence, so a run with the larger ε stops exactly there), wall time, peak
+memory and max |α − α_paper|. The manufactured case reports max |α − α*| instead.
+Results go to ``<out>/reproduction.json`` and the figures to ``docs/figures/``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import json
+import re
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+from calibrate_examples import PAPER
+
+ROOT = Path(__file__).resolve().parents[1]
+CASES = {"example1": "example1", "example2": "example2", "example3": "example3",
+         "manufactured": str(ROOT / "examples" / "manufactured.toml")}
+PAPER_ITERATIONS = {"example1": (307, 12), "example2": (233, 20), "example3": (286, 24)}   # ε = 1e-4, 1e-3
+
+
+def timed_run(config: str, out: Path) -> dict:
+    cmd = ["/usr/bin/time", "-v", sys.executable, "-m", "contactopt.cli", "run", config, "--out", str(out),
+           "--overwrite"]
+    proc = subprocess.run(cmd, capture_output=True, text=True)
+    if proc.returncode != 0:
+        raise RuntimeError(f"{' '.join(cmd)} failed:\n{proc.stdout[-2000:]}\n{proc.stderr[-2000:]}")
+    wall = re.search(r"Elapsed \(wall clock\) time \(h:mm:ss or m:ss\): (\S+)", proc.stderr).group(1)
+    parts = [float(x) for x in wall.split(":")]
+    seconds = sum(v * 60 ** i for i, v in enumerate(reversed(parts)))
+    rss_kb = int(re.search(r"Maximum resident set size \(kbytes\): (\d+)", proc.stderr).group(1))
+    return {"wall_time_command_s": seconds, "peak_memory_MB": rss_kb / 1024}
+
+
+def first_below(rows, eps):
+    """Iteration count at which BT's test max(‖p‖, α_p + σ) ≤ ε first holds (None: never)."""
+    for r in rows:
+        if float(r["stationarity"]) <= eps:
+            return int(r["iteration"]) - 1, float(r["J"])
+    return None
+
+
+def case_result(name: str, out: Path, timing: dict) -> dict:
+    s = json.loads((out / "summary.json").read_text())
+    with open(out / "iterations.csv") as fh:
+        rows = list(csv.DictReader(fh))
+    alpha = np.asarray(s["alpha"])
+    res = {"case": name, "J0": s["J0"], "J": s["J"], "ratio": s["ratio"], "iterations": s["iterations"],
+           "evaluations": s["evaluations"], "serious": s["serious_steps"], "null": s["null_steps"],
+           "success": s["success"], "message": s["message"], "feasible": s["feasible"],
+           "wall_time_run_s": s["wall_time_s"], **timing}
+    for eps in (1e-3, 1e-4):
+        hit = first_below(rows, eps)
+        res[f"iterations_eps_{eps:.0e}"] = None if hit is None else hit[0]
+        res[f"ratio_eps_{eps:.0e}"] = None if hit is None else hit[1] / s["J0"]
+    if name in PAPER:
+        ref = PAPER[name]
+        res.update(paper_J0=ref["J0"], paper_Jopt=ref["Jopt"], paper_ratio=ref["Jopt"] / ref["J0"],
+                   paper_iterations=PAPER_ITERATIONS[name],
+                   max_abs_alpha_minus_paper=float(np.abs(alpha - np.asarray(ref["alpha"])).max()))
+    else:
+        from contactopt.config import load_config
+        star = np.asarray(load_config(CASES[name])["objective"]["target"]["alpha"], float)
+        res["max_abs_alpha_minus_star"] = float(np.abs(alpha - star).max())
+        res["ratio_target"] = 1e-6
+    return res
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--cases", nargs="+", default=list(CASES), choices=list(CASES))
+    ap.add_argument("--out", default=str(ROOT / "runs" / "reproduce"))
+    args = ap.parse_args()
+    base = Path(args.out)
+    base.mkdir(parents=True, exist_ok=True)
+    figures = ROOT / "docs" / "figures"
+    figures.mkdir(parents=True, exist_ok=True)
+    results_path = base / "reproduction.json"
+    results = json.loads(results_path.read_text()) if results_path.exists() else {}
+    for name in args.cases:
+        out = base / name
+        print(f"== {name}: contactopt run {CASES[name]} --out {out}", flush=True)
+        timing = timed_run(CASES[name], out)
+        r = case_result(name, out, timing)
+        results[name] = r
+        results_path.write_text(json.dumps(results, indent=1))
+        for png in ("stress.png", "surface.png", "history.png", "classes.png"):
+            shutil.copy(out / png, figures / f"{name}_{png}")
+        print(json.dumps(r, indent=1), flush=True)
+
+
+if __name__ == "__main__":
+    main()
