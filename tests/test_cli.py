@@ -175,3 +175,16 @@ def test_state_failure_stops_the_run_and_keeps_the_checkpoint(tmp_path, capsys, 
     b = json.loads((out / "summary.json").read_text())
     assert b["iterations"] == a["iterations"]
     assert np.allclose(b["alpha"], a["alpha"], rtol=0, atol=1e-12)
+
+
+def test_unusable_output_directory_exit_2_and_nothing_written(tmp_path, capsys):
+    """An output path that cannot be a directory (its parent is a file): exit 2, a clear message."""
+    cfg = small_toml(tmp_path)
+    blocker = tmp_path / "afile"
+    blocker.write_text("x")
+    assert main(["run", str(cfg), "--out", str(blocker / "run"), "--max-iter", "1"]) == 2
+    err = capsys.readouterr().err
+    assert "output directory" in err and str(blocker) in err
+    assert blocker.read_text() == "x"
+    assert main(["run", str(cfg), "--out", str(blocker), "--max-iter", "1"]) == 2
+    assert "is not a directory" in capsys.readouterr().err
