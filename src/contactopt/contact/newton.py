@@ -35,6 +35,7 @@ error falls and growing tenfold after a failed round.
 
 from __future__ import annotations
 
+import copy
 import logging
 import time
 from dataclasses import dataclass
@@ -118,6 +119,18 @@ class _Solver:
         self.counts = {"factorizations": 0, "line_search_evals": 0, "singular": 0,
                        "line_search_failures": 0}
         self.active_trace: list[tuple[int, int]] = []
+
+    def frictionless(self, tol):
+        """The same problem with ``mu = 0`` (shares W and its derived quantities)."""
+        other = copy.copy(self)
+        other.mu = np.zeros_like(self.mu)
+        other.mu_max = 0.0
+        other.tol = tol
+        other.history = []
+        other.best = (np.inf, None, None)
+        other.counts = dict.fromkeys(self.counts, 0)
+        other.active_trace = []
+        return other
 
     def rho(self, alpha):
         d = self.wdiag + alpha
@@ -323,13 +336,13 @@ def solve_newton(W, q, mu, *, tol: float = 1e-8, max_iter: int = 200, r0=None,
         W = W.toarray()
     W = np.ascontiguousarray(W)
     n_pred = 0
-    if r0 is None and predictor == "frictionless" and np.any(mu > 0):
-        pred = _Solver(W, q, np.zeros_like(mu), max(tol, _PREDICTOR_TOL), rho_scale)
-        r_p, _ = pred.newton(np.zeros(q.size), 0.0, None, 0.0, _PREDICTOR_STEPS, _PREDICTOR_STEPS)
-        n_pred = len(pred.history)
-        if pred.best[1] is not None and np.all(np.isfinite(pred.best[1])):
-            r0 = pred.best[1]
     S = _Solver(W, q, mu, tol, rho_scale)
+    if r0 is None and predictor == "frictionless" and S.mu_max > 0:
+        pred = S.frictionless(max(tol, _PREDICTOR_TOL))
+        pred.newton(np.zeros(q.size), 0.0, None, 0.0, _PREDICTOR_STEPS, _PREDICTOR_STEPS)
+        n_pred = len(pred.history)
+        if pred.best[1] is not None:          # the iterates are checked finite as they come
+            r0 = pred.best[1]
     r = np.zeros(q.size) if r0 is None else r0.copy()
     u = W @ r + q
     err0 = siconos_error(r, u, q, mu)
