@@ -94,6 +94,11 @@ SCHEMA = {
         "method": ("newton", _oneof("newton", "fixed-point"), "'newton' or 'fixed-point'"),
         "tol": (1e-10, lambda x: _pos(x) and x < 1, "a number in (0, 1)"),
         "max_iter": (200, _posint, "an integer ≥ 1"),
+        "zone": (True, lambda x: isinstance(x, bool),
+                 "true or false (solve the local problem on the nodes near the foundation only)"),
+        "zone_margin": (0.1, lambda x: _nonneg(x) and x <= 10,
+                        "a number in [0, 10] (clearance, relative to the displacement scale, "
+                        "within which a node joins the contact zone)"),
     },
     "linear_solver": {
         "backend": ("auto", _oneof("auto", "pardiso", "scipy"), "'auto', 'pardiso' or 'scipy'"),

@@ -9,7 +9,8 @@ Condensed contact system (paper (3.17)), per contact node m in the order (t1, t2
 It is handed to the local solvers in the FCLIB convention (normal first): with W = S⁻¹,
     u_loc = P(u_c) + (g, 0, 0) = W_loc r_loc + q,   W_loc = P W Pᵀ,  q = P W ℓ + (g, 0, 0),
 where P reorders each node's (t1, t2, ν) to (ν, t1, t2); the FCLIB friction law r_T = −μ r_N u_T/‖u_T‖
-is exactly the Coulomb law above.
+is exactly the Coulomb law above. The local problem is solved on the contact zone, the nodes near
+the foundation, with W_loc the zone's block of W (:mod:`contactopt.contact.zone`; ``[state] zone``).
 """
 
 from __future__ import annotations
@@ -19,10 +20,10 @@ import time
 from dataclasses import dataclass
 
 import numpy as np
-import scipy.linalg as sla
 
 from ._threads import sequential_openblas
 from .config import Config, load_config
+from .contact import zone as zone_rules
 from .contact.state import State, classify_nodes, contact_conditions_violation
 from .errors import SolverError
 from .fem.model import Assembled, ElasticModel
@@ -38,7 +39,6 @@ class Condensed:
     factor: object           # contactopt.fem.linsolve condensed factorization
     S: np.ndarray            # (3p, 3p), per node (t1, t2, ν)
     ell: np.ndarray          # (3p,)
-    W: np.ndarray            # S⁻¹
     gap: np.ndarray          # (p,)
     timings: dict
 
@@ -49,24 +49,9 @@ def local_permutation(p: int) -> np.ndarray:
 
 
 def spd_inverse(S: np.ndarray) -> np.ndarray:
-    """Inverse of a dense SPD matrix by Cholesky (LAPACK potrf/potri), symmetric.
-
-    MKL's LAPACK when MKL is loadable (same thread pool as PARDISO), else SciPy's.
-    """
-    from .fem import _pardiso
-    if _pardiso.available():
-        return _pardiso.spd_inverse(S)
-    c, info = sla.lapack.dpotrf(S, lower=False, clean=True)
-    if info != 0:
-        raise SolverError(f"condensed stiffness is not positive definite (potrf info {info})")
-    inv, info = sla.lapack.dpotri(c, lower=False)
-    if info != 0:
-        raise SolverError(f"inverting the condensed stiffness failed (potri info {info})")
-    # potri fills the upper triangle; the lower one is still the zeros of the cleaned factor
-    d = inv.diagonal().copy()
-    inv += inv.T
-    inv[np.diag_indices_from(inv)] = d
-    return inv
+    """Inverse of a dense SPD matrix by Cholesky (see :func:`contactopt.fem.dense.spd_inverse`)."""
+    from .fem.dense import spd_inverse as inverse
+    return inverse(S)
 
 
 class ShapeProblem:
@@ -86,8 +71,13 @@ class ShapeProblem:
         self.tol = st["tol"]
         self.max_iter = st["max_iter"]
         self.backend = backend or self.config["linear_solver"]["backend"]
-        self._perm = local_permutation(self.model.n_contact)
-        self._warm = None          # last contact forces (local ordering) for warm starts
+        self.use_zone = bool(st["zone"])
+        self.zone_margin = float(st["zone_margin"])
+        p = self.model.n_contact
+        self._all_nodes = np.arange(p)
+        self._warm = None          # last contact forces, (p, 3) per node (N, T1, T2), warm starts
+        self.next_zone = self._all_nodes   # zone of the next state solve (contact.zone)
+        self.n_zone_misses = 0     # zone problems solved again on a grown zone
         self._cache = None         # (alpha bytes, Condensed, State)
         self._factor = None        # the condensation, refactored in place for each new design
         self.n_state_solves = 0
@@ -109,11 +99,7 @@ class ShapeProblem:
             self._factor = fac
         t2 = time.perf_counter()
         ell = fac.condense_load(asm.L)
-        S = fac.S
-        W = spd_inverse(S)
-        t3 = time.perf_counter()
-        return Condensed(asm, fac, S, ell, W, asm.gap,
-                         {"assembly": t1 - t0, "schur": t2 - t1, "delassus": t3 - t2})
+        return Condensed(asm, fac, fac.S, ell, asm.gap, {"assembly": t1 - t0, "schur": t2 - t1})
 
     # ------------------------------------------------------------------ state
     def solve_state(self, alpha, *, method: str | None = None, warm_start: bool = True,
@@ -123,7 +109,6 @@ class ShapeProblem:
             return self._solve_state(alpha, method, warm_start, tol)
 
     def _solve_state(self, alpha, method, warm_start, tol) -> State:
-        from .contact.local import solve_local
         alpha = self.model.surface.as_vector(alpha)
         if not np.all(np.isfinite(alpha)):
             raise SolverError("design contains NaN or infinite entries")
@@ -132,39 +117,75 @@ class ShapeProblem:
         if self._cache is not None and self._cache[0] == key and self._cache[2].method == method:
             return self._cache[2]
         cond = self.condensed_system(alpha)
-        p = self.model.n_contact
-        P = self._perm
-        W_loc = cond.W[np.ix_(P, P)]
-        q = (cond.W @ cond.ell)[P]
-        q[0::3] += cond.gap
-        r0 = self._warm if (warm_start and self._warm is not None) else None
-        t0 = time.perf_counter()
-        res = solve_local(W_loc, q, self.friction, method=method, tol=tol or self.tol,
-                          max_iter=self.max_iter, r0=r0)
-        t1 = time.perf_counter()
-        r = np.empty(3 * p)
-        r[P] = res.r
-        u_c = cond.W @ (r + cond.ell)
-        u_free = cond.factor.recover(cond.assembled.L, u_c)
+        timings = dict(cond.timings, delassus=0.0, contact=0.0)
+        zone = self.next_zone if self.use_zone else self._all_nodes
+        warm = self._warm if warm_start else None
+        misses = 0
+        while True:
+            t0 = time.perf_counter()
+            zp = zone_rules.ZoneProblem(cond.S, cond.ell, zone)
+            t1 = time.perf_counter()
+            res = self._solve_local(zp, cond.gap[zone], warm, method, tol)
+            t2 = time.perf_counter()
+            u3 = zp.displacements(res.r)
+            timings["delassus"] += t1 - t0
+            timings["contact"] += time.perf_counter() - t1
+            clearance = u3[:, 2] + cond.gap
+            u_scale = zone_rules.displacement_scale(u3, cond.gap)
+            missed = zone_rules.missed_nodes(zone, clearance, u_scale)
+            if missed.size == 0:
+                break
+            misses += 1
+            lam_all = np.zeros(cond.gap.size)
+            lam_all[zone] = res.r[0::3]
+            log.debug("contact zone of %d nodes missed %d node(s) closing their gap; solving again",
+                      zone.size, missed.size)
+            zone = np.union1d(np.union1d(zone, missed),
+                              zone_rules.near_nodes(lam_all, clearance, u_scale, self.zone_margin))
+            warm = self._zone_warm(res.r, zp.zone)
+        t3 = time.perf_counter()
+        u_free = cond.factor.recover(cond.assembled.L, u3.ravel())
         u = self.model.assembler.to_full(u_free)
-        t2 = time.perf_counter()
-        r3, u3 = r.reshape(p, 3), u_c.reshape(p, 3)
-        lam, tau = r3[:, 2].copy(), -r3[:, :2]
+        timings["recovery"] = time.perf_counter() - t3
+        p = self.model.n_contact
+        r = np.zeros((p, 3))                      # per node (t1, t2, ν)
+        r[zone] = res.r.reshape(-1, 3)[:, [1, 2, 0]]
+        lam, tau = r[:, 2].copy(), -r[:, :2]
         fscale = max(np.abs(lam).max(initial=0.0), np.abs(cond.ell).max(initial=0.0))
-        classes = classify_nodes(u3, lam, tau, cond.gap, self.friction, force_scale=fscale if lam.max(initial=0) <= 0 else None)
-        timings = dict(cond.timings, contact=t1 - t0, recovery=t2 - t1)
+        classes = classify_nodes(u3, lam, tau, cond.gap, self.friction,
+                                 force_scale=fscale if lam.max(initial=0) <= 0 else None)
         timings["total"] = sum(timings.values())
         state = State(alpha=alpha, coords=cond.assembled.coords, u=u, u_c=u3, lam=lam, tau=tau,
                       gap=cond.gap, classes=classes, friction=self.friction, method=method,
                       iterations=res.iterations, residual=res.error,
                       complementarity=contact_conditions_violation(u3, lam, tau, cond.gap, self.friction),
                       converged=res.converged, timings=timings,
-                      info={"backend": getattr(cond.factor, "backend", "?")})
-        self._warm = res.r.copy()
+                      info={"backend": getattr(cond.factor, "backend", "?"), "zone_nodes": int(zone.size),
+                            "zone_misses": misses})
+        self._warm = self._zone_warm(res.r, zone)
+        if self.use_zone:
+            self.next_zone = zone_rules.near_nodes(lam, clearance, u_scale, self.zone_margin)
+        self.n_zone_misses += misses
         self._cache = (key, cond, state)
         self.n_state_solves += 1
-        log.debug("state: %s %d it, residual %.2e, %.3f s", method, res.iterations, res.error, timings["total"])
+        log.debug("state: %s %d it, residual %.2e, zone %d/%d nodes, %.3f s", method, res.iterations,
+                  res.error, zone.size, p, timings["total"])
         return state
+
+    def _solve_local(self, zp, gap, warm, method, tol):
+        """The zone's local problem u = W r + q, q = W ℓ̃ + (g, 0, 0), in the FCLIB convention."""
+        from .contact.local import solve_local
+        q = zp.q0.copy()
+        q[0::3] += gap
+        r0 = warm[zp.zone].ravel() if warm is not None else None
+        return solve_local(zp.W, q, self.friction, method=method, tol=tol or self.tol,
+                           max_iter=self.max_iter, r0=r0)
+
+    def _zone_warm(self, r_loc: np.ndarray, zone: np.ndarray) -> np.ndarray:
+        """Contact forces of a zone solve as a (p, 3) warm start, per node (N, T1, T2)."""
+        w = np.zeros((self.model.n_contact, 3))
+        w[zone] = r_loc.reshape(-1, 3)
+        return w
 
     def cached_condensed(self, alpha) -> Condensed:
         """The condensed system of the last state solve at α (solving the state if needed)."""
@@ -181,7 +202,7 @@ class ShapeProblem:
         from scipy.sparse.linalg import eigsh
         cond = self.cached_condensed(alpha)
         lmax = eigsh(cond.S, k=1, which="LA", return_eigenvectors=False, tol=1e-6)[0]
-        wmax = eigsh(cond.W, k=1, which="LA", return_eigenvectors=False, tol=1e-6)[0]
+        wmax = eigsh(spd_inverse(cond.S), k=1, which="LA", return_eigenvectors=False, tol=1e-6)[0]
         return float((1.0 / wmax) / lmax)
 
     # ------------------------------------------------------------------ oracle

@@ -116,7 +116,8 @@ def _write_checkpoint(path: Path, bstate, oracle: _Oracle, fingerprint: str, ela
     arrays = {f"bundle_{k}": np.asarray(v) for k, v in d.items()}
     arrays.update(meta_fingerprint=np.array(fingerprint), meta_evaluations=np.array(oracle.count),
                   meta_elapsed=np.array(elapsed), meta_scale=np.array(oracle.scale), meta_eps=np.array(opt["eps"]),
-                  meta_max_iter=np.array(opt["max_iter"]), warm=np.asarray(warm if warm is not None else np.zeros(0)))
+                  meta_max_iter=np.array(opt["max_iter"]), warm=np.asarray(warm if warm is not None else np.zeros(0)),
+                  zone=np.asarray(oracle.problem.next_zone))
     atomic_savez(path, **arrays)
 
 
@@ -138,8 +139,21 @@ def _read_checkpoint(path: Path, fingerprint: str):
         bstate = BundleState.from_dict(bundle)
     except ContactOptError as exc:
         raise CheckpointError(f"checkpoint {path}: {exc}") from None
-    warm = data["warm"] if data["warm"].size else None
-    return bstate, int(data["meta_evaluations"]), float(data["meta_elapsed"]), warm, float(data["meta_scale"])
+    warm = data["warm"].reshape(-1, 3) if data["warm"].size else None
+    zone = data["zone"].astype(np.int64) if "zone" in data else None
+    return (bstate, int(data["meta_evaluations"]), float(data["meta_elapsed"]), warm,
+            float(data["meta_scale"]), zone)
+
+
+def _check_contact_data(path: Path, warm, zone, n_contact: int):
+    """The warm start and contact zone of a checkpoint must fit the mesh's contact nodes."""
+    if warm is not None and warm.shape != (n_contact, 3):
+        raise CheckpointError(f"checkpoint {path}: its warm start has shape {warm.shape}, "
+                              f"expected ({n_contact}, 3)")
+    if zone is not None and (zone.ndim != 1 or zone.size == 0 or zone[0] < 0 or zone[-1] >= n_contact
+                             or np.any(np.diff(zone) <= 0)):
+        raise CheckpointError(f"checkpoint {path}: its contact zone is not a sorted set of contact "
+                              f"nodes 0..{n_contact - 1}")
 
 
 def _truncate_history(path: Path, n_rows: int):
@@ -181,7 +195,8 @@ def run_optimization(config, outdir=None, *, eps=None, max_iter=None, resume=Fal
     out = Path(outdir or Path("runs") / cfg.name)
     ckpt = out / "checkpoint.npz"
     if resume:
-        bstate, n_eval, elapsed0, warm, scale = _read_checkpoint(ckpt, fingerprint)
+        bstate, n_eval, elapsed0, warm, scale, zone = _read_checkpoint(ckpt, fingerprint)
+        _check_contact_data(ckpt, warm, zone, model.n_contact)
     out = prepare_output_dir(out, overwrite=overwrite, resume=resume)
     handler = logging.FileHandler(out / "run.log")
     handler.setFormatter(logging.Formatter("%(asctime)s %(levelname)s %(name)s: %(message)s"))
@@ -204,6 +219,8 @@ def run_optimization(config, outdir=None, *, eps=None, max_iter=None, resume=Fal
             oracle.count = n_eval
             oracle.t_start -= elapsed0
             problem._warm = warm
+            if zone is not None:
+                problem.next_zone = zone
             oracle.scale = scale
             state_kw["state"] = bstate
             log.info("resuming %s at iteration %d (%d evaluations)", out, bstate.nit, n_eval)

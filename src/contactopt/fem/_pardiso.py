@@ -161,6 +161,7 @@ class PardisoSPD:
         lib.pardisoinit(_ptr(self.pt), _ptr(np.array([MTYPE_SPD], int_dtype)), _ptr(self.iparm))
         self.iparm[0] = 1     # we supply iparm (the pardisoinit defaults, plus the lines below)
         self.iparm[34] = 1    # 0-based indices
+        self.iparm[23] = 1    # two-level parallel factorization: ~10 % faster on 2 cores here
         self.perm = np.zeros(self.n, dtype=int_dtype)
         self.n_schur = 0
         if schur_mask is not None:
@@ -237,14 +238,32 @@ class PardisoSPD:
         return int(self.iparm[17])
 
     @property
-    def mflops_factor(self) -> int:
-        return int(self.iparm[18])
+    def mflops_factor(self) -> int | None:
+        """PARDISO's count of the factorization's MFlop (None with the two-level algorithm,
+        which does not report it; see :func:`factorization_mflop`)."""
+        v = int(self.iparm[18])
+        return v if v >= 0 else None
 
     def close(self):
         """Release PARDISO's memory now (phase -1); later calls raise SolverError."""
         if not self._closed:
             self._finalizer()
             self._closed = True
+
+
+def factorization_mflop(upper, schur_mask=None) -> int:
+    """MFlop of the numerical factorization PARDISO plans for ``upper`` (analysis only).
+
+    Counted with the classic algorithm (``iparm[23] = 0``), which reports it after the analysis;
+    the two-level algorithm used for the work itself does the same elimination.
+    """
+    ps = PardisoSPD(upper, schur_mask=schur_mask)
+    try:
+        ps.iparm[23] = 0
+        ps.analyze()
+        return int(ps.iparm[18])
+    finally:
+        ps.close()
 
 
 # ------------------------------------------------------------------ dense LAPACK in MKL's pool

@@ -222,6 +222,8 @@ class PardisoCondensation(Condensation):
         order = np.sort(c)
         self._rank = None if np.array_equal(order, c) else np.searchsorted(order, c)
         t0 = time.perf_counter()
+        self._full_pattern = None
+        self._fwd_cache = None
         self._ps = _pardiso.PardisoSPD(sp.triu(A, format="csr"), schur_mask=self._mask)
         self._ps.analyze()
         t1 = time.perf_counter()
@@ -240,31 +242,57 @@ class PardisoCondensation(Condensation):
     def refactor(self, A):
         """New values of A with the same sparsity pattern: skip the analysis, redo phase 22."""
         A = _check_matrix(A)
+        upper = self._upper(A)
+        t0 = time.perf_counter()
+        self._set_S(self._ps.factor(upper))
+        self._fwd_cache = None
+        self.timings = {"analyze": 0.0, "factor_schur": time.perf_counter() - t0}
+        return self
+
+    def _upper(self, A):
+        """The upper triangle of A (same pattern as the analysed matrix) as CSR.
+
+        The positions of the upper-triangle entries in A's CSR arrays are found once; for a
+        matrix with the same full pattern the upper triangle is then a gather of A.data.
+        """
+        pat = self._full_pattern
+        if pat is not None and A.nnz == pat[0].size and np.array_equal(A.indices, pat[0]) \
+                and np.array_equal(A.indptr, pat[1]):
+            return sp.csr_matrix((A.data[pat[2]], self._ps.ja, self._ps.ia), shape=A.shape, copy=False)
         upper = sp.triu(A, format="csr")
         if A.shape[0] != self.n or not self._ps.same_pattern(upper):
             raise SolverError("refactor needs a matrix with the same sparsity pattern; "
                               "call condense() for a new pattern")
-        t0 = time.perf_counter()
-        self._set_S(self._ps.factor(upper))
-        self.timings = {"analyze": 0.0, "factor_schur": time.perf_counter() - t0}
-        return self
+        row = np.repeat(np.arange(self.n), np.diff(A.indptr))
+        self._full_pattern = (A.indices.copy(), A.indptr.copy(), np.flatnonzero(A.indices >= row))
+        return upper
 
     def _forward(self, b):
         """Phase 331: interior forward substitution; the c rows then hold the condensed load."""
         return self._ps.solve(b, phase=331)
+
+    def _forward_cached(self, L):
+        """Forward substitution of a load vector, kept for the last L of this factorization
+        (``condense_load`` and ``recover`` of one state solve share it)."""
+        c = self._fwd_cache
+        if c is not None and c[0].shape == L.shape and np.array_equal(c[0], L):
+            return c[1].copy()
+        y = self._forward(L)
+        self._fwd_cache = (L.copy(), y.copy())
+        return y
 
     def _backward(self, y):
         """Phase 333 with y[c] = u_c: returns u with u[c] = u_c, u_i = A_ii⁻¹(b_i − A_ic u_c)."""
         return self._ps.solve(y, phase=333)
 
     def condense_load(self, L):
-        y = self._forward(self._full(L, "L"))
+        y = self._forward_cached(self._full(L, "L"))
         return np.ascontiguousarray(y[self.c])
 
     def recover(self, L, u_c):
         L = self._full(L, "L")
         u_c = self._on_c(u_c, "u_c")
-        y = self._forward(L)
+        y = self._forward_cached(L)
         y[self.c] = u_c
         u = self._backward(y)
         u[self.c] = u_c

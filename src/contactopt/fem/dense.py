@@ -1,0 +1,93 @@
+"""Dense symmetric positive definite kernels for the condensed system, in MKL's thread pool.
+
+The condensed stiffness S is dense (3p × 3p). Its Cholesky factor and the inverse of a trailing
+block of it are the only large dense factorizations of a state solve; they run in MKL's LAPACK
+(the thread pool PARDISO uses, see :mod:`contactopt._threads`) when ``libmkl_rt`` loads, else in
+SciPy's LAPACK. Arrays are C-ordered; "lower" is the lower triangle of the C array
+(``a = L Lᵀ``), which LAPACK sees as the upper triangle of the column-major transpose.
+"""
+
+from __future__ import annotations
+
+import ctypes
+
+import numpy as np
+import scipy.linalg as sla
+
+from ..errors import SolverError
+from . import _pardiso
+
+_ROW_MAJOR = 101
+
+
+def _mkl(name):
+    """(function, MKL_INT ctype) of a LAPACKE routine, or None without MKL."""
+    if not _pardiso.available():
+        return None
+    lib, int_dtype = _pardiso._load()
+    cint = ctypes.c_int64 if int_dtype == np.int64 else ctypes.c_int32
+    fn = getattr(lib, name)
+    fn.restype = cint
+    return fn, cint
+
+
+def _square(a, name):
+    if not (isinstance(a, np.ndarray) and a.ndim == 2 and a.shape[0] == a.shape[1]
+            and a.dtype == np.float64 and a.flags.c_contiguous):
+        raise SolverError(f"{name} needs a C-contiguous square float64 array")
+    return a.shape[0]
+
+
+def cholesky_lower(a: np.ndarray) -> np.ndarray:
+    """Overwrite the lower triangle of the SPD array ``a`` with L, a = L Lᵀ; returns ``a``.
+
+    The strict upper triangle is left as it was. Raises :class:`SolverError` when ``a`` is not
+    positive definite.
+    """
+    n = _square(a, "cholesky_lower")
+    mkl = _mkl("LAPACKE_dpotrf")
+    if mkl is not None:
+        fn, cint = mkl
+        info = fn(ctypes.c_int(_ROW_MAJOR), ctypes.c_char(b"L"), cint(n), _pardiso._ptr(a), cint(n))
+    else:
+        _, info = sla.lapack.dpotrf(a.T, lower=0, overwrite_a=1, clean=0)
+    if info != 0:
+        raise SolverError(f"Cholesky factorization failed (potrf info {info}): "
+                          + ("the matrix is not positive definite" if info > 0 else "illegal argument"))
+    return a
+
+
+def inverse_from_cholesky(a: np.ndarray, start: int = 0) -> np.ndarray:
+    """(L̃ L̃ᵀ)⁻¹ for the trailing lower-triangular block L̃ = a[start:, start:] of a Cholesky factor.
+
+    With a = L Lᵀ from :func:`cholesky_lower` of a matrix M ordered (N, Z), the trailing block
+    of L is the Cholesky factor of the Schur complement M_ZZ − M_ZN M_NN⁻¹ M_NZ, so this returns
+    (M⁻¹)_ZZ. The block of ``a`` is overwritten; the result is a new full symmetric array.
+    """
+    n = _square(a, "inverse_from_cholesky")
+    k = n - start
+    if not 0 <= start < n:
+        raise SolverError(f"inverse_from_cholesky: start {start} outside [0, {n})")
+    mkl = _mkl("LAPACKE_dpotri")
+    if mkl is not None:
+        fn, cint = mkl
+        ptr = ctypes.c_void_p(a.ctypes.data + 8 * (start * n + start))
+        info = fn(ctypes.c_int(_ROW_MAJOR), ctypes.c_char(b"L"), cint(k), ptr, cint(n))
+        inv = np.array(a[start:, start:])
+    else:
+        block = np.array(a[start:, start:].T, order="F")     # column-major upper = Lᵀ
+        inv, info = sla.lapack.dpotri(block, lower=0)
+        inv = np.array(inv.T)                                # lower triangle, C order
+    if info != 0:
+        raise SolverError(f"inverting the Cholesky factor failed (potri info {info})")
+    iu = np.triu_indices(k, 1)
+    inv[iu] = inv.T[iu]
+    return inv
+
+
+def spd_inverse(S: np.ndarray) -> np.ndarray:
+    """Inverse of a dense symmetric positive definite matrix (Cholesky, then potri)."""
+    a = np.array(S, dtype=np.float64, order="C")
+    if a.ndim != 2 or a.shape[0] != a.shape[1]:
+        raise SolverError(f"spd_inverse needs a square matrix, got shape {a.shape}")
+    return inverse_from_cholesky(cholesky_lower(a), 0)
