@@ -7,7 +7,8 @@ Schur complement 1.3–1.8× slower and the Newton phase 2–5× slower, with la
 scatter (``benchmarks/bench_state.py``; Example 1: state solve 0.5–0.8 s against 0.40 s with
 sequential OpenBLAS). The Newton steps work on matrices of a few hundred rows, where OpenBLAS's
 threading gains nothing, and the one large dense factorization of a state solve (the Delassus
-inverse) runs in MKL's pool (:func:`contactopt.fem._pardiso.spd_inverse`) when MKL is present.
+factorization, the zone's Delassus block, the Newton LU) run in MKL's pool
+(:mod:`contactopt.fem.dense`) when MKL is present.
 
 :func:`sequential_openblas` is the context manager used by :class:`contactopt.ShapeProblem`.
 Set ``CONTACTOPT_OPENBLAS_THREADS=keep`` to leave OpenBLAS's threading alone.

@@ -43,9 +43,9 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
-from scipy.linalg import lapack
 
 from ..errors import ContactNotConverged, ProblemDataError
+from ..fem.dense import LUFactor
 from .cones import siconos_error
 from .local import LocalResult, check_problem
 
@@ -208,18 +208,13 @@ class _Solver:
         dval = (1.0 - c[fric]) / rhoS[fric]
         Mred.flat[dpos * (kk.size + 1)] += dval
         anorm = (1.0 + self.mu_max) * self.wnorm_inf + alpha + float(dval.max(initial=0.0))
-        # Mred is C-ordered, so Mred.T is Fortran-ordered: factor it, solve with trans=1.
-        lu, piv, info = lapack.dgetrf(Mred.T, overwrite_a=True)
+        lu = LUFactor(np.ascontiguousarray(Mred))
         self.counts["factorizations"] += 1
-        if info != 0:
+        if lu.info != 0 or not lu.rcond(anorm) > _RCOND_MIN:
             self.counts["singular"] += 1
             return None
-        rcond, _ = lapack.dgecon(lu, anorm, norm="1")
-        if not rcond > _RCOND_MIN:
-            self.counts["singular"] += 1
-            return None
-        z, info = lapack.dgetrs(lu, piv, rhs.ravel()[kk], trans=1)
-        if info != 0 or not np.all(np.isfinite(z)):
+        z = lu.solve(rhs.ravel()[kk])
+        if not np.all(np.isfinite(z)):
             self.counts["singular"] += 1
             return None
         Z = np.zeros((k, 3))

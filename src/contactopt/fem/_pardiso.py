@@ -264,33 +264,3 @@ def factorization_mflop(upper, schur_mask=None) -> int:
         return int(ps.iparm[18])
     finally:
         ps.close()
-
-
-# ------------------------------------------------------------------ dense LAPACK in MKL's pool
-
-def spd_inverse(S: np.ndarray) -> np.ndarray:
-    """Inverse of a dense symmetric positive definite matrix with MKL's LAPACK (potrf, potri).
-
-    Runs in MKL's thread pool, the one PARDISO uses, so that a state solve does not wake a
-    second pool (see :mod:`contactopt._threads`). Returns the full symmetric inverse; raises
-    :class:`SolverError` when S is not positive definite or MKL is missing.
-    """
-    lib, int_dtype = _load()
-    cint = ctypes.c_int64 if int_dtype == np.int64 else ctypes.c_int32
-    S = np.asarray(S, dtype=np.float64)
-    n = S.shape[0]
-    if S.ndim != 2 or S.shape[1] != n:
-        raise SolverError(f"spd_inverse needs a square matrix, got shape {S.shape}")
-    # row-major 'L' is column-major 'U': potri fills the lower triangle of the C array
-    a = np.array(S, dtype=np.float64, order="C")
-    for name in ("LAPACKE_dpotrf", "LAPACKE_dpotri"):
-        fn = getattr(lib, name)
-        fn.restype = cint
-        info = fn(ctypes.c_int(101), ctypes.c_char(b"L"), cint(n), _ptr(a), cint(n))
-        if info != 0:
-            what = ("the matrix is not positive definite" if info > 0 and name.endswith("potrf")
-                    else "singular factor" if info > 0 else "illegal argument")
-            raise SolverError(f"MKL {name[8:]} failed (info {info}): {what}")
-    iu = np.triu_indices(n, 1)
-    a[iu] = a.T[iu]
-    return a

@@ -80,9 +80,71 @@ def inverse_from_cholesky(a: np.ndarray, start: int = 0) -> np.ndarray:
         inv = np.array(inv.T)                                # lower triangle, C order
     if info != 0:
         raise SolverError(f"inverting the Cholesky factor failed (potri info {info})")
-    iu = np.triu_indices(k, 1)
-    inv[iu] = inv.T[iu]
-    return inv
+    return symmetrize_lower(inv)
+
+
+def symmetrize_lower(a: np.ndarray, block: int = 128) -> np.ndarray:
+    """Copy the strict lower triangle of the square array ``a`` onto its upper one, in place.
+
+    Block by block, which is several times faster than fancy indexing with ``triu_indices``.
+    """
+    n = a.shape[0]
+    for i in range(0, n, block):
+        j = min(i + block, n)
+        a[i:j, j:] = a[j:, i:j].T
+        d = a[i:j, i:j]
+        iu = np.triu_indices(j - i, 1)
+        d[iu] = d.T[iu]
+    return a
+
+
+class LUFactor:
+    """LU factorization with partial pivoting of a dense square matrix M, for solves M x = b.
+
+    The C-ordered M is factorized in place as the column-major Mᵀ (no copy), and solves use the
+    transposed factor. ``rcond(anorm)`` is LAPACK's estimate of 1/κ_∞(M) given ``anorm`` ≈ ‖M‖_∞.
+    MKL's LAPACK (its thread pool) when available, else SciPy's. ``info`` is getrf's: > 0 means
+    an exactly singular M.
+    """
+
+    _COL_MAJOR = 102
+
+    def __init__(self, M: np.ndarray):
+        self.n = _square(M, "LUFactor")
+        self._mkl = _mkl("LAPACKE_dgetrf")
+        if self._mkl is not None:
+            fn, cint = self._mkl
+            self._cint = cint
+            self.a = M
+            self.piv = np.zeros(self.n, dtype=np.int64 if cint is ctypes.c_int64 else np.int32)
+            self.info = int(fn(ctypes.c_int(self._COL_MAJOR), cint(self.n), cint(self.n),
+                               _pardiso._ptr(M), cint(self.n), _pardiso._ptr(self.piv)))
+        else:
+            self.a, self.piv, self.info = sla.lapack.dgetrf(M.T, overwrite_a=True)
+
+    def rcond(self, anorm: float) -> float:
+        if self._mkl is not None:
+            fn, cint = _mkl("LAPACKE_dgecon")
+            out = ctypes.c_double(0.0)
+            info = fn(ctypes.c_int(self._COL_MAJOR), ctypes.c_char(b"1"), cint(self.n),
+                      _pardiso._ptr(self.a), cint(self.n), ctypes.c_double(anorm), ctypes.byref(out))
+            return float(out.value) if info == 0 else 0.0
+        rc, info = sla.lapack.dgecon(self.a, anorm, norm="1")
+        return float(rc) if info == 0 else 0.0
+
+    def solve(self, b: np.ndarray) -> np.ndarray:
+        """x with M x = b (b of length n); non-finite entries signal a failure."""
+        if self._mkl is not None:
+            fn, cint = _mkl("LAPACKE_dgetrs")
+            x = np.array(b, dtype=np.float64)
+            info = fn(ctypes.c_int(self._COL_MAJOR), ctypes.c_char(b"T"), cint(self.n), cint(1),
+                      _pardiso._ptr(self.a), cint(self.n), _pardiso._ptr(self.piv), _pardiso._ptr(x),
+                      cint(self.n))
+        else:
+            x, info = sla.lapack.dgetrs(self.a, self.piv, b, trans=1)
+        if info != 0:
+            x = np.full(self.n, np.nan)
+        return x
 
 
 def spd_inverse(S: np.ndarray) -> np.ndarray:

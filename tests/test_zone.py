@@ -1,0 +1,168 @@
+"""The contact zone (contact/zone.py) and the dense kernels behind it (fem/dense.py).
+
+The zone's local problem must be the whole problem restricted exactly: W_Z is the block of
+S⁻¹, the displacements of the other nodes solve their rows with zero force, and a state solved
+on a zone that misses nodes (they close their gap) must equal the state on all contact nodes.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from contactopt.config import load_config
+from contactopt.contact.state import CLASS_CODES
+from contactopt.contact.zone import ZoneProblem, missed_nodes, near_nodes
+from contactopt.errors import ConfigError, SolverError
+from contactopt.fem import _pardiso, dense
+from contactopt.problem import ShapeProblem
+from contactopt.runner import _check_contact_data
+from contactopt.sensitivity.adjoint import subgradient
+
+BACKENDS = ["mkl", "scipy"] if _pardiso.available() else ["scipy"]
+
+
+@pytest.fixture(params=BACKENDS)
+def lapack_backend(request, monkeypatch):
+    if request.param == "scipy":
+        monkeypatch.setattr(_pardiso, "available", lambda: False)
+    return request.param
+
+
+def random_spd(n, seed=0, cond=1e4):
+    rng = np.random.default_rng(seed)
+    Q, _ = np.linalg.qr(rng.standard_normal((n, n)))
+    return (Q * np.logspace(0, np.log10(cond), n)) @ Q.T
+
+
+@pytest.mark.parametrize("n", [1, 7, 130, 301])
+def test_cholesky_and_trailing_inverse(lapack_backend, n):
+    S = random_spd(n, seed=n)
+    L = dense.cholesky_lower(np.array(S))
+    Lt = np.tril(L)
+    assert np.allclose(Lt @ Lt.T, S, rtol=0, atol=1e-12 * np.abs(S).max())
+    for start in {0, n // 3, n - 1}:
+        inv = dense.inverse_from_cholesky(np.array(L), start)
+        ref = np.linalg.inv(S)[start:, start:]
+        assert np.array_equal(inv, inv.T)
+        assert np.abs(inv - ref).max() <= 1e-9 * np.abs(ref).max()
+    assert np.abs(dense.spd_inverse(S) - np.linalg.inv(S)).max() <= 1e-9 * np.abs(np.linalg.inv(S)).max()
+
+
+def test_cholesky_rejects_an_indefinite_matrix(lapack_backend):
+    A = random_spd(20)
+    A[5, 5] = -1.0
+    with pytest.raises(SolverError, match="not positive definite"):
+        dense.cholesky_lower(A)
+
+
+@pytest.mark.parametrize("n", [1, 2, 127, 129, 300])
+def test_symmetrize_lower(n):
+    a = np.random.default_rng(n).standard_normal((n, n))
+    out = dense.symmetrize_lower(a.copy())
+    ref = np.tril(a) + np.tril(a, -1).T
+    assert np.array_equal(out, ref)
+
+
+def test_lu_factor_solves_and_estimates_the_condition(lapack_backend):
+    rng = np.random.default_rng(3)
+    M = rng.standard_normal((90, 90)) + 10 * np.eye(90)
+    b = rng.standard_normal(90)
+    lu = dense.LUFactor(np.array(M))
+    assert lu.info == 0
+    x = lu.solve(b)
+    assert np.linalg.norm(M @ x - b) <= 1e-12 * np.linalg.norm(b) * np.linalg.cond(M)
+    kappa = np.linalg.norm(M, np.inf) * np.linalg.norm(np.linalg.inv(M), np.inf)
+    rc = lu.rcond(np.linalg.norm(M, np.inf))
+    assert 0.1 / kappa <= rc <= 10 / kappa          # LAPACK's estimate is within a small factor
+    sing = dense.LUFactor(np.zeros((4, 4)))
+    assert sing.info > 0
+
+
+@pytest.mark.parametrize("zone", [np.arange(40), np.array([0, 3, 4, 17, 39]), np.array([22])])
+def test_zone_problem_is_the_exact_restriction(lapack_backend, zone):
+    p = 40
+    S = random_spd(3 * p, seed=1, cond=1e3)
+    ell = np.random.default_rng(2).standard_normal(3 * p)
+    zp = ZoneProblem(S, ell, zone)
+    local = (3 * zone[:, None] + np.array([2, 0, 1])).ravel()      # FCLIB order per node
+    W = np.linalg.inv(S)
+    assert np.abs(zp.W - W[np.ix_(local, local)]).max() <= 1e-10 * np.abs(W).max()
+    r_loc = np.random.default_rng(4).standard_normal(local.size)
+    u = zp.displacements(r_loc).ravel()
+    r_full = np.zeros(3 * p)
+    r_full[local] = r_loc
+    # S u − ℓ = r with r = 0 off the zone: the condensed equations hold for every node
+    assert np.linalg.norm(S @ u - ell - r_full) <= 1e-10 * np.linalg.norm(ell)
+    assert np.allclose(zp.q0 + zp.W @ r_loc, u[local], rtol=0, atol=1e-12 * np.abs(u).max())
+
+
+def test_zone_rules():
+    clearance = np.array([0.0, 1e-12, 5e-3, 2e-2, -1e-3, 1.0])
+    lam = np.array([1.0, 0.0, 0.0, 0.0, 0.0, 0.0])
+    zone = np.array([0, 2])
+    # closed (or violated) gaps outside the zone are misses; open ones and zone nodes are not
+    assert list(missed_nodes(zone, clearance, 1.0)) == [1, 4]
+    near = near_nodes(lam, clearance, 1.0, 0.01)
+    assert set(near) >= {0, 1, 2, 4} and 5 in near          # fewer than MIN_ZONE: smallest added
+    big = np.linspace(0.0, 1.0, 101)
+    assert list(near_nodes(np.zeros(101), big, 1.0, 0.105)) == list(range(11))
+
+
+def small_problem(**state):
+    upd = {"mesh": {"nx": 8, "ny": 4, "nz": 3}, "state": {"tol": 1e-12, **state}}
+    return ShapeProblem(load_config("example1").with_updates(upd))
+
+
+def wavy(pr, amp=0.004, phase=0.0):
+    a = pr.model.initial_design() + amp * np.sin(np.arange(pr.model.n_design) + phase)
+    return a + 0.01 - a.mean()
+
+
+@pytest.mark.parametrize("method", ["newton", "fixed-point"])
+def test_a_missing_zone_grows_to_the_state_on_all_contact_nodes(method):
+    full, zoned = small_problem(zone=False), small_problem(zone_margin=0.0)
+    alpha = wavy(full)
+    ref = full.solve_state(alpha, method=method)
+    in_contact = np.flatnonzero(ref.lam > 0)
+    assert 3 <= in_contact.size < ref.lam.size - 3
+    zoned.next_zone = in_contact[: in_contact.size // 2]          # half of the contact nodes only
+    st = zoned.solve_state(alpha, method=method)
+    assert st.info["zone_misses"] >= 1 and zoned.n_zone_misses >= 1
+    scale = ref.lam.max()
+    assert np.abs(st.lam - ref.lam).max() <= 1e-9 * scale
+    assert np.abs(st.tau - ref.tau).max() <= 1e-9 * scale
+    assert np.abs(st.u - ref.u).max() <= 1e-9 * np.abs(ref.u).max()
+    assert np.array_equal(st.classes, ref.classes)
+    assert st.complementarity <= 1e-9
+    # the next zone covers the contact nodes; nodes left out carry no force and are of class L
+    assert np.all(np.isin(in_contact, zoned.next_zone))
+    out = np.setdiff1d(np.arange(st.lam.size), zoned.next_zone)
+    assert np.all(st.classes[out] == CLASS_CODES["L"])
+
+
+def test_subgradient_does_not_depend_on_the_zone():
+    full, zoned = small_problem(zone=False), small_problem(zone_margin=0.0)
+    alpha = wavy(full, phase=1.0)
+    zoned.next_zone = np.array([0, 1])
+    g_full = subgradient(full, alpha).gradient
+    res = subgradient(zoned, alpha)
+    assert res.state.info["zone_misses"] >= 1
+    assert np.linalg.norm(res.gradient - g_full) <= 1e-8 * np.linalg.norm(g_full)
+
+
+def test_zone_settings_are_validated():
+    with pytest.raises(ConfigError) as err:
+        load_config("example1").with_updates({"state": {"zone": "yes", "zone_margin": -1.0}})
+    text = str(err.value)
+    assert "state.zone" in text and "state.zone_margin" in text
+
+
+def test_checkpoint_contact_data_is_checked(tmp_path):
+    from contactopt.errors import CheckpointError
+    _check_contact_data(tmp_path, np.zeros((5, 3)), np.array([0, 2, 4]), 5)
+    with pytest.raises(CheckpointError, match="warm start"):
+        _check_contact_data(tmp_path, np.zeros(15), None, 5)
+    for bad in (np.array([0, 5]), np.array([2, 1]), np.array([], dtype=int), np.array([-1, 0])):
+        with pytest.raises(CheckpointError, match="contact zone"):
+            _check_contact_data(tmp_path, None, bad, 5)
