@@ -92,7 +92,7 @@ SCHEMA = {
     },
     "state": {
         "method": ("newton", _oneof("newton", "fixed-point"), "'newton' or 'fixed-point'"),
-        "tol": (1e-10, lambda x: _pos(x) and x < 1, "a number in (0, 1)"),
+        "tol": (1e-12, lambda x: _pos(x) and x < 1, "a number in (0, 1) (Siconos error of the local problem; at 1e-12 every contact condition of the examples holds to 1e-9)"),
         "max_iter": (200, _posint, "an integer ≥ 1"),
         "zone": (True, lambda x: isinstance(x, bool),
                  "true or false (solve the local problem on the nodes near the foundation only)"),
