@@ -97,6 +97,22 @@ def test_zone_problem_is_the_exact_restriction(lapack_backend, zone):
     assert np.allclose(zp.q0 + zp.W @ r_loc, u[local], rtol=0, atol=1e-12 * np.abs(u).max())
 
 
+def test_growing_a_zone_equals_building_the_larger_zone(lapack_backend):
+    p = 30
+    S = random_spd(3 * p, seed=5, cond=1e3)
+    ell = np.random.default_rng(6).standard_normal(3 * p)
+    small = ZoneProblem(S, ell, np.array([2, 9, 10, 25]))
+    grown = small.grow(np.array([0, 9, 17, 29]))
+    ref = ZoneProblem(S, ell, np.array([0, 2, 9, 10, 17, 25, 29]))
+    assert np.array_equal(grown.zone, ref.zone)
+    assert np.abs(grown.W - ref.W).max() <= 1e-12 * np.abs(ref.W).max()
+    assert np.array_equal(grown.W, grown.W.T)
+    assert np.abs(grown.q0 - ref.q0).max() <= 1e-12 * np.abs(ref.q0).max()
+    r = np.random.default_rng(7).standard_normal(ref.W.shape[0])
+    assert np.abs(grown.displacements(r) - ref.displacements(r)).max() <= 1e-11 * np.abs(ref.displacements(r)).max()
+    assert small.grow(np.array([9])).W is small.W          # nothing new: same problem
+
+
 def test_zone_rules():
     clearance = np.array([0.0, 1e-12, 5e-3, 2e-2, -1e-3, 1.0])
     lam = np.array([1.0, 0.0, 0.0, 0.0, 0.0, 0.0])

@@ -121,12 +121,11 @@ class ShapeProblem:
         zone = self.next_zone if self.use_zone else self._all_nodes
         warm = self._warm if warm_start else None
         misses = 0
+        t0 = time.perf_counter()
+        zp = zone_rules.ZoneProblem(cond.S, cond.ell, zone)
+        t1 = time.perf_counter()
         while True:
-            t0 = time.perf_counter()
-            zp = zone_rules.ZoneProblem(cond.S, cond.ell, zone)
-            t1 = time.perf_counter()
             res = self._solve_local(zp, cond.gap[zone], warm, method, tol)
-            t2 = time.perf_counter()
             u3 = zp.displacements(res.r)
             timings["delassus"] += t1 - t0
             timings["contact"] += time.perf_counter() - t1
@@ -140,9 +139,12 @@ class ShapeProblem:
             lam_all[zone] = res.r[0::3]
             log.debug("contact zone of %d nodes missed %d node(s) closing their gap; solving again",
                       zone.size, missed.size)
-            zone = np.union1d(np.union1d(zone, missed),
-                              zone_rules.near_nodes(lam_all, clearance, u_scale, self.zone_margin))
-            warm = self._zone_warm(res.r, zp.zone)
+            t0 = time.perf_counter()
+            zp = zp.grow(np.union1d(missed, zone_rules.near_nodes(lam_all, clearance, u_scale,
+                                                                 self.zone_margin)))
+            t1 = time.perf_counter()
+            warm = self._zone_warm(res.r, zone)
+            zone = zp.zone
         t3 = time.perf_counter()
         u_free = cond.factor.recover(cond.assembled.L, u3.ravel())
         u = self.model.assembler.to_full(u_free)

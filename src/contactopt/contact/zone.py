@@ -28,9 +28,8 @@ FCLIB order (ν, t1, t2) per node, r_N = λ ≥ 0 the normal force on the body.
 from __future__ import annotations
 
 import numpy as np
-import scipy.linalg as sla
 
-from ..fem.dense import cholesky_lower, inverse_from_cholesky
+from ..fem.dense import cholesky_lower, cholesky_solve, inverse_from_cholesky
 
 CLEARANCE_RTOL = 1e-7        # the gap-closed tolerance of classify_nodes (relative)
 MIN_ZONE = 8                 # a zone has at least this many nodes (or all, if fewer)
@@ -63,39 +62,75 @@ def near_nodes(lam: np.ndarray, clearance: np.ndarray, u_scale: float, margin: f
 class ZoneProblem:
     """The local problem of the zone ``zone`` (sorted node indices) of the condensed system.
 
-    Attributes: ``W`` (3z × 3z, FCLIB order per node), ``q0 = W ℓ̃`` (FCLIB order, without the
-    gap), ``zone``. :meth:`displacements` returns the contact displacements of all p nodes for
-    the zone's contact forces.
+    Attributes: ``W`` (3z × 3z, FCLIB order per node), ``q0`` = (S⁻¹ℓ)_Z = W ℓ̃ (FCLIB order,
+    without the gap), ``zone``. :meth:`displacements` returns the contact displacements of all p
+    nodes for the zone's contact forces; :meth:`grow` adds nodes to the zone without a new
+    factorization (the columns of S⁻¹ of the added DOFs come from two triangular solves each).
     """
 
     def __init__(self, S: np.ndarray, ell: np.ndarray, zone: np.ndarray):
         p = ell.size // 3
-        self.zone = np.asarray(zone)
+        self.p = p
+        zone = np.asarray(zone)
         inside = np.zeros(p, dtype=bool)
-        inside[self.zone] = True
-        self.rest = np.flatnonzero(~inside)
-        self._dof_z = (3 * self.zone[:, None] + _LOCAL).ravel()        # FCLIB order
-        self._dof_n = (3 * self.rest[:, None] + np.arange(3)).ravel()
-        order = np.concatenate([self._dof_n, self._dof_z])
-        self.n_rest = self._dof_n.size
-        L = np.array(S[np.ix_(order, order)], order="C")
-        cholesky_lower(L)
-        k = self.n_rest
-        self.W = inverse_from_cholesky(L, k)
-        self._L_nn = L[:k, :k]
-        self._L_zn = L[k:, :k]
-        self._y = sla.solve_triangular(self._L_nn, ell[self._dof_n], lower=True, check_finite=False) \
-            if k else np.zeros(0)
-        self.ell = ell[self._dof_z] - (self._L_zn @ self._y if k else 0.0)   # ℓ̃, FCLIB order
-        self.q0 = self.W @ self.ell
+        inside[zone] = True
+        rest = np.flatnonzero(~inside)
+        dof_z = _local_dofs(zone)
+        dof_n = (3 * rest[:, None] + np.arange(3)).ravel()
+        self._order = np.concatenate([dof_n, dof_z])
+        # two takes: several times faster than S[np.ix_(order, order)] for a 1536² matrix
+        self._L = cholesky_lower(np.ascontiguousarray(S.take(self._order, axis=0).take(self._order, axis=1)))
+        self._set_zone(zone, inverse_from_cholesky(self._L, dof_n.size), self.solve(ell))
+
+    def _set_zone(self, zone, W, z):
+        self.zone, self.W, self._z = zone, W, z
+        self._dof_z = _local_dofs(zone)
+        self.q0 = z[self._dof_z]
+
+    def solve(self, b: np.ndarray) -> np.ndarray:
+        """S⁻¹ b for b of length 3p (or (3p, m)), per node (t1, t2, ν)."""
+        x = np.empty_like(b, dtype=np.float64)
+        x[self._order] = cholesky_solve(self._L, b[self._order])
+        return x
 
     def displacements(self, r_loc: np.ndarray) -> np.ndarray:
-        """u_c (p, 3) per node (t1, t2, ν) for the zone's contact forces ``r_loc`` (FCLIB order)."""
-        p = (self._dof_z.size + self._dof_n.size) // 3
-        u = np.empty(3 * p)
-        u_z = self.W @ (r_loc + self.ell)
-        u[self._dof_z] = u_z
-        if self.n_rest:
-            rhs = self._y - self._L_zn.T @ u_z
-            u[self._dof_n] = sla.solve_triangular(self._L_nn, rhs, lower=True, trans="T", check_finite=False)
-        return u.reshape(p, 3)
+        """u_c (p, 3) per node (t1, t2, ν) for the zone's contact forces ``r_loc`` (FCLIB order):
+        u = S⁻¹(ℓ + r) with r = 0 outside the zone."""
+        f = np.zeros(3 * self.p)
+        f[self._dof_z] = r_loc
+        return (self._z + self.solve(f)).reshape(self.p, 3)
+
+    def grow(self, nodes: np.ndarray) -> "ZoneProblem":
+        """The problem of the zone ∪ ``nodes`` (a new object sharing the factorization)."""
+        new = np.union1d(self.zone, nodes)
+        added = np.setdiff1d(new, self.zone)
+        out = object.__new__(ZoneProblem)
+        out.p, out._order, out._L = self.p, self._order, self._L
+        if added.size == 0:
+            out._set_zone(self.zone, self.W, self._z)
+            return out
+        dof_new = _local_dofs(new)
+        old_pos = np.flatnonzero(np.isin(new, self.zone, assume_unique=True))
+        add_pos = np.flatnonzero(~np.isin(new, self.zone, assume_unique=True))
+        old_dofs, add_dofs = _local_positions(old_pos), _local_positions(add_pos)
+        E = np.zeros((3 * self.p, 3 * added.size))
+        E[_local_dofs(added), np.arange(3 * added.size)] = 1.0
+        X = self.solve(E)[dof_new]                     # columns of S⁻¹ of the added DOFs
+        W = np.empty((dof_new.size, dof_new.size))
+        W[np.ix_(old_dofs, old_dofs)] = self.W
+        W[:, add_dofs] = X
+        W[add_dofs, :] = X.T
+        B = X[add_dofs]                                # S⁻¹ on the added DOFs: symmetric up to round-off
+        W[np.ix_(add_dofs, add_dofs)] = 0.5 * (B + B.T)
+        out._set_zone(new, W, self._z)
+        return out
+
+
+def _local_dofs(nodes: np.ndarray) -> np.ndarray:
+    """Contact-vector positions of the DOFs of ``nodes``, per node in FCLIB order (ν, t1, t2)."""
+    return (3 * np.asarray(nodes)[:, None] + _LOCAL).ravel()
+
+
+def _local_positions(k: np.ndarray) -> np.ndarray:
+    """Positions 3k, 3k+1, 3k+2 of the nodes at positions ``k`` of a zone."""
+    return (3 * np.asarray(k)[:, None] + np.arange(3)).ravel()

@@ -62,25 +62,30 @@ def inverse_from_cholesky(a: np.ndarray, start: int = 0) -> np.ndarray:
 
     With a = L Lᵀ from :func:`cholesky_lower` of a matrix M ordered (N, Z), the trailing block
     of L is the Cholesky factor of the Schur complement M_ZZ − M_ZN M_NN⁻¹ M_NZ, so this returns
-    (M⁻¹)_ZZ. The block of ``a`` is overwritten; the result is a new full symmetric array.
+    (M⁻¹)_ZZ as a new full symmetric array; ``a`` is not modified.
     """
     n = _square(a, "inverse_from_cholesky")
-    k = n - start
     if not 0 <= start < n:
         raise SolverError(f"inverse_from_cholesky: start {start} outside [0, {n})")
+    k = n - start
+    inv = np.array(a[start:, start:], order="C")
     mkl = _mkl("LAPACKE_dpotri")
     if mkl is not None:
         fn, cint = mkl
-        ptr = ctypes.c_void_p(a.ctypes.data + 8 * (start * n + start))
-        info = fn(ctypes.c_int(_ROW_MAJOR), ctypes.c_char(b"L"), cint(k), ptr, cint(n))
-        inv = np.array(a[start:, start:])
+        info = fn(ctypes.c_int(_ROW_MAJOR), ctypes.c_char(b"L"), cint(k), _pardiso._ptr(inv), cint(k))
     else:
-        block = np.array(a[start:, start:].T, order="F")     # column-major upper = Lᵀ
-        inv, info = sla.lapack.dpotri(block, lower=0)
-        inv = np.array(inv.T)                                # lower triangle, C order
+        inv, info = sla.lapack.dpotri(inv.T, lower=0, overwrite_c=1)   # column-major upper = L̃ᵀ
+        inv = inv.T
     if info != 0:
         raise SolverError(f"inverting the Cholesky factor failed (potri info {info})")
-    return symmetrize_lower(inv)
+    return symmetrize_lower(np.ascontiguousarray(inv))
+
+
+def cholesky_solve(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """x = (L Lᵀ)⁻¹ b with L the lower triangle of ``a`` (from :func:`cholesky_lower`); b (n,) or (n, m)."""
+    U = a.T                     # Fortran-ordered view: its upper triangle is Lᵀ, no copy
+    y = sla.solve_triangular(U, b, lower=False, trans="T", check_finite=False)
+    return sla.solve_triangular(U, y, lower=False, trans="N", check_finite=False, overwrite_b=True)
 
 
 def symmetrize_lower(a: np.ndarray, block: int = 128) -> np.ndarray:
