@@ -189,7 +189,8 @@ class _Solver:
         gpos = np.full(3 * k, -1)
         gpos[gl] = np.arange(gl.size)
         gi = ia[gl]
-        M = W.copy() if gl.size == self.n else W[np.ix_(gi, gi)]
+        # np.take twice: several times faster than W[np.ix_(gi, gi)] on matrices of this size
+        M = W.copy() if gl.size == self.n else W.take(gi, axis=0).take(gi, axis=1)
         if alpha:
             M.flat[:: gl.size + 1] += alpha
         if SF.size:
@@ -202,7 +203,7 @@ class _Solver:
         keep = gathered.copy()
         keep[SF, 2] = False
         kk = np.flatnonzero(keep.ravel())                # kept unknowns, positions in ia
-        Mred = M if kk.size == gl.size else M[np.ix_(gpos[kk], gpos[kk])]
+        Mred = M if kk.size == gl.size else M.take(gpos[kk], axis=0).take(gpos[kk], axis=1)
         pos = np.cumsum(keep.ravel()) - 1     # position of each kept unknown in Mred
         dpos = pos[3 * SF + 1]
         dval = (1.0 - c[fric]) / rhoS[fric]
