@@ -43,11 +43,6 @@ class Condensed:
     timings: dict
 
 
-def local_permutation(p: int) -> np.ndarray:
-    """Index array P with x_loc = x[P]: per node (t1, t2, ν) → (ν, t1, t2)."""
-    return (3 * np.arange(p)[:, None] + np.array([2, 0, 1])).ravel()
-
-
 def spd_inverse(S: np.ndarray) -> np.ndarray:
     """Inverse of a dense SPD matrix by Cholesky (see :func:`contactopt.fem.dense.spd_inverse`)."""
     from .fem.dense import spd_inverse as inverse
