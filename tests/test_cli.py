@@ -37,6 +37,14 @@ def test_state_command_writes_every_output(tmp_path, capsys):
     assert data["summary"]["converged"] if "summary" in data else data["converged"]
 
 
+def test_state_that_does_not_converge_exits_2_and_leaves_no_directory(tmp_path, capsys):
+    out = tmp_path / "st"
+    code = main(["state", str(small_toml(tmp_path, state={"max_iter": 1})), "--out", str(out)])
+    assert code == 2
+    assert "not converged" in capsys.readouterr().err
+    assert not out.exists()
+
+
 @pytest.mark.parametrize("case", ["bad_value", "unknown_key", "infeasible", "inverted", "missing"])
 def test_bad_input_exit_code_2_and_nothing_written(tmp_path, capsys, case):
     out = tmp_path / "out"

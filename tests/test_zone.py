@@ -177,8 +177,10 @@ def test_zone_settings_are_validated():
 def test_checkpoint_contact_data_is_checked(tmp_path):
     from contactopt.errors import CheckpointError
     _check_contact_data(tmp_path, np.zeros((5, 3)), np.array([0, 2, 4]), 5)
-    with pytest.raises(CheckpointError, match="warm start"):
-        _check_contact_data(tmp_path, np.zeros(15), None, 5)
+    assert _check_contact_data(tmp_path, np.zeros(15), None, 5).shape == (5, 3)   # flat, as stored before
+    for bad in (np.zeros(14), np.zeros((3, 5, 1))):
+        with pytest.raises(CheckpointError, match="warm start"):
+            _check_contact_data(tmp_path, bad, None, 5)
     for bad in (np.array([0, 5]), np.array([2, 1]), np.array([], dtype=int), np.array([-1, 0])):
         with pytest.raises(CheckpointError, match="contact zone"):
             _check_contact_data(tmp_path, None, bad, 5)

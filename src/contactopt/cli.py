@@ -53,10 +53,17 @@ def _cmd_state(args) -> int:
     alpha = _read_alpha(args.alpha, model) if args.alpha else model.initial_design()
     model.admissible.require_feasible(alpha, tol=1e-8)
     model.mesh.coordinates(alpha)                       # mesh validity before any output
-    out = prepare_output_dir(args.out or f"state-{problem.config.name}", overwrite=args.overwrite)
+    out_path = Path(args.out or f"state-{problem.config.name}")
+    created = not out_path.exists()
+    out = prepare_output_dir(out_path, overwrite=args.overwrite)
     t0 = time.perf_counter()
-    state = problem.solve_state(alpha)
-    bound = problem.uniqueness_bound(alpha)
+    try:
+        state = problem.solve_state(alpha)
+        bound = problem.uniqueness_bound(alpha)
+    except Exception:
+        if created and not any(out.iterdir()):
+            out.rmdir()                  # a failed solve leaves no empty directory behind
+        raise
     state.info["uniqueness_bound_F0"] = bound
     write_state(out, model, state, config=problem.config)
     s = state.summary()

@@ -139,21 +139,26 @@ def _read_checkpoint(path: Path, fingerprint: str):
         bstate = BundleState.from_dict(bundle)
     except ContactOptError as exc:
         raise CheckpointError(f"checkpoint {path}: {exc}") from None
-    warm = data["warm"].reshape(-1, 3) if data["warm"].size else None
+    warm = data["warm"] if data["warm"].size else None
     zone = data["zone"].astype(np.int64) if "zone" in data else None
     return (bstate, int(data["meta_evaluations"]), float(data["meta_elapsed"]), warm,
             float(data["meta_scale"]), zone)
 
 
 def _check_contact_data(path: Path, warm, zone, n_contact: int):
-    """The warm start and contact zone of a checkpoint must fit the mesh's contact nodes."""
-    if warm is not None and warm.shape != (n_contact, 3):
-        raise CheckpointError(f"checkpoint {path}: its warm start has shape {warm.shape}, "
-                              f"expected ({n_contact}, 3)")
+    """The warm start and contact zone of a checkpoint must fit the mesh's contact nodes.
+
+    Returns the warm start as (p, 3) (older checkpoints stored it flat, in the same order)."""
+    if warm is not None:
+        if warm.size != 3 * n_contact or warm.ndim not in (1, 2):
+            raise CheckpointError(f"checkpoint {path}: its warm start has shape {warm.shape}, "
+                                  f"expected ({n_contact}, 3)")
+        warm = warm.reshape(n_contact, 3)
     if zone is not None and (zone.ndim != 1 or zone.size == 0 or zone[0] < 0 or zone[-1] >= n_contact
                              or np.any(np.diff(zone) <= 0)):
         raise CheckpointError(f"checkpoint {path}: its contact zone is not a sorted set of contact "
                               f"nodes 0..{n_contact - 1}")
+    return warm
 
 
 def _truncate_history(path: Path, n_rows: int):
@@ -196,7 +201,7 @@ def run_optimization(config, outdir=None, *, eps=None, max_iter=None, resume=Fal
     ckpt = out / "checkpoint.npz"
     if resume:
         bstate, n_eval, elapsed0, warm, scale, zone = _read_checkpoint(ckpt, fingerprint)
-        _check_contact_data(ckpt, warm, zone, model.n_contact)
+        warm = _check_contact_data(ckpt, warm, zone, model.n_contact)
     out = prepare_output_dir(out, overwrite=overwrite, resume=resume)
     handler = logging.FileHandler(out / "run.log")
     handler.setFormatter(logging.Formatter("%(asctime)s %(levelname)s %(name)s: %(message)s"))
