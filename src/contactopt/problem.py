@@ -24,7 +24,7 @@ import numpy as np
 from ._threads import sequential_openblas
 from .config import Config, load_config
 from .contact import zone as zone_rules
-from .contact.state import State, classify_nodes, contact_conditions_violation
+from .contact.state import State, classify_nodes, contact_conditions_violation, displacement_scale
 from .errors import SolverError
 from .fem.model import Assembled, ElasticModel
 
@@ -125,7 +125,7 @@ class ShapeProblem:
             timings["delassus"] += t1 - t0
             timings["contact"] += time.perf_counter() - t1
             clearance = u3[:, 2] + cond.gap
-            u_scale = zone_rules.displacement_scale(u3, cond.gap)
+            u_scale = displacement_scale(u3, cond.gap)
             missed = zone_rules.missed_nodes(zone, clearance, u_scale)
             if missed.size == 0:
                 break
@@ -170,7 +170,7 @@ class ShapeProblem:
         return state
 
     def _solve_local(self, zp, gap, warm, method, tol):
-        """The zone's local problem u = W r + q, q = W ℓ̃ + (g, 0, 0), in the FCLIB convention."""
+        """The zone's local problem u = W r + q, q = (S⁻¹ℓ)_Z + (g, 0, 0), in the FCLIB convention."""
         from .contact.local import solve_local
         q = zp.q0.copy()
         q[0::3] += gap

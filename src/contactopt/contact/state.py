@@ -31,11 +31,19 @@ CLASS_CODES = {name: k for k, name in enumerate(CLASS_NAMES)}
 DEGENERATE = ("M2", "M3-", "M4")
 
 
+CLASS_RTOL = 1e-7      # relative tolerance below which a displacement or force counts as zero
+
+
+def displacement_scale(u_c: np.ndarray, gap: np.ndarray) -> float:
+    """max(|u_c|, |g|): the scale against which displacements and clearances count as zero."""
+    return max(np.abs(u_c).max(initial=0.0), np.abs(gap).max(initial=0.0), 1e-300)
+
+
 def classify_nodes(u_c: np.ndarray, lam: np.ndarray, tau: np.ndarray, gap: np.ndarray,
-                   friction: float, rtol: float = 1e-7, force_scale: float | None = None) -> np.ndarray:
+                   friction: float, rtol: float = CLASS_RTOL, force_scale: float | None = None) -> np.ndarray:
     """Class code (index into CLASS_NAMES) of every contact node, Table 4.1."""
     u_c = np.asarray(u_c).reshape(-1, 3)
-    u_scale = max(np.abs(u_c).max(initial=0.0), np.abs(gap).max(initial=0.0), 1e-300)
+    u_scale = displacement_scale(u_c, gap)
     f_scale = force_scale if force_scale is not None else max(np.abs(lam).max(initial=0.0), 1e-300)
     tol_u, tol_f = rtol * u_scale, rtol * f_scale
     slide = np.linalg.norm(u_c[:, :2], axis=1) > tol_u

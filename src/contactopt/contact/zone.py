@@ -7,10 +7,11 @@ and r_N = 0, the rows of N give u_N = S_NN⁻¹(ℓ_N − S_NZ u_Z), and the row
     S̃ u_Z − ℓ̃ = r_Z,    S̃ = S_ZZ − S_ZN S_NN⁻¹ S_NZ,    ℓ̃ = ℓ_Z − S_ZN S_NN⁻¹ ℓ_N,
 
 so the local problem of the zone has the Delassus operator W_Z = S̃⁻¹ = (S⁻¹)_ZZ, a principal
-block of W. One Cholesky factorization of S ordered (N, Z), S = L Lᵀ with
-L = [[L_NN, 0], [L_ZN, L̃]], gives everything: L̃ L̃ᵀ = S̃, ℓ̃ = ℓ_Z − L_ZN y with
-y = L_NN⁻¹ℓ_N, and u_N = L_NN⁻ᵀ(y − L_ZNᵀ u_Z). That costs (1/3)(3p)³ + (2/3)(3z)³ flops
-instead of (3p)³ for the whole W, and the zone's local problem is smaller.
+block of W, and the free displacement q = W_Z ℓ̃ = (S⁻¹ℓ)_Z. One Cholesky factorization of S
+ordered (N, Z), S = L Lᵀ with L = [[L_NN, 0], [L_ZN, L̃]], gives everything: L̃ L̃ᵀ = S̃, so
+W_Z = (L̃ L̃ᵀ)⁻¹, and the displacements of all nodes are u = S⁻¹(ℓ + r) by two triangular solves.
+That costs (1/3)(3p)³ + (2/3)(3z)³ flops instead of (3p)³ for the whole W, and the zone's local
+problem is smaller.
 
 The solution on Z is the solution of the whole problem exactly when every node of N ends with
 an open gap. That is checked after each solve: a node of N with clearance u_ν + g ≤ tol
@@ -30,16 +31,12 @@ from __future__ import annotations
 import numpy as np
 
 from ..fem.dense import cholesky_lower, cholesky_solve, inverse_from_cholesky
+from .state import CLASS_RTOL
 
-CLEARANCE_RTOL = 1e-7        # the gap-closed tolerance of classify_nodes (relative)
+CLEARANCE_RTOL = CLASS_RTOL  # a gap closes exactly where classify_nodes calls it closed
 MIN_ZONE = 8                 # a zone has at least this many nodes (or all, if fewer)
 
 _LOCAL = np.array([2, 0, 1])  # per node (t1, t2, ν) -> (ν, t1, t2)
-
-
-def displacement_scale(u_c: np.ndarray, gap: np.ndarray) -> float:
-    """max(|u_c|, |g|): the scale of clearances (as in classify_nodes)."""
-    return max(np.abs(u_c).max(initial=0.0), np.abs(gap).max(initial=0.0), 1e-300)
 
 
 def missed_nodes(zone: np.ndarray, clearance: np.ndarray, u_scale: float) -> np.ndarray:
@@ -75,9 +72,8 @@ class ZoneProblem:
         inside = np.zeros(p, dtype=bool)
         inside[zone] = True
         rest = np.flatnonzero(~inside)
-        dof_z = _local_dofs(zone)
-        dof_n = (3 * rest[:, None] + np.arange(3)).ravel()
-        self._order = np.concatenate([dof_n, dof_z])
+        dof_n = _node_dofs(rest)
+        self._order = np.concatenate([dof_n, _local_dofs(zone)])
         # two takes: several times faster than S[np.ix_(order, order)] for a 1536² matrix
         self._L = cholesky_lower(np.ascontiguousarray(S.take(self._order, axis=0).take(self._order, axis=1)))
         self._set_zone(zone, inverse_from_cholesky(self._L, dof_n.size), self.solve(ell))
@@ -110,9 +106,8 @@ class ZoneProblem:
             out._set_zone(self.zone, self.W, self._z)
             return out
         dof_new = _local_dofs(new)
-        old_pos = np.flatnonzero(np.isin(new, self.zone, assume_unique=True))
-        add_pos = np.flatnonzero(~np.isin(new, self.zone, assume_unique=True))
-        old_dofs, add_dofs = _local_positions(old_pos), _local_positions(add_pos)
+        was_in = np.isin(new, self.zone, assume_unique=True)
+        old_dofs, add_dofs = _node_dofs(np.flatnonzero(was_in)), _node_dofs(np.flatnonzero(~was_in))
         E = np.zeros((3 * self.p, 3 * added.size))
         E[_local_dofs(added), np.arange(3 * added.size)] = 1.0
         X = self.solve(E)[dof_new]                     # columns of S⁻¹ of the added DOFs
@@ -131,6 +126,6 @@ def _local_dofs(nodes: np.ndarray) -> np.ndarray:
     return (3 * np.asarray(nodes)[:, None] + _LOCAL).ravel()
 
 
-def _local_positions(k: np.ndarray) -> np.ndarray:
-    """Positions 3k, 3k+1, 3k+2 of the nodes at positions ``k`` of a zone."""
+def _node_dofs(k: np.ndarray) -> np.ndarray:
+    """Positions 3k, 3k+1, 3k+2 of the nodes (or zone positions) ``k``, in their own order."""
     return (3 * np.asarray(k)[:, None] + np.arange(3)).ravel()
