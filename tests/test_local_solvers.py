@@ -258,6 +258,24 @@ def test_coulomb_newton_and_fixed_point_agree(size, seed, mu, shear, sticking):
     np.testing.assert_allclose(nt.u, W @ nt.r + q, rtol=0, atol=1e-12 * su)
 
 
+def test_newton_with_frictionless_and_frictional_contacts_mixed():
+    # Per-contact mu with zeros: the Newton system then has every group of unknowns (sticking,
+    # frictional sliding z_N and z_t, frictionless sliding d_N); the fixed point agrees.
+    W, q, mus = lattice_problem(10, 8, seed=2, mu=0.5, shear=0.4)
+    mus = mus.copy()
+    mus[::3] = 0.0
+    nt = solve_local(W, q, mus, method="newton", tol=1e-12)
+    fp = solve_local(W, q, mus, method="fixed-point", tol=1e-11)
+    assert nt.converged and fp.converged and rel(nt.r, fp.r) <= 1e-7
+    R, U = nt.r.reshape(-1, 3), nt.u.reshape(-1, 3)
+    sr, su = np.abs(R).max(), np.abs(U).max()
+    touching = R[:, 0] > 1e-9 * sr
+    sliding = np.hypot(U[:, 1], U[:, 2]) > 1e-6 * su
+    assert np.any(touching & (mus == 0)) and np.any(touching & (mus > 0) & sliding)
+    assert np.any(touching & (mus > 0) & ~sliding)
+    assert np.abs(R[mus == 0, 1:]).max() <= 1e-9 * sr        # no friction force where mu = 0
+
+
 def test_newton_warm_start_needs_few_steps():
     W, q, mu = lattice_problem(12, 12, seed=5)
     base = solve_newton(W, q, mu, tol=1e-10)

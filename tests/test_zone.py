@@ -77,6 +77,10 @@ def test_lu_factor_solves_and_estimates_the_condition(lapack_backend):
     assert 0.1 / kappa <= rc <= 10 / kappa          # LAPACK's estimate is within a small factor
     sing = dense.LUFactor(np.zeros((4, 4)))
     assert sing.info > 0
+    assert 1e-3 < lu.pivot_ratio() <= 1.0
+    near = M.copy()
+    near[:, -1] = near[:, 0] + 1e-14 * rng.standard_normal(90)   # rank-deficient up to 1e-14
+    assert dense.LUFactor(near).pivot_ratio() < 1e-10
 
 
 @pytest.mark.parametrize("zone", [np.arange(40), np.array([0, 3, 4, 17, 39]), np.array([22])])

@@ -56,6 +56,7 @@ log = logging.getLogger(__name__)
 _PREDICTOR_TOL = 1e-6    # Siconos error at which the frictionless predictor stops
 _PREDICTOR_STEPS = 20    # and its step budget
 _RCOND_MIN = 1e-13       # reciprocal condition below which a Newton matrix counts as singular
+_PIVOT_SCREEN = 1e-8     # LU pivot ratio above which the condition estimate is skipped
 _REASONS = {
     "max": "Newton step limit of the phase reached",
     "budget": "max_iter Newton steps used",
@@ -150,7 +151,10 @@ class _Solver:
           ``d_n = mu d_N + rho (f_n - mu f_N)``.
 
         Eliminating ``d_n`` (and ``d_t`` when ``mu = 0``) leaves a dense system with 3 unknowns
-        per sticking and 2 per sliding contact, factorised by LAPACK ``getrf``.
+        per sticking and 2 per sliding contact, factorised by LAPACK ``getrf``. Its unknowns are
+        grouped as (plain: the three of each sticking contact and ``d_N`` of frictionless
+        sliding ones | ``z_N`` | ``z_t`` of frictional sliding ones), so that the reduced
+        matrix is built from whole rows of W and three column gathers, with no scatter.
         """
         W, mu = self.W, self.mu
         act = piece.active
@@ -162,7 +166,8 @@ class _Solver:
             return d
         ia = (3 * A[:, None] + np.arange(3)).ravel()
         f = -(Phi[ia] / np.repeat(rho[A], 3)).reshape(k, 3)
-        S = np.flatnonzero(piece.slip[A])     # local indices of the sliding contacts
+        slide = piece.slip[A]
+        S = np.flatnonzero(slide)             # local indices of the sliding contacts
         gS = A[S]
         n = piece.nvec[gS]
         t = np.column_stack((-n[:, 1], n[:, 0]))
@@ -177,52 +182,55 @@ class _Solver:
         dfix = d.copy()
         dfix[ia] = e.ravel()
         v = ((W @ dfix)[ia].reshape(k, 3) + alpha * e) if np.any(dfix) else np.zeros((k, 3))
-        rhs = f - v
-        rhs[S[fric], 1] = f_t[fric] - c[fric] * np.einsum("ij,ij->i", t[fric], v[S[fric], 1:])
-        # Reduced matrix G^T W_a E: columns (e_N + mu n, t) and rows (e_N, t) of sliding
-        # contacts. Only the rows and columns of W that enter it are gathered: the tangential
-        # ones of frictionless sliding contacts (d_T local) never do.
-        SF = S[fric]
-        gathered = np.ones((k, 3), dtype=bool)
-        gathered[S[~fric], 1:] = False
-        gl = np.flatnonzero(gathered.ravel())            # positions in ia of the gathered rows
-        gpos = np.full(3 * k, -1)
-        gpos[gl] = np.arange(gl.size)
-        gi = ia[gl]
-        # np.take twice: several times faster than W[np.ix_(gi, gi)] on matrices of this size
-        M = W.copy() if gl.size == self.n else W.take(gi, axis=0).take(gi, axis=1)
-        if alpha:
-            M.flat[:: gl.size + 1] += alpha
-        if SF.size:
-            nF, tF, cF = n[fric], t[fric], c[fric]
-            pN, p1, p2 = gpos[3 * SF], gpos[3 * SF + 1], gpos[3 * SF + 2]
-            c1, c2 = M[:, p1], M[:, p2]
-            M[:, pN] += muS[fric] * (nF[:, 0] * c1 + nF[:, 1] * c2)
-            M[:, p1] = tF[:, 0] * c1 + tF[:, 1] * c2
-            M[p1, :] = cF[:, None] * (tF[:, 0, None] * M[p1, :] + tF[:, 1, None] * M[p2, :])
-        keep = gathered.copy()
-        keep[SF, 2] = False
-        kk = np.flatnonzero(keep.ravel())                # kept unknowns, positions in ia
-        Mred = M if kk.size == gl.size else M.take(gpos[kk], axis=0).take(gpos[kk], axis=1)
-        pos = np.cumsum(keep.ravel()) - 1     # position of each kept unknown in Mred
-        dpos = pos[3 * SF + 1]
-        dval = (1.0 - c[fric]) / rhoS[fric]
-        Mred.flat[dpos * (kk.size + 1)] += dval
+        # unknown groups, as positions of W: plain (3 per sticking contact, N of frictionless
+        # sliding ones), and per frictional sliding contact its N, T1, T2
+        SF, SN = S[fric], S[~fric]
+        stick = np.flatnonzero(~slide)
+        plain = np.concatenate([(3 * A[stick, None] + np.arange(3)).ravel(), 3 * A[SN]])
+        plain_loc = np.concatenate([(3 * stick[:, None] + np.arange(3)).ravel(), 3 * SN])
+        gF = A[SF]
+        iN, i1, i2 = 3 * gF, 3 * gF + 1, 3 * gF + 2
+        nF, tF, cF, muF = n[fric], t[fric], c[fric], muS[fric]
+        a, b = plain.size, plain.size + SF.size
+        m = b + SF.size
+        # rows: W rows of the plain and N unknowns, c (t . W_T) for the t rows
+        R = np.empty((m, W.shape[1]))
+        W.take(np.concatenate([plain, iN]), axis=0, out=R[:b])
+        R[b:] = (cF * tF[:, 0])[:, None] * W.take(i1, axis=0)
+        R[b:] += (cF * tF[:, 1])[:, None] * W.take(i2, axis=0)
+        # columns: e_N + mu n for the z_N unknowns, t for the z_t unknowns
+        M = np.empty((m, m))
+        R.take(plain, axis=1, out=M[:, :a]) if a else None
+        C1, C2 = R.take(i1, axis=1), R.take(i2, axis=1)
+        M[:, a:b] = R.take(iN, axis=1) + (muF * nF[:, 0]) * C1 + (muF * nF[:, 1]) * C2
+        M[:, b:] = tF[:, 0] * C1 + tF[:, 1] * C2
+        dval = (1.0 - cF) / rhoS[fric]
+        diag = M.reshape(-1)[:: m + 1]
+        diag[b:] += dval
+        if alpha:                              # (W + alpha I) in the same frame
+            diag[:b] += alpha
+            diag[b:] += cF * alpha
+        rhs = np.empty(m)
+        rhs[:a] = (f - v).ravel()[plain_loc]
+        rhs[a:b] = f[SF, 0] - v[SF, 0]
+        rhs[b:] = f_t[fric] - cF * np.einsum("ij,ij->i", tF, v[SF, 1:])
         anorm = (1.0 + self.mu_max) * self.wnorm_inf + alpha + float(dval.max(initial=0.0))
-        lu = LUFactor(np.ascontiguousarray(Mred))
+        lu = LUFactor(M)
         self.counts["factorizations"] += 1
-        if lu.info != 0 or not lu.rcond(anorm) > _RCOND_MIN:
+        # dgecon costs about a quarter of the factorization: only when the pivots look bad
+        if lu.info != 0 or (not lu.pivot_ratio() > _PIVOT_SCREEN and not lu.rcond(anorm) > _RCOND_MIN):
             self.counts["singular"] += 1
             return None
-        z = lu.solve(rhs.ravel()[kk])
+        z = lu.solve(rhs)
         if not np.all(np.isfinite(z)):
             self.counts["singular"] += 1
             return None
-        Z = np.zeros((k, 3))
-        Z.ravel()[kk] = z
-        dA = Z.copy()
-        # sliding: d_N = z_N, d_T = mu z_N n + z_t t + e_T
-        dA[S, 1:] = (muS * Z[S, 0])[:, None] * n + Z[S, 1, None] * t + e[S, 1:]
+        dA = e.copy()                         # sliding: d_T = mu z_N n + z_t t + e_T
+        dA.ravel()[plain_loc] = z[:a]
+        zN, zt = z[a:b], z[b:]
+        dA[SF, 0] = zN
+        dA[SF, 1:] += (muF * zN)[:, None] * nF + zt[:, None] * tF
+        # frictionless sliding: d_N solved (plain), d_T = e_T (local)
         d[ia] = dA.ravel()
         return d
 

@@ -17,7 +17,7 @@ import scipy.linalg as sla
 from ..errors import SolverError
 from . import _pardiso
 
-_ROW_MAJOR = 101
+_COL_MAJOR = 102   # the C array's lower triangle is the column-major upper one: no transposed copy
 
 
 def _mkl(name):
@@ -48,7 +48,7 @@ def cholesky_lower(a: np.ndarray) -> np.ndarray:
     mkl = _mkl("LAPACKE_dpotrf")
     if mkl is not None:
         fn, cint = mkl
-        info = fn(ctypes.c_int(_ROW_MAJOR), ctypes.c_char(b"L"), cint(n), _pardiso._ptr(a), cint(n))
+        info = fn(ctypes.c_int(_COL_MAJOR), ctypes.c_char(b"U"), cint(n), _pardiso._ptr(a), cint(n))
     else:
         _, info = sla.lapack.dpotrf(a.T, lower=0, overwrite_a=1, clean=0)
     if info != 0:
@@ -72,7 +72,7 @@ def inverse_from_cholesky(a: np.ndarray, start: int = 0) -> np.ndarray:
     mkl = _mkl("LAPACKE_dpotri")
     if mkl is not None:
         fn, cint = mkl
-        info = fn(ctypes.c_int(_ROW_MAJOR), ctypes.c_char(b"L"), cint(k), _pardiso._ptr(inv), cint(k))
+        info = fn(ctypes.c_int(_COL_MAJOR), ctypes.c_char(b"U"), cint(k), _pardiso._ptr(inv), cint(k))
     else:
         inv, info = sla.lapack.dpotri(inv.T, lower=0, overwrite_c=1)   # column-major upper = L̃ᵀ
         inv = inv.T
@@ -112,8 +112,6 @@ class LUFactor:
     an exactly singular M.
     """
 
-    _COL_MAJOR = 102
-
     def __init__(self, M: np.ndarray):
         self.n = _square(M, "LUFactor")
         self._mkl = _mkl("LAPACKE_dgetrf")
@@ -122,16 +120,28 @@ class LUFactor:
             self._cint = cint
             self.a = M
             self.piv = np.zeros(self.n, dtype=np.int64 if cint is ctypes.c_int64 else np.int32)
-            self.info = int(fn(ctypes.c_int(self._COL_MAJOR), cint(self.n), cint(self.n),
+            self.info = int(fn(ctypes.c_int(_COL_MAJOR), cint(self.n), cint(self.n),
                                _pardiso._ptr(M), cint(self.n), _pardiso._ptr(self.piv)))
         else:
             self.a, self.piv, self.info = sla.lapack.dgetrf(M.T, overwrite_a=True)
+
+    def pivot_ratio(self) -> float:
+        """min |u_ii| / max |u_ii| of the factor U: an O(n) sign of (near) singularity.
+
+        Cheap screening only: a small ratio flags an ill-conditioned M, but a moderate one does
+        not prove M well conditioned; :meth:`rcond` estimates 1/κ.
+        """
+        if self.n == 0:
+            return 1.0
+        dg = np.abs(np.diagonal(self.a.reshape(self.n, self.n)))
+        top = float(dg.max())
+        return float(dg.min()) / top if top > 0 else 0.0
 
     def rcond(self, anorm: float) -> float:
         if self._mkl is not None:
             fn, cint = _mkl("LAPACKE_dgecon")
             out = ctypes.c_double(0.0)
-            info = fn(ctypes.c_int(self._COL_MAJOR), ctypes.c_char(b"1"), cint(self.n),
+            info = fn(ctypes.c_int(_COL_MAJOR), ctypes.c_char(b"1"), cint(self.n),
                       _pardiso._ptr(self.a), cint(self.n), ctypes.c_double(anorm), ctypes.byref(out))
             return float(out.value) if info == 0 else 0.0
         rc, info = sla.lapack.dgecon(self.a, anorm, norm="1")
@@ -142,7 +152,7 @@ class LUFactor:
         if self._mkl is not None:
             fn, cint = _mkl("LAPACKE_dgetrs")
             x = np.array(b, dtype=np.float64)
-            info = fn(ctypes.c_int(self._COL_MAJOR), ctypes.c_char(b"T"), cint(self.n), cint(1),
+            info = fn(ctypes.c_int(_COL_MAJOR), ctypes.c_char(b"T"), cint(self.n), cint(1),
                       _pardiso._ptr(self.a), cint(self.n), _pardiso._ptr(self.piv), _pardiso._ptr(x),
                       cint(self.n))
         else:
