@@ -4,7 +4,7 @@ Conventions: displacement DOF 3n + m (node n, component m ∈ {x1, x2, x3}); ele
 3a + m for vertex a. The stiffness is the matrix of a(u, v) = ∫ σ(u):ε(v) dx (paper (2.8)) with
 isotropic Hooke's law σ = λ tr(ε) I + 2μ ε. Dirichlet DOFs are eliminated: A acts on the free
 DOFs only. The CSR index pattern is built once; a new design only recomputes values
-(``values → np.bincount`` onto the pattern).
+(``values → np.bincount`` onto the pattern), in work arrays kept between designs.
 """
 
 from __future__ import annotations
@@ -50,6 +50,29 @@ def hex_reference():
     q, w = gauss_hex(2)
     N, dN = hex_shape(q)
     return N, dN, w
+
+
+def det_adj_3x3(J: np.ndarray):
+    """Determinants and adjugates of 3×3 matrices stored component-first: J[m, n] is an array.
+
+    Returns ``det`` and ``adj`` with ``adj[n, m] = det · (J⁻¹)[n, m]``; with J[m, n] contiguous,
+    every product runs on whole contiguous arrays.
+    """
+    a, b, c = J[0, 0], J[0, 1], J[0, 2]
+    d, e, f = J[1, 0], J[1, 1], J[1, 2]
+    g, h, i = J[2, 0], J[2, 1], J[2, 2]
+    adj = np.empty_like(J)
+    np.subtract(e * i, f * h, out=adj[0, 0])
+    np.subtract(f * g, d * i, out=adj[1, 0])
+    np.subtract(d * h, e * g, out=adj[2, 0])
+    det = a * adj[0, 0] + b * adj[1, 0] + c * adj[2, 0]
+    np.subtract(c * h, b * i, out=adj[0, 1])
+    np.subtract(b * f, c * e, out=adj[0, 2])
+    np.subtract(a * i, c * g, out=adj[1, 1])
+    np.subtract(c * d, a * f, out=adj[1, 2])
+    np.subtract(b * g, a * h, out=adj[2, 1])
+    np.subtract(a * e, b * d, out=adj[2, 2])
+    return det, adj
 
 
 def det_inv_3x3(J: np.ndarray):
@@ -108,11 +131,16 @@ class ElasticityAssembler:
         self.n_free = self.free.size
         edofs = (3 * self.elements[:, :, None] + np.arange(3)).reshape(len(self.elements), 24)
         self.edofs = edofs
-        fr = self.full_to_free[edofs]
+        # the scatter pattern follows the component-major layout of _element_blocks: (i, a)
+        fr = self.full_to_free[edofs.reshape(-1, 8, 3).transpose(0, 2, 1).reshape(-1, 24)]
         rows = np.broadcast_to(fr[:, :, None], (len(fr), 24, 24)).ravel()
         cols = np.broadcast_to(fr[:, None, :], (len(fr), 24, 24)).ravel()
         keep = (rows >= 0) & (cols >= 0)
-        self._keep = keep
+        self._keep = np.flatnonzero(keep)
+        self._buffers = None       # work arrays of _element_blocks, reused: no page faults
+        # dN by reference point: [a, (q, n)] for the Jacobians, [q, n, a] for the gradients
+        self._dN_a = np.ascontiguousarray(self.dN.transpose(1, 0, 2).reshape(8, -1))
+        self._dN_q = np.ascontiguousarray(self.dN.transpose(0, 2, 1))
         key = rows[keep].astype(np.int64) * self.n_free + cols[keep]
         ukey, self._inverse = np.unique(key, return_inverse=True)
         self._indices = (ukey % self.n_free).astype(np.int32)
@@ -122,21 +150,50 @@ class ElasticityAssembler:
 
     # ------------------------------------------------------------------ stiffness
     def element_matrices(self, X: np.ndarray) -> np.ndarray:
-        """Element stiffness matrices (E, 24, 24) for element coordinates X (E, 8, 3)."""
-        G, det = element_geometry(X, self.dN)
-        wd = det * self.w
-        E = X.shape[0]
-        Gw = (G * wd[:, :, None, None]).reshape(E, -1, 24)
-        T = np.matmul(Gw.transpose(0, 2, 1), G.reshape(E, -1, 24)).reshape(E, 8, 3, 8, 3)
-        K = self.lam * T + self.mu * T.transpose(0, 1, 4, 3, 2)
-        lap = np.einsum("eakbk->eab", T)
-        K[:, :, np.arange(3), :, np.arange(3)] += self.mu * lap[None]
-        return K.reshape(E, 24, 24)
+        """Element stiffness matrices (E, 24, 24) for element coordinates X (E, 8, 3), local DOF 3a + m."""
+        K = self._element_blocks(X)
+        return K.transpose(0, 2, 1, 4, 3).reshape(X.shape[0], 24, 24)
+
+    def _element_blocks(self, X: np.ndarray) -> np.ndarray:
+        """Element stiffness matrices in component-major layout K[e, i, a, j, b] (a work array).
+
+        With g = ∇N (Gauss point q, weight w_q det J_q) and T[i,a,j,b] = Σ_q w_q det J_q
+        g_a,i g_b,j, Hooke's law gives K[i,a,j,b] = λ T[i,a,j,b] + μ T[j,a,i,b] + μ δ_ij Σ_k
+        T[k,a,k,b]. T is one batched product; √(w det J) is folded into the gradients. The
+        returned array is overwritten by the next call.
+        """
+        E, Q = X.shape[0], self.w.size
+        if self._buffers is None or self._buffers[0].shape[0] != E:
+            self._buffers = (np.empty((E, 24, 24)), np.empty((E, 3, 8, 3, 8)), np.empty((E, 8, 8)))
+        T, K, lap = self._buffers
+        # J[m, n, q, e] = ∂x_m/∂ξ_n: one BLAS product for all elements and points
+        J = (X.transpose(2, 0, 1).reshape(3 * E, 8) @ self._dN_a).reshape(3, E, Q, 3)
+        J = np.ascontiguousarray(J.transpose(0, 3, 2, 1))
+        det, adj = det_adj_3x3(J)
+        if not np.all(det > 0):
+            bad = np.unique(np.nonzero(~(det > 0))[1])
+            raise MeshError(f"{bad.size} element(s) inverted or degenerate (det J ≤ 0), first: {bad[:5].tolist()}")
+        adj *= np.sqrt(det * self.w[:, None]) / det          # √(w det J) J⁻¹, [n, m, q, e]
+        # √(w det J) ∂N_a/∂x_m = Σ_n dN[q, a, n] (...)[n, m]: per q, rows (m, e)
+        Jq = adj.transpose(2, 1, 3, 0).reshape(Q, 3 * E, 3)
+        G = np.matmul(Jq, self._dN_q).reshape(Q, 3, E, 8)
+        G = np.ascontiguousarray(G.transpose(2, 1, 3, 0)).reshape(E, 24, Q)
+        np.matmul(G, G.transpose(0, 2, 1), out=T)
+        T5 = T.reshape(E, 3, 8, 3, 8)
+        np.add(T5[:, 0, :, 0], T5[:, 1, :, 1], out=lap)
+        lap += T5[:, 2, :, 2]
+        lap *= self.mu
+        np.multiply(T5.transpose(0, 3, 2, 1, 4), self.mu, out=K)
+        T5 *= self.lam
+        K += T5
+        for k in range(3):
+            K[:, k, :, k] += lap
+        return K
 
     def stiffness(self, coords: np.ndarray) -> sp.csr_matrix:
         """A on the free DOFs (CSR, symmetric positive definite when Γ_u is non-empty)."""
-        Ke = self.element_matrices(coords[self.elements])
-        data = np.bincount(self._inverse, weights=Ke.ravel()[self._keep], minlength=self._nnz)
+        K = self._element_blocks(coords[self.elements])
+        data = np.bincount(self._inverse, weights=K.ravel().take(self._keep), minlength=self._nnz)
         return sp.csr_matrix((data, self._indices, self._indptr), shape=(self.n_free, self.n_free))
 
     def full_stiffness(self, coords: np.ndarray) -> sp.csr_matrix:
