@@ -148,6 +148,9 @@ def test_kill_and_resume_gives_the_uninterrupted_result(tmp_path):
     assert b["iterations"] == a["iterations"] and b["evaluations"] == a["evaluations"]
     assert np.allclose(b["alpha"], a["alpha"], rtol=0, atol=1e-12)
     assert b["J"] == pytest.approx(a["J"], rel=1e-10)
+    # the history rows, iteration numbers included, are those of the uninterrupted run
+    ha, hb = ((d / "history.csv").read_text().splitlines() for d in (ref, out))
+    assert [r.split(",")[:3] for r in ha] == [r.split(",")[:3] for r in hb]
 
 
 def test_state_failure_stops_the_run_and_keeps_the_checkpoint(tmp_path, capsys, monkeypatch):

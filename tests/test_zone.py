@@ -173,9 +173,10 @@ def test_subgradient_does_not_depend_on_the_zone():
 
 def test_zone_settings_are_validated():
     with pytest.raises(ConfigError) as err:
-        load_config("example1").with_updates({"state": {"zone": "yes", "zone_margin": -1.0}})
+        load_config("example1").with_updates({"state": {"zone": "yes", "zone_margin": -1.0,
+                                                        "reuse_delassus": 1}})
     text = str(err.value)
-    assert "state.zone" in text and "state.zone_margin" in text
+    assert "state.zone" in text and "state.zone_margin" in text and "state.reuse_delassus" in text
 
 
 def test_checkpoint_contact_data_is_checked(tmp_path):
@@ -188,3 +189,92 @@ def test_checkpoint_contact_data_is_checked(tmp_path):
     for bad in (np.array([0, 5]), np.array([2, 1]), np.array([], dtype=int), np.array([-1, 0])):
         with pytest.raises(CheckpointError, match="contact zone"):
             _check_contact_data(tmp_path, None, bad, 5)
+
+
+# ---------------------------------------------------------------- Delassus reuse
+def test_newton_with_an_approximate_W_and_the_exact_product_solves_the_exact_problem():
+    # W perturbed by 2 % (as the block of a nearby design is) builds the Newton matrices; the
+    # exact product keeps u, the line search and the stopping test exact.
+    from contactopt.contact.newton import solve_newton
+    p = 30
+    S = random_spd(3 * p, seed=4, cond=1e2)
+    W = np.linalg.inv(S)
+    rng = np.random.default_rng(5)
+    q = rng.standard_normal(3 * p) * 0.1
+    q[0::3] -= 0.05                                        # most contacts pressed
+    exact = solve_newton(W, q, 0.3, tol=1e-13)
+    E = rng.standard_normal(W.shape)
+    W_old = W + 0.02 * np.abs(W).max() * (E + E.T) / 2
+    res = solve_newton(W_old, q, 0.3, tol=1e-13, product=W.dot)
+    assert res.converged and res.iterations > exact.iterations       # linear, not quadratic
+    assert np.abs(res.r - exact.r).max() <= 1e-9 * np.abs(exact.r).max()
+    np.testing.assert_allclose(res.u, W @ res.r + q, rtol=0, atol=1e-12 * np.abs(res.u).max())
+    from contactopt.errors import ProblemDataError
+    with pytest.raises(ProblemDataError, match="product"):
+        solve_newton(W, q, 0.3, product=np.eye(3))
+
+
+def test_zone_product_and_columns_are_those_of_W():
+    p = 20
+    S = random_spd(3 * p, seed=6, cond=1e3)
+    zp = ZoneProblem(S, np.zeros(3 * p), np.array([1, 4, 5, 11, 19]))
+    v = np.random.default_rng(7).standard_normal(15)
+    assert not zp.has_W and not zp.grown
+    assert np.abs(zp.product(v) - zp.W @ v).max() <= 1e-12 * np.abs(zp.W @ v).max()
+    g = zp.grow(np.array([2, 11]))
+    assert g.grown and not g.has_W
+    assert np.abs(g.columns(np.array([2, 19])) - g.W[:, [3, 4, 5, 15, 16, 17]]).max() <= 1e-12 * np.abs(g.W).max()
+    assert np.abs(g.W - ZoneProblem(S, np.zeros(3 * p), g.zone).W).max() <= 1e-10 * np.abs(g.W).max()
+
+
+def design_path(pr, n, step=2e-3):
+    return [wavy(pr, amp=0.004 + step * k, phase=0.3 * k) for k in range(n)]
+
+
+def test_reused_delassus_gives_the_states_of_formed_ones():
+    reuse, formed = small_problem(), small_problem(reuse_delassus=False)
+    how = []
+    for alpha in design_path(reuse, 6):
+        a, b = reuse.solve_state(alpha), formed.solve_state(alpha)
+        how.append(a.info["delassus"])
+        assert b.info["delassus"] == "formed"
+        assert np.abs(a.lam - b.lam).max() <= 1e-9 * b.lam.max()
+        assert np.abs(a.tau - b.tau).max() <= 1e-9 * b.lam.max()
+        assert np.abs(a.u - b.u).max() <= 1e-9 * np.abs(b.u).max()
+        assert np.array_equal(a.classes, b.classes) and a.complementarity <= 1e-9
+        assert np.linalg.norm(subgradient(reuse, alpha).gradient - subgradient(formed, alpha).gradient) \
+            <= 1e-7 * np.linalg.norm(subgradient(formed, alpha).gradient)
+    assert how[0] == "formed" and how.count("reused") >= 3
+    assert reuse.n_delassus < formed.n_delassus
+
+
+def test_restored_delassus_repeats_the_solve_bit_for_bit():
+    # what a resumed run relies on: (alpha, zone) of the kept block rebuild it exactly, also
+    # when it was formed on a grown zone
+    pr = small_problem(zone_margin=0.0)
+    path = design_path(pr, 5)
+    pr.solve_state(path[0])
+    pr.next_zone = np.flatnonzero(pr.solve_state(path[1]).lam > 0)[:3]   # will miss and grow
+    pr._jacobian = None
+    st = pr.solve_state(path[2])
+    assert st.info["zone_misses"] >= 1 and st.info["delassus"] == "formed"
+    saved = (pr.jacobian_design(), pr._warm.copy(), pr.next_zone.copy())
+    a = pr.solve_state(path[3])
+    again = small_problem(zone_margin=0.0)
+    again.restore_jacobian(*saved[0])
+    again._warm, again.next_zone = saved[1], saved[2]
+    b = again.solve_state(path[3])
+    assert a.info["delassus"] == b.info["delassus"] == "reused"
+    assert np.array_equal(a.lam, b.lam) and np.array_equal(a.u, b.u)
+
+
+def test_checkpoint_delassus_design_is_checked(tmp_path):
+    from contactopt.errors import CheckpointError
+    good = (np.zeros(4), np.array([0, 3]))
+    _check_contact_data(tmp_path, None, None, 5, good, 4)
+    for bad in ((np.zeros(3), np.array([0, 3])), (np.full(4, np.nan), np.array([0, 3]))):
+        with pytest.raises(CheckpointError, match="Delassus design"):
+            _check_contact_data(tmp_path, None, None, 5, bad, 4)
+    for zone in (np.array([0, 5]), np.array([3, 1]), np.array([], dtype=np.int64)):
+        with pytest.raises(CheckpointError, match="Delassus zone"):
+            _check_contact_data(tmp_path, None, None, 5, (np.zeros(4), zone), 4)

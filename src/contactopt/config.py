@@ -99,6 +99,9 @@ SCHEMA = {
         "zone_margin": (0.1, lambda x: _nonneg(x) and x <= 10,
                         "a number in [0, 10] (clearance, relative to the displacement scale, "
                         "within which a node joins the contact zone)"),
+        "reuse_delassus": (True, lambda x: isinstance(x, bool),
+                           "true or false (Newton builds its matrices from the Delassus block of "
+                           "an earlier design, with exact residuals, instead of inverting the new one)"),
     },
     "linear_solver": {
         "backend": ("auto", _oneof("auto", "pardiso", "scipy"), "'auto', 'pardiso' or 'scipy'"),

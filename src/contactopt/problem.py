@@ -30,6 +30,11 @@ from .fem.model import Assembled, ElasticModel
 
 log = logging.getLogger(__name__)
 
+REUSE_MAX_STEPS = 12   # a solve with a kept Delassus block that needs more steps drops it
+REUSE_TOL_FACTOR = 1e-2  # and it iterates to this times tol: with an inexact Jacobian the
+                         # convergence is linear, not quadratic, and its last step would otherwise
+                         # leave an error near tol where exact Newton overshoots to round-off
+
 
 @dataclass
 class Condensed:
@@ -68,6 +73,9 @@ class ShapeProblem:
         self.backend = backend or self.config["linear_solver"]["backend"]
         self.use_zone = bool(st["zone"])
         self.zone_margin = float(st["zone_margin"])
+        self.reuse_delassus = bool(st["reuse_delassus"])
+        self._jacobian = None      # (alpha, zone, W_Z) of an earlier design: Newton's matrices
+        self.n_delassus = 0        # Delassus blocks W_Z formed (the others were reused)
         p = self.model.n_contact
         self._all_nodes = np.arange(p)
         self._warm = None          # last contact forces, (p, 3) per node (N, T1, T2), warm starts
@@ -116,14 +124,16 @@ class ShapeProblem:
         zone = self.next_zone if self.use_zone else self._all_nodes
         warm = self._warm if warm_start else None
         misses = 0
+        reused = []
         t0 = time.perf_counter()
         zp = zone_rules.ZoneProblem(cond.S, cond.ell, zone)
         t1 = time.perf_counter()
         while True:
-            res = self._solve_local(zp, cond.gap[zone], warm, method, tol)
+            res, t_inv, how = self._solve_local(zp, cond, warm, method, tol, alpha)
+            reused.append(how)
             u3 = zp.displacements(res.r)
-            timings["delassus"] += t1 - t0
-            timings["contact"] += time.perf_counter() - t1
+            timings["delassus"] += t1 - t0 + t_inv
+            timings["contact"] += time.perf_counter() - t1 - t_inv
             clearance = u3[:, 2] + cond.gap
             u_scale = displacement_scale(u3, cond.gap)
             missed = zone_rules.missed_nodes(zone, clearance, u_scale)
@@ -158,7 +168,7 @@ class ShapeProblem:
                       complementarity=contact_conditions_violation(u3, lam, tau, cond.gap, self.friction),
                       converged=res.converged, timings=timings,
                       info={"backend": getattr(cond.factor, "backend", "?"), "zone_nodes": int(zone.size),
-                            "zone_misses": misses})
+                            "zone_misses": misses, "delassus": reused[-1]})
         self._warm = self._zone_warm(res.r, zone)
         if self.use_zone:
             self.next_zone = zone_rules.near_nodes(lam, clearance, u_scale, self.zone_margin)
@@ -169,14 +179,87 @@ class ShapeProblem:
                   res.error, zone.size, p, timings["total"])
         return state
 
-    def _solve_local(self, zp, gap, warm, method, tol):
-        """The zone's local problem u = W r + q, q = (S⁻¹ℓ)_Z + (g, 0, 0), in the FCLIB convention."""
+    def _solve_local(self, zp, cond, warm, method, tol, alpha):
+        """The zone's local problem u = W r + q, q = (S⁻¹ℓ)_Z + (g, 0, 0), in the FCLIB convention.
+
+        Returns (result, time spent forming W_Z, how W_Z entered: "formed" or "reused"). With
+        ``reuse_delassus``, Newton first runs with the Delassus block of an earlier design as its
+        matrix and exact products W_Z r by triangular solves (:meth:`ZoneProblem.product`), to
+        REUSE_TOL_FACTOR·tol, so the state is exact either way; W_Z is formed (and kept for later
+        designs) when that solve fails, and the kept block is dropped when it needed more than
+        REUSE_MAX_STEPS steps.
+        """
         from .contact.local import solve_local
+        from .contact.newton import solve_newton
         q = zp.q0.copy()
-        q[0::3] += gap
+        q[0::3] += cond.gap[zp.zone]
         r0 = warm[zp.zone].ravel() if warm is not None else None
-        return solve_local(zp.W, q, self.friction, method=method, tol=tol or self.tol,
-                           max_iter=self.max_iter, r0=r0)
+        tol = tol or self.tol
+        if method == "newton" and self.reuse_delassus and not zp.has_W:
+            W_old = self._reused_jacobian(zp)
+            if W_old is not None:
+                res = solve_newton(W_old, q, self.friction, tol=tol * REUSE_TOL_FACTOR,
+                                   max_iter=self.max_iter, r0=r0, product=zp.product,
+                                   raise_on_failure=False)
+                if res.converged:
+                    if res.iterations > REUSE_MAX_STEPS:
+                        self._jacobian = None              # stale: form W_Z at the next design
+                    return res, 0.0, "reused"
+                log.debug("Newton with the Delassus block of an earlier design stopped at %.2e "
+                          "after %d steps; forming W_Z", res.error, res.iterations)
+                r0 = res.r
+        t0 = time.perf_counter()
+        keep = method == "newton" and self.reuse_delassus
+        if keep and zp.grown:
+            # a kept block must be what restore_jacobian(alpha, zone) rebuilds, bit for bit (a
+            # resumed run repeats the uninterrupted one): the zone's own factorization, not the
+            # grown block (equal up to round-off). Zones grow rarely.
+            W = zone_rules.ZoneProblem(cond.S, cond.ell, zp.zone).W
+        else:
+            W = zp.W
+        t_inv = time.perf_counter() - t0
+        self.n_delassus += 1
+        if keep:
+            self._jacobian = (alpha, zp.zone, W)
+        res = solve_local(W, q, self.friction, method=method, tol=tol, max_iter=self.max_iter, r0=r0)
+        return res, t_inv, "formed"
+
+    def _reused_jacobian(self, zp):
+        """The kept Delassus block on the nodes of zp's zone (its missing nodes' columns exact), or
+        None when there is none or it misses more than a quarter of the zone."""
+        if self._jacobian is None:
+            return None
+        _, kept_zone, W = self._jacobian
+        zone = zp.zone
+        if zone.size == kept_zone.size and np.array_equal(zone, kept_zone):
+            return W
+        pos = np.searchsorted(kept_zone, zone).clip(max=kept_zone.size - 1)
+        known = kept_zone[pos] == zone
+        if np.count_nonzero(~known) > zone.size // 4:
+            return None
+        dof = (3 * pos[known, None] + np.arange(3)).ravel()        # FCLIB order is kept per node
+        out = np.empty((3 * zone.size, 3 * zone.size))
+        kd = (3 * np.flatnonzero(known)[:, None] + np.arange(3)).ravel()
+        out[np.ix_(kd, kd)] = W.take(dof, axis=0).take(dof, axis=1)
+        if not np.all(known):
+            md = (3 * np.flatnonzero(~known)[:, None] + np.arange(3)).ravel()
+            X = zp.columns(zone[~known])                          # exact columns of the new nodes
+            out[:, md] = X
+            out[md, :] = X.T
+        return out
+
+    def jacobian_design(self):
+        """(alpha, zone) of the kept Delassus block, or None: with them
+        :meth:`restore_jacobian` rebuilds the same block (checkpoints)."""
+        return None if self._jacobian is None else (self._jacobian[0], self._jacobian[1])
+
+    def restore_jacobian(self, alpha, zone) -> None:
+        """Form and keep the Delassus block W_Z at design ``alpha`` for the nodes ``zone``."""
+
+        cond = self.condensed_system(self.model.surface.as_vector(alpha))
+        zone = np.asarray(zone, dtype=np.int64)
+        self._jacobian = (np.array(alpha, dtype=float),
+                          zone, zone_rules.ZoneProblem(cond.S, cond.ell, zone).W)
 
     def _zone_warm(self, r_loc: np.ndarray, zone: np.ndarray) -> np.ndarray:
         """Contact forces of a zone solve as a (p, 3) warm start, per node (N, T1, T2)."""

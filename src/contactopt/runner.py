@@ -118,6 +118,9 @@ def _write_checkpoint(path: Path, bstate, oracle: _Oracle, fingerprint: str, ela
                   meta_elapsed=np.array(elapsed), meta_scale=np.array(oracle.scale), meta_eps=np.array(opt["eps"]),
                   meta_max_iter=np.array(opt["max_iter"]), warm=np.asarray(warm if warm is not None else np.zeros(0)),
                   zone=np.asarray(oracle.problem.next_zone))
+    jac = oracle.problem.jacobian_design()        # rebuilt at resume: the same Newton matrices
+    arrays.update(jacobian_alpha=np.asarray(jac[0] if jac else np.zeros(0), dtype=float),
+                  jacobian_zone=np.asarray(jac[1] if jac else np.zeros(0), dtype=np.int64))
     atomic_savez(path, **arrays)
 
 
@@ -141,12 +144,15 @@ def _read_checkpoint(path: Path, fingerprint: str):
         raise CheckpointError(f"checkpoint {path}: {exc}") from None
     warm = data["warm"] if data["warm"].size else None
     zone = data["zone"].astype(np.int64) if "zone" in data else None
+    jacobian = None
+    if "jacobian_alpha" in data and data["jacobian_alpha"].size:
+        jacobian = (data["jacobian_alpha"].astype(float), data["jacobian_zone"].astype(np.int64))
     return (bstate, int(data["meta_evaluations"]), float(data["meta_elapsed"]), warm,
-            float(data["meta_scale"]), zone)
+            float(data["meta_scale"]), zone, jacobian)
 
 
-def _check_contact_data(path: Path, warm, zone, n_contact: int):
-    """The warm start and contact zone of a checkpoint must fit the mesh's contact nodes.
+def _check_contact_data(path: Path, warm, zone, n_contact: int, jacobian=None, n_design: int = 0):
+    """The warm start, contact zone and kept Delassus design of a checkpoint must fit the mesh.
 
     Returns the warm start as (p, 3) (older checkpoints stored it flat, in the same order)."""
     if warm is not None:
@@ -158,6 +164,15 @@ def _check_contact_data(path: Path, warm, zone, n_contact: int):
                              or np.any(np.diff(zone) <= 0)):
         raise CheckpointError(f"checkpoint {path}: its contact zone is not a sorted set of contact "
                               f"nodes 0..{n_contact - 1}")
+    if jacobian is not None:
+        alpha, jzone = jacobian
+        if alpha.shape != (n_design,) or not np.all(np.isfinite(alpha)):
+            raise CheckpointError(f"checkpoint {path}: its Delassus design has shape {alpha.shape} "
+                                  f"(expected ({n_design},), finite)")
+        if (jzone.ndim != 1 or jzone.size == 0 or jzone[0] < 0 or jzone[-1] >= n_contact
+                or np.any(np.diff(jzone) <= 0)):
+            raise CheckpointError(f"checkpoint {path}: its Delassus zone is not a sorted set of "
+                                  f"contact nodes 0..{n_contact - 1}")
     return warm
 
 
@@ -200,8 +215,8 @@ def run_optimization(config, outdir=None, *, eps=None, max_iter=None, resume=Fal
     out = Path(outdir or Path("runs") / cfg.name)
     ckpt = out / "checkpoint.npz"
     if resume:
-        bstate, n_eval, elapsed0, warm, scale, zone = _read_checkpoint(ckpt, fingerprint)
-        warm = _check_contact_data(ckpt, warm, zone, model.n_contact)
+        bstate, n_eval, elapsed0, warm, scale, zone, jacobian = _read_checkpoint(ckpt, fingerprint)
+        warm = _check_contact_data(ckpt, warm, zone, model.n_contact, jacobian, model.n_design)
     out = prepare_output_dir(out, overwrite=overwrite, resume=resume)
     handler = logging.FileHandler(out / "run.log")
     handler.setFormatter(logging.Formatter("%(asctime)s %(levelname)s %(name)s: %(message)s"))
@@ -222,10 +237,13 @@ def run_optimization(config, outdir=None, *, eps=None, max_iter=None, resume=Fal
         if resume:
             _truncate_history(hist, n_eval)
             oracle.count = n_eval
+            oracle.iteration = bstate.nit     # history rows before the first callback
             oracle.t_start -= elapsed0
             problem._warm = warm
             if zone is not None:
                 problem.next_zone = zone
+            if jacobian is not None and problem.reuse_delassus:
+                problem.restore_jacobian(*jacobian)
             oracle.scale = scale
             state_kw["state"] = bstate
             log.info("resuming %s at iteration %d (%d evaluations)", out, bstate.nit, n_eval)

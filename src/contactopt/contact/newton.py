@@ -57,6 +57,7 @@ _PREDICTOR_TOL = 1e-6    # Siconos error at which the frictionless predictor sto
 _PREDICTOR_STEPS = 20    # and its step budget
 _RCOND_MIN = 1e-13       # reciprocal condition below which a Newton matrix counts as singular
 _PIVOT_SCREEN = 1e-8     # LU pivot ratio above which the condition estimate is skipped
+_CHORD_RATE = 0.2        # a reused factorization must cut the error by this factor per step
 _REASONS = {
     "max": "Newton step limit of the phase reached",
     "budget": "max_iter Newton steps used",
@@ -99,9 +100,15 @@ def alart_curnier(r, u, mu, rho):
 class _Solver:
     """Holds the dense problem and the counters shared by the plain and proximal phases."""
 
-    def __init__(self, W, q, mu, tol, rho_scale=1.0):
+    def __init__(self, W, q, mu, tol, rho_scale=1.0, product=None):
         self.rho_scale = rho_scale
-        self.W = W
+        self.W = W                  # the matrix of the Newton steps (exact or approximate W)
+        self.apply = product if product is not None else W.dot   # the exact product v -> W v
+        # with an inexact W the steps are inexact anyway: the factorization is then kept while
+        # the pieces of Phi (contact, slip sets) stay the same (see direction)
+        self.freeze = product is not None
+        self._frozen = None         # (pieces key, LU) of the last factorization
+        self.last_frozen = False    # whether the last direction reused it
         self.q = q
         self.mu = mu
         self.tol = tol
@@ -117,8 +124,8 @@ class _Solver:
         self.wscale = float(np.mean(np.abs(self.wdiag))) or 1.0
         self.history: list[float] = []
         self.best = (np.inf, None, None)
-        self.counts = {"factorizations": 0, "line_search_evals": 0, "singular": 0,
-                       "line_search_failures": 0}
+        self.counts = {"factorizations": 0, "reused_factorizations": 0, "line_search_evals": 0,
+                       "singular": 0, "line_search_failures": 0}
         self.active_trace: list[tuple[int, int]] = []
 
     def frictionless(self, tol):
@@ -138,8 +145,12 @@ class _Solver:
         return self.rho_scale / np.where(d > 0, d, self.wscale + alpha)
 
     # -- one Newton direction ------------------------------------------------------------
-    def direction(self, r, Phi, piece, rho, alpha):
+    def direction(self, r, Phi, piece, rho, alpha, fresh=False):
         """Solve ``(A + B (W + alpha I)) d = -Phi``; return ``d`` or ``None`` if singular.
+
+        With ``freeze`` (W inexact) and unless ``fresh``, the LU factorization of the previous
+        direction is reused when the contact and slip sets are unchanged: only the slip
+        directions and ``c`` in the matrix are then those of the earlier iterate (a chord step).
 
         Rows scaled by ``1/rho``, ``f = -Phi/rho``, ``W_a = W + alpha I``:
 
@@ -193,6 +204,17 @@ class _Solver:
         nF, tF, cF, muF = n[fric], t[fric], c[fric], muS[fric]
         a, b = plain.size, plain.size + SF.size
         m = b + SF.size
+        rhs = np.empty(m)
+        rhs[:a] = (f - v).ravel()[plain_loc]
+        rhs[a:b] = f[SF, 0] - v[SF, 0]
+        rhs[b:] = f_t[fric] - cF * np.einsum("ij,ij->i", tF, v[SF, 1:])
+        key = (alpha, act.tobytes(), piece.slip.tobytes())
+        self.last_frozen = bool(self.freeze and not fresh and self._frozen is not None
+                                and self._frozen[0] == key)
+        if self.last_frozen:
+            self.counts["reused_factorizations"] += 1
+            return self._finish_direction(d, ia, e, plain_loc, a, b, SF, muF, nF, tF,
+                                          self._frozen[1].solve(rhs))
         # rows: W rows of the plain and N unknowns, c (t . W_T) for the t rows
         R = np.empty((m, W.shape[1]))
         W.take(np.concatenate([plain, iN]), axis=0, out=R[:b])
@@ -210,10 +232,6 @@ class _Solver:
         if alpha:                              # (W + alpha I) in the same frame
             diag[:b] += alpha
             diag[b:] += cF * alpha
-        rhs = np.empty(m)
-        rhs[:a] = (f - v).ravel()[plain_loc]
-        rhs[a:b] = f[SF, 0] - v[SF, 0]
-        rhs[b:] = f_t[fric] - cF * np.einsum("ij,ij->i", tF, v[SF, 1:])
         anorm = (1.0 + self.mu_max) * self.wnorm_inf + alpha + float(dval.max(initial=0.0))
         lu = LUFactor(M)
         self.counts["factorizations"] += 1
@@ -221,7 +239,10 @@ class _Solver:
         if lu.info != 0 or (not lu.pivot_ratio() > _PIVOT_SCREEN and not lu.rcond(anorm) > _RCOND_MIN):
             self.counts["singular"] += 1
             return None
-        z = lu.solve(rhs)
+        self._frozen = (key, lu) if self.freeze else None
+        return self._finish_direction(d, ia, e, plain_loc, a, b, SF, muF, nF, tF, lu.solve(rhs))
+
+    def _finish_direction(self, d, ia, e, plain_loc, a, b, SF, muF, nF, tF, z):
         if not np.all(np.isfinite(z)):
             self.counts["singular"] += 1
             return None
@@ -236,7 +257,7 @@ class _Solver:
 
     def _line_search(self, r, ua, theta, recent, d, rho, alpha):
         """Non-monotone Armijo backtracking on 1/2 ||Phi||^2; ``None`` if no step is found."""
-        Wd = self.W @ d
+        Wd = self.apply(d)
         Wad = Wd + alpha * d if alpha else Wd
         t = 1.0
         ref = max(recent[-4:])
@@ -255,9 +276,9 @@ class _Solver:
     def newton(self, r, alpha, rc, inner_tol, max_steps, budget):
         """Run Newton steps; return ``(r, status)`` with status in
         ``converged | inner | max | singular | linesearch | stagnation | budget``."""
-        W, q, mu = self.W, self.q, self.mu
+        q, mu = self.q, self.mu
         rho = self.rho(alpha)
-        u = W @ r + q
+        u = self.apply(r) + q
         qa = q - alpha * rc if alpha else q
         ua = u + alpha * (r - rc) if alpha else u
         Phi, piece = alart_curnier(r, ua, mu, rho)
@@ -265,15 +286,21 @@ class _Solver:
         recent = [theta]
         err_hist = []
         steps = 0
+        slow = False
         while True:
             if steps >= max_steps:
                 return r, "max"
             if len(self.history) >= budget:
                 return r, "budget"
-            d = self.direction(r, Phi, piece, rho, alpha)
+            d = self.direction(r, Phi, piece, rho, alpha, fresh=slow)
+            if d is None and self.last_frozen:
+                d = self.direction(r, Phi, piece, rho, alpha, fresh=True)
             if d is None:
                 return r, "singular"
             step = self._line_search(r, ua, theta, recent, d, rho, alpha)
+            if step is None and self.last_frozen:    # the chord step failed: a fresh one
+                d = self.direction(r, Phi, piece, rho, alpha, fresh=True)
+                step = None if d is None else self._line_search(r, ua, theta, recent, d, rho, alpha)
             if step is None:
                 self.counts["line_search_failures"] += 1
                 return r, "linesearch"
@@ -285,6 +312,8 @@ class _Solver:
             if not (np.all(np.isfinite(r)) and np.all(np.isfinite(u))):
                 raise ContactNotConverged("Newton produced non-finite values", self.history)
             err = siconos_error(r, u, q, mu)
+            # a chord step that gained less than a factor _CHORD_RATE: refactorize next time
+            slow = self.last_frozen and len(err_hist) > 0 and err > _CHORD_RATE * err_hist[-1]
             self.history.append(err)
             err_hist.append(err)
             if err < self.best[0]:
@@ -302,7 +331,8 @@ class _Solver:
 def solve_newton(W, q, mu, *, tol: float = 1e-8, max_iter: int = 200, r0=None,
                  proximal: str = "auto", plain_max_iter: int = 50, prox_sigma: float = 0.1,
                  prox_inner_max_iter: int = 25, rho_scale: float = 0.5,
-                 predictor: str = "frictionless", raise_on_failure: bool = True) -> LocalResult:
+                 predictor: str = "frictionless", raise_on_failure: bool = True,
+                 product=None) -> LocalResult:
     """Semismooth Newton (Alart–Curnier) for ``u = W r + q``, ``K_mu ∋ r ⊥ u~ ∈ K_mu*``.
 
     Parameters
@@ -327,6 +357,11 @@ def solve_newton(W, q, mu, *, tol: float = 1e-8, max_iter: int = 200, r0=None,
         already has the contact set nearly right; ``"none"`` starts from ``r = 0``. A predictor
         that fails is ignored. Its steps are counted in ``stats["predictor_iterations"]``.
     raise_on_failure : raise :class:`ContactNotConverged` (with the error history) on failure.
+    product : optional callable ``v -> W_exact v``. Then ``W`` need only approximate the
+        Delassus operator (e.g. the one of a nearby design): the Newton matrices are built from
+        ``W`` (an inexact Jacobian: the convergence becomes linear, at a rate of the order of
+        ``||W - W_exact||`` relative), while ``u``, the line search and the stopping test use the
+        exact product, so the result solves the exact problem to ``tol``.
     """
     t0 = time.perf_counter()
     if isinstance(W, spla.LinearOperator):
@@ -340,7 +375,9 @@ def solve_newton(W, q, mu, *, tol: float = 1e-8, max_iter: int = 200, r0=None,
         W = W.toarray()
     W = np.ascontiguousarray(W)
     n_pred = 0
-    S = _Solver(W, q, mu, tol, rho_scale)
+    if product is not None and not callable(product):
+        raise ProblemDataError("product must be a callable v -> W v")
+    S = _Solver(W, q, mu, tol, rho_scale, product)
     if r0 is None and predictor == "frictionless" and S.mu_max > 0:
         pred = S.frictionless(max(tol, _PREDICTOR_TOL))
         pred.newton(np.zeros(q.size), 0.0, None, 0.0, _PREDICTOR_STEPS, _PREDICTOR_STEPS)
@@ -348,7 +385,7 @@ def solve_newton(W, q, mu, *, tol: float = 1e-8, max_iter: int = 200, r0=None,
         if pred.best[1] is not None:          # the iterates are checked finite as they come
             r0 = pred.best[1]
     r = np.zeros(q.size) if r0 is None else r0.copy()
-    u = W @ r + q
+    u = S.apply(r) + q
     err0 = siconos_error(r, u, q, mu)
     S.best = (err0, r.copy(), u.copy())
     status = "converged" if err0 <= tol else ""
@@ -372,7 +409,7 @@ def solve_newton(W, q, mu, *, tol: float = 1e-8, max_iter: int = 200, r0=None,
             r, status = S.newton(r, alpha, rc, inner_tol, prox_inner_max_iter, max_iter)
             if status == "converged":
                 break
-            err_new = siconos_error(r, W @ r + q, q, mu)
+            err_new = siconos_error(r, S.apply(r) + q, q, mu)
             if status == "inner" and err_new < err:
                 err = err_new
                 alpha = prox_sigma * err * S.wscale
@@ -385,7 +422,7 @@ def solve_newton(W, q, mu, *, tol: float = 1e-8, max_iter: int = 200, r0=None,
             log.debug("PROX round %d: status %s, error %.3e, next alpha %.2e",
                       prox_rounds, status, err, alpha)
     err, r, _ = S.best
-    u = W @ r + q               # the iteration updates u incrementally: report the exact one
+    u = S.apply(r) + q          # the iteration updates u incrementally: report the exact one
     err = siconos_error(r, u, q, mu)
     converged = err <= tol
     elapsed = time.perf_counter() - t0

@@ -76,12 +76,48 @@ class ZoneProblem:
         self._order = np.concatenate([dof_n, _local_dofs(zone)])
         # two takes: several times faster than S[np.ix_(order, order)] for a 1536² matrix
         self._L = cholesky_lower(np.ascontiguousarray(S.take(self._order, axis=0).take(self._order, axis=1)))
-        self._set_zone(zone, inverse_from_cholesky(self._L, dof_n.size), self.solve(ell))
+        self._start = dof_n.size
+        self._parent = None
+        self._set_zone(zone, None, self.solve(ell))
 
     def _set_zone(self, zone, W, z):
-        self.zone, self.W, self._z = zone, W, z
+        self.zone, self._W, self._z = zone, W, z
         self._dof_z = _local_dofs(zone)
         self.q0 = z[self._dof_z]
+
+    @property
+    def W(self) -> np.ndarray:
+        """W_Z = (S⁻¹)_ZZ in FCLIB order, formed on first use (the inverse of the trailing factor
+        block, plus two triangular solves per DOF added by :meth:`grow`)."""
+        if self._W is None:
+            if self._parent is None:
+                self._W = inverse_from_cholesky(self._L, self._start)
+            else:
+                self._W = self._grown_inverse(self._parent.W, self._parent.zone)
+        return self._W
+
+    @property
+    def grown(self) -> bool:
+        """Whether this zone came from :meth:`grow` (its W_Z then extends the first zone's)."""
+        return self._parent is not None
+
+    @property
+    def has_W(self) -> bool:
+        """Whether W_Z has been formed already."""
+        return self._W is not None
+
+    def product(self, r_loc: np.ndarray) -> np.ndarray:
+        """W_Z r_loc (FCLIB order) without forming W_Z: two triangular solves with the factor."""
+        f = np.zeros(3 * self.p)
+        f[self._dof_z] = r_loc
+        return self.solve(f)[self._dof_z]
+
+    def columns(self, nodes: np.ndarray) -> np.ndarray:
+        """The columns of W_Z of the zone nodes ``nodes`` (3z × 3k, FCLIB order): two
+        triangular solves each."""
+        E = np.zeros((3 * self.p, 3 * len(nodes)))
+        E[_local_dofs(nodes), np.arange(3 * len(nodes))] = 1.0
+        return self.solve(E)[self._dof_z]
 
     def solve(self, b: np.ndarray) -> np.ndarray:
         """S⁻¹ b for b of length 3p (or (3p, m)), per node (t1, t2, ν)."""
@@ -97,28 +133,31 @@ class ZoneProblem:
         return (self._z + self.solve(f)).reshape(self.p, 3)
 
     def grow(self, nodes: np.ndarray) -> "ZoneProblem":
-        """The problem of the zone ∪ ``nodes`` (a new object sharing the factorization)."""
+        """The problem of the zone ∪ ``nodes`` (a new object sharing the factorization; its W_Z,
+        when needed, extends this zone's by the columns of the added DOFs)."""
         new = np.union1d(self.zone, nodes)
-        added = np.setdiff1d(new, self.zone)
         out = object.__new__(ZoneProblem)
-        out.p, out._order, out._L = self.p, self._order, self._L
-        if added.size == 0:
-            out._set_zone(self.zone, self.W, self._z)
-            return out
-        dof_new = _local_dofs(new)
-        was_in = np.isin(new, self.zone, assume_unique=True)
+        out.p, out._order, out._L, out._start = self.p, self._order, self._L, self._start
+        if new.size == self.zone.size:
+            out._parent = self._parent
+            out._set_zone(self.zone, self._W, self._z)
+        else:
+            out._parent = self
+            out._set_zone(new, None, self._z)
+        return out
+
+    def _grown_inverse(self, W_old: np.ndarray, old_zone: np.ndarray) -> np.ndarray:
+        new = self.zone
+        was_in = np.isin(new, old_zone, assume_unique=True)
         old_dofs, add_dofs = _node_dofs(np.flatnonzero(was_in)), _node_dofs(np.flatnonzero(~was_in))
-        E = np.zeros((3 * self.p, 3 * added.size))
-        E[_local_dofs(added), np.arange(3 * added.size)] = 1.0
-        X = self.solve(E)[dof_new]                     # columns of S⁻¹ of the added DOFs
-        W = np.empty((dof_new.size, dof_new.size))
-        W[np.ix_(old_dofs, old_dofs)] = self.W
+        X = self.columns(new[~was_in])                 # columns of S⁻¹ of the added DOFs
+        W = np.empty((self._dof_z.size, self._dof_z.size))
+        W[np.ix_(old_dofs, old_dofs)] = W_old
         W[:, add_dofs] = X
         W[add_dofs, :] = X.T
         B = X[add_dofs]                                # S⁻¹ on the added DOFs: symmetric up to round-off
         W[np.ix_(add_dofs, add_dofs)] = 0.5 * (B + B.T)
-        out._set_zone(new, W, self._z)
-        return out
+        return W
 
 
 def _local_dofs(nodes: np.ndarray) -> np.ndarray:
