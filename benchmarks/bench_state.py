@@ -171,7 +171,8 @@ def in_optimization(cfg, n_iter):
         res = subgradient(pr, x)
         t2 = time.perf_counter()
         states.append((t1 - t0, st.info["zone_nodes"], st.info["zone_misses"],
-                       (t1 - t0) / paired_factorization(pr, x)))
+                       (t1 - t0) / paired_factorization(pr, x), st.info["delassus"] == "reused",
+                       st.iterations))
         subs.append(t2 - t1)
         if scale[0] is None:
             scale[0] = res.value
@@ -187,6 +188,8 @@ def in_optimization(cfg, n_iter):
           f"state solve median {np.median(t):.3f} s, ratio to the paired factorization: median "
           f"{np.median(ratio):.2f} ×, mean {ratio.mean():.2f} ×, 90th percentile "
           f"{np.percentile(ratio, 90):.2f} ×, worst {ratio.max():.2f} × | "
+          f"Delassus block reused in {sum(s[4] for s in states)} of {len(states)} solves, "
+          f"{np.mean([s[5] for s in states]):.1f} Newton steps on average | "
           f"{pr.n_zone_misses} zone misses, zone {min(zones)}–{max(zones)} of "
           f"{model.n_contact} nodes | subgradient median {np.median(subs):.3f} s = "
           f"{np.median(subs) / np.median(t):.2f} × state solve | {wall:.1f} s in all")

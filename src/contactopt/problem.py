@@ -31,9 +31,11 @@ from .fem.model import Assembled, ElasticModel
 log = logging.getLogger(__name__)
 
 REUSE_MAX_STEPS = 12   # a solve with a kept Delassus block that needs more steps drops it
-REUSE_TOL_FACTOR = 1e-2  # and it iterates to this times tol: with an inexact Jacobian the
-                         # convergence is linear, not quadratic, and its last step would otherwise
-                         # leave an error near tol where exact Newton overshoots to round-off
+REUSE_MAX_GAP = 0.2      # kept blocks farther than this from the new W_Z (relative) are not used
+CHORD_MIN_GAP = 1e-3     # below this gap Newton is nearly quadratic: no chord steps
+REUSE_TOL_FACTOR = 0.1   # and it iterates to this times tol: exact Newton's last, quadratic
+                         # step usually overshoots far below tol; an inexact Jacobian converges
+                         # linearly and would otherwise stop just below it
 
 
 @dataclass
@@ -52,6 +54,14 @@ def spd_inverse(S: np.ndarray) -> np.ndarray:
     """Inverse of a dense SPD matrix by Cholesky (see :func:`contactopt.fem.dense.spd_inverse`)."""
     from .fem.dense import spd_inverse as inverse
     return inverse(S)
+
+
+def _relative_gap(W_old: np.ndarray, zp) -> float:
+    """‖(W_old − W_Z) v‖ / ‖W_Z v‖ for a fixed smooth v: how far a kept Delassus block is from
+    the zone's exact one (two triangular solves and a product)."""
+    v = np.sin(0.7 * np.arange(W_old.shape[0]) + 0.3)
+    w = zp.product(v)
+    return float(np.linalg.norm(W_old @ v - w) / max(np.linalg.norm(w), 1e-300))
 
 
 class ShapeProblem:
@@ -197,10 +207,11 @@ class ShapeProblem:
         tol = tol or self.tol
         if method == "newton" and self.reuse_delassus and not zp.has_W:
             W_old = self._reused_jacobian(zp)
-            if W_old is not None:
+            eta = np.inf if W_old is None else _relative_gap(W_old, zp)
+            if eta <= REUSE_MAX_GAP:
                 res = solve_newton(W_old, q, self.friction, tol=tol * REUSE_TOL_FACTOR,
                                    max_iter=self.max_iter, r0=r0, product=zp.product,
-                                   raise_on_failure=False)
+                                   chord=eta > CHORD_MIN_GAP, raise_on_failure=False)
                 if res.converged:
                     if res.iterations > REUSE_MAX_STEPS:
                         self._jacobian = None              # stale: form W_Z at the next design

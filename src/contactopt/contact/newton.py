@@ -58,6 +58,8 @@ _PREDICTOR_STEPS = 20    # and its step budget
 _RCOND_MIN = 1e-13       # reciprocal condition below which a Newton matrix counts as singular
 _PIVOT_SCREEN = 1e-8     # LU pivot ratio above which the condition estimate is skipped
 _CHORD_RATE = 0.2        # a reused factorization must cut the error by this factor per step
+_FAST = 1e-3             # a fresh step that cut the error by more than 1/_FAST: W is nearly
+                         # exact, Newton nearly quadratic, so the next step refactorizes too
 _REASONS = {
     "max": "Newton step limit of the phase reached",
     "budget": "max_iter Newton steps used",
@@ -100,13 +102,13 @@ def alart_curnier(r, u, mu, rho):
 class _Solver:
     """Holds the dense problem and the counters shared by the plain and proximal phases."""
 
-    def __init__(self, W, q, mu, tol, rho_scale=1.0, product=None):
+    def __init__(self, W, q, mu, tol, rho_scale=1.0, product=None, chord=None):
         self.rho_scale = rho_scale
         self.W = W                  # the matrix of the Newton steps (exact or approximate W)
         self.apply = product if product is not None else W.dot   # the exact product v -> W v
         # with an inexact W the steps are inexact anyway: the factorization is then kept while
         # the pieces of Phi (contact, slip sets) stay the same (see direction)
-        self.freeze = product is not None
+        self.freeze = (product is not None) if chord is None else bool(chord)
         self._frozen = None         # (pieces key, LU) of the last factorization
         self.last_frozen = False    # whether the last direction reused it
         self.q = q
@@ -286,13 +288,14 @@ class _Solver:
         recent = [theta]
         err_hist = []
         steps = 0
-        slow = False
+        fresh = False
+        prev = siconos_error(r, u, q, mu) if self.freeze else np.inf
         while True:
             if steps >= max_steps:
                 return r, "max"
             if len(self.history) >= budget:
                 return r, "budget"
-            d = self.direction(r, Phi, piece, rho, alpha, fresh=slow)
+            d = self.direction(r, Phi, piece, rho, alpha, fresh=fresh)
             if d is None and self.last_frozen:
                 d = self.direction(r, Phi, piece, rho, alpha, fresh=True)
             if d is None:
@@ -312,8 +315,11 @@ class _Solver:
             if not (np.all(np.isfinite(r)) and np.all(np.isfinite(u))):
                 raise ContactNotConverged("Newton produced non-finite values", self.history)
             err = siconos_error(r, u, q, mu)
-            # a chord step that gained less than a factor _CHORD_RATE: refactorize next time
-            slow = self.last_frozen and len(err_hist) > 0 and err > _CHORD_RATE * err_hist[-1]
+            # refactorize next time after a chord step that gained less than a factor
+            # _CHORD_RATE, and after a fresh step that gained more than 1/_FAST
+            ratio = err / prev if prev > 0 else 0.0
+            fresh = ratio > _CHORD_RATE if self.last_frozen else ratio < _FAST
+            prev = err
             self.history.append(err)
             err_hist.append(err)
             if err < self.best[0]:
@@ -332,7 +338,7 @@ def solve_newton(W, q, mu, *, tol: float = 1e-8, max_iter: int = 200, r0=None,
                  proximal: str = "auto", plain_max_iter: int = 50, prox_sigma: float = 0.1,
                  prox_inner_max_iter: int = 25, rho_scale: float = 0.5,
                  predictor: str = "frictionless", raise_on_failure: bool = True,
-                 product=None) -> LocalResult:
+                 product=None, chord: bool | None = None) -> LocalResult:
     """Semismooth Newton (Alart–Curnier) for ``u = W r + q``, ``K_mu ∋ r ⊥ u~ ∈ K_mu*``.
 
     Parameters
@@ -362,6 +368,11 @@ def solve_newton(W, q, mu, *, tol: float = 1e-8, max_iter: int = 200, r0=None,
         ``W`` (an inexact Jacobian: the convergence becomes linear, at a rate of the order of
         ``||W - W_exact||`` relative), while ``u``, the line search and the stopping test use the
         exact product, so the result solves the exact problem to ``tol``.
+    chord : keep a factorization while the contact and slip sets stay the same (chord steps,
+        each a fraction of the cost of a factorization, converging linearly); by default when
+        ``product`` is given, i.e. when the steps are inexact anyway. A chord step that gains
+        less than a factor ``_CHORD_RATE``, and a fresh step that gains more than ``1/_FAST``
+        (nearly quadratic: W nearly exact), are followed by a fresh factorization.
     """
     t0 = time.perf_counter()
     if isinstance(W, spla.LinearOperator):
@@ -377,7 +388,7 @@ def solve_newton(W, q, mu, *, tol: float = 1e-8, max_iter: int = 200, r0=None,
     n_pred = 0
     if product is not None and not callable(product):
         raise ProblemDataError("product must be a callable v -> W v")
-    S = _Solver(W, q, mu, tol, rho_scale, product)
+    S = _Solver(W, q, mu, tol, rho_scale, product, chord)
     if r0 is None and predictor == "frictionless" and S.mu_max > 0:
         pred = S.frictionless(max(tol, _PREDICTOR_TOL))
         pred.newton(np.zeros(q.size), 0.0, None, 0.0, _PREDICTOR_STEPS, _PREDICTOR_STEPS)
