@@ -278,3 +278,17 @@ def test_checkpoint_delassus_design_is_checked(tmp_path):
     for zone in (np.array([0, 5]), np.array([3, 1]), np.array([], dtype=np.int64)):
         with pytest.raises(CheckpointError, match="Delassus zone"):
             _check_contact_data(tmp_path, None, None, 5, (np.zeros(4), zone), 4)
+
+
+def test_warm_start_after_a_small_design_change_needs_at_most_three_steps():
+    # a kept block within 1e-3 of the new one: no chord steps, nearly quadratic as with a formed one
+    steps = {}
+    for reuse in (True, False):
+        pr = small_problem(reuse_delassus=reuse)
+        a0 = pr.model.initial_design()
+        pr.solve_state(a0)
+        d = np.sin(np.arange(pr.model.n_design))
+        st = pr.solve_state(a0 + 1e-4 * (d - d.mean()))
+        steps[reuse] = st.iterations
+        assert st.info["delassus"] == ("reused" if reuse else "formed")
+    assert steps[True] <= 3 and steps[False] <= 3

@@ -11,6 +11,9 @@ It is handed to the local solvers in the FCLIB convention (normal first): with W
 where P reorders each node's (t1, t2, ν) to (ν, t1, t2); the FCLIB friction law r_T = −μ r_N u_T/‖u_T‖
 is exactly the Coulomb law above. The local problem is solved on the contact zone, the nodes near
 the foundation, with W_loc the zone's block of W (:mod:`contactopt.contact.zone`; ``[state] zone``).
+Newton builds its matrices from the block W_loc of an earlier design while products W_loc r are
+exact (triangular solves with the zone's Cholesky factor), so the block is formed only when it has
+drifted from the current one (``[state] reuse_delassus``; :meth:`ShapeProblem._solve_local`).
 """
 
 from __future__ import annotations

@@ -31,6 +31,11 @@ method of Siconos' PROX: round ``k`` solves, by the same Newton iteration, the p
 ``W + alpha_k I`` and ``q - alpha_k r_k`` (same solution set at convergence, a nonsingular
 Jacobian for ``alpha_k > 0``), with ``alpha_k = sigma * error_k * mean(diag W)`` shrinking as the
 error falls and growing tenfold after a failed round.
+
+Inexact W. Given the exact product ``v -> W v`` separately (``product``), ``W`` itself need only
+approximate the Delassus operator: the Newton matrices come from it, everything else from the
+exact product, and the factorization may be kept over steps with unchanged contact and slip sets
+(``chord``). The state solves of an optimization use this with the block of an earlier design.
 """
 
 from __future__ import annotations
