@@ -79,6 +79,20 @@ def case_result(name: str, out: Path, timing: dict) -> dict:
     return res
 
 
+def reference_factorization(repeat: int = 5) -> float:
+    """Median time of one factorization (analysis included) of Example 1's A(α0): the machine's
+    speed at the time of a run, measured before and after it (a shared machine drifts)."""
+    code = ("import statistics, time; from contactopt import ShapeProblem, load_config; "
+            "from contactopt.fem.linsolve import factorize; "
+            "pr = ShapeProblem(load_config('example1')); A = pr.model.assemble(pr.model.initial_design()).A; "
+            "factorize(A).close(); ts = []\n"
+            f"for _ in range({repeat}):\n"
+            "    t0 = time.perf_counter(); factorize(A).close(); ts.append(time.perf_counter() - t0)\n"
+            "print(statistics.median(ts))")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    return float(out.stdout.strip().splitlines()[-1])
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--cases", nargs="+", default=list(CASES), choices=list(CASES))
@@ -93,8 +107,9 @@ def main():
     for name in args.cases:
         out = base / name
         print(f"== {name}: contactopt run {CASES[name]} --out {out}", flush=True)
+        t_ref = reference_factorization()
         timing = timed_run(CASES[name], out)
-        r = case_result(name, out, timing)
+        timing["reference_factorization_s"] = 0.5 * (t_ref + reference_factorization())
         results[name] = r
         results_path.write_text(json.dumps(results, indent=1))
         for png in ("stress.png", "surface.png", "history.png", "classes.png"):
