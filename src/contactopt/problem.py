@@ -59,14 +59,6 @@ def spd_inverse(S: np.ndarray) -> np.ndarray:
     return inverse(S)
 
 
-def _relative_gap(W_old: np.ndarray, zp) -> float:
-    """‖(W_old − W_Z) v‖ / ‖W_Z v‖ for a fixed smooth v: how far a kept Delassus block is from
-    the zone's exact one (two triangular solves and a product)."""
-    v = np.sin(0.7 * np.arange(W_old.shape[0]) + 0.3)
-    w = zp.product(v)
-    return float(np.linalg.norm(W_old @ v - w) / max(np.linalg.norm(w), 1e-300))
-
-
 class ShapeProblem:
     """Discrete shape optimization problem (P̃) of a configuration.
 
@@ -209,8 +201,8 @@ class ShapeProblem:
         r0 = warm[zp.zone].ravel() if warm is not None else None
         tol = tol or self.tol
         if method == "newton" and self.reuse_delassus and not zp.has_W:
-            W_old = self._reused_jacobian(zp)
-            eta = np.inf if W_old is None else _relative_gap(W_old, zp)
+            W_old = None if self._jacobian is None else zp.block_from(*self._jacobian[1:])
+            eta = np.inf if W_old is None else zp.relative_gap(W_old)
             if eta <= REUSE_MAX_GAP:
                 res = solve_newton(W_old, q, self.friction, tol=tol * REUSE_TOL_FACTOR,
                                    max_iter=self.max_iter, r0=r0, product=zp.product,
@@ -238,30 +230,6 @@ class ShapeProblem:
         res = solve_local(W, q, self.friction, method=method, tol=tol, max_iter=self.max_iter, r0=r0)
         return res, t_inv, "formed"
 
-    def _reused_jacobian(self, zp):
-        """The kept Delassus block on the nodes of zp's zone (its missing nodes' columns exact), or
-        None when there is none or it misses more than a quarter of the zone."""
-        if self._jacobian is None:
-            return None
-        _, kept_zone, W = self._jacobian
-        zone = zp.zone
-        if zone.size == kept_zone.size and np.array_equal(zone, kept_zone):
-            return W
-        pos = np.searchsorted(kept_zone, zone).clip(max=kept_zone.size - 1)
-        known = kept_zone[pos] == zone
-        if np.count_nonzero(~known) > zone.size // 4:
-            return None
-        dof = (3 * pos[known, None] + np.arange(3)).ravel()        # FCLIB order is kept per node
-        out = np.empty((3 * zone.size, 3 * zone.size))
-        kd = (3 * np.flatnonzero(known)[:, None] + np.arange(3)).ravel()
-        out[np.ix_(kd, kd)] = W.take(dof, axis=0).take(dof, axis=1)
-        if not np.all(known):
-            md = (3 * np.flatnonzero(~known)[:, None] + np.arange(3)).ravel()
-            X = zp.columns(zone[~known])                          # exact columns of the new nodes
-            out[:, md] = X
-            out[md, :] = X.T
-        return out
-
     def jacobian_design(self):
         """(alpha, zone) of the kept Delassus block, or None: with them
         :meth:`restore_jacobian` rebuilds the same block (checkpoints)."""
@@ -269,7 +237,6 @@ class ShapeProblem:
 
     def restore_jacobian(self, alpha, zone) -> None:
         """Form and keep the Delassus block W_Z at design ``alpha`` for the nodes ``zone``."""
-
         cond = self.condensed_system(self.model.surface.as_vector(alpha))
         zone = np.asarray(zone, dtype=np.int64)
         self._jacobian = (np.array(alpha, dtype=float),

@@ -151,6 +151,12 @@ def _read_checkpoint(path: Path, fingerprint: str):
             float(data["meta_scale"]), zone, jacobian)
 
 
+def _is_node_set(nodes: np.ndarray, n_contact: int) -> bool:
+    """A non-empty, strictly increasing array of contact node indices 0..n_contact − 1."""
+    return (nodes.ndim == 1 and nodes.size > 0 and nodes[0] >= 0 and nodes[-1] < n_contact
+            and not np.any(np.diff(nodes) <= 0))
+
+
 def _check_contact_data(path: Path, warm, zone, n_contact: int, jacobian=None, n_design: int = 0):
     """The warm start, contact zone and kept Delassus design of a checkpoint must fit the mesh.
 
@@ -160,8 +166,7 @@ def _check_contact_data(path: Path, warm, zone, n_contact: int, jacobian=None, n
             raise CheckpointError(f"checkpoint {path}: its warm start has shape {warm.shape}, "
                                   f"expected ({n_contact}, 3)")
         warm = warm.reshape(n_contact, 3)
-    if zone is not None and (zone.ndim != 1 or zone.size == 0 or zone[0] < 0 or zone[-1] >= n_contact
-                             or np.any(np.diff(zone) <= 0)):
+    if zone is not None and not _is_node_set(zone, n_contact):
         raise CheckpointError(f"checkpoint {path}: its contact zone is not a sorted set of contact "
                               f"nodes 0..{n_contact - 1}")
     if jacobian is not None:
@@ -169,8 +174,7 @@ def _check_contact_data(path: Path, warm, zone, n_contact: int, jacobian=None, n
         if alpha.shape != (n_design,) or not np.all(np.isfinite(alpha)):
             raise CheckpointError(f"checkpoint {path}: its Delassus design has shape {alpha.shape} "
                                   f"(expected ({n_design},), finite)")
-        if (jzone.ndim != 1 or jzone.size == 0 or jzone[0] < 0 or jzone[-1] >= n_contact
-                or np.any(np.diff(jzone) <= 0)):
+        if not _is_node_set(jzone, n_contact):
             raise CheckpointError(f"checkpoint {path}: its Delassus zone is not a sorted set of "
                                   f"contact nodes 0..{n_contact - 1}")
     return warm

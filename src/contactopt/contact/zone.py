@@ -108,9 +108,41 @@ class ZoneProblem:
 
     def product(self, r_loc: np.ndarray) -> np.ndarray:
         """W_Z r_loc (FCLIB order) without forming W_Z: two triangular solves with the factor."""
+        return self._response(r_loc)[self._dof_z]
+
+    def _response(self, r_loc: np.ndarray) -> np.ndarray:
+        """S⁻¹ r for the zone's forces ``r_loc`` (FCLIB order), r = 0 outside the zone."""
         f = np.zeros(3 * self.p)
         f[self._dof_z] = r_loc
-        return self.solve(f)[self._dof_z]
+        return self.solve(f)
+
+    def relative_gap(self, W_other: np.ndarray) -> float:
+        """‖(W_other − W_Z) v‖ / ‖W_Z v‖ for a fixed smooth v: how far an approximate block (of an
+        earlier design) is from this zone's, without forming W_Z."""
+        v = np.sin(0.7 * np.arange(W_other.shape[0]) + 0.3)
+        w = self.product(v)
+        return float(np.linalg.norm(W_other @ v - w) / max(np.linalg.norm(w), 1e-300))
+
+    def block_from(self, zone: np.ndarray, W: np.ndarray, max_new: float = 0.25):
+        """An approximation of W_Z from the block ``W`` of another zone ``zone`` (sorted; e.g. of
+        an earlier design): its entries on the common nodes, exact columns for this zone's other
+        nodes. None when those are more than ``max_new`` of the zone."""
+        if zone.size == self.zone.size and np.array_equal(zone, self.zone):
+            return W
+        pos = np.searchsorted(zone, self.zone).clip(max=zone.size - 1)
+        known = zone[pos] == self.zone
+        if np.count_nonzero(~known) > max_new * self.zone.size:
+            return None
+        kd = _node_dofs(np.flatnonzero(known))           # FCLIB order is kept per node
+        out = np.empty((self._dof_z.size, self._dof_z.size))
+        dof = _node_dofs(pos[known])
+        out[np.ix_(kd, kd)] = W.take(dof, axis=0).take(dof, axis=1)
+        if not np.all(known):
+            md = _node_dofs(np.flatnonzero(~known))
+            X = self.columns(self.zone[~known])
+            out[:, md] = X
+            out[md, :] = X.T
+        return out
 
     def columns(self, nodes: np.ndarray) -> np.ndarray:
         """The columns of W_Z of the zone nodes ``nodes`` (3z × 3k, FCLIB order): two
@@ -128,9 +160,7 @@ class ZoneProblem:
     def displacements(self, r_loc: np.ndarray) -> np.ndarray:
         """u_c (p, 3) per node (t1, t2, ν) for the zone's contact forces ``r_loc`` (FCLIB order):
         u = S⁻¹(ℓ + r) with r = 0 outside the zone."""
-        f = np.zeros(3 * self.p)
-        f[self._dof_z] = r_loc
-        return (self._z + self.solve(f)).reshape(self.p, 3)
+        return (self._z + self._response(r_loc)).reshape(self.p, 3)
 
     def grow(self, nodes: np.ndarray) -> "ZoneProblem":
         """The problem of the zone ∪ ``nodes`` (a new object sharing the factorization; its W_Z,

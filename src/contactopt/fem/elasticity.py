@@ -81,22 +81,17 @@ def det_inv_3x3(J: np.ndarray):
     About ten times faster than ``np.linalg.det``/``inv`` on the small stacks of element
     Jacobians; the inverse is only meaningful where the determinant is non-zero.
     """
-    a, b, c = J[..., 0, 0], J[..., 0, 1], J[..., 0, 2]
-    d, e, f = J[..., 1, 0], J[..., 1, 1], J[..., 1, 2]
-    g, h, i = J[..., 2, 0], J[..., 2, 1], J[..., 2, 2]
-    C00, C01, C02 = e * i - f * h, f * g - d * i, d * h - e * g
-    det = a * C00 + b * C01 + c * C02
-    adj = np.empty_like(J)
-    adj[..., 0, 0], adj[..., 1, 0], adj[..., 2, 0] = C00, C01, C02
-    adj[..., 0, 1] = c * h - b * i
-    adj[..., 0, 2] = b * f - c * e
-    adj[..., 1, 1] = a * i - c * g
-    adj[..., 1, 2] = c * d - a * f
-    adj[..., 2, 1] = b * g - a * h
-    adj[..., 2, 2] = a * e - b * d
+    det, adj = det_adj_3x3(np.moveaxis(J, (-2, -1), (0, 1)))
     with np.errstate(divide="ignore", invalid="ignore"):
-        inv = adj / det[..., None, None]
+        inv = np.moveaxis(adj, (0, 1), (-2, -1)) / det[..., None, None]
     return det, inv
+
+
+def require_positive_det(det: np.ndarray, element_axis: int = 0) -> None:
+    """Raise MeshError naming the elements with a Jacobian determinant ≤ 0 (inverted elements)."""
+    if not np.all(det > 0):
+        bad = np.unique(np.nonzero(~(det > 0))[element_axis])
+        raise MeshError(f"{bad.size} element(s) inverted or degenerate (det J ≤ 0), first: {bad[:5].tolist()}")
 
 
 def element_geometry(X: np.ndarray, dN: np.ndarray):
@@ -107,9 +102,7 @@ def element_geometry(X: np.ndarray, dN: np.ndarray):
     # J_mn = ∂x_m/∂ξ_n = Σ_a X_am dN_an, one BLAS product for all elements and points
     J = np.tensordot(X, dN, axes=([1], [1])).transpose(0, 2, 1, 3)
     det, Jinv = det_inv_3x3(J)
-    if not np.all(det > 0):
-        bad = np.unique(np.nonzero(~(det > 0))[0])
-        raise MeshError(f"{bad.size} element(s) inverted or degenerate (det J ≤ 0), first: {bad[:5].tolist()}")
+    require_positive_det(det)
     G = np.matmul(dN[None], Jinv)                          # ∂N_a/∂x_m = Σ_n ∂N_a/∂ξ_n ∂ξ_n/∂x_m
     return G, det
 
@@ -170,9 +163,7 @@ class ElasticityAssembler:
         J = (X.transpose(2, 0, 1).reshape(3 * E, 8) @ self._dN_a).reshape(3, E, Q, 3)
         J = np.ascontiguousarray(J.transpose(0, 3, 2, 1))
         det, adj = det_adj_3x3(J)
-        if not np.all(det > 0):
-            bad = np.unique(np.nonzero(~(det > 0))[1])
-            raise MeshError(f"{bad.size} element(s) inverted or degenerate (det J ≤ 0), first: {bad[:5].tolist()}")
+        require_positive_det(det, element_axis=1)             # det is (q, e)
         adj *= np.sqrt(det * self.w[:, None]) / det          # √(w det J) J⁻¹, [n, m, q, e]
         # √(w det J) ∂N_a/∂x_m = Σ_n dN[q, a, n] (...)[n, m]: per q, rows (m, e)
         Jq = adj.transpose(2, 1, 3, 0).reshape(Q, 3 * E, 3)
