@@ -199,3 +199,21 @@ def test_unusable_output_directory_exit_2_and_nothing_written(tmp_path, capsys):
     assert blocker.read_text() == "x"
     assert main(["run", str(cfg), "--out", str(blocker), "--max-iter", "1"]) == 2
     assert "is not a directory" in capsys.readouterr().err
+
+
+def test_resume_with_an_unusable_delassus_design_touches_nothing(tmp_path, capsys):
+    cfg = small_toml(tmp_path)
+    out = tmp_path / "run"
+    assert main(["run", str(cfg), "--out", str(out), "--max-iter", "3"]) == 0
+    ckpt = out / "checkpoint.npz"
+    with np.load(ckpt, allow_pickle=False) as z:
+        data = {k: z[k] for k in z.files}
+    assert data["jacobian_alpha"].size                       # the run kept a Delassus block
+    data["jacobian_alpha"] = data["jacobian_alpha"] + 50.0   # the surface above the top face
+    np.savez(ckpt, **data)
+    before = {p.name: p.read_bytes() for p in out.iterdir() if p.is_file()}
+    capsys.readouterr()
+    assert main(["run", str(cfg), "--out", str(out), "--resume"]) == 2
+    err = capsys.readouterr().err
+    assert "checkpoint" in err and "Delassus design" in err and "top face" in err
+    assert {p.name: p.read_bytes() for p in out.iterdir() if p.is_file()} == before

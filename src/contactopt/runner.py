@@ -221,6 +221,12 @@ def run_optimization(config, outdir=None, *, eps=None, max_iter=None, resume=Fal
     if resume:
         bstate, n_eval, elapsed0, warm, scale, zone, jacobian = _read_checkpoint(ckpt, fingerprint)
         warm = _check_contact_data(ckpt, warm, zone, model.n_contact, jacobian, model.n_design)
+        if jacobian is not None and problem.reuse_delassus:
+            try:                                   # before the run directory is touched
+                problem.restore_jacobian(*jacobian)
+            except ContactOptError as exc:
+                raise CheckpointError(f"checkpoint {ckpt}: its Delassus design cannot be "
+                                      f"rebuilt: {exc}") from None
     out = prepare_output_dir(out, overwrite=overwrite, resume=resume)
     handler = logging.FileHandler(out / "run.log")
     handler.setFormatter(logging.Formatter("%(asctime)s %(levelname)s %(name)s: %(message)s"))
@@ -246,8 +252,6 @@ def run_optimization(config, outdir=None, *, eps=None, max_iter=None, resume=Fal
             problem._warm = warm
             if zone is not None:
                 problem.next_zone = zone
-            if jacobian is not None and problem.reuse_delassus:
-                problem.restore_jacobian(*jacobian)
             oracle.scale = scale
             state_kw["state"] = bstate
             log.info("resuming %s at iteration %d (%d evaluations)", out, bstate.nit, n_eval)
