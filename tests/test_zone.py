@@ -83,6 +83,24 @@ def test_lu_factor_solves_and_estimates_the_condition(lapack_backend):
     assert dense.LUFactor(near).pivot_ratio() < 1e-10
 
 
+def test_single_precision_lu_solves_to_its_precision(lapack_backend):
+    rng = np.random.default_rng(8)
+    M = rng.standard_normal((120, 120)) + 12 * np.eye(120)
+    b = rng.standard_normal(120)
+    x64 = dense.LUFactor(np.array(M)).solve(b)
+    lu = dense.LUFactor(M.astype(np.float32))
+    assert lu.info == 0 and lu.dtype == np.float32
+    x = lu.solve(b)
+    assert x.dtype == np.float64
+    err = np.linalg.norm(x - x64) / np.linalg.norm(x64)
+    assert 1e-12 < err < 1e-5        # single precision: not exact, but to ~κ·6e-8
+    kappa = np.linalg.norm(M, np.inf) * np.linalg.norm(np.linalg.inv(M), np.inf)
+    assert 0.1 / kappa <= lu.rcond(np.linalg.norm(M, np.inf)) <= 10 / kappa
+    assert dense.LUFactor(np.zeros((4, 4), dtype=np.float32)).info > 0
+    with pytest.raises(SolverError, match="float64 or float32"):
+        dense.LUFactor(M.astype(np.float16))
+
+
 @pytest.mark.parametrize("zone", [np.arange(40), np.array([0, 3, 4, 17, 39]), np.array([22])])
 def test_zone_problem_is_the_exact_restriction(lapack_backend, zone):
     p = 40
@@ -209,9 +227,18 @@ def test_newton_with_an_approximate_W_and_the_exact_product_solves_the_exact_pro
     assert res.converged and res.iterations > exact.iterations       # linear, not quadratic
     assert np.abs(res.r - exact.r).max() <= 1e-9 * np.abs(exact.r).max()
     np.testing.assert_allclose(res.u, W @ res.r + q, rtol=0, atol=1e-12 * np.abs(res.u).max())
+    # the same block in single precision (as a state solve keeps it): same solution
+    single = solve_newton(W_old.astype(np.float32), q, 0.3, tol=1e-13, product=W.dot)
+    assert single.converged
+    assert np.abs(single.r - exact.r).max() <= 1e-9 * np.abs(exact.r).max()
+    assert abs(single.iterations - res.iterations) <= 2
     from contactopt.errors import ProblemDataError
     with pytest.raises(ProblemDataError, match="product"):
         solve_newton(W, q, 0.3, product=np.eye(3))
+    # without the exact product a float32 W is the problem's W: taken in double precision
+    from contactopt.contact.local import check_problem
+    assert check_problem(W.astype(np.float32), q, 0.3)[0].dtype == np.float64
+    assert check_problem(W.astype(np.float32), q, 0.3, single=True)[0].dtype == np.float32
 
 
 def test_zone_product_and_columns_are_those_of_W():
@@ -246,6 +273,7 @@ def test_reused_delassus_gives_the_states_of_formed_ones():
             <= 1e-7 * np.linalg.norm(subgradient(formed, alpha).gradient)
     assert how[0] == "formed" and how.count("reused") >= 3
     assert reuse.n_delassus < formed.n_delassus
+    assert reuse._jacobian[2].dtype == np.float32        # the kept block is single precision
 
 
 def test_restored_delassus_repeats_the_solve_bit_for_bit():

@@ -36,6 +36,9 @@ log = logging.getLogger(__name__)
 REUSE_MAX_STEPS = 12   # a solve with a kept Delassus block that needs more steps drops it
 REUSE_MAX_GAP = 0.2      # kept blocks farther than this from the new W_Z (relative) are not used
 CHORD_MIN_GAP = 1e-3     # below this gap Newton is nearly quadratic: no chord steps
+JACOBIAN_DTYPE = np.float32  # a kept block only builds Newton matrices, and is 1e-3–0.2 off the
+                             # current W_Z anyway: single precision halves the memory traffic of
+                             # those matrices and the time of their LU
 REUSE_TOL_FACTOR = 0.1   # and it iterates to this times tol: exact Newton's last, quadratic
                          # step usually overshoots far below tol; an inexact Jacobian converges
                          # linearly and would otherwise stop just below it
@@ -226,7 +229,7 @@ class ShapeProblem:
         t_inv = time.perf_counter() - t0
         self.n_delassus += 1
         if keep:
-            self._jacobian = (alpha, zp.zone, W)
+            self._jacobian = (alpha, zp.zone, W.astype(JACOBIAN_DTYPE))
         res = solve_local(W, q, self.friction, method=method, tol=tol, max_iter=self.max_iter, r0=r0)
         return res, t_inv, "formed"
 
@@ -239,8 +242,8 @@ class ShapeProblem:
         """Form and keep the Delassus block W_Z at design ``alpha`` for the nodes ``zone``."""
         cond = self.condensed_system(self.model.surface.as_vector(alpha))
         zone = np.asarray(zone, dtype=np.int64)
-        self._jacobian = (np.array(alpha, dtype=float),
-                          zone, zone_rules.ZoneProblem(cond.S, cond.ell, zone).W)
+        self._jacobian = (np.array(alpha, dtype=float), zone,
+                          zone_rules.ZoneProblem(cond.S, cond.ell, zone).W.astype(JACOBIAN_DTYPE))
 
     def _zone_warm(self, r_loc: np.ndarray, zone: np.ndarray) -> np.ndarray:
         """Contact forces of a zone solve as a (p, 3) warm start, per node (N, T1, T2)."""

@@ -89,13 +89,14 @@ class LocalResult:
                 f"time_s={self.time_s:.4f}, contacts={self.r.size // 3})")
 
 
-def check_problem(W, q, mu, *, r0=None):
+def check_problem(W, q, mu, *, r0=None, single=False):
     """Validate and normalise ``(W, q, mu, r0)``; raise :class:`ProblemDataError` listing problems.
 
     ``W`` may be a dense array, a scipy sparse matrix or a ``LinearOperator`` (the latter is
     accepted by the fixed-point solver only). Returns ``(W, q, mu, r0)`` with ``q`` a float
     vector of length ``3p``, ``mu`` a float vector of length ``p`` and ``r0`` ``None`` or a
-    float vector of length ``3p``.
+    float vector of length ``3p``. A dense float32 ``W`` stays float32 with ``single`` (an
+    approximate W that only builds Newton matrices, see :func:`contactopt.contact.newton.solve_newton`).
     """
     problems = []
     q = np.asarray(q, dtype=float)
@@ -122,7 +123,8 @@ def check_problem(W, q, mu, *, r0=None):
             problems.append("W has non-finite entries")
         W = W.tocsr().astype(float)
     else:
-        W = np.asarray(W, dtype=float)
+        keep = single and isinstance(W, np.ndarray) and W.dtype == np.float32
+        W = W if keep else np.asarray(W, dtype=float)
         if W.shape != (n, n):
             problems.append(f"W must be {n} x {n}, got {W.shape}")
         elif not np.all(np.isfinite(W)):

@@ -123,7 +123,7 @@ class _Solver:
         self.p = q.size // 3
         idx = np.arange(self.p)
         diag_blocks = W.reshape(self.p, 3, self.p, 3)[idx, :, idx, :]      # (p, 3, 3)
-        self.wdiag = np.trace(diag_blocks, axis1=1, axis2=2) / 3.0
+        self.wdiag = np.trace(diag_blocks, axis1=1, axis2=2).astype(np.float64) / 3.0
         # ||M||_inf of every Newton matrix is within a small factor of this bound; dgecon
         # only needs the order of magnitude to flag singular matrices.
         self.wnorm_inf = float(np.abs(W).sum(axis=1).max())
@@ -199,7 +199,8 @@ class _Solver:
         e[S[~fric], 1:] += (rhoS * f_t)[~fric, None] * t[~fric]
         dfix = d.copy()
         dfix[ia] = e.ravel()
-        v = ((W @ dfix)[ia].reshape(k, 3) + alpha * e) if np.any(dfix) else np.zeros((k, 3))
+        v = ((W @ dfix.astype(W.dtype, copy=False))[ia].reshape(k, 3) + alpha * e) \
+            if np.any(dfix) else np.zeros((k, 3))
         # unknown groups, as positions of W: plain (3 per sticking contact, N of frictionless
         # sliding ones), and per frictional sliding contact its N, T1, T2
         SF, SN = S[fric], S[~fric]
@@ -223,16 +224,18 @@ class _Solver:
             return self._finish_direction(d, ia, e, plain_loc, a, b, SF, muF, nF, tF,
                                           self._frozen[1].solve(rhs))
         # rows: W rows of the plain and N unknowns, c (t . W_T) for the t rows
-        R = np.empty((m, W.shape[1]))
+        # (in W's precision: a float32 W, approximate anyway, gives a single-precision LU)
+        dt = W.dtype
+        R = np.empty((m, W.shape[1]), dtype=dt)
         W.take(np.concatenate([plain, iN]), axis=0, out=R[:b])
-        R[b:] = (cF * tF[:, 0])[:, None] * W.take(i1, axis=0)
-        R[b:] += (cF * tF[:, 1])[:, None] * W.take(i2, axis=0)
+        R[b:] = (cF * tF[:, 0]).astype(dt)[:, None] * W.take(i1, axis=0)
+        R[b:] += (cF * tF[:, 1]).astype(dt)[:, None] * W.take(i2, axis=0)
         # columns: e_N + mu n for the z_N unknowns, t for the z_t unknowns
-        M = np.empty((m, m))
+        M = np.empty((m, m), dtype=dt)
         R.take(plain, axis=1, out=M[:, :a]) if a else None
         C1, C2 = R.take(i1, axis=1), R.take(i2, axis=1)
-        M[:, a:b] = R.take(iN, axis=1) + (muF * nF[:, 0]) * C1 + (muF * nF[:, 1]) * C2
-        M[:, b:] = tF[:, 0] * C1 + tF[:, 1] * C2
+        M[:, a:b] = R.take(iN, axis=1) + (muF * nF[:, 0]).astype(dt) * C1 + (muF * nF[:, 1]).astype(dt) * C2
+        M[:, b:] = tF[:, 0].astype(dt) * C1 + tF[:, 1].astype(dt) * C2
         dval = (1.0 - cF) / rhoS[fric]
         diag = M.reshape(-1)[:: m + 1]
         diag[b:] += dval
@@ -382,7 +385,7 @@ def solve_newton(W, q, mu, *, tol: float = 1e-8, max_iter: int = 200, r0=None,
     t0 = time.perf_counter()
     if isinstance(W, spla.LinearOperator):
         raise ProblemDataError("the Newton solver needs W as a matrix, not a LinearOperator")
-    W, q, mu, r0 = check_problem(W, q, mu, r0=r0)
+    W, q, mu, r0 = check_problem(W, q, mu, r0=r0, single=product is not None)
     if proximal not in ("auto", "never", "always"):
         raise ProblemDataError(f"proximal must be 'auto', 'never' or 'always', got {proximal!r}")
     if predictor not in ("frictionless", "none"):

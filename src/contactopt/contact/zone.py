@@ -66,19 +66,14 @@ class ZoneProblem:
     """
 
     def __init__(self, S: np.ndarray, ell: np.ndarray, zone: np.ndarray):
-        p = ell.size // 3
-        self.p = p
-        zone = np.asarray(zone)
-        inside = np.zeros(p, dtype=bool)
-        inside[zone] = True
-        rest = np.flatnonzero(~inside)
-        dof_n = _node_dofs(rest)
-        self._order = np.concatenate([dof_n, _local_dofs(zone)])
-        # two takes: several times faster than S[np.ix_(order, order)] for a 1536² matrix
-        self._L = cholesky_lower(np.ascontiguousarray(S.take(self._order, axis=0).take(self._order, axis=1)))
-        self._start = dof_n.size
+        self.p = ell.size // 3
+        self._S = S
+        # natural order: products and displacements need S⁻¹ only; the factor ordered (N, Z)
+        # that forms W_Z is computed when W_Z is first asked for (most solves of an
+        # optimization never ask, see contactopt.problem)
+        self._L = cholesky_lower(np.array(S, dtype=np.float64, order="C"))
         self._parent = None
-        self._set_zone(zone, None, self.solve(ell))
+        self._set_zone(np.asarray(zone), None, self.solve(ell))
 
     def _set_zone(self, zone, W, z):
         self.zone, self._W, self._z = zone, W, z
@@ -91,10 +86,20 @@ class ZoneProblem:
         block, plus two triangular solves per DOF added by :meth:`grow`)."""
         if self._W is None:
             if self._parent is None:
-                self._W = inverse_from_cholesky(self._L, self._start)
+                self._W = self._zone_inverse()
             else:
                 self._W = self._grown_inverse(self._parent.W, self._parent.zone)
         return self._W
+
+    def _zone_inverse(self) -> np.ndarray:
+        """W_Z = (S̃)⁻¹ from the Cholesky factor of S ordered (N, Z) (module docstring)."""
+        inside = np.zeros(self.p, dtype=bool)
+        inside[self.zone] = True
+        dof_n = _node_dofs(np.flatnonzero(~inside))
+        order = np.concatenate([dof_n, self._dof_z])
+        # two takes: several times faster than S[np.ix_(order, order)] for a 1536² matrix
+        L = cholesky_lower(np.ascontiguousarray(self._S.take(order, axis=0).take(order, axis=1)))
+        return inverse_from_cholesky(L, dof_n.size)
 
     @property
     def grown(self) -> bool:
@@ -121,7 +126,7 @@ class ZoneProblem:
         earlier design) is from this zone's, without forming W_Z."""
         v = np.sin(0.7 * np.arange(W_other.shape[0]) + 0.3)
         w = self.product(v)
-        return float(np.linalg.norm(W_other @ v - w) / max(np.linalg.norm(w), 1e-300))
+        return float(np.linalg.norm(W_other @ v.astype(W_other.dtype) - w) / max(np.linalg.norm(w), 1e-300))
 
     def block_from(self, zone: np.ndarray, W: np.ndarray, max_new: float = 0.25):
         """An approximation of W_Z from the block ``W`` of another zone ``zone`` (sorted; e.g. of
@@ -133,10 +138,10 @@ class ZoneProblem:
         known = zone[pos] == self.zone
         if np.count_nonzero(~known) > max_new * self.zone.size:
             return None
-        kd = _node_dofs(np.flatnonzero(known))           # FCLIB order is kept per node
-        out = np.empty((self._dof_z.size, self._dof_z.size))
-        dof = _node_dofs(pos[known])
-        out[np.ix_(kd, kd)] = W.take(dof, axis=0).take(dof, axis=1)
+        # FCLIB order is kept per node; the rows and columns of the other nodes are gathered
+        # from node 0 and overwritten below (two gathers, no scatter)
+        dof = _node_dofs(np.where(known, pos, 0))
+        out = W.take(dof, axis=0).take(dof, axis=1)
         if not np.all(known):
             md = _node_dofs(np.flatnonzero(~known))
             X = self.columns(self.zone[~known])
@@ -153,9 +158,7 @@ class ZoneProblem:
 
     def solve(self, b: np.ndarray) -> np.ndarray:
         """S⁻¹ b for b of length 3p (or (3p, m)), per node (t1, t2, ν)."""
-        x = np.empty_like(b, dtype=np.float64)
-        x[self._order] = cholesky_solve(self._L, b[self._order])
-        return x
+        return cholesky_solve(self._L, np.asarray(b, dtype=np.float64))
 
     def displacements(self, r_loc: np.ndarray) -> np.ndarray:
         """u_c (p, 3) per node (t1, t2, ν) for the zone's contact forces ``r_loc`` (FCLIB order):
@@ -167,7 +170,7 @@ class ZoneProblem:
         when needed, extends this zone's by the columns of the added DOFs)."""
         new = np.union1d(self.zone, nodes)
         out = object.__new__(ZoneProblem)
-        out.p, out._order, out._L, out._start = self.p, self._order, self._L, self._start
+        out.p, out._S, out._L = self.p, self._S, self._L
         if new.size == self.zone.size:
             out._parent = self._parent
             out._set_zone(self.zone, self._W, self._z)
