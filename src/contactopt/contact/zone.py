@@ -7,11 +7,14 @@ and r_N = 0, the rows of N give u_N = S_NN⁻¹(ℓ_N − S_NZ u_Z), and the row
     S̃ u_Z − ℓ̃ = r_Z,    S̃ = S_ZZ − S_ZN S_NN⁻¹ S_NZ,    ℓ̃ = ℓ_Z − S_ZN S_NN⁻¹ ℓ_N,
 
 so the local problem of the zone has the Delassus operator W_Z = S̃⁻¹ = (S⁻¹)_ZZ, a principal
-block of W, and the free displacement q = W_Z ℓ̃ = (S⁻¹ℓ)_Z. One Cholesky factorization of S
-ordered (N, Z), S = L Lᵀ with L = [[L_NN, 0], [L_ZN, L̃]], gives everything: L̃ L̃ᵀ = S̃, so
-W_Z = (L̃ L̃ᵀ)⁻¹, and the displacements of all nodes are u = S⁻¹(ℓ + r) by two triangular solves.
-That costs (1/3)(3p)³ + (2/3)(3z)³ flops instead of (3p)³ for the whole W, and the zone's local
-problem is smaller.
+block of W, and the free displacement q = W_Z ℓ̃ = (S⁻¹ℓ)_Z. The Cholesky factor of S gives
+q, the products W_Z r = (S⁻¹ E_Z r)_Z and the displacements of all nodes u = S⁻¹(ℓ + r), by two
+triangular solves each. When W_Z itself is needed, the Cholesky factor of S ordered (N, Z),
+S = L Lᵀ with L = [[L_NN, 0], [L_ZN, L̃]], has L̃ L̃ᵀ = S̃, so W_Z = (L̃ L̃ᵀ)⁻¹: (1/3)(3p)³ +
+(2/3)(3z)³ flops instead of (3p)³ for the whole W, and the zone's local problem is smaller.
+Within an optimization most state solves never form W_Z (:mod:`contactopt.problem`), so the
+factor of S in its natural order (no reordered copy of S) serves the products, and the ordered
+one is computed only with W_Z.
 
 The solution on Z is the solution of the whole problem exactly when every node of N ends with
 an open gap. That is checked after each solve: a node of N with clearance u_ν + g ≤ tol
