@@ -9,6 +9,9 @@ DOFs only. The CSR index pattern is built once; a new design only recomputes val
 
 from __future__ import annotations
 
+import os
+from concurrent.futures import ThreadPoolExecutor
+
 import numpy as np
 import scipy.sparse as sp
 
@@ -16,6 +19,26 @@ from ..errors import MeshError
 
 _G = 1.0 / np.sqrt(3.0)
 GAUSS_1D = np.array([-_G, _G])
+
+
+_CHUNK_MIN = 1024    # elements per assembly chunk, at least (smaller meshes: one chunk)
+_pool = None
+
+
+def _assembly_chunks(n_elements: int) -> int:
+    """Number of element chunks assembled in parallel: one per usable core (at most 4)."""
+    try:
+        cores = len(os.sched_getaffinity(0))
+    except AttributeError:  # pragma: no cover - not on Linux
+        cores = os.cpu_count() or 1
+    return max(1, min(4, cores, n_elements // _CHUNK_MIN))
+
+
+def _assembly_pool() -> ThreadPoolExecutor:
+    global _pool
+    if _pool is None:
+        _pool = ThreadPoolExecutor(max_workers=4, thread_name_prefix="contactopt-assembly")
+    return _pool
 
 
 def lame(E: float, nu: float) -> tuple[float, float]:
@@ -153,17 +176,34 @@ class ElasticityAssembler:
         With g = ∇N (Gauss point q, weight w_q det J_q) and T[i,a,j,b] = Σ_q w_q det J_q
         g_a,i g_b,j, Hooke's law gives K[i,a,j,b] = λ T[i,a,j,b] + μ T[j,a,i,b] + μ δ_ij Σ_k
         T[k,a,k,b]. T is one batched product; √(w det J) is folded into the gradients. The
-        returned array is overwritten by the next call.
+        returned array is overwritten by the next call. Large meshes are split into one chunk of
+        elements per core (NumPy and BLAS release the GIL: the chunks run in parallel, and each
+        element's matrix is computed by the same operations, so K does not depend on the split).
         """
-        E, Q = X.shape[0], self.w.size
+        E = X.shape[0]
         if self._buffers is None or self._buffers[0].shape[0] != E:
             self._buffers = (np.empty((E, 24, 24)), np.empty((E, 3, 8, 3, 8)), np.empty((E, 8, 8)))
         T, K, lap = self._buffers
+        cuts = np.linspace(0, E, _assembly_chunks(E) + 1).astype(int)
+        parts = [(X[i:j], T[i:j], K[i:j], lap[i:j]) for i, j in zip(cuts[:-1], cuts[1:])]
+        if len(parts) == 1:
+            dets = [self._blocks_into(*parts[0])]
+        else:
+            dets = list(_assembly_pool().map(lambda a: self._blocks_into(*a), parts))
+        if not all(np.all(d > 0) for d in dets):
+            require_positive_det(np.concatenate(dets, axis=1), element_axis=1)
+        return K
+
+    def _blocks_into(self, X, T, K, lap) -> np.ndarray:
+        """Element matrices of the elements X into the work arrays T, K, lap (see
+        :meth:`_element_blocks`); returns det J (q, e), early (K unset) if one is ≤ 0."""
+        E, Q = X.shape[0], self.w.size
         # J[m, n, q, e] = ∂x_m/∂ξ_n: one BLAS product for all elements and points
         J = (X.transpose(2, 0, 1).reshape(3 * E, 8) @ self._dN_a).reshape(3, E, Q, 3)
         J = np.ascontiguousarray(J.transpose(0, 3, 2, 1))
         det, adj = det_adj_3x3(J)
-        require_positive_det(det, element_axis=1)             # det is (q, e)
+        if not np.all(det > 0):
+            return det
         adj *= np.sqrt(det * self.w[:, None]) / det          # √(w det J) J⁻¹, [n, m, q, e]
         # √(w det J) ∂N_a/∂x_m = Σ_n dN[q, a, n] (...)[n, m]: per q, rows (m, e)
         Jq = adj.transpose(2, 1, 3, 0).reshape(Q, 3 * E, 3)
@@ -179,7 +219,7 @@ class ElasticityAssembler:
         K += T5
         for k in range(3):
             K[:, k, :, k] += lap
-        return K
+        return det
 
     def stiffness(self, coords: np.ndarray) -> sp.csr_matrix:
         """A on the free DOFs (CSR, symmetric positive definite when Γ_u is non-empty)."""
