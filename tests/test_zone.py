@@ -241,10 +241,13 @@ def test_newton_with_an_approximate_W_and_the_exact_product_solves_the_exact_pro
     assert check_problem(W.astype(np.float32), q, 0.3, single=True)[0].dtype == np.float32
 
 
-def test_zone_product_and_columns_are_those_of_W():
+@pytest.mark.parametrize("ordered", [True, False])
+def test_zone_product_and_columns_are_those_of_W(ordered):
+    # ordered=False: the factor of S in its own order serves the products, W_Z is then formed
+    # from a second, ordered factorization; both give the same operator
     p = 20
     S = random_spd(3 * p, seed=6, cond=1e3)
-    zp = ZoneProblem(S, np.zeros(3 * p), np.array([1, 4, 5, 11, 19]))
+    zp = ZoneProblem(S, np.zeros(3 * p), np.array([1, 4, 5, 11, 19]), ordered=ordered)
     v = np.random.default_rng(7).standard_normal(15)
     assert not zp.has_W and not zp.grown
     assert np.abs(zp.product(v) - zp.W @ v).max() <= 1e-12 * np.abs(zp.W @ v).max()
@@ -252,6 +255,12 @@ def test_zone_product_and_columns_are_those_of_W():
     assert g.grown and not g.has_W
     assert np.abs(g.columns(np.array([2, 19])) - g.W[:, [3, 4, 5, 15, 16, 17]]).max() <= 1e-12 * np.abs(g.W).max()
     assert np.abs(g.W - ZoneProblem(S, np.zeros(3 * p), g.zone).W).max() <= 1e-10 * np.abs(g.W).max()
+    W_ref = np.linalg.inv(S)[np.ix_(zp._dof_z, zp._dof_z)]
+    assert np.abs(zp.W - W_ref).max() <= 1e-9 * np.abs(W_ref).max()
+    ell = np.random.default_rng(9).standard_normal(3 * p)
+    z_ref = np.linalg.solve(S, ell)
+    assert np.abs(ZoneProblem(S, ell, zp.zone, ordered=ordered).q0 - z_ref[zp._dof_z]).max() \
+        <= 1e-9 * np.abs(z_ref).max()
 
 
 def design_path(pr, n, step=2e-3):

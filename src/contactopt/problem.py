@@ -11,9 +11,10 @@ It is handed to the local solvers in the FCLIB convention (normal first): with W
 where P reorders each node's (t1, t2, ν) to (ν, t1, t2); the FCLIB friction law r_T = −μ r_N u_T/‖u_T‖
 is exactly the Coulomb law above. The local problem is solved on the contact zone, the nodes near
 the foundation, with W_loc the zone's block of W (:mod:`contactopt.contact.zone`; ``[state] zone``).
-Newton builds its matrices from the block W_loc of an earlier design while products W_loc r are
-exact (triangular solves with the zone's Cholesky factor), so the block is formed only when it has
-drifted from the current one (``[state] reuse_delassus``; :meth:`ShapeProblem._solve_local`).
+Newton builds its matrices from the block W_loc of an earlier design, kept in single precision,
+while products W_loc r are exact (triangular solves in double precision with the zone's Cholesky
+factor), so the block is formed only when it has drifted from the current one
+(``[state] reuse_delassus``; :meth:`ShapeProblem._solve_local`).
 """
 
 from __future__ import annotations
@@ -134,7 +135,9 @@ class ShapeProblem:
         misses = 0
         reused = []
         t0 = time.perf_counter()
-        zp = zone_rules.ZoneProblem(cond.S, cond.ell, zone)
+        # a kept Delassus block will most likely serve Newton: the products need no W_Z
+        reuse = method == "newton" and self.reuse_delassus and self._jacobian is not None
+        zp = zone_rules.ZoneProblem(cond.S, cond.ell, zone, ordered=not reuse)
         t1 = time.perf_counter()
         while True:
             res, t_inv, how = self._solve_local(zp, cond, warm, method, tol, alpha)

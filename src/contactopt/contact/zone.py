@@ -13,8 +13,8 @@ triangular solves each. When W_Z itself is needed, the Cholesky factor of S orde
 S = L Lᵀ with L = [[L_NN, 0], [L_ZN, L̃]], has L̃ L̃ᵀ = S̃, so W_Z = (L̃ L̃ᵀ)⁻¹: (1/3)(3p)³ +
 (2/3)(3z)³ flops instead of (3p)³ for the whole W, and the zone's local problem is smaller.
 Within an optimization most state solves never form W_Z (:mod:`contactopt.problem`), so the
-factor of S in its natural order (no reordered copy of S) serves the products, and the ordered
-one is computed only with W_Z.
+factor of S in its natural order (no reordered copy of S) serves the products there, and the
+ordered one is computed only if W_Z is asked for (``ordered=False``).
 
 The solution on Z is the solution of the whole problem exactly when every node of N ends with
 an open gap. That is checked after each solve: a node of N with clearance u_ν + g ≤ tol
@@ -68,15 +68,30 @@ class ZoneProblem:
     factorization (the columns of S⁻¹ of the added DOFs come from two triangular solves each).
     """
 
-    def __init__(self, S: np.ndarray, ell: np.ndarray, zone: np.ndarray):
+    def __init__(self, S: np.ndarray, ell: np.ndarray, zone: np.ndarray, *, ordered: bool = True):
         self.p = ell.size // 3
         self._S = S
-        # natural order: products and displacements need S⁻¹ only; the factor ordered (N, Z)
-        # that forms W_Z is computed when W_Z is first asked for (most solves of an
-        # optimization never ask, see contactopt.problem)
-        self._L = cholesky_lower(np.array(S, dtype=np.float64, order="C"))
+        zone = np.asarray(zone)
+        # ordered: the factor of S ordered (N, Z), which also gives W_Z; otherwise the factor in
+        # S's own order (no reordered copy of S), for solves that use the products only (a
+        # W_Z asked for later then costs a second factorization)
+        if ordered:
+            self._order, self._start, self._L = self._ordered_factor(zone)
+        else:
+            self._order, self._start = None, 0
+            self._L = cholesky_lower(np.array(S, dtype=np.float64, order="C"))
         self._parent = None
-        self._set_zone(np.asarray(zone), None, self.solve(ell))
+        self._set_zone(zone, None, self.solve(ell))
+
+    def _ordered_factor(self, zone):
+        """(order, start, L): the Cholesky factor of S ordered (N, Z), Z from position start."""
+        inside = np.zeros(self.p, dtype=bool)
+        inside[zone] = True
+        dof_n = _node_dofs(np.flatnonzero(~inside))
+        order = np.concatenate([dof_n, _local_dofs(zone)])
+        # two takes: several times faster than S[np.ix_(order, order)] for a 1536² matrix
+        L = cholesky_lower(np.ascontiguousarray(self._S.take(order, axis=0).take(order, axis=1)))
+        return order, dof_n.size, L
 
     def _set_zone(self, zone, W, z):
         self.zone, self._W, self._z = zone, W, z
@@ -96,13 +111,10 @@ class ZoneProblem:
 
     def _zone_inverse(self) -> np.ndarray:
         """W_Z = (S̃)⁻¹ from the Cholesky factor of S ordered (N, Z) (module docstring)."""
-        inside = np.zeros(self.p, dtype=bool)
-        inside[self.zone] = True
-        dof_n = _node_dofs(np.flatnonzero(~inside))
-        order = np.concatenate([dof_n, self._dof_z])
-        # two takes: several times faster than S[np.ix_(order, order)] for a 1536² matrix
-        L = cholesky_lower(np.ascontiguousarray(self._S.take(order, axis=0).take(order, axis=1)))
-        return inverse_from_cholesky(L, dof_n.size)
+        if self._order is not None:
+            return inverse_from_cholesky(self._L, self._start)
+        _, start, L = self._ordered_factor(self.zone)
+        return inverse_from_cholesky(L, start)
 
     @property
     def grown(self) -> bool:
@@ -161,7 +173,12 @@ class ZoneProblem:
 
     def solve(self, b: np.ndarray) -> np.ndarray:
         """S⁻¹ b for b of length 3p (or (3p, m)), per node (t1, t2, ν)."""
-        return cholesky_solve(self._L, np.asarray(b, dtype=np.float64))
+        b = np.asarray(b, dtype=np.float64)
+        if self._order is None:
+            return cholesky_solve(self._L, b)
+        x = np.empty_like(b)
+        x[self._order] = cholesky_solve(self._L, b[self._order])
+        return x
 
     def displacements(self, r_loc: np.ndarray) -> np.ndarray:
         """u_c (p, 3) per node (t1, t2, ν) for the zone's contact forces ``r_loc`` (FCLIB order):
@@ -173,7 +190,7 @@ class ZoneProblem:
         when needed, extends this zone's by the columns of the added DOFs)."""
         new = np.union1d(self.zone, nodes)
         out = object.__new__(ZoneProblem)
-        out.p, out._S, out._L = self.p, self._S, self._L
+        out.p, out._S, out._L, out._order, out._start = self.p, self._S, self._L, self._order, self._start
         if new.size == self.zone.size:
             out._parent = self._parent
             out._set_zone(self.zone, self._W, self._z)
