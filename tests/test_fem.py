@@ -186,3 +186,26 @@ def test_load_derivative_alone_matches_central_differences():
         fd = v @ (model.assemble(alpha + e).L_full - model.assemble(alpha - e).L_full) / (2 * h)
         assert abs(fd) > 1e-6
         assert abs(pred[k] - fd) <= 1e-6 * abs(fd)
+
+
+def test_parallel_assembly_equals_one_chunk_and_names_inverted_elements_globally(monkeypatch):
+    # Example 1's mesh (4320 elements) is assembled in one chunk per core; the matrices do not
+    # depend on the split, and an inverted element is named by its index in the whole mesh
+    from contactopt.errors import MeshError
+    from contactopt.fem import elasticity
+    model = ElasticModel(load_config("example1"))
+    asm = model.assembler
+    coords = model.mesh.coordinates(model.initial_design())
+    monkeypatch.setattr(elasticity, "_assembly_chunks", lambda n: 3)
+    A3 = asm.stiffness(coords)
+    monkeypatch.setattr(elasticity, "_assembly_chunks", lambda n: 1)
+    A1 = asm.stiffness(coords)
+    assert np.array_equal(A3.data, A1.data) and np.array_equal(A3.indices, A1.indices)
+    bad = coords.copy()
+    e = 4000                                    # in the last of three chunks
+    a, b = asm.elements[e, 0], asm.elements[e, 6]
+    bad[[a, b]] = bad[[b, a]]                   # swap two opposite corners: det J < 0
+    monkeypatch.setattr(elasticity, "_assembly_chunks", lambda n: 3)
+    with pytest.raises(MeshError, match=r"element\(s\) inverted") as exc:
+        asm.stiffness(bad)
+    assert str(exc.value).startswith("1 element(s)") and str(exc.value).endswith(f"[{e}]")
