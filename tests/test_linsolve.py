@@ -184,6 +184,18 @@ def test_refactor_reuses_the_analysis(backend, small):
         A2[0, A.shape[0] - 1] = A2[A.shape[0] - 1, 0] = 1e-3
         with pytest.raises(SolverError, match="same sparsity pattern"):
             f.refactor(A2.tocsr())
+        # trusted (an assembled stiffness): the same factorization; symmetry is not re-checked,
+        # finiteness and the pattern still are
+        assert rel(f.refactor(2.0 * A, trusted=True).S, 2.0 * S1) < 1e-12
+        skew = (A + sp.triu(A, 1) * 1e-3).tocsr()
+        with pytest.raises(SolverError, match="not symmetric"):
+            f.refactor(skew)
+        bad = A.copy()
+        bad.data[3] = np.nan
+        with pytest.raises(SolverError, match="non-finite"):
+            f.refactor(bad, trusted=True)
+        with pytest.raises(SolverError, match="same sparsity pattern"):
+            f.refactor(A2.tocsr(), trusted=True)
 
 
 @pytest.mark.skipif(not HAVE_PARDISO, reason="MKL PARDISO not loadable")

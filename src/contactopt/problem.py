@@ -105,7 +105,7 @@ class ShapeProblem:
         # the sparsity pattern never changes with α: reuse PARDISO's ordering and analysis
         fac = self._factor
         if fac is not None and hasattr(fac, "refactor"):
-            fac.refactor(asm.A)
+            fac.refactor(asm.A, trusted=True)     # symmetric, positive diagonal: assembled
         else:
             fac = condense(asm.A, self.model.contact_dofs, backend=self.backend)
             self._factor = fac

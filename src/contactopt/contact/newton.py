@@ -124,9 +124,7 @@ class _Solver:
         idx = np.arange(self.p)
         diag_blocks = W.reshape(self.p, 3, self.p, 3)[idx, :, idx, :]      # (p, 3, 3)
         self.wdiag = np.trace(diag_blocks, axis1=1, axis2=2).astype(np.float64) / 3.0
-        # ||M||_inf of every Newton matrix is within a small factor of this bound; dgecon
-        # only needs the order of magnitude to flag singular matrices.
-        self.wnorm_inf = float(np.abs(W).sum(axis=1).max())
+        self._wnorm_inf = None
         self.mu_max = float(mu.max(initial=0.0))
         self.wscale = float(np.mean(np.abs(self.wdiag))) or 1.0
         self.history: list[float] = []
@@ -134,6 +132,16 @@ class _Solver:
         self.counts = {"factorizations": 0, "reused_factorizations": 0, "line_search_evals": 0,
                        "singular": 0, "line_search_failures": 0}
         self.active_trace: list[tuple[int, int]] = []
+
+    @property
+    def wnorm_inf(self) -> float:
+        """||W||_inf, computed on first use (only a Newton matrix with bad pivots needs it).
+
+        ||M||_inf of every Newton matrix is within a small factor of this bound; dgecon only
+        needs the order of magnitude to flag singular matrices."""
+        if self._wnorm_inf is None:
+            self._wnorm_inf = float(np.abs(self.W).sum(axis=1).max())
+        return self._wnorm_inf
 
     def frictionless(self, tol):
         """The same problem with ``mu = 0`` (shares W and its derived quantities)."""
@@ -242,11 +250,12 @@ class _Solver:
         if alpha:                              # (W + alpha I) in the same frame
             diag[:b] += alpha
             diag[b:] += cF * alpha
-        anorm = (1.0 + self.mu_max) * self.wnorm_inf + alpha + float(dval.max(initial=0.0))
         lu = LUFactor(M)
         self.counts["factorizations"] += 1
         # dgecon costs about a quarter of the factorization: only when the pivots look bad
-        if lu.info != 0 or (not lu.pivot_ratio() > _PIVOT_SCREEN and not lu.rcond(anorm) > _RCOND_MIN):
+        if lu.info != 0 or (not lu.pivot_ratio() > _PIVOT_SCREEN
+                            and not lu.rcond((1.0 + self.mu_max) * self.wnorm_inf + alpha
+                                             + float(dval.max(initial=0.0))) > _RCOND_MIN):
             self.counts["singular"] += 1
             return None
         self._frozen = (key, lu) if self.freeze else None

@@ -57,8 +57,11 @@ def pardiso_available() -> bool:
 
 # ---------------------------------------------------------------------------------- checks
 
-def _check_matrix(A):
-    """Return A as CSR float64 with sorted indices; raise SolverError on obviously bad input."""
+def _check_matrix(A, trusted=False):
+    """Return A as CSR float64 with sorted indices; raise SolverError on obviously bad input.
+
+    ``trusted``: A is symmetric with a positive diagonal by construction (an assembled
+    stiffness); only the shape, the format and the finiteness are checked."""
     if not sp.issparse(A):
         A = np.asarray(A)
         if A.ndim != 2:
@@ -71,6 +74,8 @@ def _check_matrix(A):
         A.sum_duplicates()
     if not np.all(np.isfinite(A.data)):
         raise SolverError("A has non-finite entries (nan or inf)")
+    if trusted:
+        return A
     # PARDISO reads the upper triangle only: catch an unsymmetric A by a randomized test
     # (two products, a few ms) instead of forming A − Aᵀ.
     rng = np.random.default_rng(0)
@@ -170,9 +175,12 @@ class Condensation:
         """A_ii⁻¹ b_i for ``b_i`` of shape (n_i,) or (n_i, k)."""
         raise NotImplementedError
 
-    def refactor(self, A):
+    def refactor(self, A, *, trusted=False):
         """Redo the factorization for new values of A with the same sparsity pattern, reusing
-        the ordering; updates ``S`` (a new array) and ``timings``; returns self."""
+        the ordering; updates ``S`` (a new array) and ``timings``; returns self. ``trusted``
+        skips the checks of symmetry and of the diagonal (an assembled stiffness has both by
+        construction; a matrix that is not positive definite still fails in the factorization
+        or in the checks of S)."""
         raise NotImplementedError
 
     def close(self):
@@ -239,9 +247,9 @@ class PardisoCondensation(Condensation):
         _check_S(S)
         self.S = S if self._rank is None else S[np.ix_(self._rank, self._rank)]
 
-    def refactor(self, A):
+    def refactor(self, A, *, trusted=False):
         """New values of A with the same sparsity pattern: skip the analysis, redo phase 22."""
-        A = _check_matrix(A)
+        A = _check_matrix(A, trusted)
         upper = self._upper(A)
         t0 = time.perf_counter()
         self._set_S(self._ps.factor(upper))
@@ -428,8 +436,8 @@ class ScipyCondensation(Condensation):
         logger.debug("SciPy Schur: n=%d n_c=%d nnz(L+U)=%d, %.3f s factor",
                      n, m, lu.nnz, self.timings["factor_schur"])
 
-    def refactor(self, A):
-        A = _check_matrix(A)
+    def refactor(self, A, *, trusted=False):
+        A = _check_matrix(A, trusted)
         if (A.shape[0] != self.n or not np.array_equal(A.indptr, self._pattern[0])
                 or not np.array_equal(A.indices, self._pattern[1])):
             raise SolverError("refactor needs a matrix with the same sparsity pattern; "
