@@ -110,6 +110,7 @@ def main():
         t_ref = reference_factorization()
         timing = timed_run(CASES[name], out)
         timing["reference_factorization_s"] = 0.5 * (t_ref + reference_factorization())
+        r = case_result(name, out, timing)
         results[name] = r
         results_path.write_text(json.dumps(results, indent=1))
         for png in ("stress.png", "surface.png", "history.png", "classes.png"):
