@@ -209,3 +209,22 @@ def test_parallel_assembly_equals_one_chunk_and_names_inverted_elements_globally
     with pytest.raises(MeshError, match=r"element\(s\) inverted") as exc:
         asm.stiffness(bad)
     assert str(exc.value).startswith("1 element(s)") and str(exc.value).endswith(f"[{e}]")
+
+
+def test_parallel_assembly_in_a_forked_child():
+    # worker threads do not survive fork: a child process must assemble with its own pool
+    import multiprocessing as mp
+    if "fork" not in mp.get_all_start_methods():
+        pytest.skip("no fork on this platform")
+    model = ElasticModel(load_config("example1"))
+    coords = model.mesh.coordinates(model.initial_design())
+    A = model.assembler.stiffness(coords)             # the parent's pool exists now
+    ctx = mp.get_context("fork")
+    with ctx.Pool(1) as pool:
+        data = pool.apply_async(_child_stiffness_data, ()).get(timeout=60)
+    assert np.array_equal(data, A.data)
+
+
+def _child_stiffness_data():
+    model = ElasticModel(load_config("example1"))
+    return model.assembler.stiffness(model.mesh.coordinates(model.initial_design())).data

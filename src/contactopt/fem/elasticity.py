@@ -22,7 +22,7 @@ GAUSS_1D = np.array([-_G, _G])
 
 
 _CHUNK_MIN = 1024    # elements per assembly chunk, at least (smaller meshes: one chunk)
-_pool = None
+_pool = None         # (pid, ThreadPoolExecutor): a forked child makes its own (threads do not fork)
 
 
 def _assembly_chunks(n_elements: int) -> int:
@@ -36,9 +36,9 @@ def _assembly_chunks(n_elements: int) -> int:
 
 def _assembly_pool() -> ThreadPoolExecutor:
     global _pool
-    if _pool is None:
-        _pool = ThreadPoolExecutor(max_workers=4, thread_name_prefix="contactopt-assembly")
-    return _pool
+    if _pool is None or _pool[0] != os.getpid():
+        _pool = (os.getpid(), ThreadPoolExecutor(max_workers=4, thread_name_prefix="contactopt-assembly"))
+    return _pool[1]
 
 
 def lame(E: float, nu: float) -> tuple[float, float]:
