@@ -222,17 +222,14 @@ class ShapeProblem:
                 r0 = res.r
         t0 = time.perf_counter()
         keep = method == "newton" and self.reuse_delassus
-        if keep and zp.grown:
-            # a kept block must be what restore_jacobian(alpha, zone) rebuilds, bit for bit (a
-            # resumed run repeats the uninterrupted one): the zone's own factorization, not the
-            # grown block (equal up to round-off). Zones grow rarely.
-            W = zone_rules.ZoneProblem(cond.S, cond.ell, zp.zone).W
-        else:
-            W = zp.W
+        # a kept block must be what restore_jacobian(alpha, zone) rebuilds, bit for bit (a
+        # resumed run repeats the uninterrupted one): the zone's own factorization, not the
+        # grown block (equal up to round-off). Zones grow rarely.
+        W = self._own_block(cond, zp.zone) if keep and zp.grown else zp.W
         t_inv = time.perf_counter() - t0
         self.n_delassus += 1
         if keep:
-            self._jacobian = (alpha, zp.zone, W.astype(JACOBIAN_DTYPE))
+            self._keep_block(alpha, zp.zone, W)
         res = solve_local(W, q, self.friction, method=method, tol=tol, max_iter=self.max_iter, r0=r0)
         return res, t_inv, "formed"
 
@@ -245,8 +242,16 @@ class ShapeProblem:
         """Form and keep the Delassus block W_Z at design ``alpha`` for the nodes ``zone``."""
         cond = self.condensed_system(self.model.surface.as_vector(alpha))
         zone = np.asarray(zone, dtype=np.int64)
-        self._jacobian = (np.array(alpha, dtype=float), zone,
-                          zone_rules.ZoneProblem(cond.S, cond.ell, zone).W.astype(JACOBIAN_DTYPE))
+        self._keep_block(np.array(alpha, dtype=float), zone, self._own_block(cond, zone))
+
+    @staticmethod
+    def _own_block(cond, zone):
+        """W_Z of ``zone`` from the zone's own (N, Z)-ordered factorization of S."""
+        return zone_rules.ZoneProblem(cond.S, cond.ell, zone).W
+
+    def _keep_block(self, alpha, zone, W):
+        """Keep W_Z (in JACOBIAN_DTYPE) as the Newton matrix of later designs."""
+        self._jacobian = (alpha, zone, W.astype(JACOBIAN_DTYPE))
 
     def _zone_warm(self, r_loc: np.ndarray, zone: np.ndarray) -> np.ndarray:
         """Contact forces of a zone solve as a (p, 3) warm start, per node (N, T1, T2)."""
