@@ -199,6 +199,24 @@ def resolve_config(config, *, eps=None, max_iter=None) -> Config:
     return cfg.with_updates({"optimizer": upd}) if upd else cfg
 
 
+def uniqueness_warnings(problem, alpha0) -> list[str]:
+    """Warnings of a run at its initial design: F above the uniqueness estimate (3.16).
+
+    ``problem`` should hold the state at α0 already (the bound then costs two extreme eigenvalues
+    of the condensed stiffness, no new solve). The estimate is pessimistic: exceeding it does
+    not mean several solutions, only that uniqueness is not guaranteed."""
+    if problem.friction <= 0:
+        return []
+    bound = problem.uniqueness_bound(alpha0)
+    if problem.friction <= bound:
+        return []
+    msg = (f"friction coefficient F = {problem.friction:g} exceeds the uniqueness estimate (3.16) "
+           f"F0 ≈ {bound:.3g} at the initial design: the state may not be unique (the estimate "
+           f"is pessimistic)")
+    log.warning(msg)
+    return [msg]
+
+
 def run_optimization(config, outdir=None, *, eps=None, max_iter=None, resume=False, overwrite=False,
                      progress=None) -> RunResult:
     """Optimize the contact surface of a configuration; see the module docstring for the outputs."""
@@ -263,6 +281,9 @@ def run_optimization(config, outdir=None, *, eps=None, max_iter=None, resume=Fal
                 raise SolverError(f"Θ(α0) is not finite ({theta0})")
             oracle.scale = abs(theta0) if theta0 != 0 else 1.0
             log.info("Θ(α0) = %.8e; the bundle method minimises Θ/Θ(α0), so ε is relative", theta0)
+        # at α0 (a resumed run asks a separate problem: its own must continue bit for bit)
+        run_warnings = uniqueness_warnings(ShapeProblem(cfg) if resume and problem.friction > 0 else problem,
+                                           alpha0)
 
         def callback(inter):
             st = inter.state
@@ -292,6 +313,8 @@ def run_optimization(config, outdir=None, *, eps=None, max_iter=None, resume=Fal
             log.info("finished: %s", res.message)
         _write_checkpoint(ckpt, res.state, oracle, fingerprint, time.perf_counter() - oracle.t_start)
         summary = _finish(out, problem, alpha0, res, oracle, t_start)
+        summary["warnings"] = run_warnings
+        atomic_write_json(out / "summary.json", summary)
     finally:
         logging.getLogger("contactopt").removeHandler(handler)
         handler.close()
