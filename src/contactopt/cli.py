@@ -1,4 +1,4 @@
-"""Command-line interface: ``contactopt run | state | check-gradient | solve-fclib``.
+"""Command-line interface: ``contactopt run | sweep | state | check-gradient | solve-fclib``.
 
 Only this module prints. Errors of the library (``ContactOptError``) end with a one-paragraph
 message on stderr and exit code 2; nothing is written for input that is rejected.
@@ -115,6 +115,37 @@ def _cmd_run(args) -> int:
     return run_from_cli(args)
 
 
+def _cmd_sweep(args) -> int:
+    from .studies import parse_settings, run_sweep
+    settings = parse_settings(args.set or [])
+    if args.max_iter is not None and args.max_iter < 1:
+        raise ConfigError([f"--max-iter {args.max_iter}: must be an integer ≥ 1"])
+    if args.workers is not None and args.scheduler:
+        raise ConfigError(["--workers and --scheduler exclude each other (the workers of a "
+                           "cluster are started with 'dask worker')"])
+    out = Path(args.out or "sweep")
+
+    def connected(client, dashboard):
+        print(f"sweep on {client.scheduler.address}, dashboard: {dashboard or 'unavailable (install bokeh)'}",
+              flush=True)
+
+    def progress(row, done, total):
+        what = ", ".join(f"{k}={row[k]}" for k, _ in settings)
+        if row["error"]:
+            print(f"[{done}/{total}] {what}: FAILED {row['error']}", flush=True)
+        else:
+            print(f"[{done}/{total}] {what}: J/J0 = {row['ratio']:.4g}  evaluations {row['evaluations']}  "
+                  f"{row['wall_time_s']:.1f}s  {row['status']}", flush=True)
+
+    res = run_sweep(args.config, settings, out, workers=args.workers, scheduler=args.scheduler,
+                    threads=args.threads, max_iter=args.max_iter, eps=args.eps, resume=args.resume,
+                    overwrite=args.overwrite, progress=progress, on_client=connected)
+    print(f"{len(res.rows) - res.n_failed} of {len(res.rows)} tasks finished, {res.n_failed} failed, "
+          f"{res.wall_time_s:.1f}s; results in {res.outdir}/ (sweep.csv, sweep.json"
+          + "".join(f", {p.name}" for p in res.plots) + ")")
+    return 1 if res.n_failed else 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     ap = argparse.ArgumentParser(prog="contactopt", description=(
         "Shape optimization of 3D elastic bodies in unilateral contact with Coulomb friction "
@@ -146,6 +177,22 @@ def build_parser() -> argparse.ArgumentParser:
     g.add_argument("--h", type=float, default=1e-3, help="finite-difference step (relative to |α|)")
     g.add_argument("--alpha", help="design file; default α0")
     g.set_defaults(func=_cmd_check_gradient)
+
+    w = sub.add_parser("sweep", help="one optimization per combination of settings, on dask.distributed")
+    w.add_argument("config", help="TOML file or built-in example: the base configuration")
+    w.add_argument("--set", action="append", metavar="KEY=V1,V2,...",
+                   help="a dotted config key and its values (TOML scalars); repeat for a product")
+    w.add_argument("--workers", type=int, help="worker processes of a local cluster (default: cores)")
+    w.add_argument("--scheduler", help="address of a running dask scheduler, e.g. tcp://host:8786")
+    w.add_argument("--threads", type=int, help="MKL/BLAS threads per task (default: cores per host "
+                   "// tasks running on it)")
+    w.add_argument("--out", help="sweep directory (default sweep)")
+    w.add_argument("--max-iter", type=int, help="maximum bundle-trust iterations of every run")
+    w.add_argument("--eps", type=float, help="BT stopping parameter ε of every run")
+    w.add_argument("--resume", action="store_true",
+                   help="reuse finished runs in --out and continue unfinished ones")
+    w.add_argument("--overwrite", action="store_true", help="replace the contents of a non-empty --out")
+    w.set_defaults(func=_cmd_sweep)
 
     f = sub.add_parser("solve-fclib", help="solve an FCLIB local frictional-contact problem")
     f.add_argument("file")
