@@ -48,8 +48,68 @@ def _oneof(*options):
     return check
 
 
+def _part_spec(x):
+    """A part: a group name, or a predicate table {x1|x2|x3 = v, box = [[lo, hi]] × 3}."""
+    if isinstance(x, str):
+        return x != ""
+    if not isinstance(x, dict) or not x or set(x) - {"x1", "x2", "x3", "box"}:
+        return False
+    for k, v in x.items():
+        if k == "box":
+            if not (isinstance(v, list) and len(v) == 3 and all(
+                    isinstance(iv, list) and len(iv) == 2 and all(_finite(t) for t in iv) and iv[0] <= iv[1]
+                    for iv in v)):
+                return False
+        elif not _finite(v):
+            return False
+    return True
+
+
+_PART = "a part: a group name such as \"bottom\", or a predicate table such as { x1 = 0.0 } or { box = [[x1lo, x1hi], [x2lo, x2hi], [x3lo, x3hi]] }"
+
+
+def _clamp_spec(x):
+    items = x if isinstance(x, list) else [x]
+    if not items:
+        return False
+    for it in items:
+        if isinstance(it, dict) and "on" in it:
+            comps = it.get("components", [1, 2, 3])
+            if set(it) - {"on", "components"} or not _part_spec(it["on"]):
+                return False
+            if not (isinstance(comps, list) and comps and all(c in (1, 2, 3, "x1", "x2", "x3") for c in comps)):
+                return False
+        elif not _part_spec(it):
+            return False
+    return True
+
+
+def _load_list(value_check):
+    def check(x):
+        return isinstance(x, list) and all(
+            isinstance(it, dict) and set(it) == {"on", "value"} and _part_spec(it["on"]) and value_check(it["value"])
+            for it in x)
+    return check
+
+
 # section -> key -> (default, check, description of the allowed values)
 SCHEMA = {
+    "body": {
+        "mesh": ("", lambda x: isinstance(x, str),
+                 "a path to a mesh file (Gmsh .msh, .vtu, .inp, … read by meshio), relative to this file; "
+                 "empty: the block of [geometry] and [mesh]"),
+        "clamped": ("clamped", _clamp_spec,
+                    _PART + "; or { on = <part>, components = [1, 3] } to fix some components; or a list of these"),
+        "contact": ("contact", _part_spec, _PART + " (the designed contact face, on x3 = 0 in the mesh)"),
+        "fixed_shape": ("auto", lambda x: x == "auto" or (isinstance(x, list) and all(_part_spec(v) for v in x)),
+                        "'auto' (the named parts that share no node with the contact face) or a list of parts "
+                        "whose shape the morph keeps"),
+        "tolerance": (1e-3, lambda x: _pos(x) and x < 0.5,
+                      "a number in (0, 0.5) (geometric tolerance of plane and predicate checks, relative to the "
+                      "median boundary edge length)"),
+        "min_jacobian_ratio": (0.1, lambda x: _finite(x) and 0 < x < 1,
+                               "a number in (0, 1) (smallest det J(α)/det J_ref accepted at a quadrature point)"),
+    },
     "geometry": {
         "a": (2.0, _pos, "a number > 0 (length in x1)"),
         "b": (1.0, _pos, "a number > 0 (length in x2)"),
@@ -68,9 +128,16 @@ SCHEMA = {
         "coefficient": (0.3, _nonneg, "a number ≥ 0 (Coulomb coefficient F)"),
     },
     "loads": {
-        "top_traction": ([0.0, 0.0, -8e-2], _vec3, "a list of 3 numbers (traction on x3 = c)"),
-        "right_traction": ([5e-2, 0.0, 0.0], _vec3, "a list of 3 numbers (traction on x1 = a)"),
+        "top_traction": ([0.0, 0.0, -8e-2], _vec3,
+                         "a list of 3 numbers (the block's traction on its part 'top', x3 = c)"),
+        "right_traction": ([5e-2, 0.0, 0.0], _vec3,
+                           "a list of 3 numbers (the block's traction on its part 'right', x1 = a)"),
         "body_force": ([0.0, 0.0, 0.0], _vec3, "a list of 3 numbers (force per unit volume)"),
+        "traction": ([], _load_list(_vec3),
+                     "a list of tables { on = <part>, value = [t1, t2, t3] } (force per unit area, fixed direction)"),
+        "pressure": ([], _load_list(_finite),
+                     "a list of tables { on = <part>, value = p } (normal pressure, p > 0 pushes into the body; "
+                     "follows the face as it moves)"),
     },
     "design": {
         "degree": ([7, 3], lambda x: isinstance(x, list) and len(x) == 2 and all(_posint(v) for v in x),
@@ -81,6 +148,10 @@ SCHEMA = {
         "slope_divisor": ("degree", _oneof("degree", "count"), "'degree' or 'count'"),
         "initial": (0.01, lambda x: _finite(x) or isinstance(x, list),
                     "a number (all control points) or a (d1+1)×(d2+1) nested list"),
+        "domain": ([], lambda x: x == [] or (isinstance(x, list) and len(x) == 2 and all(
+            isinstance(iv, list) and len(iv) == 2 and all(_finite(t) for t in iv) and iv[0] < iv[1] for iv in x)),
+                   "[[x1lo, x1hi], [x2lo, x2hi]] (the rectangle carrying the control net; "
+                   "empty: the bounding rectangle of the contact face)"),
     },
     "objective": {
         "type": ("target_normal_force",
@@ -196,6 +267,33 @@ def _check_matrix(value, d1d2, key, problems):
         problems.append(f"{key}: must be a number or a {n1}×{n2} nested list of numbers")
 
 
+BLOCK_LOADS = ("top_traction", "right_traction")
+
+
+def _check_body(raw, data, problems):
+    """A body from a file has no [geometry]/[mesh] and no block loads; on the block, a configuration
+    that lists its own tractions or pressures gets no default block loads."""
+    loads_raw = raw.get("loads", {}) if isinstance(raw.get("loads"), dict) else {}
+    if data["body"]["mesh"]:
+        path = Path(data["body"]["mesh"])
+        if not path.is_file():
+            problems.append(f"body.mesh = {data['body']['mesh']!r}: no such file")
+        for sec in ("geometry", "mesh"):
+            if sec in raw:
+                problems.append(f"[{sec}]: describes the built-in block; with body.mesh the body comes from the "
+                                f"mesh file (remove [{sec}])")
+            data.pop(sec, None)
+        for k in BLOCK_LOADS:
+            if k in loads_raw:
+                problems.append(f"loads.{k}: is a load on a part of the built-in block; on a body from a file "
+                                "use [[loads.traction]] with on = \"<part>\"")
+            data["loads"].pop(k, None)
+    elif "traction" in loads_raw or "pressure" in loads_raw:
+        for k in BLOCK_LOADS:
+            if k not in loads_raw:
+                data["loads"][k] = [0.0, 0.0, 0.0]
+
+
 def validate(raw: dict, source: str = "<dict>") -> Config:
     """Fill defaults and check every key; raise ConfigError listing all problems at once."""
     if not isinstance(raw, dict):
@@ -234,10 +332,12 @@ def validate(raw: dict, source: str = "<dict>") -> Config:
     _check_matrix(data["design"]["initial"], d1d2, "design.initial", problems)
     if isinstance(data["objective"]["target"], dict):
         _check_target(data["objective"]["target"], d1d2, problems)
-    g = data["geometry"]
-    if _pos(g["c"]) and _pos(data["design"]["C0"]) and data["design"]["C0"] >= g["c"]:
-        problems.append(f"design.C0 = {data['design']['C0']}: must be < geometry.c = {g['c']} "
-                        "(a surface reaching the top face inverts the mesh)")
+    _check_body(raw, data, problems)
+    if "geometry" in data:
+        g = data["geometry"]
+        if _pos(g["c"]) and _pos(data["design"]["C0"]) and data["design"]["C0"] >= g["c"]:
+            problems.append(f"design.C0 = {data['design']['C0']}: must be < geometry.c = {g['c']} "
+                            "(a surface reaching the top face inverts the mesh)")
     if problems:
         raise ConfigError([f"{source}: {p}" for p in problems])
     return Config(data, source)
@@ -265,4 +365,8 @@ def load_config(path_or_name) -> Config:
         raw = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
         raise ConfigError([f"{source}: not valid TOML: {exc}"]) from None
+    body = raw.get("body")
+    if name not in EXAMPLES and isinstance(body, dict) and isinstance(body.get("mesh"), str) and body["mesh"]:
+        # a mesh path is relative to the TOML file; the resolved configuration keeps it absolute
+        body["mesh"] = str((Path(name).parent / body["mesh"]).resolve())
     return validate(raw, source)

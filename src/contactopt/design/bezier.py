@@ -2,9 +2,11 @@
 
 The contact surface is the graph of
 
-    ϑ_α(x1, x2) = Σ_{i=0..d1} Σ_{j=0..d2} α_ij β^i_{d1}(x1) β^j_{d2}(x2),   (x1, x2) ∈ [0,a]×[0,b],
+    ϑ_α(x1, x2) = Σ_{i=0..d1} Σ_{j=0..d2} α_ij β^i_{d1}(x1) β^j_{d2}(x2),   (x1, x2) ∈ R,
 
-with the Bernstein polynomials β^ℓ_d(x) = C(d,ℓ) (x/a)^ℓ (1 − x/a)^{d−ℓ} (paper §5.2).
+on the design rectangle R = [x1lo, x1lo + a]×[x2lo, x2lo + b] (the paper's block: [0,a]×[0,b]),
+with the Bernstein polynomials β^ℓ_d(x1) = C(d,ℓ) t^ℓ (1 − t)^{d−ℓ}, t = (x1 − x1lo)/a, and
+likewise in x2 (paper §5.2).
 The design vector is α flattened in C order (row-major): index k = i·(d2+1) + j.
 """
 
@@ -39,12 +41,17 @@ def bernstein_derivative(degree: int, t: np.ndarray) -> np.ndarray:
 
 @dataclass(frozen=True)
 class BezierSurface:
-    """A tensor-product Bézier surface of degree (d1, d2) on [0,a]×[0,b]."""
+    """A tensor-product Bézier surface of degree (d1, d2) on [x1lo, x1lo+a]×[x2lo, x2lo+b].
+
+    ``a``, ``b`` are the side lengths of the design rectangle (the paper's block: its origin is 0).
+    """
 
     d1: int
     d2: int
     a: float
     b: float
+    x1lo: float = 0.0
+    x2lo: float = 0.0
 
     @property
     def shape(self) -> tuple[int, int]:
@@ -61,14 +68,17 @@ class BezierSurface:
 
         Column k = i·(d2+1)+j holds β^i_{d1}(x1) β^j_{d2}(x2), so this is also ∂ϑ/∂α_ij.
         """
-        b1 = bernstein(self.d1, np.asarray(x1, float) / self.a)
-        b2 = bernstein(self.d2, np.asarray(x2, float) / self.b)
+        t1, t2 = self.parameters(x1, x2)
+        b1, b2 = bernstein(self.d1, t1), bernstein(self.d2, t2)
         return (b1[:, :, None] * b2[:, None, :]).reshape(b1.shape[0], -1)
+
+    def parameters(self, x1, x2):
+        """Bernstein parameters t = ((x1 − x1lo)/a, (x2 − x2lo)/b) ∈ [0, 1]² on the rectangle."""
+        return (np.asarray(x1, float) - self.x1lo) / self.a, (np.asarray(x2, float) - self.x2lo) / self.b
 
     def derivative_matrices(self, x1, x2) -> tuple[np.ndarray, np.ndarray]:
         """Matrices D1, D2 with ∂ϑ/∂x1 = D1 @ α, ∂ϑ/∂x2 = D2 @ α at the given points."""
-        t1 = np.asarray(x1, float) / self.a
-        t2 = np.asarray(x2, float) / self.b
+        t1, t2 = self.parameters(x1, x2)
         b1, b2 = bernstein(self.d1, t1), bernstein(self.d2, t2)
         db1 = bernstein_derivative(self.d1, t1) / self.a
         db2 = bernstein_derivative(self.d2, t2) / self.b

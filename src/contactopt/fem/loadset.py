@@ -1,0 +1,88 @@
+"""A set of loads on named parts of the body: L(α) and its design-derivative contraction.
+
+One load set is what ``[loads]`` of a configuration describes (and, with load cases, each case):
+
+- tractions t (force per unit area, a fixed vector in the global frame) on parts,
+  ``[[loads.traction]] on = <part>, value = [t1, t2, t3]``; the block's ``top_traction`` and
+  ``right_traction`` are tractions on its parts ``top`` and ``right``;
+- pressures p on parts, ``[[loads.pressure]] on = <part>, value = p``: the traction −p n with n
+  the outward unit normal of the current (moved) face, so p > 0 pushes into the body;
+- a body force f per unit volume in Ω(α).
+
+Every term is integrated on the current geometry x(α) (paper (2.9)) and differentiated exactly
+with respect to the node coordinates (DESIGN.md §2). Vectors are full length, DOF 3n + m.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..errors import ConfigError
+from . import loads as L
+
+
+@dataclass
+class LoadSet:
+    """Loads resolved to faces: ``tractions`` [(name, faces, t)], ``pressures`` [(name, faces, p)],
+    ``body_force`` (3,)."""
+
+    tractions: list = field(default_factory=list)
+    pressures: list = field(default_factory=list)
+    body_force: np.ndarray = field(default_factory=lambda: np.zeros(3))
+
+    def vector(self, coords: np.ndarray, assembler) -> np.ndarray:
+        """Full-length L(α) for the node coordinates ``coords``."""
+        out = np.zeros(coords.size)
+        face = assembler.element.face
+        for _, faces, t in self.tractions:
+            if np.any(t):
+                out += L.surface_load(coords, faces, t, face=face)
+        for _, faces, p in self.pressures:
+            if p != 0.0:
+                out += L.pressure_load(coords, faces, p, face=face)
+        if np.any(self.body_force):
+            out += L.body_load(coords, assembler.elements, self.body_force, element=assembler.element)
+        return out
+
+    def shape_contraction(self, coords: np.ndarray, v_full: np.ndarray, assembler) -> np.ndarray:
+        """vᵀ ∂L/∂x_{c,m} for every node c and coordinate m: array (n_nodes, 3)."""
+        out = np.zeros((coords.shape[0], 3))
+        face = assembler.element.face
+        for _, faces, t in self.tractions:
+            if np.any(t):
+                out += L.surface_load_shape_contraction(coords, faces, t, v_full, face=face)
+        for _, faces, p in self.pressures:
+            if p != 0.0:
+                out += L.pressure_load_shape_contraction(coords, faces, p, v_full, face=face)
+        if np.any(self.body_force):
+            out += L.body_load_shape_contraction(coords, assembler.elements, self.body_force, v_full,
+                                                 element=assembler.element)
+        return out
+
+
+def load_set(body, loads: dict, where: str = "loads") -> LoadSet:
+    """Resolve a loads table (``[loads]`` of a configuration) on the parts of ``body``."""
+    problems = []
+    out = LoadSet(body_force=np.array(loads.get("body_force", [0.0, 0.0, 0.0]), float))
+    entries = [("traction", {"on": name, "value": loads[f"{name}_traction"]}, f"{where}.{name}_traction")
+               for name in ("top", "right") if f"{name}_traction" in loads]
+    entries += [("traction", e, f"{where}.traction[{i}]") for i, e in enumerate(loads.get("traction", []))]
+    entries += [("pressure", e, f"{where}.pressure[{i}]") for i, e in enumerate(loads.get("pressure", []))]
+    for kind, entry, key in entries:
+        value = np.array(entry["value"], float) if kind == "traction" else float(entry["value"])
+        if not np.any(value):
+            continue
+        try:
+            part = body.part(entry["on"])
+        except ConfigError as exc:
+            problems += [f"{key}: {p}" for p in exc.problems]
+            continue
+        if part.faces.shape[0] == 0:
+            problems.append(f"{key}: part {part.name} has no boundary faces to carry a {kind}")
+            continue
+        (out.tractions if kind == "traction" else out.pressures).append((part.name, part.faces, value))
+    if problems:
+        raise ConfigError(problems)
+    return out

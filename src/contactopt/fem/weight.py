@@ -1,0 +1,70 @@
+"""The morph weight w of DESIGN.md §9: a discrete harmonic extension on the reference mesh.
+
+    −Δw = 0 in Ω_ref,   w = 1 on the contact face,   w = 0 on the parts fixed in shape,
+    ∂w/∂n = 0 elsewhere,
+
+discretised with the body's own elements (the scalar Laplacian ∫∇φ_a·∇φ_b with the element's
+shape functions and quadrature) and solved once by a sparse direct solve. A function that is
+linear in x3 is discretely harmonic, so on the block (w = 1 on x3 = 0, w = 0 on x3 = c, natural
+conditions on the sides) w = 1 − x3/c exactly: the paper's vertical map. Round-off (and, on
+meshes without a discrete maximum principle, overshoot) is clipped to [0, 1].
+"""
+
+from __future__ import annotations
+
+import logging
+
+import numpy as np
+import scipy.sparse as sp
+
+from ..errors import MeshError
+from .elasticity import element_geometry
+
+log = logging.getLogger(__name__)
+
+
+def scalar_laplacian(coords: np.ndarray, elements: np.ndarray, dN: np.ndarray, w: np.ndarray) -> sp.csr_matrix:
+    """Matrix of ∫∇φ_a·∇φ_b dx (n_nodes × n_nodes) for elements with reference gradients dN (Q, k, 3)."""
+    G, det = element_geometry(coords[elements], dN)
+    k = elements.shape[1]
+    Ke = np.einsum("eqam,eqbm,eq->eab", G, G, det * w)
+    rows = np.broadcast_to(elements[:, :, None], (len(elements), k, k)).ravel()
+    cols = np.broadcast_to(elements[:, None, :], (len(elements), k, k)).ravel()
+    n = coords.shape[0]
+    return sp.csr_matrix((Ke.ravel(), (rows, cols)), shape=(n, n))
+
+
+def harmonic_weight(coords, elements, dN, w, one_nodes, zero_nodes) -> np.ndarray:
+    """w (n_nodes,) with w = 1 on ``one_nodes``, 0 on ``zero_nodes``, discretely harmonic elsewhere.
+
+    Nodes in no element get w = 0. With no ``zero_nodes`` the solution is w = 1 (a rigid lift)."""
+    from .linsolve import factorize
+    n = coords.shape[0]
+    used = np.zeros(n, bool)
+    used[elements.ravel()] = True
+    one = np.zeros(n, bool)
+    one[one_nodes] = True
+    zero = np.zeros(n, bool)
+    zero[zero_nodes] = True
+    if np.any(one & zero):
+        clash = np.flatnonzero(one & zero)
+        raise MeshError(f"{clash.size} node(s) of the contact face lie on a part fixed in shape "
+                        f"(first: {clash[:5].tolist()}); the face cannot move there")
+    out = np.zeros(n)
+    out[one] = 1.0
+    free = np.flatnonzero(used & ~one & ~zero)
+    if free.size == 0:
+        return out
+    K = scalar_laplacian(coords, elements, dN, w)
+    Kff = K[free][:, free].tocsr()
+    rhs = -(K[free][:, np.flatnonzero(one)] @ np.ones(int(one.sum())))
+    if not np.any(zero):
+        out[free] = 1.0
+        return out
+    with factorize(Kff) as fac:
+        out[free] = fac.solve(rhs)
+    over = max(out.max() - 1.0, -out.min(), 0.0)
+    if over > 1e-9:
+        log.warning("the harmonic morph weight leaves [0, 1] by %.2e on this mesh (no discrete maximum "
+                    "principle); it is clipped", over)
+    return np.clip(out, 0.0, 1.0)

@@ -1,0 +1,219 @@
+"""The body of a configuration: its reference mesh and the parts its conditions are given on.
+
+``[body] mesh`` names a mesh file (:mod:`contactopt.mesh.reader`); without it the body is the
+paper's block of ``[geometry]`` and ``[mesh]`` (:mod:`contactopt.mesh.block`): two sources of
+one :class:`~contactopt.mesh.reference.ReferenceMesh`, after which everything is the same.
+
+Conventions (DESIGN.md §1, §9): the foundation is the half-space x3 ≤ 0 with outward normal e3;
+the contact face lies on x3 = 0 in the reference mesh with the body above it (the outward normal
+of the body on the face is −e3) and is a graph over (x1, x2). Its nodes with no clamped
+component are the contact nodes, ordered by node number; contact node m owns the condensed DOFs
+(u1, u2, u3) = (t1, t2, ν).
+"""
+
+from __future__ import annotations
+
+import logging
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..errors import ConfigError, MeshError
+from .reference import FACE_CORNERS, Part, ReferenceMesh, describe_part, select_part
+
+log = logging.getLogger(__name__)
+
+COMPONENTS = {"x1": 0, "x2": 1, "x3": 2, 1: 0, 2: 1, 3: 2}
+
+
+@dataclass
+class Body:
+    """A reference mesh with its resolved parts (see the module docstring)."""
+
+    reference: ReferenceMesh
+    tol: float                    # absolute geometric tolerance
+    fixed_dofs: np.ndarray        # full DOF indices 3n + m with u = 0
+    clamped: list                 # [(Part, components)]
+    contact_face: Part
+    contact_nodes: np.ndarray
+    fixed_shape: dict             # name → nodes with morph weight 0
+    domain: tuple                 # ((x1lo, x1hi), (x2lo, x2hi)) of the design rectangle
+    warnings: list = field(default_factory=list)
+
+    def part(self, spec) -> Part:
+        """The part of a spec (a name or a predicate table), as in the configuration."""
+        try:
+            return select_part(self.reference, spec, self.tol)
+        except MeshError as exc:
+            raise ConfigError([str(exc)]) from None
+
+
+def reference_mesh(cfg):
+    """The reference mesh of a configuration: the file of ``[body] mesh`` or the block."""
+    path = cfg["body"]["mesh"]
+    if path:
+        from .reader import read_mesh
+        return read_mesh(path)
+    from .block import block_mesh
+    g, m = cfg["geometry"], cfg["mesh"]
+    return block_mesh(g["a"], g["b"], g["c"], m["nx"], m["ny"], m["nz"])
+
+
+def build_body(cfg) -> Body:
+    """Resolve ``[body]`` of a validated configuration; ConfigError/MeshError name the problem."""
+    spec = cfg["body"]
+    try:
+        ref = reference_mesh(cfg)
+    except MeshError as exc:
+        raise ConfigError([f"{cfg.source}: body.mesh: {exc}"]) from None
+    tol = float(spec["tolerance"]) * ref.typical_size()
+    problems = []
+
+    def part(key, s):
+        try:
+            return select_part(ref, s, tol)
+        except MeshError as exc:
+            problems.append(f"body.{key}: {exc}")
+            return None
+
+    clamped = []
+    for entry in _as_list(spec["clamped"]):
+        on, comps = (entry["on"], entry.get("components", [1, 2, 3])) if _is_on_table(entry) else (entry, [1, 2, 3])
+        p = part("clamped", on)
+        if p is not None:
+            clamped.append((p, sorted({COMPONENTS[c] for c in comps})))
+    face = part("contact", spec["contact"])
+    if problems:
+        raise ConfigError([f"{cfg.source}: {p}" for p in problems])
+    fixed = np.zeros((ref.n_nodes, 3), bool)
+    for p, comps in clamped:
+        fixed[np.ix_(p.nodes, comps)] = True
+    face = _check_contact_face(ref, face, tol)
+    contact_nodes = face.nodes[~np.any(fixed[face.nodes], axis=1)]
+    if contact_nodes.size == 0:
+        raise ConfigError([f"{cfg.source}: body.contact = {describe_part(spec['contact'])}: every node of the "
+                           f"contact face is clamped ({face.nodes.size} nodes); no node is left to touch the foundation"])
+    _check_rigid_modes(ref, fixed, cfg.source)
+    fixed_shape = _fixed_shape(ref, spec["fixed_shape"], face, tol, cfg.source)
+    domain = _domain(cfg, ref, face, tol)
+    body = Body(ref, tol, np.flatnonzero(fixed.ravel()), clamped, face, contact_nodes, fixed_shape, domain)
+    body.warnings += _thin_tetrahedra(ref)
+    for w in body.warnings:
+        log.warning("%s", w)
+    return body
+
+
+def _as_list(x):
+    return x if isinstance(x, list) else [x]
+
+
+def _is_on_table(x):
+    return isinstance(x, dict) and "on" in x
+
+
+def _check_contact_face(ref: ReferenceMesh, face: Part, tol: float) -> Part:
+    """The contact face lies on x3 = 0 (snapped there), the body above it, and is a graph over (x1, x2)."""
+    name = face.name
+    if face.faces.shape[0] == 0:
+        raise ConfigError([f"body.contact = {name}: has no boundary faces (it must be a surface of the body "
+                           "lying on the foundation plane x3 = 0)"])
+    nodes = np.unique(face.faces)
+    off = np.abs(ref.points[nodes, 2]) > tol
+    if np.any(off):
+        bad = nodes[off][:5]
+        raise ConfigError([f"body.contact = {name}: {int(off.sum())} node(s) do not lie on the foundation "
+                           f"plane x3 = 0 (tolerance {tol:.3g}), first: "
+                           + ", ".join(f"node {n} at {_fmt(ref.points[n])}" for n in bad)])
+    ref.points[nodes, 2] = 0.0              # rounded coordinates of the file: exactly on the plane
+    nc = FACE_CORNERS[ref.face_type]
+    X = ref.points[face.faces[:, :nc]]
+    n3 = np.cross(X[:, 1] - X[:, 0], X[:, 2] - X[:, 0])[:, 2]
+    if np.any(n3 >= 0):
+        up = face.faces[n3 >= 0][:3, :nc]
+        raise ConfigError([f"body.contact = {name}: {int(np.sum(n3 >= 0))} face(s) have the body below them "
+                           f"(outward normal +x3; the body must lie in x3 ≥ 0 above the foundation), first with "
+                           f"nodes {up.tolist()}"])
+    from scipy.spatial import cKDTree
+    pairs = cKDTree(ref.points[nodes, :2]).query_pairs(tol, output_type="ndarray")
+    if len(pairs):
+        a, b = nodes[pairs[0, 0]], nodes[pairs[0, 1]]
+        raise ConfigError([f"body.contact = {name}: is not a graph over (x1, x2): {len(pairs)} pair(s) of nodes "
+                           f"share the same (x1, x2), first nodes {a} and {b} at {_fmt(ref.points[a, :2])}"])
+    return Part(name, nodes, face.faces, face.origin)
+
+
+def _check_rigid_modes(ref: ReferenceMesh, fixed: np.ndarray, source: str) -> None:
+    """The clamped DOFs must remove the six rigid-body motions (else A is singular)."""
+    x = ref.points - ref.points.mean(axis=0)
+    nodes, comps = np.nonzero(fixed)
+    # component m of the six rigid modes at node n: translations e_k, rotations e_k × x_n
+    R = np.zeros((nodes.size, 6))
+    R[np.arange(nodes.size), comps] = 1.0
+    R[:, 3:] = np.cross(np.eye(3)[None], x[nodes][:, None, :])[np.arange(nodes.size), :, comps]
+    sv = np.linalg.svd(R, compute_uv=False) if R.size else np.zeros(0)
+    rank = int(np.sum(sv > 1e-9 * max(sv.max(initial=0.0), 1e-300))) if sv.size else 0
+    if rank < 6:
+        raise ConfigError([f"{source}: body.clamped leaves {6 - rank} rigid-body motion(s) free "
+                           f"({int(fixed.sum())} clamped DOFs): the stiffness would be singular. Clamp a part "
+                           "that holds the body in place; bodies held only by the foundation are not supported yet"])
+
+
+def _fixed_shape(ref, spec, face: Part, tol: float, source: str) -> dict:
+    """Parts with morph weight 0: ``"auto"`` = the named parts that share no node with the contact face."""
+    out = {}
+    if spec == "auto":
+        for name, p in ref.parts.items():
+            if p.origin in ("file", "block") and not np.any(np.isin(p.nodes, face.nodes)):
+                out[name] = p.nodes
+        return out
+    problems = []
+    for s in _as_list(spec):
+        try:
+            p = select_part(ref, s, tol)
+        except MeshError as exc:
+            problems.append(f"body.fixed_shape: {exc}")
+            continue
+        if np.any(np.isin(p.nodes, face.nodes)):
+            problems.append(f"body.fixed_shape: part {describe_part(s)} shares nodes with the contact face, "
+                            "which must move with the design")
+        out[p.name] = p.nodes
+    if problems:
+        raise ConfigError([f"{source}: {p}" for p in problems])
+    return out
+
+
+def _domain(cfg, ref, face: Part, tol: float):
+    """The design rectangle: ``design.domain`` or the bounding rectangle of the contact face."""
+    xy = ref.points[face.nodes, :2]
+    lo, hi = xy.min(axis=0), xy.max(axis=0)
+    given = cfg["design"].get("domain")
+    if not given:
+        if np.any(hi - lo <= tol):
+            raise ConfigError([f"body.contact = {face.name}: the face has no extent in x{int(np.argmin(hi - lo)) + 1}"])
+        return ((float(lo[0]), float(hi[0])), (float(lo[1]), float(hi[1])))
+    (a0, a1), (b0, b1) = given
+    out = (xy[:, 0] < a0 - tol) | (xy[:, 0] > a1 + tol) | (xy[:, 1] < b0 - tol) | (xy[:, 1] > b1 + tol)
+    if np.any(out):
+        n = face.nodes[out][0]
+        raise ConfigError([f"{cfg.source}: design.domain = {given}: {int(out.sum())} node(s) of the contact face "
+                           f"lie outside it, first node {n} at {_fmt(ref.points[n, :2])}"])
+    return ((float(a0), float(a1)), (float(b0), float(b1)))
+
+
+def _thin_tetrahedra(ref: ReferenceMesh) -> list:
+    """Linear tetrahedra are stiff in bending: warn when most of them touch the boundary with all
+    their vertices (a part only one or two elements thick)."""
+    if ref.cell_type != "tetra":
+        return []
+    on_bnd = np.zeros(ref.n_nodes, bool)
+    on_bnd[ref.boundary_faces()] = True
+    frac = float(np.mean(np.all(on_bnd[ref.cells], axis=1)))
+    if frac < 0.5:
+        return []
+    return [f"{ref.source}: {100 * frac:.0f} % of the linear tetrahedra have every vertex on the boundary: parts "
+            "of the body are only one or two elements thick, where linear tetrahedra are too stiff in bending "
+            "(20–50 % too little deflection); refine there or use tetra10 (P2) elements"]
+
+
+def _fmt(x) -> str:
+    return "(" + ", ".join(f"{v:.6g}" for v in np.asarray(x)) + ")"

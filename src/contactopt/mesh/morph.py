@@ -1,0 +1,171 @@
+"""The morph of a reference mesh by the design surface, affine in α (DESIGN.md §9).
+
+    x(α) = x_ref + ϑ_α(x1, x2)·w(x_ref)·e3,
+
+with a weight w fixed on the reference mesh (1 on the contact face, 0 on the parts fixed in
+shape; :func:`contactopt.fem.weight.harmonic_weight`). Node coordinates are affine in α, so
+∂x3/∂α_k = β_k(x1, x2)·w and the design-derivative contractions of DESIGN.md §2 hold unchanged.
+On the contact face w = 1: a contact node at (x1, x2, 0) moves to (x1, x2, ϑ_α(x1, x2)), its gap
+to the foundation x3 ≤ 0 (outward normal e3 of the foundation) is g = ϑ_α(x1, x2).
+
+ϑ_α is evaluated at the node's (x1, x2) clamped to the design rectangle: nodes of the body that
+lie beyond the rectangle (they have w < 1) move like its nearest point, so the Bernstein
+polynomials are never extrapolated and the lift stays within [0, C0]·w on U.
+
+Element quality (DESIGN.md §9): with h = ϑ_α w the lift, the Jacobian of a morphed element is
+J = J_ref + e3 ⊗ ∇_ξ h, so det J / det J_ref = 1 + ∂h/∂x3 (the derivative on the reference
+element) — exactly, for every element type, and affine in α: ratio = 1 + R α with R fixed.
+:class:`JacobianRatio` checks it per design before assembly and bounds it over U: on U every
+control point lies in [0, C0], the Bernstein basis is non-negative, so
+min_U (Rα)_q ≥ C0·Σ_k min(0, R_qk) — exact for the block (R ≤ 0 there: ratio = 1 − ϑ_α/c).
+"""
+
+from __future__ import annotations
+
+import logging
+
+import numpy as np
+
+from ..errors import MeshError
+
+log = logging.getLogger(__name__)
+
+
+class MorphedMesh:
+    """A reference mesh moved by the design surface: ``coordinates(alpha)``, ``dx3_dalpha()``.
+
+    ``reference`` is a :class:`~contactopt.mesh.reference.ReferenceMesh`, ``weight`` the
+    (n_nodes,) weight w, ``contact_nodes`` the contact nodes in contact order and
+    ``fixed_shape`` the names of the parts with w = 0 (for messages).
+    """
+
+    def __init__(self, reference, surface, weight, contact_nodes, *, fixed_shape=()):
+        self.reference = reference
+        self.surface = surface
+        self.weight = np.asarray(weight, float)
+        self.contact_nodes = np.asarray(contact_nodes, np.int64)
+        self.fixed_shape = tuple(fixed_shape)
+        self.elements = reference.cells
+        x = reference.points
+        self.moving = np.flatnonzero(self.weight != 0.0)
+        xy = self._in_domain(x[self.moving, :2])
+        # ∂x3/∂α on the moving nodes: β_k(x1, x2)·w; constant in α
+        self._basis = surface.basis_matrix(xy[:, 0], xy[:, 1])
+        self._dx3 = self._basis * self.weight[self.moving, None]
+        self.ratio = None          # JacobianRatio, attached by the model (needs the element type)
+
+    def _in_domain(self, xy):
+        s = self.surface
+        lo = np.array([s.x1lo, s.x2lo])
+        return np.clip(xy, lo, lo + np.array([s.a, s.b]))
+
+    # ------------------------------------------------------------------ topology
+    @property
+    def n_nodes(self) -> int:
+        return self.reference.n_nodes
+
+    @property
+    def n_elements(self) -> int:
+        return self.reference.n_cells
+
+    @property
+    def cell_type(self) -> str:
+        return self.reference.cell_type
+
+    @property
+    def parts(self) -> dict:
+        return self.reference.parts
+
+    # ------------------------------------------------------------------ geometry
+    def lift(self, alpha) -> np.ndarray:
+        """ϑ_α·w at the moving nodes (in the order of ``self.moving``)."""
+        return self._dx3 @ self.surface.as_vector(alpha)
+
+    def coordinates(self, alpha) -> np.ndarray:
+        """Node coordinates (n_nodes, 3) of Ω(α); raises MeshError if an element would invert or
+        fall below the Jacobian-ratio threshold (checked before any assembly)."""
+        alpha = self.surface.as_vector(alpha)
+        if not np.all(np.isfinite(alpha)):
+            raise MeshError("design produces non-finite surface heights")
+        if self.ratio is not None:
+            self.ratio.check(alpha)
+        x = self.reference.points.copy()
+        x[self.moving, 2] += self.lift(alpha)
+        return x
+
+    def dx3_dalpha(self) -> np.ndarray:
+        """∂x3/∂α for every node: (n_nodes, n_design) = β_k(x1, x2)·w. Constant in α."""
+        out = np.zeros((self.n_nodes, self.surface.size))
+        out[self.moving] = self._dx3
+        return out
+
+    def contract_dx3(self, d3: np.ndarray) -> np.ndarray:
+        """Σ_n (∂x3_n/∂α) d3_n for a per-node array d3: the chain rule of DESIGN.md §2."""
+        return self._dx3.T @ d3[self.moving]
+
+    def contact_points(self) -> np.ndarray:
+        """(x1, x2) of the contact nodes, in contact-node order."""
+        return self.reference.points[self.contact_nodes, :2]
+
+    def gap_matrix(self) -> np.ndarray:
+        """G with gap g = G α: the initial gap of contact node i is ϑ_α(x'_i) (foundation x3 ≤ 0)."""
+        xy = self.contact_points()
+        return self.surface.basis_matrix(xy[:, 0], xy[:, 1])
+
+
+class JacobianRatio:
+    """det J(α) / det J_ref = 1 + R α at every quadrature point (see the module docstring).
+
+    ``grad3`` are ∂N_a/∂x3 on the reference elements (E, Q, n); ``dx3`` the (n_nodes, n_design)
+    ∂x3/∂α. ``threshold`` is the smallest ratio accepted; ``fixed_nodes`` mark parts fixed in
+    shape (named in the message when an element touching them inverts)."""
+
+    def __init__(self, elements, grad3, dx3, threshold, *, qpoints=None, fixed_parts=None, chunk=20000):
+        self.elements = elements
+        self.threshold = float(threshold)
+        E, Q, _ = grad3.shape
+        self.shape = (E, Q)
+        nd = dx3.shape[1]
+        big = E * Q * nd > 5_000_000
+        self.R = np.empty((E * Q, nd), np.float32 if big else np.float64)
+        for i in range(0, E, chunk):
+            j = min(E, i + chunk)
+            # R[e, q] = Σ_a ∂N_a/∂x3 (e, q) · (∂x3/∂α)_a
+            self.R[i * Q:j * Q] = np.einsum("eqa,ead->eqd", grad3[i:j], dx3[elements[i:j]]).reshape(-1, nd)
+        self.qpoints = qpoints
+        self.fixed_parts = fixed_parts or {}
+
+    def ratios(self, alpha) -> np.ndarray:
+        """(E, Q) det J(α)/det J_ref."""
+        return (1.0 + self.R @ np.asarray(alpha, self.R.dtype)).reshape(self.shape)
+
+    def check(self, alpha) -> None:
+        r = self.ratios(alpha)
+        if r.min() > self.threshold:
+            return
+        bad_e = np.unique(np.nonzero(r <= self.threshold)[0])
+        e = int(bad_e[np.argmin(r[bad_e].min(axis=1))])
+        where = ""
+        if self.qpoints is not None:
+            where = " at (" + ", ".join(f"{v:.4g}" for v in self.qpoints[e]) + ")"
+        kind = "inverted (det J ≤ 0)" if r[e].min() <= 0 else "distorted"
+        msg = (f"the design would leave {bad_e.size} element(s) {kind if bad_e.size == 1 else 'inverted or distorted'}: "
+               f"Jacobian ratio to the reference mesh {r[e].min():.3g} ≤ {self.threshold:g} in element {e}{where}")
+        touched = [name for name, nodes in self.fixed_parts.items()
+                   if np.any(np.isin(self.elements[bad_e], nodes))]
+        if touched:
+            msg += ("; the contact surface reaches the " + ", ".join(touched)
+                    + " face" + ("s" if len(touched) > 1 else "") + " (fixed in shape)")
+        raise MeshError(msg)
+
+    def worst_on_box(self, C0: float):
+        """(smallest ratio, element, quadrature point) over designs with 0 ≤ α ≤ C0: a bound of
+        the worst ratio on U (exact where R ≤ 0, as for the block)."""
+        neg = np.minimum(self.R, 0.0).sum(axis=1, dtype=np.float64)
+        q = int(np.argmin(neg))
+        return 1.0 + C0 * float(neg[q]), q // self.shape[1], q % self.shape[1], float(-neg[q])
+
+    def safe_C0(self) -> float:
+        """Largest C0 for which every design of the box keeps the ratio above the threshold."""
+        s = self.worst_on_box(1.0)[3]
+        return np.inf if s <= 0 else (1.0 - self.threshold) / s
