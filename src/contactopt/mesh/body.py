@@ -66,6 +66,12 @@ def build_body(cfg) -> Body:
         ref = reference_mesh(cfg)
     except MeshError as exc:
         raise ConfigError([f"{cfg.source}: body.mesh: {exc}"]) from None
+    bad = ref.inverted_cells()
+    if bad.size:
+        e = int(bad[0])
+        raise ConfigError([f"{cfg.source}: body.mesh: {ref.source}: the mesh is inverted as given: {bad.size} of "
+                           f"{ref.n_cells} cell(s) have a negative orientation, first cell {e} at "
+                           f"{_fmt(ref.points[ref.cells[e]].mean(axis=0))} (node order of the cells: meshio/VTK)"])
     tol = float(spec["tolerance"]) * ref.typical_size()
     problems = []
 

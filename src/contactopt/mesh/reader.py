@@ -17,6 +17,8 @@ Points that belong to no volume cell (geometry points of a CAD export) are kept 
 
 from __future__ import annotations
 
+import contextlib
+import io
 import logging
 from pathlib import Path
 
@@ -41,10 +43,15 @@ def read_mesh(path) -> ReferenceMesh:
         raise MeshError(f"mesh file {path}: no such file")
     if path.is_dir():
         raise MeshError(f"mesh file {path}: is a directory")
+    chatter = io.StringIO()
     try:
-        m = meshio.read(path)
-    except Exception as exc:     # meshio raises ReadError, ValueError, KeyError, … on bad files
-        raise MeshError(f"mesh file {path}: cannot be read by meshio ({type(exc).__name__}: {exc})") from None
+        # meshio prints its readers' complaints and may even sys.exit() on a file it cannot read
+        with contextlib.redirect_stdout(chatter), contextlib.redirect_stderr(chatter):
+            m = meshio.read(path)
+    except (Exception, SystemExit) as exc:
+        said = " ".join(chatter.getvalue().split())
+        raise MeshError(f"mesh file {path}: cannot be read by meshio ({type(exc).__name__}: {exc}"
+                        + (f"; {said}" if said else "") + ")") from None
     return from_meshio(m, str(path))
 
 

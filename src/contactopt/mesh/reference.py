@@ -143,6 +143,19 @@ class ReferenceMesh:
         inside[nodes] = True
         return bnd[np.all(inside[bnd[:, :FACE_CORNERS[self.face_type]]], axis=1)]
 
+    def inverted_cells(self) -> np.ndarray:
+        """Cells whose corner orientation is negative (det of the Jacobian at the cell centre ≤ 0):
+        inverted as given, or numbered in another convention than meshio's."""
+        X = self.points[self.cells[:, :CELL_CORNERS[self.cell_type]]]
+        if self.cell_type == "hexahedron":
+            s = 2.0 * np.array([(0, 0, 0), (1, 0, 0), (1, 1, 0), (0, 1, 0),
+                                (0, 0, 1), (1, 0, 1), (1, 1, 1), (0, 1, 1)], float) - 1.0
+            J = np.einsum("eam,an->emn", X, s) / 8.0          # ∂x_m/∂ξ_n at ξ = 0
+            det = np.linalg.det(J)
+        else:
+            det = np.linalg.det(X[:, 1:] - X[:, :1])
+        return np.flatnonzero(~(det > 0))
+
     # ------------------------------------------------------------------ sizes
     def typical_size(self) -> float:
         """Median edge length of the boundary faces: the unit of geometric tolerances."""
