@@ -343,6 +343,44 @@ def validate(raw: dict, source: str = "<dict>") -> Config:
     return Config(data, source)
 
 
+SECTION_DOCS = {
+    "body": "The body: a mesh file with named parts, or (no `mesh`) the paper's block of [geometry] and [mesh]. "
+            "Parts are group names of the file (Gmsh physical groups, meshio cell/point sets; the block has "
+            "`clamped`, `top`, `right`, `front`, `back`, `contact`) or predicate tables on the reference "
+            "coordinates, `{ x1 = 0.0 }` or `{ box = [[x1lo, x1hi], [x2lo, x2hi], [x3lo, x3hi]] }`.",
+    "geometry": "The built-in block [0,a]×[0,b]×[0,c] (only without `body.mesh`).",
+    "mesh": "Elements of the built-in block per direction (only without `body.mesh`).",
+    "material": "Isotropic linear elasticity.",
+    "friction": "Coulomb friction between the body and the rigid foundation x3 ≤ 0.",
+    "loads": "Loads on parts of the body, integrated on the current (designed) geometry.",
+    "design": "The Bézier contact surface ϑ_α and the admissible set U of its control points (paper §5.2).",
+    "objective": "The cost functional J(α, y) of the state.",
+    "state": "The discrete Coulomb contact problem and its solver.",
+    "linear_solver": "Sparse direct solver of the condensation.",
+    "optimizer": "The bundle-trust method.",
+}
+
+
+def reference_markdown() -> str:
+    """The configuration reference (docs/configuration.md): every key with its default and meaning."""
+    import tomli_w
+    lines = ["# Configuration reference", "",
+             "A configuration is a TOML file (or a built-in example: `example1`, `example2`, `example3`).",
+             "Every key is optional; the whole file is validated up front and every problem is listed at",
+             "once. This page is generated from the schema in `src/contactopt/config.py`",
+             "(`python -m contactopt.config > docs/configuration.md`).", "",
+             "| key | default | meaning |", "|---|---|---|"]
+    for key, (default, _, desc) in TOP_LEVEL.items():
+        lines.append(f"| `{key}` | `{default!r}` | {desc} |")
+    for sec, keys in SCHEMA.items():
+        lines += ["", f"## [{sec}]", "", SECTION_DOCS.get(sec, ""), "", "| key | default | meaning |", "|---|---|---|"]
+        for k, (default, _, desc) in keys.items():
+            shown = tomli_w.dumps({"v": default}).split("=", 1)[1].strip() if default != [] else "[]"
+            text = desc.replace("|", "\\|")
+            lines.append(f"| `{k}` | `{shown}` | {text} |")
+    return "\n".join(lines) + "\n"
+
+
 def load_config(path_or_name) -> Config:
     """Load a TOML file or a built-in example (``example1``, ``example2``, ``example3``)."""
     if isinstance(path_or_name, Config):
@@ -370,3 +408,7 @@ def load_config(path_or_name) -> Config:
         # a mesh path is relative to the TOML file; the resolved configuration keeps it absolute
         body["mesh"] = str((Path(name).parent / body["mesh"]).resolve())
     return validate(raw, source)
+
+
+if __name__ == "__main__":          # python -m contactopt.config > docs/configuration.md
+    print(reference_markdown(), end="")
