@@ -347,7 +347,8 @@ def _finish(out: Path, problem, alpha0, res, oracle, t_start) -> dict:
         f"{r['nfev']}\n" for r in res.history))
     amat = model.surface.as_matrix(x)
     atomic_write_json(out / "alpha.json", {"alpha": amat.tolist(), "shape": list(amat.shape)})
-    g1, g2 = np.meshgrid(np.linspace(0, model.surface.a, 41), np.linspace(0, model.surface.b, 21))
+    sf = model.surface
+    g1, g2 = np.meshgrid(np.linspace(sf.x1lo, sf.x1lo + sf.a, 41), np.linspace(sf.x2lo, sf.x2lo + sf.b, 21))
     h = model.surface.evaluate(x, g1.ravel(), g2.ravel())
     atomic_write_text(out / "surface.csv", "x1,x2,theta\n" + "".join(
         f"{a:.6g},{b:.6g},{c:.10g}\n" for a, b, c in zip(g1.ravel(), g2.ravel(), h)))

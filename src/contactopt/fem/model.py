@@ -1,18 +1,23 @@
 """The discretised elastic body of a configuration: design space → mesh → A(α), L(α).
 
-``ElasticModel`` owns everything that does not change with α (surface, admissible set, mesh
-topology, the CSR pattern, the contact DOFs) and produces, for a design α, the stiffness A(α) and
-load L(α) on the free DOFs, plus the design-derivative contraction vᵀ(∂A/∂α u − ∂L/∂α)
-(DESIGN.md §2) without ever forming ∂A/∂α_k.
+``ElasticModel`` owns everything that does not change with α (the body and its parts, surface,
+admissible set, the reference mesh and its morph, the CSR pattern, the contact DOFs) and
+produces, for a design α, the stiffness A(α) and load L(α) on the free DOFs, plus the
+design-derivative contraction vᵀ(∂A/∂α u − ∂L/∂α) (DESIGN.md §2) without ever forming ∂A/∂α_k.
 
-Contact ordering: contact node m (mesh node set ``contact``) owns the condensed DOFs
-3m, 3m+1, 3m+2 = (u1, u2, u3) = (tangent t1, tangent t2, normal ν) — the foundation is the
-half-space x3 ≤ 0 with outward normal e3 of the foundation, so u_ν = u3 and the gap is
-g_m = ϑ_α(x'_m) (non-penetration u_ν + g ≥ 0).
+One geometry path (DESIGN.md §9): a reference mesh (the block, or a mesh file) with its contact
+face on x3 = 0, moved by x(α) = x_ref + ϑ_α(x1, x2)·w·e3 with a harmonic weight w
+(:mod:`contactopt.mesh.morph`, :mod:`contactopt.fem.weight`).
+
+Contact ordering: contact node m (the nodes of the contact face with no clamped component, by
+node number) owns the condensed DOFs 3m, 3m+1, 3m+2 = (u1, u2, u3) = (tangent t1, tangent t2,
+normal ν) — the foundation is the half-space x3 ≤ 0 with outward normal e3 of the foundation, so
+u_ν = u3 and the gap is g_m = ϑ_α(x'_m) (non-penetration u_ν + g ≥ 0).
 """
 
 from __future__ import annotations
 
+import logging
 from dataclasses import dataclass
 
 import numpy as np
@@ -21,9 +26,16 @@ import scipy.sparse as sp
 from ..config import Config, load_config
 from ..design.admissible import AdmissibleSet
 from ..design.bezier import BezierSurface
+from ..errors import ConfigError, MeshError
+from ..mesh.body import build_body
 from ..mesh.hexmesh import HexMesh
-from .elasticity import ElasticityAssembler
-from .loads import body_load, body_load_shape_contraction, surface_load, surface_load_shape_contraction
+from ..mesh.morph import JacobianRatio, MorphedMesh
+from .elasticity import ElasticityAssembler, element_geometry
+from .loads import surface_load
+from .loadset import load_set
+from .weight import harmonic_weight
+
+log = logging.getLogger(__name__)
 
 
 @dataclass
@@ -44,27 +56,69 @@ class ElasticModel:
     def __init__(self, config):
         cfg = load_config(config) if not isinstance(config, Config) else config
         self.config = cfg
-        g, d = cfg["geometry"], cfg["design"]
+        self.body = body = build_body(cfg)
+        ref = body.reference
+        d = cfg["design"]
         d1, d2 = d["degree"]
-        self.surface = BezierSurface(d1, d2, g["a"], g["b"])
-        self.admissible = AdmissibleSet(d1, d2, g["a"], g["b"], d["C0"], d["C1"], d["C2"], d["slope_divisor"])
-        m = cfg["mesh"]
-        self.mesh = HexMesh(m["nx"], m["ny"], m["nz"], self.surface, g["c"])
-        clamped = self.mesh.node_sets["clamped"]
-        fixed = (3 * clamped[:, None] + np.arange(3)).ravel()
+        (x1lo, x1hi), (x2lo, x2hi) = body.domain
+        a, b = x1hi - x1lo, x2hi - x2lo
+        self.surface = BezierSurface(d1, d2, a, b, x1lo, x2lo)
+        self.admissible = AdmissibleSet(d1, d2, a, b, d["C0"], d["C1"], d["C2"], d["slope_divisor"])
         mat = cfg["material"]
-        self.assembler = ElasticityAssembler(self.mesh.elements, self.mesh.n_nodes, fixed, mat["E"], mat["nu"])
-        self.contact_nodes = self.mesh.node_sets["contact"]
+        if ref.cell_type != "hexahedron":
+            raise ConfigError([f"{cfg.source}: body.mesh: {ref.cell_type} cells are read but not assembled yet"])
+        self.assembler = ElasticityAssembler(ref.cells, ref.n_nodes, body.fixed_dofs, mat["E"], mat["nu"])
+        self._check_reference(ref)
+        zero = np.concatenate([np.asarray(v, np.int64) for v in body.fixed_shape.values()] or [np.zeros(0, np.int64)])
+        self.weight = harmonic_weight(ref.points, ref.cells, self.assembler.dN, self.assembler.w,
+                                      body.contact_face.nodes, zero)
+        if cfg["body"]["mesh"]:
+            self.mesh = MorphedMesh(ref, self.surface, self.weight, body.contact_nodes,
+                                    fixed_shape=tuple(body.fixed_shape))
+        else:
+            m = cfg["mesh"]
+            self.mesh = HexMesh(m["nx"], m["ny"], m["nz"], self.surface, cfg["geometry"]["c"], reference=ref,
+                                weight=self.weight, contact_nodes=body.contact_nodes,
+                                fixed_shape=tuple(body.fixed_shape))
+        self.mesh.ratio = self._jacobian_ratio(ref, body)
+        self.contact_nodes = body.contact_nodes
         full = (3 * self.contact_nodes[:, None] + np.arange(3)).ravel()
         self.contact_dofs = self.assembler.full_to_free[full]
         assert np.all(self.contact_dofs >= 0)
         self.gap_matrix = self.mesh.gap_matrix()
-        self._dx3 = self.mesh.dx3_dalpha()
-        loads = cfg["loads"]
-        self.tractions = [(self.mesh.faces["top"], np.array(loads["top_traction"], float)),
-                          (self.mesh.faces["right"], np.array(loads["right_traction"], float))]
-        self.body_force = np.array(loads["body_force"], float)
+        self.loads = load_set(body, cfg["loads"])
+        self.body_force = self.loads.body_force
 
+    # ------------------------------------------------------------------ checks
+    def _check_reference(self, ref) -> None:
+        """The reference mesh as given must not be inverted (det J > 0 at every quadrature point)."""
+        det = element_geometry(ref.points[ref.cells], self.assembler.dN)[1]
+        if not np.all(det > 0):
+            bad = np.unique(np.nonzero(~(det > 0))[0])
+            e = int(bad[0])
+            raise ConfigError([f"{ref.source}: the mesh is inverted as given: {bad.size} of {ref.n_cells} element(s) "
+                               f"have det J ≤ 0, first element {e} at {_fmt(ref.points[ref.cells[e]].mean(axis=0))}"
+                               " (node order of the cells: meshio/VTK)"])
+        self._det_ref = det
+
+    def _jacobian_ratio(self, ref, body) -> JacobianRatio:
+        """det J(α)/det J_ref = 1 + Rα (mesh.morph); C0 must keep it above the threshold on U."""
+        G, _ = element_geometry(ref.points[ref.cells], self.assembler.dN)
+        centroids = ref.points[ref.cells].mean(axis=1)
+        thr = self.config["body"]["min_jacobian_ratio"]
+        jr = JacobianRatio(ref.cells, G[..., 2], self.mesh.dx3_dalpha(), thr, qpoints=centroids,
+                           fixed_parts={name: nodes for name, nodes in body.fixed_shape.items()})
+        C0 = self.config["design"]["C0"]
+        worst, e, _, _ = jr.worst_on_box(C0)
+        self.safe_C0 = jr.safe_C0()
+        if worst <= thr:
+            raise ConfigError([f"{self.config.source}: design.C0 = {C0:g} lets admissible designs "
+                               f"{'invert' if worst <= 0 else 'distort'} element {e} at {_fmt(centroids[e])} "
+                               f"(Jacobian ratio down to {worst:.3g} ≤ body.min_jacobian_ratio = {thr:g}); "
+                               f"the largest safe C0 for this mesh and morph is {self.safe_C0:.4g}"])
+        return jr
+
+    # ------------------------------------------------------------------ sizes
     @property
     def n_contact(self) -> int:
         return self.contact_nodes.size
@@ -80,35 +134,35 @@ class ElasticModel:
             return np.full(self.n_design, float(init))
         return self.surface.as_vector(init)
 
-    def load_vector(self, coords: np.ndarray) -> np.ndarray:
-        """Full-length L(α) = tractions + body force."""
-        L = np.zeros(3 * self.mesh.n_nodes)
-        for quads, t in self.tractions:
-            if np.any(t):
-                L += surface_load(coords, quads, t)
-        if np.any(self.body_force):
-            a = self.assembler
-            L += body_load(coords, self.mesh.elements, a.N, a.dN, a.w, self.body_force)
-        return L
+    def contact_areas(self) -> np.ndarray:
+        """Tributary areas ∫N_m dS of the contact nodes on the (flat) reference contact face, which
+        turn a contact stress σ into nodal forces λ_m ≈ σ(x'_m)·A_m."""
+        ref = self.body.reference
+        areas = surface_load(ref.points, self.body.contact_face.faces, [0.0, 0.0, 1.0])[2::3]
+        return areas[self.contact_nodes]
 
-    def assemble(self, alpha) -> Assembled:
+    # ------------------------------------------------------------------ A(α), L(α)
+    def load_vector(self, coords: np.ndarray, loads=None) -> np.ndarray:
+        """Full-length L(α) of a load set (default: the configuration's ``[loads]``)."""
+        return (loads or self.loads).vector(coords, self.assembler)
+
+    def assemble(self, alpha, loads=None) -> Assembled:
         """A(α), L(α) and the gaps for a design (no feasibility check against U here)."""
         alpha = self.surface.as_vector(alpha)
         coords = self.mesh.coordinates(alpha)
         A = self.assembler.stiffness(coords)
-        L_full = self.load_vector(coords)
+        L_full = self.load_vector(coords, loads)
         return Assembled(alpha, coords, A, L_full, L_full[self.assembler.free], self.gap_matrix @ alpha)
 
-    def design_contraction(self, coords: np.ndarray, u_full: np.ndarray, v_full: np.ndarray) -> np.ndarray:
+    def design_contraction(self, coords: np.ndarray, u_full: np.ndarray, v_full: np.ndarray, loads=None) -> np.ndarray:
         """vᵀ(∂A/∂α_k u − ∂L/∂α_k) for every design variable k (full-length u, v; DESIGN.md §2).
 
-        Only the x3 coordinates move with α: ∂x3/∂α = β^i β^j (1 − s).
+        Only the x3 coordinates move with α: ∂x3/∂α_k = β_k(x1, x2)·w (mesh.morph).
         """
         d = self.assembler.stiffness_shape_contraction(coords, u_full, v_full)
-        for quads, t in self.tractions:
-            if np.any(t):
-                d -= surface_load_shape_contraction(coords, quads, t, v_full)
-        if np.any(self.body_force):
-            a = self.assembler
-            d -= body_load_shape_contraction(coords, self.mesh.elements, a.N, a.dN, a.w, self.body_force, v_full)
-        return self._dx3.T @ d[:, 2]
+        d -= (loads or self.loads).shape_contraction(coords, v_full, self.assembler)
+        return self.mesh.contract_dx3(d[:, 2])
+
+
+def _fmt(x) -> str:
+    return "(" + ", ".join(f"{v:.4g}" for v in np.asarray(x)) + ")"

@@ -4,11 +4,14 @@ Figures are built with the object API (``matplotlib.figure.Figure`` on an Agg ca
 through ``pyplot``: no global figure registry, nothing to leak, safe to call from worker threads.
 Every file is written atomically (temporary file + rename, :mod:`contactopt.io.atomic`).
 
-Contact-surface maps use the contact-node grid of :class:`~contactopt.mesh.hexmesh.HexMesh`:
-contact node m = i−1 + nx·j (i = 1..nx along x1, j = 0..ny along x2), so a per-contact-node array
-reshapes to (ny+1, nx). Each node is drawn as the cell of points closer to it than to any other
-node (its dual cell), clipped to the rectangle [0,a]×[0,b]; the strip next to the clamped edge
-x1 = 0 belongs to the clamped nodes and stays empty.
+Contact-surface maps draw a per-contact-node field over the contact face. On the paper's block
+(:class:`~contactopt.mesh.hexmesh.HexMesh`) the contact nodes form a grid: contact node
+m = i−1 + nx·j (i = 1..nx along x1, j = 0..ny along x2), a per-contact-node array reshapes to
+(ny+1, nx), and each node is drawn as its dual cell (the points closer to it than to any other
+node) clipped to the rectangle [0,a]×[0,b], as in the paper's figures; the strip next to the
+clamped edge x1 = 0 belongs to the clamped nodes and stays empty. On any other face (a disc, an
+L, an unstructured mesh) the field is drawn on the face's triangulation (quadrilaterals split in
+two; triangles touching a clamped node are left out): :func:`face_triangulation`.
 
 Sign conventions of the plotted fields (see :mod:`contactopt.contact.state`): λ_m = (S u_c − ℓ)_ν ≥ 0
 is the normal contact force on the body; τ_m = −(S u_c − ℓ)_t with ‖τ_m‖ ≤ F λ_m; the gap is
@@ -32,7 +35,7 @@ from .atomic import atomic_output
 
 log = logging.getLogger(__name__)
 
-__all__ = ["contact_grid", "plot_contact_field", "plot_node_classes", "plot_stress_comparison",
+__all__ = ["contact_grid", "face_triangulation", "plot_contact_field", "plot_node_classes", "plot_stress_comparison",
            "plot_surface", "plot_history", "CLASS_LABELS", "CLASS_COLORS"]
 
 # display names (typographic minus) and colours of Table 4.1's classes, in CLASS_NAMES order
@@ -80,6 +83,42 @@ def contact_grid(model, values=None):
     return X1, X2, v.reshape(ny + 1, nx)
 
 
+def _has_grid(model) -> bool:
+    if not hasattr(model.mesh, "nx"):
+        return False
+    try:
+        contact_grid(model)
+    except ValueError:
+        return False
+    return True
+
+
+def face_triangulation(model):
+    """The contact face as a ``matplotlib.tri.Triangulation`` over the contact nodes.
+
+    Vertices are the contact nodes in contact-node order at their (x1, x2); the triangles are the
+    face's triangles (a quadrilateral split in two, a six-node triangle by its corners) whose
+    vertices are all contact nodes.
+    """
+    from matplotlib.tri import Triangulation
+    faces = np.asarray(model.body.contact_face.faces)
+    corners = faces[:, :4] if faces.shape[1] == 4 else faces[:, :3]
+    tris = np.vstack([corners[:, [0, 1, 2]], corners[:, [0, 2, 3]]]) if corners.shape[1] == 4 else corners
+    index = np.full(model.mesh.n_nodes, -1)
+    index[model.contact_nodes] = np.arange(model.n_contact)
+    tris = index[tris]
+    tris = tris[np.all(tris >= 0, axis=1)]
+    xy = np.asarray(model.mesh.contact_points(), float)
+    return Triangulation(xy[:, 0], xy[:, 1], tris)
+
+
+def _contact_values(model, values, what="values"):
+    v = np.asarray(values)
+    if v.shape != (model.n_contact,):
+        raise ValueError(f"expected one value per contact node ({model.n_contact},), got shape {v.shape}")
+    return v
+
+
 def _dual_edges(nodes: np.ndarray, lo: float, hi: float) -> np.ndarray:
     """Cell edges around sorted node positions: midpoints inside, half a spacing outside, clipped."""
     if nodes.size == 1:
@@ -90,11 +129,17 @@ def _dual_edges(nodes: np.ndarray, lo: float, hi: float) -> np.ndarray:
     return np.clip(np.concatenate([[first], mid, [last]]), lo, hi)
 
 
-def _map_axes(fig, model):
-    a, b = model.surface.a, model.surface.b
-    ax = fig.add_subplot()
-    ax.set_xlim(0.0, a)
-    ax.set_ylim(0.0, b)
+def _rectangle(model):
+    """(x1lo, x1hi, x2lo, x2hi) of the design rectangle."""
+    s = model.surface
+    return s.x1lo, s.x1lo + s.a, s.x2lo, s.x2lo + s.b
+
+
+def _map_axes(fig, model, pos=None):
+    x1lo, x1hi, x2lo, x2hi = _rectangle(model)
+    ax = fig.add_subplot() if pos is None else fig.add_subplot(*pos)
+    ax.set_xlim(x1lo, x1hi)
+    ax.set_ylim(x2lo, x2hi)
     ax.set_aspect("equal")
     ax.set_xlabel("$x_1$")
     ax.set_ylabel("$x_2$")
@@ -114,6 +159,13 @@ def _figsize_map(model, extra_width=1.6):
     return (w + extra_width, max(2.6, w * ratio + 1.1))
 
 
+def _field(ax, model, values, **kw):
+    """Draw a per-contact-node field: dual cells on the block's grid, else the face triangulation."""
+    if _has_grid(model):
+        return _pcolor(ax, model, contact_grid(model, values)[2], **kw)
+    return ax.tripcolor(face_triangulation(model), np.asarray(values, float), shading="gouraud", **kw)
+
+
 def plot_contact_field(path, model, values, title, cmap="viridis", label=None, *,
                        vmin=None, vmax=None) -> Path:
     """Map of a per-contact-node field over the contact surface [0,a]×[0,b] (one cell per node).
@@ -121,13 +173,12 @@ def plot_contact_field(path, model, values, title, cmap="viridis", label=None, *
     ``values``: (p,) in contact-node order (e.g. λ, ‖τ‖, the gap). ``label`` names the colour bar.
     Non-finite values are refused (``ValueError``). Returns the path of the PNG.
     """
-    _, _, grid = contact_grid(model, values)
-    grid = np.asarray(grid, float)
+    grid = np.asarray(_contact_values(model, values), float)
     if not np.all(np.isfinite(grid)):
         raise ValueError(f"plot_contact_field({title!r}): the field has non-finite values")
     fig = _new_figure(_figsize_map(model))
     ax = _map_axes(fig, model)
-    mesh = _pcolor(ax, model, grid, cmap=cmap, vmin=vmin, vmax=vmax)
+    mesh = _field(ax, model, grid, cmap=cmap, vmin=vmin, vmax=vmax)
     fig.colorbar(mesh, ax=ax, label=label or "", shrink=0.9)
     ax.set_title(f"{title}\nmin {grid.min():.4g}, max {grid.max():.4g}", fontsize=10)
     return _save(fig, path)
@@ -138,8 +189,7 @@ def plot_node_classes(path, model, classes, title="Contact node classes (Table 4
 
     The legend names every class with its count, including the classes that do not occur.
     """
-    _, _, grid = contact_grid(model, classes)
-    codes = np.asarray(grid)
+    codes = np.asarray(_contact_values(model, classes))
     if codes.dtype.kind not in "iu" and not np.all(np.equal(np.mod(codes, 1), 0)):
         raise ValueError("node classes must be integer codes")
     codes = codes.astype(int)
@@ -150,7 +200,12 @@ def plot_node_classes(path, model, classes, title="Contact node classes (Table 4
     norm = BoundaryNorm(np.arange(-0.5, len(CLASS_NAMES) + 0.5), cmap.N)
     fig = _new_figure(_figsize_map(model, extra_width=2.6))
     ax = _map_axes(fig, model)
-    _pcolor(ax, model, codes, cmap=cmap, norm=norm, edgecolors="white", linewidth=0.3)
+    if _has_grid(model):
+        _pcolor(ax, model, contact_grid(model, codes)[2], cmap=cmap, norm=norm, edgecolors="white", linewidth=0.3)
+    else:
+        tri = face_triangulation(model)
+        ax.triplot(tri, color="0.8", linewidth=0.4)
+        ax.scatter(tri.x, tri.y, c=codes, cmap=cmap, norm=norm, s=14, edgecolors="0.3", linewidths=0.3)
     handles = [Patch(facecolor=CLASS_COLORS[k], edgecolor="0.4",
                      label=f"{CLASS_LABELS[k]} ({int(np.sum(codes == k))}): {CLASS_DESCRIPTIONS[k]}")
                for k in range(len(CLASS_NAMES))]
@@ -168,10 +223,13 @@ def plot_stress_comparison(path, model, target, initial, optimal, *,
     ``target``, ``initial``, ``optimal``: one value per contact node (λ̄, λ(α0), λ(α_opt));
     each bar stands on the dual cell of its contact node.
     """
-    grids = [np.asarray(contact_grid(model, v)[2], float) for v in (target, initial, optimal)]
-    for name, g in zip(titles, grids):
+    fields = [np.asarray(_contact_values(model, v), float) for v in (target, initial, optimal)]
+    for name, g in zip(titles, fields):
         if not np.all(np.isfinite(g)):
             raise ValueError(f"plot_stress_comparison: {name!r} has non-finite values")
+    if not _has_grid(model):
+        return _stress_maps(path, model, fields, titles, zlabel, suptitle)
+    grids = [contact_grid(model, g)[2] for g in fields]
     X1, X2, _ = contact_grid(model)
     e1 = _dual_edges(X1[0], 0.0, model.surface.a)
     e2 = _dual_edges(X2[:, 0], 0.0, model.surface.b)
@@ -208,6 +266,25 @@ def plot_stress_comparison(path, model, target, initial, optimal, *,
     return _save(fig, path)
 
 
+def _stress_maps(path, model, fields, titles, zlabel, suptitle) -> Path:
+    """Three maps of per-contact-node fields over a face of any shape, on one colour scale."""
+    lo = min(0.0, *(g.min() for g in fields))
+    hi = max(0.0, *(g.max() for g in fields))
+    if hi == lo:
+        hi = lo + 1.0
+    w, h = _figsize_map(model, extra_width=0.0)
+    fig = _new_figure((3 * w * 0.8 + 1.5, h * 0.8 + 0.6))
+    tri = face_triangulation(model)
+    for n, (g, title) in enumerate(zip(fields, titles)):
+        ax = _map_axes(fig, model, (1, 3, n + 1))
+        m = ax.tripcolor(tri, g, shading="gouraud", cmap="viridis", vmin=lo, vmax=hi)
+        ax.set_title(f"{title}\nsum {g.sum():.4g}, max {g.max():.4g}", fontsize=10)
+    fig.colorbar(m, ax=fig.axes, label=zlabel, shrink=0.85)
+    if suptitle:
+        fig.suptitle(suptitle)
+    return _save(fig, path)
+
+
 def plot_surface(path, model, alpha, *, resolution=(81, 41), title="Contact surface $\\vartheta_\\alpha$") -> Path:
     """The contact surface ϑ_α(x1, x2) as a 3D surface with the Bézier control points and net.
 
@@ -218,12 +295,22 @@ def plot_surface(path, model, alpha, *, resolution=(81, 41), title="Contact surf
     A = surf.as_matrix(alpha)
     if not np.all(np.isfinite(A)):
         raise ValueError("plot_surface: the design has non-finite entries")
-    x1 = np.linspace(0.0, surf.a, resolution[0])
-    x2 = np.linspace(0.0, surf.b, resolution[1])
+    x1lo, x1hi, x2lo, x2hi = _rectangle(model)
+    x1 = np.linspace(x1lo, x1hi, resolution[0])
+    x2 = np.linspace(x2lo, x2hi, resolution[1])
     G1, G2 = np.meshgrid(x1, x2)
     Z = surf.evaluate(A, G1.ravel(), G2.ravel()).reshape(G1.shape)
-    c1 = surf.a * np.arange(surf.d1 + 1) / max(surf.d1, 1)
-    c2 = surf.b * np.arange(surf.d2 + 1) / max(surf.d2, 1)
+    if not _has_grid(model):
+        # the surface over the contact face only (a disc, an L: the rectangle carries the net)
+        from matplotlib.tri import Triangulation
+        corners = np.asarray(model.body.contact_face.faces)
+        corners = corners[:, :4] if corners.shape[1] == 4 else corners[:, :3]
+        tris = np.vstack([corners[:, [0, 1, 2]], corners[:, [0, 2, 3]]]) if corners.shape[1] == 4 else corners
+        xy = model.body.reference.points[:, :2]
+        inside = Triangulation(xy[:, 0], xy[:, 1], tris).get_trifinder()(G1, G2) >= 0
+        Z = np.where(inside, Z, np.nan)
+    c1 = x1lo + surf.a * np.arange(surf.d1 + 1) / max(surf.d1, 1)
+    c2 = x2lo + surf.b * np.arange(surf.d2 + 1) / max(surf.d2, 1)
     C1, C2 = np.meshgrid(c1, c2, indexing="ij")
     fig = _new_figure((9.0, 6.0))
     ax = fig.add_subplot(projection="3d")
@@ -234,12 +321,12 @@ def plot_surface(path, model, alpha, *, resolution=(81, 41), title="Contact surf
     ax.set_xlabel("$x_1$")
     ax.set_ylabel("$x_2$")
     ax.set_zlabel("$x_3$")
-    lo, hi = min(0.0, Z.min(), A.min()), max(Z.max(), A.max())
+    lo, hi = min(0.0, np.nanmin(Z), A.min()), max(np.nanmax(Z), A.max())
     ax.set_zlim(lo, hi + 0.05 * (hi - lo) if hi > lo else lo + 1.0)
     ax.set_box_aspect((surf.a, surf.b, 0.6 * max(surf.a, surf.b)))
     ax.legend(loc="upper left", fontsize=8)
     fig.colorbar(sm, ax=ax, shrink=0.6, label="$\\vartheta_\\alpha$")
-    ax.set_title(f"{title}\nmin {Z.min():.4g}, max {Z.max():.4g}", fontsize=10)
+    ax.set_title(f"{title}\nmin {np.nanmin(Z):.4g}, max {np.nanmax(Z):.4g}", fontsize=10)
     ax.view_init(elev=25, azim=-60)
     return _save(fig, path)
 

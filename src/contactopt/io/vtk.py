@@ -14,6 +14,10 @@ contact surface the contact fields are 0 (``node_class`` −1), never NaN:
 * ``gap`` g_m = ϑ_α(x'_m): initial distance to the foundation x3 ≤ 0; non-penetration u_ν + g ≥ 0
   with u_ν = u3.
 * ``contact_node``: 1 on contact nodes, 0 elsewhere (to threshold the contact surface).
+* ``part:<name>``: 1 on the nodes of each named part of the body (the groups of the mesh file, or
+  the block's clamped, top, right, front, back, contact), 0 elsewhere.
+
+Cells are the body's volume cells (hexahedra, tetrahedra or ten-node tetrahedra, in VTK order).
 
 The foundation is the half-space x3 ≤ 0 with normal e3, so tangential = (x1, x2), normal = x3.
 """
@@ -87,6 +91,10 @@ def body_point_data(model, state, extra_point_data=None) -> dict:
         "gap": _on_nodes("gap", np.asarray(state.gap, float), n, cn),
         "contact_node": _on_nodes("contact_node", np.ones(p, np.int8), n, cn, fill=np.int8(0)),
     }
+    for name, part in getattr(model.mesh, "parts", {}).items():
+        tag = np.zeros(n, np.int8)
+        tag[part.nodes] = 1
+        data[f"part:{name}"] = tag
     for name, values in (extra_point_data or {}).items():
         if name in data:
             raise ValueError(f"extra point data {name!r} would overwrite a standard field")
@@ -95,7 +103,7 @@ def body_point_data(model, state, extra_point_data=None) -> dict:
 
 
 def write_body_vtu(path, model, state, extra_point_data=None, *, deformed: bool = False) -> Path:
-    """Write the body of ``state`` as an unstructured-grid VTU (Q1 hexahedra), atomically.
+    """Write the body of ``state`` as an unstructured-grid VTU (the body's cells), atomically.
 
     Points are the reference coordinates of Ω(α) (``state.coords``), or the deformed ones
     x + u when ``deformed`` is true. Point data: see the module docstring for every field and its
@@ -111,12 +119,12 @@ def write_body_vtu(path, model, state, extra_point_data=None, *, deformed: bool 
     _finite("coords", coords)
     point_data = body_point_data(model, state, extra_point_data)
     points = coords + point_data["displacement"] if deformed else coords
-    # HexMesh vertices are already in VTK_HEXAHEDRON order
-    mesh = meshio.Mesh(points, [("hexahedron", np.asarray(model.mesh.elements, np.int64))],
+    # the body's cells are in meshio's (= VTK's) node order for every supported type
+    mesh = meshio.Mesh(points, [(model.mesh.cell_type, np.asarray(model.mesh.elements, np.int64))],
                        point_data=point_data)
     with atomic_output(path) as tmp:
         meshio.write(tmp, mesh, file_format="vtu")
-    log.info("wrote %s (%d nodes, %d hexahedra, %s)", path, n, model.mesh.n_elements,
+    log.info("wrote %s (%d nodes, %d %s cells, %s)", path, n, model.mesh.n_elements, model.mesh.cell_type,
              "deformed" if deformed else "reference configuration")
     return path
 

@@ -120,7 +120,7 @@ def target_values(spec: dict, problem) -> np.ndarray:
                       & (xy[:, 1] >= lo2 - eps) & (xy[:, 1] <= hi2 + eps))
             out[inside] = float(reg["value"])
         if spec.get("per_area", False):
-            out *= model.mesh.contact_areas()      # values are contact stresses
+            out *= model.contact_areas()           # values are contact stresses
         return out
     if kind == "values":
         vals = np.asarray(spec["values"], float)
