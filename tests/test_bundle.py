@@ -12,7 +12,8 @@ import pytest
 from contactopt.errors import ContactOptError, OptimizerError
 from contactopt.optimize import BundleResult, BundleState, minimize_bundle
 from contactopt.optimize._bundle_qp import Polyhedron
-from contactopt.optimize.testproblems import (max_quadratics_reference, PROBLEMS, max_quadratics_problem,
+from contactopt.optimize.testproblems import (PROBLEMS, goffin_problem, max_linear_problem,
+                                              max_quadratics_problem, max_quadratics_reference,
                                               paper_admissible_set)
 
 FEAS_TOL = 1e-9
@@ -65,9 +66,11 @@ def test_problem_subgradient_matches_finite_differences(name):
 # ------------------------------------------------------------------ acceptance: Lukšan–Vlček
 @pytest.mark.parametrize("name", list(PROBLEMS))
 def test_reaches_f_star_at_eps_1e4_with_feasible_iterates(name):
+    """The certified test alone (ftol = 0: the practical stop is off)."""
     prob = PROBLEMS[name]
     oracle = CheckedOracle(prob)
-    res = minimize_bundle(oracle, prob.x0, eps=1e-4, max_iter=3000, **prob.constraints())
+    res = minimize_bundle(oracle, prob.x0, eps=1e-4, max_iter=3000, ftol=0.0,
+                          **prob.constraints())
     assert res.success, res.message
     assert res.message.startswith("converged: stationarity")
     err = rel_error(res.fun, prob.f_star)
@@ -341,3 +344,122 @@ def test_direction_qp_survives_degenerate_bundles():
         xi = qp.lam @ G
         dual = -0.5 * t * xi @ xi - qp.lam @ alpha
         assert phi(qp.d, t) - dual <= 1e-6 * abs(phi(qp.d, t))
+
+
+# ------------------------------------------------------------------ defaults: both stopping tests
+@pytest.mark.parametrize("name", list(PROBLEMS))
+def test_default_stopping_reaches_f_star(name):
+    """With the built-in defaults (certified test and practical stop) every run ends in a
+    success at f* to 1e-4, whichever test fired first."""
+    prob = PROBLEMS[name]
+    res = minimize_bundle(CheckedOracle(prob), prob.x0, eps=1e-4, max_iter=3000,
+                          **prob.constraints())
+    assert res.success and res.status in (0, 4), res.message
+    assert res.criterion == {0: "stationarity", 4: "relative_decrease"}[res.status]
+    assert rel_error(res.fun, prob.f_star) <= 1e-4, (res.fun, prob.f_star)
+
+
+def test_converged_run_stops_before_max_iter_naming_criterion_and_value():
+    prob = PROBLEMS["Shor"]
+    # certified test: message names the measure and its value, which is the result's
+    res = minimize_bundle(prob, prob.x0, eps=1e-4, max_iter=500, ftol=0.0)
+    assert res.status == 0 and res.success and res.nit < 500
+    m = re.fullmatch(r"converged: stationarity (\S+) < eps 1e-04", res.message)
+    assert m and float(m.group(1)) == float(f"{res.stationarity:.1e}") and res.stationarity < 1e-4
+    # practical stop: eps out of reach, f stops falling by 1e-6 relative over 5 serious steps
+    res = minimize_bundle(prob, prob.x0, eps=1e-12, max_iter=500, ftol=1e-6)
+    assert res.status == 4 and res.success and res.criterion == "relative_decrease"
+    assert res.nit < 500
+    m = re.fullmatch(r"converged: relative decrease of f (\S+) < ftol 1e-06 over the last 5 "
+                     r"serious steps \(stationarity (\S+), eps 1e-12\)", res.message)
+    assert m, res.message
+    serious = [h["f"] for h in res.history if h["step"] == "serious"]
+    rel = (serious[-6] - serious[-1]) / abs(serious[-1])
+    assert rel == res.relative_decrease < 1e-6
+    assert float(m.group(1)) == float(f"{rel:.1e}")
+    before = [(a - b) / abs(b) for a, b in zip(serious[:-6], serious[5:-1])]
+    assert all(r >= 1e-6 for r in before), "the stop must fire at its first chance"
+    assert rel_error(res.fun, prob.f_star) <= 1e-6
+    # neither: the result says how far each test was
+    res = minimize_bundle(prob, prob.x0, eps=1e-12, max_iter=8, ftol=1e-12)
+    assert res.status == 1 and not res.success and res.criterion == "max_iter"
+    assert res.message == "max_iter reached (8 iterations)"
+    assert res.stationarity > 1e-12 and res.relative_decrease >= 1e-12
+
+
+# ------------------------------------------------------------------ proximity control
+def test_t_grows_after_serious_steps_the_model_predicted():
+    """f = ‖x‖₁ far from 0 is linear: every serious step realises the predicted decrease
+    (ρ = 1), so t grows by t_factor = 10 from the second serious step on."""
+    f = lambda x: (float(np.abs(x).sum()), np.sign(x))      # noqa: E731
+    x0 = np.full(3, 1e3)
+    kw = dict(eps=1e-6, t0=1e-3, t_max=1e5, max_iter=200)
+    res = minimize_bundle(f, x0, **kw)
+    assert res.success and res.fun <= 1e-6
+    ts = [h["t"] for h in res.history]
+    assert ts[:8] == pytest.approx([1e-3, 1e-3, 1e-2, 1e-1, 1.0, 10.0, 100.0, 1000.0])
+    assert res.nfev <= 30
+    fixed = minimize_bundle(f, x0, adapt_t=False, **kw)
+    assert fixed.status == 1                      # 200 steps of length ≤ 1.7e-3 cannot get there
+
+
+def test_t_shrinks_after_null_steps_where_f_rose():
+    """A steep quadratic with t0 five times 2/curvature: the trial points are local but f
+    rises there (ρ < 0); at the third such null step t comes down by the interpolation
+    t/(2(1 − ρ)) and the run converges, where a fixed t makes no progress."""
+    H = np.diag([1e3, 1.0])
+    f = lambda x: (0.5 * float(x @ H @ x), H @ x)            # noqa: E731
+    x0 = np.array([1.0, 1.0])
+    kw = dict(eps=1e-6, ftol=0.0, t0=1e-2, max_iter=500)
+    res = minimize_bundle(f, x0, **kw)
+    assert res.status == 0, res.message
+    steps = [h["step"] for h in res.history]
+    ts = [h["t"] for h in res.history]
+    assert steps[:3] == ["null"] * 3 and ts[:3] == [1e-2] * 3
+    assert 1e-3 < ts[3] < 0.5e-2                  # t_int < t/2, and at most t/10
+    assert res.nfev <= 80
+    fixed = minimize_bundle(f, x0, adapt_t=False, **kw)
+    assert fixed.status == 1
+
+
+# ------------------------------------------------------------------ polyhedral, n >= 50
+def test_goffin_50_needs_and_gets_room_for_n_cuts():
+    """GOFFIN (Lukšan–Vlček), n = 50, a maximum of 50 linear pieces with f* = 0: solved with
+    the defaults (the bundle holds n + 3 elements)."""
+    prob = goffin_problem()
+    res = minimize_bundle(prob, prob.x0, eps=1e-4, max_iter=2000)
+    assert res.success, res.message
+    assert res.fun <= 1e-6
+    assert res.state.G.shape[0] <= prob.n + 3
+
+
+def test_max_linear_60_to_1e6():
+    """Own construction with known sharp minimum f* = 1 at x*: f to 1e-6, x to 1e-6."""
+    prob = max_linear_problem(60)
+    f0, _ = prob(prob.x0)
+    assert f0 > prob.f_star + 1 and prob(prob.data["x_star"])[0] == prob.f_star
+    res = minimize_bundle(prob, prob.x0, eps=1e-8, ftol=0.0, gamma=0.0, max_iter=2000)
+    assert res.status == 0, res.message
+    assert abs(res.fun - prob.f_star) <= 1e-6
+    assert np.abs(res.x - prob.data["x_star"]).max() <= 1e-6
+
+
+# ------------------------------------------------------------------ options and old states
+def test_new_options_are_validated_together():
+    with pytest.raises(OptimizerError) as info:
+        minimize_bundle(PROBLEMS["CB2"], np.zeros(2), ftol=-1.0, ftol_window=0, t_factor=1.0,
+                        m_r=2.0, adapt_t="yes")
+    text = str(info.value)
+    for key in ("ftol <", "ftol_window", "t_factor", "m_r", "adapt_t"):
+        assert key in text, key
+
+
+def test_version_1_state_resumes():
+    prob = PROBLEMS["CB2"]
+    d = minimize_bundle(prob, prob.x0, max_iter=3).state.to_dict()
+    d["version"] = 1
+    del d["i_t"], d["eps_v"]
+    st = BundleState.from_dict(d)
+    assert st.i_t == 0 and st.eps_v == np.inf
+    res = minimize_bundle(prob, None, state=st, eps=1e-4)
+    assert res.success and rel_error(res.fun, prob.f_star) <= 1e-4

@@ -301,6 +301,7 @@ def run_optimization(config, outdir=None, *, eps=None, max_iter=None, resume=Fal
         try:
             res = minimize_bundle(oracle, alpha0, **model.admissible.constraints(), eps=opt["eps"],
                                   max_iter=opt["max_iter"], callback=callback,
+                                  **{k: opt[k] for k in ("ftol", "ftol_window") if k in opt},
                                   **state_kw)
         except RunAborted as exc:
             exc.checkpoint = ckpt if ckpt.exists() else None
@@ -320,6 +321,18 @@ def run_optimization(config, outdir=None, *, eps=None, max_iter=None, resume=Fal
         handler.close()
         root.setLevel(old_level)
     return RunResult(out, summary)
+
+
+def _stopping(res, opt) -> dict:
+    """Both stopping tests of the run at its end, and which one fired (summary.json).
+
+    ``criterion``: "stationarity" (certified, status 0), "relative_decrease" (status 4),
+    "max_iter" (1), "callback" (2) or "stalled" (3); the measures are those of Θ/Θ(α0)."""
+    rel = float(res.relative_decrease)
+    return {"criterion": res.criterion,
+            "stationarity": float(res.stationarity), "eps": float(opt["eps"]),
+            "relative_decrease": rel if np.isfinite(rel) else None,
+            "ftol": float(opt.get("ftol", 0.0)), "ftol_window": int(opt.get("ftol_window", 0))}
 
 
 def _finish(out: Path, problem, alpha0, res, oracle, t_start) -> dict:
@@ -357,6 +370,7 @@ def _finish(out: Path, problem, alpha0, res, oracle, t_start) -> dict:
         "name": problem.config.name, "J0": J0, "J": J, "ratio": J / J0 if J0 else None,
         "iterations": int(res.nit), "evaluations": int(oracle.count), "serious_steps": int(res.n_serious),
         "null_steps": int(res.n_null), "success": bool(res.success), "message": str(res.message),
+        "status": int(res.status), "stopping": _stopping(res, problem.config["optimizer"]),
         "alpha": amat.tolist(), "feasible": bool(model.admissible.is_feasible(x, tol=1e-8)),
         "wall_time_s": wall,
         "time_breakdown_s": {**oracle.time, "outputs": time.perf_counter() - t0},

@@ -1,4 +1,4 @@
-"""Bundle-trust (BT) method for a nonsmooth, nonconvex f over a polyhedron U.
+"""Proximal bundle-trust method for a nonsmooth, nonconvex f over a polyhedron U.
 
 The method of H. Schramm and J. Zowe, *A version of the bundle idea for minimizing a
 nonsmooth function: conceptual idea, convergence analysis, numerical results*, SIAM J. Optim.
@@ -22,27 +22,58 @@ Notation (current serious iterate x, bundle elements j):
   subgradient ``ξ = Σλ_j g_j``, aggregate error ``α_p = Σλ_j α_j``, aggregate subgradient of
   f + indicator(U) ``p = −d/t = ξ + Cᵀμ`` (μ the multipliers of the constraints) and
   complementarity gap ``σ = μᵀ(b − Cx) ≥ 0`` of those multipliers at x;
-* inner loop of BT on t (one *iteration* = one serious or one null step): the trial point
-  ``y = x + d(t)`` gives a **serious step** when ``f(y) − f(x) ≤ m1·v`` and either the slope
-  test ``g(y)ᵀd ≥ m2·v`` holds or t cannot grow (t = t_max, or the trial limit); when the
-  slope test fails, t is enlarged and the QP re-solved (a later failure falls back to the
-  last descent point, keeping the new cut).  Without descent the step is a **null step**
-  when the new cut changes the model, ``g(y)ᵀd − α(x, y) ≥ m3·v``, and y is local,
-  ``α(x, y) ≤ locality·|v|`` (or t has reached t_min); otherwise t is reduced and the QP
-  re-solved.  t is carried to the next iteration;
-* aggregation: when the bundle is full it keeps the aggregate element ``(ξ, Σλ fhat, Σλ s)``
-  plus the most recent elements.
+* inner loop on t (one *iteration* = one serious or one null step): the trial point
+  ``y = x + d(t)`` gives a **serious step** when ``f(y) − f(x) ≤ m1·v``; with ``extend`` (off
+  by default) a steep slope ``g(y)ᵀd < m2·v`` first enlarges t within the iteration, as in
+  BT.  Without descent the step is a **null step** when the new cut changes the model,
+  ``g(y)ᵀd − α(x, y) ≥ m3·v``, and y is local, ``α(x, y) ≤ locality·|v|`` (or t has reached
+  t_min); otherwise t is reduced and the QP re-solved (the safeguard of BT for a nonconvex f);
+* **proximity control between iterations** (K. C. Kiwiel, *Proximity control in bundle
+  methods for convex nondifferentiable minimization*, Math. Programming 46 (1990) 105–122,
+  the weight u = 1/t of its Algorithm 2.1 and its safeguarded update, as in the proximal
+  bundle code PBUN of Lukšan & Vlček): with the decrease ratio ``ρ = (f(y) − f(x))/v`` and
+  Kiwiel's quadratic interpolation ``t_int = t/(2(1 − ρ))`` (the t at which a quadratic
+  model of f along d, fitted to f(x), the model slope and f(y), would be minimal),
 
-Stopping test (what ``eps`` means).  At the start of an iteration, with the current bundle,
+  - after a serious step with ``ρ ≥ m_r`` (the decrease matches the model) that follows
+    another serious step, ``t ← t_int``; after more than three serious steps at the same t,
+    ``t ← 2t``; t grows by at most ``t_factor`` per step, up to t_max;
+  - after a null step whose cut shows the model far off, ``t ← t_int`` (``≤ t/2``): either
+    Kiwiel's test, a linearisation error ``α(x, y) > max(ε_v, −10·v)`` (ε_v the smallest
+    ``‖p‖ + α̃_p`` of the null steps since the last serious step, an estimate of the
+    variation of f) after more than three null steps at the same t, or — our addition, the
+    case of a t far too large for a piecewise smooth f such as Θ, where Kiwiel's test never
+    fires because ε_v mixes units of f and of f per unit of x — f *rose* at y although the
+    model predicted a decrease (ρ < 0), at the ``rise_patience``-th (3rd) null step after a
+    serious step (once per run of null steps: a polyhedral f needs long runs of null steps
+    at a fixed t).  t shrinks by at most ``t_factor`` per step, down to t_min;
+* **bundle management** (Kiwiel, *Methods of descent for nondifferentiable optimization*,
+  LNM 1133, 1985, Ch. 2): at most ``max_bundle`` elements (default n + 3, room for the n + 1
+  cuts of a polyhedral f in dimension n, the aggregate and the new cut).  When the bundle is
+  full, the elements inactive in the last QP (λ_j = 0) go first, oldest first; only when
+  the active ones alone do not leave room, the older active ones are replaced by the
+  aggregate element ``(ξ, Σλ fhat, Σλ s)``.  The element with the smallest α (the cut at x)
+  always stays.
 
-    stationarity = max(‖p‖, α_p + σ) ≤ eps,
+Stopping tests (what ``eps`` and ``ftol`` mean).
 
-i.e. the aggregate subgradient of f + indicator(U) is shorter than eps and it is an
-eps-subgradient at x: for every z ∈ U (exactly so for a convex f, approximately otherwise)
-``f(z) ≥ f(x) − (α_p + σ) + pᵀ(z − x)``, hence ``f(x) − f(z) ≤ eps·(1 + ‖z − x‖)``.  ``eps`` is
-thus an absolute tolerance in the units of f (and of f per unit of x); scale f when its values
-are far from 1.  In double precision ``‖p‖`` cannot go much below ``sqrt(1e-16·|f|·curvature)``;
-a run that cannot certify its eps stops as *stalled* (status 3) with its best point.
+* **certified** (status 0): at the start of an iteration, with the current bundle,
+
+      stationarity = max(‖p‖, α_p + σ) ≤ eps,
+
+  i.e. the aggregate subgradient of f + indicator(U) is shorter than eps and it is an
+  eps-subgradient at x: for every z ∈ U (exactly so for a convex f, approximately otherwise)
+  ``f(z) ≥ f(x) − (α_p + σ) + pᵀ(z − x)``, hence ``f(x) − f(z) ≤ eps·(1 + ‖z − x‖)``.
+  ``eps`` is an absolute tolerance in the units of f (and of f per unit of x); scale f when
+  its values are far from 1.  In double precision ``‖p‖`` cannot go much below
+  ``sqrt(1e-16·|f|·curvature)``.
+* **practical** (status 4, also a success): over the last ``ftol_window`` serious steps f
+  fell by less than ``ftol·|f|`` (relative decrease ``(f_then − f_now)/|f_now| < ftol``): a
+  further step of the same kind would change f in its ``−log10(ftol)``-th significant digit.
+  ``ftol = 0`` switches it off.
+
+A run that can certify neither stops as *stalled* (status 3) with its best point when the
+model predicts no decrease above the round-off of f.
 """
 
 from __future__ import annotations
@@ -61,33 +92,60 @@ __all__ = ["minimize_bundle", "BundleResult", "BundleState", "BTOptions"]
 
 logger = logging.getLogger(__name__)
 
-_STATE_VERSION = 1
+_STATE_VERSION = 2
+
+
+STATUS_MESSAGES = {
+    0: "converged: the certified test max(‖p‖, α_p + σ) ≤ eps holds",
+    1: "max_iter reached",
+    2: "stopped by the callback",
+    3: "stalled: the model predicts no decrease above the round-off of f",
+    4: "converged: relative decrease of f over the last ftol_window serious steps < ftol",
+}
+"""Meaning of ``BundleResult.status`` (``success`` is True for 0 and 4)."""
+
+SUCCESS_STATUS = (0, 4)
 
 
 class BundleResult(OptimizeResult):
     """Result of :func:`minimize_bundle` (a scipy ``OptimizeResult``).
 
     Attributes: ``x``, ``fun``, ``jac`` (last aggregate subgradient ξ), ``nit``, ``nfev``,
-    ``n_serious``, ``n_null``, ``success``, ``status`` (0 converged, 1 max_iter, 2 stopped by
-    the callback, 3 stalled; −1 in the callback's intermediate result), ``message``, ``stationarity``, ``t``, ``history`` (list of dicts
-    with keys iteration, f, step ('serious'/'null'), t, stationarity, nfev) and ``state`` (the
-    :class:`BundleState` from which a run resumes).
+    ``n_serious``, ``n_null``, ``success`` (status 0 or 4), ``status`` (see
+    :data:`STATUS_MESSAGES`: 0 converged by the certified test, 4 converged by the relative
+    decrease of f, 1 max_iter, 2 stopped by the callback, 3 stalled; −1 in the callback's
+    intermediate result), ``message`` (names the criterion and its value), ``criterion``
+    ("stationarity", "relative_decrease", "max_iter", "callback", "stalled" or None),
+    ``stationarity`` (the certified measure at x), ``relative_decrease`` (of f over the last
+    ``ftol_window`` serious steps; inf before there are that many), ``t``, ``history`` (list
+    of dicts with keys iteration, f, step ('serious'/'null'), t, stationarity, nfev) and
+    ``state`` (the :class:`BundleState` from which a run resumes).
     """
 
 
 @dataclass
 class BTOptions:
-    """Parameters of BT (passed as keyword ``**options`` of :func:`minimize_bundle`).
+    """Parameters of the method (keyword ``**options`` of :func:`minimize_bundle`).
 
-    m1: serious-step (descent) test f(y) − f(x) ≤ m1·v; m2 (> m1): slope test for enlarging t;
-    m3: null-step test (the new cut must lift the model at d to at least m3·v);
+    m1: serious-step (descent) test f(y) − f(x) ≤ m1·v; m2 (> m1): slope test for enlarging t
+    within an iteration (only with ``extend``); m3: null-step test (the new cut must lift the
+    model at d to at least m3·v);
     gamma: weight of ‖x − y‖² in the locality measure α (0 is exact for convex f);
     locality: a null step needs α(x, y) ≤ locality·|v|, else t is reduced (far trial point);
     t0: initial t (default max(1, ‖x0‖∞)/‖g(x0)‖, a first step of length max(1, ‖x0‖∞));
     t_min, t_max: bounds of t (default 1e-8·t0 and 1e4·t0);
-    t_increase, t_decrease: factors for the inner loop (bisection once bracketed);
-    max_bundle: bundle size including the aggregate (default min(n + 3, 40), at least 5);
+    t_decrease: factor of t in the inner loop (far or useless trial point);
+    t_increase: factor of t in the inner loop with ``extend`` (bisection once bracketed);
+    extend: enlarge t within an iteration after a serious-step candidate with a steep slope
+    (BT's inner loop; costs evaluations);
+    adapt_t: Kiwiel's update of t between iterations (module docstring); m_r: decrease ratio
+    above which a serious step counts as predicted by the model; t_factor: largest change of
+    t per iteration; rise_patience: the null step (counted from the last serious step) at
+    which a rise of f (ρ < 0) shrinks t;
+    max_bundle: bundle size including the aggregate (default n + 3, at least 5);
     max_inner: trial points per iteration;
+    ftol, ftol_window: practical stop when f fell by less than ftol·|f| over the last
+    ftol_window serious steps (ftol = 0: off);
     stall_window: stop (status 3) when over this many iterations f fell by no more than its
     round-off and the stationarity measure did not halve (eps below the reachable precision);
     feas_tol: scaled feasibility tolerance of iterates.
@@ -103,8 +161,15 @@ class BTOptions:
     t_max: float | None = None
     t_increase: float = 4.0
     t_decrease: float = 0.25
+    extend: bool = False
+    adapt_t: bool = True
+    m_r: float = 0.5
+    t_factor: float = 10.0
+    rise_patience: int = 3
     max_bundle: int | None = None
     max_inner: int = 10
+    ftol: float = 0.0
+    ftol_window: int = 5
     stall_window: int = 50
     feas_tol: float = 1e-9
 
@@ -121,14 +186,27 @@ class BTOptions:
             problems.append(f"need 0 < m1 < m2 < 1 (m1={o.m1}, m2={o.m2})")
         if not 0 < o.m3 < 1:
             problems.append(f"need 0 < m3 < 1 (m3={o.m3})")
+        if not o.m1 <= o.m_r < 1:
+            problems.append(f"need m1 <= m_r < 1 (m1={o.m1}, m_r={o.m_r})")
         if not o.gamma >= 0:
             problems.append(f"need gamma >= 0 (gamma={o.gamma})")
         if not (o.t_increase > 1 and 0 < o.t_decrease < 1):
             problems.append("need t_increase > 1 and 0 < t_decrease < 1")
+        if not (isinstance(o.rise_patience, int) and o.rise_patience >= 1):
+            problems.append(f"need an integer rise_patience >= 1 ({o.rise_patience!r})")
+        if not o.t_factor > 1:
+            problems.append(f"need t_factor > 1 (t_factor={o.t_factor})")
+        for name in ("extend", "adapt_t"):
+            if not isinstance(getattr(o, name), bool):
+                problems.append(f"{name} must be True or False ({getattr(o, name)!r})")
         if o.max_bundle is not None and o.max_bundle < 3:
             problems.append(f"need max_bundle >= 3 (max_bundle={o.max_bundle})")
         if o.max_inner < 1:
             problems.append("need max_inner >= 1")
+        if not (isinstance(o.ftol, (int, float)) and 0 <= o.ftol < 1):
+            problems.append(f"need 0 <= ftol < 1 (ftol={o.ftol})")
+        if not (isinstance(o.ftol_window, int) and o.ftol_window >= 1):
+            problems.append(f"need an integer ftol_window >= 1 (ftol_window={o.ftol_window})")
         if o.stall_window < 2:
             problems.append("need stall_window >= 2")
         for name in ("t0", "t_min", "t_max"):
@@ -142,11 +220,14 @@ class BTOptions:
 
 @dataclass
 class BundleState:
-    """Complete state of BT between two iterations; resuming from it is bit-identical.
+    """Complete state of the method between two iterations; resuming from it is bit-identical.
 
     ``G``, ``fhat``, ``s``: subgradients, linearisation values at x and distance measures of
-    the bundle elements (one row each); ``xi``/``stationarity``: last aggregate subgradient and
-    stopping measure; ``t_min``, ``t_max`` the bounds of t fixed at the start.
+    the bundle elements (one row each, oldest first); ``xi``/``stationarity``: last aggregate
+    subgradient and stopping measure; ``t_min``, ``t_max`` the bounds of t fixed at the start;
+    ``i_t`` Kiwiel's counter of serious (> 0) or null (< 0) steps made at the current t,
+    ``eps_v`` his estimate of the variation of f and ``null_run`` the number of null steps
+    since the last serious step (used by the update of t).
     """
 
     x: np.ndarray
@@ -164,6 +245,9 @@ class BundleState:
     n_serious: int = 0
     n_null: int = 0
     n_stuck: int = 0
+    i_t: int = 0
+    eps_v: float = math.inf
+    null_run: int = 0
     history: list = field(default_factory=list)
 
     def copy(self) -> "BundleState":
@@ -178,9 +262,9 @@ class BundleState:
         d = {"version": _STATE_VERSION}
         for name in ("x", "G", "fhat", "s", "xi"):
             d[name] = np.array(getattr(self, name), dtype=float)
-        for name in ("f", "t", "t_min", "t_max", "stationarity"):
+        for name in ("f", "t", "t_min", "t_max", "stationarity", "eps_v"):
             d[name] = float(getattr(self, name))
-        for name in ("nit", "nfev", "n_serious", "n_null", "n_stuck"):
+        for name in ("nit", "nfev", "n_serious", "n_null", "n_stuck", "i_t", "null_run"):
             d[name] = int(getattr(self, name))
         h = self.history
         d["history_iteration"] = np.array([r["iteration"] for r in h], dtype=np.int64)
@@ -193,10 +277,14 @@ class BundleState:
 
     @classmethod
     def from_dict(cls, d) -> "BundleState":
-        """Inverse of :meth:`to_dict`; accepts lists (from JSON) or an ``np.load`` archive."""
+        """Inverse of :meth:`to_dict`; accepts lists (from JSON) or an ``np.load`` archive.
+
+        A state of version 1 (before the update of t) resumes with ``i_t = 0``, ``eps_v = inf``,
+        ``null_run = 0``.
+        """
         try:
             version = int(np.asarray(d["version"]))
-            if version != _STATE_VERSION:
+            if version not in (1, _STATE_VERSION):
                 raise OptimizerError(f"bundle state version {version} is not supported")
             arr = {k: np.array(d[k], dtype=float) for k in ("x", "G", "fhat", "s", "xi")}
             n = arr["x"].size
@@ -208,6 +296,7 @@ class BundleState:
                     *(np.atleast_1d(np.asarray(d["history_" + k]))
                       for k in ("iteration", "f", "serious", "t", "stationarity", "nfev")))
             ]
+            v2 = version >= 2
             st = cls(x=arr["x"], f=float(np.asarray(d["f"])), G=arr["G"], fhat=arr["fhat"],
                      s=arr["s"], t=float(np.asarray(d["t"])),
                      t_min=float(np.asarray(d["t_min"])), t_max=float(np.asarray(d["t_max"])),
@@ -215,7 +304,10 @@ class BundleState:
                      nit=int(np.asarray(d["nit"])), nfev=int(np.asarray(d["nfev"])),
                      n_serious=int(np.asarray(d["n_serious"])),
                      n_null=int(np.asarray(d["n_null"])),
-                     n_stuck=int(np.asarray(d["n_stuck"])), history=hist)
+                     n_stuck=int(np.asarray(d["n_stuck"])),
+                     i_t=int(np.asarray(d["i_t"])) if v2 else 0,
+                     null_run=int(np.asarray(d["null_run"])) if v2 else 0,
+                     eps_v=float(np.asarray(d["eps_v"])) if v2 else math.inf, history=hist)
         except (KeyError, TypeError, ValueError) as exc:
             raise OptimizerError(f"invalid bundle state: {exc}") from exc
         m = st.G.shape[0]
@@ -260,6 +352,7 @@ class _Step:
     y: np.ndarray | None = None
     fy: float = 0.0
     gy: np.ndarray | None = None
+    alpha_y: float = 0.0       # locality measure of the new cut at x (null step)
     extra: list = field(default_factory=list)   # further (y, f, g) for the bundle
     stalled: bool = False      # null step whose cut was already in the bundle
 
@@ -274,8 +367,8 @@ def _trial_point(poly: Polyhedron, x, d, feas_tol):
     return y
 
 
-def _bt_iteration(oracle, poly: Polyhedron, st: BundleState, o: BTOptions, eps: float):
-    """One BT iteration: inner loop on t ending in a serious or null step (or a stop)."""
+def _iteration(oracle, poly: Polyhedron, st: BundleState, o: BTOptions, eps: float):
+    """One iteration: inner loop on t ending in a serious or null step (or a stop)."""
     x, f = st.x, st.f
     alpha = _alpha(st, o.gamma)
     t = min(max(st.t, st.t_min), st.t_max)
@@ -308,7 +401,7 @@ def _bt_iteration(oracle, poly: Polyhedron, st: BundleState, o: BTOptions, eps: 
         d = y - x
         if fy - f <= o.m1 * qp.v:                       # descent: serious-step candidate
             cand = _Step("serious", qp, t, y, fy, gy)
-            if gy @ d >= o.m2 * qp.v or t >= st.t_max or last:
+            if not o.extend or gy @ d >= o.m2 * qp.v or t >= st.t_max or last:
                 return cand
             lo = t                                      # steep slope: try a longer step
             t = math.sqrt(lo * hi) if hi < math.inf else t * o.t_increase
@@ -324,10 +417,52 @@ def _bt_iteration(oracle, poly: Polyhedron, st: BundleState, o: BTOptions, eps: 
         informative = gy @ d - alpha_y >= o.m3 * qp.v and not duplicate
         local = alpha_y <= o.locality * -qp.v              # y close enough to x
         if (informative and local) or t <= st.t_min or last:
-            return _Step("null", qp, t, y, fy, gy, stalled=duplicate)
+            return _Step("null", qp, t, y, fy, gy, alpha_y=alpha_y, stalled=duplicate)
         hi = t                                          # cut useless here: shrink the region
         t = max(t * o.t_decrease, st.t_min)
     raise AssertionError("unreachable")  # pragma: no cover
+
+
+def _next_t(st: BundleState, step: _Step, f_old: float, o: BTOptions) -> float:
+    """Kiwiel's (1990) safeguarded update of t after a serious or null step; updates i_t, ε_v.
+
+    ρ = (f(y) − f(x))/v is the share of the predicted decrease that was realised and
+    t_int = t/(2(1 − ρ)) the quadratic interpolation (module docstring).
+    """
+    t, v = step.t, step.qp.v
+    if not o.adapt_t:
+        return t
+    rho = (step.fy - f_old) / v if v < 0 else 0.0
+    t_int = t / (2.0 * (1.0 - rho)) if rho < 1.0 else math.inf
+    logger.debug("t update: %s rho=%.3f v=%.3e alpha_y=%.3e eps_v=%.3e i_t=%d", step.kind, rho,
+                 v, step.alpha_y, st.eps_v, st.i_t)
+    if step.kind == "serious":
+        t_new = t
+        if rho >= o.m_r and st.i_t > 0:                 # decrease as the model predicted
+            t_new = t_int
+        elif st.i_t > 3:                                # many serious steps at this t
+            t_new = 2.0 * t
+        t_new = min(max(t_new, t), o.t_factor * t, st.t_max)
+        st.eps_v = max(st.eps_v, -2.0 * v)
+        st.i_t = 1 if t_new != t else max(st.i_t + 1, 1)
+        st.null_run = 0
+        return t_new
+    # null step: the aggregate linearisation error α̃_p = −v − t‖p‖² ≥ α_p + σ
+    p2 = float(step.qp.p @ step.qp.p)
+    st.eps_v = min(st.eps_v, math.sqrt(p2) + max(-v - t * p2, 0.0))
+    t_new = t
+    # the cut shows the model far off: a linearisation error at x above Kiwiel's variation
+    # estimate (after more than three null steps at this t), or f rose where the model
+    # predicted a decrease (ρ < 0: the model's error at y exceeds its whole prediction) at the
+    # rise_patience-th null step since the last serious step (once per run of null steps, so
+    # that polyhedral f, whose long null runs are normal, keep their t)
+    st.null_run += 1
+    if ((step.alpha_y > max(st.eps_v, -10.0 * v) and st.i_t < -3)
+            or (rho < 0.0 and st.null_run == o.rise_patience)):
+        t_new = t_int
+    t_new = max(min(t_new, t), t / o.t_factor, st.t_min)
+    st.i_t = -1 if t_new != t else min(st.i_t - 1, -1)
+    return t_new
 
 
 def _no_progress(history: list, window: int) -> bool:
@@ -343,9 +478,30 @@ def _no_progress(history: list, window: int) -> bool:
     return recent >= 0.5 * before
 
 
-def _update_bundle(st: BundleState, step: _Step, max_bundle: int) -> None:
-    """Serious or null step: move x (serious), aggregate, append the new elements."""
+def _relative_decrease(history: list, window: int) -> float:
+    """(f_then − f_now)/|f_now| over the last ``window`` serious steps (inf before there are
+    window + 1 of them)."""
+    fs = []
+    for h in reversed(history):
+        if h["step"] == "serious":
+            fs.append(h["f"])
+            if len(fs) > window:
+                break
+    if len(fs) <= window:
+        return math.inf
+    drop = fs[-1] - fs[0]
+    return drop / abs(fs[0]) if fs[0] != 0 else (0.0 if drop == 0 else math.inf)
+
+
+def _update_bundle(st: BundleState, step: _Step, max_bundle: int, gamma: float) -> None:
+    """Serious or null step: move x (serious), select or aggregate, append the new elements.
+
+    When the bundle is full, the elements with λ_j = 0 in the step's QP (inactive) leave
+    first, oldest first; only if that is not enough are the older active elements replaced
+    by the aggregate.  The element with the smallest α (the cut at x) stays.
+    """
     lam = step.qp.lam
+    keep_cur = int(np.argmin(_alpha(st, gamma)))
     agg = (lam @ st.G, float(lam @ st.fhat), float(lam @ st.s))
     G, fhat, s = st.G, st.fhat, st.s
     new = []
@@ -363,16 +519,26 @@ def _update_bundle(st: BundleState, step: _Step, max_bundle: int) -> None:
         r = st.x - y
         new.append((gy, fy + float(gy @ r), float(np.linalg.norm(r))))
     m_old, k = G.shape[0], len(new)
-    if m_old + k > max_bundle:                   # keep aggregate + most recent
-        keep = max(max_bundle - 1 - k, 0)
-        sl = slice(m_old - keep, m_old)
-        G = np.vstack([agg[0][None, :], G[sl]])
-        fhat = np.concatenate([[agg[1]], fhat[sl]])
-        s = np.concatenate([[agg[2]], s[sl]])
+    excess = m_old + k - max_bundle
+    if excess > 0:
+        keep = np.ones(m_old, dtype=bool)
+        inactive = np.flatnonzero(lam <= 1e-12)         # oldest first
+        inactive = inactive[inactive != keep_cur][:excess]
+        keep[inactive] = False
+        excess -= inactive.size
+        sel = np.flatnonzero(keep)
+        if excess > 0:                                  # aggregate the older active ones
+            room = max(max_bundle - 1 - k, 0)
+            recent = [j for j in sel if j != keep_cur][::-1][:max(room - 1, 0)]
+            sel = np.array(sorted(set(recent) | ({keep_cur} if room else set())), dtype=int)
+            G = np.vstack([agg[0][None, :], G[sel]])
+            fhat = np.concatenate([[agg[1]], fhat[sel]])
+            s = np.concatenate([[agg[2]], s[sel]])
+        else:
+            G, fhat, s = G[sel], fhat[sel], s[sel]
     st.G = np.vstack([G] + [g[None, :] for g, _, _ in new])
     st.fhat = np.concatenate([fhat, [fh for _, fh, _ in new]])
     st.s = np.concatenate([s, [sv for _, _, sv in new]])
-    st.t = step.t
 
 
 def _initial_state(oracle, poly: Polyhedron, x0, o: BTOptions) -> BundleState:
@@ -398,12 +564,14 @@ def _initial_state(oracle, poly: Polyhedron, x0, o: BTOptions) -> BundleState:
                        t=t0, t_min=t_min, t_max=t_max, xi=g.copy(), nfev=1)
 
 
-def _result(st: BundleState, status: int, message: str) -> BundleResult:
+def _result(st: BundleState, status: int, message: str, criterion=None,
+            relative_decrease=math.inf) -> BundleResult:
     return BundleResult(
         x=st.x.copy(), fun=st.f, jac=st.xi.copy(), nit=st.nit, nfev=st.nfev,
-        n_serious=st.n_serious, n_null=st.n_null, success=status == 0, status=status,
-        message=message, stationarity=st.stationarity, t=st.t,
-        history=[dict(r) for r in st.history], state=st.copy())
+        n_serious=st.n_serious, n_null=st.n_null, success=status in SUCCESS_STATUS,
+        status=status, message=message, criterion=criterion, stationarity=st.stationarity,
+        relative_decrease=relative_decrease, t=st.t, history=[dict(r) for r in st.history],
+        state=st.copy())
 
 
 # ---------------------------------------------------------------------- driver
@@ -419,10 +587,10 @@ def minimize_bundle(oracle, x0, *, lb=None, ub=None, A_ub=None, b_ub=None, A_eq=
     x0 : array (n,)
         Start; when infeasible it is replaced by its Euclidean projection onto U (logged).
     eps : float
-        Stop when ``stationarity = max(‖p‖, α_p + σ) ≤ eps``: the aggregate subgradient of
-        f + indicator(U) is shorter than eps and is an eps-subgradient at x, so that (for
-        convex f) ``f(x) − f(z) ≤ eps·(1 + ‖z − x‖)`` for all z ∈ U.  Absolute, in the units
-        of f; see the module docstring.
+        Certified stop (status 0) when ``stationarity = max(‖p‖, α_p + σ) ≤ eps``: the
+        aggregate subgradient of f + indicator(U) is shorter than eps and is an
+        eps-subgradient at x, so that (for convex f) ``f(x) − f(z) ≤ eps·(1 + ‖z − x‖)`` for
+        all z ∈ U.  Absolute, in the units of f; see the module docstring.
     max_iter : int
         Maximum number of iterations (serious + null steps), counted from the start of the
         run including iterations done before a restored ``state``.
@@ -434,11 +602,15 @@ def minimize_bundle(oracle, x0, *, lb=None, ub=None, A_ub=None, b_ub=None, A_eq=
         Resume from a saved state (``x0`` is then ignored); the iterates that follow are
         bit-identical to those of the uninterrupted run with the same options.
     **options
-        Parameters of BT, see :class:`BTOptions`.
+        Parameters of the method, see :class:`BTOptions`; among them the practical stop
+        (status 4): ``ftol`` (default 1e-4) and ``ftol_window`` (default 5): f fell by less
+        than ``ftol·|f|`` over the last ``ftol_window`` serious steps.
 
     Returns
     -------
     BundleResult
+        ``success`` is True for status 0 (certified) and 4 (relative decrease); ``message``
+        names the criterion that fired and its value, ``criterion`` says which in one word.
 
     Raises
     ------
@@ -456,51 +628,64 @@ def minimize_bundle(oracle, x0, *, lb=None, ub=None, A_ub=None, b_ub=None, A_eq=
         st = _initial_state(oracle, poly, x0, o)
     elif poly.violation(st.x) > o.feas_tol:
         raise OptimizerError("the restored state's x violates the constraints")
-    max_bundle = o.max_bundle if o.max_bundle is not None else max(5, min(n + 3, 40))
-    logger.info("BT start: n=%d f=%.10g eps=%.1e t=%.3e bundle<=%d (iteration %d)",
-                n, st.f, eps, st.t, max_bundle, st.nit)
+    max_bundle = o.max_bundle if o.max_bundle is not None else max(5, n + 3)
+    logger.info("bundle start: n=%d f=%.10g eps=%.1e ftol=%.1e/%d t=%.3e bundle<=%d "
+                "(iteration %d)", n, st.f, eps, o.ftol, o.ftol_window, st.t, max_bundle, st.nit)
+    rel = _relative_decrease(st.history, o.ftol_window)
+    criterion = None
     while True:
         if st.nit >= max_iter:
-            status, message = 1, f"max_iter reached ({max_iter} iterations)"
+            status, criterion = 1, "max_iter"
+            message = f"max_iter reached ({max_iter} iterations)"   # measures: in the result
             break
-        step = _bt_iteration(oracle, poly, st, o, eps)
+        step = _iteration(oracle, poly, st, o, eps)
         if step.kind == "converged":
-            status = 0
-            rel = "<" if st.stationarity < eps else "<="
-            message = f"converged: stationarity {st.stationarity:.1e} {rel} eps {eps:.0e}"
+            status, criterion = 0, "stationarity"
+            cmp = "<" if st.stationarity < eps else "<="
+            message = f"converged: stationarity {st.stationarity:.1e} {cmp} eps {eps:.0e}"
             break
         if step.kind == "stalled":
-            status = 3
+            status, criterion = 3, "stalled"
             message = (f"stalled: predicted decrease {-step.qp.v:.2e} is at the round-off of f "
                        f"(stationarity {st.stationarity:.2e} > eps {eps:.0e})")
             break
-        _update_bundle(st, step, max_bundle)
+        f_old = st.f
+        _update_bundle(st, step, max_bundle, o.gamma)
+        st.t = _next_t(st, step, f_old, o)
         st.n_stuck = st.n_stuck + 1 if step.stalled else 0
         st.nit += 1
         if step.kind == "serious":
             st.n_serious += 1
         else:
             st.n_null += 1
-        st.history.append({"iteration": st.nit, "f": st.f, "step": step.kind, "t": st.t,
+        st.history.append({"iteration": st.nit, "f": st.f, "step": step.kind, "t": step.t,
                            "stationarity": st.stationarity, "nfev": st.nfev})
         logger.debug("it %d %s f=%.10g t=%.3e stat=%.3e nfev=%d", st.nit, step.kind, st.f,
-                     st.t, st.stationarity, st.nfev)
+                     step.t, st.stationarity, st.nfev)
+        rel = _relative_decrease(st.history, o.ftol_window)
         if callback is not None:
             try:
-                callback(_result(st, -1, f"iteration {st.nit}"))
+                callback(_result(st, -1, f"iteration {st.nit}", relative_decrease=rel))
             except StopIteration:
-                status, message = 2, f"stopped by the callback after iteration {st.nit}"
+                status, criterion = 2, "callback"
+                message = f"stopped by the callback after iteration {st.nit}"
                 break
+        if step.kind == "serious" and rel < o.ftol:
+            status, criterion = 4, "relative_decrease"
+            message = (f"converged: relative decrease of f {rel:.1e} < ftol {o.ftol:.0e} over "
+                       f"the last {o.ftol_window} serious steps (stationarity "
+                       f"{st.stationarity:.1e}, eps {eps:.0e})")
+            break
         if st.n_stuck >= 3:
-            status = 3
+            status, criterion = 3, "stalled"
             message = (f"stalled: {st.n_stuck} null steps in a row returned cuts already in the "
                        f"bundle (the QP resolution is reached; stationarity "
                        f"{st.stationarity:.2e} > eps {eps:.0e})")
             break
         if _no_progress(st.history, o.stall_window):
-            status = 3
+            status, criterion = 3, "stalled"
             message = (f"stalled: no progress in the last {o.stall_window} iterations (f at its "
                        f"round-off; stationarity {st.stationarity:.2e} > eps {eps:.0e})")
             break
-    logger.info("BT end: %s; f=%.10g nit=%d nfev=%d", message, st.f, st.nit, st.nfev)
-    return _result(st, status, message)
+    logger.info("bundle end: %s; f=%.10g nit=%d nfev=%d", message, st.f, st.nit, st.nfev)
+    return _result(st, status, message, criterion, rel)

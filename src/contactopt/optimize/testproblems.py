@@ -19,7 +19,8 @@ from typing import Callable
 import numpy as np
 
 __all__ = ["NonsmoothProblem", "PROBLEMS", "get_problem", "problem_names",
-           "paper_admissible_set", "max_quadratics_problem"]
+           "paper_admissible_set", "max_quadratics_problem", "goffin_problem",
+           "max_linear_problem"]
 
 
 @dataclass(frozen=True)
@@ -301,6 +302,52 @@ def get_problem(name: str) -> NonsmoothProblem:
         if key.lower() == name.lower():
             return prob
     raise KeyError(f"unknown test problem {name!r}; known: {', '.join(PROBLEMS)}")
+
+
+# ---------------------------------------------------------------- polyhedral, n >= 50
+def goffin_problem(n=50) -> NonsmoothProblem:
+    """GOFFIN of Lukšan & Vlček (report 798, problem 2.22): f(x) = n·max_i x_i − Σ x_i.
+
+    A maximum of n linear functions, f* = 0 on the line x = c·1, from x_i = i − (n + 1)/2
+    (f(x0) = n(n − 1)/2).  Its minimum is the meeting point of all n pieces: a bundle method
+    needs room for n cuts (plus one) to certify it.
+    """
+    def oracle(x):
+        k = int(np.argmax(x))
+        g = -np.ones_like(x)
+        g[k] += n
+        return float(n * x[k] - x.sum()), g
+
+    x0 = np.arange(1, n + 1) - (n + 1) / 2.0
+    return NonsmoothProblem(f"GOFFIN-{n}", oracle, x0, 0.0, n * (n - 1) / 2.0, True)
+
+
+def max_linear_problem(n=60, pieces=None, seed=7, f_star=1.0) -> NonsmoothProblem:
+    """f(x) = f* + max_k a_kᵀ(x − x*), k = 1..pieces (default 2n), a polyhedral f with a known
+    sharp minimum f* at x* (constructed here, not from the report).
+
+    The a_k are random with norms between 0.1 and 10 and then shifted so that
+    Σ_k w_k a_k = 0 for random weights w_k > 0: every piece-weighted sum vanishes, hence
+    f(x) ≥ f* + Σ w_k a_kᵀ(x − x*) / Σ w_k = f*, with equality only at x* (the a_k span Rⁿ).
+    At x* all pieces are active; a bundle needs at least n + 1 of them.  Start x0 = 0,
+    x* uniform in [−5, 5]ⁿ; ``data`` holds a, w and x*.
+    """
+    pieces = 2 * n if pieces is None else pieces
+    rng = np.random.default_rng(seed)
+    a = rng.normal(size=(pieces, n))
+    a *= (10.0 ** rng.uniform(-1, 1, pieces) / np.linalg.norm(a, axis=1))[:, None]
+    w = rng.uniform(0.5, 1.5, pieces)
+    a -= (w @ a) / w.sum()
+    x_star = rng.uniform(-5, 5, n)
+
+    def oracle(x):
+        vals = a @ (x - x_star)
+        k = int(np.argmax(vals))
+        return float(f_star + vals[k]), a[k].copy()
+
+    x0 = np.zeros(n)
+    return NonsmoothProblem(f"MAXLIN-{n}", oracle, x0, f_star, None, True,
+                            data={"a": a, "w": w, "x_star": x_star})
 
 
 # ---------------------------------------------------------------- the paper's admissible set
