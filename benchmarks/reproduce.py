@@ -5,10 +5,12 @@
 Each case is one ``contactopt run`` under ``/usr/bin/time -v`` (wall time and peak memory of the
 whole command, outputs included), in its own run directory. From the run directory the script
 reads summary.json and iterations.csv and reports, beside the paper's figures (DESIGN.md §1):
-J0, Jopt, Jopt/J0, iterations and evaluations, the iterations after which BT's stopping test
-would have held for ε = 1e-3 and 1e-4 (the test is made at the start of every iteration on the
-same deterministic sequence, so a run with the larger ε stops exactly there), wall time, peak
-memory and max |α − α_paper|. The manufactured case reports max |α − α*| instead.
+J0, Jopt, Jopt/J0, iterations and evaluations, the stopping test that ended the run (summary.json
+``status`` and ``stopping``), the iterations after which the certified test would have held for
+ε = 1e-3 and 1e-4 (the test is made at the start of every iteration on the same deterministic
+sequence, so a run with the larger ε stops exactly there), the (evaluation, iteration) at which
+J/J0 first reached the paper's Jopt/J0, wall time, peak memory and max |α − α_paper|. The
+manufactured case reports max |α − α*| instead.
 Results go to ``<out>/reproduction.json`` and the figures to ``docs/figures/``.
 """
 
@@ -53,6 +55,15 @@ def first_below(rows, eps):
     return None
 
 
+def first_reaching(out: Path, J0: float, ratio: float):
+    """(evaluation, iteration) at which J/J0 ≤ ratio first holds at an evaluated design (None: never)."""
+    with open(out / "history.csv") as fh:
+        for r in csv.DictReader(fh):
+            if float(r["f"]) <= ratio * J0:
+                return int(r["evaluation"]), int(r["iteration"])
+    return None
+
+
 def case_result(name: str, out: Path, timing: dict) -> dict:
     s = json.loads((out / "summary.json").read_text())
     with open(out / "iterations.csv") as fh:
@@ -60,7 +71,8 @@ def case_result(name: str, out: Path, timing: dict) -> dict:
     alpha = np.asarray(s["alpha"])
     res = {"case": name, "J0": s["J0"], "J": s["J"], "ratio": s["ratio"], "iterations": s["iterations"],
            "evaluations": s["evaluations"], "serious": s["serious_steps"], "null": s["null_steps"],
-           "success": s["success"], "message": s["message"], "feasible": s["feasible"],
+           "success": s["success"], "status": s.get("status"), "stopping": s.get("stopping"),
+           "message": s["message"], "feasible": s["feasible"],
            "wall_time_run_s": s["wall_time_s"], **timing}
     for eps in (1e-3, 1e-4):
         hit = first_below(rows, eps)
@@ -70,7 +82,8 @@ def case_result(name: str, out: Path, timing: dict) -> dict:
         ref = PAPER[name]
         res.update(paper_J0=ref["J0"], paper_Jopt=ref["Jopt"], paper_ratio=ref["Jopt"] / ref["J0"],
                    paper_iterations=PAPER_ITERATIONS[name],
-                   max_abs_alpha_minus_paper=float(np.abs(alpha - np.asarray(ref["alpha"])).max()))
+                   max_abs_alpha_minus_paper=float(np.abs(alpha - np.asarray(ref["alpha"])).max()),
+                   evaluations_to_paper_ratio=first_reaching(out, s["J0"], ref["Jopt"] / ref["J0"]))
     else:
         from contactopt.config import load_config
         star = np.asarray(load_config(CASES[name])["objective"]["target"]["alpha"], float)
