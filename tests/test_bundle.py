@@ -410,7 +410,7 @@ def test_t_shrinks_after_null_steps_where_f_rose():
     H = np.diag([1e3, 1.0])
     f = lambda x: (0.5 * float(x @ H @ x), H @ x)            # noqa: E731
     x0 = np.array([1.0, 1.0])
-    kw = dict(eps=1e-6, ftol=0.0, t0=1e-2, max_iter=500)
+    kw = dict(eps=1e-6, ftol=0.0, t0=1e-2, max_iter=500, metric=False)   # t alone, no metric
     res = minimize_bundle(f, x0, **kw)
     assert res.status == 0, res.message
     steps = [h["step"] for h in res.history]

