@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import copy
 import math
+import re
 import tomllib
 from dataclasses import dataclass
 from importlib import resources
@@ -160,6 +161,17 @@ SCHEMA = {
         "target": ({"kind": "constant", "value": 0.0}, lambda x: isinstance(x, dict),
                    "a table with 'kind' = 'constant' | 'step' | 'values' | 'design'"),
         "scale": (1.0, _pos, "a number > 0 (multiplies the objective)"),
+        "combine": ("max", _oneof("max", "sum"),
+                    "'max' (the worst of the [[load_cases]]) or 'sum' (their weighted sum); "
+                    "'sum' needs load cases"),
+        "weights": ([], lambda x: (isinstance(x, list) and all(_nonneg(v) for v in x)) or (
+            isinstance(x, dict) and all(isinstance(k, str) and _nonneg(v) for k, v in x.items())),
+                    "a list of numbers ≥ 0, one per load case in order, or a table case name = weight "
+                    "(cases not named weigh 1); empty: every case weighs 1. Θ_k is multiplied by its "
+                    "weight before the max or the sum"),
+        "active_tol": (1e-6, lambda x: _nonneg(x) and x < 1,
+                       "a number in [0, 1) (with combine = 'max', the cases within this fraction of the "
+                       "largest value are reported as active)"),
     },
     "state": {
         "method": ("newton", _oneof("newton", "fixed-point"), "'newton' or 'fixed-point'"),
@@ -219,7 +231,14 @@ class Config:
         return tomli_w.dumps(self.data)
 
 
-def _check_target(target, d1d2, problems):
+def _check_target(target, d1d2, problems, key="objective.target"):
+    n0 = len(problems)
+    _check_target_at(target, d1d2, problems)
+    if key != "objective.target":
+        problems[n0:] = [p.replace("objective.target", key, 1) for p in problems[n0:]]
+
+
+def _check_target_at(target, d1d2, problems):
     kind = target.get("kind")
     allowed = {"constant": {"kind", "value"},
                "step": {"kind", "default", "regions", "per_area"},
@@ -272,6 +291,67 @@ def _check_matrix(value, d1d2, key, problems):
 
 
 BLOCK_LOADS = ("top_traction", "right_traction")
+CASE_NAME = re.compile(r"[A-Za-z0-9_.+-]+")
+
+
+def _check_load_cases(cases, d1d2, problems) -> list:
+    """[[load_cases]]: each a name, loads in the form of [loads] (none required) and an optional
+    target in the form of objective.target. Returns the cases as written (validated)."""
+    if not (isinstance(cases, list) and cases and all(isinstance(c, dict) for c in cases)):
+        problems.append("load_cases: must be a non-empty array of tables [[load_cases]] with a name, "
+                        "loads as in [loads] and an optional target")
+        return []
+    allowed = ["name", *SCHEMA["loads"], "target"]
+    seen = set()
+    for n, case in enumerate(cases):
+        name = case.get("name")
+        if not (isinstance(name, str) and CASE_NAME.fullmatch(name)):
+            problems.append(f"load_cases[{n}].name = {name!r}: must be a name of letters, digits and _ . + - "
+                            "(it names the case's history column and plots)")
+        elif name in seen:
+            problems.append(f"load_cases[{n}].name = {name!r}: another case has this name")
+        seen.add(name)
+        for k, val in case.items():
+            if k not in allowed:
+                problems.append(f"load_cases[{n}].{k}: unknown key (allowed: {', '.join(allowed)})")
+            elif k in SCHEMA["loads"]:
+                _, check, desc = SCHEMA["loads"][k]
+                if not check(val):
+                    problems.append(f"load_cases[{n}].{k} = {val!r}: must be {desc}")
+        if "target" in case:
+            if isinstance(case["target"], dict):
+                _check_target(case["target"], d1d2, problems, f"load_cases[{n}].target")
+            else:
+                problems.append(f"load_cases[{n}].target: must be a table like objective.target")
+    return cases
+
+
+def _check_combination(raw, data, problems):
+    """objective.combine/weights name the load cases; without cases only the default max is allowed."""
+    obj, cases = data["objective"], data.get("load_cases", [])
+    names = [c.get("name") for c in cases]
+    weights = obj["weights"]
+    if not cases:
+        if obj["combine"] != "max":
+            problems.append(f"objective.combine = {obj['combine']!r}: combines load cases, but the "
+                            "configuration has no [[load_cases]]")
+        if weights:
+            problems.append("objective.weights: weighs load cases, but the configuration has no [[load_cases]]")
+    elif isinstance(weights, list) and weights and len(weights) != len(cases):
+        problems.append(f"objective.weights: has {len(weights)} number(s) for {len(cases)} load cases "
+                        f"({', '.join(map(str, names))})")
+    elif isinstance(weights, dict):
+        for k in weights:
+            if k not in names:
+                problems.append(f"objective.weights.{k}: no load case has this name "
+                                f"(cases: {', '.join(map(str, names))})")
+    w = list(weights.values()) if isinstance(weights, dict) else weights
+    if cases and w and all(_nonneg(v) for v in w) and not any(v > 0 for v in w) and (
+            isinstance(weights, list) or len(weights) == len(cases)):
+        problems.append("objective.weights: at least one load case must weigh more than 0")
+    if any("target" in c for c in cases) and obj["type"] != "target_normal_force":
+        problems.append(f"load_cases: a case's target is the target of objective.type = "
+                        f"'target_normal_force', not {obj['type']!r}")
 
 
 def _check_body(raw, data, problems):
@@ -292,7 +372,12 @@ def _check_body(raw, data, problems):
                 problems.append(f"loads.{k}: is a load on a part of the built-in block; on a body from a file "
                                 "use [[loads.traction]] with on = \"<part>\"")
             data["loads"].pop(k, None)
-    elif "traction" in loads_raw or "pressure" in loads_raw:
+            for n, case in enumerate(data.get("load_cases", [])):
+                if k in case:
+                    problems.append(f"load_cases[{n}].{k}: is a load on a part of the built-in block; on a "
+                                    "body from a file use traction = [{ on = \"<part>\", value = [...] }]")
+    elif "traction" in loads_raw or "pressure" in loads_raw or data.get("load_cases"):
+        # with load cases a case's loads are exactly [loads] as written plus the case's own
         for k in BLOCK_LOADS:
             if k not in loads_raw:
                 data["loads"][k] = [0.0, 0.0, 0.0]
@@ -305,7 +390,7 @@ def validate(raw: dict, source: str = "<dict>") -> Config:
     problems = []
     data = {}
     for key in raw:
-        if key not in SCHEMA and key not in TOP_LEVEL:
+        if key not in SCHEMA and key not in TOP_LEVEL and key != "load_cases":
             problems.append(f"{key}: unknown section (allowed: {', '.join(list(TOP_LEVEL) + list(SCHEMA))})")
     for key, (default, check, desc) in TOP_LEVEL.items():
         val = raw.get(key, default)
@@ -336,6 +421,9 @@ def validate(raw: dict, source: str = "<dict>") -> Config:
     _check_matrix(data["design"]["initial"], d1d2, "design.initial", problems)
     if isinstance(data["objective"]["target"], dict):
         _check_target(data["objective"]["target"], d1d2, problems)
+    if "load_cases" in raw:
+        data["load_cases"] = _check_load_cases(raw["load_cases"], d1d2, problems)
+    _check_combination(raw, data, problems)
     _check_body(raw, data, problems)
     if "geometry" in data:
         g = data["geometry"]
@@ -382,6 +470,12 @@ def reference_markdown() -> str:
             shown = tomli_w.dumps({"v": default}).split("=", 1)[1].strip() if default != [] else "[]"
             text = desc.replace("|", "\\|")
             lines.append(f"| `{k}` | `{shown}` | {text} |")
+    lines += ["", "## [[load_cases]]", "",
+              "Optional named load cases (an array of tables). Each has a `name` (letters, digits, `_ . + -`), "
+              "any of the keys of [loads] (none required) and optionally a `target` in the form of "
+              "`objective.target`. A case's loads are its own plus those written in [loads] (with cases, "
+              "the block's default `top_traction`/`right_traction` are off unless [loads] writes them). "
+              "`objective.combine` joins the cases' objectives: the max (worst case) or the weighted sum."]
     return "\n".join(lines) + "\n"
 
 

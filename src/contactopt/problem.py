@@ -15,13 +15,19 @@ Newton builds its matrices from the block W_loc of an earlier design, kept in si
 while products W_loc r are exact (triangular solves in double precision with the zone's Cholesky
 factor), so the block is formed only when it has drifted from the current one
 (``[state] reuse_delassus``; :meth:`ShapeProblem._solve_local`).
+
+Load cases (:mod:`contactopt.sensitivity.cases`): A(α), its factorization and S do not depend on
+the load, so a design is assembled and condensed once, and each case adds its load vector L_k,
+ℓ_k and its own contact solve. Each case carries its own warm start, contact zone and kept
+Delassus block from design to design (:class:`CaseContext`); a configuration without cases is
+the list of one case.
 """
 
 from __future__ import annotations
 
 import logging
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -57,6 +63,17 @@ class Condensed:
     timings: dict
 
 
+@dataclass
+class CaseContext:
+    """What one load case carries from design to design: ``warm`` its last contact forces
+    ((p, 3) per node (N, T1, T2)), ``next_zone`` the zone of its next state solve,
+    ``jacobian`` (alpha, zone, W_Z) of its kept Delassus block."""
+
+    warm: np.ndarray | None
+    next_zone: np.ndarray
+    jacobian: tuple | None = None
+
+
 def spd_inverse(S: np.ndarray) -> np.ndarray:
     """Inverse of a dense SPD matrix by Cholesky (see :func:`contactopt.fem.dense.spd_inverse`)."""
     from .fem.dense import spd_inverse as inverse
@@ -83,24 +100,46 @@ class ShapeProblem:
         self.use_zone = bool(st["zone"])
         self.zone_margin = float(st["zone_margin"])
         self.reuse_delassus = bool(st["reuse_delassus"])
-        self._jacobian = None      # (alpha, zone, W_Z) of an earlier design: Newton's matrices
         self.n_delassus = 0        # Delassus blocks W_Z formed (the others were reused)
         p = self.model.n_contact
         self._all_nodes = np.arange(p)
-        self._warm = None          # last contact forces, (p, 3) per node (N, T1, T2), warm starts
-        self.next_zone = self._all_nodes   # zone of the next state solve (contact.zone)
         self.n_zone_misses = 0     # zone problems solved again on a grown zone
-        self._cache = None         # (alpha bytes, Condensed, State)
+        # (alpha bytes, Condensed, State of case 0, (Condensed per case, State per case))
+        self._cache = None
         self._factor = None        # the condensation, refactored in place for each new design
-        self.n_state_solves = 0
-        from .sensitivity.objectives import make_objective
-        self.objective = make_objective(self.config, self)
+        self.n_state_solves = 0    # designs solved (all cases at once)
+        from .sensitivity.cases import build_cases
+        self.cases, self.combination = build_cases(self.config, self)
+        self.contexts = [CaseContext(None, self._all_nodes) for _ in self.cases]
+
+    # ------------------------------------------------------------------ load cases
+    @property
+    def objective(self):
+        """The objective of the first load case (the objective, without cases)."""
+        return self.cases[0].objective
+
+    @property
+    def has_load_cases(self) -> bool:
+        """Whether the configuration lists [[load_cases]] (else one case of [loads])."""
+        return bool(self.config.data.get("load_cases"))
+
+    @property
+    def case_names(self) -> tuple:
+        return self.combination.names
+
+    # the first case's context under the names of a problem without cases
+    _warm = property(lambda self: self.contexts[0].warm,
+                     lambda self, v: setattr(self.contexts[0], "warm", v))
+    next_zone = property(lambda self: self.contexts[0].next_zone,
+                         lambda self, v: setattr(self.contexts[0], "next_zone", v))
+    _jacobian = property(lambda self: self.contexts[0].jacobian,
+                         lambda self, v: setattr(self.contexts[0], "jacobian", v))
 
     # ------------------------------------------------------------------ condensation
     def condensed_system(self, alpha) -> Condensed:
         from .fem.linsolve import condense
         t0 = time.perf_counter()
-        asm = self.model.assemble(alpha)
+        asm = self.model.assemble(alpha, self.cases[0].loads)
         t1 = time.perf_counter()
         # the sparsity pattern never changes with α: reuse PARDISO's ordering and analysis
         fac = self._factor
@@ -113,34 +152,63 @@ class ShapeProblem:
         ell = fac.condense_load(asm.L)
         return Condensed(asm, fac, fac.S, ell, asm.gap, {"assembly": t1 - t0, "schur": t2 - t1})
 
+    def _case_condensed(self, cond: Condensed, k: int) -> Condensed:
+        """The condensed system of load case k: ``cond`` (of case 0) with L_k and ℓ_k."""
+        if k == 0:
+            return cond
+        t0 = time.perf_counter()
+        asm = cond.assembled
+        L_full = self.model.load_vector(asm.coords, self.cases[k].loads)
+        L = L_full[self.model.assembler.free]
+        t1 = time.perf_counter()
+        ell = cond.factor.condense_load(L)
+        return replace(cond, assembled=replace(asm, L_full=L_full, L=L), ell=ell,
+                       timings={"assembly": t1 - t0, "schur": time.perf_counter() - t1})
+
     # ------------------------------------------------------------------ state
     def solve_state(self, alpha, *, method: str | None = None, warm_start: bool = True,
-                    tol: float | None = None) -> State:
-        """Solve the discrete Coulomb problem (P) at α (α need not be in U, but the mesh must be valid)."""
+                    tol: float | None = None, case: int = 0) -> State:
+        """Solve the discrete Coulomb problem (P) at α (α need not be in U, but the mesh must be
+        valid) for every load case; returns the state of load case ``case``."""
         with sequential_openblas():
-            return self._solve_state(alpha, method, warm_start, tol)
+            return self._solve_state(alpha, method, warm_start, tol)[case]
 
-    def _solve_state(self, alpha, method, warm_start, tol) -> State:
+    def solve_states(self, alpha, **kw) -> list[State]:
+        """The states of every load case at α (one condensation; see :meth:`solve_state`)."""
+        self.solve_state(alpha, **kw)
+        return list(self._cache[3][1])
+
+    def _solve_state(self, alpha, method, warm_start, tol) -> list[State]:
         alpha = self.model.surface.as_vector(alpha)
         if not np.all(np.isfinite(alpha)):
             raise SolverError("design contains NaN or infinite entries")
         key = alpha.tobytes()
         method = method or self.method
         if self._cache is not None and self._cache[0] == key and self._cache[2].method == method:
-            return self._cache[2]
+            return self._cache[3][1]
         cond = self.condensed_system(alpha)
+        conds = [self._case_condensed(cond, k) for k in range(len(self.cases))]
+        states = [self._solve_case(k, ck, alpha, method, warm_start, tol) for k, ck in enumerate(conds)]
+        self._cache = (key, cond, states[0], (conds, states))
+        self.n_state_solves += 1
+        return states
+
+    def _solve_case(self, k, cond, alpha, method, warm_start, tol) -> State:
+        """The contact state of load case k on its condensed system ``cond``, warm-started from
+        the case's own context (warm start, zone, kept Delassus block)."""
+        ctx = self.contexts[k]
         timings = dict(cond.timings, delassus=0.0, contact=0.0)
-        zone = self.next_zone if self.use_zone else self._all_nodes
-        warm = self._warm if warm_start else None
+        zone = ctx.next_zone if self.use_zone else self._all_nodes
+        warm = ctx.warm if warm_start else None
         misses = 0
         reused = []
         t0 = time.perf_counter()
         # a kept Delassus block will most likely serve Newton: the products need no W_Z
-        reuse = method == "newton" and self.reuse_delassus and self._jacobian is not None
+        reuse = method == "newton" and self.reuse_delassus and ctx.jacobian is not None
         zp = zone_rules.ZoneProblem(cond.S, cond.ell, zone, ordered=not reuse)
         t1 = time.perf_counter()
         while True:
-            res, t_inv, how = self._solve_local(zp, cond, warm, method, tol, alpha)
+            res, t_inv, how = self._solve_local(zp, cond, warm, method, tol, alpha, ctx)
             reused.append(how)
             u3 = zp.displacements(res.r)
             timings["delassus"] += t1 - t0 + t_inv
@@ -180,17 +248,16 @@ class ShapeProblem:
                       converged=res.converged, timings=timings,
                       info={"backend": getattr(cond.factor, "backend", "?"), "zone_nodes": int(zone.size),
                             "zone_misses": misses, "delassus": reused[-1]})
-        self._warm = self._zone_warm(res.r, zone)
+        ctx.warm = self._zone_warm(res.r, zone)
         if self.use_zone:
-            self.next_zone = zone_rules.near_nodes(lam, clearance, u_scale, self.zone_margin)
+            ctx.next_zone = zone_rules.near_nodes(lam, clearance, u_scale, self.zone_margin)
         self.n_zone_misses += misses
-        self._cache = (key, cond, state)
-        self.n_state_solves += 1
-        log.debug("state: %s %d it, residual %.2e, zone %d/%d nodes, %.3f s", method, res.iterations,
-                  res.error, zone.size, p, timings["total"])
+        log.debug("state%s: %s %d it, residual %.2e, zone %d/%d nodes, %.3f s",
+                  f" of load case {self.cases[k].name}" if len(self.cases) > 1 else "", method,
+                  res.iterations, res.error, zone.size, p, timings["total"])
         return state
 
-    def _solve_local(self, zp, cond, warm, method, tol, alpha):
+    def _solve_local(self, zp, cond, warm, method, tol, alpha, ctx):
         """The zone's local problem u = W r + q, q = (S⁻¹ℓ)_Z + (g, 0, 0), in the FCLIB convention.
 
         Returns (result, time spent forming W_Z, how W_Z entered: "formed" or "reused"). With
@@ -207,7 +274,7 @@ class ShapeProblem:
         r0 = warm[zp.zone].ravel() if warm is not None else None
         tol = tol or self.tol
         if method == "newton" and self.reuse_delassus and not zp.has_W:
-            W_old = None if self._jacobian is None else zp.block_from(*self._jacobian[1:])
+            W_old = None if ctx.jacobian is None else zp.block_from(*ctx.jacobian[1:])
             eta = np.inf if W_old is None else zp.relative_gap(W_old)
             if eta <= REUSE_MAX_GAP:
                 res = solve_newton(W_old, q, self.friction, tol=tol * REUSE_TOL_FACTOR,
@@ -215,7 +282,7 @@ class ShapeProblem:
                                    chord=eta > CHORD_MIN_GAP, raise_on_failure=False)
                 if res.converged:
                     if res.iterations > REUSE_MAX_STEPS:
-                        self._jacobian = None              # stale: form W_Z at the next design
+                        ctx.jacobian = None                # stale: form W_Z at the next design
                     return res, 0.0, "reused"
                 log.debug("Newton with the Delassus block of an earlier design stopped at %.2e "
                           "after %d steps; forming W_Z", res.error, res.iterations)
@@ -229,29 +296,38 @@ class ShapeProblem:
         t_inv = time.perf_counter() - t0
         self.n_delassus += 1
         if keep:
-            self._keep_block(alpha, zp.zone, W)
+            self._keep_block(alpha, zp.zone, W, ctx)
         res = solve_local(W, q, self.friction, method=method, tol=tol, max_iter=self.max_iter, r0=r0)
         return res, t_inv, "formed"
 
-    def jacobian_design(self):
-        """(alpha, zone) of the kept Delassus block, or None: with them
+    def jacobian_design(self, case: int = 0):
+        """(alpha, zone) of load case ``case``'s kept Delassus block, or None: with them
         :meth:`restore_jacobian` rebuilds the same block (checkpoints)."""
-        return None if self._jacobian is None else (self._jacobian[0], self._jacobian[1])
+        jac = self.contexts[case].jacobian
+        return None if jac is None else (jac[0], jac[1])
 
-    def restore_jacobian(self, alpha, zone) -> None:
-        """Form and keep the Delassus block W_Z at design ``alpha`` for the nodes ``zone``."""
-        cond = self.condensed_system(self.model.surface.as_vector(alpha))
+    def restore_jacobian(self, alpha, zone, case: int = 0) -> None:
+        """Form and keep the Delassus block W_Z at design ``alpha`` for the nodes ``zone`` as
+        load case ``case``'s (W_Z does not depend on the load)."""
+        alpha = np.array(alpha, dtype=float)
         zone = np.asarray(zone, dtype=np.int64)
-        self._keep_block(np.array(alpha, dtype=float), zone, self._own_block(cond, zone))
+        for other in self.contexts:           # cases that kept the same block share it
+            j = other.jacobian
+            if j is not None and np.array_equal(j[0], alpha) and np.array_equal(j[1], zone):
+                self.contexts[case].jacobian = j
+                return
+        cond = self.condensed_system(self.model.surface.as_vector(alpha))
+        self._keep_block(alpha, zone, self._own_block(cond, zone), self.contexts[case])
 
     @staticmethod
     def _own_block(cond, zone):
         """W_Z of ``zone`` from the zone's own (N, Z)-ordered factorization of S."""
         return zone_rules.ZoneProblem(cond.S, cond.ell, zone).W
 
-    def _keep_block(self, alpha, zone, W):
-        """Keep W_Z (in JACOBIAN_DTYPE) as the Newton matrix of later designs."""
-        self._jacobian = (alpha, zone, W.astype(JACOBIAN_DTYPE))
+    @staticmethod
+    def _keep_block(alpha, zone, W, ctx):
+        """Keep W_Z (in JACOBIAN_DTYPE) as the Newton matrix of the case's later designs."""
+        ctx.jacobian = (alpha, zone, W.astype(JACOBIAN_DTYPE))
 
     def _zone_warm(self, r_loc: np.ndarray, zone: np.ndarray) -> np.ndarray:
         """Contact forces of a zone solve as a (p, 3) warm start, per node (N, T1, T2)."""
@@ -259,11 +335,11 @@ class ShapeProblem:
         w[zone] = r_loc.reshape(-1, 3)
         return w
 
-    def cached_condensed(self, alpha) -> Condensed:
-        """The condensed system of the last state solve at α (solving the state if needed)."""
+    def cached_condensed(self, alpha, case: int = 0) -> Condensed:
+        """The condensed system of load case ``case`` at α (solving the states if needed)."""
         alpha = self.model.surface.as_vector(alpha)
         self.solve_state(alpha)
-        return self._cache[1]
+        return self._cache[3][0][case]
 
     def uniqueness_bound(self, alpha) -> float:
         """Estimate of the bound (3.16) on F applied to the condensed system: F0 = γ/‖S‖.
@@ -279,9 +355,23 @@ class ShapeProblem:
 
     # ------------------------------------------------------------------ oracle
     def evaluate_value(self, alpha) -> float:
-        """Θ(α) alone (one state solve)."""
-        state = self.solve_state(alpha)
-        return float(self.objective.evaluate(state, self._cache[1])[0])
+        """Θ(α) alone (one state solve per load case, combined as [objective] combine says)."""
+        return self.evaluate_cases(alpha).value
+
+    def prepare_objectives(self) -> None:
+        """Compute the targets of the cases' objectives now: a 'design' target solves a state at
+        its own design, which must not come between a state and its adjoint."""
+        for case in self.cases:
+            getattr(case.objective, "target", None)
+
+    def evaluate_cases(self, alpha, **kw):
+        """Θ_k of every load case and their combination at α: a
+        :class:`~contactopt.sensitivity.cases.Combined` (``kw`` go to :meth:`solve_state`)."""
+        self.prepare_objectives()
+        self.solve_state(alpha, **kw)
+        conds, states = self._cache[3]
+        values = [float(c.objective.evaluate(st, cd)[0]) for c, st, cd in zip(self.cases, states, conds)]
+        return self.combination.combine(values)
 
     def evaluate(self, alpha):
         """(Θ(α), ξ) with ξ a Clarke subgradient from the adjoint system (4.15)."""

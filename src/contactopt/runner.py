@@ -42,6 +42,14 @@ HISTORY_FIELDS = ["evaluation", "iteration", "f", "subgradient_norm", "degenerat
                   "state_iterations", "state_residual", "time_s"]
 
 
+def history_fields(problem) -> list[str]:
+    """The columns of history.csv: with load cases also Θ_k per case (``f_<name>``, unweighted)
+    and the names of the active cases (separated by ';')."""
+    if not problem.has_load_cases:
+        return HISTORY_FIELDS
+    return HISTORY_FIELDS + [f"f_{name}" for name in problem.case_names] + ["active_cases"]
+
+
 class RunAborted(ContactOptError):
     """The run stopped early because a state solve failed; the last checkpoint is kept.
 
@@ -96,6 +104,8 @@ class _Oracle:
         row = [self.count, self.iteration, repr(float(res.value)), f"{np.linalg.norm(res.gradient):.6e}",
                res.n_degenerate, int(np.sum(st.lam > 0)), st.iterations, f"{st.residual:.3e}",
                f"{time.perf_counter() - self.t_start:.3f}"]
+        if self.problem.has_load_cases:
+            row += [repr(float(v)) for v in res.case_values] + [";".join(res.active_cases)]
         with open(self.history_path, "a", newline="") as fh:
             csv.writer(fh).writerow(row)
         return res.value / self.scale, res.gradient / self.scale
@@ -121,6 +131,12 @@ def _write_checkpoint(path: Path, bstate, oracle: _Oracle, fingerprint: str, ela
     jac = oracle.problem.jacobian_design()        # rebuilt at resume: the same Newton matrices
     arrays.update(jacobian_alpha=np.asarray(jac[0] if jac else np.zeros(0), dtype=float),
                   jacobian_zone=np.asarray(jac[1] if jac else np.zeros(0), dtype=np.int64))
+    for k, ctx in enumerate(oracle.problem.contexts[1:], start=1):   # the other load cases
+        jac = oracle.problem.jacobian_design(k)
+        arrays.update({f"case{k}_warm": np.asarray(ctx.warm if ctx.warm is not None else np.zeros(0)),
+                       f"case{k}_zone": np.asarray(ctx.next_zone),
+                       f"case{k}_jacobian_alpha": np.asarray(jac[0] if jac else np.zeros(0), dtype=float),
+                       f"case{k}_jacobian_zone": np.asarray(jac[1] if jac else np.zeros(0), dtype=np.int64)})
     atomic_savez(path, **arrays)
 
 
@@ -147,8 +163,14 @@ def _read_checkpoint(path: Path, fingerprint: str):
     jacobian = None
     if "jacobian_alpha" in data and data["jacobian_alpha"].size:
         jacobian = (data["jacobian_alpha"].astype(float), data["jacobian_zone"].astype(np.int64))
+    cases = []                     # (warm, zone, jacobian) of load cases 1, 2, ...
+    while f"case{len(cases) + 1}_warm" in data:
+        c = f"case{len(cases) + 1}_"
+        cases.append((data[c + "warm"] if data[c + "warm"].size else None, data[c + "zone"].astype(np.int64),
+                      (data[c + "jacobian_alpha"].astype(float), data[c + "jacobian_zone"].astype(np.int64))
+                      if data[c + "jacobian_alpha"].size else None))
     return (bstate, int(data["meta_evaluations"]), float(data["meta_elapsed"]), warm,
-            float(data["meta_scale"]), zone, jacobian)
+            float(data["meta_scale"]), zone, jacobian, cases)
 
 
 def _is_node_set(nodes: np.ndarray, n_contact: int) -> bool:
@@ -180,13 +202,13 @@ def _check_contact_data(path: Path, warm, zone, n_contact: int, jacobian=None, n
     return warm
 
 
-def _truncate_history(path: Path, n_rows: int):
+def _truncate_history(path: Path, n_rows: int, fields=HISTORY_FIELDS):
     rows = []
     if path.exists():
         with open(path, newline="") as fh:
             rows = list(csv.reader(fh))
     body = rows[1:1 + n_rows] if rows else []
-    atomic_write_text(path, ",".join(HISTORY_FIELDS) + "\n" + "".join(",".join(r) + "\n" for r in body))
+    atomic_write_text(path, ",".join(fields) + "\n" + "".join(",".join(r) + "\n" for r in body))
 
 
 def resolve_config(config, *, eps=None, max_iter=None) -> Config:
@@ -237,14 +259,19 @@ def run_optimization(config, outdir=None, *, eps=None, max_iter=None, resume=Fal
     out = Path(outdir or Path("runs") / cfg.name)
     ckpt = out / "checkpoint.npz"
     if resume:
-        bstate, n_eval, elapsed0, warm, scale, zone, jacobian = _read_checkpoint(ckpt, fingerprint)
+        bstate, n_eval, elapsed0, warm, scale, zone, jacobian, cases = _read_checkpoint(ckpt, fingerprint)
         warm = _check_contact_data(ckpt, warm, zone, model.n_contact, jacobian, model.n_design)
-        if jacobian is not None and problem.reuse_delassus:
-            try:                                   # before the run directory is touched
-                problem.restore_jacobian(*jacobian)
-            except ContactOptError as exc:
-                raise CheckpointError(f"checkpoint {ckpt}: its Delassus design cannot be "
-                                      f"rebuilt: {exc}") from None
+        if len(cases) != len(problem.cases) - 1:
+            raise CheckpointError(f"checkpoint {ckpt}: holds the warm starts of {len(cases) + 1} load "
+                                  f"case(s), the configuration has {len(problem.cases)}")
+        cases = [(_check_contact_data(ckpt, w, z, model.n_contact, j, model.n_design), z, j) for w, z, j in cases]
+        for k, jac in enumerate([jacobian] + [c[2] for c in cases]):
+            if jac is not None and problem.reuse_delassus:
+                try:                               # before the run directory is touched
+                    problem.restore_jacobian(*jac, case=k)
+                except ContactOptError as exc:
+                    raise CheckpointError(f"checkpoint {ckpt}: its Delassus design cannot be "
+                                          f"rebuilt: {exc}") from None
     out = prepare_output_dir(out, overwrite=overwrite, resume=resume)
     handler = logging.FileHandler(out / "run.log")
     handler.setFormatter(logging.Formatter("%(asctime)s %(levelname)s %(name)s: %(message)s"))
@@ -263,18 +290,20 @@ def run_optimization(config, outdir=None, *, eps=None, max_iter=None, resume=Fal
         oracle = _Oracle(problem, hist, t_start)
         state_kw = {}
         if resume:
-            _truncate_history(hist, n_eval)
+            _truncate_history(hist, n_eval, history_fields(problem))
             oracle.count = n_eval
             oracle.iteration = bstate.nit     # history rows before the first callback
             oracle.t_start -= elapsed0
             problem._warm = warm
             if zone is not None:
                 problem.next_zone = zone
+            for ctx, (w, z, _) in zip(problem.contexts[1:], cases):
+                ctx.warm, ctx.next_zone = w, z
             oracle.scale = scale
             state_kw["state"] = bstate
             log.info("resuming %s at iteration %d (%d evaluations)", out, bstate.nit, n_eval)
         else:
-            atomic_write_text(hist, ",".join(HISTORY_FIELDS) + "\n")
+            atomic_write_text(hist, ",".join(history_fields(problem)) + "\n")
             log.info("run %s in %s", cfg.name, out)
             theta0 = problem.evaluate_value(alpha0)
             if not np.isfinite(theta0):
@@ -341,12 +370,12 @@ def _finish(out: Path, problem, alpha0, res, oracle, t_start) -> dict:
     model = problem.model
     x = np.asarray(res.x)
     t0 = time.perf_counter()
-    s0 = problem.solve_state(alpha0, warm_start=False)
-    cond0 = problem._cache[1]
-    J0 = float(problem.objective.evaluate(s0, cond0)[0])
-    s1 = problem.solve_state(x, warm_start=False)
-    J = float(problem.objective.evaluate(s1, problem._cache[1])[0])
-    target = getattr(problem.objective, "target", None)
+    c0 = problem.evaluate_cases(alpha0, warm_start=False)      # Θ of the combined load cases
+    states0, J0 = problem.solve_states(alpha0), c0.value
+    c1 = problem.evaluate_cases(x, warm_start=False)
+    states1, J = problem.solve_states(x), c1.value
+    s0, s1 = states0[c1.case], states1[c1.case]      # the load case active at the optimum
+    target = getattr(problem.cases[c1.case].objective, "target", None)
     write_body_vtu(out / "initial.vtu", model, s0)
     write_body_vtu(out / "optimal.vtu", model, s1)
     write_pvd(out / "bodies.pvd", [(0, "initial.vtu"), (1, "optimal.vtu")])
@@ -376,8 +405,25 @@ def _finish(out: Path, problem, alpha0, res, oracle, t_start) -> dict:
         "time_breakdown_s": {**oracle.time, "outputs": time.perf_counter() - t0},
         "final_state": s1.summary(),
     }
+    if problem.has_load_cases:
+        summary["load_cases"] = _load_case_outputs(out, problem, (c0, states0), (c1, states1))
     atomic_write_json(out / "summary.json", summary)
     return summary
+
+
+def _load_case_outputs(out: Path, problem, initial, optimal) -> dict:
+    """Per-case λ maps (cases.png) and the summary's ``load_cases``: Θ_k at α0 and at the
+    optimum, the active cases there and the case whose state the other plots show."""
+    from .io.plots import plot_load_cases
+    names = problem.case_names
+    (c0, states0), (c1, states1) = initial, optimal
+    plot_load_cases(out / "cases.png", problem.model, names, [s.lam for s in states0], [s.lam for s in states1],
+                    c0.values, c1.values)
+    return {"combine": problem.combination.kind, "names": list(names),
+            "weights": dict(zip(names, problem.combination.weights.tolist())),
+            "J0": dict(zip(names, c0.values.tolist())), "J": dict(zip(names, c1.values.tolist())),
+            "active_at_J0": [names[i] for i in c0.active], "active": [names[i] for i in c1.active],
+            "shown": names[c1.case], "active_tol": problem.combination.active_tol}
 
 
 def run_from_cli(args) -> int:
@@ -400,5 +446,10 @@ def run_from_cli(args) -> int:
     print(f"J0 = {s['J0']:.8e}  J = {s['J']:.8e}  J/J0 = {s['ratio']:.4g}  iterations {s['iterations']} "
           f"(serious {s['serious_steps']}, null {s['null_steps']}), evaluations {s['evaluations']}, "
           f"{s['wall_time_s']:.1f}s")
+    if "load_cases" in s:
+        lc = s["load_cases"]
+        print(f"load cases ({lc['combine']}), active at the optimum: {', '.join(lc['active'])}")
+        for name in lc["names"]:
+            print(f"  {name}: Θ0 = {lc['J0'][name]:.8e}  Θ = {lc['J'][name]:.8e}")
     print(f"results in {rr.outdir}/")
     return 0

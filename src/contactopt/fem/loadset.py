@@ -32,6 +32,11 @@ class LoadSet:
     pressures: list = field(default_factory=list)
     body_force: np.ndarray = field(default_factory=lambda: np.zeros(3))
 
+    def __add__(self, other: "LoadSet") -> "LoadSet":
+        """Both sets acting together (a load case: the common ``[loads]`` plus the case's own)."""
+        return LoadSet(self.tractions + other.tractions, self.pressures + other.pressures,
+                       self.body_force + other.body_force)
+
     def vector(self, coords: np.ndarray, assembler) -> np.ndarray:
         """Full-length L(α) for the node coordinates ``coords``."""
         out = np.zeros(coords.size)

@@ -285,6 +285,30 @@ def _stress_maps(path, model, fields, titles, zlabel, suptitle) -> Path:
     return _save(fig, path)
 
 
+def plot_load_cases(path, model, names, initial, optimal, values0=None, values1=None, *,
+                    zlabel="normal force $\\lambda$") -> Path:
+    """λ maps of every load case: one row per case, the initial and the optimal design side by
+    side, all on one colour scale. ``initial``, ``optimal``: per case a (p,) array in contact-node
+    order; ``values0``, ``values1``: Θ_k at the two designs (shown in the titles)."""
+    fields = [[np.asarray(_contact_values(model, v), float) for v in pair] for pair in zip(initial, optimal)]
+    if not all(np.all(np.isfinite(g)) for row in fields for g in row):
+        raise ValueError("plot_load_cases: a λ field has non-finite values")
+    lo = min(0.0, *(g.min() for row in fields for g in row))
+    hi = max(0.0, *(g.max() for row in fields for g in row))
+    hi = hi if hi > lo else lo + 1.0
+    w, h = _figsize_map(model, extra_width=0.0)
+    fig = _new_figure((2 * w * 0.75 + 1.5, len(names) * (h * 0.75 + 0.3) + 0.3))
+    for i, (name, row) in enumerate(zip(names, fields)):
+        for j, (g, what) in enumerate(zip(row, ("initial", "optimal"))):
+            ax = _map_axes(fig, model, (len(names), 2, 2 * i + j + 1))
+            mesh = _field(ax, model, g, cmap="viridis", vmin=lo, vmax=hi)
+            vals = values0 if j == 0 else values1
+            theta = f", $\\Theta$ = {vals[i]:.4g}" if vals is not None else ""
+            ax.set_title(f"{name}: {what}{theta}\nsum {g.sum():.4g}, max {g.max():.4g}", fontsize=9)
+    fig.colorbar(mesh, ax=fig.axes, label=zlabel, shrink=0.85)
+    return _save(fig, path)
+
+
 def plot_surface(path, model, alpha, *, resolution=(81, 41), title="Contact surface $\\vartheta_\\alpha$") -> Path:
     """The contact surface ϑ_α(x1, x2) as a 3D surface with the Bézier control points and net.
 

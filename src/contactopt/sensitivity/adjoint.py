@@ -27,6 +27,11 @@ Then v_λ = −(S v_u + y*_u)_ν where v_λ is free, and
     ξ_k = ∂J/∂α_k + ṽᵀ(∂A/∂α_k ũ − ∂L/∂α_k) + v_λᵀ ∂g/∂α_k,   ṽ = (v_u, −A_ii⁻¹A_ic v_u),
 
 which needs no derivative of S (DESIGN.md §5).
+
+With load cases (:mod:`contactopt.sensitivity.cases`), Θ = max_k w_k Θ_k or Σ_k w_k Θ_k and
+ξ = Σ_k c_k ξ_k over the cases of nonzero coefficient c_k: for the max only the chosen active
+case needs its adjoint, for the sum every case of positive weight. Each ξ_k is the above with
+the case's state, ℓ_k and loads L_k (the term −ṽᵀ∂L_k/∂α is the case's).
 """
 
 from __future__ import annotations
@@ -60,6 +65,15 @@ class SubgradientResult:
     exact: bool                       # True when no node is degenerate (ξ ∈ ∂Θ exactly)
     choices: dict = field(default_factory=dict)
     timings: dict = field(default_factory=dict)
+    case_values: np.ndarray | None = None   # Θ_k per load case (unweighted, in case order)
+    case_names: tuple = ()
+    active_cases: tuple = ()          # names of the cases active within [objective] active_tol
+    case: str = ""                    # the case of ``state`` (max: whose subgradient is used)
+    states: list = field(default_factory=list)   # the state of every case
+
+    @property
+    def n_active(self) -> int:
+        return len(self.active_cases)
 
 
 def _effective_classes(classes: np.ndarray, choices: dict) -> np.ndarray:
@@ -150,26 +164,54 @@ def solve_adjoint(S: np.ndarray, state: State, y_u: np.ndarray, y_lam: np.ndarra
 
 
 def subgradient(problem, alpha, *, choices=None) -> SubgradientResult:
-    """Θ(α) and one Clarke subgradient for a :class:`contactopt.problem.ShapeProblem`."""
+    """Θ(α) and one Clarke subgradient for a :class:`contactopt.problem.ShapeProblem` (of the
+    combined load cases, see the module docstring)."""
+    problem.prepare_objectives()
     t0 = time.perf_counter()
-    state = problem.solve_state(alpha)
-    cond = problem.cached_condensed(alpha)
+    states = problem.solve_states(alpha)
+    conds = problem._cache[3][0]
     t1 = time.perf_counter()
-    value, y_u, y_lam, dJ_da = problem.objective.evaluate(state, cond)
-    if not np.isfinite(value):
-        raise SolverError(f"objective is not finite at this design ({value})")
-    v_u, v_lam = solve_adjoint(cond.S, state, y_u, y_lam, choices)
-    t2 = time.perf_counter()
-    model = problem.model
-    vt_free = cond.factor.extend(v_u)
-    v_full = model.assembler.to_full(vt_free)
-    g = dJ_da + model.design_contraction(cond.assembled.coords, state.u, v_full) + model.gap_matrix.T @ v_lam
-    t3 = time.perf_counter()
+    parts = []
+    for case, state, cond in zip(problem.cases, states, conds):
+        part = case.objective.evaluate(state, cond)
+        if not np.isfinite(part[0]):
+            raise SolverError(f"objective{_of(problem, case)} is not finite at this design ({part[0]})")
+        parts.append(part)
+    comb = problem.combination.combine([part[0] for part in parts])
+    t_adj = t_design = 0.0
+    g = None
+    nd = 0
+    for k in np.flatnonzero(comb.coefficients):
+        t2 = time.perf_counter()
+        state, cond, case = states[k], conds[k], problem.cases[k]
+        _, y_u, y_lam, dJ_da = parts[k]
+        v_u_k, v_lam_k = solve_adjoint(cond.S, state, y_u, y_lam, choices)
+        t3 = time.perf_counter()
+        model = problem.model
+        v_full = model.assembler.to_full(cond.factor.extend(v_u_k))
+        xi = dJ_da + model.design_contraction(cond.assembled.coords, state.u, v_full, case.loads) \
+            + model.gap_matrix.T @ v_lam_k
+        g = comb.coefficients[k] * xi if g is None else g + comb.coefficients[k] * xi
+        t_adj, t_design = t_adj + t3 - t2, t_design + time.perf_counter() - t3
+        nd += state.n_degenerate
+        if state.n_degenerate:
+            log.info("subgradient at a design with %d degenerate node(s)%s %s", state.n_degenerate,
+                     _of(problem, case), state.counts)
+        if k == comb.case:
+            v_u, v_lam = v_u_k, v_lam_k
     if not np.all(np.isfinite(g)):
         raise SolverError("subgradient has non-finite entries")
-    nd = state.n_degenerate
-    if nd:
-        log.info("subgradient at a design with %d degenerate node(s) %s", nd, state.counts)
+    names = problem.case_names
+    active = tuple(names[i] for i in comb.active)
+    if problem.combination.kind == "max" and len(active) > 1:
+        log.info("subgradient at a design where %d load cases are active (%s): the subgradient is "
+                 "that of %s", len(active), ", ".join(active), names[comb.case])
     ch = {**DEFAULT_CHOICES, **(choices or {})}
-    return SubgradientResult(value, g, state, v_u, v_lam, nd, nd == 0, ch,
-                             {"state": t1 - t0, "adjoint": t2 - t1, "design_terms": t3 - t2})
+    exact = nd == 0 and (problem.combination.kind == "sum" or len(active) == 1)
+    return SubgradientResult(comb.value, g, states[comb.case], v_u, v_lam, nd, exact, ch,
+                             {"state": t1 - t0, "adjoint": t_adj, "design_terms": t_design},
+                             comb.values, names, active, names[comb.case], states)
+
+
+def _of(problem, case) -> str:
+    return f" of load case {case.name}" if len(problem.cases) > 1 else ""

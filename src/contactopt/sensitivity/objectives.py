@@ -35,15 +35,16 @@ class TargetNormalForce(Objective):
 
     name = "target_normal_force"
 
-    def __init__(self, problem, target_spec: dict, scale: float = 1.0):
+    def __init__(self, problem, target_spec: dict, scale: float = 1.0, case: int = 0):
         super().__init__(problem, scale)
         self.spec = target_spec
+        self.case = case              # the load case whose state a 'design' target is
         self._target = None
 
     @property
     def target(self) -> np.ndarray:
         if self._target is None:
-            self._target = target_values(self.spec, self.problem)
+            self._target = target_values(self.spec, self.problem, self.case)
         return self._target
 
     def evaluate(self, state, cond):
@@ -88,21 +89,24 @@ OBJECTIVES = {"target_normal_force": TargetNormalForce, "pressure_uniformity": P
               "compliance": Compliance}
 
 
-def make_objective(config, problem) -> Objective:
+def make_objective(config, problem, *, target=None, case: int = 0) -> Objective:
+    """The objective of ``[objective]``; ``target`` (a load case's own) replaces objective.target,
+    ``case`` is the load case it belongs to (:mod:`contactopt.sensitivity.cases`)."""
     obj = config["objective"]
     cls = OBJECTIVES[obj["type"]]
     if cls is TargetNormalForce:
-        return cls(problem, obj["target"], obj["scale"])
+        return cls(problem, obj["target"] if target is None else target, obj["scale"], case)
     return cls(problem, obj["scale"])
 
 
-def target_values(spec: dict, problem) -> np.ndarray:
+def target_values(spec: dict, problem, case: int = 0) -> np.ndarray:
     """Target normal force λ̄ per contact node from a target table of the configuration.
 
     kinds: ``constant`` (value), ``step`` (default, then regions {x1 = [lo, hi], x2 = [lo, hi], value}
     applied in order, bounds inclusive, later regions win; with ``per_area = true`` the values are
     contact stresses, multiplied by the nodes' tributary areas), ``values`` (one number per contact node),
-    ``design`` (manufactured target λ̄ = λ(α*) for the given control points α*).
+    ``design`` (manufactured target λ̄ = λ(α*) for the given control points α*, under the loads
+    of load case ``case``).
     """
     model = problem.model
     xy = model.mesh.contact_points()
@@ -130,5 +134,5 @@ def target_values(spec: dict, problem) -> np.ndarray:
     if kind == "design":
         alpha_star = model.surface.as_vector(spec["alpha"]) if not np.isscalar(spec["alpha"]) \
             else np.full(model.n_design, float(spec["alpha"]))
-        return problem.solve_state(alpha_star, warm_start=False).lam.copy()
+        return problem.solve_state(alpha_star, warm_start=False, case=case).lam.copy()
     raise ConfigError([f"objective.target.kind = {kind!r} is not known"])
