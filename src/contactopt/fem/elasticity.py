@@ -1,7 +1,10 @@
-"""Vectorised Q1 linear elasticity: stiffness assembly and its design-derivative contractions.
+"""Vectorised linear elasticity: stiffness assembly and its design-derivative contractions.
 
-Conventions: displacement DOF 3n + m (node n, component m ∈ {x1, x2, x3}); element-local DOF
-3a + m for vertex a. The stiffness is the matrix of a(u, v) = ∫ σ(u):ε(v) dx (paper (2.8)) with
+One assembly layer for every element type of :mod:`contactopt.fem.elements` (Q1 hexahedra,
+P1 and P2 tetrahedra): a type gives its reference shape functions and quadrature, the code here
+is written once. Conventions: displacement DOF 3n + m (node n, component m ∈ {x1, x2, x3});
+element-local DOF 3a + m for node a of the element. The stiffness is the matrix of
+a(u, v) = ∫ σ(u):ε(v) dx (paper (2.8)) with
 isotropic Hooke's law σ = λ tr(ε) I + 2μ ε. Dirichlet DOFs are eliminated: A acts on the free
 DOFs only. The CSR index pattern is built once; a new design only recomputes values
 (``values → np.bincount`` onto the pattern), in work arrays kept between designs.
@@ -16,10 +19,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from ..errors import MeshError
-
-_G = 1.0 / np.sqrt(3.0)
-GAUSS_1D = np.array([-_G, _G])
-
+from .elements import GAUSS_1D, HEX8, ElementType, element_type, gauss_hex, hex_shape  # noqa: F401 (re-exported)
 
 _CHUNK_MIN = 1024    # elements per assembly chunk, at least (smaller meshes: one chunk)
 _pool = None         # (pid, ThreadPoolExecutor): a forked child makes its own (threads do not fork)
@@ -46,33 +46,9 @@ def lame(E: float, nu: float) -> tuple[float, float]:
     return E * nu / ((1 + nu) * (1 - 2 * nu)), E / (2 * (1 + nu))
 
 
-def hex_shape(q: np.ndarray):
-    """Q1 shape functions N (Q, 8) and gradients dN/dξ (Q, 8, 3) at reference points q (Q, 3) in [−1,1]³."""
-    from ..mesh.hexmesh import HEX_OFFSETS
-    signs = 2.0 * HEX_OFFSETS - 1.0                      # vertex coordinates in [−1,1]³
-    q = np.atleast_2d(np.asarray(q, float))
-    lin = 1.0 + q[:, None, :] * signs[None, :, :]         # (Q, 8, 3) factors (1 ± ξ_m)
-    N = np.prod(lin, axis=2) / 8.0
-    dN = np.empty((q.shape[0], 8, 3))
-    for m in range(3):
-        others = np.prod(np.delete(lin, m, axis=2), axis=2)
-        dN[:, :, m] = signs[None, :, m] * others / 8.0
-    return N, dN
-
-
-def gauss_hex(order: int = 2):
-    """Tensor Gauss–Legendre rule on [−1,1]³: points (order³, 3) and weights, x fastest."""
-    x, w = np.polynomial.legendre.leggauss(order)
-    q = np.array([(a, b, c) for c in x for b in x for a in x])
-    wq = np.array([wa * wb * wc for wc in w for wb in w for wa in w])
-    return q, wq
-
-
 def hex_reference():
     """Q1 shape functions N (8 gp, 8), gradients dN/dξ (8 gp, 8, 3), weights (8,): 2×2×2 Gauss."""
-    q, w = gauss_hex(2)
-    N, dN = hex_shape(q)
-    return N, dN, w
+    return HEX8.N, HEX8.dN, HEX8.w
 
 
 def det_adj_3x3(J: np.ndarray):
@@ -117,15 +93,17 @@ def require_positive_det(det: np.ndarray, element_axis: int = 0) -> None:
         raise MeshError(f"{bad.size} element(s) inverted or degenerate (det J ≤ 0), first: {bad[:5].tolist()}")
 
 
-def element_geometry(X: np.ndarray, dN: np.ndarray):
-    """Physical gradients G = dN/dx (E, Q, 8, 3) and det J (E, Q) for element coordinates X (E, 8, 3).
+def element_geometry(X: np.ndarray, dN: np.ndarray, check: bool = True):
+    """Physical gradients G = dN/dx (E, Q, k, 3) and det J (E, Q) for element coordinates X (E, k, 3).
 
-    Raises MeshError if any Jacobian determinant is not positive (inverted element).
+    Raises MeshError if any Jacobian determinant is not positive (inverted element), unless
+    ``check`` is false.
     """
     # J_mn = ∂x_m/∂ξ_n = Σ_a X_am dN_an, one BLAS product for all elements and points
     J = np.tensordot(X, dN, axes=([1], [1])).transpose(0, 2, 1, 3)
     det, Jinv = det_inv_3x3(J)
-    require_positive_det(det)
+    if check:
+        require_positive_det(det)
     G = np.matmul(dN[None], Jinv)                          # ∂N_a/∂x_m = Σ_n ∂N_a/∂ξ_n ∂ξ_n/∂x_m
     return G, det
 
@@ -133,29 +111,37 @@ def element_geometry(X: np.ndarray, dN: np.ndarray):
 class ElasticityAssembler:
     """Assembly of A on the free DOFs for a fixed topology (elements, Dirichlet set)."""
 
-    def __init__(self, elements: np.ndarray, n_nodes: int, fixed_dofs: np.ndarray, E: float, nu: float):
+    def __init__(self, elements: np.ndarray, n_nodes: int, fixed_dofs: np.ndarray, E: float, nu: float,
+                 element: ElementType | str = HEX8):
+        self.element = element = element_type(element)
         self.elements = np.asarray(elements)
+        k = element.n_nodes
+        if self.elements.ndim != 2 or self.elements.shape[1] != k:
+            raise MeshError(f"{element.name} elements need {k} nodes each, got an array of shape "
+                            f"{self.elements.shape}")
+        self.k = k
         self.n_nodes = int(n_nodes)
         self.n_full = 3 * self.n_nodes
         self.lam, self.mu = lame(E, nu)
-        self.N, self.dN, self.w = hex_reference()
+        self.N, self.dN, self.w = element.N, element.dN, element.w
         fixed = np.zeros(self.n_full, bool)
         fixed[np.asarray(fixed_dofs, int)] = True
         self.free = np.flatnonzero(~fixed)
         self.full_to_free = np.full(self.n_full, -1)
         self.full_to_free[self.free] = np.arange(self.free.size)
         self.n_free = self.free.size
-        edofs = (3 * self.elements[:, :, None] + np.arange(3)).reshape(len(self.elements), 24)
+        d = 3 * k
+        edofs = (3 * self.elements[:, :, None] + np.arange(3)).reshape(len(self.elements), d)
         self.edofs = edofs
         # the scatter pattern follows the component-major layout of _element_blocks: (i, a)
-        fr = self.full_to_free[edofs.reshape(-1, 8, 3).transpose(0, 2, 1).reshape(-1, 24)]
-        rows = np.broadcast_to(fr[:, :, None], (len(fr), 24, 24)).ravel()
-        cols = np.broadcast_to(fr[:, None, :], (len(fr), 24, 24)).ravel()
+        fr = self.full_to_free[edofs.reshape(-1, k, 3).transpose(0, 2, 1).reshape(-1, d)]
+        rows = np.broadcast_to(fr[:, :, None], (len(fr), d, d)).ravel()
+        cols = np.broadcast_to(fr[:, None, :], (len(fr), d, d)).ravel()
         keep = (rows >= 0) & (cols >= 0)
         self._keep = np.flatnonzero(keep)
         self._buffers = None       # work arrays of _element_blocks, reused: no page faults
         # dN by reference point: [a, (q, n)] for the Jacobians, [q, n, a] for the gradients
-        self._dN_a = np.ascontiguousarray(self.dN.transpose(1, 0, 2).reshape(8, -1))
+        self._dN_a = np.ascontiguousarray(self.dN.transpose(1, 0, 2).reshape(k, -1))
         self._dN_q = np.ascontiguousarray(self.dN.transpose(0, 2, 1))
         key = rows[keep].astype(np.int64) * self.n_free + cols[keep]
         ukey, self._inverse = np.unique(key, return_inverse=True)
@@ -166,9 +152,10 @@ class ElasticityAssembler:
 
     # ------------------------------------------------------------------ stiffness
     def element_matrices(self, X: np.ndarray) -> np.ndarray:
-        """Element stiffness matrices (E, 24, 24) for element coordinates X (E, 8, 3), local DOF 3a + m."""
+        """Element stiffness matrices (E, 3k, 3k) for element coordinates X (E, k, 3), local DOF 3a + m."""
         K = self._element_blocks(X)
-        return K.transpose(0, 2, 1, 4, 3).reshape(X.shape[0], 24, 24)
+        d = 3 * self.k
+        return K.transpose(0, 2, 1, 4, 3).reshape(X.shape[0], d, d)
 
     def _element_blocks(self, X: np.ndarray) -> np.ndarray:
         """Element stiffness matrices in component-major layout K[e, i, a, j, b] (a work array).
@@ -180,9 +167,9 @@ class ElasticityAssembler:
         elements per core (NumPy and BLAS release the GIL: the chunks run in parallel, and each
         element's matrix is computed by the same operations, so K does not depend on the split).
         """
-        E = X.shape[0]
+        E, k = X.shape[0], self.k
         if self._buffers is None or self._buffers[0].shape[0] != E:
-            self._buffers = (np.empty((E, 24, 24)), np.empty((E, 3, 8, 3, 8)), np.empty((E, 8, 8)))
+            self._buffers = (np.empty((E, 3 * k, 3 * k)), np.empty((E, 3, k, 3, k)), np.empty((E, k, k)))
         T, K, lap = self._buffers
         cuts = np.linspace(0, E, _assembly_chunks(E) + 1).astype(int)
         parts = [(X[i:j], T[i:j], K[i:j], lap[i:j]) for i, j in zip(cuts[:-1], cuts[1:])]
@@ -197,9 +184,9 @@ class ElasticityAssembler:
     def _blocks_into(self, X, T, K, lap) -> np.ndarray:
         """Element matrices of the elements X into the work arrays T, K, lap (see
         :meth:`_element_blocks`); returns det J (q, e), early (K unset) if one is ≤ 0."""
-        E, Q = X.shape[0], self.w.size
+        E, Q, k = X.shape[0], self.w.size, self.k
         # J[m, n, q, e] = ∂x_m/∂ξ_n: one BLAS product for all elements and points
-        J = (X.transpose(2, 0, 1).reshape(3 * E, 8) @ self._dN_a).reshape(3, E, Q, 3)
+        J = (X.transpose(2, 0, 1).reshape(3 * E, k) @ self._dN_a).reshape(3, E, Q, 3)
         J = np.ascontiguousarray(J.transpose(0, 3, 2, 1))
         det, adj = det_adj_3x3(J)
         if not np.all(det > 0):
@@ -207,10 +194,10 @@ class ElasticityAssembler:
         adj *= np.sqrt(det * self.w[:, None]) / det          # √(w det J) J⁻¹, [n, m, q, e]
         # √(w det J) ∂N_a/∂x_m = Σ_n dN[q, a, n] (...)[n, m]: per q, rows (m, e)
         Jq = adj.transpose(2, 1, 3, 0).reshape(Q, 3 * E, 3)
-        G = np.matmul(Jq, self._dN_q).reshape(Q, 3, E, 8)
-        G = np.ascontiguousarray(G.transpose(2, 1, 3, 0)).reshape(E, 24, Q)
+        G = np.matmul(Jq, self._dN_q).reshape(Q, 3, E, k)
+        G = np.ascontiguousarray(G.transpose(2, 1, 3, 0)).reshape(E, 3 * k, Q)
         np.matmul(G, G.transpose(0, 2, 1), out=T)
-        T5 = T.reshape(E, 3, 8, 3, 8)
+        T5 = T.reshape(E, 3, k, 3, k)
         np.add(T5[:, 0, :, 0], T5[:, 1, :, 1], out=lap)
         lap += T5[:, 2, :, 2]
         lap *= self.mu
@@ -230,9 +217,25 @@ class ElasticityAssembler:
     def full_stiffness(self, coords: np.ndarray) -> sp.csr_matrix:
         """A on all 3·n_nodes DOFs, without Dirichlet elimination (singular: 6 rigid modes)."""
         Ke = self.element_matrices(coords[self.elements])
-        r = np.repeat(self.edofs, 24, axis=1).ravel()
-        c = np.tile(self.edofs, (1, 24)).ravel()
+        d = 3 * self.k
+        r = np.repeat(self.edofs, d, axis=1).ravel()
+        c = np.tile(self.edofs, (1, d)).ravel()
         return sp.csr_matrix((Ke.ravel(), (r, c)), shape=(self.n_full, self.n_full))
+
+    def jacobian_determinants(self, coords: np.ndarray) -> np.ndarray:
+        """det J (E, Q) at the quadrature points of the stiffness rule (no check: ≤ 0 marks an
+        inverted element)."""
+        return element_geometry(coords[self.elements], self.dN, check=False)[1]
+
+    def scalar_laplacian(self, coords: np.ndarray) -> sp.csr_matrix:
+        """Matrix of ∫∇φ_a·∇φ_b dx (n_nodes × n_nodes, CSR) with the element's shape functions
+        and stiffness rule: the operator of the harmonic morph weight (DESIGN.md §9)."""
+        G, det = element_geometry(coords[self.elements], self.dN)
+        Ke = np.einsum("eqam,eqbm,eq->eab", G, G, det * self.w)
+        rows = np.broadcast_to(self.elements[:, :, None], Ke.shape).ravel()
+        cols = np.broadcast_to(self.elements[:, None, :], Ke.shape).ravel()
+        n = self.n_nodes
+        return sp.csr_matrix((Ke.ravel(), (rows, cols)), shape=(n, n))
 
     # ------------------------------------------------------------------ vectors
     def to_full(self, u_free: np.ndarray) -> np.ndarray:
@@ -253,8 +256,8 @@ class ElasticityAssembler:
         X = coords[self.elements]
         G, det = element_geometry(X, self.dN)
         wd = det * self.w
-        ue = u_full[self.edofs].reshape(-1, 8, 3)
-        ve = v_full[self.edofs].reshape(-1, 8, 3)
+        ue = u_full[self.edofs].reshape(-1, self.k, 3)
+        ve = v_full[self.edofs].reshape(-1, self.k, 3)
         Hu = np.matmul(ue.transpose(0, 2, 1)[:, None], G)   # ∇u at the Gauss points (E, Q, 3, 3)
         Hv = np.matmul(ve.transpose(0, 2, 1)[:, None], G)
         su = self._stress(Hu)
@@ -263,7 +266,7 @@ class ElasticityAssembler:
         M = np.matmul(Hv.swapaxes(2, 3), su) + np.matmul(Hu.swapaxes(2, 3), sv)
         dloc = energy[:, :, None, None] * G - np.matmul(G, M.swapaxes(2, 3))
         E, Q = wd.shape
-        de = np.matmul(wd[:, None, :], dloc.reshape(E, Q, 24)).reshape(E, 8, 3)
+        de = np.matmul(wd[:, None, :], dloc.reshape(E, Q, 3 * self.k)).reshape(E, self.k, 3)
         out = np.zeros((self.n_nodes, 3))
         for m in range(3):
             out[:, m] = np.bincount(self.elements.ravel(), weights=de[:, :, m].ravel(), minlength=self.n_nodes)
