@@ -31,7 +31,8 @@ from ..mesh.body import build_body
 from ..mesh.hexmesh import HexMesh
 from ..mesh.morph import JacobianRatio, MorphedMesh
 from .elasticity import ElasticityAssembler, element_geometry
-from .loads import surface_load
+from .elements import element_type
+from .loads import face_areas_nodal
 from .loadset import load_set
 from .weight import harmonic_weight
 
@@ -65,9 +66,8 @@ class ElasticModel:
         self.surface = BezierSurface(d1, d2, a, b, x1lo, x2lo)
         self.admissible = AdmissibleSet(d1, d2, a, b, d["C0"], d["C1"], d["C2"], d["slope_divisor"])
         mat = cfg["material"]
-        if ref.cell_type != "hexahedron":
-            raise ConfigError([f"{cfg.source}: body.mesh: {ref.cell_type} cells are read but not assembled yet"])
-        self.assembler = ElasticityAssembler(ref.cells, ref.n_nodes, body.fixed_dofs, mat["E"], mat["nu"])
+        self.assembler = ElasticityAssembler(ref.cells, ref.n_nodes, body.fixed_dofs, mat["E"], mat["nu"],
+                                             element=element_type(ref.cell_type))
         self._check_reference(ref)
         zero = np.concatenate([np.asarray(v, np.int64) for v in body.fixed_shape.values()] or [np.zeros(0, np.int64)])
         self.weight = harmonic_weight(ref.points, ref.cells, self.assembler.dN, self.assembler.w,
@@ -92,7 +92,7 @@ class ElasticModel:
     # ------------------------------------------------------------------ checks
     def _check_reference(self, ref) -> None:
         """The reference mesh as given must not be inverted (det J > 0 at every quadrature point)."""
-        det = element_geometry(ref.points[ref.cells], self.assembler.dN)[1]
+        det = self.assembler.jacobian_determinants(ref.points)
         if not np.all(det > 0):
             bad = np.unique(np.nonzero(~(det > 0))[0])
             e = int(bad[0])
@@ -138,7 +138,7 @@ class ElasticModel:
         """Tributary areas ∫N_m dS of the contact nodes on the (flat) reference contact face, which
         turn a contact stress σ into nodal forces λ_m ≈ σ(x'_m)·A_m."""
         ref = self.body.reference
-        areas = surface_load(ref.points, self.body.contact_face.faces, [0.0, 0.0, 1.0])[2::3]
+        areas = face_areas_nodal(ref.points, self.body.contact_face.faces, face=self.assembler.element.face)
         return areas[self.contact_nodes]
 
     # ------------------------------------------------------------------ A(α), L(α)
