@@ -187,3 +187,19 @@ def test_run_outputs_every_case_and_resume_is_exact(tmp_path):
     cut = [0, 1, 2, 3, 4, 5, 6, 7, 9, 10, 11]          # every column but the wall time
     assert [[r.split(",")[i] for i in cut] for r in ha] == [[r.split(",")[i] for i in cut] for r in hb]
     assert json.loads((out / "summary.json").read_text())["load_cases"]["J"] == a["load_cases"]["J"]
+
+
+def test_cases_share_the_factor_of_s_to_the_last_bit():
+    from contactopt.contact.zone import ZoneProblem
+    from contactopt.problem import _on_factor
+    pr = ShapeProblem(two_cases())
+    alpha = wavy(pr)
+    pr.solve_state(alpha)
+    conds = pr._cache[3][0]
+    zp0 = ZoneProblem(conds[0].S, conds[0].ell, np.arange(10), ordered=False)
+    zone = np.arange(3, 17)
+    fresh = ZoneProblem(conds[1].S, conds[1].ell, zone, ordered=False)
+    shared = _on_factor(zp0, conds[1].ell, zone)
+    r = np.linspace(0.1, 1.0, 3 * zone.size)
+    assert np.array_equal(shared.q0, fresh.q0) and np.array_equal(shared.product(r), fresh.product(r))
+    assert np.array_equal(shared.displacements(r), fresh.displacements(r)) and np.array_equal(shared.W, fresh.W)

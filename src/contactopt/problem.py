@@ -80,6 +80,16 @@ def spd_inverse(S: np.ndarray) -> np.ndarray:
     return inverse(S)
 
 
+def _on_factor(zp, ell: np.ndarray, zone: np.ndarray):
+    """The zone problem of another load ℓ and zone on the Cholesky factor of S that ``zp`` holds
+    in S's own order (``ordered=False``): that factor depends on neither, so the load cases of a
+    design share it. The same numbers as ``ZoneProblem(S, ell, zone, ordered=False)``."""
+    out = object.__new__(zone_rules.ZoneProblem)
+    out.p, out._S, out._L, out._order, out._start, out._parent = zp.p, zp._S, zp._L, None, 0, None
+    out._set_zone(np.asarray(zone), None, out.solve(ell))
+    return out
+
+
 class ShapeProblem:
     """Discrete shape optimization problem (P̃) of a configuration.
 
@@ -188,12 +198,13 @@ class ShapeProblem:
             return self._cache[3][1]
         cond = self.condensed_system(alpha)
         conds = [self._case_condensed(cond, k) for k in range(len(self.cases))]
-        states = [self._solve_case(k, ck, alpha, method, warm_start, tol) for k, ck in enumerate(conds)]
+        shared = {}                # S's Cholesky factor in its own order, for every case
+        states = [self._solve_case(k, ck, alpha, method, warm_start, tol, shared) for k, ck in enumerate(conds)]
         self._cache = (key, cond, states[0], (conds, states))
         self.n_state_solves += 1
         return states
 
-    def _solve_case(self, k, cond, alpha, method, warm_start, tol) -> State:
+    def _solve_case(self, k, cond, alpha, method, warm_start, tol, shared) -> State:
         """The contact state of load case k on its condensed system ``cond``, warm-started from
         the case's own context (warm start, zone, kept Delassus block)."""
         ctx = self.contexts[k]
@@ -205,7 +216,12 @@ class ShapeProblem:
         t0 = time.perf_counter()
         # a kept Delassus block will most likely serve Newton: the products need no W_Z
         reuse = method == "newton" and self.reuse_delassus and ctx.jacobian is not None
-        zp = zone_rules.ZoneProblem(cond.S, cond.ell, zone, ordered=not reuse)
+        if reuse and "zone" in shared:
+            zp = _on_factor(shared["zone"], cond.ell, zone)
+        else:
+            zp = zone_rules.ZoneProblem(cond.S, cond.ell, zone, ordered=not reuse)
+            if reuse:
+                shared["zone"] = zp
         t1 = time.perf_counter()
         while True:
             res, t_inv, how = self._solve_local(zp, cond, warm, method, tol, alpha, ctx)
