@@ -40,28 +40,28 @@ class LoadSet:
     def vector(self, coords: np.ndarray, assembler) -> np.ndarray:
         """Full-length L(α) for the node coordinates ``coords``."""
         out = np.zeros(coords.size)
+        a = assembler
         for _, faces, t in self.tractions:
             if np.any(t):
-                out += L.surface_load(coords, faces, t)
+                out += L.surface_load(coords, faces, t, face=a.element.face)
         for _, faces, p in self.pressures:
             if p != 0.0:
-                raise NotImplementedError("pressure loads are not assembled yet")
+                out += L.pressure_load(coords, faces, p, face=a.element.face)
         if np.any(self.body_force):
-            a = assembler
             out += L.body_load(coords, a.elements, a.N, a.dN, a.w, self.body_force)
         return out
 
     def shape_contraction(self, coords: np.ndarray, v_full: np.ndarray, assembler) -> np.ndarray:
         """vᵀ ∂L/∂x_{c,m} for every node c and coordinate m: array (n_nodes, 3)."""
         out = np.zeros((coords.shape[0], 3))
+        a = assembler
         for _, faces, t in self.tractions:
             if np.any(t):
-                out += L.surface_load_shape_contraction(coords, faces, t, v_full)
+                out += L.surface_load_shape_contraction(coords, faces, t, v_full, face=a.element.face)
         for _, faces, p in self.pressures:
             if p != 0.0:
-                raise NotImplementedError("pressure loads are not assembled yet")
+                out += L.pressure_load_shape_contraction(coords, faces, p, v_full, face=a.element.face)
         if np.any(self.body_force):
-            a = assembler
             out += L.body_load_shape_contraction(coords, a.elements, a.N, a.dN, a.w, self.body_force, v_full)
         return out
 
