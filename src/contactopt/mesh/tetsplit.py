@@ -50,19 +50,26 @@ def _kuhn_local() -> np.ndarray:
 KUHN_TETS = _kuhn_local()
 
 
-def hex_to_tets(cells: np.ndarray) -> np.ndarray:
+def hex_to_tets(cells: np.ndarray, points: np.ndarray | None = None) -> np.ndarray:
     """Split every hexahedron (E, 8) into six tetrahedra (6E, 4) around its diagonal 0–6.
 
-    Tetrahedra of hexahedron e are rows 6e … 6e+5, positively oriented when the hexahedron is
-    (det J > 0). The split of a face is the diagonal through its vertex of smallest offset sum,
-    so the result is conforming whenever neighbouring hexahedra have the same local orientation
-    (every structured grid, e.g. :func:`contactopt.mesh.block.block_mesh`); a mesh whose
-    hexahedra meet with other orientations may get non-matching face diagonals.
+    Tetrahedra of hexahedron e are rows 6e … 6e+5. Without ``points`` each is listed with the
+    orientation it has in a right-handed (det J > 0) hexahedron; with ``points`` each is oriented
+    positively (det[x1 − x0, x2 − x0, x3 − x0] > 0) by its own coordinates. The split of a face
+    is the diagonal through its vertex of smallest offset sum, so the result is conforming
+    whenever neighbouring hexahedra have the same local orientation (every structured grid,
+    e.g. :func:`contactopt.mesh.block.block_mesh`); a mesh whose hexahedra meet with other
+    orientations may get non-matching face diagonals.
     """
     cells = np.asarray(cells)
     if cells.ndim != 2 or cells.shape[1] != 8:
         raise MeshError(f"hex_to_tets needs hexahedra (E, 8), got an array of shape {cells.shape}")
-    return cells[:, KUHN_TETS].reshape(-1, 4)
+    tets = cells[:, KUHN_TETS].reshape(-1, 4)
+    if points is not None:
+        X = np.asarray(points, float)[tets]
+        flip = np.linalg.det(X[:, 1:] - X[:, :1]) < 0
+        tets[flip] = tets[flip][:, [0, 2, 1, 3]]
+    return tets
 
 
 def _edge_nodes(points: np.ndarray, edges: np.ndarray):
