@@ -293,3 +293,57 @@ def test_block_loads_on_a_body_from_a_file_are_refused(tmp_path):
     toml.write_text(toml.read_text() + "\n[loads]\ntop_traction = [0.0, 0.0, -1.0]\n")
     with pytest.raises(ConfigError, match="built-in block"):
         load_config(toml)
+
+
+# ------------------------------------------------------------------ tetrahedra from a file
+def tet_box_config(tmp_path, extra=""):
+    toml = tmp_path / "box.toml"
+    toml.write_text(f'name = "box"\n[body]\nmesh = "{DATA / "two_groups.msh"}"\nclamped = "top"\ncontact = "bottom"\n'
+                    '[loads]\nbody_force = [0.0, 0.0, -1.0]\n[[loads.pressure]]\non = { x1 = 1.0 }\nvalue = 0.05\n'
+                    '[design]\ndegree = [3, 2]\nC0 = 0.05\nC2 = 0.002\ninitial = 0.002\n' + extra)
+    return toml
+
+
+def test_design_derivative_on_an_imported_tetrahedral_mesh_matches_central_differences(tmp_path):
+    model = ElasticModel(load_config(tet_box_config(tmp_path)))
+    assert model.mesh.cell_type == "tetra" and model.loads.pressures
+    rng = np.random.default_rng(8)
+    alpha = 0.002 + 0.01 * rng.random(model.n_design)
+    asm = model.assembler
+    u = asm.to_full(rng.standard_normal(asm.n_free))
+    v = asm.to_full(rng.standard_normal(asm.n_free))
+    pred = model.design_contraction(model.mesh.coordinates(alpha), u, v)
+    h = 1e-6
+    for k in range(model.n_design):
+        e = np.zeros(model.n_design)
+        e[k] = h
+        p, m = model.assemble(alpha + e), model.assemble(alpha - e)
+        fd = (v[asm.free] @ ((p.A - m.A) @ u[asm.free]) - v @ (p.L_full - m.L_full)) / (2 * h)
+        assert abs(pred[k] - fd) <= 1e-6 * abs(fd), k
+
+
+def test_subgradient_on_an_imported_tetrahedral_mesh_matches_central_differences(tmp_path):
+    problem = ShapeProblem(load_config(tet_box_config(tmp_path, '[objective]\ntarget = { kind = "constant", value = 0.001 }\n')))
+    alpha = problem.model.initial_design()
+    res = subgradient(problem, alpha)
+    assert res.n_degenerate == 0
+    d = np.random.default_rng(9).standard_normal(alpha.size)
+    d -= d.mean()
+    h = 1e-6
+    fd = (problem.evaluate_value(alpha + h * d) - problem.evaluate_value(alpha - h * d)) / (2 * h)
+    assert abs(res.gradient @ d - fd) <= 1e-6 * abs(fd)
+
+
+def test_thin_linear_tetrahedra_and_poor_cells_are_warned_about(tmp_path, caplog):
+    from contactopt.mesh.body import _poor_cells, _thin_tetrahedra
+    from contactopt.mesh.reference import ReferenceMesh
+    from contactopt.mesh.tetsplit import hex_to_tets
+    slab = block_mesh(2.0, 2.0, 0.05, 8, 8, 1)                  # one tetrahedron layer
+    thin = ReferenceMesh(slab.points, hex_to_tets(slab.cells), "tetra")
+    assert "too stiff in bending" in _thin_tetrahedra(thin)[0]
+    thick = block_mesh(1.0, 1.0, 1.0, 4, 4, 4)
+    assert _thin_tetrahedra(ReferenceMesh(thick.points, hex_to_tets(thick.cells), "tetra")) == []
+    squashed = block_mesh(1.0, 1.0, 1.0, 2, 2, 2)
+    squashed.points[13] += [0.46, 0.46, 0.46]                   # the centre node almost at a corner
+    assert "shape quality below" in _poor_cells(squashed)[0]
+    assert _poor_cells(thick) == []

@@ -103,7 +103,7 @@ def build_body(cfg) -> Body:
     fixed_shape = _fixed_shape(ref, spec["fixed_shape"], face, tol, cfg.source)
     domain = _domain(cfg, ref, face, tol)
     body = Body(ref, tol, np.flatnonzero(fixed.ravel()), clamped, face, contact_nodes, fixed_shape, domain)
-    body.warnings += _thin_tetrahedra(ref)
+    body.warnings += _thin_tetrahedra(ref) + _poor_cells(ref)
     for w in body.warnings:
         log.warning("%s", w)
     return body
@@ -219,6 +219,22 @@ def _thin_tetrahedra(ref: ReferenceMesh) -> list:
     return [f"{ref.source}: {100 * frac:.0f} % of the linear tetrahedra have every vertex on the boundary: parts "
             "of the body are only one or two elements thick, where linear tetrahedra are too stiff in bending "
             "(20–50 % too little deflection); refine there or use tetra10 (P2) elements"]
+
+
+POOR_QUALITY = 0.1
+
+
+def _poor_cells(ref: ReferenceMesh) -> list:
+    """A valid mesh of poor quality still loads (element quality is judged relative to it), with a
+    warning naming the worst cell."""
+    q = ref.quality()
+    bad = np.flatnonzero(q < POOR_QUALITY)
+    if bad.size == 0:
+        return []
+    e = int(bad[np.argmin(q[bad])])
+    return [f"{ref.source}: {bad.size} of {ref.n_cells} cells have a shape quality below {POOR_QUALITY} "
+            f"(worst {q[e]:.3g}, cell {e} at {_fmt(ref.points[ref.cells[e]].mean(axis=0))}); results on them "
+            "are less accurate"]
 
 
 def _fmt(x) -> str:

@@ -156,6 +156,22 @@ class ReferenceMesh:
             det = np.linalg.det(X[:, 1:] - X[:, :1])
         return np.flatnonzero(~(det > 0))
 
+    def quality(self) -> np.ndarray:
+        """Shape quality in (0, 1] per cell (1: a regular tetrahedron or a cube): the mean ratio
+        12·(3V)^(2/3)/Σ l² of the corner tetrahedron for tetrahedra; for hexahedra the smallest
+        over the eight corners of det J_corner/(Π of its three edge lengths)."""
+        X = self.points[self.cells[:, :CELL_CORNERS[self.cell_type]]]
+        if self.cell_type == "hexahedron":
+            # corner a: its three edges in the right-handed order of the reference cube
+            nb = np.array([[1, 3, 4], [2, 0, 5], [3, 1, 6], [0, 2, 7], [7, 5, 0], [4, 6, 1], [5, 7, 2], [6, 4, 3]])
+            E = X[:, nb] - X[:, :, None, :]                       # (C, 8, 3 edges, 3)
+            det = np.linalg.det(E)
+            norms = np.prod(np.linalg.norm(E, axis=3), axis=2)
+            return np.min(det / norms, axis=1)
+        e = X[:, [1, 2, 3, 2, 3, 3]] - X[:, [0, 0, 0, 1, 1, 2]]
+        vol = np.linalg.det(X[:, 1:] - X[:, :1]) / 6.0
+        return 12.0 * np.cbrt(3.0 * vol) ** 2 / np.sum(e ** 2, axis=(1, 2))
+
     # ------------------------------------------------------------------ sizes
     def typical_size(self) -> float:
         """Median edge length of the boundary faces: the unit of geometric tolerances."""
