@@ -64,7 +64,7 @@ class Combination:
     def combine(self, values) -> Combined:
         v = np.asarray(values, float)
         wv = self.weights * v
-        k = int(np.argmax(wv))
+        k = int(np.argmax(np.where(self.weights > 0, wv, -np.inf)))   # a case of weight 0 never counts
         if self.kind == "sum":
             value = float(wv[0]) if v.size == 1 else float(np.sum(wv))
             return Combined(value, v, self.weights.copy(), [int(i) for i in np.flatnonzero(self.weights > 0)], k)
