@@ -70,8 +70,7 @@ class ElasticModel:
                                              element=element_type(ref.cell_type))
         self._check_reference(ref)
         zero = np.concatenate([np.asarray(v, np.int64) for v in body.fixed_shape.values()] or [np.zeros(0, np.int64)])
-        self.weight = harmonic_weight(ref.points, ref.cells, self.assembler.dN, self.assembler.w,
-                                      body.contact_face.nodes, zero)
+        self.weight = harmonic_weight(self.assembler, ref.points, body.contact_face.nodes, zero)
         if cfg["body"]["mesh"]:
             self.mesh = MorphedMesh(ref, self.surface, self.weight, body.contact_nodes,
                                     fixed_shape=tuple(body.fixed_shape))

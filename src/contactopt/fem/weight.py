@@ -15,33 +15,21 @@ from __future__ import annotations
 import logging
 
 import numpy as np
-import scipy.sparse as sp
 
 from ..errors import MeshError
-from .elasticity import element_geometry
 
 log = logging.getLogger(__name__)
 
 
-def scalar_laplacian(coords: np.ndarray, elements: np.ndarray, dN: np.ndarray, w: np.ndarray) -> sp.csr_matrix:
-    """Matrix of ∫∇φ_a·∇φ_b dx (n_nodes × n_nodes) for elements with reference gradients dN (Q, k, 3)."""
-    G, det = element_geometry(coords[elements], dN)
-    k = elements.shape[1]
-    Ke = np.einsum("eqam,eqbm,eq->eab", G, G, det * w)
-    rows = np.broadcast_to(elements[:, :, None], (len(elements), k, k)).ravel()
-    cols = np.broadcast_to(elements[:, None, :], (len(elements), k, k)).ravel()
-    n = coords.shape[0]
-    return sp.csr_matrix((Ke.ravel(), (rows, cols)), shape=(n, n))
-
-
-def harmonic_weight(coords, elements, dN, w, one_nodes, zero_nodes) -> np.ndarray:
-    """w (n_nodes,) with w = 1 on ``one_nodes``, 0 on ``zero_nodes``, discretely harmonic elsewhere.
+def harmonic_weight(assembler, coords, one_nodes, zero_nodes) -> np.ndarray:
+    """w (n_nodes,) with w = 1 on ``one_nodes``, 0 on ``zero_nodes``, discretely harmonic elsewhere
+    (the scalar Laplacian of ``assembler``'s elements on the reference ``coords``).
 
     Nodes in no element get w = 0. With no ``zero_nodes`` the solution is w = 1 (a rigid lift)."""
     from .linsolve import factorize
     n = coords.shape[0]
     used = np.zeros(n, bool)
-    used[elements.ravel()] = True
+    used[assembler.elements.ravel()] = True
     one = np.zeros(n, bool)
     one[one_nodes] = True
     zero = np.zeros(n, bool)
@@ -55,7 +43,7 @@ def harmonic_weight(coords, elements, dN, w, one_nodes, zero_nodes) -> np.ndarra
     free = np.flatnonzero(used & ~one & ~zero)
     if free.size == 0:
         return out
-    K = scalar_laplacian(coords, elements, dN, w)
+    K = assembler.scalar_laplacian(coords)
     Kff = K[free][:, free].tocsr()
     rhs = -(K[free][:, np.flatnonzero(one)] @ np.ones(int(one.sum())))
     if not np.any(zero):

@@ -40,11 +40,10 @@ class HexMesh(MorphedMesh):
                  fixed_shape=("top",)):
         ref = reference if reference is not None else block_mesh(surface.a, surface.b, c, nx, ny, nz)
         if weight is None:
-            from ..fem.elasticity import hex_reference
+            from ..fem.elasticity import ElasticityAssembler
             from ..fem.weight import harmonic_weight
-            _, dN, w = hex_reference()
-            weight = harmonic_weight(ref.points, ref.cells, dN, w, ref.parts["contact"].nodes,
-                                     ref.parts["top"].nodes)
+            laplace = ElasticityAssembler(ref.cells, ref.n_nodes, [], 1.0, 0.0)   # its scalar Laplacian only
+            weight = harmonic_weight(laplace, ref.points, ref.parts["contact"].nodes, ref.parts["top"].nodes)
         if contact_nodes is None:
             contact_nodes = np.setdiff1d(ref.parts["contact"].nodes, ref.parts["clamped"].nodes)
         super().__init__(ref, surface, weight, contact_nodes, fixed_shape=fixed_shape)
