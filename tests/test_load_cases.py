@@ -203,3 +203,14 @@ def test_cases_share_the_factor_of_s_to_the_last_bit():
     r = np.linspace(0.1, 1.0, 3 * zone.size)
     assert np.array_equal(shared.q0, fresh.q0) and np.array_equal(shared.product(r), fresh.product(r))
     assert np.array_equal(shared.displacements(r), fresh.displacements(r)) and np.array_equal(shared.W, fresh.W)
+
+
+def test_block_loads_in_a_case_on_a_body_from_a_file_are_refused():
+    from pathlib import Path
+    mesh = str(Path(__file__).parent / "data" / "two_groups.msh")
+    problems = config_problems({"body": {"mesh": mesh},
+                                "load_cases": [{"name": "a", "traction": [{"on": "top", "value": [0, 0, -1.0]}]},
+                                               {"name": "b", "right_traction": PULL}]})
+    assert [p for p in problems if "load_cases" in p] == [
+        "<dict>: load_cases[1].right_traction: is a load on a part of the built-in block; on a body from a "
+        "file use traction = [{ on = \"<part>\", value = [...] }]"]
