@@ -54,8 +54,9 @@ Notation (current serious iterate x, bundle elements j):
   step x → x⁺ the pair ``s = x⁺ − x``, ``y = g(x⁺) − g(x)`` is kept (the last
   ``metric_memory``), and ``W_ii = Σ|y_i s_i| / Σ s_i²`` — a componentwise secant estimate of
   the curvature — normalised to geometric mean 1 (t keeps its scale) and clipped to
-  [1e-2, 1e2].  On Θ, whose design variables differ in curvature by an order of magnitude,
-  it cuts the evaluations to a given J by about a third;
+  [1/metric_range, metric_range] = [1e-2, 1e2].  On Example 1, whose design variables differ
+  in curvature by an order of magnitude, J ≤ 8.77e-8 takes 96 evaluations instead of 139; on
+  the manufactured case (J → 0) it is slower over the first few hundred;
 * **bundle management** (Kiwiel, *Methods of descent for nondifferentiable optimization*,
   LNM 1133, 1985, Ch. 2): at most ``max_bundle`` elements (default n + 3, room for the n + 1
   cuts of a polyhedral f in dimension n, the aggregate and the new cut).  When the bundle is
@@ -95,6 +96,7 @@ import numpy as np
 from scipy.optimize import OptimizeResult
 
 from ..errors import OptimizerError
+from ._bundle_control import direction, next_t, no_progress, relative_decrease, update_metric
 from ._bundle_qp import DirectionQP, Polyhedron
 
 __all__ = ["minimize_bundle", "BundleResult", "BundleState", "BTOptions"]
@@ -151,8 +153,9 @@ class BTOptions:
     above which a serious step counts as predicted by the model; t_factor: largest change of
     t per iteration; rise_patience: the null step (counted from the last serious step) at
     which a rise of f (ρ < 0) shrinks t;
-    metric, metric_memory: diagonal variable metric of the proximal term from the last
-    metric_memory serious steps (module docstring); metric=False gives ‖d‖²/(2t);
+    metric, metric_memory, metric_range: diagonal variable metric of the proximal term from
+    the last metric_memory serious steps, its entries within [1/metric_range, metric_range]
+    (module docstring); metric=False gives ‖d‖²/(2t);
     max_bundle: bundle size including the aggregate (default n + 3, at least 5);
     max_inner: trial points per iteration;
     ftol, ftol_window: practical stop when f fell by less than ftol·|f| over the last
@@ -179,6 +182,7 @@ class BTOptions:
     rise_patience: int = 3
     metric: bool = True
     metric_memory: int = 10
+    metric_range: float = 100.0
     max_bundle: int | None = None
     max_inner: int = 10
     ftol: float = 0.0
@@ -209,6 +213,8 @@ class BTOptions:
             problems.append(f"need an integer rise_patience >= 1 ({o.rise_patience!r})")
         if not o.t_factor > 1:
             problems.append(f"need t_factor > 1 (t_factor={o.t_factor})")
+        if not o.metric_range >= 1:
+            problems.append(f"need metric_range >= 1 (metric_range={o.metric_range})")
         if not (isinstance(o.metric_memory, int) and o.metric_memory >= 1):
             problems.append(f"need an integer metric_memory >= 1 ({o.metric_memory!r})")
         for name in ("extend", "adapt_t", "metric"):
@@ -400,40 +406,6 @@ def _trial_point(poly: Polyhedron, x, d, feas_tol):
     return y
 
 
-def _direction(poly: Polyhedron, x, G, alpha, t, w):
-    """The QP with the proximal term Σ w_i d_i²/(2t): solved in e = √w·d (the box stays a box)."""
-    if w is None:
-        return poly.direction(x, G, alpha, t)
-    r = np.sqrt(w)
-    pe = Polyhedron(poly.n, poly.lb * r, poly.ub * r,
-                    poly.A_ub / r if poly.n_ub else None, poly.b_ub if poly.n_ub else None,
-                    poly.A_eq / r if poly.n_eq else None, poly.b_eq if poly.n_eq else None)
-    qp = pe.direction(x * r, G / r, alpha, t)
-    d = qp.d / r
-    return DirectionQP(d=d, v=qp.v, lam=qp.lam, p=-w * d / t, xi=qp.lam @ G, sigma=qp.sigma,
-                       solver=qp.solver)
-
-
-def _update_metric(st: BundleState, s, y, memory: int) -> None:
-    """Diagonal secant estimate w_i = Σ|y_i s_i| / Σ s_i² over the last serious steps,
-    normalised to geometric mean 1 and clipped to [1e-2, 1e2]."""
-    n = st.x.size
-    S = np.zeros((0, n)) if st.S is None else st.S
-    Y = np.zeros((0, n)) if st.Y is None else st.Y
-    st.S = np.vstack([S, s[None, :]])[-memory:]
-    st.Y = np.vstack([Y, y[None, :]])[-memory:]
-    num = np.abs(st.Y * st.S).sum(axis=0)
-    den = (st.S ** 2).sum(axis=0)
-    ok = (den > 0) & (num > 0)
-    if ok.sum() < 1:
-        return
-    w = np.ones(n)
-    w[ok] = num[ok] / den[ok]
-    w[~ok] = np.exp(np.mean(np.log(w[ok])))
-    w = w / np.exp(np.mean(np.log(w)))
-    st.w = np.clip(w, 1e-2, 1e2)
-
-
 def _iteration(oracle, poly: Polyhedron, st: BundleState, o: BTOptions, eps: float):
     """One iteration: inner loop on t ending in a serious or null step (or a stop)."""
     x, f = st.x, st.f
@@ -442,7 +414,7 @@ def _iteration(oracle, poly: Polyhedron, st: BundleState, o: BTOptions, eps: flo
     lo, hi = 0.0, math.inf          # bracket of t: descent at lo, failure at hi
     cand: _Step | None = None
     for trial in range(o.max_inner):
-        qp = _direction(poly, x, st.G, alpha, t, st.w)
+        qp = direction(poly, x, st.G, alpha, t, st.w)
         if trial == 0:
             alpha_p = float(qp.lam @ alpha)
             st.xi = qp.xi
@@ -488,76 +460,6 @@ def _iteration(oracle, poly: Polyhedron, st: BundleState, o: BTOptions, eps: flo
         hi = t                                          # cut useless here: shrink the region
         t = max(t * o.t_decrease, st.t_min)
     raise AssertionError("unreachable")  # pragma: no cover
-
-
-def _next_t(st: BundleState, step: _Step, f_old: float, o: BTOptions) -> float:
-    """Kiwiel's (1990) safeguarded update of t after a serious or null step; updates i_t, ε_v.
-
-    ρ = (f(y) − f(x))/v is the share of the predicted decrease that was realised and
-    t_int = t/(2(1 − ρ)) the quadratic interpolation (module docstring).
-    """
-    t, v = step.t, step.qp.v
-    if not o.adapt_t:
-        return t
-    rho = (step.fy - f_old) / v if v < 0 else 0.0
-    t_int = t / (2.0 * (1.0 - rho)) if rho < 1.0 else math.inf
-    logger.debug("t update: %s rho=%.3f v=%.3e alpha_y=%.3e eps_v=%.3e i_t=%d", step.kind, rho,
-                 v, step.alpha_y, st.eps_v, st.i_t)
-    if step.kind == "serious":
-        t_new = t
-        if rho >= o.m_r and st.i_t > 0:                 # decrease as the model predicted
-            t_new = t_int
-        elif st.i_t > 3:                                # many serious steps at this t
-            t_new = 2.0 * t
-        t_new = min(max(t_new, t), o.t_factor * t, st.t_max)
-        st.eps_v = max(st.eps_v, -2.0 * v)
-        st.i_t = 1 if t_new != t else max(st.i_t + 1, 1)
-        st.null_run = 0
-        return t_new
-    # null step: the aggregate linearisation error α̃_p = −v − t‖p‖² ≥ α_p + σ
-    p2 = float(step.qp.p @ step.qp.p)
-    st.eps_v = min(st.eps_v, math.sqrt(p2) + max(-v - t * p2, 0.0))
-    t_new = t
-    # the cut shows the model far off: a linearisation error at x above Kiwiel's variation
-    # estimate (after more than three null steps at this t), or f rose where the model
-    # predicted a decrease (ρ < 0: the model's error at y exceeds its whole prediction) at the
-    # rise_patience-th null step since the last serious step (once per run of null steps, so
-    # that polyhedral f, whose long null runs are normal, keep their t)
-    st.null_run += 1
-    if ((step.alpha_y > max(st.eps_v, -10.0 * v) and st.i_t < -3)
-            or (rho < 0.0 and st.null_run == o.rise_patience)):
-        t_new = t_int
-    t_new = max(min(t_new, t), t / o.t_factor, st.t_min)
-    st.i_t = -1 if t_new != t else min(st.i_t - 1, -1)
-    return t_new
-
-
-def _no_progress(history: list, window: int) -> bool:
-    """True when the last ``window`` iterations neither decreased f beyond its round-off nor
-    halved the best stationarity measure seen before them."""
-    if len(history) <= window:
-        return False
-    f_then, f_now = history[-window - 1]["f"], history[-1]["f"]
-    if f_then - f_now > 100 * np.finfo(float).eps * max(1.0, abs(f_now)):
-        return False
-    before = min(h["stationarity"] for h in history[:-window])
-    recent = min(h["stationarity"] for h in history[-window:])
-    return recent >= 0.5 * before
-
-
-def _relative_decrease(history: list, window: int) -> float:
-    """(f_then − f_now)/|f_now| over the last ``window`` serious steps (inf before there are
-    window + 1 of them)."""
-    fs = []
-    for h in reversed(history):
-        if h["step"] == "serious":
-            fs.append(h["f"])
-            if len(fs) > window:
-                break
-    if len(fs) <= window:
-        return math.inf
-    drop = fs[-1] - fs[0]
-    return drop / abs(fs[0]) if fs[0] != 0 else (0.0 if drop == 0 else math.inf)
 
 
 def _update_bundle(st: BundleState, step: _Step, max_bundle: int, gamma: float) -> None:
@@ -698,7 +600,7 @@ def minimize_bundle(oracle, x0, *, lb=None, ub=None, A_ub=None, b_ub=None, A_eq=
     max_bundle = o.max_bundle if o.max_bundle is not None else max(5, n + 3)
     logger.info("bundle start: n=%d f=%.10g eps=%.1e ftol=%.1e/%d t=%.3e bundle<=%d "
                 "(iteration %d)", n, st.f, eps, o.ftol, o.ftol_window, st.t, max_bundle, st.nit)
-    rel = _relative_decrease(st.history, o.ftol_window)
+    rel = relative_decrease(st.history, o.ftol_window)
     criterion = None
     while True:
         if st.nit >= max_iter:
@@ -719,9 +621,9 @@ def minimize_bundle(oracle, x0, *, lb=None, ub=None, A_ub=None, b_ub=None, A_eq=
         f_old = st.f
         if o.metric and step.kind == "serious":
             g_x = st.G[int(np.argmin(_alpha(st, o.gamma)))]
-            _update_metric(st, step.y - st.x, step.gy - g_x, o.metric_memory)
+            update_metric(st, step.y - st.x, step.gy - g_x, o.metric_memory, o.metric_range)
         _update_bundle(st, step, max_bundle, o.gamma)
-        st.t = _next_t(st, step, f_old, o)
+        st.t = next_t(st, step, f_old, o)
         st.n_stuck = st.n_stuck + 1 if step.stalled else 0
         st.nit += 1
         if step.kind == "serious":
@@ -732,7 +634,7 @@ def minimize_bundle(oracle, x0, *, lb=None, ub=None, A_ub=None, b_ub=None, A_eq=
                            "stationarity": st.stationarity, "nfev": st.nfev})
         logger.debug("it %d %s f=%.10g t=%.3e stat=%.3e nfev=%d", st.nit, step.kind, st.f,
                      step.t, st.stationarity, st.nfev)
-        rel = _relative_decrease(st.history, o.ftol_window)
+        rel = relative_decrease(st.history, o.ftol_window)
         if callback is not None:
             try:
                 callback(_result(st, -1, f"iteration {st.nit}", relative_decrease=rel))
@@ -752,7 +654,7 @@ def minimize_bundle(oracle, x0, *, lb=None, ub=None, A_ub=None, b_ub=None, A_eq=
                        f"bundle (the QP resolution is reached; stationarity "
                        f"{st.stationarity:.2e} > eps {eps:.0e})")
             break
-        if _no_progress(st.history, o.stall_window):
+        if no_progress(st.history, o.stall_window):
             status, criterion = 3, "stalled"
             message = (f"stalled: no progress in the last {o.stall_window} iterations (f at its "
                        f"round-off; stationarity {st.stationarity:.2e} > eps {eps:.0e})")
