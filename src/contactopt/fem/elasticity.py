@@ -133,22 +133,30 @@ class ElasticityAssembler:
         d = 3 * k
         edofs = (3 * self.elements[:, :, None] + np.arange(3)).reshape(len(self.elements), d)
         self.edofs = edofs
-        # the scatter pattern follows the component-major layout of _element_blocks: (i, a)
-        fr = self.full_to_free[edofs.reshape(-1, k, 3).transpose(0, 2, 1).reshape(-1, d)]
-        rows = np.broadcast_to(fr[:, :, None], (len(fr), d, d)).ravel()
-        cols = np.broadcast_to(fr[:, None, :], (len(fr), d, d)).ravel()
-        keep = (rows >= 0) & (cols >= 0)
-        self._keep = np.flatnonzero(keep)
         self._buffers = None       # work arrays of _element_blocks, reused: no page faults
         # dN by reference point: [a, (q, n)] for the Jacobians, [q, n, a] for the gradients
         self._dN_a = np.ascontiguousarray(self.dN.transpose(1, 0, 2).reshape(k, -1))
         self._dN_q = np.ascontiguousarray(self.dN.transpose(0, 2, 1))
-        key = rows[keep].astype(np.int64) * self.n_free + cols[keep]
-        ukey, self._inverse = np.unique(key, return_inverse=True)
-        self._indices = (ukey % self.n_free).astype(np.int32)
-        r = ukey // self.n_free
-        self._indptr = np.concatenate([[0], np.cumsum(np.bincount(r, minlength=self.n_free))]).astype(np.int32)
-        self._nnz = ukey.size
+        self._pattern = None       # CSR pattern of stiffness(), built at its first call
+        # linear tetrahedra: node-pair assembly (_LinearTetPairs); other types: element blocks
+        self._pairs = k == 4 and self.w.size == 1
+
+    def _block_pattern(self):
+        """Scatter pattern of the element blocks onto the CSR of A (free DOFs), built once."""
+        if self._pattern is None:
+            k, d = self.k, 3 * self.k
+            # the scatter pattern follows the component-major layout of _element_blocks: (i, a)
+            fr = self.full_to_free[self.edofs.reshape(-1, k, 3).transpose(0, 2, 1).reshape(-1, d)]
+            rows = np.broadcast_to(fr[:, :, None], (len(fr), d, d)).ravel()
+            cols = np.broadcast_to(fr[:, None, :], (len(fr), d, d)).ravel()
+            keep = (rows >= 0) & (cols >= 0)
+            key = rows[keep].astype(np.int64) * self.n_free + cols[keep]
+            ukey, inverse = np.unique(key, return_inverse=True)
+            indices = (ukey % self.n_free).astype(np.int32)
+            r = ukey // self.n_free
+            indptr = np.concatenate([[0], np.cumsum(np.bincount(r, minlength=self.n_free))]).astype(np.int32)
+            self._pattern = (np.flatnonzero(keep), inverse, indices, indptr, ukey.size)
+        return self._pattern
 
     # ------------------------------------------------------------------ stiffness
     def element_matrices(self, X: np.ndarray) -> np.ndarray:
@@ -210,9 +218,14 @@ class ElasticityAssembler:
 
     def stiffness(self, coords: np.ndarray) -> sp.csr_matrix:
         """A on the free DOFs (CSR, symmetric positive definite when Γ_u is non-empty)."""
+        if self._pairs:
+            if not isinstance(self._pattern, _LinearTetPairs):
+                self._pattern = _LinearTetPairs(self)
+            return self._pattern.stiffness(coords)
+        keep, inverse, indices, indptr, nnz = self._block_pattern()
         K = self._element_blocks(coords[self.elements])
-        data = np.bincount(self._inverse, weights=K.ravel().take(self._keep), minlength=self._nnz)
-        return sp.csr_matrix((data, self._indices, self._indptr), shape=(self.n_free, self.n_free))
+        data = np.bincount(inverse, weights=K.ravel().take(keep), minlength=nnz)
+        return sp.csr_matrix((data, indices, indptr), shape=(self.n_free, self.n_free))
 
     def full_stiffness(self, coords: np.ndarray) -> sp.csr_matrix:
         """A on all 3·n_nodes DOFs, without Dirichlet elimination (singular: 6 rigid modes)."""
@@ -277,3 +290,124 @@ class ElasticityAssembler:
         s = self.mu * (H + np.swapaxes(H, -1, -2))
         s[..., np.arange(3), np.arange(3)] += self.lam * tr[..., None]
         return s
+
+
+class _LinearTetPairs:
+    """Stiffness of linear tetrahedra assembled per node pair (the pattern of one assembler).
+
+    With one quadrature point, T_ab = V g_a g_bᵀ (g = ∇λ, V the volume) and the element block
+    of nodes a, b is λ T_ab + μ T_abᵀ + μ tr(T_ab) I (see :meth:`ElasticityAssembler._element_blocks`):
+    linear in T_ab with the same λ, μ everywhere. So T is summed per global node pair first —
+    9 components of the 6 edges and 6 of the 4 vertices of every element, 78 numbers instead of
+    the 144 of a 12×12 block, each component one ``np.bincount`` onto the pairs — and Hooke's law
+    is applied once per pair. Local nodes are taken in increasing global number, so the pair
+    (a, b) of an element is always the block (min, max) of A; the CSR values on the free DOFs
+    are then one gather from the pair blocks and their transposes.
+    """
+
+    _EDGES = np.array([[0, 1], [0, 2], [0, 3], [1, 2], [1, 3], [2, 3]])
+    _SYM = ((0, 0), (1, 1), (2, 2), (0, 1), (0, 2), (1, 2))
+
+    def __init__(self, asm: "ElasticityAssembler"):
+        cells = np.asarray(asm.elements, np.int64)
+        E, n = cells.shape[0], asm.n_nodes
+        self.asm = asm
+        perm = np.argsort(cells, axis=1, kind="stable")
+        self.cells = np.ascontiguousarray(np.take_along_axis(cells, perm, axis=1).T)      # (4, E)
+        if np.any(self.cells[1:] == self.cells[:-1]):
+            bad = np.flatnonzero(np.any(self.cells[1:] == self.cells[:-1], axis=0))
+            raise MeshError(f"{bad.size} tetrahedra repeat a node, first: {bad[:5].tolist()}")
+        # parity of the sort: det J of the sorted order times it is det J of the element's order
+        inv = np.zeros(E, np.int64)
+        for i in range(4):
+            for j in range(i + 1, 4):
+                inv += perm[:, i] > perm[:, j]
+        self.parity = np.where(inv % 2, -1.0, 1.0)
+        a, b = self._EDGES.T
+        key = self.cells[a] * n + self.cells[b]                                       # (6, E)
+        ukey, inverse = np.unique(key.ravel(), return_inverse=True)
+        self.edge_index = inverse.reshape(6, E).astype(np.intp).ravel()
+        self.vertex_index = self.cells.astype(np.intp).ravel()
+        lo, hi = ukey // n, ukey % n
+        self.n_edges = ukey.size
+        # values: [vertex blocks (n, 3, 3) | edge blocks (lo, hi) | their transposes (hi, lo)]
+        nodes_r = np.concatenate([np.arange(n), lo, hi])
+        nodes_c = np.concatenate([np.arange(n), hi, lo])
+        i, j = np.divmod(np.arange(9), 3)
+        rows = (3 * nodes_r[:, None] + i).ravel()
+        cols = (3 * nodes_c[:, None] + j).ravel()
+        fr, fc = asm.full_to_free[rows], asm.full_to_free[cols]
+        keep = np.flatnonzero((fr >= 0) & (fc >= 0))
+        fkey = fr[keep].astype(np.int64) * asm.n_free + fc[keep]
+        order = np.argsort(fkey, kind="stable")
+        self.src = keep[order]
+        fkey = fkey[order]
+        self.indices = (fkey % asm.n_free).astype(np.int32)
+        counts = np.bincount(fkey // asm.n_free, minlength=asm.n_free)
+        self.indptr = np.concatenate([[0], np.cumsum(counts)]).astype(np.int32)
+        self._work = None
+
+    def _geometry(self, coords: np.ndarray):
+        """√V ∇λ_a per component, g[m, a, e] (sorted local order), and det J (E,) of the element
+        order; g is left unset if an element is inverted."""
+        E = self.cells.shape[1]
+        if self._work is None:
+            self._work = {"x": np.empty((3, 4, E)), "d": np.empty((3, 3, E)), "g": np.empty((3, 4, E)),
+                          "t": np.empty((2, E)), "bv": np.empty((4, E)), "be": np.empty((6, E))}
+        w = self._work
+        x, d, g, t = w["x"], w["d"], w["g"], w["t"]
+        ct = np.ascontiguousarray(coords.T)
+        for m in range(3):
+            np.take(ct[m], self.cells, out=x[m])
+        np.subtract(x[:, 1:], x[:, :1], out=d)                   # d[m, b−1, e] = x_b − x_0
+        for b, (p, q) in zip((1, 2, 3), ((1, 2), (2, 0), (0, 1))):     # ∇λ_b ∝ d_p × d_q
+            for m, (u, v) in enumerate(((1, 2), (2, 0), (0, 1))):
+                np.multiply(d[u, p], d[v, q], out=t[0])
+                np.multiply(d[v, p], d[u, q], out=t[1])
+                np.subtract(t[0], t[1], out=g[m, b])
+        det = np.einsum("me,me->e", d[:, 0], g[:, 1])             # d_0 · (d_1 × d_2)
+        det_elem = det * self.parity
+        if not np.all(det_elem > 0):
+            return det_elem
+        scale = np.sqrt(np.abs(det) / 6.0) / det                  # √V / det
+        g[:, 1:] *= scale
+        np.add(g[:, 1], g[:, 2], out=g[:, 0])
+        g[:, 0] += g[:, 3]
+        np.negative(g[:, 0], out=g[:, 0])
+        return det_elem
+
+    def stiffness(self, coords: np.ndarray) -> sp.csr_matrix:
+        asm = self.asm
+        det = self._geometry(coords)
+        if not np.all(det > 0):
+            require_positive_det(det)
+        g, bv, be = self._work["g"], self._work["bv"], self._work["be"]
+        n, ne = asm.n_nodes, self.n_edges
+        Tv = np.empty((6, n))
+        for c, (i, j) in enumerate(self._SYM):
+            np.multiply(g[i], g[j], out=bv)
+            Tv[c] = np.bincount(self.vertex_index, weights=bv.ravel(), minlength=n)
+        Te = np.empty((3, 3, ne))
+        for i in range(3):
+            for j in range(3):
+                for k, (a, b) in enumerate(self._EDGES):
+                    np.multiply(g[i, a], g[j, b], out=be[k])
+                Te[i, j] = np.bincount(self.edge_index, weights=be.ravel(), minlength=ne)
+        lam, mu = asm.lam, asm.mu
+        vals = np.empty((n + 2 * ne, 3, 3))
+        V = vals[:n]
+        trv = mu * (Tv[0] + Tv[1] + Tv[2])
+        for c, (i, j) in enumerate(self._SYM):
+            V[:, i, j] = (lam + mu) * Tv[c]
+            V[:, j, i] = V[:, i, j]
+        for i in range(3):
+            V[:, i, i] += trv
+        B = vals[n:n + ne]
+        tre = mu * (Te[0, 0] + Te[1, 1] + Te[2, 2])
+        for i in range(3):
+            for j in range(3):
+                B[:, i, j] = lam * Te[i, j] + mu * Te[j, i]
+            B[:, i, i] += tre
+        vals[n + ne:] = B.transpose(0, 2, 1)
+        data = vals.ravel().take(self.src)
+        return sp.csr_matrix((data, self.indices, self.indptr), shape=(asm.n_free, asm.n_free))
