@@ -359,21 +359,22 @@ def test_shape_contractions_match_central_differences(name):
 
 
 # ---------------------------------------------------------------------- assembler
-@pytest.mark.parametrize("name", ["TET4", "TET10"])
-def test_tetrahedral_stiffness_rigid_modes_symmetry_and_inverted_element(name):
+@pytest.mark.parametrize("name", ["TET4", "TET10", "HEX8"])
+def test_stiffness_rigid_modes_symmetry_pair_assembly_and_inverted_element(name):
     X, cells, _, _ = cube_mesh(name, 2, amp=0.1, jitter=0.2)
     el = ELEMENTS[name]
     asm = ElasticityAssembler(cells, len(X), [], E, NU, element=el)
     Ke = asm.element_matrices(X[cells])
     assert Ke.shape == (len(cells), 3 * el.n_nodes, 3 * el.n_nodes)
-    for e in (0, 17, len(cells) - 1):
+    for e in (0, len(cells) // 2, len(cells) - 1):
         ev = np.linalg.eigvalsh(Ke[e])
         assert np.sum(np.abs(ev) < 1e-10 * ev.max()) == 6 and ev[6] > 1e-6 * ev.max()
     fixed = (3 * np.flatnonzero(X[:, 2] < 1e-12)[:, None] + np.arange(3)).ravel()
     asm2 = ElasticityAssembler(cells, len(X), fixed, E, NU, element=el)
-    A = asm2.stiffness(X)
+    A = asm2.stiffness(X)                 # per node pair, against element matrices scattered
     Af = asm.full_stiffness(X).tocsr()[asm2.free][:, asm2.free]
-    assert abs(A - Af).max() < 1e-13 * abs(Af).max()
+    assert A.nnz == Af.nnz and abs(A - Af).max() < 1e-14 * abs(Af).max()
+    assert np.array_equal(A.indices, Af.tocsr().sorted_indices().indices)
     assert abs(A - A.T).max() < 1e-13 * abs(A).max()
     # Laplacian: constants in the kernel, ∫|∇g·x|² = |g|²|Ω| for a linear function
     K = asm.scalar_laplacian(X)
@@ -383,7 +384,8 @@ def test_tetrahedral_stiffness_rigid_modes_symmetry_and_inverted_element(name):
     assert abs((X @ g) @ K @ (X @ g) - g @ g * vol) < 1e-12 * g @ g * vol     # isoparametric: ∇(g·x) = g
     # element e listed with two vertices (and the midside nodes that go with them) swapped
     e = len(cells) - 2
-    swap = [1, 0, 2, 3] + ([4, 6, 5, 8, 7, 9] if name == "TET10" else [])
+    swap = {"TET4": [1, 0, 2, 3], "TET10": [1, 0, 2, 3, 4, 6, 5, 8, 7, 9],
+            "HEX8": [4, 5, 6, 7, 0, 1, 2, 3]}[name]                # HEX8: top and bottom swapped
     bad = cells.copy()
     bad[e] = cells[e, swap]
     asm3 = ElasticityAssembler(bad, len(X), fixed, E, NU, element=el)

@@ -138,25 +138,7 @@ class ElasticityAssembler:
         self._dN_a = np.ascontiguousarray(self.dN.transpose(1, 0, 2).reshape(k, -1))
         self._dN_q = np.ascontiguousarray(self.dN.transpose(0, 2, 1))
         self._pattern = None       # CSR pattern of stiffness(), built at its first call
-        # linear tetrahedra: node-pair assembly (_LinearTetPairs); other types: element blocks
-        self._pairs = k == 4 and self.w.size == 1
-
-    def _block_pattern(self):
-        """Scatter pattern of the element blocks onto the CSR of A (free DOFs), built once."""
-        if self._pattern is None:
-            k, d = self.k, 3 * self.k
-            # the scatter pattern follows the component-major layout of _element_blocks: (i, a)
-            fr = self.full_to_free[self.edofs.reshape(-1, k, 3).transpose(0, 2, 1).reshape(-1, d)]
-            rows = np.broadcast_to(fr[:, :, None], (len(fr), d, d)).ravel()
-            cols = np.broadcast_to(fr[:, None, :], (len(fr), d, d)).ravel()
-            keep = (rows >= 0) & (cols >= 0)
-            key = rows[keep].astype(np.int64) * self.n_free + cols[keep]
-            ukey, inverse = np.unique(key, return_inverse=True)
-            indices = (ukey % self.n_free).astype(np.int32)
-            r = ukey // self.n_free
-            indptr = np.concatenate([[0], np.cumsum(np.bincount(r, minlength=self.n_free))]).astype(np.int32)
-            self._pattern = (np.flatnonzero(keep), inverse, indices, indptr, ukey.size)
-        return self._pattern
+        self._pairs = k == 4 and self.w.size == 1      # linear tetrahedra: _LinearTetPairs
 
     # ------------------------------------------------------------------ stiffness
     def element_matrices(self, X: np.ndarray) -> np.ndarray:
@@ -165,7 +147,7 @@ class ElasticityAssembler:
         d = 3 * self.k
         return K.transpose(0, 2, 1, 4, 3).reshape(X.shape[0], d, d)
 
-    def _element_blocks(self, X: np.ndarray) -> np.ndarray:
+    def _element_blocks(self, X: np.ndarray, hooke: bool = True) -> np.ndarray:
         """Element stiffness matrices in component-major layout K[e, i, a, j, b] (a work array).
 
         With g = ∇N (Gauss point q, weight w_q det J_q) and T[i,a,j,b] = Σ_q w_q det J_q
@@ -174,22 +156,23 @@ class ElasticityAssembler:
         returned array is overwritten by the next call. Large meshes are split into one chunk of
         elements per core (NumPy and BLAS release the GIL: the chunks run in parallel, and each
         element's matrix is computed by the same operations, so K does not depend on the split).
+        With ``hooke=False`` the array returned is T (E, 3k, 3k), rows (i, a), columns (j, b).
         """
         E, k = X.shape[0], self.k
         if self._buffers is None or self._buffers[0].shape[0] != E:
             self._buffers = (np.empty((E, 3 * k, 3 * k)), np.empty((E, 3, k, 3, k)), np.empty((E, k, k)))
         T, K, lap = self._buffers
         cuts = np.linspace(0, E, _assembly_chunks(E) + 1).astype(int)
-        parts = [(X[i:j], T[i:j], K[i:j], lap[i:j]) for i, j in zip(cuts[:-1], cuts[1:])]
+        parts = [(X[i:j], T[i:j], K[i:j], lap[i:j], hooke) for i, j in zip(cuts[:-1], cuts[1:])]
         if len(parts) == 1:
             dets = [self._blocks_into(*parts[0])]
         else:
             dets = list(_assembly_pool().map(lambda a: self._blocks_into(*a), parts))
         if not all(np.all(d > 0) for d in dets):
             require_positive_det(np.concatenate(dets, axis=1), element_axis=1)
-        return K
+        return K if hooke else T
 
-    def _blocks_into(self, X, T, K, lap) -> np.ndarray:
+    def _blocks_into(self, X, T, K, lap, hooke=True) -> np.ndarray:
         """Element matrices of the elements X into the work arrays T, K, lap (see
         :meth:`_element_blocks`); returns det J (q, e), early (K unset) if one is ≤ 0."""
         E, Q, k = X.shape[0], self.w.size, self.k
@@ -205,6 +188,8 @@ class ElasticityAssembler:
         G = np.matmul(Jq, self._dN_q).reshape(Q, 3, E, k)
         G = np.ascontiguousarray(G.transpose(2, 1, 3, 0)).reshape(E, 3 * k, Q)
         np.matmul(G, G.transpose(0, 2, 1), out=T)
+        if not hooke:
+            return det
         T5 = T.reshape(E, 3, k, 3, k)
         np.add(T5[:, 0, :, 0], T5[:, 1, :, 1], out=lap)
         lap += T5[:, 2, :, 2]
@@ -217,15 +202,16 @@ class ElasticityAssembler:
         return det
 
     def stiffness(self, coords: np.ndarray) -> sp.csr_matrix:
-        """A on the free DOFs (CSR, symmetric positive definite when Γ_u is non-empty)."""
-        if self._pairs:
-            if not isinstance(self._pattern, _LinearTetPairs):
-                self._pattern = _LinearTetPairs(self)
-            return self._pattern.stiffness(coords)
-        keep, inverse, indices, indptr, nnz = self._block_pattern()
-        K = self._element_blocks(coords[self.elements])
-        data = np.bincount(inverse, weights=K.ravel().take(keep), minlength=nnz)
-        return sp.csr_matrix((data, indices, indptr), shape=(self.n_free, self.n_free))
+        """A on the free DOFs (CSR, symmetric positive definite when Γ_u is non-empty).
+
+        Assembled per node pair (:class:`_PairPattern`): the element's T (see
+        :meth:`_element_blocks`) is summed onto the vertex and edge blocks of A, Hooke's law is
+        applied once per block; linear tetrahedra compute their T per edge directly
+        (:class:`_LinearTetPairs`). The pattern is built at the first call.
+        """
+        if self._pattern is None:
+            self._pattern = _LinearTetPairs(self) if self._pairs else _BlockPairs(self)
+        return self._pattern.stiffness(coords)
 
     def full_stiffness(self, coords: np.ndarray) -> sp.csr_matrix:
         """A on all 3·n_nodes DOFs, without Dirichlet elimination (singular: 6 rigid modes)."""
@@ -292,18 +278,99 @@ class ElasticityAssembler:
         return s
 
 
-class _LinearTetPairs:
-    """Stiffness of linear tetrahedra assembled per node pair (the pattern of one assembler).
+class _PairPattern:
+    """CSR of A on the free DOFs from 3×3 blocks per vertex and per edge (node pair) of the mesh.
 
-    With one quadrature point, T_ab = V g_a g_bᵀ (g = ∇λ, V the volume) and the element block
-    of nodes a, b is λ T_ab + μ T_abᵀ + μ tr(T_ab) I (see :meth:`ElasticityAssembler._element_blocks`):
-    linear in T_ab with the same λ, μ everywhere. So T is summed per global node pair first —
-    9 components of the 6 edges and 6 of the 4 vertices of every element, 78 numbers instead of
-    the 144 of a 12×12 block, each component one ``np.bincount`` onto the pairs — and Hooke's law
-    is applied once per pair. Local nodes are taken in increasing global number, so the pair
-    (a, b) of an element is always the block (min, max) of A; the CSR values on the free DOFs
-    are then one gather from the pair blocks and their transposes.
+    Hooke's law is linear in T_ab = Σ_q w_q det J_q g_a g_bᵀ with the same λ, μ everywhere:
+    the block of nodes a, b is λ T_ab + μ T_abᵀ + μ tr(T_ab) I. So T is summed per global block
+    first and the law applied once per block, instead of once per element and entry. An edge
+    (lo, hi), lo < hi, stores its block for (lo, hi); the block (hi, lo) is its transpose. The
+    CSR values are one gather from [vertex blocks | edge blocks | their transposes].
     """
+
+    def _build(self, asm: "ElasticityAssembler", lo: np.ndarray, hi: np.ndarray) -> None:
+        """The CSR pattern and the gather ``src`` from the block values, stored component-major:
+        vals[3i + j, s] for the slots s = [vertices 0..n−1 | edges n..n+n_edges−1]; the entry
+        (i, j) of a transposed edge block is the entry (j, i) of the edge's."""
+        self.asm = asm
+        n = asm.n_nodes
+        self.n_edges = lo.size
+        self.n_slots = N = n + lo.size
+        slot = np.concatenate([np.arange(n), n + np.arange(lo.size), n + np.arange(lo.size)])
+        nodes_r = np.concatenate([np.arange(n), lo, hi])
+        nodes_c = np.concatenate([np.arange(n), hi, lo])
+        transposed = np.concatenate([np.zeros(N, bool), np.ones(lo.size, bool)])
+        i, j = np.divmod(np.arange(9), 3)
+        comp = np.where(transposed[:, None], 3 * j + i, 3 * i + j)
+        src = (comp * N + slot[:, None]).ravel()
+        fr = asm.full_to_free[(3 * nodes_r[:, None] + i).ravel()]
+        fc = asm.full_to_free[(3 * nodes_c[:, None] + j).ravel()]
+        keep = np.flatnonzero((fr >= 0) & (fc >= 0))
+        fkey = fr[keep].astype(np.int64) * asm.n_free + fc[keep]
+        order = np.argsort(fkey, kind="stable")
+        self.src = src[keep[order]]
+        fkey = fkey[order]
+        self.indices = (fkey % asm.n_free).astype(np.int32)
+        counts = np.bincount(fkey // asm.n_free, minlength=asm.n_free)
+        self.indptr = np.concatenate([[0], np.cumsum(counts)]).astype(np.int32)
+        self._vals = np.empty((9, N))
+
+    def _csr(self, T: np.ndarray) -> sp.csr_matrix:
+        """A from the summed T of the slots, T[i, j, s] (3, 3, n + n_edges)."""
+        asm = self.asm
+        lam, mu = asm.lam, asm.mu
+        vals = self._vals
+        tr = mu * (T[0, 0] + T[1, 1] + T[2, 2])
+        for i in range(3):
+            for j in range(3):
+                v = vals[3 * i + j]
+                np.multiply(T[i, j], lam, out=v)
+                v += mu * T[j, i]
+            vals[4 * i] += tr
+        data = vals.ravel().take(self.src)
+        return sp.csr_matrix((data, self.indices, self.indptr), shape=(asm.n_free, asm.n_free))
+
+
+class _BlockPairs(_PairPattern):
+    """Any element type: T of every element (E, 3k, 3k) from :meth:`ElasticityAssembler._element_blocks`
+    summed onto the blocks by one ``np.bincount``. Entry (i, a, j, b) of an element goes to the
+    vertex block of node a (a = b) or to component (i, j) of the edge (n_a, n_b) (component
+    (j, i) when n_a > n_b); every edge entry arrives twice (as (a, b) and as (b, a)), so the edge
+    sums are halved (exactly)."""
+
+    def __init__(self, asm: "ElasticityAssembler"):
+        cells = np.asarray(asm.elements, np.int64)
+        E, k, n = cells.shape[0], asm.k, asm.n_nodes
+        na = np.broadcast_to(cells[:, :, None], (E, k, k))
+        nb = np.broadcast_to(cells[:, None, :], (E, k, k))
+        off = na != nb
+        ekey = np.minimum(na, nb)[off] * n + np.maximum(na, nb)[off]
+        ukey, edge = np.unique(ekey, return_inverse=True)
+        super()._build(asm, ukey // n, ukey % n)
+        base = np.empty((E, k, k), np.int64)
+        base[~off] = na[~off]
+        base[off] = n + edge.ravel()
+        swap = na > nb
+        N = self.n_slots
+        slot = np.empty((E, 3, k, 3, k), np.int64)
+        for i in range(3):
+            for j in range(3):
+                slot[:, i, :, j, :] = base + N * np.where(swap, 3 * j + i, 3 * i + j)
+        self.slot = slot.reshape(-1).astype(np.intp)
+
+    def stiffness(self, coords: np.ndarray) -> sp.csr_matrix:
+        asm = self.asm
+        T = asm._element_blocks(coords[asm.elements], hooke=False)
+        s = np.bincount(self.slot, weights=T.reshape(-1), minlength=9 * self.n_slots).reshape(3, 3, -1)
+        s[:, :, asm.n_nodes:] *= 0.5
+        return self._csr(s)
+
+
+class _LinearTetPairs(_PairPattern):
+    """Linear tetrahedra: one quadrature point, T_ab = V g_a g_bᵀ (g = ∇λ, V the volume),
+    computed directly per vertex (6 components) and edge (9) of every element — 78 numbers
+    instead of the 144 of T — each component one ``np.bincount``. Local nodes are taken in
+    increasing global number, so the element's pair (a, b), a < b, is the edge (n_a, n_b)."""
 
     _EDGES = np.array([[0, 1], [0, 2], [0, 3], [1, 2], [1, 3], [2, 3]])
     _SYM = ((0, 0), (1, 1), (2, 2), (0, 1), (0, 2), (1, 2))
@@ -311,7 +378,6 @@ class _LinearTetPairs:
     def __init__(self, asm: "ElasticityAssembler"):
         cells = np.asarray(asm.elements, np.int64)
         E, n = cells.shape[0], asm.n_nodes
-        self.asm = asm
         perm = np.argsort(cells, axis=1, kind="stable")
         self.cells = np.ascontiguousarray(np.take_along_axis(cells, perm, axis=1).T)      # (4, E)
         if np.any(self.cells[1:] == self.cells[:-1]):
@@ -326,25 +392,9 @@ class _LinearTetPairs:
         a, b = self._EDGES.T
         key = self.cells[a] * n + self.cells[b]                                       # (6, E)
         ukey, inverse = np.unique(key.ravel(), return_inverse=True)
-        self.edge_index = inverse.reshape(6, E).astype(np.intp).ravel()
+        super()._build(asm, ukey // n, ukey % n)
+        self.edge_index = inverse.reshape(-1).astype(np.intp)
         self.vertex_index = self.cells.astype(np.intp).ravel()
-        lo, hi = ukey // n, ukey % n
-        self.n_edges = ukey.size
-        # values: [vertex blocks (n, 3, 3) | edge blocks (lo, hi) | their transposes (hi, lo)]
-        nodes_r = np.concatenate([np.arange(n), lo, hi])
-        nodes_c = np.concatenate([np.arange(n), hi, lo])
-        i, j = np.divmod(np.arange(9), 3)
-        rows = (3 * nodes_r[:, None] + i).ravel()
-        cols = (3 * nodes_c[:, None] + j).ravel()
-        fr, fc = asm.full_to_free[rows], asm.full_to_free[cols]
-        keep = np.flatnonzero((fr >= 0) & (fc >= 0))
-        fkey = fr[keep].astype(np.int64) * asm.n_free + fc[keep]
-        order = np.argsort(fkey, kind="stable")
-        self.src = keep[order]
-        fkey = fkey[order]
-        self.indices = (fkey % asm.n_free).astype(np.int32)
-        counts = np.bincount(fkey // asm.n_free, minlength=asm.n_free)
-        self.indptr = np.concatenate([[0], np.cumsum(counts)]).astype(np.int32)
         self._work = None
 
     def _geometry(self, coords: np.ndarray):
@@ -377,37 +427,19 @@ class _LinearTetPairs:
         return det_elem
 
     def stiffness(self, coords: np.ndarray) -> sp.csr_matrix:
-        asm = self.asm
         det = self._geometry(coords)
         if not np.all(det > 0):
             require_positive_det(det)
         g, bv, be = self._work["g"], self._work["bv"], self._work["be"]
-        n, ne = asm.n_nodes, self.n_edges
-        Tv = np.empty((6, n))
-        for c, (i, j) in enumerate(self._SYM):
+        n, ne = self.asm.n_nodes, self.n_edges
+        T = np.empty((3, 3, n + ne))
+        for i, j in self._SYM:
             np.multiply(g[i], g[j], out=bv)
-            Tv[c] = np.bincount(self.vertex_index, weights=bv.ravel(), minlength=n)
-        Te = np.empty((3, 3, ne))
+            T[i, j, :n] = np.bincount(self.vertex_index, weights=bv.ravel(), minlength=n)
+            T[j, i, :n] = T[i, j, :n]
         for i in range(3):
             for j in range(3):
                 for k, (a, b) in enumerate(self._EDGES):
                     np.multiply(g[i, a], g[j, b], out=be[k])
-                Te[i, j] = np.bincount(self.edge_index, weights=be.ravel(), minlength=ne)
-        lam, mu = asm.lam, asm.mu
-        vals = np.empty((n + 2 * ne, 3, 3))
-        V = vals[:n]
-        trv = mu * (Tv[0] + Tv[1] + Tv[2])
-        for c, (i, j) in enumerate(self._SYM):
-            V[:, i, j] = (lam + mu) * Tv[c]
-            V[:, j, i] = V[:, i, j]
-        for i in range(3):
-            V[:, i, i] += trv
-        B = vals[n:n + ne]
-        tre = mu * (Te[0, 0] + Te[1, 1] + Te[2, 2])
-        for i in range(3):
-            for j in range(3):
-                B[:, i, j] = lam * Te[i, j] + mu * Te[j, i]
-            B[:, i, i] += tre
-        vals[n + ne:] = B.transpose(0, 2, 1)
-        data = vals.ravel().take(self.src)
-        return sp.csr_matrix((data, self.indices, self.indptr), shape=(asm.n_free, asm.n_free))
+                T[i, j, n:] = np.bincount(self.edge_index, weights=be.ravel(), minlength=ne)
+        return self._csr(T)
