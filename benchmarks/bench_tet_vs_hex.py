@@ -23,7 +23,7 @@ import numpy as np
 
 from contactopt.config import load_config
 from contactopt.mesh.block import block_mesh
-from contactopt.mesh.tetsplit import hex_to_tets
+from contactopt.mesh.tetsplit import hex_to_tets, quads_to_triangles
 from contactopt.problem import ShapeProblem
 
 FACES = ("clamped", "top", "right", "contact")
@@ -40,8 +40,8 @@ def block_file(path: Path, nx, ny, nz, cell):
         blocks.append(("quad", ref.parts[name].faces))
         tags.append(np.full(len(ref.parts[name].faces), t))
         fd[name] = np.array([t, 2])
-    if kind != "hexahedron":           # face groups as the triangles of the split quads
-        blocks = [("triangle", np.vstack([q[:, [0, 1, 2]], q[:, [0, 2, 3]]])) for _, q in blocks]
+    if kind != "hexahedron":           # face groups as the boundary triangles of the split
+        blocks = [("triangle", quads_to_triangles(q, cells)) for _, q in blocks]
         tags = [np.concatenate([t, t]) for t in tags]
     blocks.append((kind, cells))
     tags.append(np.full(len(cells), 9))
