@@ -309,6 +309,12 @@ def test_pressure_on_flat_face_is_minus_p_area_n(name):
     assert np.allclose(P.sum(axis=0), -p * 1.0 * R[:, 0], atol=1e-13)
     A = L.face_areas_nodal(X, faces)
     assert abs(A.sum() - 1.0) < 1e-13
+    Al = L.face_areas_nodal(X, faces, lumped=True)
+    assert abs(Al.sum() - 1.0) < 1e-13 and np.all(Al[np.unique(faces)] > 0)
+    if name == "TET10":                       # consistent corner weights of flat P2 faces: 0
+        assert np.abs(A[np.unique(faces[:, :3])]).max() < 1e-15
+    else:                                     # parallelograms and triangles: lumped = consistent
+        assert np.allclose(Al, A, rtol=0, atol=1e-15)
     on = np.unique(faces)
     assert np.all(A[np.setdiff1d(np.arange(len(X)), on)] == 0)
     # traction and pressure are the same vector field here

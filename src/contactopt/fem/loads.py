@@ -57,15 +57,22 @@ def _surface_frames(coords, faces, face: FaceType):
 
 
 # ---------------------------------------------------------------------- tractions
-def face_areas_nodal(coords: np.ndarray, faces: np.ndarray, face=None) -> np.ndarray:
-    """∫ N_a dS over the faces for every node (n_nodes,): the tributary areas (0 off the faces).
+def face_areas_nodal(coords: np.ndarray, faces: np.ndarray, face=None, lumped: bool = False) -> np.ndarray:
+    """Tributary areas (n_nodes,) of the face nodes (0 off the faces).
 
-    For P2 faces (triangle6) the corner values are 0 on a flat triangle (∫N_a dS = 0 there):
-    they are the consistent weights, not a partition of the area into positive patches.
+    Consistent (default): ∫ N_a dS, the nodal load of a unit traction. On P2 faces (triangle6)
+    these are 0 at the corners of a flat triangle (and negative on some curved ones), so
+    ``lumped=True`` gives positive areas instead: the diagonal of ∫ N_a N_b dS scaled per face
+    to the face's area (Hinton–Rock–Zienkiewicz lumping: A/19 at each corner, 16A/57 at each
+    midside node of a flat triangle; A/4 per vertex of a parallelogram, A/3 of a triangle).
     """
     faces = np.asarray(faces)
     N, _, w, _, _, _, area = _surface_frames(coords, faces, _face(faces, face))
-    nodal = np.einsum("q,qa,fq->fa", w, N, area)
+    if lumped:
+        diag = np.einsum("q,qa,fq->fa", w, N * N, area)
+        nodal = diag * (np.einsum("q,fq->f", w, area) / diag.sum(axis=1))[:, None]
+    else:
+        nodal = np.einsum("q,qa,fq->fa", w, N, area)
     return np.bincount(faces.ravel(), weights=nodal.ravel(), minlength=coords.shape[0])
 
 
