@@ -249,27 +249,62 @@ class ElasticityAssembler:
 
         Shape derivative of a(u, v) = ∫ C∇u:∇v for the nodal mesh velocity V = N_c e_m:
             ∫ [ (σ(u):∇v) div V − σ(u):(∇v ∇V) − σ(v):(∇u ∇V) ] dx,
-        evaluated element by element with the same 2×2×2 Gauss rule as the assembly, so it is the
-        exact derivative of the assembled matrix (DESIGN.md §2).
+        evaluated element by element with the element's stiffness rule, so it is the exact
+        derivative of the assembled matrix (DESIGN.md §2). Every product runs component by
+        component on arrays over (quadrature point, element).
         """
-        X = coords[self.elements]
-        G, det = element_geometry(X, self.dN)
-        wd = det * self.w
-        ue = u_full[self.edofs].reshape(-1, self.k, 3)
-        ve = v_full[self.edofs].reshape(-1, self.k, 3)
-        Hu = np.matmul(ue.transpose(0, 2, 1)[:, None], G)   # ∇u at the Gauss points (E, Q, 3, 3)
-        Hv = np.matmul(ve.transpose(0, 2, 1)[:, None], G)
-        su = self._stress(Hu)
-        sv = self._stress(Hv)
-        energy = (su * Hv).sum(axis=(2, 3))
-        M = np.matmul(Hv.swapaxes(2, 3), su) + np.matmul(Hu.swapaxes(2, 3), sv)
-        dloc = energy[:, :, None, None] * G - np.matmul(G, M.swapaxes(2, 3))
-        E, Q = wd.shape
-        de = np.matmul(wd[:, None, :], dloc.reshape(E, Q, 3 * self.k)).reshape(E, self.k, 3)
-        out = np.zeros((self.n_nodes, 3))
+        G, det = self._gradients(coords[self.elements])                 # G[m, a, q, e]
+        wd = det * self.w[:, None]                                       # (Q, E)
+        ue = np.ascontiguousarray(u_full.reshape(-1, 3)[self.elements].transpose(2, 1, 0))   # [i, a, e]
+        ve = np.ascontiguousarray(v_full.reshape(-1, 3)[self.elements].transpose(2, 1, 0))
+        Q, E = wd.shape
+        Hu, Hv = np.zeros((3, 3, Q, E)), np.zeros((3, 3, Q, E))       # H[i, j] = ∂u_i/∂x_j
+        for i in range(3):
+            for a in range(self.k):
+                Hu[i] += ue[i, a] * G[:, a]
+                Hv[i] += ve[i, a] * G[:, a]
+        su, sv = self._stress_cm(Hu), self._stress_cm(Hv)
+        energy = (su * Hv).sum(axis=(0, 1))
+        # R[m, n] = w det J (energy δ_mn − M[m, n]) with M = ∇vᵀ σ(u) + ∇uᵀ σ(v)
+        R = np.zeros((3, 3, Q, E))
         for m in range(3):
-            out[:, m] = np.bincount(self.elements.ravel(), weights=de[:, :, m].ravel(), minlength=self.n_nodes)
+            for kk in range(3):
+                R[m] -= Hv[kk, m] * su[kk] + Hu[kk, m] * sv[kk]
+            R[m, m] += energy
+        R *= wd
+        de = np.zeros((3, self.k, E))                                    # [m, a, e]
+        for m in range(3):
+            for n in range(3):
+                de[m] += (G[n] * R[m, n]).sum(axis=1)
+        idx = self.elements.T.ravel()
+        out = np.empty((self.n_nodes, 3))
+        for m in range(3):
+            out[:, m] = np.bincount(idx, weights=de[m].ravel(), minlength=self.n_nodes)
         return out
+
+    def _gradients(self, X: np.ndarray):
+        """∂N_a/∂x_m as G[m, a, q, e] and det J (Q, E) for element coordinates X (E, k, 3);
+        MeshError naming the inverted elements."""
+        E, Q, k = X.shape[0], self.w.size, self.k
+        J = (X.transpose(2, 0, 1).reshape(3 * E, k) @ self._dN_a).reshape(3, E, Q, 3)
+        J = np.ascontiguousarray(J.transpose(0, 3, 2, 1))               # [m, n, q, e]
+        det, adj = det_adj_3x3(J)
+        require_positive_det(det, element_axis=1)
+        adj /= det                                                        # J⁻¹[n, m]
+        dN = self.dN.transpose(2, 1, 0)[..., None]                        # [n, a, q, 1]
+        G = np.zeros((3, k, Q, E))
+        for m in range(3):
+            for n in range(3):
+                G[m] += dN[n] * adj[n, m]
+        return G, det
+
+    def _stress_cm(self, H: np.ndarray) -> np.ndarray:
+        """σ = λ tr(H) I + μ (H + Hᵀ) for H[i, j, ...] (component-major)."""
+        s = self.mu * (H + H.swapaxes(0, 1))
+        tr = self.lam * (H[0, 0] + H[1, 1] + H[2, 2])
+        for i in range(3):
+            s[i, i] += tr
+        return s
 
     def _stress(self, H: np.ndarray) -> np.ndarray:
         tr = np.einsum("...ii->...", H)
