@@ -10,7 +10,7 @@ from contactopt.errors import ContactOptError, MeshError
 from contactopt.fem import loads as L
 from contactopt.fem.elasticity import ElasticityAssembler, element_geometry, lame
 from contactopt.fem.linsolve import factorize
-from contactopt.fem.elements import (HEX8, QUAD4, TET4, TET10, TRI3, TRI6, element_type, face_type, gauss_hex,
+from contactopt.fem.elements import (HEX8, QUAD4, TET4, TET10, TRI6, element_type, face_type, gauss_hex,
                                      tet_rule, tri_rule)
 from contactopt.mesh.block import block_mesh
 from contactopt.mesh.reference import CELL_FACES
@@ -415,9 +415,9 @@ def test_kuhn_split_is_conforming_positive_and_fills_the_block():
         quads = ref.parts[name].faces
         tri = quads_to_triangles(quads, tets)
         assert tri.shape == (2 * len(quads), 3)
-        n = np.cross(X[0, 0] * 0 + ref.points[tri[:, 1]] - ref.points[tri[:, 0]],
-                     ref.points[tri[:, 2]] - ref.points[tri[:, 0]])
-        nq = np.cross(ref.points[quads[:, 1]] - ref.points[quads[:, 0]], ref.points[quads[:, 3]] - ref.points[quads[:, 0]])
+        P = ref.points
+        n = np.cross(P[tri[:, 1]] - P[tri[:, 0]], P[tri[:, 2]] - P[tri[:, 0]])
+        nq = np.cross(P[quads[:, 1]] - P[quads[:, 0]], P[quads[:, 3]] - P[quads[:, 0]])
         assert np.all(np.einsum("fm,fm->f", n, np.repeat(nq, 2, axis=0)) > 0)   # same orientation
     p10, c10, f6 = tet4_to_tet10(ref.points, tets, bnd)
     nv = len(ref.points)

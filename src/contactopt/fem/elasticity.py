@@ -4,10 +4,16 @@ One assembly layer for every element type of :mod:`contactopt.fem.elements` (Q1 
 P1 and P2 tetrahedra): a type gives its reference shape functions and quadrature, the code here
 is written once. Conventions: displacement DOF 3n + m (node n, component m ∈ {x1, x2, x3});
 element-local DOF 3a + m for node a of the element. The stiffness is the matrix of
-a(u, v) = ∫ σ(u):ε(v) dx (paper (2.8)) with
-isotropic Hooke's law σ = λ tr(ε) I + 2μ ε. Dirichlet DOFs are eliminated: A acts on the free
-DOFs only. The CSR index pattern is built once; a new design only recomputes values
-(``values → np.bincount`` onto the pattern), in work arrays kept between designs.
+a(u, v) = ∫ σ(u):ε(v) dx (paper (2.8)) with isotropic Hooke's law σ = λ tr(ε) I + 2μ ε.
+Dirichlet DOFs are eliminated: A acts on the free DOFs only.
+
+Assembly per node pair: with T_ab = Σ_q w_q det J_q ∇N_a ∇N_bᵀ, the 3×3 block of nodes a, b is
+λ T_ab + μ T_abᵀ + μ tr(T_ab) I — linear in T with one λ, μ for the body — so T is summed onto
+the vertex and edge (node pair) blocks of the mesh by ``np.bincount`` and Hooke's law is
+applied once per block; the CSR values are one gather from the blocks. The pattern (slots,
+gather, CSR indices) is built once; a new design only recomputes values, in work arrays kept
+between designs. Element matrices (:meth:`ElasticityAssembler.element_matrices`) remain for
+tests and for :meth:`ElasticityAssembler.full_stiffness`.
 """
 
 from __future__ import annotations
@@ -306,12 +312,6 @@ class ElasticityAssembler:
             s[i, i] += tr
         return s
 
-    def _stress(self, H: np.ndarray) -> np.ndarray:
-        tr = np.einsum("...ii->...", H)
-        s = self.mu * (H + np.swapaxes(H, -1, -2))
-        s[..., np.arange(3), np.arange(3)] += self.lam * tr[..., None]
-        return s
-
 
 class _PairPattern:
     """CSR of A on the free DOFs from 3×3 blocks per vertex and per edge (node pair) of the mesh.
@@ -320,7 +320,7 @@ class _PairPattern:
     the block of nodes a, b is λ T_ab + μ T_abᵀ + μ tr(T_ab) I. So T is summed per global block
     first and the law applied once per block, instead of once per element and entry. An edge
     (lo, hi), lo < hi, stores its block for (lo, hi); the block (hi, lo) is its transpose. The
-    CSR values are one gather from [vertex blocks | edge blocks | their transposes].
+    CSR values are one gather from the vertex and edge blocks (a transposed block read by index).
     """
 
     def _build(self, asm: "ElasticityAssembler", lo: np.ndarray, hi: np.ndarray) -> None:
