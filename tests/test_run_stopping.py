@@ -41,3 +41,17 @@ def test_run_with_the_practical_stop_off_reports_max_iter(tmp_path):
     assert s["success"] is False and s["status"] == 1 and s["iterations"] == 6
     assert s["stopping"]["criterion"] == "max_iter" and s["message"] == "max_iter reached (6 iterations)"
     assert s["stopping"]["stationarity"] > 1e-4
+
+
+# the figures of REPRODUCTION.md: the built-in examples stop by themselves, within 150
+# evaluations, no worse than 1.05 x the Jopt of the fixed-t runs (401/301/301 evaluations)
+PREVIOUS_JOPT = {"example1": 8.3545e-8, "example2": 1.3148e-6, "example3": 1.5325e-7}
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("name", list(PREVIOUS_JOPT))
+def test_examples_stop_by_themselves_within_150_evaluations(name, tmp_path):
+    s = run_optimization(name, tmp_path / name).summary
+    assert s["success"] is True and s["status"] in (0, 4), s["message"]
+    assert s["evaluations"] <= 150
+    assert s["J"] <= 1.05 * PREVIOUS_JOPT[name]
