@@ -48,7 +48,7 @@ class LoadSet:
             if p != 0.0:
                 out += L.pressure_load(coords, faces, p, face=a.element.face)
         if np.any(self.body_force):
-            out += L.body_load(coords, a.elements, a.N, a.dN, a.w, self.body_force)
+            out += L.body_load(coords, a.elements, self.body_force, element=a.element)
         return out
 
     def shape_contraction(self, coords: np.ndarray, v_full: np.ndarray, assembler) -> np.ndarray:
@@ -62,7 +62,7 @@ class LoadSet:
             if p != 0.0:
                 out += L.pressure_load_shape_contraction(coords, faces, p, v_full, face=a.element.face)
         if np.any(self.body_force):
-            out += L.body_load_shape_contraction(coords, a.elements, a.N, a.dN, a.w, self.body_force, v_full)
+            out += L.body_load_shape_contraction(coords, a.elements, self.body_force, v_full, element=a.element)
         return out
 
 

@@ -135,7 +135,9 @@ class ElasticModel:
 
     def contact_areas(self) -> np.ndarray:
         """Tributary areas ∫N_m dS of the contact nodes on the (flat) reference contact face, which
-        turn a contact stress σ into nodal forces λ_m ≈ σ(x'_m)·A_m."""
+        turn a contact stress σ into nodal forces λ_m ≈ σ(x'_m)·A_m: the consistent nodal forces
+        of a uniform stress (on six-node triangles they vanish at the corners, as do the nodal
+        forces of a uniform pressure)."""
         ref = self.body.reference
         areas = face_areas_nodal(ref.points, self.body.contact_face.faces, face=self.assembler.element.face)
         return areas[self.contact_nodes]
