@@ -18,18 +18,12 @@ import time
 import numpy as np
 
 from _reference import clean_factorization
+from bench_state import design_path
 from contactopt.config import load_config
 from contactopt.problem import ShapeProblem
 from contactopt.sensitivity.adjoint import subgradient
 
 DEFAULT = ["examples/bracket.toml", "examples/round_pad.toml", "example1"]
-
-
-def path(model, a0, n, step=2e-4, seed=0):
-    d = np.random.default_rng(seed).standard_normal(model.n_design)
-    d -= d.mean()
-    d /= np.abs(d).max()
-    return [a0 + k * step * d for k in range(n)]
 
 
 def main():
@@ -45,7 +39,7 @@ def main():
         m = problem.model
         a0 = m.initial_design()
         times = []
-        for alpha in path(m, a0, args.steps + 1):
+        for alpha in [a0] + design_path(m, a0, args.steps):
             t0 = time.perf_counter()
             subgradient(problem, alpha)
             times.append(time.perf_counter() - t0)

@@ -23,6 +23,7 @@ import numpy as np
 from contactopt.config import load_config
 from contactopt.problem import ShapeProblem
 from contactopt.sensitivity.adjoint import subgradient
+from bench_state import design_path
 
 CASES = [{"name": "pull", "right_traction": [5e-2, 0.0, 0.0]},
          {"name": "push", "right_traction": [-5e-2, 0.0, 0.0]},
@@ -41,13 +42,6 @@ def problems(name: str) -> dict:
     return out
 
 
-def path(model, a0, n, step, seed=0):
-    d = np.random.default_rng(seed).standard_normal(model.n_design)
-    d -= d.mean()
-    d /= np.abs(d).max()
-    return [a0 + k * step * d for k in range(n)]
-
-
 def main():
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--config", default="example1")
@@ -58,7 +52,7 @@ def main():
     m = probs["1 case"].model
     times = {k: [] for k in probs}
     split = {k: [] for k in probs}
-    for alpha in path(m, m.initial_design(), args.steps + 1, args.step):
+    for alpha in [m.initial_design()] + design_path(m, m.initial_design(), args.steps, args.step):
         for name, pr in probs.items():
             t0 = time.perf_counter()
             res = subgradient(pr, alpha)
