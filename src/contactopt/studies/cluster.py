@@ -83,14 +83,20 @@ def connect(*, workers: int | None = None, scheduler: str | None = None, threads
 
 
 def dashboard_link(client) -> str | None:
-    """The dashboard's address, or None when the scheduler has none (bokeh not installed)."""
+    """The dashboard's address, or None when the scheduler serves none. Its pages need bokeh
+    where the scheduler runs; for a local cluster a missing bokeh is said with the link."""
     try:
-        info = client.scheduler_info()
-        if "dashboard" not in info.get("services", {}):
+        if "dashboard" not in client.scheduler_info().get("services", {}):
             return None
-        return client.dashboard_link
+        link = client.dashboard_link
     except Exception:  # pragma: no cover - an old scheduler without the services entry
         return None
+    if type(client.cluster).__name__ == "LocalCluster":
+        try:
+            import bokeh  # noqa: F401
+        except ImportError:
+            link += " (its pages need bokeh: pip install 'contactopt[cluster]')"
+    return link
 
 
 def thread_budget(client, threads: int | None = None) -> dict:
