@@ -1,0 +1,226 @@
+"""Large meshes (issue #16): cost and peak memory of one evaluation (state + subgradient) at a
+next design on refinements of Example 1, as ratios to one clean-process PARDISO factorization.
+
+    python benchmarks/bench_scale.py                           # 113k and 210k DOFs, today's path
+    python benchmarks/bench_scale.py --sizes 113k 210k 371k 867k --max-gb 10
+    python benchmarks/bench_scale.py --sizes 48x22x13          # any NXxNYxNZ refinement
+
+Every (size, path) runs in its own child process, so that its peak RSS (``ru_maxrss``, which
+includes MKL PARDISO's memory) is its own. The child builds ``ShapeProblem`` on example1 with the
+refined ``[mesh]``, evaluates ``contactopt.sensitivity.adjoint.subgradient`` once at α0 (warm-up:
+ordering, analysis, contact zone, Delassus block) and then once at a next design α1 = α0 + h·d
+(h = ``--step``, d a volume-preserving direction with max|d| = 1, as in an optimization step),
+and reports the time of that second evaluation with its parts (``result.timings``,
+``state.timings``), the size of the sparse factor, the peak RSS and the up-front memory estimate
+of :mod:`contactopt.fem.memory`. It saves A(α1); after the child has exited, the parent times
+one factorization of that same matrix with pypardiso's defaults in a clean process
+(``benchmarks/_reference.py``), the reference of every ratio.
+
+Paths: ``schur`` is today's path (PARDISO Schur mode, dense S on all contact DOFs). A size whose
+estimated peak exceeds ``--max-gb`` (default: 10 GB, the budget on a shared machine) is skipped
+and reported, not run.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import resource
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+SIZES = {"15k": (32, 15, 9), "113k": (64, 30, 18), "210k": (80, 37, 22), "371k": (96, 45, 27),
+         "867k": (128, 60, 36), "1m": (136, 64, 38)}
+PATHS = ("schur",)
+GOALS = {"113k": 1.5, "210k": 1.5, "371k": 1.0}    # evaluation / reference factorization
+
+
+def _shape(key):
+    if key in SIZES:
+        return SIZES[key]
+    try:
+        nx, ny, nz = (int(v) for v in key.lower().split("x"))
+    except ValueError:
+        raise SystemExit(f"size {key!r}: one of {', '.join(SIZES)} or NXxNYxNZ") from None
+    return nx, ny, nz
+
+
+def _peak_rss_gb() -> float:
+    return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 2**20     # KiB on Linux
+
+
+def child(shape, path, step, out_dir):
+    """One size and path in this (fresh) process; prints one JSON line."""
+    import numpy as np
+    import scipy.sparse as sp
+
+    from contactopt._threads import sequential_openblas
+    from contactopt.config import load_config
+    from contactopt.problem import ShapeProblem
+    from contactopt.sensitivity.adjoint import subgradient
+
+    nx, ny, nz = shape
+    cfg = load_config("example1").with_updates({"mesh": {"nx": nx, "ny": ny, "nz": nz},
+                                                "linear_solver": {"backend": "pardiso"}})
+    t0 = time.perf_counter()
+    problem = ShapeProblem(cfg)
+    t_setup = time.perf_counter() - t0
+    model = problem.model
+    n, p = model.assembler.n_free, model.n_contact
+    try:
+        from contactopt.fem.memory import estimate_evaluation
+        est = estimate_evaluation(model).total_gb
+    except ImportError:
+        est = None
+    rss_model = _peak_rss_gb()
+    a0 = model.initial_design()
+    d = np.random.default_rng(1).standard_normal(model.n_design)
+    d -= d.mean()
+    d /= np.abs(d).max()
+    a1 = a0 + step * d
+    if not model.admissible.is_feasible(a1):
+        raise SystemExit("the next design is not admissible: lower --step")
+    with sequential_openblas():
+        t0 = time.perf_counter()
+        subgradient(problem, a0)
+        t_first = time.perf_counter() - t0
+        t0 = time.perf_counter()
+        res = subgradient(problem, a1)
+        t_eval = time.perf_counter() - t0
+    st = res.state
+    fac = problem._factor
+    A = problem._cache[1].assembled.A
+    ip = fac._ps.iparm        # PARDISO's own memory report (KiB): analysis peak, permanent, factor
+    pardiso_gb = max(int(ip[14]), int(ip[15]) + int(ip[16])) / 2**20
+    a_file = Path(out_dir) / f"A_{nx}x{ny}x{nz}.npz"
+    sp.save_npz(a_file, A, compressed=False)
+    row = dict(shape=shape, path=path, n=n, p=p, nnz_A=int(A.nnz), nnz_factor=int(fac.stats["nnz_factor"]), pardiso_gb=pardiso_gb,
+               setup=t_setup, first=t_first, evaluation=t_eval,
+               parts={**{k: st.timings[k] for k in ("assembly", "schur", "delassus", "contact", "recovery")},
+                      "adjoint": res.timings["adjoint"], "design_terms": res.timings["design_terms"]},
+               zone=st.info["zone_nodes"], newton_it=int(st.iterations), delassus=st.info["delassus"],
+               rss_model_gb=rss_model, peak_gb=_peak_rss_gb(), estimate_gb=est, A_file=str(a_file))
+    print(json.dumps(row))
+
+
+def _estimate_only(shape):
+    """Estimated peak (GB) of a size without running it: a child builds the model only."""
+    code = ("import sys, json; from contactopt.config import load_config; "
+            "from contactopt.fem.model import ElasticModel; from contactopt.fem.memory import estimate_evaluation; "
+            "nx, ny, nz = map(int, sys.argv[1:4]); "
+            "m = ElasticModel(load_config('example1').with_updates({'mesh': {'nx': nx, 'ny': ny, 'nz': nz}})); "
+            "print(json.dumps(estimate_evaluation(m).total_gb))")
+    out = subprocess.run([sys.executable, "-c", code, *map(str, shape)], capture_output=True, text=True)
+    if out.returncode:
+        return None
+    return json.loads(out.stdout.strip().splitlines()[-1])
+
+
+_SPD_SCRIPT = r"""
+import json, sys, time, resource
+import scipy.sparse as sp
+from contactopt.fem.linsolve import factorize
+A = sp.load_npz(sys.argv[1]).tocsr()
+times = []
+for _ in range(int(sys.argv[2])):
+    t0 = time.perf_counter(); f = factorize(A, "pardiso"); times.append(time.perf_counter() - t0); f.close()
+print(json.dumps({"seconds": sorted(times)[len(times) // 2],
+                  "peak_gb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 2**20}))
+"""
+
+
+def clean_spd_factorization(a_file, repeat):
+    """A second, steadier yardstick: contactopt's own PARDISO Cholesky (``linsolve.factorize``,
+    analysis included) of the same matrix in a clean process, with that process's peak RSS."""
+    out = subprocess.run([sys.executable, "-c", _SPD_SCRIPT, str(a_file), str(repeat)],
+                         capture_output=True, text=True, check=True)
+    return json.loads(out.stdout.strip().splitlines()[-1])
+
+
+def _meminfo():
+    info = {}
+    with open("/proc/meminfo") as f:
+        for line in f:
+            k, v = line.split(":", 1)
+            info[k] = int(v.split()[0]) / 2**20
+    return info
+
+
+def main(argv=None):
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("--sizes", nargs="+", default=["113k", "210k"],
+                    help=f"keys ({', '.join(f'{k}={v[0]}x{v[1]}x{v[2]}' for k, v in SIZES.items())}) or NXxNYxNZ")
+    ap.add_argument("--paths", nargs="+", choices=PATHS, default=list(PATHS))
+    ap.add_argument("--step", type=float, default=5e-4, help="max |α1 − α0| of the next design")
+    ap.add_argument("--max-gb", type=float, default=10.0, help="skip sizes estimated above this peak")
+    ap.add_argument("--repeat", type=int, default=3, help="clean-process reference factorizations (median)")
+    ap.add_argument("--json", help="also write the rows to this file")
+    ap.add_argument("--child", nargs=5, help=argparse.SUPPRESS)
+    args = ap.parse_args(argv)
+    if args.child:
+        nx, ny, nz, path, out_dir = args.child
+        child((int(nx), int(ny), int(nz)), path, args.step, out_dir)
+        return 0
+
+    sys.path.insert(0, str(Path(__file__).resolve().parent))
+    import scipy.sparse as sp
+    from _reference import clean_factorization
+
+    with open("/proc/loadavg") as f:
+        load = f.read().split()[:3]
+    mi = _meminfo()
+    print(f"machine: load average {' '.join(load)}, MemAvailable {mi['MemAvailable']:.1f} of "
+          f"{mi['MemTotal']:.1f} GB")
+    head = (f"{'size':<10} {'path':<7} {'DOFs':>8} {'p':>5} {'eval[s]':>8} {'ref[s]':>7} {'ratio':>6} "
+            f"{'goal':>5} {'peak GB':>7} {'est GB':>6}  parts [s]")
+    print(head)
+    print("-" * len(head))
+    rows = []
+    with tempfile.TemporaryDirectory() as tmp:
+        for key in args.sizes:
+            shape = _shape(key)
+            label = key if key in SIZES else "x".join(map(str, shape))
+            est = _estimate_only(shape)
+            if est is not None and est > args.max_gb:
+                print(f"{label:<10} skipped: estimated peak {est:.1f} GB > --max-gb {args.max_gb:g}", flush=True)
+                rows.append(dict(shape=shape, skipped=True, estimate_gb=est))
+                continue
+            for path in args.paths:
+                cmd = [sys.executable, __file__, "--step", str(args.step), "--child", *map(str, shape), path, tmp]
+                out = subprocess.run(cmd, capture_output=True, text=True)
+                if out.returncode:
+                    print(f"{label:<10} {path:<7} failed (exit {out.returncode}): "
+                          f"{out.stderr.strip().splitlines()[-1] if out.stderr.strip() else ''}", flush=True)
+                    continue
+                row = json.loads(out.stdout.strip().splitlines()[-1])
+                A = sp.load_npz(row["A_file"])
+                ref = clean_factorization(A, repeat=args.repeat)
+                del A
+                spd = clean_spd_factorization(row["A_file"], args.repeat)
+                row["spd_factorization"], row["spd_peak_gb"] = spd["seconds"], spd["peak_gb"]
+                Path(row["A_file"]).unlink()
+                row["reference"], row["reference_what"] = ref["seconds"], ref["what"]
+                row["ratio"] = row["evaluation"] / ref["seconds"]
+                goal = GOALS.get(key)
+                parts = ", ".join(f"{k} {v:.2f}" for k, v in row["parts"].items())
+                est_s = f"{row['estimate_gb']:6.2f}" if row["estimate_gb"] is not None else f"{'-':>6}"
+                print(f"{label:<10} {path:<7} {row['n']:>8} {row['p']:>5} {row['evaluation']:8.2f} "
+                      f"{ref['seconds']:7.2f} {row['ratio']:6.2f} {goal if goal else '-':>5} "
+                      f"{row['peak_gb']:7.2f} {est_s}  {parts}; zone {row['zone']}, "
+                      f"Newton {row['newton_it']} it, W_Z {row['delassus']}, nnz(L)/nnz(A) "
+                      f"{row['nnz_factor'] / row['nnz_A']:.1f}, PARDISO {row['pardiso_gb']:.2f} GB; "
+                      f"eval/Cholesky {row['evaluation'] / spd['seconds']:.2f} (Cholesky {spd['seconds']:.2f} s, "
+                      f"{spd['peak_gb']:.2f} GB)", flush=True)
+                rows.append(row)
+    with open("/proc/loadavg") as f:
+        print(f"machine after: load average {' '.join(f.read().split()[:3])}")
+    if args.json:
+        Path(args.json).write_text(json.dumps(rows, indent=1))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
