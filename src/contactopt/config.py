@@ -188,6 +188,9 @@ SCHEMA = {
     },
     "linear_solver": {
         "backend": ("auto", _oneof("auto", "pardiso", "scipy"), "'auto', 'pardiso' or 'scipy'"),
+        "memory_check": (True, lambda x: isinstance(x, bool),
+                         "true or false (refuse up front a mesh whose estimated peak memory of an "
+                         "evaluation exceeds the available memory; contactopt.fem.memory)"),
     },
     "optimizer": {
         "eps": (1e-4, lambda x: _pos(x) and x < 1, "a number in (0, 1) (BT stopping parameter ε)"),

@@ -1,0 +1,156 @@
+"""Up-front estimate of the peak memory of one evaluation, and the check that refuses a mesh
+that would not fit (issue #16).
+
+An evaluation on today's path (:mod:`contactopt.fem.linsolve`, PARDISO Schur mode) holds at once
+
+* the sparse system: A(α) in CSR (12 bytes per entry), its upper triangle handed to PARDISO and
+  the assembly's value arrays — about ``SPARSE_COPIES`` × 12 bytes per entry of A;
+* PARDISO's memory for the Schur-mode factorization: ``PARDISO_BYTES`` per entry of the factor,
+  whose size is nnz(L) = fill(n)·nnz(A) with a fill that grows like n^FILL_EXPONENT on 3D meshes
+  of the block (nested dissection: nnz(L) ~ n^(4/3) on a cube);
+* dense matrices on all 3p contact DOFs: the condensed stiffness S, its Cholesky factor, the
+  Delassus block of the zone and the adjoint's matrix — ``DENSE_COPIES`` × (3p)² doubles;
+* the element layer (per-element arrays of the assembly and of the design contraction) and the
+  interpreter with its libraries: ``BASE_BYTES`` plus ``CELL_BYTES`` per element.
+
+The constants are calibrated against measured peak RSS (``benchmarks/bench_scale.py``, which
+prints estimate and measurement side by side) on refinements of Example 1 (Q1 hexahedra): BASE
+and DENSE_COPIES fitted to the peaks 0.42 GB (15k DOFs) and 3.30 GB (113k DOFs), PARDISO_BYTES
+from PARDISO's own report of its memory, the fill from nnz(L) at those two sizes. On
+other element types the number of entries of A is counted from the mesh, the fill is that of the
+block. The estimate is for the PARDISO backend (SciPy's SuperLU needs several times more). It
+decides whether a run can start, not how much memory to reserve.
+
+The check compares the estimate with ``MemAvailable`` of /proc/meminfo (memory the kernel can
+hand out without swapping) and raises :class:`InsufficientMemoryError` (a ContactOptError: exit
+code 2 from the CLI) naming the estimate, its parts and what to do, instead of letting the system
+kill the run mid-factorization.
+"""
+
+from __future__ import annotations
+
+import logging
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.sparse as sp
+
+from ..errors import ContactOptError
+
+log = logging.getLogger(__name__)
+
+GB = 2.0**30
+
+BASE_BYTES = 0.20 * GB        # interpreter, NumPy/SciPy/MKL, the model's design-independent data
+CELL_BYTES = 2.0e3            # element work arrays per cell (assembly, design contraction), Q1
+SPARSE_COPIES = 3.0           # A, its upper triangle for PARDISO, assembly values
+FILL_REF = (15360, 8.0)       # measured nnz(L)/nnz(A) of the Schur-mode factor at n = 15360 DOFs
+FILL_EXPONENT = 0.372         # ... and 16.8 at n = 113088: fill ∝ n^0.372
+PARDISO_BYTES = 10.0          # PARDISO's memory per entry of the factor (its iparm[15]+[16]: 9.7–11.6)
+DENSE_COPIES = 5.3            # S (PARDISO's and ours), its Cholesky factor, W_Z, the adjoint's matrix
+
+
+class InsufficientMemoryError(ContactOptError):
+    """The estimated peak memory of an evaluation exceeds the memory available.
+
+    ``estimate`` is the :class:`MemoryEstimate`, ``available_gb`` what /proc/meminfo offered.
+    """
+
+    def __init__(self, message, estimate=None, available_gb=None):
+        self.estimate = estimate
+        self.available_gb = available_gb
+        super().__init__(message)
+
+
+@dataclass
+class MemoryEstimate:
+    """Estimated peak memory (bytes) of one evaluation, by part; sizes it was computed from."""
+
+    n_dofs: int
+    n_contact_dofs: int
+    n_cells: int
+    nnz_A: int
+    nnz_factor: int
+    parts: dict
+
+    @property
+    def total(self) -> float:
+        return float(sum(self.parts.values()))
+
+    @property
+    def total_gb(self) -> float:
+        return self.total / GB
+
+    def describe(self) -> str:
+        parts = ", ".join(f"{k} {v / GB:.2f}" for k, v in self.parts.items())
+        return (f"{self.total_gb:.1f} GB for {self.n_dofs} DOFs and {self.n_contact_dofs} contact DOFs "
+                f"({parts} GB)")
+
+
+def fill_factor(n_dofs: int) -> float:
+    """nnz(L)/nnz(A) of PARDISO's Schur-mode factor, extrapolated from the block's measurements."""
+    n0, f0 = FILL_REF
+    return f0 * (max(n_dofs, 1) / n0) ** FILL_EXPONENT
+
+
+def matrix_entries(cells: np.ndarray, n_nodes: int, free_per_node=None) -> int:
+    """Entries of the stiffness matrix on the free DOFs, from the mesh only: a pair of nodes
+    sharing a cell (or a node with itself) gives f_a·f_b entries, f the free components of a node
+    (3 unless ``free_per_node`` says otherwise)."""
+    cells = np.asarray(cells)
+    n_cells, k = cells.shape
+    C = sp.csr_matrix((np.ones(cells.size, dtype=np.float32), cells.ravel(),
+                       np.arange(0, cells.size + 1, k)), shape=(n_cells, n_nodes))
+    G = (C.T @ C).tocsr()
+    G.data[:] = 1.0
+    f = np.full(n_nodes, 3.0) if free_per_node is None else np.asarray(free_per_node, dtype=float)
+    return int(round(f @ (G @ f)))
+
+
+def estimate_counts(n_dofs: int, n_contact_dofs: int, n_cells: int, nnz_A: int) -> MemoryEstimate:
+    """The estimate from the sizes alone (see the module docstring for the model)."""
+    nnz_L = int(fill_factor(n_dofs) * nnz_A)
+    parts = {"base": BASE_BYTES + CELL_BYTES * n_cells,
+             "sparse": SPARSE_COPIES * 12.0 * nnz_A,
+             "factor": PARDISO_BYTES * nnz_L,
+             "dense": DENSE_COPIES * 8.0 * float(n_contact_dofs) ** 2}
+    return MemoryEstimate(n_dofs, n_contact_dofs, n_cells, nnz_A, nnz_L, parts)
+
+
+def estimate_evaluation(model) -> MemoryEstimate:
+    """Estimated peak memory of one evaluation of an :class:`~contactopt.fem.model.ElasticModel`
+    on the condensation path (dense S on all contact DOFs)."""
+    asm = model.assembler
+    cells = model.body.reference.cells
+    n_nodes = model.body.reference.n_nodes
+    nnz_A = matrix_entries(cells, n_nodes, np.bincount(asm.free // 3, minlength=n_nodes))
+    return estimate_counts(asm.n_free, len(model.contact_dofs), len(cells), nnz_A)
+
+
+def available_memory() -> float:
+    """Bytes the kernel can give without swapping (``MemAvailable`` of /proc/meminfo); inf when
+    unknown (not Linux)."""
+    try:
+        with open("/proc/meminfo") as f:
+            for line in f:
+                if line.startswith("MemAvailable:"):
+                    return float(line.split()[1]) * 1024.0
+    except OSError:
+        pass
+    return float("inf")
+
+
+def check_memory(model, *, margin: float = 0.9) -> MemoryEstimate:
+    """Refuse (:class:`InsufficientMemoryError`) a model whose evaluation would need more than
+    ``margin`` × the available memory; returns the estimate otherwise (logged at INFO)."""
+    est = estimate_evaluation(model)
+    avail = available_memory()
+    if est.total > margin * avail:
+        raise InsufficientMemoryError(
+            f"the mesh is too large for the memory available: one evaluation needs about "
+            f"{est.describe()}, and {avail / GB:.1f} GB are available (MemAvailable). Use a coarser "
+            f"[mesh] (the factor grows like n^{1 + FILL_EXPONENT:.2f}, the dense contact matrices like "
+            f"(contact DOFs)²), free memory on this machine, or set [linear_solver] memory_check = false "
+            f"to try anyway", est, avail / GB)
+    log.info("memory estimate of an evaluation: %s; %.1f GB available", est.describe(), avail / GB)
+    return est
