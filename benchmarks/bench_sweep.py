@@ -24,7 +24,7 @@ from contactopt.studies import run_sweep
 FRICTIONS = [0.0, 0.1, 0.2, 0.3]
 
 
-def one_sweep(cfg, workers: int, max_iter: int) -> tuple[float, float]:
+def one_sweep(cfg, workers: int, max_iter: int) -> tuple[float, float, float]:
     marks = {}
     with tempfile.TemporaryDirectory() as tmp:
         t0 = time.perf_counter()
@@ -35,7 +35,8 @@ def one_sweep(cfg, workers: int, max_iter: int) -> tuple[float, float]:
         total = time.perf_counter() - t0
     if res.n_failed:
         raise SystemExit(f"{res.n_failed} task(s) failed: {[r['error'] for r in res.rows if r['error']]}")
-    return marks["end"] - marks["start"], total
+    # the tasks' own wall times: their sum over the task phase is the parallelism achieved
+    return marks["end"] - marks["start"], total, sum(r["wall_time_s"] for r in res.rows)
 
 
 def main():
@@ -51,11 +52,12 @@ def main():
           f"iterations per task, {os.cpu_count()} cores; load average before: {os.getloadavg()}")
     ratios = []
     for r in range(args.rounds):
-        t1, w1 = one_sweep(cfg, 1, args.max_iter)
-        t2, w2 = one_sweep(cfg, 2, args.max_iter)
+        t1, w1, s1 = one_sweep(cfg, 1, args.max_iter)
+        t2, w2, s2 = one_sweep(cfg, 2, args.max_iter)
         ratios.append((t1 / t2, w1 / w2))
         print(f"round {r + 1}: 1 worker tasks {t1:6.1f}s (call {w1:6.1f}s) | 2 workers tasks {t2:6.1f}s "
-              f"(call {w2:6.1f}s) | speed-up tasks {t1 / t2:.2f}, whole call {w1 / w2:.2f}", flush=True)
+              f"(call {w2:6.1f}s) | speed-up tasks {t1 / t2:.2f}, whole call {w1 / w2:.2f} | one task "
+              f"{s2 / s1:.2f}x slower with 2 workers (shared cores), load {os.getloadavg()[0]:.2f}", flush=True)
     print(f"load average after: {os.getloadavg()}")
     best = max(ratios)
     print(f"speed-up 2 workers / 1 worker: task phase {', '.join(f'{a:.2f}' for a, _ in ratios)}; "
