@@ -263,3 +263,23 @@ def test_killed_worker_has_its_task_resumed_elsewhere(tmp_path, cluster):
     assert [int(h["evaluation"]) for h in hist] == list(range(1, row["evaluations"] + 1))
     assert row["iterations"] == 40
     check_sweep_dir(out)
+
+
+def test_task_in_a_directory_without_checkpoint_starts_afresh(tmp_path):
+    """A worker that died before the first checkpoint leaves a run directory without one: the
+    rerun starts the run anew there (run_optimization(resume=True) would refuse it)."""
+    from contactopt.studies.sweep import TaskSpec, run_task
+    task = build_tasks(small_toml(tmp_path), [("friction.coefficient", [0.2])])[0]
+    run = tmp_path / "sw" / "runs" / task.name
+    run.mkdir(parents=True)
+    (run / "run.log").write_text("an attempt that died\n")
+    (run / "config.toml").write_text("# partial\n")
+    spec = TaskSpec(task, str(run), str(tmp_path / "sw"), 2, None, {"local": os.cpu_count()})
+    row = run_task(spec)
+    assert row["status"] == "restarted" and row["error"] == "" and row["J"] > 0
+    assert "an attempt that died" not in (run / "run.log").read_text()
+    again = run_task(spec)                         # finished: reused as it is
+    assert again["status"] == "reused" and again["J"] == row["J"]
+    # a different stopping parameter is another task: it continues from the checkpoint
+    more = run_task(TaskSpec(task, str(run), str(tmp_path / "sw"), 4, None, {"local": os.cpu_count()}))
+    assert more["status"] == "resumed" and more["iterations"] == 4
