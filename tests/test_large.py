@@ -74,3 +74,87 @@ def test_cli_exit_2_and_nothing_written(monkeypatch, tmp_path, capsys):
     assert code == 2
     assert "too large for the memory available" in capsys.readouterr().err
     assert not (out / "state.json").exists()
+
+
+# ------------------------------------------------------------------ Krylov core (fem.iterative)
+
+from contactopt.errors import SolverError  # noqa: E402
+from contactopt.fem import iterative  # noqa: E402
+from contactopt.fem.linsolve import factorize  # noqa: E402
+
+
+@pytest.fixture(scope="module")
+def small():
+    """A(α0), A(α0 + 1e-3·d), L of Example 1 coarsened to 16×8×5 (about 2.5k DOFs)."""
+    m = ElasticModel(load_config("example1").with_updates({"mesh": {"nx": 16, "ny": 8, "nz": 5}}))
+    a0 = m.initial_design()
+    d = np.sin(np.arange(m.n_design) + 1.0)
+    d -= d.mean()
+    asm0, asm1 = m.assemble(a0), m.assemble(a0 + 1e-3 * d / np.abs(d).max())
+    return m, asm0, asm1
+
+
+def test_pcg_with_reused_factorization_agrees_with_direct(small):
+    _, asm0, asm1 = small
+    x_direct = factorize(asm1.A).solve(asm1.L)
+    solver = iterative.ReusedFactorSolver(asm0.A, rtol=1e-12, refactor_after=50)
+    res = solver.solve(asm1.A, asm1.L)
+    assert np.linalg.norm(res.x - x_direct) <= 1e-10 * np.linalg.norm(x_direct)
+    assert 1 <= res.iterations <= 10          # a nearby design: a handful of iterations
+    assert res.history[0] == 1.0 and res.history[-1] <= 1e-12
+    assert solver.n_factorizations == 1
+    # a block of right-hand sides: every column its own CG, the same answers
+    Y = np.random.default_rng(3).standard_normal((asm1.A.shape[0], 5))
+    X = solver.solve(asm1.A, Y).x
+    X_direct = factorize(asm1.A).solve(Y)
+    assert np.linalg.norm(X - X_direct, axis=0).max() <= 1e-10 * np.linalg.norm(X_direct, axis=0).min()
+    solver.close()
+
+
+def test_reused_factorization_refactorizes_when_iterations_grow(small):
+    _, asm0, asm1 = small
+    solver = iterative.ReusedFactorSolver(asm0.A, rtol=1e-12, refactor_after=1)
+    first = solver.solve(asm1.A, asm1.L)
+    assert first.iterations > 1 and solver.n_factorizations == 2      # A(α1) is the new reference
+    again = solver.solve(asm1.A, asm1.L)
+    assert again.iterations == 1                                       # M = A⁻¹ exactly
+    solver.close()
+
+
+def test_pcg_not_converged_raises_with_history(small):
+    _, _, asm1 = small
+    with pytest.raises(iterative.KrylovNotConverged) as err:
+        iterative.pcg(asm1.A, asm1.L, rtol=1e-12, max_iter=5)        # unpreconditioned: too few
+    exc = err.value
+    assert isinstance(exc, SolverError)
+    assert len(exc.history) == 6 and exc.iterations == 5
+    assert exc.history[0] == 1.0 and exc.history[-1] > 1e-12
+    assert "after 5 iterations" in str(exc)
+
+
+def test_pcg_refuses_an_indefinite_matrix(small):
+    _, _, asm1 = small
+    with pytest.raises(iterative.KrylovNotConverged, match="non-positive curvature"):
+        iterative.pcg(-asm1.A, asm1.L, rtol=1e-12, max_iter=50)
+
+
+def test_rigid_body_modes_are_the_kernel_of_a_free_element():
+    import sys
+    from pathlib import Path
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
+    from _brick import _CORNERS, hex_stiffness
+    h = np.array([0.3, 0.2, 0.5])
+    K = hex_stiffness(h)
+    B = iterative.rigid_body_modes(0.5 * h * (_CORNERS + 1.0), np.arange(24))
+    assert np.linalg.matrix_rank(B) == 6
+    assert np.abs(K @ B).max() <= 1e-12 * np.abs(K).max() * np.abs(B).max()
+
+
+def test_amg_preconditioned_cg_agrees_with_direct(small):
+    pytest.importorskip("pyamg")
+    m, _, asm1 = small
+    M, ml = iterative.amg_preconditioner(asm1.A, iterative.rigid_body_modes(asm1.coords, m.assembler.free))
+    res = iterative.pcg(asm1.A, asm1.L, M, rtol=1e-12, max_iter=300)
+    x_direct = factorize(asm1.A).solve(asm1.L)
+    assert np.linalg.norm(res.x - x_direct) <= 1e-10 * np.linalg.norm(x_direct)
+    assert res.iterations < 100
