@@ -16,6 +16,11 @@ of :mod:`contactopt.fem.memory`. It saves A(α1); after the child has exited, th
 one factorization of that same matrix with pypardiso's defaults in a clean process
 (``benchmarks/_reference.py``), the reference of every ratio.
 
+``--candidates SIZE`` instead measures, in one process on A(α) of that size, the pieces of a path
+without S on all contact DOFs (docs/large_meshes.md): a Cholesky factorization, the Schur
+condensation on all contact DOFs and on a zone, solves with a kept factorization, PCG with the
+factorization of A(α0) as preconditioner at designs α0 + h·d, and pyamg SA + PCG.
+
 Paths: ``schur`` is today's path (PARDISO Schur mode, dense S on all contact DOFs). A size whose
 estimated peak exceeds ``--max-gb`` (default: 10 GB, the budget on a shared machine) is skipped
 and reported, not run.
@@ -140,6 +145,112 @@ def clean_spd_factorization(a_file, repeat):
     return json.loads(out.stdout.strip().splitlines()[-1])
 
 
+CANDIDATES = ("factor", "schur", "zone", "block", "steps", "amg")
+
+
+def candidates(shape, steps, block, rtol, skip=(), zone_fraction=0.55):
+    """The candidates of a path without S on all contact DOFs, in isolation on A(α) of one size
+    (in this process): a fresh factorization, the Schur condensation of today's path and one on
+    a zone only, solves with a kept factorization (single and block right-hand sides), PCG with
+    the factorization of A(α0) as preconditioner for A(α0 + h·d), pyamg SA + PCG. ``skip`` names
+    parts not to run (a large size: "schur"). Prints one line per measurement."""
+    import numpy as np
+
+    from contactopt._threads import sequential_openblas
+    from contactopt.config import load_config
+    from contactopt.fem.iterative import amg_preconditioner, pcg, rigid_body_modes
+    from contactopt.fem.linsolve import condense, factorize
+    from contactopt.fem.model import ElasticModel
+
+    nx, ny, nz = shape
+    model = ElasticModel(load_config("example1").with_updates({"mesh": {"nx": nx, "ny": ny, "nz": nz}}))
+    a0 = model.initial_design()
+    d = np.random.default_rng(1).standard_normal(model.n_design)
+    d -= d.mean()
+    d /= np.abs(d).max()
+    asm0 = model.assemble(a0)
+    A0, L0 = asm0.A, asm0.L
+    c = model.contact_dofs
+    n = A0.shape[0]
+    print(f"candidates on {nx}x{ny}x{nz}: {n} DOFs, {len(c)} contact DOFs, nnz(A) {A0.nnz}", flush=True)
+
+    def timed(fn):
+        t0 = time.perf_counter()
+        out = fn()
+        return time.perf_counter() - t0, out
+
+    t_fact, F0 = None, None
+    rel = lambda t: f" = {t / t_fact:.2f} × factorization" if t_fact else ""   # noqa: E731
+    with sequential_openblas():
+        if "factor" not in skip:
+            if n <= 250_000:
+                factorize(A0, "pardiso").close()                   # library load, thread start
+            t_fact, F0 = timed(lambda: factorize(A0, "pardiso"))
+            print(f"  factorization of A(α0), contactopt Cholesky: {t_fact:.2f} s "
+                  f"(analysis {F0.timings['analyze']:.2f}, numeric {F0.timings['factor']:.2f}); "
+                  f"nnz(L) {F0.stats['nnz_factor']}; peak RSS so far {_peak_rss_gb():.2f} GB", flush=True)
+        if "schur" not in skip:
+            t_schur, cond = timed(lambda: condense(A0, c, "pardiso"))
+            t_refac, _ = timed(lambda: cond.refactor(A0, trusted=True))
+            print(f"  today's Schur condensation (dense S on all contact DOFs): {t_schur:.2f} s{rel(t_schur)}; "
+                  f"refactor (analysis reused) {t_refac:.2f} s{rel(t_refac)}", flush=True)
+            cond.close()
+            del cond
+        if "zone" not in skip:
+            # a Schur complement on the contact zone only (a stand-in zone: the contact nodes of
+            # largest x1, zone_fraction of them; Example 1's zone at 113k: 1091 of 1984 nodes)
+            x1 = asm0.coords[model.contact_nodes, 0]
+            z = np.sort(np.argsort(-x1, kind="stable")[:int(round(zone_fraction * len(x1)))])
+            cz = c.reshape(-1, 3)[z].ravel()
+            t_zone, cond = timed(lambda: condense(A0, cz, "pardiso"))
+            t_zrefac, _ = timed(lambda: cond.refactor(A0, trusted=True))
+            print(f"  Schur on a zone of {len(z)} of {len(x1)} contact nodes: {t_zone:.2f} s{rel(t_zone)}, "
+                  f"refactor {t_zrefac:.2f} s{rel(t_zrefac)}; its dense (3z)² is {(len(cz) / len(c)) ** 2:.2f} "
+                  f"and (3z)³ {(len(cz) / len(c)) ** 3:.2f} of those on all contact DOFs", flush=True)
+            cond.close()
+            del cond
+        if F0 is not None and "block" not in skip:
+            t1 = min(timed(lambda: F0.solve(L0))[0] for _ in range(3))
+            Bk = np.zeros((n, block))
+            Bk[c[:block], np.arange(block)] = 1.0                    # Bᵀ e_j: contact DOF columns
+            tk, Xk = timed(lambda: F0.solve(Bk))
+            print(f"  solve with the factorization: 1 rhs {t1:.3f} s{rel(t1)}; "
+                  f"block of {block} contact columns {tk:.2f} s = {tk / block:.3f} s per column "
+                  f"-> all {len(c)} columns (W = B A⁻¹ Bᵀ) ≈ {tk / block * len(c):.0f} s, "
+                  f"{n * len(c) * 8 / 2**30:.1f} GB", flush=True)
+            del Xk, Bk
+        if F0 is not None and "steps" not in skip:
+            rng = np.random.default_rng(0)
+            two_factors = n <= 250_000      # the reference of the error: a second factorization
+            for h in steps:
+                asm = model.assemble(a0 + h * d)
+                A, L = asm.A, asm.L
+                if two_factors:
+                    tf, F = timed(lambda: factorize(A, "pardiso"))
+                    x_ref = F.solve(L)
+                    F.close()
+                tp, res = timed(lambda: pcg(A, L, F0.solve, rtol=rtol, max_iter=200))
+                if not two_factors:     # a second factor does not fit: A(α0)'s time, residual only
+                    tf, x_ref = t_fact, res.x
+                err = (f"error vs direct {np.linalg.norm(res.x - x_ref) / np.linalg.norm(x_ref):.1e}"
+                       if two_factors else f"residual {res.history[-1]:.1e} (no second factorization)")
+                Y = rng.standard_normal((n, block))
+                tb, resb = timed(lambda: pcg(A, Y, F0.solve, rtol=rtol, max_iter=200))
+                print(f"  step h = {h:g}: PCG(M = A(α0)⁻¹) to {rtol:g}: {res.iterations} it, {tp:.2f} s = "
+                      f"{tp / tf:.2f} × a fresh factorization ({tf:.2f} s), {err}; "
+                      f"block of {block}: {resb.iterations} it, {tb / block:.3f} s per column", flush=True)
+        if F0 is not None:
+            F0.close()
+        if "amg" not in skip:
+            B = rigid_body_modes(asm0.coords, model.assembler.free)
+            ts, (M, ml) = timed(lambda: amg_preconditioner(A0, B))
+            tp, res = timed(lambda: pcg(A0, L0, M, rtol=rtol, max_iter=500))
+            print(f"  pyamg SA (rigid-body modes, {len(ml.levels)} levels, operator complexity "
+                  f"{ml.operator_complexity():.2f}): setup {ts:.2f} s{rel(ts)}; PCG to {rtol:g}: "
+                  f"{res.iterations} it, {tp:.2f} s{rel(tp)}, {tp / res.iterations:.3f} s per iteration", flush=True)
+    print(f"  peak RSS of this process {_peak_rss_gb():.2f} GB")
+
+
 def _meminfo():
     info = {}
     with open("/proc/meminfo") as f:
@@ -158,11 +269,21 @@ def main(argv=None):
     ap.add_argument("--max-gb", type=float, default=10.0, help="skip sizes estimated above this peak")
     ap.add_argument("--repeat", type=int, default=3, help="clean-process reference factorizations (median)")
     ap.add_argument("--json", help="also write the rows to this file")
+    ap.add_argument("--candidates", metavar="SIZE",
+                    help="instead: measure the candidate solvers in isolation on this size (e.g. 113k)")
+    ap.add_argument("--block", type=int, default=64, help="columns of the block solves (--candidates)")
+    ap.add_argument("--steps", type=float, nargs="+", default=[1e-4, 3e-4, 1e-3, 3e-3],
+                    help="design steps h of the reused-factorization PCG (--candidates)")
+    ap.add_argument("--skip", nargs="+", choices=CANDIDATES, default=[],
+                    help="parts of --candidates not to run (e.g. schur on a large size)")
     ap.add_argument("--child", nargs=5, help=argparse.SUPPRESS)
     args = ap.parse_args(argv)
     if args.child:
         nx, ny, nz, path, out_dir = args.child
         child((int(nx), int(ny), int(nz)), path, args.step, out_dir)
+        return 0
+    if args.candidates:
+        candidates(_shape(args.candidates), args.steps, args.block, 1e-10, set(args.skip))
         return 0
 
     sys.path.insert(0, str(Path(__file__).resolve().parent))
