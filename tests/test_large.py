@@ -158,3 +158,50 @@ def test_amg_preconditioned_cg_agrees_with_direct(small):
     x_direct = factorize(asm1.A).solve(asm1.L)
     assert np.linalg.norm(res.x - x_direct) <= 1e-10 * np.linalg.norm(x_direct)
     assert res.iterations < 100
+
+
+def test_cholesky_refactor_keeps_the_analysis(small):
+    _, asm0, asm1 = small
+    chol = iterative.Cholesky(asm0.A)
+    x = chol.refactor(asm1.A).solve(asm1.L)
+    x_direct = factorize(asm1.A).solve(asm1.L)
+    assert np.linalg.norm(x - x_direct) <= 1e-12 * np.linalg.norm(x_direct)
+    assert chol.timings["analyze"] == 0.0
+    with pytest.raises(SolverError, match="same sparsity pattern"):
+        chol.refactor(asm1.A[:-3, :-3])
+    chol.close()
+
+
+def test_delassus_products_agree_with_the_condensation(small):
+    """W_D r = B_D A⁻¹ B_Dᵀ r by one solve against the principal block of W = S⁻¹ of today's
+    condensation; the recovery u = A⁻¹L + A⁻¹B_Dᵀr and the A-harmonic extension from the same
+    by-product against the condensation's recover/extend."""
+    from contactopt.fem.linsolve import condense
+    m, _, asm1 = small
+    c = m.contact_dofs
+    zone = np.arange(0, m.n_contact, 2)                       # every other contact node
+    pos = (3 * zone[:, None] + np.arange(3)).ravel()          # their rows in the order of c
+    D = c[pos]
+    chol = iterative.Cholesky(asm1.A)
+    W_op = iterative.DelassusOperator(chol.solve, asm1.A.shape[0], D)
+    with condense(asm1.A, c) as cond:
+        W_D = np.linalg.inv(cond.S)[np.ix_(pos, pos)]
+        r = np.random.default_rng(5).standard_normal(D.size)
+        Wr = W_op @ r
+        assert np.linalg.norm(Wr - W_D @ r) <= 1e-10 * np.linalg.norm(W_D @ r)
+        # u = A⁻¹(L + B_Dᵀ r) is the state with contact forces r on D: the recovery of its u_c
+        u = chol.solve(asm1.L) + W_op.last_full
+        f = asm1.L.copy()
+        f[D] += r
+        assert np.linalg.norm(u - factorize(asm1.A).solve(f)) <= 1e-10 * np.linalg.norm(u)
+        u_rec = cond.recover(f, u[c])
+        assert np.linalg.norm(u_rec - u) <= 1e-10 * np.linalg.norm(u)
+    assert np.linalg.norm(W_op.dense() - W_D) <= 1e-10 * np.linalg.norm(W_D)
+    assert W_op.n_products == 1 + D.size
+    # the extension ṽ = A⁻¹B_Dᵀz of v_D = W_D z is condense(A, D).extend(v_D)
+    z = np.random.default_rng(6).standard_normal(D.size)
+    v_D = W_op @ z
+    with condense(asm1.A, D) as cond_D:
+        ext = cond_D.extend(v_D)
+    assert np.linalg.norm(W_op.last_full - ext) <= 1e-10 * np.linalg.norm(ext)
+    chol.close()

@@ -15,7 +15,11 @@ column than single ones). Convergence: ‖b_j − A x_j‖ ≤ rtol·‖b_j‖ f
 that does not converge raises :class:`KrylovNotConverged` (a SolverError) with the residual
 history; so does a direction of non-positive curvature (A or M not SPD).
 
-Not wired into :class:`contactopt.ShapeProblem` yet: see docs/large_meshes.md.
+:class:`Cholesky` refactorizes numerically with PARDISO's analysis kept, and
+:class:`DelassusOperator` gives products W_D r = B_D A⁻¹ B_Dᵀ r by one solve each — the pieces of
+the path that docs/large_meshes.md recommends for 100k–400k DOFs (one numerical factorization
+per design, exact Delassus products by triangular solves, a kept Delassus block as Newton's
+matrix). Not wired into :class:`contactopt.ShapeProblem` yet.
 """
 
 from __future__ import annotations
@@ -30,8 +34,8 @@ from ..errors import SolverError
 
 log = logging.getLogger(__name__)
 
-__all__ = ["pcg", "KrylovResult", "KrylovNotConverged", "ReusedFactorSolver", "amg_preconditioner",
-           "rigid_body_modes"]
+__all__ = ["pcg", "KrylovResult", "KrylovNotConverged", "Cholesky", "DelassusOperator", "ReusedFactorSolver",
+           "amg_preconditioner", "rigid_body_modes"]
 
 
 class KrylovNotConverged(SolverError):
@@ -114,12 +118,107 @@ def pcg(A, b, M=None, *, rtol: float = 1e-10, max_iter: int = 200, x0=None) -> K
                              f"({int(active.sum())} of {k} column(s))", history)
 
 
+class Cholesky:
+    """Cholesky factorization of an SPD A whose values change and pattern does not (a new
+    design on the same mesh): ``refactor(A)`` redoes only PARDISO's numerical phase, the
+    ordering and symbolic analysis kept (SciPy: a new factorization). ``solve(b)`` for (n,) or
+    (n, k) b; ``timings`` of the last (re)factorization."""
+
+    def __init__(self, A, backend: str = "auto"):
+        from . import _pardiso
+        from .linsolve import _check_matrix, _pick_backend, factorize
+        A = _check_matrix(A)
+        self.n = A.shape[0]
+        self.backend = _pick_backend(backend)
+        t0 = time.perf_counter()
+        if self.backend == "pardiso":
+            import scipy.sparse as sp
+            self._ps = _pardiso.PardisoSPD(sp.triu(A, format="csr"))
+            self._ps.analyze()
+            t1 = time.perf_counter()
+            self._ps.factor()
+            self.timings = {"analyze": t1 - t0, "factor": time.perf_counter() - t1}
+            self.stats = {"nnz_factor": self._ps.nnz_factor}
+        else:
+            self._f = factorize(A, "scipy")
+            self.timings, self.stats = dict(self._f.timings), dict(self._f.stats)
+
+    def refactor(self, A) -> "Cholesky":
+        """New values of A (same sparsity pattern): the numerical factorization only."""
+        import scipy.sparse as sp
+        from .linsolve import _check_matrix, factorize
+        A = _check_matrix(A, trusted=True)
+        t0 = time.perf_counter()
+        if self.backend == "pardiso":
+            upper = sp.triu(A, format="csr")
+            if not self._ps.same_pattern(upper):
+                raise SolverError("refactor needs a matrix with the same sparsity pattern")
+            self._ps.factor(upper)
+        else:
+            self._f.close()
+            self._f = factorize(A, "scipy")
+        self.timings = {"analyze": 0.0, "factor": time.perf_counter() - t0}
+        return self
+
+    def solve(self, b):
+        b = np.asarray(b, dtype=np.float64)
+        if b.ndim not in (1, 2) or b.shape[0] != self.n:
+            raise SolverError(f"b must have length n = {self.n} (first axis), got {b.shape}")
+        if self.backend == "pardiso":
+            return np.ascontiguousarray(self._ps.solve(b, phase=33))
+        return self._f.solve(b)
+
+    def close(self):
+        if self.backend == "pardiso":
+            self._ps.close()
+        else:
+            self._f.close()
+
+
+class DelassusOperator:
+    """Products with the Delassus block of the DOFs ``dofs`` (e.g. a contact zone, per node
+    (t1, t2, ν)): W_D r = B_D A⁻¹ B_Dᵀ r, one solve per product (``solve``: a factorization's
+    or a Krylov solver's), never forming W_D (DESIGN.md §3: W = S⁻¹ = B A⁻¹ Bᵀ).
+
+    ``last_full`` keeps A⁻¹ B_Dᵀ r of the last product: with it the displacement of a state is
+    u = A⁻¹L + A⁻¹B_Dᵀ r (no further solve), and the A-harmonic extension of the adjoint,
+    ṽ = A⁻¹ B_Dᵀ z for v_D = W_D z, is the same by-product. ``n_products`` counts the solves."""
+
+    def __init__(self, solve, n: int, dofs):
+        self._solve = solve
+        self.n = int(n)
+        self.dofs = np.asarray(dofs, dtype=np.int64)
+        self.n_products = 0
+        self.last_full = None
+
+    def product(self, r):
+        r = np.asarray(r, dtype=np.float64)
+        if r.shape[0] != self.dofs.size or r.ndim not in (1, 2):
+            raise SolverError(f"r must have length {self.dofs.size} (first axis), got {r.shape}")
+        f = np.zeros((self.n,) + r.shape[1:])
+        f[self.dofs] = r
+        x = self._solve(f)
+        self.last_full = x
+        self.n_products += 1 if r.ndim == 1 else r.shape[1]
+        return np.ascontiguousarray(x[self.dofs])
+
+    __matmul__ = product
+
+    @property
+    def shape(self):
+        return (self.dofs.size, self.dofs.size)
+
+    def dense(self):
+        """W_D itself (len(dofs) solves as one block): for checks on small problems only."""
+        return self.product(np.eye(self.dofs.size))
+
+
 class ReusedFactorSolver:
     """Solves with A(α) preconditioned by the Cholesky factorization of an earlier A(α_ref).
 
     ``solve(A, b)`` runs :func:`pcg`; when it needed more than ``refactor_after`` iterations, A
-    becomes the new reference (factorized for the next call, the ordering reused by PARDISO only
-    through a new analysis: ``linsolve.factorize``). ``n_factorizations`` and ``n_solves`` count.
+    becomes the new reference (refactorized numerically for the next call, the analysis kept:
+    :class:`Cholesky`). ``n_factorizations`` and ``n_solves`` count.
     """
 
     def __init__(self, A, *, rtol: float = 1e-10, max_iter: int = 100, refactor_after: int = 15,
@@ -132,11 +231,12 @@ class ReusedFactorSolver:
         self.set_reference(A)
 
     def set_reference(self, A) -> None:
-        """Factorize A as the preconditioner of the following solves."""
-        from .linsolve import factorize
-        if self._factor is not None:
-            self._factor.close()
-        self._factor = factorize(A, self.backend)
+        """Factorize A as the preconditioner of the following solves (numerically only when a
+        factorization of the same pattern exists)."""
+        if self._factor is None:
+            self._factor = Cholesky(A, self.backend)
+        else:
+            self._factor.refactor(A)
         self.n_factorizations += 1
 
     def apply(self, r):
