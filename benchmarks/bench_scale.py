@@ -114,10 +114,10 @@ def child(shape, path, step, out_dir):
 def _estimate_only(shape):
     """Estimated peak (GB) of a size without running it: a child builds the model only."""
     code = ("import sys, json; from contactopt.config import load_config; "
-            "from contactopt.fem.model import ElasticModel; from contactopt.fem.memory import estimate_evaluation; "
+            "from contactopt.mesh.body import build_body; from contactopt.fem.memory import estimate_evaluation; "
             "nx, ny, nz = map(int, sys.argv[1:4]); "
-            "m = ElasticModel(load_config('example1').with_updates({'mesh': {'nx': nx, 'ny': ny, 'nz': nz}})); "
-            "print(json.dumps(estimate_evaluation(m).total_gb))")
+            "b = build_body(load_config('example1').with_updates({'mesh': {'nx': nx, 'ny': ny, 'nz': nz}})); "
+            "print(json.dumps(estimate_evaluation(b).total_gb))")
     out = subprocess.run([sys.executable, "-c", code, *map(str, shape)], capture_output=True, text=True)
     if out.returncode:
         return None
@@ -158,12 +158,13 @@ def candidates(shape, steps, block, rtol, skip=(), zone_fraction=0.55):
 
     from contactopt._threads import sequential_openblas
     from contactopt.config import load_config
-    from contactopt.fem.iterative import amg_preconditioner, pcg, rigid_body_modes
+    from contactopt.fem.iterative import Cholesky, DelassusOperator, amg_preconditioner, pcg, rigid_body_modes
     from contactopt.fem.linsolve import condense, factorize
     from contactopt.fem.model import ElasticModel
 
     nx, ny, nz = shape
-    model = ElasticModel(load_config("example1").with_updates({"mesh": {"nx": nx, "ny": ny, "nz": nz}}))
+    model = ElasticModel(load_config("example1").with_updates({"mesh": {"nx": nx, "ny": ny, "nz": nz},
+                                                               "linear_solver": {"memory_check": False}}))
     a0 = model.initial_design()
     d = np.random.default_rng(1).standard_normal(model.n_design)
     d -= d.mean()
@@ -189,6 +190,18 @@ def candidates(shape, steps, block, rtol, skip=(), zone_fraction=0.55):
             print(f"  factorization of A(α0), contactopt Cholesky: {t_fact:.2f} s "
                   f"(analysis {F0.timings['analyze']:.2f}, numeric {F0.timings['factor']:.2f}); "
                   f"nnz(L) {F0.stats['nnz_factor']}; peak RSS so far {_peak_rss_gb():.2f} GB", flush=True)
+            F0.close()
+            F0 = Cholesky(A0, "pardiso")          # the same factorization, able to refactor
+            A1 = model.assemble(a0 + steps[0] * d).A
+            t_num, _ = timed(lambda: F0.refactor(A1))
+            F0.refactor(A0)
+            dofs = c[: 3 * (len(c) // 6)]           # a zone of half the contact nodes
+            W = DelassusOperator(F0.solve, n, dofs)
+            r = np.random.default_rng(2).standard_normal(dofs.size)
+            t_prod = min(timed(lambda: W @ r)[0] for _ in range(3))
+            print(f"  numerical refactorization at α0 + {steps[0]:g}·d (analysis kept): {t_num:.2f} s{rel(t_num)}; "
+                  f"a Delassus product W_Z r on {dofs.size // 3} contact nodes: {t_prod:.3f} s{rel(t_prod)}",
+                  flush=True)
         if "schur" not in skip:
             t_schur, cond = timed(lambda: condense(A0, c, "pardiso"))
             t_refac, _ = timed(lambda: cond.refactor(A0, trusted=True))

@@ -205,3 +205,16 @@ def test_delassus_products_agree_with_the_condensation(small):
         ext = cond_D.extend(v_D)
     assert np.linalg.norm(W_op.last_full - ext) <= 1e-10 * np.linalg.norm(ext)
     chol.close()
+
+
+def test_refused_before_the_model_is_built(monkeypatch):
+    """The check runs on the body (mesh, clamps, contact nodes) before the assembler and the
+    harmonic weight, the first costly steps on a large mesh."""
+    import contactopt.fem.model as fem_model
+
+    def boom(*a, **k):
+        raise AssertionError("the model was built before the memory check")
+    monkeypatch.setattr(fem_model, "harmonic_weight", boom)
+    monkeypatch.setattr(memory, "available_memory", lambda: 0.2 * GB)
+    with pytest.raises(memory.InsufficientMemoryError):
+        ElasticModel(load_config("example1"))

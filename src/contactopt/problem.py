@@ -101,9 +101,6 @@ class ShapeProblem:
     def __init__(self, config, *, method: str | None = None, backend: str | None = None):
         self.config = config if isinstance(config, Config) else load_config(config)
         self.model = ElasticModel(self.config)
-        if self.config["linear_solver"]["memory_check"]:    # refuse up front, not killed mid-run
-            from .fem.memory import check_memory
-            check_memory(self.model)
         self.friction = float(self.config["friction"]["coefficient"])
         st = self.config["state"]
         self.method = method or st["method"]

@@ -117,14 +117,18 @@ def estimate_counts(n_dofs: int, n_contact_dofs: int, n_cells: int, nnz_A: int) 
     return MemoryEstimate(n_dofs, n_contact_dofs, n_cells, nnz_A, nnz_L, parts)
 
 
-def estimate_evaluation(model) -> MemoryEstimate:
-    """Estimated peak memory of one evaluation of an :class:`~contactopt.fem.model.ElasticModel`
-    on the condensation path (dense S on all contact DOFs)."""
-    asm = model.assembler
-    cells = model.body.reference.cells
-    n_nodes = model.body.reference.n_nodes
-    nnz_A = matrix_entries(cells, n_nodes, np.bincount(asm.free // 3, minlength=n_nodes))
-    return estimate_counts(asm.n_free, len(model.contact_dofs), len(cells), nnz_A)
+def estimate_evaluation(body) -> MemoryEstimate:
+    """Estimated peak memory of one evaluation on the condensation path (dense S on all contact
+    DOFs) for a :class:`~contactopt.mesh.body.Body` (or anything with a ``.body``, such as an
+    :class:`~contactopt.fem.model.ElasticModel`): from the mesh alone, before anything is
+    assembled or solved on it."""
+    body = getattr(body, "body", body)
+    ref = body.reference
+    n_nodes = ref.n_nodes
+    free = np.ones(3 * n_nodes, dtype=bool)
+    free[np.asarray(body.fixed_dofs, dtype=np.int64)] = False
+    nnz_A = matrix_entries(ref.cells, n_nodes, free.reshape(-1, 3).sum(axis=1))
+    return estimate_counts(int(free.sum()), 3 * len(body.contact_nodes), len(ref.cells), nnz_A)
 
 
 def available_memory() -> float:
@@ -140,10 +144,10 @@ def available_memory() -> float:
     return float("inf")
 
 
-def check_memory(model, *, margin: float = 0.9) -> MemoryEstimate:
-    """Refuse (:class:`InsufficientMemoryError`) a model whose evaluation would need more than
-    ``margin`` × the available memory; returns the estimate otherwise (logged at INFO)."""
-    est = estimate_evaluation(model)
+def check_memory(body, *, margin: float = 0.9) -> MemoryEstimate:
+    """Refuse (:class:`InsufficientMemoryError`) a body (or model) whose evaluation would need
+    more than ``margin`` × the available memory; returns the estimate otherwise (logged at INFO)."""
+    est = estimate_evaluation(body)
     avail = available_memory()
     if est.total > margin * avail:
         raise InsufficientMemoryError(

@@ -58,6 +58,9 @@ class ElasticModel:
         cfg = load_config(config) if not isinstance(config, Config) else config
         self.config = cfg
         self.body = body = build_body(cfg)
+        if cfg["linear_solver"]["memory_check"]:   # refuse a mesh too large before building on it
+            from .memory import check_memory
+            check_memory(body)
         ref = body.reference
         d = cfg["design"]
         d1, d2 = d["degree"]
