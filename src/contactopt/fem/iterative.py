@@ -31,6 +31,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..errors import SolverError
+from .linsolve import Factorization
 
 log = logging.getLogger(__name__)
 
@@ -118,61 +119,11 @@ def pcg(A, b, M=None, *, rtol: float = 1e-10, max_iter: int = 200, x0=None) -> K
                              f"({int(active.sum())} of {k} column(s))", history)
 
 
-class Cholesky:
+class Cholesky(Factorization):
     """Cholesky factorization of an SPD A whose values change and pattern does not (a new
-    design on the same mesh): ``refactor(A)`` redoes only PARDISO's numerical phase, the
-    ordering and symbolic analysis kept (SciPy: a new factorization). ``solve(b)`` for (n,) or
-    (n, k) b; ``timings`` of the last (re)factorization."""
-
-    def __init__(self, A, backend: str = "auto"):
-        from . import _pardiso
-        from .linsolve import _check_matrix, _pick_backend, factorize
-        A = _check_matrix(A)
-        self.n = A.shape[0]
-        self.backend = _pick_backend(backend)
-        t0 = time.perf_counter()
-        if self.backend == "pardiso":
-            import scipy.sparse as sp
-            self._ps = _pardiso.PardisoSPD(sp.triu(A, format="csr"))
-            self._ps.analyze()
-            t1 = time.perf_counter()
-            self._ps.factor()
-            self.timings = {"analyze": t1 - t0, "factor": time.perf_counter() - t1}
-            self.stats = {"nnz_factor": self._ps.nnz_factor}
-        else:
-            self._f = factorize(A, "scipy")
-            self.timings, self.stats = dict(self._f.timings), dict(self._f.stats)
-
-    def refactor(self, A) -> "Cholesky":
-        """New values of A (same sparsity pattern): the numerical factorization only."""
-        import scipy.sparse as sp
-        from .linsolve import _check_matrix, factorize
-        A = _check_matrix(A, trusted=True)
-        t0 = time.perf_counter()
-        if self.backend == "pardiso":
-            upper = sp.triu(A, format="csr")
-            if not self._ps.same_pattern(upper):
-                raise SolverError("refactor needs a matrix with the same sparsity pattern")
-            self._ps.factor(upper)
-        else:
-            self._f.close()
-            self._f = factorize(A, "scipy")
-        self.timings = {"analyze": 0.0, "factor": time.perf_counter() - t0}
-        return self
-
-    def solve(self, b):
-        b = np.asarray(b, dtype=np.float64)
-        if b.ndim not in (1, 2) or b.shape[0] != self.n:
-            raise SolverError(f"b must have length n = {self.n} (first axis), got {b.shape}")
-        if self.backend == "pardiso":
-            return np.ascontiguousarray(self._ps.solve(b, phase=33))
-        return self._f.solve(b)
-
-    def close(self):
-        if self.backend == "pardiso":
-            self._ps.close()
-        else:
-            self._f.close()
+    design on the same mesh): :meth:`~contactopt.fem.linsolve.Factorization.refactor` redoes
+    only PARDISO's numerical phase, the ordering and symbolic analysis kept. ``solve(b)`` for
+    (n,) or (n, k) b; ``timings`` of the last (re)factorization."""
 
 
 class DelassusOperator:

@@ -525,6 +525,21 @@ class Factorization:
             self.stats = {"nnz_factor": self._lu.nnz}
         self.timings = {"analyze": t1 - t0, "factor": time.perf_counter() - t1}
 
+    def refactor(self, A) -> "Factorization":
+        """New values of A with the same sparsity pattern (a new design on the same mesh): only
+        the numerical factorization is redone, the ordering and analysis kept."""
+        A = _check_matrix(A, trusted=True)
+        t0 = time.perf_counter()
+        if self.backend == "pardiso":
+            upper = sp.triu(A, format="csr")
+            if not self._ps.same_pattern(upper):
+                raise SolverError("refactor needs a matrix with the same sparsity pattern")
+            self._ps.factor(upper)
+        else:
+            self._lu = _splu_natural(A[self._order][:, self._order], check_spd=False)
+        self.timings = {"analyze": 0.0, "factor": time.perf_counter() - t0}
+        return self
+
     def solve(self, b):
         b = np.asarray(b, dtype=np.float64)
         if b.ndim not in (1, 2) or b.shape[0] != self.n:
