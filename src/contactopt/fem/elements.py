@@ -148,18 +148,24 @@ def tet4_shape(q):
     return L, np.broadcast_to(_DL, (L.shape[0], 4, 3)).copy()
 
 
+def _quadratic(L, dL, edges):
+    """P2 on a simplex from barycentric L (Q, v) with ∂L/∂ξ dL (v, d): N_i = L_i(2L_i − 1) at the
+    vertices, N_ij = 4 L_i L_j at the edge midpoints (in the order of ``edges``)."""
+    Q, v = L.shape
+    n = v + len(edges)
+    N = np.empty((Q, n))
+    dN = np.empty((Q, n, dL.shape[1]))
+    N[:, :v] = L * (2.0 * L - 1.0)
+    dN[:, :v] = (4.0 * L - 1.0)[:, :, None] * dL[None]
+    i, j = edges.T
+    N[:, v:] = 4.0 * L[:, i] * L[:, j]
+    dN[:, v:] = 4.0 * (L[:, i, None] * dL[None, j] + L[:, j, None] * dL[None, i])
+    return N, dN
+
+
 def tet10_shape(q):
     """P2 N (Q, 10) and dN/dξ (Q, 10, 3): N_i = L_i(2L_i − 1), N_ij = 4 L_i L_j (VTK edge order)."""
-    L = _tet_bary(q)
-    Q = L.shape[0]
-    N = np.empty((Q, 10))
-    dN = np.empty((Q, 10, 3))
-    N[:, :4] = L * (2.0 * L - 1.0)
-    dN[:, :4] = (4.0 * L - 1.0)[:, :, None] * _DL[None]
-    i, j = TET10_EDGES.T
-    N[:, 4:] = 4.0 * L[:, i] * L[:, j]
-    dN[:, 4:] = 4.0 * (L[:, i, None] * _DL[None, j] + L[:, j, None] * _DL[None, i])
-    return N, dN
+    return _quadratic(_tet_bary(q), _DL, TET10_EDGES)
 
 
 def _tri_bary(q):
@@ -177,16 +183,7 @@ def tri3_shape(q):
 
 
 def tri6_shape(q):
-    L = _tri_bary(q)
-    Q = L.shape[0]
-    N = np.empty((Q, 6))
-    dN = np.empty((Q, 6, 2))
-    N[:, :3] = L * (2.0 * L - 1.0)
-    dN[:, :3] = (4.0 * L - 1.0)[:, :, None] * _DT[None]
-    i, j = TRI6_EDGES.T
-    N[:, 3:] = 4.0 * L[:, i] * L[:, j]
-    dN[:, 3:] = 4.0 * (L[:, i, None] * _DT[None, j] + L[:, j, None] * _DT[None, i])
-    return N, dN
+    return _quadratic(_tri_bary(q), _DT, TRI6_EDGES)
 
 
 def _conical(degree: int, dim: int):
