@@ -187,7 +187,14 @@ SCHEMA = {
                            "an earlier design, with exact residuals, instead of inverting the new one)"),
     },
     "linear_solver": {
-        "backend": ("auto", _oneof("auto", "pardiso", "scipy"), "'auto', 'pardiso' or 'scipy'"),
+        "backend": ("auto", _oneof("auto", "pardiso", "scipy", "delassus"),
+                    "'auto', 'pardiso', 'scipy' or 'delassus'. 'pardiso'/'scipy': the condensation onto all "
+                    "contact DOFs (dense S) with that sparse solver; 'delassus': for large meshes, a sparse "
+                    "Cholesky factorization of A(α) per design and the contact zone's Delassus products by "
+                    "solves with it (docs/large_meshes.md); 'auto': 'delassus' from `crossover` free DOFs on, "
+                    "else the condensation with PARDISO (SciPy without MKL)"),
+        "crossover": (60000, _posint, "an integer ≥ 1 (free DOFs from which backend 'auto' takes the "
+                      "Delassus path)"),
         "memory_check": (True, lambda x: isinstance(x, bool),
                          "true or false (refuse up front a mesh whose estimated peak memory of an "
                          "evaluation exceeds the available memory; contactopt.fem.memory)"),

@@ -46,6 +46,8 @@ CHORD_MIN_GAP = 1e-3     # below this gap Newton is nearly quadratic: no chord s
 JACOBIAN_DTYPE = np.float32  # a kept block only builds Newton matrices, and is 1e-3–0.2 off the
                              # current W_Z anyway: single precision halves the memory traffic of
                              # those matrices and the time of their LU
+ADJOINT_MAX_NEW = 0.1    # the adjoint's preconditioner takes exact columns for at most this
+                         # fraction of nodes outside the kept block, else the zone's Schur complement
 REUSE_TOL_FACTOR = 0.1   # and it iterates to this times tol: exact Newton's last, quadratic
                          # step usually overshoots far below tol; an inexact Jacobian converges
                          # linearly and would otherwise stop just below it
@@ -53,14 +55,25 @@ REUSE_TOL_FACTOR = 0.1   # and it iterates to this times tol: exact Newton's las
 
 @dataclass
 class Condensed:
-    """The condensed system of one design (see the module docstring)."""
+    """The condensed system of one design (see the module docstring).
+
+    On the Delassus path (large meshes, ``[linear_solver] backend = "delassus"``) nothing is
+    condensed: ``factor`` is the sparse Cholesky factorization of A(α), ``S`` and ``ell`` are None,
+    and ``x0`` = A(α)⁻¹L(α) (free DOFs) is the displacement without contact forces, so that
+    W = S⁻¹ = B A⁻¹ Bᵀ and S⁻¹ℓ = (x0)_c (:class:`~contactopt.contact.zone.DelassusZoneProblem`)."""
 
     assembled: Assembled
-    factor: object           # contactopt.fem.linsolve condensed factorization
-    S: np.ndarray            # (3p, 3p), per node (t1, t2, ν)
-    ell: np.ndarray          # (3p,)
+    factor: object           # contactopt.fem.linsolve condensed factorization (or Factorization)
+    S: np.ndarray | None     # (3p, 3p), per node (t1, t2, ν)
+    ell: np.ndarray | None   # (3p,)
     gap: np.ndarray          # (p,)
     timings: dict
+    x0: np.ndarray | None = None   # Delassus path: A⁻¹L on the free DOFs
+
+    @property
+    def delassus(self) -> bool:
+        """Whether this design is on the Delassus path (no S)."""
+        return self.S is None
 
 
 @dataclass
@@ -107,6 +120,12 @@ class ShapeProblem:
         self.tol = st["tol"]
         self.max_iter = st["max_iter"]
         self.backend = backend or self.config["linear_solver"]["backend"]
+        from .fem.linsolve import linear_path
+        # "schur" (dense S on all contact DOFs) or "delassus" (sparse Cholesky of A, products by
+        # solves): [linear_solver] backend, "auto" by the size of the mesh
+        self.path, self.backend = linear_path(self.backend, self.model.assembler.n_free,
+                                              self.config["objective"]["type"],
+                                              self.config["linear_solver"]["crossover"])
         self.use_zone = bool(st["zone"])
         self.zone_margin = float(st["zone_margin"])
         self.reuse_delassus = bool(st["reuse_delassus"])
@@ -151,6 +170,8 @@ class ShapeProblem:
         t0 = time.perf_counter()
         asm = self.model.assemble(alpha, self.cases[0].loads)
         t1 = time.perf_counter()
+        if self.path == "delassus":
+            return self._factorized_system(asm, t1 - t0)
         # the sparsity pattern never changes with α: reuse PARDISO's ordering and analysis
         fac = self._factor
         if fac is not None and hasattr(fac, "refactor"):
@@ -162,8 +183,38 @@ class ShapeProblem:
         ell = fac.condense_load(asm.L)
         return Condensed(asm, fac, fac.S, ell, asm.gap, {"assembly": t1 - t0, "schur": t2 - t1})
 
+    def _factorized_system(self, asm, t_assembly: float) -> Condensed:
+        """The Delassus path's system of a design: the sparse Cholesky factorization of A(α),
+        numerical only after the first design (the pattern never changes with α), and x0 = A⁻¹L."""
+        from .fem.linsolve import Factorization
+        t0 = time.perf_counter()
+        fac = self._factor
+        if fac is None:
+            fac = self._factor = Factorization(asm.A, self.backend)
+        else:
+            fac.refactor(asm.A)
+        t1 = time.perf_counter()
+        x0 = fac.solve(asm.L)
+        return Condensed(asm, fac, None, None, asm.gap,
+                         {"assembly": t_assembly, "factor": t1 - t0, "load_solve": time.perf_counter() - t1},
+                         x0=x0)
+
+    def _zone_block(self, A):
+        """``dofs -> S_D``: the dense Schur complement of A onto the DOFs ``dofs`` (in their
+        order), by a factorization that eliminates them last (Delassus path: W_Z = S_D⁻¹)."""
+        from .fem.linsolve import condense
+
+        def block(dofs):
+            t0 = time.perf_counter()
+            with condense(A, dofs, backend=self.backend) as fac:
+                S = fac.S
+            log.debug("Schur complement onto %d zone DOFs: %.2f s", len(dofs), time.perf_counter() - t0)
+            return S
+        return block
+
     def _case_condensed(self, cond: Condensed, k: int) -> Condensed:
-        """The condensed system of load case k: ``cond`` (of case 0) with L_k and ℓ_k."""
+        """The condensed system of load case k: ``cond`` (of case 0) with L_k and ℓ_k (on the
+        Delassus path: x0_k = A⁻¹L_k)."""
         if k == 0:
             return cond
         t0 = time.perf_counter()
@@ -171,8 +222,12 @@ class ShapeProblem:
         L_full = self.model.load_vector(asm.coords, self.cases[k].loads)
         L = L_full[self.model.assembler.free]
         t1 = time.perf_counter()
+        asm_k = replace(asm, L_full=L_full, L=L)
+        if cond.delassus:
+            return replace(cond, assembled=asm_k, x0=cond.factor.solve(L),
+                           timings={"assembly": t1 - t0, "load_solve": time.perf_counter() - t1})
         ell = cond.factor.condense_load(L)
-        return replace(cond, assembled=replace(asm, L_full=L_full, L=L), ell=ell,
+        return replace(cond, assembled=asm_k, ell=ell,
                        timings={"assembly": t1 - t0, "schur": time.perf_counter() - t1})
 
     # ------------------------------------------------------------------ state
@@ -216,7 +271,15 @@ class ShapeProblem:
         t0 = time.perf_counter()
         # a kept Delassus block will most likely serve Newton: the products need no W_Z
         reuse = method == "newton" and self.reuse_delassus and ctx.jacobian is not None
-        if reuse and "zone" in shared:
+        if cond.delassus:
+            if warm is None and self.use_zone and zone.size == self._all_nodes.size:
+                zone = self._predicted_zone(cond)
+            if "zone" in shared:
+                zp = shared["zone"].with_load(cond.x0, zone)
+            else:
+                zp = shared["zone"] = zone_rules.DelassusZoneProblem(
+                    cond.factor, self.model.contact_dofs, cond.x0, zone, self._zone_block(cond.assembled.A))
+        elif reuse and "zone" in shared:
             zp = _on_factor(shared["zone"], cond.ell, zone)
         else:
             zp = zone_rules.ZoneProblem(cond.S, cond.ell, zone, ordered=not reuse)
@@ -246,14 +309,20 @@ class ShapeProblem:
             warm = self._zone_warm(res.r, zone)
             zone = zp.zone
         t3 = time.perf_counter()
-        u_free = cond.factor.recover(cond.assembled.L, u3.ravel())
+        if cond.delassus:
+            u_free = zp.free_displacement(res.r)
+        else:
+            u_free = cond.factor.recover(cond.assembled.L, u3.ravel())
         u = self.model.assembler.to_full(u_free)
         timings["recovery"] = time.perf_counter() - t3
         p = self.model.n_contact
         r = np.zeros((p, 3))                      # per node (t1, t2, ν)
         r[zone] = res.r.reshape(-1, 3)[:, [1, 2, 0]]
         lam, tau = r[:, 2].copy(), -r[:, :2]
-        fscale = max(np.abs(lam).max(initial=0.0), np.abs(cond.ell).max(initial=0.0))
+        # with nothing in contact, forces count as zero against the load (ℓ; on the Delassus
+        # path, without ℓ, the load on the contact DOFs' stiffness scale: |S u0| ≈ |L| there)
+        load = cond.ell if not cond.delassus else cond.assembled.L
+        fscale = max(np.abs(lam).max(initial=0.0), np.abs(load).max(initial=0.0))
         classes = classify_nodes(u3, lam, tau, cond.gap, self.friction,
                                  force_scale=fscale if lam.max(initial=0) <= 0 else None)
         timings["total"] = sum(timings.values())
@@ -262,7 +331,8 @@ class ShapeProblem:
                       iterations=res.iterations, residual=res.error,
                       complementarity=contact_conditions_violation(u3, lam, tau, cond.gap, self.friction),
                       converged=res.converged, timings=timings,
-                      info={"backend": getattr(cond.factor, "backend", "?"), "zone_nodes": int(zone.size),
+                      info={"backend": getattr(cond.factor, "backend", "?"), "path": self.path,
+                            "zone_nodes": int(zone.size),
                             "zone_misses": misses, "delassus": reused[-1]})
         ctx.warm = self._zone_warm(res.r, zone)
         if self.use_zone:
@@ -272,6 +342,16 @@ class ShapeProblem:
                   f" of load case {self.cases[k].name}" if len(self.cases) > 1 else "", method,
                   res.iterations, res.error, zone.size, p, timings["total"])
         return state
+
+    def _predicted_zone(self, cond) -> np.ndarray:
+        """A first contact zone without a warm start (Delassus path): the nodes whose
+        displacement without contact forces, x0, closes the gap to within the margin — the zone
+        grows by every node it misses, so the state does not depend on this guess, and W_Z is
+        not formed on all contact DOFs at the first design."""
+        u0 = cond.x0[self.model.contact_dofs].reshape(-1, 3)
+        clearance = u0[:, 2] + cond.gap
+        return zone_rules.near_nodes(np.zeros(cond.gap.size), clearance,
+                                     displacement_scale(u0, cond.gap), self.zone_margin)
 
     def _solve_local(self, zp, cond, warm, method, tol, alpha, ctx):
         """The zone's local problem u = W r + q, q = (S⁻¹ℓ)_Z + (g, 0, 0), in the FCLIB convention.
@@ -316,6 +396,41 @@ class ShapeProblem:
         res = solve_local(W, q, self.friction, method=method, tol=tol, max_iter=self.max_iter, r0=r0)
         return res, t_inv, "formed"
 
+    def adjoint_delassus(self, k: int, cond: Condensed, state: State, y_u, y_lam, choices=None):
+        """The adjoint (4.15) of load case k on the Delassus path
+        (:func:`contactopt.sensitivity.adjoint.solve_adjoint_delassus`): products W s by sparse
+        solves, preconditioned by the case's kept Delassus block on the nodes in contact (exact
+        columns for nodes outside it; the zone's Schur complement when there is no kept block)."""
+        from .sensitivity.adjoint import _effective_classes, _check_choices, solve_adjoint_delassus
+        from .contact.state import CLASS_CODES
+        contact = self.model.contact_dofs
+        n = cond.x0.size
+
+        def apply(s):
+            f = np.zeros(n)
+            f[contact] = s
+            x = cond.factor.solve(f)
+            return x[contact], x
+
+        eff = _effective_classes(state.classes, _check_choices(choices))
+        K = np.flatnonzero(eff != CLASS_CODES["L"])
+        zpK = zone_rules.DelassusZoneProblem(cond.factor, contact, cond.x0, K, self._zone_block(cond.assembled.A))
+        jac = self.contexts[k].jacobian
+        W = None
+        if jac is not None and K.size:
+            W = zpK.block_from(jac[1], jac[2], max_new=ADJOINT_MAX_NEW)
+        if W is None:
+            W = zpK.W if K.size else np.zeros((0, 0))
+        perm = (3 * np.arange(K.size)[:, None] + np.array([1, 2, 0])).ravel()   # FCLIB -> (t1, t2, ν)
+        W = W[np.ix_(perm, perm)]
+        t0 = time.perf_counter()
+        v_u, v_lam, v_free, res = solve_adjoint_delassus(apply, W, state, y_u, y_lam, choices)
+        if res is not None:
+            log.debug("adjoint (4.15) in W-form on %d nodes: %d GMRES iterations, %.2f s",
+                      K.size, res.iterations, time.perf_counter() - t0)
+            state.info["adjoint_krylov"] = int(res.iterations)
+        return v_u, v_lam, v_free, res
+
     def jacobian_design(self, case: int = 0):
         """(alpha, zone) of load case ``case``'s kept Delassus block, or None: with them
         :meth:`restore_jacobian` rebuilds the same block (checkpoints)."""
@@ -335,9 +450,13 @@ class ShapeProblem:
         cond = self.condensed_system(self.model.surface.as_vector(alpha))
         self._keep_block(alpha, zone, self._own_block(cond, zone), self.contexts[case])
 
-    @staticmethod
-    def _own_block(cond, zone):
-        """W_Z of ``zone`` from the zone's own (N, Z)-ordered factorization of S."""
+    def _own_block(self, cond, zone):
+        """W_Z of ``zone`` from the zone's own (N, Z)-ordered factorization of S (Delassus path:
+        the inverse of the Schur complement of A onto the zone's DOFs)."""
+        if cond.delassus:
+            zp = zone_rules.DelassusZoneProblem(cond.factor, self.model.contact_dofs, cond.x0, zone,
+                                                self._zone_block(cond.assembled.A))
+            return zp.W
         return zone_rules.ZoneProblem(cond.S, cond.ell, zone).W
 
     @staticmethod
@@ -365,6 +484,10 @@ class ShapeProblem:
         """
         from scipy.sparse.linalg import eigsh
         cond = self.cached_condensed(alpha)
+        if cond.delassus:
+            log.info("the uniqueness bound (3.16) needs the condensed stiffness S on all contact "
+                     "DOFs, which the Delassus path does not form: not computed")
+            return float("nan")
         lmax = eigsh(cond.S, k=1, which="LA", return_eigenvectors=False, tol=1e-6)[0]
         wmax = eigsh(spd_inverse(cond.S), k=1, which="LA", return_eigenvectors=False, tol=1e-6)[0]
         return float((1.0 / wmax) / lmax)

@@ -189,8 +189,8 @@ class ZoneProblem:
         """The problem of the zone ∪ ``nodes`` (a new object sharing the factorization; its W_Z,
         when needed, extends this zone's by the columns of the added DOFs)."""
         new = np.union1d(self.zone, nodes)
-        out = object.__new__(ZoneProblem)
-        out.p, out._S, out._L, out._order, out._start = self.p, self._S, self._L, self._order, self._start
+        out = object.__new__(type(self))
+        out.__dict__.update(self.__dict__)      # the factorization and its solves are shared
         if new.size == self.zone.size:
             out._parent = self._parent
             out._set_zone(self.zone, self._W, self._z)
@@ -211,6 +211,63 @@ class ZoneProblem:
         B = X[add_dofs]                                # S⁻¹ on the added DOFs: symmetric up to round-off
         W[np.ix_(add_dofs, add_dofs)] = 0.5 * (B + B.T)
         return W
+
+
+class DelassusZoneProblem(ZoneProblem):
+    """The zone's local problem without the condensed stiffness S (large meshes, issue #16).
+
+    The same problem as :class:`ZoneProblem`, with every solve by S replaced by one with the
+    sparse factorization of A(α): S⁻¹ b = W b = B A⁻¹ Bᵀ b (DESIGN.md §3; B selects the contact
+    DOFs ``contact`` of the free DOFs, per node (t1, t2, ν)), q0 = (A⁻¹L)_c on the zone, and the
+    full displacement u = A⁻¹L + A⁻¹Bᵀ r is the by-product of the last solve
+    (:meth:`free_displacement`). W_Z itself, when asked for, is the inverse of the Schur complement
+    of A onto the zone's DOFs (``zone_block(dofs)`` returns that complement, dense, in the order of
+    ``dofs``): S_Z = (W_Z)⁻¹ (a principal block of W is the inverse of the Schur complement onto
+    its DOFs), computed by a factorization that eliminates the zone's DOFs last.
+
+    ``solve(b)`` for b of length 3p (or (3p, m)) is one sparse solve (m right-hand sides at once);
+    conventions as :class:`ZoneProblem` (S, W per node (t1, t2, ν); the local problem in FCLIB order).
+    """
+
+    def __init__(self, factor, contact: np.ndarray, x0: np.ndarray, zone: np.ndarray, zone_block):
+        self.p = contact.size // 3
+        self._factor, self._contact, self._x0 = factor, np.asarray(contact), x0
+        self._zone_block = zone_block
+        self._order, self._start, self._parent = None, 0, None
+        self._last = None                 # (forces on the contact DOFs, A⁻¹Bᵀ of them)
+        self.n_solves = 0
+        self._set_zone(np.asarray(zone), None, np.ascontiguousarray(x0[self._contact]))
+
+    def with_load(self, x0: np.ndarray, zone: np.ndarray) -> "DelassusZoneProblem":
+        """The problem of another load (A⁻¹L = ``x0``) and zone on the same factorization."""
+        return DelassusZoneProblem(self._factor, self._contact, x0, zone, self._zone_block)
+
+    def _full_solve(self, b: np.ndarray) -> np.ndarray:
+        """A⁻¹ Bᵀ b (free DOFs) for contact forces b (3p per node (t1, t2, ν), or (3p, m))."""
+        f = np.zeros((self._x0.size,) + b.shape[1:])
+        f[self._contact] = b
+        self.n_solves += 1 if b.ndim == 1 else b.shape[1]
+        return self._factor.solve(f)
+
+    def solve(self, b: np.ndarray) -> np.ndarray:
+        b = np.asarray(b, dtype=np.float64)
+        x = self._full_solve(b)
+        if b.ndim == 1:
+            self._last = (b.copy(), x)
+        return x[self._contact]
+
+    def _zone_inverse(self) -> np.ndarray:
+        from ..fem.dense import spd_inverse
+        return spd_inverse(self._zone_block(self._contact[self._dof_z]))
+
+    def free_displacement(self, r_loc: np.ndarray) -> np.ndarray:
+        """u = A⁻¹(L + Bᵀr) on the free DOFs for the zone's forces ``r_loc`` (FCLIB order): the
+        last solve's by-product when it was for these forces, else one solve."""
+        f = np.zeros(3 * self.p)
+        f[self._dof_z] = r_loc
+        last = self._last
+        x = last[1] if last is not None and np.array_equal(last[0], f) else self._full_solve(f)
+        return self._x0 + x
 
 
 def _local_dofs(nodes: np.ndarray) -> np.ndarray:

@@ -45,6 +45,7 @@ from . import _pardiso
 logger = logging.getLogger(__name__)
 
 BACKENDS = ("auto", "pardiso", "scipy")
+PATHS = ("auto", "pardiso", "scipy", "delassus")   # [linear_solver] backend
 
 __all__ = ["condense", "factorize", "Condensation", "PardisoCondensation", "ScipyCondensation",
            "Factorization", "pardiso_available", "BACKENDS"]
@@ -122,6 +123,34 @@ def _pick_backend(backend):
         backend = "pardiso" if _pardiso.available() else "scipy"
         logger.info("linear solver backend: %s", backend)
     return backend
+
+
+def linear_path(backend: str, n_free: int, objective: str = "", crossover: int = 60000):
+    """(path, library) of ``[linear_solver] backend`` for a mesh of ``n_free`` DOFs.
+
+    Paths: ``"schur"`` — the condensation of :func:`condense`, dense S on all contact DOFs;
+    ``"delassus"`` — a sparse Cholesky factorization of A(α) and the contact zone's Delassus
+    products by solves with it (:class:`contactopt.contact.zone.DelassusZoneProblem`), for large
+    meshes. ``backend`` "pardiso"/"scipy" is the Schur path with that library; "delassus" the
+    Delassus path; "auto" the Delassus path from ``crossover`` free DOFs on (measured crossover:
+    docs/large_meshes.md) when PARDISO is there, else the Schur path. The compliance objective
+    needs the condensed load ℓ on every contact DOF, so it stays on the Schur path under "auto"
+    and is refused on the Delassus path.
+    """
+    if backend not in PATHS:
+        raise SolverError(f"unknown linear solver backend {backend!r}; choose one of {PATHS}")
+    if backend == "auto":
+        big = n_free >= crossover and _pardiso.available() and objective != "compliance"
+        path = "delassus" if big else "schur"
+        logger.info("linear solver: %s path for %d DOFs (crossover %d)", path, n_free, crossover)
+        return path, "auto"
+    if backend == "delassus":
+        if objective == "compliance":
+            from ..errors import ConfigError
+            raise ConfigError(["linear_solver.backend = 'delassus': the compliance objective needs the "
+                               "condensed load on every contact DOF; use backend 'pardiso' or 'auto'"])
+        return "delassus", "auto"
+    return "schur", backend
 
 
 def _check_S(S):

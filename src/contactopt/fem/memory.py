@@ -48,6 +48,13 @@ FILL_REF = (15360, 8.0)       # measured nnz(L)/nnz(A) of the Schur-mode factor 
 FILL_EXPONENT = 0.372         # ... and 16.8 at n = 113088: fill ∝ n^0.372
 PARDISO_BYTES = 10.0          # PARDISO's memory per entry of the factor (its iparm[15]+[16]: 9.7–11.6)
 DENSE_COPIES = 5.3            # S (PARDISO's and ours), its Cholesky factor, W_Z, the adjoint's matrix
+# The Delassus path (``[linear_solver] backend = "delassus"``): the Cholesky factor of A (nnz(L)
+# 97.1M at 113k, 503M at 371k DOFs: CHOLESKY_FILL of the Schur-mode factor's) is kept, and when a
+# contact zone's Delassus block is formed, the Schur-mode factorization onto the zone's DOFs is
+# held beside it with dense zone matrices (S_Z, W_Z, the adjoint's) — ZONE_FRACTION of the contact
+# DOFs at most (the zone is the nodes near the foundation).
+CHOLESKY_FILL = 0.64
+ZONE_FRACTION = 0.6
 
 
 class InsufficientMemoryError(ContactOptError):
@@ -107,17 +114,26 @@ def matrix_entries(cells: np.ndarray, n_nodes: int, free_per_node=None) -> int:
     return int(round(f @ (G @ f)))
 
 
-def estimate_counts(n_dofs: int, n_contact_dofs: int, n_cells: int, nnz_A: int) -> MemoryEstimate:
-    """The estimate from the sizes alone (see the module docstring for the model)."""
+def estimate_counts(n_dofs: int, n_contact_dofs: int, n_cells: int, nnz_A: int,
+                    path: str = "schur") -> MemoryEstimate:
+    """The estimate from the sizes alone (see the module docstring for the model); ``path``
+    "schur" (dense S on all contact DOFs) or "delassus" (the Cholesky factor of A kept, dense
+    matrices on the contact zone only)."""
     nnz_L = int(fill_factor(n_dofs) * nnz_A)
     parts = {"base": BASE_BYTES + CELL_BYTES * n_cells,
-             "sparse": SPARSE_COPIES * 12.0 * nnz_A,
-             "factor": PARDISO_BYTES * nnz_L,
-             "dense": DENSE_COPIES * 8.0 * float(n_contact_dofs) ** 2}
+             "sparse": SPARSE_COPIES * 12.0 * nnz_A}
+    if path == "delassus":
+        nz = ZONE_FRACTION * n_contact_dofs
+        zone_L = int(fill_factor(n_dofs) * nnz_A)   # Schur-mode factor, zone DOFs last (upper bound)
+        nnz_L = int(CHOLESKY_FILL * nnz_L)
+        parts.update(factor=PARDISO_BYTES * nnz_L, zone_factor=PARDISO_BYTES * zone_L,
+                     dense=DENSE_COPIES * 8.0 * nz ** 2)
+    else:
+        parts.update(factor=PARDISO_BYTES * nnz_L, dense=DENSE_COPIES * 8.0 * float(n_contact_dofs) ** 2)
     return MemoryEstimate(n_dofs, n_contact_dofs, n_cells, nnz_A, nnz_L, parts)
 
 
-def estimate_evaluation(body) -> MemoryEstimate:
+def estimate_evaluation(body, path: str = "schur") -> MemoryEstimate:
     """Estimated peak memory of one evaluation on the condensation path (dense S on all contact
     DOFs) for a :class:`~contactopt.mesh.body.Body` (or anything with a ``.body``, such as an
     :class:`~contactopt.fem.model.ElasticModel`): from the mesh alone, before anything is
@@ -128,7 +144,7 @@ def estimate_evaluation(body) -> MemoryEstimate:
     free = np.ones(3 * n_nodes, dtype=bool)
     free[np.asarray(body.fixed_dofs, dtype=np.int64)] = False
     nnz_A = matrix_entries(ref.cells, n_nodes, free.reshape(-1, 3).sum(axis=1))
-    return estimate_counts(int(free.sum()), 3 * len(body.contact_nodes), len(ref.cells), nnz_A)
+    return estimate_counts(int(free.sum()), 3 * len(body.contact_nodes), len(ref.cells), nnz_A, path)
 
 
 def available_memory() -> float:
@@ -144,10 +160,11 @@ def available_memory() -> float:
     return float("inf")
 
 
-def check_memory(body, *, margin: float = 0.9) -> MemoryEstimate:
+def check_memory(body, *, margin: float = 0.9, path: str = "schur") -> MemoryEstimate:
     """Refuse (:class:`InsufficientMemoryError`) a body (or model) whose evaluation would need
-    more than ``margin`` × the available memory; returns the estimate otherwise (logged at INFO)."""
-    est = estimate_evaluation(body)
+    more than ``margin`` × the available memory; returns the estimate otherwise (logged at INFO).
+    ``path``: the linear-solver path that will run (:func:`contactopt.fem.linsolve.linear_path`)."""
+    est = estimate_evaluation(body, path)
     avail = available_memory()
     if est.total > margin * avail:
         raise InsufficientMemoryError(

@@ -58,9 +58,13 @@ class ElasticModel:
         cfg = load_config(config) if not isinstance(config, Config) else config
         self.config = cfg
         self.body = body = build_body(cfg)
-        if cfg["linear_solver"]["memory_check"]:   # refuse a mesh too large before building on it
+        ls = cfg["linear_solver"]
+        n_free = 3 * body.reference.n_nodes - len(np.unique(np.asarray(body.fixed_dofs)))
+        from .linsolve import linear_path
+        self.path = linear_path(ls["backend"], n_free, cfg["objective"]["type"], ls["crossover"])[0]
+        if ls["memory_check"]:   # refuse a mesh too large before building on it
             from .memory import check_memory
-            check_memory(body)
+            check_memory(body, path=self.path)
         ref = body.reference
         d = cfg["design"]
         d1, d2 = d["degree"]

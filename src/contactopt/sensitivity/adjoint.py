@@ -91,10 +91,7 @@ def _effective_classes(classes: np.ndarray, choices: dict) -> np.ndarray:
 
 def solve_adjoint(S: np.ndarray, state: State, y_u: np.ndarray, y_lam: np.ndarray, choices=None):
     """Solve the adjoint system (4.15) on the condensed contact system; returns (v_u, v_λ)."""
-    choices = {**DEFAULT_CHOICES, **(choices or {})}
-    for k, allowed in (("M2", ("L", "M1")), ("M3-", ("M3+", "M1")), ("M4", ("L", "M3+"))):
-        if choices[k] not in allowed:
-            raise ValueError(f"degenerate choice for {k} must be one of {allowed}")
+    choices = _check_choices(choices)
     p = state.lam.size
     F = state.friction
     eff = _effective_classes(state.classes, choices)
@@ -163,6 +160,115 @@ def solve_adjoint(S: np.ndarray, state: State, y_u: np.ndarray, y_lam: np.ndarra
     return v_u, v_lam
 
 
+ADJOINT_RTOL = 1e-11     # relative residual of the W-form adjoint (Delassus path)
+
+
+def _check_choices(choices):
+    choices = {**DEFAULT_CHOICES, **(choices or {})}
+    for k, allowed in (("M2", ("L", "M1")), ("M3-", ("M3+", "M1")), ("M4", ("L", "M3+"))):
+        if choices[k] not in allowed:
+            raise ValueError(f"degenerate choice for {k} must be one of {allowed}")
+    return choices
+
+
+def solve_adjoint_delassus(apply, W_approx, state: State, y_u: np.ndarray, y_lam: np.ndarray,
+                           choices=None, *, rtol: float = ADJOINT_RTOL):
+    """The adjoint system (4.15) in W-form, for the Delassus path (no S on all contact DOFs).
+
+    The unknown is the contact force s = S v_u (per node (t1, t2, ν)), so v_u = W s. The rows of
+    (4.15) that hold on a node of class L fix s there: s_i = −y*_u,i; on the other nodes K
+    (all in the contact zone: outside it every node is of class L) the per-class conditions of
+    :func:`solve_adjoint` become, with v = W s,
+
+        M3+            v_i = (0, 0, y*_λ)
+        M1 (C; C = 0 for the limit of M2)   s_t + C v_t = −y*_t,   v_ν − F âᵀv_t = y*_λ
+        M3− limit (w̄, w̄⊥ = (−w̄2, w̄1))       w̄⊥ᵀv_t = 0,  v_ν − F w̄ᵀv_t = y*_λ,  w̄ᵀs_t = −w̄ᵀy*_t
+
+    i.e. (E W_KK + D) s_K = h − E (W s_L)_K with 3×3 blocks E, D per node. It is solved by GMRES
+    whose products are exact (``apply(s)`` returns (W s, A⁻¹Bᵀs) by one sparse solve),
+    preconditioned by the LU of the same matrix with ``W_approx`` (≈ W_KK, e.g. the kept Delassus
+    block of an earlier design, per node (t1, t2, ν)); then v_λ = −(s + y*_u)_ν on K, and the
+    A-harmonic extension of v_u is ṽ = A⁻¹Bᵀs, the by-product of the last product. Returns
+    (v_u (3p), v_λ (p), ṽ on the free DOFs, GMRES result).
+    """
+    from ..fem.iterative import gmres
+    choices = _check_choices(choices)
+    p = state.lam.size
+    F = state.friction
+    c = CLASS_CODES
+    eff = _effective_classes(state.classes, choices)
+    K = np.flatnonzero(eff != c["L"])
+    s = -np.asarray(y_u, dtype=np.float64).copy()
+    s.reshape(p, 3)[K] = 0.0
+    k = K.size
+    if k == 0:
+        v_u, v_full = apply(s)
+        return v_u, np.zeros(p), v_full, None
+    E = np.zeros((k, 3, 3))
+    D = np.zeros((k, 3, 3))
+    h = np.zeros((k, 3))
+    yt = np.asarray(y_u).reshape(p, 3)[K, :2]
+    yl = np.asarray(y_lam)[K]
+    ek = eff[K]
+    m3 = ek == c["M3+"]
+    E[m3] = np.eye(3)
+    h[m3, 2] = yl[m3]
+    m1 = (ek == c["M1"]) | (ek == -1)
+    if np.any(m1):
+        ut = state.u_c[K[m1], :2]
+        nut = np.linalg.norm(ut, axis=1)
+        ahat = np.where(nut[:, None] > 0, ut / np.where(nut > 0, nut, 1.0)[:, None], 0.0)
+        C = np.where((ek[m1] == c["M1"])[:, None, None],
+                     (F * state.lam[K[m1]] / np.where(nut > 0, nut, 1.0))[:, None, None]
+                     * (np.eye(2) - ahat[:, :, None] * ahat[:, None, :]), 0.0)
+        E1 = np.zeros((m1.sum(), 3, 3))
+        E1[:, :2, :2] = C
+        E1[:, 2, :2] = -F * ahat
+        E1[:, 2, 2] = 1.0
+        E[m1] = E1
+        D[m1, 0, 0] = D[m1, 1, 1] = 1.0
+        h[m1, :2] = -yt[m1]
+        h[m1, 2] = yl[m1]
+    m3l = ek == -2
+    if np.any(m3l):
+        tau = state.tau[K[m3l]]
+        wbar = tau / np.linalg.norm(tau, axis=1)[:, None]
+        E3 = np.zeros((m3l.sum(), 3, 3))
+        E3[:, 0, 0], E3[:, 0, 1] = -wbar[:, 1], wbar[:, 0]
+        E3[:, 1, :2] = -F * wbar
+        E3[:, 1, 2] = 1.0
+        E[m3l] = E3
+        D3 = np.zeros_like(E3)
+        D3[:, 2, :2] = wbar
+        D[m3l] = D3
+        h[m3l, 1] = yl[m3l]
+        h[m3l, 2] = -np.einsum("ij,ij->i", wbar, yt[m3l])
+    dofK = (3 * K[:, None] + np.arange(3)).ravel()
+    Eb = sp.block_diag(list(E), format="csr")
+    Db = sp.block_diag(list(D), format="csr")
+    v_known, _ = apply(s)
+    rhs = h.ravel() - Eb @ v_known[dofK]
+
+    def Q(sK):
+        f = np.zeros(3 * p)
+        f[dofK] = sK
+        return Eb @ apply(f)[0][dofK] + Db @ sK
+
+    Qt = np.asarray(Eb @ np.asarray(W_approx, dtype=np.float64)) + Db.toarray()
+    try:
+        lu = sla.lu_factor(Qt, check_finite=True)
+    except (ValueError, sla.LinAlgError) as exc:
+        raise SolverError(f"adjoint system (4.15): its preconditioner could not be factorized: {exc}") from None
+    res = gmres(Q, rhs, lambda r: sla.lu_solve(lu, r), rtol=rtol, max_iter=60)
+    s[dofK] = res.x
+    v_u, v_full = apply(s)
+    if not (np.all(np.isfinite(v_u)) and np.all(np.isfinite(v_full))):
+        raise SolverError("adjoint system (4.15) has a non-finite solution")
+    v_lam = np.zeros(p)
+    v_lam[K] = -(s + y_u)[3 * K + 2]
+    return v_u, v_lam, v_full, res
+
+
 def subgradient(problem, alpha, *, choices=None) -> SubgradientResult:
     """Θ(α) and one Clarke subgradient for a :class:`contactopt.problem.ShapeProblem` (of the
     combined load cases, see the module docstring)."""
@@ -185,10 +291,15 @@ def subgradient(problem, alpha, *, choices=None) -> SubgradientResult:
         t2 = time.perf_counter()
         state, cond, case = states[k], conds[k], problem.cases[k]
         _, y_u, y_lam, dJ_da = parts[k]
-        v_u_k, v_lam_k = solve_adjoint(cond.S, state, y_u, y_lam, choices)
-        t3 = time.perf_counter()
         model = problem.model
-        v_full = model.assembler.to_full(cond.factor.extend(v_u_k))
+        if cond.delassus:
+            v_u_k, v_lam_k, v_free, kry = problem.adjoint_delassus(k, cond, state, y_u, y_lam, choices)
+            v_full = model.assembler.to_full(v_free)
+            t3 = time.perf_counter()
+        else:
+            v_u_k, v_lam_k = solve_adjoint(cond.S, state, y_u, y_lam, choices)
+            t3 = time.perf_counter()
+            v_full = model.assembler.to_full(cond.factor.extend(v_u_k))
         xi = dJ_da + model.design_contraction(cond.assembled.coords, state.u, v_full, case.loads) \
             + model.gap_matrix.T @ v_lam_k
         g = comb.coefficients[k] * xi if g is None else g + comb.coefficients[k] * xi
