@@ -39,7 +39,7 @@ from pathlib import Path
 
 SIZES = {"15k": (32, 15, 9), "113k": (64, 30, 18), "210k": (80, 37, 22), "371k": (96, 45, 27),
          "867k": (128, 60, 36), "1m": (136, 64, 38)}
-PATHS = ("schur",)
+PATHS = ("schur", "delassus")     # [linear_solver] backend "pardiso" / "delassus"
 GOALS = {"113k": 1.5, "210k": 1.5, "371k": 1.0}    # evaluation / reference factorization
 
 
@@ -69,7 +69,7 @@ def child(shape, path, step, out_dir):
 
     nx, ny, nz = shape
     cfg = load_config("example1").with_updates({"mesh": {"nx": nx, "ny": ny, "nz": nz},
-                                                "linear_solver": {"backend": "pardiso"}})
+                                                "linear_solver": {"backend": "pardiso" if path == "schur" else path}})
     t0 = time.perf_counter()
     problem = ShapeProblem(cfg)
     t_setup = time.perf_counter() - t0
@@ -77,7 +77,7 @@ def child(shape, path, step, out_dir):
     n, p = model.assembler.n_free, model.n_contact
     try:
         from contactopt.fem.memory import estimate_evaluation
-        est = estimate_evaluation(model).total_gb
+        est = estimate_evaluation(model, problem.path).total_gb
     except ImportError:
         est = None
     rss_model = _peak_rss_gb()
@@ -104,21 +104,23 @@ def child(shape, path, step, out_dir):
     sp.save_npz(a_file, A, compressed=False)
     row = dict(shape=shape, path=path, n=n, p=p, nnz_A=int(A.nnz), nnz_factor=int(fac.stats["nnz_factor"]), pardiso_gb=pardiso_gb,
                setup=t_setup, first=t_first, evaluation=t_eval,
-               parts={**{k: st.timings[k] for k in ("assembly", "schur", "delassus", "contact", "recovery")},
+               parts={**{k: st.timings[k] for k in ("assembly", "schur", "factor", "load_solve", "delassus",
+                                                     "contact", "recovery") if k in st.timings},
                       "adjoint": res.timings["adjoint"], "design_terms": res.timings["design_terms"]},
                zone=st.info["zone_nodes"], newton_it=int(st.iterations), delassus=st.info["delassus"],
+               solves=st.info.get("sparse_solves"), adjoint_krylov=st.info.get("adjoint_krylov"),
                rss_model_gb=rss_model, peak_gb=_peak_rss_gb(), estimate_gb=est, A_file=str(a_file))
     print(json.dumps(row))
 
 
-def _estimate_only(shape):
-    """Estimated peak (GB) of a size without running it: a child builds the model only."""
+def _estimate_only(shape, path="schur"):
+    """Estimated peak (GB) of a size and path without running it: a child builds the body only."""
     code = ("import sys, json; from contactopt.config import load_config; "
             "from contactopt.mesh.body import build_body; from contactopt.fem.memory import estimate_evaluation; "
             "nx, ny, nz = map(int, sys.argv[1:4]); "
             "b = build_body(load_config('example1').with_updates({'mesh': {'nx': nx, 'ny': ny, 'nz': nz}})); "
-            "print(json.dumps(estimate_evaluation(b).total_gb))")
-    out = subprocess.run([sys.executable, "-c", code, *map(str, shape)], capture_output=True, text=True)
+            "print(json.dumps(estimate_evaluation(b, sys.argv[4]).total_gb))")
+    out = subprocess.run([sys.executable, "-c", code, *map(str, shape), path], capture_output=True, text=True)
     if out.returncode:
         return None
     return json.loads(out.stdout.strip().splitlines()[-1])
@@ -343,7 +345,7 @@ def main(argv=None):
     mi = _meminfo()
     print(f"machine: load average {' '.join(load)}, MemAvailable {mi['MemAvailable']:.1f} of "
           f"{mi['MemTotal']:.1f} GB")
-    head = (f"{'size':<10} {'path':<7} {'DOFs':>8} {'p':>5} {'eval[s]':>8} {'ref[s]':>7} {'ratio':>6} "
+    head = (f"{'size':<10} {'path':<8} {'DOFs':>8} {'p':>5} {'eval[s]':>8} {'ref[s]':>7} {'ratio':>6} "
             f"{'goal':>5} {'peak GB':>7} {'est GB':>6}  parts [s]")
     print(head)
     print("-" * len(head))
@@ -352,16 +354,17 @@ def main(argv=None):
         for key in args.sizes:
             shape = _shape(key)
             label = key if key in SIZES else "x".join(map(str, shape))
-            est = _estimate_only(shape)
-            if est is not None and est > args.max_gb:
-                print(f"{label:<10} skipped: estimated peak {est:.1f} GB > --max-gb {args.max_gb:g}", flush=True)
-                rows.append(dict(shape=shape, skipped=True, estimate_gb=est))
-                continue
             for path in args.paths:
+                est = _estimate_only(shape, path)
+                if est is not None and est > args.max_gb:
+                    print(f"{label:<10} {path:<8} skipped: estimated peak {est:.1f} GB > --max-gb {args.max_gb:g}",
+                          flush=True)
+                    rows.append(dict(shape=shape, path=path, skipped=True, estimate_gb=est))
+                    continue
                 cmd = [sys.executable, __file__, "--step", str(args.step), "--child", *map(str, shape), path, tmp]
                 out = subprocess.run(cmd, capture_output=True, text=True)
                 if out.returncode:
-                    print(f"{label:<10} {path:<7} failed (exit {out.returncode}): "
+                    print(f"{label:<10} {path:<8} failed (exit {out.returncode}): "
                           f"{out.stderr.strip().splitlines()[-1] if out.stderr.strip() else ''}", flush=True)
                     continue
                 row = json.loads(out.stdout.strip().splitlines()[-1])
@@ -376,10 +379,11 @@ def main(argv=None):
                 goal = GOALS.get(key)
                 parts = ", ".join(f"{k} {v:.2f}" for k, v in row["parts"].items())
                 est_s = f"{row['estimate_gb']:6.2f}" if row["estimate_gb"] is not None else f"{'-':>6}"
-                print(f"{label:<10} {path:<7} {row['n']:>8} {row['p']:>5} {row['evaluation']:8.2f} "
+                print(f"{label:<10} {path:<8} {row['n']:>8} {row['p']:>5} {row['evaluation']:8.2f} "
                       f"{ref['seconds']:7.2f} {row['ratio']:6.2f} {goal if goal else '-':>5} "
                       f"{row['peak_gb']:7.2f} {est_s}  {parts}; zone {row['zone']}, "
-                      f"Newton {row['newton_it']} it, W_Z {row['delassus']}, nnz(L)/nnz(A) "
+                      f"Newton {row['newton_it']} it, W_Z {row['delassus']}, sparse solves {row['solves']}, "
+                      f"adjoint GMRES {row['adjoint_krylov']}, nnz(L)/nnz(A) "
                       f"{row['nnz_factor'] / row['nnz_A']:.1f}, PARDISO {row['pardiso_gb']:.2f} GB; "
                       f"eval/Cholesky {row['evaluation'] / spd['seconds']:.2f} (Cholesky {spd['seconds']:.2f} s, "
                       f"{spd['peak_gb']:.2f} GB)", flush=True)

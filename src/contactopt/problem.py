@@ -333,7 +333,8 @@ class ShapeProblem:
                       converged=res.converged, timings=timings,
                       info={"backend": getattr(cond.factor, "backend", "?"), "path": self.path,
                             "zone_nodes": int(zone.size),
-                            "zone_misses": misses, "delassus": reused[-1]})
+                            "zone_misses": misses, "delassus": reused[-1],
+                            **({"sparse_solves": zp.n_solves} if cond.delassus else {})})
         ctx.warm = self._zone_warm(res.r, zone)
         if self.use_zone:
             ctx.next_zone = zone_rules.near_nodes(lam, clearance, u_scale, self.zone_margin)
@@ -376,7 +377,9 @@ class ShapeProblem:
                 res = solve_newton(W_old, q, self.friction, tol=tol * REUSE_TOL_FACTOR,
                                    max_iter=self.max_iter, r0=r0, product=zp.product,
                                    chord=eta > CHORD_MIN_GAP, raise_on_failure=False)
-                if res.converged:
+                # on the Delassus path forming W_Z costs more than a factorization: a solve that
+                # reached tol itself (if not REUSE_TOL_FACTOR·tol, a round-off floor) is accepted
+                if res.converged or (cond.delassus and res.error <= tol):
                     if res.iterations > REUSE_MAX_STEPS:
                         ctx.jacobian = None                # stale: form W_Z at the next design
                     return res, 0.0, "reused"

@@ -268,7 +268,7 @@ class PardisoCondensation(Condensation):
         t2 = time.perf_counter()
         self.timings = {"analyze": t1 - t0, "factor_schur": t2 - t1}
         self.stats = {"nnz_factor": self._ps.nnz_factor, "mflop": self._ps.mflops_factor}
-        logger.debug("PARDISO Schur: n=%d n_c=%d nnz(L)=%d %d MFlop, %.3f s analyze, "
+        logger.debug("PARDISO Schur: n=%d n_c=%d nnz(L)=%d %s MFlop, %.3f s analyze, "
                      "%.3f s factor", self.n, len(c), self._ps.nnz_factor,
                      self._ps.mflops_factor, t1 - t0, t2 - t1)
 
