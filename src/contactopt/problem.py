@@ -372,9 +372,11 @@ class ShapeProblem:
         tol = tol or self.tol
         if method == "newton" and self.reuse_delassus and not zp.has_W:
             W_old = None if ctx.jacobian is None else zp.block_from(*ctx.jacobian[1:])
-            eta = np.inf if W_old is None else zp.relative_gap(W_old)
+            # Delassus path: measured on the warm start, whose product Newton needs first anyway
+            eta = np.inf if W_old is None else zp.relative_gap(W_old, r0 if cond.delassus else None)
             if eta <= REUSE_MAX_GAP:
-                res = solve_newton(W_old, q, self.friction, tol=tol * REUSE_TOL_FACTOR,
+                # (Delassus path: to tol itself — each step costs a sparse solve there)
+                res = solve_newton(W_old, q, self.friction, tol=tol * (1.0 if cond.delassus else REUSE_TOL_FACTOR),
                                    max_iter=self.max_iter, r0=r0, product=zp.product,
                                    chord=eta > CHORD_MIN_GAP, raise_on_failure=False)
                 # on the Delassus path forming W_Z costs more than a factorization: a solve that
