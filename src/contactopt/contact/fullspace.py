@@ -1,0 +1,601 @@
+"""Full-space semismooth Newton for the discrete Coulomb problem, with AMG-preconditioned Krylov
+solves: the state solver for meshes where no factorization of A(α) fits (issue #16, ≥ 900k DOFs).
+
+Problem (paper (3.17)/(3.18), the same as today's condensed path in :mod:`contactopt.problem`).
+On the free DOFs, with B selecting the contact DOFs (``contact_dofs``: per contact node m the DOFs
+(t1, t2, ν) = (x1, x2, x3); the foundation x3 ≤ 0 has normal e3),
+
+    A u = L + Bᵀ r,     r per node (t1, t2, ν) the contact force on the body,
+    λ = r_ν ≥ 0,  τ = −r_t,  u_ν + g ≥ 0,  λ(u_ν + g) = 0,  ‖τ‖ ≤ Fλ,  u_t ≠ 0 ⇒ τ = Fλ u_t/‖u_t‖.
+
+Nothing is condensed: the unknown is u on all free DOFs, and r is *defined* by the equilibrium of
+the contact rows, r := B(A u − L); the other rows must satisfy (A u − L)_j = 0. The contact law is
+written in the FCLIB convention of :mod:`contactopt.contact.newton` (normal first): per node
+R = (r_ν, r_t1, r_t2) = (λ, −τ) and U = (u_ν + g, u_t1, u_t2), friction law R_T = −μ R_N U_T/‖U_T‖;
+the Alart–Curnier function (:func:`contactopt.contact.newton.alart_curnier`)
+
+    x_N = R_N − ρ U_N,  x_T = R_T − ρ U_T,  Φ_N = R_N − max(0, x_N),  Φ_T = R_T − P_{D(μ max(0, x_N))}(x_T)
+
+vanishes exactly at the solutions. Nodes outside the contact zone (default: none — in full space a
+node without contact costs nothing, its rows are natural boundary rows) carry r = 0.
+
+Newton step. On each smooth piece of Φ, the Newton equation Φ + Φ'·(Δu) = 0 is *linear in the new
+iterate* u⁺ (the piece's data ρ, n, c frozen at the current iterate), per node class:
+
+* open (x_N ≤ 0): R⁺ = 0 — the node's rows are plain equilibrium rows (natural boundary);
+* stick (x_N > 0, ‖x_T‖ ≤ μ x_N): U⁺ = 0, i.e. u⁺_c = (0, 0, −g): three Dirichlet DOFs;
+* slide (x_N > 0, ‖x_T‖ > μ x_N), in the frame (n, t) of the tangent plane with n = x_T/‖x_T‖,
+  t ⊥ n, c = μ x_N/‖x_T‖ < 1: u⁺_ν = −g (Dirichlet), R⁺_n = μ R⁺_N (the friction force of the
+  normal reaction, along n) and (1 − c) R⁺_t + c ρ U⁺_t = 0, a Robin condition
+  R⁺_t = −k U⁺_t with k = cρ/(1 − c) ≥ 0 (at the solution k = Fλ/‖u_t‖, the C of the adjoint).
+
+With D the Dirichlet DOFs (three per sticking node, the normal one per sliding node) and I the
+others, substituting R⁺ = B(A u⁺ − L) into the rows I gives one linear system for u⁺_I,
+
+    G u⁺ = L − μ N L  on I,   u⁺_D prescribed,   G = A + K_t − μ N A,
+
+where K_t adds k t tᵀ on the tangential DOFs of a sliding node and N copies the normal row of a
+sliding node, times n, into its tangential rows. G is non-symmetric (the friction coupling μ N A)
+and sparse (A plus a few rows): it is applied as one product with H = A + K_t (same sparsity as
+A, its tangential 2×2 blocks changed in place) and a correction of the sliding tangential rows.
+Each step is solved by right-preconditioned restarted GMRES, warm-started at the current iterate,
+to a relative residual η_k (inexact Newton: loose while the error is large, ``krylov_rtol`` at the
+end), preconditioned by a V-cycle of H restricted to I:
+
+* the smoothed-aggregation hierarchy (pyamg, rigid-body modes as near-null space) of an A(α_ref)
+  — of this design, or of an earlier one: :class:`ContactHierarchy`, reused over Newton steps and
+  nearby designs, never rebuilt inside a solve;
+* the fine level smooths H itself by Gauss–Seidel on the rows I only (x_D = 0 kept);
+* the coarse operators are the Galerkin products (Π P)ᵀ H (Π P) of the prolongation with the D
+  rows removed (Π), obtained from the stored ones of A(α_ref) by sparse updates supported near D
+  and the sliding nodes (the fine matrix differs from A(α_ref) only there, up to the design
+  change), so no full triple product is redone per step. Measured on Example 1 (113k DOFs) this
+  keeps the iteration count of a fresh hierarchy of the constrained matrix (18 against 17), where
+  the unconstrained coarse operators need 25.
+
+Globalization: Armijo backtracking on the merit ½‖Φ‖² along u + t(u⁺ − u) (non-monotone over the
+last four values, as in :mod:`contactopt.contact.newton`); r is affine in u, so a trial step costs
+one product with the contact rows of A. ρ per node is ``rho_scale`` / w̃_m with w̃_m ≈ 2/mean(A_mm)
+an estimate of the Delassus diagonal tr(W_mm)/3 (measured 1.4–5 / A_mm on Examples 1 and 2).
+
+Convergence: the Siconos error ‖R − P_K(R − Ũ)‖ / max(‖R‖, ‖U‖) on the zone ≤ ``tol`` and the
+equilibrium of the other rows ‖(A u − L)_other‖ / ‖L‖ ≤ ``tol``. A Newton or Krylov failure raises
+:class:`contactopt.errors.ContactNotConverged` / :class:`contactopt.fem.iterative.KrylovNotConverged`
+(both SolverErrors) with their histories, never an inaccurate state. With a zone smaller than all
+contact nodes, a converged state whose outside nodes close their gap grows the zone (as
+:mod:`contactopt.contact.zone` does) and Newton continues from the current iterate.
+"""
+
+from __future__ import annotations
+
+import logging
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+import scipy.sparse as sp
+
+from ..errors import ContactNotConverged, ProblemDataError, SolverError
+from ..fem.iterative import KrylovNotConverged, KrylovResult, rigid_body_modes
+from .cones import siconos_error
+from .newton import alart_curnier
+from .state import CLASS_RTOL
+
+__all__ = ["solve_fullspace", "FullSpaceResult", "ContactHierarchy", "gmres", "OPEN", "STICK", "SLIDE"]
+
+log = logging.getLogger(__name__)
+
+OPEN, STICK, SLIDE = 0, 1, 2          # node classes of a Newton system
+W_DIAG_FACTOR = 2.0                   # tr(W_mm)/3 ≈ W_DIAG_FACTOR / mean(A_mm) (measured 1.4–5)
+_FCLIB = np.array([2, 0, 1])          # per node (t1, t2, ν) -> (ν, t1, t2)
+_COARSE_DIAG_MIN = 1e-10              # a coarse unknown whose diagonal fell below this fraction
+                                      # of A(α_ref)'s lives (almost) inside D: decoupled
+
+
+# ----------------------------------------------------------------------------- GMRES
+def gmres(apply, b, M=None, *, x0=None, atol: float, restart: int = 60, max_iter: int = 500,
+          scale: float | None = None) -> KrylovResult:
+    """Right-preconditioned restarted GMRES for G x = b: stops when ‖b − G x‖ ≤ ``atol``.
+
+    ``apply(x)`` is G x, ``M(v)`` the preconditioner. Classical Gram–Schmidt with one
+    reorthogonalization (two matrix–vector products with the basis). ``history`` holds the
+    residual norm divided by ``scale`` (default ‖b‖) after every iteration, ``history[0]`` the
+    initial one. Raises :class:`KrylovNotConverged` with it after ``max_iter`` iterations or on a
+    non-finite residual."""
+    t0 = time.perf_counter()
+    b = np.asarray(b, dtype=np.float64)
+    n = b.size
+    M = M or (lambda v: v)
+    scale = float(scale or np.linalg.norm(b) or 1.0)
+    x = np.zeros(n) if x0 is None else np.array(x0, dtype=np.float64)
+    r = b - apply(x) if x0 is not None else b.copy()
+    beta = float(np.linalg.norm(r))
+    history = [beta / scale]
+    its = 0
+    V = np.empty((restart + 1, n))
+    Z = np.empty((restart, n))
+    while True:
+        if beta <= atol:
+            return KrylovResult(x, its, history, np.array([beta / scale]), time.perf_counter() - t0)
+        if its >= max_iter:
+            raise KrylovNotConverged(f"GMRES did not converge: residual {beta / scale:.3g} (relative) > "
+                                     f"{atol / scale:.3g} after {its} iterations", history)
+        if not np.isfinite(beta):
+            raise KrylovNotConverged(f"GMRES: non-finite residual after {its} iterations", history)
+        H = np.zeros((restart + 1, restart))
+        cs, sn = np.zeros(restart), np.zeros(restart)
+        g = np.zeros(restart + 1)
+        g[0] = beta
+        V[0] = r / beta
+        j = -1
+        for j in range(restart):
+            Z[j] = M(V[j])
+            w = apply(Z[j])
+            its += 1
+            h = V[:j + 1] @ w
+            w -= h @ V[:j + 1]
+            h2 = V[:j + 1] @ w              # reorthogonalization
+            w -= h2 @ V[:j + 1]
+            h += h2
+            hn = float(np.linalg.norm(w))
+            H[:j + 1, j] = h
+            H[j + 1, j] = hn
+            if hn > 0:
+                V[j + 1] = w / hn
+            for i in range(j):              # previous Givens rotations
+                a, c_ = H[i, j], H[i + 1, j]
+                H[i, j], H[i + 1, j] = cs[i] * a + sn[i] * c_, -sn[i] * a + cs[i] * c_
+            d = float(np.hypot(H[j, j], H[j + 1, j]))
+            if d == 0.0:
+                raise KrylovNotConverged("GMRES: breakdown (zero Hessenberg column)", history)
+            cs[j], sn[j] = H[j, j] / d, H[j + 1, j] / d
+            H[j, j], H[j + 1, j] = d, 0.0
+            g[j + 1], g[j] = -sn[j] * g[j], cs[j] * g[j]
+            res = abs(g[j + 1])
+            history.append(res / scale)
+            if not np.isfinite(res):
+                raise KrylovNotConverged(f"GMRES: non-finite residual at iteration {its}", history)
+            if res <= atol or its >= max_iter or hn == 0.0:
+                break
+        k = j + 1
+        y = np.linalg.solve(np.triu(H[:k, :k]), g[:k]) if k else np.zeros(0)
+        x += y @ Z[:k]
+        r = b - apply(x)                    # the true residual (restart or final check)
+        beta = float(np.linalg.norm(r))
+        history[-1] = beta / scale
+
+
+# ----------------------------------------------------------------------------- AMG
+class ContactHierarchy:
+    """The smoothed-aggregation hierarchy of an A(α_ref) (pyamg, rigid-body modes), kept to
+    precondition the Newton systems of later steps and designs.
+
+    Keeps the prolongations P_l, restrictions R_l = P_lᵀ, the coarse operators A_l (l ≥ 1) and
+    the rows of A(α_ref) of the contact DOFs (all Dirichlet DOFs of a Newton system are contact
+    DOFs), not the fine matrix itself. :meth:`preconditioner` returns the V-cycle of a fine matrix
+    H (same pattern as A) with Dirichlet DOFs D, its coarse operators updated by Galerkin products
+    supported near D (module docstring). ``setup_seconds``, ``uses`` (Newton systems served),
+    ``reference_iterations`` (Krylov iterations of the first solve with it; the caller may
+    rebuild when later solves need many more)."""
+
+    def __init__(self, A, near_null=None, *, contact_dofs, max_coarse: int = 10, **amg_kw):
+        try:
+            import pyamg
+        except ImportError as exc:
+            raise SolverError("algebraic multigrid needs pyamg: pip install 'contactopt[large]'") from exc
+        t0 = time.perf_counter()
+        A = sp.csr_matrix(A)
+        A.sort_indices()
+        ml = pyamg.smoothed_aggregation_solver(A, B=near_null, max_coarse=max_coarse, **amg_kw)
+        self.n = A.shape[0]
+        self.P = [sp.csr_matrix(lvl.P) for lvl in ml.levels[:-1]]
+        self.R = [sp.csr_matrix(lvl.R) for lvl in ml.levels[:-1]]
+        self.A = [None] + [sp.csr_matrix(lvl.A) for lvl in ml.levels[1:]]
+        for M_ in self.A[1:]:
+            M_.sort_indices()
+        self.operator_complexity = float(ml.operator_complexity())
+        del ml
+        cdofs = np.unique(np.asarray(contact_dofs, dtype=np.int64))
+        self.contact_rows = A[cdofs]                 # rows of A(α_ref) at the contact DOFs
+        self._row_of = np.full(self.n, -1, dtype=np.int64)
+        self._row_of[cdofs] = np.arange(cdofs.size)
+        self.setup_seconds = time.perf_counter() - t0
+        self.uses = 0
+        self.reference_iterations = None
+
+    @property
+    def levels(self) -> int:
+        return len(self.A)
+
+    def sizes(self) -> list:
+        return [self.n] + [M_.shape[0] for M_ in self.A[1:]]
+
+    def preconditioner(self, H, dirichlet, kt=None) -> "VCycle":
+        """V-cycle for H restricted to the DOFs outside ``dirichlet`` (boolean mask); ``kt`` the
+        sparse part H − A added on free rows (the Robin blocks), for the coarse operators."""
+        self.uses += 1
+        D = np.flatnonzero(dirichlet)
+        if D.size and np.any(self._row_of[D] < 0):
+            raise SolverError("Dirichlet DOFs outside the contact DOFs of the hierarchy")
+        # Δ = Π (A_ref + K_t) Π − A_ref: minus the entries of A_ref in a row or column of D, plus K_t
+        n = self.n
+        if D.size:
+            rows = self.contact_rows[self._row_of[D]].tocoo()
+            Er = sp.csr_matrix((rows.data, (D[rows.row], rows.col)), shape=(n, n))
+            keep = dirichlet[rows.col]
+            Edd = sp.csr_matrix((rows.data[keep], (D[rows.row[keep]], rows.col[keep])), shape=(n, n))
+            delta = -(Er + Er.T - Edd)
+        else:
+            delta = sp.csr_matrix((n, n))
+        if kt is not None and kt.nnz:
+            delta = delta + kt
+        ops = []
+        for lvl in range(len(self.P)):
+            Ac = self.A[lvl + 1]
+            delta = sp.csr_matrix(self.R[lvl] @ (delta @ self.P[lvl])) if delta.nnz else sp.csr_matrix(Ac.shape)
+            Anew = (Ac + delta).tocsr() if delta.nnz else Ac
+            d_ref, d_new = Ac.diagonal(), Anew.diagonal()
+            bad = ~(d_new > _COARSE_DIAG_MIN * d_ref)
+            if np.any(bad):            # unknowns (almost) inside D: decouple, keep them harmless
+                keepm = sp.diags((~bad).astype(float))
+                Anew = (keepm @ Anew @ keepm + sp.diags(np.where(bad, d_ref, 0.0))).tocsr()
+            Anew.sort_indices()
+            ops.append(Anew)
+        return VCycle(H, dirichlet, self.P, self.R, ops)
+
+
+class VCycle:
+    """One V-cycle (symmetric Gauss–Seidel pre- and post-smoothing, a dense pseudo-inverse on the
+    coarsest level) for H on the DOFs outside D, as a callable v ↦ M v with (M v)_D = 0: symmetric
+    positive semi-definite, so usable by CG as well as GMRES."""
+
+    def __init__(self, H, dirichlet, P, R, ops):
+        from pyamg.relaxation.relaxation import gauss_seidel, gauss_seidel_indexed
+        self._gs, self._gs_idx = gauss_seidel, gauss_seidel_indexed
+        self.H = H
+        self.D = np.flatnonzero(dirichlet)
+        self.rows = np.flatnonzero(~np.asarray(dirichlet)).astype(H.indptr.dtype)
+        self.P, self.R = P, R
+        self.A = [H] + ops
+        Ac = ops[-1].toarray() if ops else H.toarray()
+        Ac = 0.5 * (Ac + Ac.T)
+        w, Q = np.linalg.eigh(Ac)
+        keep = w > 1e-12 * max(w.max(initial=0.0), 1e-300)
+        self._coarse = (Q[:, keep] / w[keep]) @ Q[:, keep].T
+        self.calls = 0
+
+    def _smooth(self, lvl, x, b):
+        if lvl == 0:
+            self._gs_idx(self.H, x, b, self.rows, sweep="symmetric")
+        else:
+            self._gs(self.A[lvl], x, b, sweep="symmetric")
+
+    def _cycle(self, lvl, b):
+        if lvl == len(self.A) - 1:
+            return self._coarse @ b
+        A = self.A[lvl]
+        x = np.zeros_like(b)
+        self._smooth(lvl, x, b)
+        r = b - A @ x
+        if lvl == 0:
+            r[self.D] = 0.0
+        e = self.P[lvl] @ self._cycle(lvl + 1, self.R[lvl] @ r)
+        if lvl == 0:
+            e[self.D] = 0.0
+        x += e
+        self._smooth(lvl, x, b)
+        return x
+
+    def __call__(self, v):
+        self.calls += 1
+        v = np.array(v, dtype=np.float64)
+        v[self.D] = 0.0
+        out = self._cycle(0, v)
+        out[self.D] = 0.0
+        return out
+
+
+# ----------------------------------------------------------------------------- result
+@dataclass
+class FullSpaceResult:
+    """A state solved in full space.
+
+    ``r`` (p, 3) per contact node in FCLIB order (N, T1, T2) = (λ, −τ), zero outside the zone;
+    ``u`` on the free DOFs; ``u_c`` (p, 3) per node (t1, t2, ν); ``classes`` the node classes
+    (OPEN, STICK, SLIDE) of the last Newton system; ``history`` the Siconos error of every
+    iterate (``[0]`` the start); ``krylov_iterations`` / ``krylov_histories`` / ``krylov_rtol``
+    per Newton step; ``steps`` the line-search step lengths; ``timings`` in seconds per phase;
+    ``hierarchy`` the AMG hierarchy to pass to the next solve."""
+
+    r: np.ndarray
+    u: np.ndarray
+    u_c: np.ndarray
+    classes: np.ndarray
+    converged: bool
+    error: float
+    equilibrium: float
+    newton_steps: int
+    krylov_iterations: list
+    krylov_histories: list
+    krylov_rtol: list
+    history: list
+    steps: list
+    zone: np.ndarray
+    zone_growths: int
+    timings: dict
+    hierarchy: ContactHierarchy
+    info: dict = field(default_factory=dict)
+
+    @property
+    def lam(self) -> np.ndarray:
+        return self.r[:, 0].copy()
+
+    @property
+    def tau(self) -> np.ndarray:
+        """τ = −r_t per node (t1, t2)."""
+        return -self.r[:, 1:]
+
+
+# ----------------------------------------------------------------------------- solver
+def _block_positions(A, rows, cols):
+    """Positions in A.data of the entries (rows[i], cols[i]) (A CSR with sorted indices)."""
+    out = np.empty(rows.size, dtype=np.int64)
+    ip, ind = A.indptr, A.indices
+    for i, (r_, c_) in enumerate(zip(rows.tolist(), cols.tolist())):
+        a, b = ip[r_], ip[r_ + 1]
+        k = a + int(np.searchsorted(ind[a:b], c_))
+        if k >= b or ind[k] != c_:
+            raise SolverError(f"entry ({r_}, {c_}) is not in the sparsity pattern of A")
+        out[i] = k
+    return out
+
+
+def solve_fullspace(A, L, contact_dofs, gap, friction, *, coords, free, r0=None, u0=None,
+                    tol: float = 1e-10, hierarchy: ContactHierarchy | None = None, zone=None,
+                    rho_scale: float = 0.5, max_steps: int = 50, krylov_rtol: float | None = None,
+                    eta_max: float = 1e-2, eta_factor: float = 0.1, restart: int = 60,
+                    max_krylov: int = 400, zone_margin: float = 0.1, amg: dict | None = None,
+                    raise_on_failure: bool = True) -> FullSpaceResult:
+    """Solve the discrete Coulomb problem A u = L + Bᵀ r with the contact law on the contact nodes
+    (module docstring) by a full-space semismooth Newton method with AMG-preconditioned GMRES.
+
+    Parameters
+    ----------
+    A, L : stiffness (sparse SPD) and load on the free DOFs, as ``ElasticModel.assemble`` gives.
+    contact_dofs : (3p,) free-DOF indices, per contact node (t1, t2, ν).
+    gap : (p,) initial gaps g; friction : F (scalar or per node).
+    coords, free : node coordinates (N, 3) and the free DOFs' full indices (rigid-body modes).
+    r0 : (p, 3) warm start, FCLIB order (N, T1, T2) (e.g. the forces of the previous design).
+    u0 : warm start of u (free DOFs); without it u0 solves A u0 = L + Bᵀ r0 (one Krylov solve).
+    tol : Siconos error and relative equilibrium residual to reach.
+    hierarchy : a :class:`ContactHierarchy` of an earlier A (reused); built from A if None.
+    zone : node indices of the contact zone (default: all contact nodes).
+    rho_scale : Alart–Curnier ρ_m = rho_scale · mean(A_mm) / W_DIAG_FACTOR.
+    max_steps : Newton steps.  krylov_rtol : the tightest Krylov tolerance (default 0.1·tol);
+    the step k uses η_k = clip(eta_factor · error_k, krylov_rtol, eta_max) relative to ‖L‖.
+    restart, max_krylov : GMRES restart length and iteration limit per Newton step.
+    amg : keyword arguments of pyamg's smoothed_aggregation_solver when a hierarchy is built.
+    raise_on_failure : raise ContactNotConverged on a Newton failure (else return converged=False).
+    """
+    t_start = time.perf_counter()
+    timings = dict.fromkeys(("amg_setup", "preconditioner", "krylov", "newton", "start"), 0.0)
+    A = sp.csr_matrix(A)
+    if not A.has_sorted_indices:
+        A = A.copy()
+        A.sort_indices()
+    n = A.shape[0]
+    L = np.asarray(L, dtype=np.float64)
+    cd = np.asarray(contact_dofs, dtype=np.int64).reshape(-1, 3)
+    p = cd.shape[0]
+    gap = np.asarray(gap, dtype=np.float64)
+    if L.shape != (n,) or gap.shape != (p,):
+        raise ProblemDataError(f"L of shape {L.shape} / gap of shape {gap.shape} do not match A ({n}) "
+                               f"and {p} contact nodes")
+    mu_all = np.broadcast_to(np.asarray(friction, dtype=np.float64), (p,)).copy()
+    if np.any(mu_all < 0) or not np.all(np.isfinite(mu_all)):
+        raise ProblemDataError("friction coefficients must be finite and ≥ 0")
+    krylov_rtol = 0.1 * tol if krylov_rtol is None else krylov_rtol
+    zone = np.arange(p) if zone is None else np.unique(np.asarray(zone, dtype=np.int64))
+    Lnorm = float(np.linalg.norm(L)) or 1.0
+
+    # -- the hierarchy (reused when given)
+    if hierarchy is None:
+        t0 = time.perf_counter()
+        hierarchy = ContactHierarchy(A, rigid_body_modes(coords, free), contact_dofs=cd.ravel(),
+                                     **(amg or {}))
+        timings["amg_setup"] = time.perf_counter() - t0
+
+    Arows = A[cd.ravel()]                       # contact rows: r(u) = Arows u − L_c
+    Lc = L[cd.ravel()].reshape(p, 3)
+    diagA = A.diagonal()
+    rho_all = rho_scale * diagA[cd].mean(axis=1) / W_DIAG_FACTOR
+    # positions of the tangential 2×2 blocks of every contact node in A.data (Robin blocks)
+    tt_rows = np.repeat(cd[:, :2], 2, axis=1).ravel()          # (t1,t1),(t1,t2),(t2,t1),(t2,t2)
+    tt_cols = np.tile(cd[:, :2], (1, 2)).ravel()
+    tt_pos = _block_positions(A, tt_rows, tt_cols).reshape(p, 4)
+    other = np.ones(n, dtype=bool)              # rows that must be in plain equilibrium
+    H = A.copy()                                # A + K_t, modified in place per step
+    touched = np.zeros(0, dtype=np.int64)
+
+    def contact_force(u):
+        return (Arows @ u).reshape(p, 3) - Lc   # per node (t1, t2, ν)
+
+    def local(u, rphys, z):
+        R = rphys[z][:, _FCLIB]
+        U = u[cd[z]][:, _FCLIB]
+        U[:, 0] += gap[z]
+        return R, U
+
+    # -- the start
+    t0 = time.perf_counter()
+    krylov_its, krylov_hist, krylov_eta = [], [], []
+    if u0 is None:
+        f = L.copy()
+        if r0 is not None:
+            r0 = np.asarray(r0, dtype=np.float64).reshape(p, 3)
+            f[cd.ravel()] += r0[:, [1, 2, 0]].ravel()
+        M0 = hierarchy.preconditioner(A, np.zeros(n, dtype=bool))
+        eta0 = max(krylov_rtol, 1e-6)
+        res = gmres(A.dot, f, M0, atol=eta0 * np.linalg.norm(f), restart=restart, max_iter=max_krylov,
+                    scale=np.linalg.norm(f))
+        u = res.x
+        krylov_its.append(res.iterations), krylov_hist.append(res.history), krylov_eta.append(eta0)
+        if hierarchy.reference_iterations is None:
+            hierarchy.reference_iterations = res.iterations
+    else:
+        u = np.array(u0, dtype=np.float64)
+        if u.shape != (n,):
+            raise ProblemDataError(f"u0 of shape {u.shape}, expected ({n},)")
+    timings["start"] = time.perf_counter() - t0
+
+    history, steps = [], []
+    recent = []
+    growths = 0
+    classes = np.zeros(p, dtype=np.int8)
+    converged = False
+    reason = ""
+    err = eq = np.inf
+    while True:
+        t0 = time.perf_counter()
+        z = zone
+        mu, rho = mu_all[z], rho_all[z]
+        other[:] = True
+        other[cd[z].ravel()] = False
+        rphys = contact_force(u)
+        R, U = local(u, rphys, z)
+        Phi, piece = alart_curnier(R.ravel(), U.ravel(), mu, rho)
+        theta = 0.5 * float(Phi @ Phi)
+        err = siconos_error(R.ravel(), U.ravel(), U.ravel(), mu)
+        Au_L = A @ u - L
+        eq = float(np.linalg.norm(Au_L[other])) / Lnorm
+        history.append(err)
+        recent.append(theta)
+        timings["newton"] += time.perf_counter() - t0
+        log.debug("full-space Newton %d: error %.3e, equilibrium %.3e, zone %d", len(history) - 1, err, eq, z.size)
+        if err <= tol and eq <= tol:
+            # nodes outside the zone must end with an open gap
+            if z.size < p:
+                clearance = u[cd[:, 2]] + gap
+                u_scale = max(np.abs(u[cd]).max(initial=0.0), np.abs(gap).max(initial=0.0), 1e-300)
+                outside = np.ones(p, dtype=bool)
+                outside[z] = False
+                missed = np.flatnonzero(outside & (clearance <= CLASS_RTOL * u_scale))
+                if missed.size:
+                    lam_all = np.zeros(p)
+                    lam_all[z] = R[:, 0]
+                    near = np.flatnonzero((lam_all > 0) | (clearance <= zone_margin * u_scale))
+                    zone = np.union1d(np.union1d(z, missed), near)
+                    growths += 1
+                    log.debug("full-space Newton: %d node(s) outside the zone close their gap; zone "
+                              "%d -> %d nodes", missed.size, z.size, zone.size)
+                    continue
+            converged = True
+            break
+        if len(history) > max_steps:
+            reason = f"{max_steps} Newton steps used"
+            break
+        # -- the Newton system of the current piece
+        t0 = time.perf_counter()
+        act, slip = piece.active, piece.slip
+        cls = np.where(act, np.where(slip, SLIDE, STICK), OPEN).astype(np.int8)
+        classes[:] = OPEN
+        classes[z] = cls
+        st, sl = z[cls == STICK], z[cls == SLIDE]
+        lsl = np.flatnonzero(cls == SLIDE)
+        dirichlet = np.zeros(n, dtype=bool)
+        dirichlet[cd[st].ravel()] = True
+        dirichlet[cd[sl, 2]] = True
+        nvec = piece.nvec[lsl]
+        tvec = np.column_stack((-nvec[:, 1], nvec[:, 0]))
+        c = piece.c[lsl]
+        k = c * rho[lsl] / (1.0 - c)
+        mus = mu[lsl]
+        # H = A + K_t: restore the blocks of the last step, add the new ones
+        if touched.size:
+            H.data[touched] = A.data[touched]
+        pos = tt_pos[sl].ravel()
+        blk = (k[:, None, None] * tvec[:, :, None] * tvec[:, None, :]).reshape(-1)
+        H.data[pos] += blk
+        touched = pos
+        kt = sp.csr_matrix((blk, (tt_rows.reshape(p, 4)[sl].ravel(), tt_cols.reshape(p, 4)[sl].ravel())),
+                           shape=(n, n))
+        T1, T2, Nsl = cd[sl, 0], cd[sl, 1], cd[sl, 2]
+        cn1, cn2 = mus * nvec[:, 0], mus * nvec[:, 1]
+        D = np.flatnonzero(dirichlet)
+
+        def apply(x):
+            y = H @ x
+            y[T1] -= cn1 * y[Nsl]
+            y[T2] -= cn2 * y[Nsl]
+            y[D] = 0.0
+            return y
+
+        b = L.copy()
+        b[T1] -= cn1 * L[Nsl]
+        b[T2] -= cn2 * L[Nsl]
+        b[D] = 0.0
+        x0 = u.copy()
+        x0[cd[st, 0]] = 0.0
+        x0[cd[st, 1]] = 0.0
+        x0[cd[st, 2]] = -gap[st]
+        x0[Nsl] = -gap[sl]
+        y0 = H @ x0                     # b − G x0 on the rows I
+        y0[T1] -= cn1 * y0[Nsl]
+        y0[T2] -= cn2 * y0[Nsl]
+        rhs = b - y0
+        rhs[D] = 0.0
+        t1 = time.perf_counter()
+        Mv = hierarchy.preconditioner(H, dirichlet, kt)
+        t2 = time.perf_counter()
+        eta = min(eta_max, max(krylov_rtol, eta_factor * err))
+        try:
+            kres = gmres(apply, rhs, Mv, atol=eta * Lnorm, restart=restart, max_iter=max_krylov,
+                         scale=Lnorm)
+        except KrylovNotConverged as exc:
+            exc.args = (f"full-space Newton step {len(history)}: {exc.args[0]}",)
+            raise
+        t3 = time.perf_counter()
+        timings["newton"] += t1 - t0
+        timings["preconditioner"] += t2 - t1
+        timings["krylov"] += t3 - t2
+        krylov_its.append(kres.iterations), krylov_hist.append(kres.history), krylov_eta.append(eta)
+        if hierarchy.reference_iterations is None:
+            hierarchy.reference_iterations = kres.iterations
+        du = x0 + kres.x - u
+        # -- line search on ½‖Φ‖² (r is affine in u)
+        dr = (Arows @ du).reshape(p, 3)
+        dR, dU = dr[z][:, _FCLIB].ravel(), du[cd[z]][:, _FCLIB].ravel()
+        R0, U0 = R.ravel(), U.ravel()
+        ref = max(recent[-4:])
+        t = 1.0
+        for _ in range(30):
+            Phi_t, _ = alart_curnier(R0 + t * dR, U0 + t * dU, mu, rho)
+            if 0.5 * float(Phi_t @ Phi_t) <= ref - 2e-4 * t * theta:
+                break
+            t *= 0.5
+        else:
+            reason = "line search found no decrease of the merit ½‖Φ‖²"
+            timings["newton"] += time.perf_counter() - t3
+            break
+        u = u + t * du
+        steps.append(t)
+        timings["newton"] += time.perf_counter() - t3
+
+    rphys = contact_force(u)
+    r = np.zeros((p, 3))
+    r[zone] = rphys[zone][:, _FCLIB]
+    timings["total"] = time.perf_counter() - t_start
+    result = FullSpaceResult(
+        r=r, u=u, u_c=u[cd].copy(), classes=classes, converged=converged, error=err, equilibrium=eq,
+        newton_steps=len(steps), krylov_iterations=krylov_its, krylov_histories=krylov_hist,
+        krylov_rtol=krylov_eta, history=history, steps=steps, zone=zone, zone_growths=growths,
+        timings=timings, hierarchy=hierarchy,
+        info={"levels": hierarchy.sizes(), "operator_complexity": hierarchy.operator_complexity,
+              "class_counts": {"open": int(np.sum(classes == OPEN)), "stick": int(np.sum(classes == STICK)),
+                               "slide": int(np.sum(classes == SLIDE))},
+              "start_solve": u0 is None, "reason": reason})
+    if not converged and raise_on_failure:
+        raise ContactNotConverged(f"full-space Newton did not converge: Siconos error {err:.3e}, "
+                                  f"equilibrium {eq:.3e} (tol {tol:.1e}) after {len(steps)} steps "
+                                  f"({reason})", history)
+    return result
