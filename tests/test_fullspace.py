@@ -1,0 +1,127 @@
+"""The full-space semismooth Newton with AMG-preconditioned GMRES (contact/fullspace.py) against
+today's condensed path (ShapeProblem.solve_state: S on the contact DOFs, the zone's local Newton).
+
+Both solve the same discrete Coulomb problem A u = L + Bᵀ r with the contact law (paper (3.17)):
+λ, τ and u_c must agree to 1e-8 relative (to max |λ| and max |u_c|) and the node classes of
+Table 4.1 must be the same, at the example's initial design (cold start) and at a perturbed design
+(warm start from the first design's forces, displacement and AMG hierarchy). A solve that cannot
+converge raises a SolverError with its history, never an inaccurate state.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import scipy.sparse as sp
+
+from contactopt.contact.fullspace import OPEN, SLIDE, STICK, gmres, solve_fullspace
+from contactopt.contact.state import CLASS_CODES, classify_nodes
+from contactopt.errors import ContactNotConverged, SolverError
+from contactopt.fem.iterative import KrylovNotConverged
+from contactopt.problem import ShapeProblem
+
+TOL = 1e-8
+NEWTON_CLASS = {OPEN: CLASS_CODES["L"], STICK: CLASS_CODES["M3+"], SLIDE: CLASS_CODES["M1"]}
+
+
+class Case:
+    """One example: the problem, two designs, today's states and the data of the full space."""
+
+    def __init__(self, name, step):
+        self.problem = pb = ShapeProblem(name)
+        m = pb.model
+        self.a0 = m.initial_design()
+        d = np.random.default_rng(7).standard_normal(m.n_design)
+        d -= d.mean()
+        self.a1 = self.a0 + step * d / np.abs(d).max()
+        assert m.admissible.is_feasible(self.a1)
+        self.states = [pb.solve_state(a, warm_start=False) for a in (self.a0, self.a1)]
+        self.asm = [m.assemble(a, pb.cases[0].loads) for a in (self.a0, self.a1)]
+
+    def solve(self, k, **kw):
+        asm, m = self.asm[k], self.problem.model
+        return solve_fullspace(asm.A, asm.L, m.contact_dofs, asm.gap, self.problem.friction,
+                               coords=asm.coords, free=m.assembler.free, **kw)
+
+
+@pytest.fixture(scope="module", params=[("example1", 2e-3), ("example2", 2e-3)], ids=["example1", "example2"])
+def case(request):
+    return Case(*request.param)
+
+
+def assert_same_state(res, st, friction):
+    lscale = np.abs(st.lam).max()
+    uscale = np.abs(st.u_c).max()
+    assert lscale > 0
+    assert np.abs(res.lam - st.lam).max() <= TOL * lscale
+    assert np.abs(res.tau - st.tau).max() <= TOL * lscale
+    assert np.abs(res.u_c - st.u_c).max() <= TOL * uscale
+    classes = classify_nodes(res.u_c, res.lam, res.tau, st.gap, friction)
+    assert np.array_equal(classes, st.classes)
+    # the classes of the last Newton system are those of Table 4.1 (no degenerate node here)
+    assert st.n_degenerate == 0
+    assert np.array_equal(np.vectorize(NEWTON_CLASS.get)(res.classes), st.classes)
+
+
+def test_agrees_with_the_condensed_path(case):
+    first = case.solve(0, tol=1e-11)                  # cold start: r = 0, AMG built here
+    assert first.converged and first.error <= 1e-11 and first.equilibrium <= 1e-11
+    assert first.info["start_solve"] and first.timings["amg_setup"] > 0
+    assert_same_state(first, case.states[0], case.problem.friction)
+    # the next design: warm from the first one's forces, displacement and hierarchy
+    nxt = case.solve(1, tol=1e-11, r0=first.r, u0=first.u, hierarchy=first.hierarchy)
+    assert nxt.hierarchy is first.hierarchy and nxt.timings["amg_setup"] == 0.0
+    assert_same_state(nxt, case.states[1], case.problem.friction)
+    assert nxt.newton_steps < first.newton_steps
+    assert len(nxt.krylov_iterations) == nxt.newton_steps
+    assert len(nxt.history) == nxt.newton_steps + 1 and nxt.history[-1] <= 1e-11
+    # the whole equilibrium A u = L + Bᵀ r holds, r the returned forces
+    asm, cd = case.asm[1], case.problem.model.contact_dofs.reshape(-1, 3)
+    f = asm.L.copy()
+    f[cd.ravel()] += nxt.r[:, [1, 2, 0]].ravel()
+    assert np.linalg.norm(asm.A @ nxt.u - f) <= 1e-10 * np.linalg.norm(asm.L)
+
+
+def test_warm_start_from_forces_only_and_a_small_zone(case):
+    """r0 alone (u0 by one Krylov solve) and a zone of a few nodes that must grow."""
+    st = case.states[1]
+    start = np.zeros((st.lam.size, 3))
+    start[:, 0] = case.states[0].lam
+    start[:, 1:] = -case.states[0].tau
+    zone = np.argsort(st.gap + st.u_c[:, 2])[:5]         # far too small: nodes in contact outside
+    res = case.solve(1, tol=1e-11, r0=start, zone=zone)
+    assert res.info["start_solve"]
+    assert res.zone_growths >= 1 and res.zone.size > zone.size
+    assert_same_state(res, st, case.problem.friction)
+    assert np.all(res.r[np.setdiff1d(np.arange(st.lam.size), res.zone)] == 0.0)
+
+
+def test_newton_failure_raises_with_its_history(case):
+    with pytest.raises(ContactNotConverged) as info:
+        case.solve(0, tol=1e-11, max_steps=2)
+    assert isinstance(info.value, SolverError)
+    assert len(info.value.history) == 3 and info.value.history[-1] > 1e-11
+    res = case.solve(0, tol=1e-11, max_steps=2, raise_on_failure=False)
+    assert not res.converged and res.newton_steps == 2
+
+
+def test_krylov_failure_raises_with_its_history(case):
+    with pytest.raises(KrylovNotConverged) as info:
+        case.solve(0, tol=1e-11, max_krylov=2)
+    assert isinstance(info.value, SolverError)
+    assert len(info.value.history) >= 2 and info.value.history[-1] > 0
+
+
+def test_gmres_on_a_nonsymmetric_system():
+    rng = np.random.default_rng(3)
+    n = 200
+    G = sp.random(n, n, density=0.05, random_state=4) + sp.diags(np.linspace(1.0, 10.0, n))
+    b = rng.standard_normal(n)
+    d = G.diagonal()
+    res = gmres(G.dot, b, lambda v: v / d, atol=1e-12 * np.linalg.norm(b), restart=15)
+    assert np.linalg.norm(G @ res.x - b) <= 1e-12 * np.linalg.norm(b)
+    assert res.history[0] == pytest.approx(1.0) and res.history[-1] <= 1e-12
+    assert res.iterations == len(res.history) - 1
+    with pytest.raises(KrylovNotConverged) as info:
+        gmres(G.dot, b, atol=1e-14 * np.linalg.norm(b), restart=5, max_iter=7)
+    assert len(info.value.history) == 8
