@@ -72,7 +72,10 @@ def _cmd_state(args) -> int:
     print(f"  iterations {state.iterations}, residual {state.residual:.2e}, contact conditions {state.complementarity:.2e}")
     print(f"  nodes: " + ", ".join(f"{k} {v}" for k, v in s['node_classes'].items()))
     print(f"  total normal force {s['total_normal_force']:.6g}, max {s['max_normal_force']:.4g}")
-    print(f"  uniqueness bound (3.16) F0 ≈ {bound:.3g} (F = {state.friction}; pessimistic)")
+    if np.isfinite(bound):
+        print(f"  uniqueness bound (3.16) F0 ≈ {bound:.3g} (F = {state.friction}; pessimistic)")
+    else:
+        print("  uniqueness bound (3.16) not computed (it needs S on all contact DOFs; Delassus path)")
     print("  time: " + ", ".join(f"{k} {v:.3f}s" for k, v in state.timings.items()))
     print(f"  wrote {out}/ (state.json, state.npz, body.vtu, lambda.png, classes.png) in {time.perf_counter() - t0:.1f}s")
     return 0

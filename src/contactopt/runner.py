@@ -230,7 +230,7 @@ def uniqueness_warnings(problem, alpha0) -> list[str]:
     if problem.friction <= 0:
         return []
     bound = problem.uniqueness_bound(alpha0)
-    if problem.friction <= bound:
+    if not np.isfinite(bound) or problem.friction <= bound:     # not computed (Delassus path)
         return []
     msg = (f"friction coefficient F = {problem.friction:g} exceeds the uniqueness estimate (3.16) "
            f"F0 ≈ {bound:.3g} at the initial design: the state may not be unique (the estimate "

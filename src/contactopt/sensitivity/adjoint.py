@@ -173,7 +173,7 @@ def _check_choices(choices):
 
 
 def solve_adjoint_delassus(apply, W_approx, state: State, y_u: np.ndarray, y_lam: np.ndarray,
-                           choices=None, *, rtol: float = ADJOINT_RTOL):
+                           choices=None, *, rtol: float | None = None):
     """The adjoint system (4.15) in W-form, for the Delassus path (no S on all contact DOFs).
 
     The unknown is the contact force s = S v_u (per node (t1, t2, ν)), so v_u = W s. The rows of
@@ -193,6 +193,7 @@ def solve_adjoint_delassus(apply, W_approx, state: State, y_u: np.ndarray, y_lam
     (v_u (3p), v_λ (p), ṽ on the free DOFs, GMRES result).
     """
     from ..fem.iterative import gmres
+    rtol = ADJOINT_RTOL if rtol is None else rtol
     choices = _check_choices(choices)
     p = state.lam.size
     F = state.friction
