@@ -4,8 +4,9 @@ today's condensed path (ShapeProblem.solve_state: S on the contact DOFs, the zon
 Both solve the same discrete Coulomb problem A u = L + Bᵀ r with the contact law (paper (3.17)):
 λ, τ and u_c must agree to 1e-8 relative (to max |λ| and max |u_c|) and the node classes of
 Table 4.1 must be the same, at the example's initial design (cold start) and at a perturbed design
-(warm start from the first design's forces, displacement and AMG hierarchy). A solve that cannot
-converge raises a SolverError with its history, never an inaccurate state.
+(warm start from the first design's forces, displacement and AMG hierarchy); the adjoint (4.15)
+in full space gives the condensed path's v_u, v_λ and subgradient. A solve that cannot converge
+raises a SolverError with its history, never an inaccurate state.
 """
 
 from __future__ import annotations
@@ -19,6 +20,8 @@ from contactopt.contact.state import CLASS_CODES, classify_nodes
 from contactopt.errors import ContactNotConverged, SolverError
 from contactopt.fem.iterative import KrylovNotConverged
 from contactopt.problem import ShapeProblem
+from contactopt.sensitivity.adjoint import subgradient
+from contactopt.sensitivity.adjoint_fullspace import subgradient_fullspace
 
 TOL = 1e-8
 NEWTON_CLASS = {OPEN: CLASS_CODES["L"], STICK: CLASS_CODES["M3+"], SLIDE: CLASS_CODES["M1"]}
@@ -110,6 +113,21 @@ def test_krylov_failure_raises_with_its_history(case):
         case.solve(0, tol=1e-11, max_krylov=2)
     assert isinstance(info.value, SolverError)
     assert len(info.value.history) >= 2 and info.value.history[-1] > 0
+
+
+def test_adjoint_in_full_space_agrees_with_the_condensed_one(case):
+    """(4.15) on the full space with the state's hierarchy: v_u, v_λ and ξ as the condensed path."""
+    pb, m = case.problem, case.problem.model
+    ref = subgradient(pb, case.a1)
+    res = case.solve(1, tol=1e-11)
+    value, xi, state, adj, _ = subgradient_fullspace(m, pb.cases[0].objective, case.a1, case.asm[1], res,
+                                                     pb.friction)
+    assert np.array_equal(state.classes, ref.state.classes)
+    assert value == pytest.approx(ref.value, rel=1e-9)
+    assert np.abs(adj.v_u - ref.v_u).max() <= 1e-8 * np.abs(ref.v_u).max()
+    assert np.abs(adj.v_lam - ref.v_lam).max() <= 1e-8 * np.abs(ref.v_lam).max()
+    assert np.abs(xi - ref.gradient).max() <= 1e-8 * np.abs(ref.gradient).max()
+    assert adj.iterations == len(adj.history) - 1
 
 
 def test_gmres_on_a_nonsymmetric_system():

@@ -75,6 +75,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import scipy.sparse as sp
 
+from .._threads import sequential_openblas
 from ..errors import ContactNotConverged, ProblemDataError, SolverError
 from ..fem.iterative import KrylovNotConverged, KrylovResult, rigid_body_modes
 from .cones import siconos_error
@@ -376,7 +377,20 @@ def solve_fullspace(A, L, contact_dofs, gap, friction, *, coords, free, r0=None,
     restart, max_krylov : GMRES restart length and iteration limit per Newton step.
     amg : keyword arguments of pyamg's smoothed_aggregation_solver when a hierarchy is built.
     raise_on_failure : raise ContactNotConverged on a Newton failure (else return converged=False).
+
+    OpenBLAS runs sequentially inside (:func:`contactopt._threads.sequential_openblas`): the dense
+    work here is the GMRES basis products, memory-bound, and its threads competed with the sparse
+    kernels (3–4× slower on the shared 2-core machine).
     """
+    with sequential_openblas():
+        return _solve_fullspace(A, L, contact_dofs, gap, friction, coords, free, r0, u0, tol, hierarchy,
+                                zone, rho_scale, max_steps, krylov_rtol, eta_max, eta_factor, restart,
+                                max_krylov, zone_margin, amg, raise_on_failure)
+
+
+def _solve_fullspace(A, L, contact_dofs, gap, friction, coords, free, r0, u0, tol, hierarchy, zone,
+                     rho_scale, max_steps, krylov_rtol, eta_max, eta_factor, restart, max_krylov,
+                     zone_margin, amg, raise_on_failure):
     t_start = time.perf_counter()
     timings = dict.fromkeys(("amg_setup", "preconditioner", "krylov", "newton", "start"), 0.0)
     A = sp.csr_matrix(A)

@@ -1,0 +1,181 @@
+"""The adjoint system (4.15) in full space: Clarke subgradients of Θ(α) for states solved by
+:func:`contactopt.contact.fullspace.solve_fullspace`, with the same AMG hierarchy and GMRES.
+
+:mod:`contactopt.sensitivity.adjoint` solves (4.15) on the condensed system: with S the Schur
+complement on the contact DOFs and v_u ∈ R^{3p} (per node (t1, t2, ν)),
+
+    L    (S v_u + y*_u)_i = 0 (3 rows),                          v_u^i free
+    M1   (S v_u + y*_u)_t + C v_t = 0 (2 rows),                  v_ν = y*_λ + F âᵀv_t
+    M3+  —                                                        v_u^i = (0, 0, y*_λ)
+
+with â = u_t/‖u_t‖, C = Fλ/‖u_t‖ (I − ââᵀ); then v_λ = −(S v_u + y*_u)_ν on the nodes not of class L
+and ξ = ∂J/∂α + ṽᵀ(∂A/∂α u − ∂L/∂α) + v_λᵀ ∂g/∂α with ṽ the A-harmonic extension of v_u.
+
+In full space the unknown is ṽ itself on all free DOFs: S v_u = (A ṽ)_c for ṽ with (A ṽ)_j = 0 on
+the non-contact rows j, so (4.15) is one sparse system
+
+    [A(ṽ) + C ṽ]_I = −(Bᵀ y*_u)_I,   ṽ_D = v0 + F âᵀ ṽ_t (slide ν),
+
+I the rows outside D = {all DOFs of M3+ nodes, the normal DOF of M1 nodes} — the same D as the
+Newton system of the state at its solution, and the operator is exactly the transpose of that
+Newton system's G_II (the Newton system's friction coupling R_n = μ R_N copies a normal *row* into
+the tangential ones; here the tangential *unknowns* enter the normal DOF: n = −â, μ = F, and the
+Robin block k t tᵀ at the solution is C). It is solved by GMRES preconditioned with the same
+V-cycle (:class:`contactopt.contact.fullspace.ContactHierarchy`, symmetric, so it serves the
+transpose as well), and ṽ comes out extended already: no extra solve for the design term.
+
+Degenerate classes use the default choices of :mod:`contactopt.sensitivity.adjoint`
+(M2 → L, M3− → M3+, M4 → L); the other choices are not implemented here.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+import scipy.sparse as sp
+
+from .._threads import sequential_openblas
+from ..contact.fullspace import ContactHierarchy, _block_positions, gmres
+from ..contact.state import CLASS_CODES, State, classify_nodes
+from ..errors import SolverError
+from ..fem.iterative import KrylovNotConverged
+
+__all__ = ["solve_adjoint_fullspace", "subgradient_fullspace", "FullSpaceAdjoint"]
+
+DEFAULT_CHOICES = {"M2": "L", "M3-": "M3+", "M4": "L"}
+
+
+@dataclass
+class FullSpaceAdjoint:
+    """``v`` (free DOFs: ṽ, the A-harmonic extension of v_u), ``v_u`` (3p, per node (t1, t2, ν)),
+    ``v_lam`` (p,), GMRES ``iterations`` / ``history``, ``timings``."""
+
+    v: np.ndarray
+    v_u: np.ndarray
+    v_lam: np.ndarray
+    iterations: int
+    history: list
+    timings: dict = field(default_factory=dict)
+
+
+def solve_adjoint_fullspace(A, contact_dofs, classes, u_c, lam, y_u, y_lam, friction, *,
+                            hierarchy: ContactHierarchy, rtol: float = 1e-10, restart: int = 60,
+                            max_iter: int = 400, choices=None) -> FullSpaceAdjoint:
+    """Solve (4.15) in full space (module docstring) for a state with Table 4.1 ``classes``
+    (codes of :data:`contactopt.contact.state.CLASS_CODES`), ``u_c`` (p, 3), ``lam`` (p,),
+    and the objective's partial gradients ``y_u`` (3p,) and ``y_lam`` (p,). GMRES stops at
+    ‖residual‖ ≤ rtol·max(‖y_u‖, ‖A v0‖); it raises KrylovNotConverged (a SolverError) with its
+    history otherwise."""
+    with sequential_openblas():
+        return _solve_adjoint(A, contact_dofs, classes, u_c, lam, y_u, y_lam, friction, hierarchy, rtol,
+                              restart, max_iter, choices)
+
+
+def _solve_adjoint(A, contact_dofs, classes, u_c, lam, y_u, y_lam, friction, hierarchy, rtol, restart,
+                   max_iter, choices):
+    ch = {**DEFAULT_CHOICES, **(choices or {})}
+    if ch != DEFAULT_CHOICES:
+        raise SolverError(f"the full-space adjoint implements the default degenerate choices "
+                          f"{DEFAULT_CHOICES} only, got {ch}")
+    t0 = time.perf_counter()
+    A = sp.csr_matrix(A)
+    if not A.has_sorted_indices:
+        A = A.copy()
+        A.sort_indices()
+    n = A.shape[0]
+    cd = np.asarray(contact_dofs, dtype=np.int64).reshape(-1, 3)
+    p = cd.shape[0]
+    cc = CLASS_CODES
+    classes = np.asarray(classes)
+    eff = classes.copy()
+    eff[classes == cc["M2"]] = cc["L"]
+    eff[classes == cc["M3-"]] = cc["M3+"]
+    eff[classes == cc["M4"]] = cc["L"]
+    F = float(friction)
+    stick = np.flatnonzero(eff == cc["M3+"])
+    slide = np.flatnonzero(eff == cc["M1"])
+    ut = np.asarray(u_c)[slide, :2]
+    nut = np.linalg.norm(ut, axis=1)
+    if np.any(nut <= 0):
+        raise SolverError("a sliding node (M1) without slip")
+    ahat = ut / nut[:, None]
+    tvec = np.column_stack((-ahat[:, 1], ahat[:, 0]))     # C = k t tᵀ, t ⊥ â
+    k = F * np.asarray(lam)[slide] / nut
+    dirichlet = np.zeros(n, dtype=bool)
+    dirichlet[cd[stick].ravel()] = True
+    dirichlet[cd[slide, 2]] = True
+    D = np.flatnonzero(dirichlet)
+    rows = np.repeat(cd[slide, :2], 2, axis=1).ravel()
+    cols = np.tile(cd[slide, :2], (1, 2)).ravel()
+    blk = (k[:, None, None] * tvec[:, :, None] * tvec[:, None, :]).reshape(-1)
+    H = A.copy()
+    H.data[_block_positions(A, rows, cols)] += blk
+    kt = sp.csr_matrix((blk, (rows, cols)), shape=(n, n))
+    T1, T2, Nsl = cd[slide, 0], cd[slide, 1], cd[slide, 2]
+    fa1, fa2 = F * ahat[:, 0], F * ahat[:, 1]
+    # the known part v0: (0, 0, y*_λ) on M3+ nodes, y*_λ in the normal DOF of M1 nodes
+    v0 = np.zeros(n)
+    v0[cd[stick, 2]] = y_lam[stick]
+    v0[Nsl] = y_lam[slide]
+    f = np.zeros(n)
+    f[cd.ravel()] = -np.asarray(y_u, dtype=np.float64)
+    rhs = f - H @ v0
+    rhs[D] = 0.0
+
+    def lift(x):                        # ṽ − v0 = x + N'x: the normal DOF of M1 nodes from v_t
+        w = x.copy()
+        w[Nsl] = fa1 * x[T1] + fa2 * x[T2]
+        return w
+
+    def apply(x):
+        y = H @ lift(x)
+        y[D] = 0.0
+        return y
+
+    t1 = time.perf_counter()
+    M = hierarchy.preconditioner(H, dirichlet, kt)
+    t2 = time.perf_counter()
+    scale = max(float(np.linalg.norm(rhs)), 1e-300)
+    try:
+        res = gmres(apply, rhs, M, atol=rtol * scale, restart=restart, max_iter=max_iter, scale=scale)
+    except KrylovNotConverged as exc:
+        exc.args = (f"full-space adjoint (4.15): {exc.args[0]}",)
+        raise
+    t3 = time.perf_counter()
+    v = lift(res.x) + v0
+    resid = (A @ v)[cd.ravel()] + y_u
+    free_lam = eff != cc["L"]
+    v_lam = np.where(free_lam, -resid[2::3], 0.0)
+    return FullSpaceAdjoint(v, v[cd.ravel()].copy(), v_lam, res.iterations, res.history,
+                            {"setup": t1 - t0, "preconditioner": t2 - t1, "krylov": t3 - t2,
+                             "total": time.perf_counter() - t0})
+
+
+def subgradient_fullspace(model, objective, alpha, asm, result, friction, *, loads=None, rtol=1e-10,
+                          **kw):
+    """Θ(α) and one Clarke subgradient from a full-space state ``result`` (a
+    :class:`~contactopt.contact.fullspace.FullSpaceResult` of A(α), L(α) in ``asm``):
+    (value, gradient, state, adjoint, timings). ``objective`` is a
+    :class:`~contactopt.sensitivity.objectives.Objective` that needs no condensed system (its
+    ``evaluate(state, None)``), e.g. the examples' target normal force."""
+    t0 = time.perf_counter()
+    lam, tau, u_c = result.lam, result.tau, result.u_c
+    classes = classify_nodes(u_c, lam, tau, asm.gap, friction)
+    u_full = model.assembler.to_full(result.u)
+    state = State(alpha=np.asarray(alpha, dtype=float), coords=asm.coords, u=u_full, u_c=u_c, lam=lam,
+                  tau=tau, gap=asm.gap, classes=classes, friction=friction, method="fullspace",
+                  iterations=result.newton_steps, residual=result.error, complementarity=float("nan"),
+                  converged=result.converged)
+    value, y_u, y_lam, dJ = objective.evaluate(state, None)
+    t1 = time.perf_counter()
+    adj = solve_adjoint_fullspace(asm.A, model.contact_dofs, classes, u_c, lam, y_u, y_lam, friction,
+                                  hierarchy=result.hierarchy, rtol=rtol, **kw)
+    t2 = time.perf_counter()
+    v_full = model.assembler.to_full(adj.v)
+    xi = dJ + model.design_contraction(asm.coords, u_full, v_full, loads) + model.gap_matrix.T @ adj.v_lam
+    t3 = time.perf_counter()
+    if not np.all(np.isfinite(xi)):
+        raise SolverError("subgradient has non-finite entries")
+    return float(value), xi, state, adj, {"objective": t1 - t0, "adjoint": t2 - t1, "design_terms": t3 - t2}
