@@ -265,18 +265,21 @@ class VCycle:
         self._coarse = (Q[:, keep] / w[keep]) @ Q[:, keep].T
         self.calls = 0
 
-    def _smooth(self, lvl, x, b):
+    sweeps = ("symmetric", "symmetric")   # (pre, post); ("forward", "backward") is also symmetric
+
+    def _smooth(self, lvl, x, b, which):
+        sweep = self.sweeps[which]
         if lvl == 0:
-            self._gs_idx(self.H, x, b, self.rows, sweep="symmetric")
+            self._gs_idx(self.H, x, b, self.rows, sweep=sweep)
         else:
-            self._gs(self.A[lvl], x, b, sweep="symmetric")
+            self._gs(self.A[lvl], x, b, sweep=sweep)
 
     def _cycle(self, lvl, b):
         if lvl == len(self.A) - 1:
             return self._coarse @ b
         A = self.A[lvl]
         x = np.zeros_like(b)
-        self._smooth(lvl, x, b)
+        self._smooth(lvl, x, b, 0)
         r = b - A @ x
         if lvl == 0:
             r[self.D] = 0.0
@@ -284,7 +287,7 @@ class VCycle:
         if lvl == 0:
             e[self.D] = 0.0
         x += e
-        self._smooth(lvl, x, b)
+        self._smooth(lvl, x, b, 1)
         return x
 
     def __call__(self, v):

@@ -153,6 +153,25 @@ def linear_path(backend: str, n_free: int, objective: str = "", crossover: int =
     return "schur", backend
 
 
+def _upper_triangle(owner, A, hint=""):
+    """The upper triangle of A (same pattern as the matrix ``owner._ps`` analysed) as CSR.
+
+    The positions of the upper-triangle entries in A's CSR arrays are found once (kept on
+    ``owner``); for a matrix with the same full pattern (a new design on the same mesh) the upper
+    triangle is then a gather of A.data.
+    """
+    pat = getattr(owner, "_full_pattern", None)
+    if pat is not None and A.nnz == pat[0].size and np.array_equal(A.indices, pat[0]) \
+            and np.array_equal(A.indptr, pat[1]):
+        return sp.csr_matrix((A.data[pat[2]], owner._ps.ja, owner._ps.ia), shape=A.shape, copy=False)
+    upper = sp.triu(A, format="csr")
+    if A.shape[0] != owner.n or not owner._ps.same_pattern(upper):
+        raise SolverError("refactor needs a matrix with the same sparsity pattern" + hint)
+    row = np.repeat(np.arange(owner.n), np.diff(A.indptr))
+    owner._full_pattern = (A.indices.copy(), A.indptr.copy(), np.flatnonzero(A.indices >= row))
+    return upper
+
+
 def _check_S(S):
     """The Schur block itself is not factorized: catch the cheap symptoms of a non-SPD A."""
     d = np.diagonal(S)
@@ -287,22 +306,7 @@ class PardisoCondensation(Condensation):
         return self
 
     def _upper(self, A):
-        """The upper triangle of A (same pattern as the analysed matrix) as CSR.
-
-        The positions of the upper-triangle entries in A's CSR arrays are found once; for a
-        matrix with the same full pattern the upper triangle is then a gather of A.data.
-        """
-        pat = self._full_pattern
-        if pat is not None and A.nnz == pat[0].size and np.array_equal(A.indices, pat[0]) \
-                and np.array_equal(A.indptr, pat[1]):
-            return sp.csr_matrix((A.data[pat[2]], self._ps.ja, self._ps.ia), shape=A.shape, copy=False)
-        upper = sp.triu(A, format="csr")
-        if A.shape[0] != self.n or not self._ps.same_pattern(upper):
-            raise SolverError("refactor needs a matrix with the same sparsity pattern; "
-                              "call condense() for a new pattern")
-        row = np.repeat(np.arange(self.n), np.diff(A.indptr))
-        self._full_pattern = (A.indices.copy(), A.indptr.copy(), np.flatnonzero(A.indices >= row))
-        return upper
+        return _upper_triangle(self, A, "; call condense() for a new pattern")
 
     def _forward(self, b):
         """Phase 331: interior forward substitution; the c rows then hold the condensed load."""
@@ -560,14 +564,14 @@ class Factorization:
         A = _check_matrix(A, trusted=True)
         t0 = time.perf_counter()
         if self.backend == "pardiso":
-            upper = sp.triu(A, format="csr")
-            if not self._ps.same_pattern(upper):
-                raise SolverError("refactor needs a matrix with the same sparsity pattern")
-            self._ps.factor(upper)
+            self._ps.factor(self._upper(A))
         else:
             self._lu = _splu_natural(A[self._order][:, self._order], check_spd=False)
         self.timings = {"analyze": 0.0, "factor": time.perf_counter() - t0}
         return self
+
+    def _upper(self, A):
+        return _upper_triangle(self, A)
 
     def solve(self, b):
         b = np.asarray(b, dtype=np.float64)

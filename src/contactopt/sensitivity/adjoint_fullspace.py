@@ -62,19 +62,20 @@ class FullSpaceAdjoint:
 
 def solve_adjoint_fullspace(A, contact_dofs, classes, u_c, lam, y_u, y_lam, friction, *,
                             hierarchy: ContactHierarchy, rtol: float = 1e-10, restart: int = 60,
-                            max_iter: int = 400, choices=None) -> FullSpaceAdjoint:
+                            max_iter: int = 400, choices=None, v0=None) -> FullSpaceAdjoint:
     """Solve (4.15) in full space (module docstring) for a state with Table 4.1 ``classes``
     (codes of :data:`contactopt.contact.state.CLASS_CODES`), ``u_c`` (p, 3), ``lam`` (p,),
     and the objective's partial gradients ``y_u`` (3p,) and ``y_lam`` (p,). GMRES stops at
-    ‖residual‖ ≤ rtol·max(‖y_u‖, ‖A v0‖); it raises KrylovNotConverged (a SolverError) with its
-    history otherwise."""
+    ‖residual‖ ≤ rtol·‖right-hand side‖; it raises KrylovNotConverged (a SolverError) with its
+    history otherwise. ``v0``: a warm start for ṽ (free DOFs), e.g. the adjoint of the previous
+    design (its values on the fixed DOFs are ignored)."""
     with sequential_openblas():
         return _solve_adjoint(A, contact_dofs, classes, u_c, lam, y_u, y_lam, friction, hierarchy, rtol,
-                              restart, max_iter, choices)
+                              restart, max_iter, choices, v0)
 
 
 def _solve_adjoint(A, contact_dofs, classes, u_c, lam, y_u, y_lam, friction, hierarchy, rtol, restart,
-                   max_iter, choices):
+                   max_iter, choices, warm):
     ch = {**DEFAULT_CHOICES, **(choices or {})}
     if ch != DEFAULT_CHOICES:
         raise SolverError(f"the full-space adjoint implements the default degenerate choices "
@@ -139,7 +140,11 @@ def _solve_adjoint(A, contact_dofs, classes, u_c, lam, y_u, y_lam, friction, hie
     t2 = time.perf_counter()
     scale = max(float(np.linalg.norm(rhs)), 1e-300)
     try:
-        res = gmres(apply, rhs, M, atol=rtol * scale, restart=restart, max_iter=max_iter, scale=scale)
+        x0 = None
+        if warm is not None:
+            x0 = np.array(warm, dtype=np.float64)
+            x0[D] = 0.0
+        res = gmres(apply, rhs, M, x0=x0, atol=rtol * scale, restart=restart, max_iter=max_iter, scale=scale)
     except KrylovNotConverged as exc:
         exc.args = (f"full-space adjoint (4.15): {exc.args[0]}",)
         raise
