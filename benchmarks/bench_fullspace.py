@@ -8,13 +8,13 @@ contactopt.sensitivity.adjoint_fullspace), with its parts and peak memory.
 The sizes are bench_scale.py's refinements of Example 1 (imported from it: 867k = 128×60×36,
 866 688 DOFs). Every size runs in its own child process (peak RSS of its own, ``ru_maxrss``). The
 child builds the model (no memory check: that estimate is today's Schur path's), assembles
-A(α0), solves the state cold (r = 0, the AMG hierarchy built there), then at the next design
-α1 = α0 + h·d (h = ``--step``, d as in bench_scale.py: volume-preserving, max |d| = 1) assembles
-A(α1) and solves the state warm — from α0's forces and displacement and with α0's hierarchy — and
-the adjoint (4.15) in full space with the same hierarchy, then the design terms of the
-subgradient. The evaluation at α1 is assembly + state + objective + adjoint + design terms (the
-hierarchy is reused, so no AMG setup in it); ``--forces-only`` warm-starts from α0's forces
-alone (u by one Krylov solve first).
+A(α0), solves the state cold (r = 0, the AMG hierarchy built there) and its subgradient (the
+adjoint (4.15) in full space), then at the next design α1 = α0 + h·d (h = ``--step``, d as in
+bench_scale.py: volume-preserving, max |d| = 1) assembles A(α1), solves the state warm — from α0's
+forces and displacement, with α0's hierarchy — and the adjoint warm from α0's, with the same
+hierarchy, then the design terms of the subgradient. The evaluation at α1 is assembly + state +
+objective + adjoint + design terms (the hierarchy is reused, so no AMG setup in it);
+``--forces-only`` warm-starts the state from α0's forces alone (u by one Krylov solve first).
 """
 
 from __future__ import annotations
@@ -72,9 +72,12 @@ def child(shape, step, tol, forces_only):
     t0 = time.perf_counter()
     res0 = solve(asm0)
     t_state0 = time.perf_counter() - t0
-    r0, u0, hier = res0.r, res0.u, res0.hierarchy
+    t0 = time.perf_counter()
+    _, _, _, adj0, _ = subgradient_fullspace(model, objective, a0, asm0, res0, friction)
+    t_adj0 = time.perf_counter() - t0
+    r0, u0, v0, hier = res0.r, res0.u, adj0.v, res0.hierarchy
     nnz_A = int(asm0.A.nnz)
-    del asm0, res0
+    del asm0, res0, adj0
     rss_first = _peak_rss_gb()
     # α1: the evaluation
     t0 = time.perf_counter()
@@ -83,11 +86,11 @@ def child(shape, step, tol, forces_only):
     t0 = time.perf_counter()
     res = solve(asm1, r0=r0, u0=None if forces_only else u0, hierarchy=hier)
     t_state = time.perf_counter() - t0
-    value, xi, state, adj, tparts = subgradient_fullspace(model, objective, a1, asm1, res, friction)
+    value, xi, state, adj, tparts = subgradient_fullspace(model, objective, a1, asm1, res, friction, v0=v0)
     t_eval = t_asm + t_state + sum(tparts.values())
     row = dict(shape=shape, n=n, p=p, nnz_A=nnz_A, step=step, tol=tol, forces_only=forces_only, model_s=t_model,
                levels=hier.sizes(), operator_complexity=hier.operator_complexity, amg_setup=hier.setup_seconds,
-               first_assembly=t_asm0, first_state=t_state0,
+               first_assembly=t_asm0, first_state=t_state0, first_subgradient=t_adj0, line_search=res.steps,
                evaluation=t_eval, assembly=t_asm, state=t_state, state_parts=res.timings,
                newton_steps=res.newton_steps, krylov_per_step=res.krylov_iterations, krylov_rtol=res.krylov_rtol,
                error_history=res.history, error=res.error, equilibrium=res.equilibrium,
@@ -130,7 +133,7 @@ def main(argv=None):
         print(f"{label}: {row['n']} DOFs, {row['p']} contact nodes, nnz(A) {row['nnz_A']}; model {row['model_s']:.1f} s; "
               f"AMG {len(row['levels'])} levels {row['levels']}, op. complexity {row['operator_complexity']:.2f}, "
               f"setup {row['amg_setup']:.1f} s; first state (cold, α0): assembly {row['first_assembly']:.1f} s, "
-              f"state {row['first_state']:.1f} s", flush=True)
+              f"state {row['first_state']:.1f} s, adjoint + design terms {row['first_subgradient']:.1f} s", flush=True)
         print(f"  evaluation at α1 = α0 + {row['step']:g}·d (warm from α0's {'forces' if row['forces_only'] else 'forces, u'} "
               f"and hierarchy): {row['evaluation']:.1f} s [{ok} the goal ≤ {GOAL_S:g} s, ≤ {GOAL_GB:g} GB]: "
               f"assembly {row['assembly']:.1f}, state {row['state']:.1f} (start solve {sp_['start']:.1f}, preconditioner "
@@ -139,7 +142,8 @@ def main(argv=None):
               flush=True)
         print(f"  state: {row['newton_steps']} Newton steps, GMRES iterations per step {row['krylov_per_step']}, "
               f"Siconos error {row['error']:.1e}, equilibrium {row['equilibrium']:.1e}; errors "
-              f"{', '.join(f'{e:.1e}' for e in row['error_history'])}; classes {row['node_classes']}", flush=True)
+              f"{', '.join(f'{e:.1e}' for e in row['error_history'])}; line-search steps {row['line_search']}; "
+              f"classes {row['node_classes']}", flush=True)
         print(f"  peak RSS {row['peak_gb']:.2f} GB (model {row['rss_model_gb']:.2f}, after the first state "
               f"{row['rss_first_gb']:.2f}); wall {row['wall_s']:.0f} s", flush=True)
         rows.append(row)
