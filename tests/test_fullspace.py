@@ -15,6 +15,7 @@ import numpy as np
 import pytest
 import scipy.sparse as sp
 
+from contactopt.config import load_config
 from contactopt.contact.fullspace import OPEN, SLIDE, STICK, gmres, solve_fullspace
 from contactopt.contact.state import CLASS_CODES, classify_nodes
 from contactopt.errors import ContactNotConverged, SolverError
@@ -97,6 +98,21 @@ def test_warm_start_from_forces_only_and_a_small_zone(case):
     assert res.zone_growths >= 1 and res.zone.size > zone.size
     assert_same_state(res, st, case.problem.friction)
     assert np.all(res.r[np.setdiff1d(np.arange(st.lam.size), res.zone)] == 0.0)
+
+
+@pytest.mark.parametrize("friction", [0.0, 0.6])
+def test_frictionless_and_mostly_sticking(friction):
+    """F = 0 (sliding nodes with a zero Robin block, no friction coupling) and F = 0.6 (most
+    nodes in contact stick: three Dirichlet DOFs each) on Example 1."""
+    pb = ShapeProblem(load_config("example1").with_updates({"friction": {"coefficient": friction}}))
+    m = pb.model
+    a = m.initial_design()
+    st = pb.solve_state(a)
+    asm = m.assemble(a, pb.cases[0].loads)
+    res = solve_fullspace(asm.A, asm.L, m.contact_dofs, asm.gap, friction, coords=asm.coords,
+                          free=m.assembler.free, tol=1e-11)
+    assert_same_state(res, st, friction)
+    assert np.sum(res.classes == STICK) == (0 if friction == 0 else st.counts["M3+"])
 
 
 def test_newton_failure_raises_with_its_history(case):
