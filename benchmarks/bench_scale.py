@@ -96,7 +96,7 @@ def child(shape, path, step, out_dir):
         res = subgradient(problem, a1)
         t_eval = time.perf_counter() - t0
     st = res.state
-    fac = problem._factor
+    fac = problem._factor or problem._slot.current    # Delassus path: the zone's condensation
     A = problem._cache[1].assembled.A
     ip = fac._ps.iparm        # PARDISO's own memory report (KiB): analysis peak, permanent, factor
     pardiso_gb = max(int(ip[14]), int(ip[15]) + int(ip[16])) / 2**20

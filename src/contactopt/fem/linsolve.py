@@ -48,7 +48,7 @@ BACKENDS = ("auto", "pardiso", "scipy")
 PATHS = ("auto", "pardiso", "scipy", "delassus")   # [linear_solver] backend
 
 __all__ = ["condense", "factorize", "Condensation", "PardisoCondensation", "ScipyCondensation",
-           "Factorization", "pardiso_available", "BACKENDS"]
+           "Factorization", "SolverSlot", "pardiso_available", "BACKENDS"]
 
 
 def pardiso_available() -> bool:
@@ -222,6 +222,17 @@ class Condensation:
     def solve_interior(self, b_i):
         """A_ii⁻¹ b_i for ``b_i`` of shape (n_i,) or (n_i, k)."""
         raise NotImplementedError
+
+    def solve(self, b):
+        """A⁻¹ b for b of shape (n,) or (n, k), from the same factorization: with ℓ_b the
+        condensed right-hand side, x_c = S⁻¹ℓ_b (dense Cholesky of S, computed on first use) and
+        x_i = A_ii⁻¹(b_i − A_ic x_c)."""
+        from .dense import cholesky_lower, cholesky_solve
+        b = self._full(b, "b")
+        if getattr(self, "_chol_S", None) is None or self._chol_S[0] is not self.S:
+            self._chol_S = (self.S, cholesky_lower(np.array(self.S, dtype=np.float64, order="C")))
+        ell = self.condense_load(b)
+        return self.recover(b, cholesky_solve(self._chol_S[1], ell))
 
     def refactor(self, A, *, trusted=False):
         """Redo the factorization for new values of A with the same sparsity pattern, reusing
@@ -592,6 +603,30 @@ class Factorization:
 
     def __exit__(self, *exc):
         self.close()
+
+
+class SolverSlot:
+    """The factorization through which a design's sparse solves go (the Delassus path): the
+    sparse Cholesky of A(α), or — after a contact zone's Schur complement has been formed, for
+    which the Cholesky is released to bound the peak memory — that condensation, which solves
+    with A(α) just as well (:meth:`Condensation.solve`). ``solve(b)`` = A⁻¹b either way."""
+
+    def __init__(self, factorization=None):
+        self.current = factorization
+
+    def set(self, factorization) -> None:
+        """Make ``factorization`` current; a previous one that is not it is released."""
+        old = self.current
+        if old is not None and old is not factorization:
+            old.close()
+        self.current = factorization
+
+    def solve(self, b):
+        return self.current.solve(b)
+
+    @property
+    def backend(self) -> str:
+        return getattr(self.current, "backend", "?")
 
 
 def factorize(A, backend="auto") -> Factorization:
