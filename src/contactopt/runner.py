@@ -78,6 +78,43 @@ class RunResult:
     summary: dict
 
 
+LONG_EVALUATION = 5.0    # seconds: evaluations longer than this are logged at INFO (else DEBUG)
+
+
+def _peak_rss_gb() -> float:
+    try:
+        import resource
+        return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 2**20
+    except Exception:      # pragma: no cover - not POSIX
+        return float("nan")
+
+
+def _log_setup(problem, seconds: float) -> None:
+    """The run log's record of the model: sizes, linear-solver path, memory estimate, set-up time."""
+    from .fem.memory import estimate_evaluation
+    model = problem.model
+    est = estimate_evaluation(model, problem.path)
+    log.info("model: %d free DOFs, %d elements, %d contact nodes; linear solver: %s path (%s); "
+             "estimated peak of an evaluation %s; set-up %.1f s, peak RSS %.2f GB",
+             model.assembler.n_free, len(model.body.reference.cells), model.n_contact, problem.path,
+             problem.backend, est.describe(), seconds, _peak_rss_gb())
+
+
+def _log_evaluation(count: int, res) -> None:
+    """Time per phase and peak memory of one evaluation (INFO when it was long)."""
+    st = res.state
+    total = sum(res.timings.values())
+    level = logging.INFO if total >= LONG_EVALUATION else logging.DEBUG
+    if not log.isEnabledFor(level):
+        return
+    phases = ", ".join(f"{k} {v:.2f}" for k, v in st.timings.items() if k != "total")
+    log.log(level, "evaluation %d: %.2f s — state %.2f s (%s; zone %s nodes, Delassus block %s, %s "
+            "Newton steps%s), adjoint %.2f s, design terms %.2f s; peak RSS %.2f GB", count, total,
+            res.timings.get("state", 0.0), phases, st.info.get("zone_nodes"), st.info.get("delassus"),
+            st.iterations, f", {st.info['sparse_solves']} sparse solves" if "sparse_solves" in st.info else "",
+            res.timings.get("adjoint", 0.0), res.timings.get("design_terms", 0.0), _peak_rss_gb())
+
+
 class _Oracle:
     """Θ and a subgradient, with bookkeeping: evaluation count, history rows, timings."""
 
@@ -101,6 +138,7 @@ class _Oracle:
             self.time[k] += res.timings.get(k, 0.0)
         self.count += 1
         st = res.state
+        _log_evaluation(self.count, res)
         row = [self.count, self.iteration, repr(float(res.value)), f"{np.linalg.norm(res.gradient):.6e}",
                res.n_degenerate, int(np.sum(st.lam > 0)), st.iterations, f"{st.residual:.3e}",
                f"{time.perf_counter() - self.t_start:.3f}"]
@@ -250,7 +288,9 @@ def run_optimization(config, outdir=None, *, eps=None, max_iter=None, resume=Fal
         eps = saved.get("eps") if eps is None else eps
         max_iter = saved.get("max_iter") if max_iter is None else max_iter
     cfg = resolve_config(config, eps=eps, max_iter=max_iter)
+    t_setup = time.perf_counter()
     problem = ShapeProblem(cfg)
+    t_setup = time.perf_counter() - t_setup
     model = problem.model
     alpha0 = model.initial_design()
     model.admissible.require_feasible(alpha0, tol=1e-9)
@@ -282,6 +322,7 @@ def run_optimization(config, outdir=None, *, eps=None, max_iter=None, resume=Fal
     if root.getEffectiveLevel() > logging.INFO:
         root.setLevel(logging.INFO)
     try:
+        _log_setup(problem, t_setup)
         vers = package_versions()
         atomic_write_text(out / "config.toml", "# resolved configuration of this run\n# versions: "
                           + ", ".join(f"{k} {v}" for k, v in vers.items()) + "\n" + cfg.to_toml())

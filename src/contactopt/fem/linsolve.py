@@ -143,13 +143,13 @@ def linear_path(backend: str, n_free: int, objective: str = "", crossover: int =
         big = n_free >= crossover and _pardiso.available() and objective != "compliance"
         path = "delassus" if big else "schur"
         logger.info("linear solver: %s path for %d DOFs (crossover %d)", path, n_free, crossover)
-        return path, "auto"
+        return path, (_pick_backend("auto") if big else "auto")
     if backend == "delassus":
         if objective == "compliance":
             from ..errors import ConfigError
             raise ConfigError(["linear_solver.backend = 'delassus': the compliance objective needs the "
                                "condensed load on every contact DOF; use backend 'pardiso' or 'auto'"])
-        return "delassus", "auto"
+        return "delassus", _pick_backend("auto")
     return "schur", backend
 
 
