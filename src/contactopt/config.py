@@ -187,12 +187,14 @@ SCHEMA = {
                            "an earlier design, with exact residuals, instead of inverting the new one)"),
     },
     "linear_solver": {
-        "backend": ("auto", _oneof("auto", "pardiso", "scipy", "delassus"),
-                    "'auto', 'pardiso', 'scipy' or 'delassus'. 'pardiso'/'scipy': the condensation onto all "
+        "backend": ("auto", _oneof("auto", "pardiso", "scipy", "delassus", "amg"),
+                    "'auto', 'pardiso', 'scipy', 'delassus' or 'amg'. 'pardiso'/'scipy': the condensation onto all "
                     "contact DOFs (dense S) with that sparse solver; 'delassus': for large meshes, a sparse "
                     "Cholesky factorization of A(α) per design and the contact zone's Delassus products by "
-                    "solves with it (docs/large_meshes.md); 'auto': 'delassus' from `crossover` free DOFs on, "
-                    "else the condensation with PARDISO (SciPy without MKL)"),
+                    "solves with it; 'amg': for meshes no factorization fits, a full-space semismooth Newton "
+                    "method with AMG-preconditioned GMRES (pyamg: the 'large' extra) (docs/large_meshes.md); "
+                    "'auto': 'delassus' from `crossover` free DOFs on, else the condensation with PARDISO "
+                    "(SciPy without MKL)"),
         "crossover": (60000, _posint, "an integer ≥ 1 (free DOFs from which backend 'auto' takes the "
                       "Delassus path)"),
         "memory_check": (True, lambda x: isinstance(x, bool),

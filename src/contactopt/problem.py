@@ -42,6 +42,8 @@ log = logging.getLogger(__name__)
 
 REUSE_MAX_STEPS = 12   # a solve with a kept Delassus block that needs more steps drops it
 REUSE_MAX_GAP = 0.2      # kept blocks farther than this from the new W_Z (relative) are not used
+FULLSPACE_TOL = 1e-10    # the full-space Newton's Siconos error and equilibrium residual (at
+                         # least): its GMRES then runs to 1e-11, near the AMG V-cycle's floor
 CHORD_MIN_GAP = 1e-3     # below this gap Newton is nearly quadratic: no chord steps
 JACOBIAN_DTYPE = np.float32  # a kept block only builds Newton matrices, and is 1e-3–0.2 off the
                              # current W_Z anyway: single precision halves the memory traffic of
@@ -69,11 +71,12 @@ class Condensed:
     gap: np.ndarray          # (p,)
     timings: dict
     x0: np.ndarray | None = None   # Delassus path: A⁻¹L on the free DOFs
+    path: str = "schur"            # "schur", "delassus" or "amg" (full space: nothing factorized)
 
     @property
     def delassus(self) -> bool:
-        """Whether this design is on the Delassus path (no S)."""
-        return self.S is None
+        """Whether this design is on the Delassus path (no S, a sparse factorization of A)."""
+        return self.path == "delassus"
 
 
 @dataclass
@@ -85,6 +88,7 @@ class CaseContext:
     warm: np.ndarray | None
     next_zone: np.ndarray
     jacobian: tuple | None = None
+    u_free: np.ndarray | None = None   # full-space path: the last displacement (free DOFs)
 
 
 def spd_inverse(S: np.ndarray) -> np.ndarray:
@@ -137,6 +141,7 @@ class ShapeProblem:
         self._cache = None
         self._factor = None        # the condensation, refactored in place for each new design
         self._slot = None          # Delassus path: the factorization a design's solves go through
+        self._hierarchy = None     # full-space path: the AMG hierarchy of an earlier A(α)
         self.n_state_solves = 0    # designs solved (all cases at once)
         from .sensitivity.cases import build_cases
         self.cases, self.combination = build_cases(self.config, self)
@@ -173,6 +178,8 @@ class ShapeProblem:
         t1 = time.perf_counter()
         if self.path == "delassus":
             return self._factorized_system(asm, t1 - t0)
+        if self.path == "amg":        # full space: A(α) is used as it is
+            return Condensed(asm, None, None, None, asm.gap, {"assembly": t1 - t0}, path="amg")
         # the sparsity pattern never changes with α: reuse PARDISO's ordering and analysis
         fac = self._factor
         if fac is not None and hasattr(fac, "refactor"):
@@ -201,7 +208,7 @@ class ShapeProblem:
         x0 = fac.solve(asm.L)
         return Condensed(asm, self._slot, None, None, asm.gap,
                          {"assembly": t_assembly, "factor": t1 - t0, "load_solve": time.perf_counter() - t1},
-                         x0=x0)
+                         x0=x0, path="delassus")
 
     def _zone_block(self, A):
         """``dofs -> S_D``: the dense Schur complement of A onto the DOFs ``dofs`` (in their
@@ -241,6 +248,8 @@ class ShapeProblem:
         L = L_full[self.model.assembler.free]
         t1 = time.perf_counter()
         asm_k = replace(asm, L_full=L_full, L=L)
+        if cond.path == "amg":
+            return replace(cond, assembled=asm_k, timings={"assembly": t1 - t0})
         if cond.delassus:
             return replace(cond, assembled=asm_k, x0=cond.factor.solve(L),
                            timings={"assembly": t1 - t0, "load_solve": time.perf_counter() - t1})
@@ -281,6 +290,8 @@ class ShapeProblem:
         """The contact state of load case k on its condensed system ``cond``, warm-started from
         the case's own context (warm start, zone, kept Delassus block)."""
         ctx = self.contexts[k]
+        if cond.path == "amg":
+            return self._solve_case_fullspace(k, cond, alpha, warm_start, tol)
         timings = dict(cond.timings, delassus=0.0, contact=0.0)
         zone = ctx.next_zone if self.use_zone else self._all_nodes
         warm = ctx.warm if warm_start else None
@@ -361,6 +372,58 @@ class ShapeProblem:
                   f" of load case {self.cases[k].name}" if len(self.cases) > 1 else "", method,
                   res.iterations, res.error, zone.size, p, timings["total"])
         return state
+
+    def _solve_case_fullspace(self, k, cond, alpha, warm_start, tol) -> State:
+        """The contact state of load case k in full space (``[linear_solver] backend = "amg"``):
+        :func:`contactopt.contact.fullspace.solve_fullspace`, a semismooth Newton method on all
+        free DOFs with AMG-preconditioned GMRES, warm-started from the case's last forces and
+        displacement, the AMG hierarchy of an earlier design reused (``self._hierarchy``)."""
+        from .contact.fullspace import solve_fullspace
+        ctx = self.contexts[k]
+        asm = cond.assembled
+        model = self.model
+        t0 = time.perf_counter()
+        warm = ctx.warm if warm_start else None
+        u0 = ctx.u_free if warm_start and warm is not None else None
+        res = solve_fullspace(asm.A, asm.L, model.contact_dofs, cond.gap, self.friction, coords=asm.coords,
+                              free=model.assembler.free, r0=warm, u0=u0, hierarchy=self._hierarchy,
+                              tol=max(tol or self.tol, FULLSPACE_TOL), zone=ctx.next_zone if self.use_zone else None,
+                              zone_margin=self.zone_margin)
+        self._hierarchy = res.hierarchy
+        timings = dict(cond.timings, **{f"fullspace_{key}": v for key, v in res.timings.items()})
+        timings["contact"] = time.perf_counter() - t0
+        u3, lam, tau = res.u_c, res.lam, res.tau
+        fscale = max(np.abs(lam).max(initial=0.0), np.abs(asm.L).max(initial=0.0))
+        classes = classify_nodes(u3, lam, tau, cond.gap, self.friction,
+                                 force_scale=fscale if lam.max(initial=0) <= 0 else None)
+        timings["total"] = sum(timings.values())
+        state = State(alpha=alpha, coords=asm.coords, u=model.assembler.to_full(res.u), u_c=u3, lam=lam,
+                      tau=tau, gap=cond.gap, classes=classes, friction=self.friction, method="fullspace",
+                      iterations=res.newton_steps, residual=res.error,
+                      complementarity=contact_conditions_violation(u3, lam, tau, cond.gap, self.friction),
+                      converged=res.converged, timings=timings,
+                      info={"backend": "pyamg", "path": "amg", "zone_nodes": int(res.zone.size),
+                            "zone_misses": int(res.zone_growths), "delassus": "none",
+                            "krylov_iterations": int(sum(res.krylov_iterations))})
+        ctx.warm, ctx.u_free = res.r.copy(), res.u
+        if self.use_zone:
+            clearance = u3[:, 2] + cond.gap
+            ctx.next_zone = zone_rules.near_nodes(lam, clearance, displacement_scale(u3, cond.gap),
+                                                  self.zone_margin)
+        log.debug("state%s: full-space Newton %d steps, %d GMRES iterations, error %.2e, %.2f s",
+                  f" of load case {self.cases[k].name}" if len(self.cases) > 1 else "", res.newton_steps,
+                  sum(res.krylov_iterations), res.error, timings["total"])
+        return state
+
+    def adjoint_fullspace(self, k: int, cond: Condensed, state: State, y_u, y_lam, choices=None):
+        """The adjoint (4.15) of load case k in full space
+        (:func:`contactopt.sensitivity.adjoint_fullspace.solve_adjoint_fullspace`): (v_u, v_λ, ṽ)."""
+        from .sensitivity.adjoint_fullspace import solve_adjoint_fullspace
+        adj = solve_adjoint_fullspace(cond.assembled.A, self.model.contact_dofs, state.classes, state.u_c,
+                                      state.lam, y_u, y_lam, self.friction, hierarchy=self._hierarchy,
+                                      choices=choices)
+        state.info["adjoint_krylov"] = int(adj.iterations)
+        return adj.v_u, adj.v_lam, adj.v
 
     def _predicted_zone(self, cond) -> np.ndarray:
         """A first contact zone without a warm start (Delassus path): the nodes whose
@@ -507,7 +570,7 @@ class ShapeProblem:
         """
         from scipy.sparse.linalg import eigsh
         cond = self.cached_condensed(alpha)
-        if cond.delassus:
+        if cond.S is None:
             log.info("the uniqueness bound (3.16) needs the condensed stiffness S on all contact "
                      "DOFs, which the Delassus path does not form: not computed")
             return float("nan")

@@ -45,7 +45,7 @@ from . import _pardiso
 logger = logging.getLogger(__name__)
 
 BACKENDS = ("auto", "pardiso", "scipy")
-PATHS = ("auto", "pardiso", "scipy", "delassus")   # [linear_solver] backend
+PATHS = ("auto", "pardiso", "scipy", "delassus", "amg")   # [linear_solver] backend
 
 __all__ = ["condense", "factorize", "Condensation", "PardisoCondensation", "ScipyCondensation",
            "Factorization", "SolverSlot", "pardiso_available", "BACKENDS"]
@@ -144,12 +144,12 @@ def linear_path(backend: str, n_free: int, objective: str = "", crossover: int =
         path = "delassus" if big else "schur"
         logger.info("linear solver: %s path for %d DOFs (crossover %d)", path, n_free, crossover)
         return path, (_pick_backend("auto") if big else "auto")
-    if backend == "delassus":
+    if backend in ("delassus", "amg"):
         if objective == "compliance":
             from ..errors import ConfigError
-            raise ConfigError(["linear_solver.backend = 'delassus': the compliance objective needs the "
+            raise ConfigError([f"linear_solver.backend = '{backend}': the compliance objective needs the "
                                "condensed load on every contact DOF; use backend 'pardiso' or 'auto'"])
-        return "delassus", _pick_backend("auto")
+        return backend, (_pick_backend("auto") if backend == "delassus" else "pyamg")
     return "schur", backend
 
 

@@ -301,7 +301,11 @@ def subgradient(problem, alpha, *, choices=None) -> SubgradientResult:
         state, cond, case = states[k], conds[k], problem.cases[k]
         _, y_u, y_lam, dJ_da = parts[k]
         model = problem.model
-        if cond.delassus:
+        if cond.path == "amg":
+            v_u_k, v_lam_k, v_free = problem.adjoint_fullspace(k, cond, state, y_u, y_lam, choices)
+            v_full = model.assembler.to_full(v_free)
+            t3 = time.perf_counter()
+        elif cond.delassus:
             v_u_k, v_lam_k, v_free, kry = problem.adjoint_delassus(k, cond, state, y_u, y_lam, choices)
             v_full = model.assembler.to_full(v_free)
             t3 = time.perf_counter()
