@@ -125,11 +125,16 @@ class ShapeProblem:
         self.max_iter = st["max_iter"]
         self.backend = backend or self.config["linear_solver"]["backend"]
         from .fem.linsolve import linear_path
-        # "schur" (dense S on all contact DOFs) or "delassus" (sparse Cholesky of A, products by
-        # solves): [linear_solver] backend, "auto" by the size of the mesh
-        self.path, self.backend = linear_path(self.backend, self.model.assembler.n_free,
-                                              self.config["objective"]["type"],
-                                              self.config["linear_solver"]["crossover"])
+        # "schur" (dense S on all contact DOFs), "delassus" (sparse Cholesky of A, products by
+        # solves) or "amg" (full space): [linear_solver] backend, "auto" by the size of the mesh
+        # and the memory available (the model's choice)
+        if backend is None and self.model.path == "schur":
+            self.path = "schur"
+            self.backend = self.backend if self.backend in ("pardiso", "scipy") else "auto"
+        else:
+            self.path, self.backend = linear_path(backend or self.model.path, self.model.assembler.n_free,
+                                                  self.config["objective"]["type"],
+                                                  self.config["linear_solver"]["crossover"])
         self.use_zone = bool(st["zone"])
         self.zone_margin = float(st["zone_margin"])
         self.reuse_delassus = bool(st["reuse_delassus"])

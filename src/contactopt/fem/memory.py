@@ -55,6 +55,10 @@ DENSE_COPIES = 5.3            # S (PARDISO's and ours), its Cholesky factor, W_Z
 # DOFs at most (the zone is the nodes near the foundation).
 CHOLESKY_FILL = 0.64
 ZONE_FRACTION = 0.6
+# The full-space path (``backend = "amg"``): no factorization; A, its modified copy H, the AMG
+# hierarchy (operator complexity ≈ 1.16) and GMRES's Krylov basis (restart 60).
+AMG_SPARSE_COPIES = 6.0
+KRYLOV_VECTORS = 130
 
 
 class InsufficientMemoryError(ContactOptError):
@@ -123,11 +127,15 @@ def estimate_counts(n_dofs: int, n_contact_dofs: int, n_cells: int, nnz_A: int,
     parts = {"base": BASE_BYTES + CELL_BYTES * n_cells,
              "sparse": SPARSE_COPIES * 12.0 * nnz_A}
     if path == "delassus":
+        # the Cholesky of A, or — released meanwhile — the Schur-mode factor onto a zone (upper
+        # bound: onto all contact DOFs) with the zone's dense matrices
         nz = ZONE_FRACTION * n_contact_dofs
-        zone_L = int(fill_factor(n_dofs) * nnz_A)   # Schur-mode factor, zone DOFs last (upper bound)
+        zone_L = int(fill_factor(n_dofs) * nnz_A)
         nnz_L = int(CHOLESKY_FILL * nnz_L)
-        parts.update(factor=PARDISO_BYTES * nnz_L, zone_factor=PARDISO_BYTES * zone_L,
-                     dense=DENSE_COPIES * 8.0 * nz ** 2)
+        parts.update(factor=PARDISO_BYTES * max(nnz_L, zone_L), dense=DENSE_COPIES * 8.0 * nz ** 2)
+    elif path == "amg":
+        nnz_L = 0
+        parts.update(sparse=AMG_SPARSE_COPIES * 12.0 * nnz_A, krylov=KRYLOV_VECTORS * 8.0 * n_dofs)
     else:
         parts.update(factor=PARDISO_BYTES * nnz_L, dense=DENSE_COPIES * 8.0 * float(n_contact_dofs) ** 2)
     return MemoryEstimate(n_dofs, n_contact_dofs, n_cells, nnz_A, nnz_L, parts)
@@ -145,6 +153,26 @@ def estimate_evaluation(body, path: str = "schur") -> MemoryEstimate:
     free[np.asarray(body.fixed_dofs, dtype=np.int64)] = False
     nnz_A = matrix_entries(ref.cells, n_nodes, free.reshape(-1, 3).sum(axis=1))
     return estimate_counts(int(free.sum()), 3 * len(body.contact_nodes), len(ref.cells), nnz_A, path)
+
+
+def select_path(body, backend: str, objective: str, crossover: int, *, margin: float = 0.9) -> str:
+    """The linear-solver path of ``[linear_solver] backend`` for a body
+    (:func:`contactopt.fem.linsolve.linear_path`), where "auto" also steps up to the full-space
+    path ("amg") when the Delassus path's estimated peak exceeds ``margin`` × the available memory
+    and pyamg is installed."""
+    from .linsolve import linear_path
+    est = estimate_evaluation(body, "schur")
+    path = linear_path(backend, est.n_dofs, objective, crossover)[0]
+    if backend == "auto" and path == "delassus" \
+            and estimate_evaluation(body, "delassus").total > margin * available_memory():
+        try:
+            import pyamg  # noqa: F401
+        except ImportError:
+            return path
+        log.info("linear solver: the Delassus path would need more memory than is available; "
+                 "full-space path (AMG)")
+        return "amg"
+    return path
 
 
 def available_memory() -> float:

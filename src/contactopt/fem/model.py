@@ -59,11 +59,9 @@ class ElasticModel:
         self.config = cfg
         self.body = body = build_body(cfg)
         ls = cfg["linear_solver"]
-        n_free = 3 * body.reference.n_nodes - len(np.unique(np.asarray(body.fixed_dofs)))
-        from .linsolve import linear_path
-        self.path = linear_path(ls["backend"], n_free, cfg["objective"]["type"], ls["crossover"])[0]
+        from .memory import check_memory, select_path
+        self.path = select_path(body, ls["backend"], cfg["objective"]["type"], ls["crossover"])
         if ls["memory_check"]:   # refuse a mesh too large before building on it
-            from .memory import check_memory
             check_memory(body, path=self.path)
         ref = body.reference
         d = cfg["design"]
