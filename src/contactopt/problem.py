@@ -48,6 +48,9 @@ CHORD_MIN_GAP = 1e-3     # below this gap Newton is nearly quadratic: no chord s
 JACOBIAN_DTYPE = np.float32  # a kept block only builds Newton matrices, and is 1e-3–0.2 off the
                              # current W_Z anyway: single precision halves the memory traffic of
                              # those matrices and the time of their LU
+DELASSUS_NEW_NODES = 24  # Delassus path: new nodes whose exact columns (3 sparse solves each, as
+                         # one block) extend a kept block; 72 columns ≈ 1.5–2 factorizations at
+                         # 113k DOFs, about the cost of the zone's Schur complement
 ADJOINT_MAX_NEW = 0.1    # the adjoint's preconditioner takes exact columns for at most this
                          # fraction of nodes outside the kept block, else the zone's Schur complement
 REUSE_TOL_FACTOR = 0.1   # and it iterates to this times tol: exact Newton's last, quadratic
@@ -430,6 +433,15 @@ class ShapeProblem:
         state.info["adjoint_krylov"] = int(adj.iterations)
         return adj.v_u, adj.v_lam, adj.v
 
+    def _new_columns(self, nodes, fraction: float = 0.25) -> dict:
+        """``max_new`` of :meth:`ZoneProblem.block_from` for a zone ``nodes``: a kept block takes exact
+        columns for at most this fraction of new nodes — on the Delassus path, where a column costs
+        a sparse solve, for at most DELASSUS_NEW_NODES (beyond that the zone's Schur complement is
+        cheaper)."""
+        if self.path == "delassus":
+            fraction = min(fraction, DELASSUS_NEW_NODES / max(len(nodes), 1))
+        return {"max_new": fraction}
+
     def _predicted_zone(self, cond) -> np.ndarray:
         """A first contact zone without a warm start (Delassus path): the nodes whose
         displacement without contact forces, x0, closes the gap to within the margin — the zone
@@ -457,7 +469,7 @@ class ShapeProblem:
         r0 = warm[zp.zone].ravel() if warm is not None else None
         tol = tol or self.tol
         if method == "newton" and self.reuse_delassus and not zp.has_W:
-            W_old = None if ctx.jacobian is None else zp.block_from(*ctx.jacobian[1:])
+            W_old = None if ctx.jacobian is None else zp.block_from(*ctx.jacobian[1:], **self._new_columns(zp.zone))
             # Delassus path: measured on the warm start, whose product Newton needs first anyway
             eta = np.inf if W_old is None else zp.relative_gap(W_old, r0 if cond.delassus else None)
             if eta <= REUSE_MAX_GAP:
@@ -509,7 +521,7 @@ class ShapeProblem:
         jac = self.contexts[k].jacobian
         W = None
         if jac is not None and K.size:
-            W = zpK.block_from(jac[1], jac[2], max_new=ADJOINT_MAX_NEW)
+            W = zpK.block_from(jac[1], jac[2], **self._new_columns(K, ADJOINT_MAX_NEW))
         if W is None:
             W = zpK.W if K.size else np.zeros((0, 0))
         perm = (3 * np.arange(K.size)[:, None] + np.array([1, 2, 0])).ravel()   # FCLIB -> (t1, t2, ν)
