@@ -1,29 +1,34 @@
 """Large meshes (issue #16): cost and peak memory of one evaluation (state + subgradient) at a
 next design on refinements of Example 1, as ratios to one clean-process PARDISO factorization.
 
-    python benchmarks/bench_scale.py                           # 113k and 210k DOFs, today's path
-    python benchmarks/bench_scale.py --sizes 113k 210k 371k 867k --max-gb 10
+    python benchmarks/bench_scale.py            # 113k, 210k, 371k, 867k DOFs, backend 'auto'
+    python benchmarks/bench_scale.py --sizes 113k 210k --paths schur delassus   # paths side by side
     python benchmarks/bench_scale.py --sizes 48x22x13          # any NXxNYxNZ refinement
 
 Every (size, path) runs in its own child process, so that its peak RSS (``ru_maxrss``, which
 includes MKL PARDISO's memory) is its own. The child builds ``ShapeProblem`` on example1 with the
 refined ``[mesh]``, evaluates ``contactopt.sensitivity.adjoint.subgradient`` once at α0 (warm-up:
-ordering, analysis, contact zone, Delassus block) and then once at a next design α1 = α0 + h·d
-(h = ``--step``, d a volume-preserving direction with max|d| = 1, as in an optimization step),
-and reports the time of that second evaluation with its parts (``result.timings``,
-``state.timings``), the size of the sparse factor, the peak RSS and the up-front memory estimate
-of :mod:`contactopt.fem.memory`. It saves A(α1); after the child has exited, the parent times
-one factorization of that same matrix with pypardiso's defaults in a clean process
-(``benchmarks/_reference.py``), the reference of every ratio.
+ordering, analysis, contact zone, Delassus block or AMG hierarchy) and then once at a next design
+α1 = α0 + h·d (h = ``--step``, d a volume-preserving direction with max|d| = 1, as in an
+optimization step), and reports the time of that second evaluation with its parts
+(``result.timings``, ``state.timings``), sparse solves or Krylov iterations, the size of the
+sparse factor, the peak RSS and the up-front memory estimate of :mod:`contactopt.fem.memory`. It
+saves A(α1); after the child has exited, the parent times one factorization of that same matrix
+with pypardiso's defaults in a clean process (``benchmarks/_reference.py``), the reference of
+every ratio, and contactopt's own PARDISO Cholesky of it in another clean process (a stricter
+yardstick: pypardiso's default is an LU). A reference that does not fit the memory (a Cholesky
+of 867k DOFs) is reported as such.
+
+Paths: ``auto`` is ``[linear_solver] backend = "auto"`` (the path it picks by size and memory:
+``delassus`` from 60k DOFs, ``amg`` where the Delassus path's estimate exceeds the memory);
+``schur`` the condensation onto all contact DOFs (PARDISO Schur mode, dense S); ``delassus`` a
+sparse Cholesky of A(α) and Delassus products by solves; ``amg`` the full-space Newton with AMG.
+A (size, path) whose estimated peak exceeds ``--max-gb`` (default 16 GB) is skipped and reported.
 
 ``--candidates SIZE`` instead measures, in one process on A(α) of that size, the pieces of a path
 without S on all contact DOFs (docs/large_meshes.md): a Cholesky factorization, the Schur
 condensation on all contact DOFs and on a zone, solves with a kept factorization, PCG with the
 factorization of A(α0) as preconditioner at designs α0 + h·d, and pyamg SA + PCG.
-
-Paths: ``schur`` is today's path (PARDISO Schur mode, dense S on all contact DOFs). A size whose
-estimated peak exceeds ``--max-gb`` (default: 10 GB, the budget on a shared machine) is skipped
-and reported, not run.
 """
 
 from __future__ import annotations
@@ -39,7 +44,7 @@ from pathlib import Path
 
 SIZES = {"15k": (32, 15, 9), "113k": (64, 30, 18), "210k": (80, 37, 22), "371k": (96, 45, 27),
          "867k": (128, 60, 36), "1m": (136, 64, 38)}
-PATHS = ("schur", "delassus")     # [linear_solver] backend "pardiso" / "delassus"
+PATHS = ("auto", "schur", "delassus", "amg")   # [linear_solver] backend "auto" / "pardiso" / "delassus" / "amg"
 GOALS = {"113k": 1.5, "210k": 1.5, "371k": 1.0}    # evaluation / reference factorization
 
 
@@ -69,7 +74,8 @@ def child(shape, path, step, out_dir):
 
     nx, ny, nz = shape
     cfg = load_config("example1").with_updates({"mesh": {"nx": nx, "ny": ny, "nz": nz},
-                                                "linear_solver": {"backend": "pardiso" if path == "schur" else path}})
+                                                "linear_solver": {"backend": "pardiso" if path == "schur" else path,
+                                                                  "memory_check": path != "schur"}})
     t0 = time.perf_counter()
     problem = ShapeProblem(cfg)
     t_setup = time.perf_counter() - t0
@@ -96,19 +102,23 @@ def child(shape, path, step, out_dir):
         res = subgradient(problem, a1)
         t_eval = time.perf_counter() - t0
     st = res.state
-    fac = problem._factor or problem._slot.current    # Delassus path: the zone's condensation
+    fac = problem._factor or (problem._slot.current if problem._slot else None)   # None in full space
     A = problem._cache[1].assembled.A
-    ip = fac._ps.iparm        # PARDISO's own memory report (KiB): analysis peak, permanent, factor
-    pardiso_gb = max(int(ip[14]), int(ip[15]) + int(ip[16])) / 2**20
+    if fac is not None:
+        ip = fac._ps.iparm    # PARDISO's own memory report (KiB): analysis peak, permanent, factor
+        pardiso_gb = max(int(ip[14]), int(ip[15]) + int(ip[16])) / 2**20
+    else:
+        pardiso_gb = 0.0
     a_file = Path(out_dir) / f"A_{nx}x{ny}x{nz}.npz"
     sp.save_npz(a_file, A, compressed=False)
-    row = dict(shape=shape, path=path, n=n, p=p, nnz_A=int(A.nnz), nnz_factor=int(fac.stats["nnz_factor"]), pardiso_gb=pardiso_gb,
+    row = dict(shape=shape, path=problem.path, n=n, p=p, nnz_A=int(A.nnz),
+               nnz_factor=int(fac.stats["nnz_factor"]) if fac is not None else 0, pardiso_gb=pardiso_gb,
                setup=t_setup, first=t_first, evaluation=t_eval,
-               parts={**{k: st.timings[k] for k in ("assembly", "schur", "factor", "load_solve", "delassus",
-                                                     "contact", "recovery") if k in st.timings},
+               parts={**{k: v for k, v in st.timings.items() if k != "total"},
                       "adjoint": res.timings["adjoint"], "design_terms": res.timings["design_terms"]},
                zone=st.info["zone_nodes"], newton_it=int(st.iterations), delassus=st.info["delassus"],
                solves=st.info.get("sparse_solves"), adjoint_krylov=st.info.get("adjoint_krylov"),
+               krylov=st.info.get("krylov_iterations"),
                rss_model_gb=rss_model, peak_gb=_peak_rss_gb(), estimate_gb=est, A_file=str(a_file))
     print(json.dumps(row))
 
@@ -119,7 +129,9 @@ def _estimate_only(shape, path="schur"):
             "from contactopt.mesh.body import build_body; from contactopt.fem.memory import estimate_evaluation; "
             "nx, ny, nz = map(int, sys.argv[1:4]); "
             "b = build_body(load_config('example1').with_updates({'mesh': {'nx': nx, 'ny': ny, 'nz': nz}})); "
-            "print(json.dumps(estimate_evaluation(b, sys.argv[4]).total_gb))")
+            "from contactopt.fem.memory import select_path; "
+            "path = select_path(b, 'auto', 'target_normal_force', 60000) if sys.argv[4] == 'auto' else sys.argv[4]; "
+            "print(json.dumps(estimate_evaluation(b, path).total_gb))")
     out = subprocess.run([sys.executable, "-c", code, *map(str, shape), path], capture_output=True, text=True)
     if out.returncode:
         return None
@@ -312,11 +324,12 @@ def _meminfo():
 
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    ap.add_argument("--sizes", nargs="+", default=["113k", "210k"],
+    ap.add_argument("--sizes", nargs="+", default=["113k", "210k", "371k", "867k"],
                     help=f"keys ({', '.join(f'{k}={v[0]}x{v[1]}x{v[2]}' for k, v in SIZES.items())}) or NXxNYxNZ")
-    ap.add_argument("--paths", nargs="+", choices=PATHS, default=list(PATHS))
+    ap.add_argument("--paths", nargs="+", choices=PATHS, default=["auto"],
+                    help="auto: [linear_solver] backend = 'auto' (the path it picks by size and memory)")
     ap.add_argument("--step", type=float, default=5e-4, help="max |α1 − α0| of the next design")
-    ap.add_argument("--max-gb", type=float, default=10.0, help="skip sizes estimated above this peak")
+    ap.add_argument("--max-gb", type=float, default=16.0, help="skip sizes estimated above this peak")
     ap.add_argument("--repeat", type=int, default=3, help="clean-process reference factorizations (median)")
     ap.add_argument("--json", help="also write the rows to this file")
     ap.add_argument("--candidates", metavar="SIZE",
@@ -368,22 +381,36 @@ def main(argv=None):
                           f"{out.stderr.strip().splitlines()[-1] if out.stderr.strip() else ''}", flush=True)
                     continue
                 row = json.loads(out.stdout.strip().splitlines()[-1])
-                A = sp.load_npz(row["A_file"])
-                ref = clean_factorization(A, repeat=args.repeat)
-                del A
-                spd = clean_spd_factorization(row["A_file"], args.repeat)
+                # the references need memory of their own: a Cholesky factor of the estimated size
+                # (PARDISO_BYTES per entry), pypardiso's LU about twice that
+                from contactopt.fem import memory
+                chol_gb = (memory.PARDISO_BYTES * memory.CHOLESKY_FILL * memory.fill_factor(row["n"])
+                           * row["nnz_A"] / 2**30)
+                avail = _meminfo()["MemAvailable"]
+                if 2 * chol_gb < 0.8 * avail:
+                    A = sp.load_npz(row["A_file"])
+                    ref = clean_factorization(A, repeat=args.repeat)
+                    del A
+                else:
+                    ref = {"seconds": float("nan"), "what": f"skipped: pypardiso's LU needs about {2 * chol_gb:.0f} GB"}
+                if chol_gb < 0.8 * avail:
+                    spd = clean_spd_factorization(row["A_file"], args.repeat)
+                else:
+                    spd = {"seconds": float("nan"), "peak_gb": float("nan")}
                 row["spd_factorization"], row["spd_peak_gb"] = spd["seconds"], spd["peak_gb"]
                 Path(row["A_file"]).unlink()
                 row["reference"], row["reference_what"] = ref["seconds"], ref["what"]
                 row["ratio"] = row["evaluation"] / ref["seconds"]
+                if ref["what"].startswith("skipped"):
+                    print(f"{label:<10} reference {ref['what']}", flush=True)
                 goal = GOALS.get(key)
                 parts = ", ".join(f"{k} {v:.2f}" for k, v in row["parts"].items())
                 est_s = f"{row['estimate_gb']:6.2f}" if row["estimate_gb"] is not None else f"{'-':>6}"
-                print(f"{label:<10} {path:<8} {row['n']:>8} {row['p']:>5} {row['evaluation']:8.2f} "
+                print(f"{label:<10} {row['path']:<8} {row['n']:>8} {row['p']:>5} {row['evaluation']:8.2f} "
                       f"{ref['seconds']:7.2f} {row['ratio']:6.2f} {goal if goal else '-':>5} "
                       f"{row['peak_gb']:7.2f} {est_s}  {parts}; zone {row['zone']}, "
                       f"Newton {row['newton_it']} it, W_Z {row['delassus']}, sparse solves {row['solves']}, "
-                      f"adjoint GMRES {row['adjoint_krylov']}, nnz(L)/nnz(A) "
+                      f"GMRES {row['krylov']} (state) / {row['adjoint_krylov']} (adjoint), nnz(L)/nnz(A) "
                       f"{row['nnz_factor'] / row['nnz_A']:.1f}, PARDISO {row['pardiso_gb']:.2f} GB; "
                       f"eval/Cholesky {row['evaluation'] / spd['seconds']:.2f} (Cholesky {spd['seconds']:.2f} s, "
                       f"{spd['peak_gb']:.2f} GB)", flush=True)

@@ -398,7 +398,7 @@ class ShapeProblem:
                               tol=max(tol or self.tol, FULLSPACE_TOL), zone=ctx.next_zone if self.use_zone else None,
                               zone_margin=self.zone_margin)
         self._hierarchy = res.hierarchy
-        timings = dict(cond.timings, **{f"fullspace_{key}": v for key, v in res.timings.items()})
+        timings = dict(cond.timings, **{f"fullspace_{key}": v for key, v in res.timings.items() if key != "total"})
         timings["contact"] = time.perf_counter() - t0
         u3, lam, tau = res.u_c, res.lam, res.tau
         fscale = max(np.abs(lam).max(initial=0.0), np.abs(asm.L).max(initial=0.0))
