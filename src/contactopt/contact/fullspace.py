@@ -318,7 +318,7 @@ class FullSpaceResult:
     ``u`` on the free DOFs; ``u_c`` (p, 3) per node (t1, t2, ν); ``classes`` the node classes
     (OPEN, STICK, SLIDE) of the last Newton system; ``history`` the Siconos error of every
     iterate (``[0]`` the start); ``krylov_iterations`` / ``krylov_histories`` / ``krylov_rtol``
-    per Newton step; ``steps`` the line-search step lengths; ``timings`` in seconds per phase;
+    per Newton step (preceded by those of the start solve when no u0 was given); ``steps`` the line-search step lengths; ``timings`` in seconds per phase;
     ``hierarchy`` the AMG hierarchy to pass to the next solve."""
 
     r: np.ndarray
