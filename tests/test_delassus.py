@@ -140,8 +140,11 @@ def test_adjoint_that_does_not_converge_raises_with_its_history():
     assert len(exc.value.history) > 2 and exc.value.history[-1] < 1e-6
 
 
-def test_run_and_resume_on_the_delassus_path_are_exact(tmp_path):
-    cfg = load_config("example2").with_updates({"name": "d2", "linear_solver": {"backend": "delassus"}})
+@pytest.mark.parametrize("path", ["delassus", "amg"])
+def test_run_and_resume_are_exact(tmp_path, path):
+    """The Delassus path rebuilds its kept block, the full-space path its AMG hierarchy (seeded,
+    one OpenBLAS thread) and takes the last displacement from the checkpoint."""
+    cfg = load_config("example2").with_updates({"name": "d2", "linear_solver": {"backend": path}})
     path = tmp_path / "d2.toml"
     path.write_text(tomli_w.dumps(cfg.data))
     ref = run_optimization(str(path), tmp_path / "ref", max_iter=8)

@@ -44,6 +44,7 @@ REUSE_MAX_STEPS = 12   # a solve with a kept Delassus block that needs more step
 REUSE_MAX_GAP = 0.2      # kept blocks farther than this from the new W_Z (relative) are not used
 FULLSPACE_TOL = 1e-10    # the full-space Newton's Siconos error and equilibrium residual (at
                          # least): its GMRES then runs to 1e-11, near the AMG V-cycle's floor
+HIERARCHY_SEED = 20090101   # NumPy's global generator while pyamg builds a hierarchy
 CHORD_MIN_GAP = 1e-3     # below this gap Newton is nearly quadratic: no chord steps
 JACOBIAN_DTYPE = np.float32  # a kept block only builds Newton matrices, and is 1e-3–0.2 off the
                              # current W_Z anyway: single precision halves the memory traffic of
@@ -149,7 +150,8 @@ class ShapeProblem:
         self._cache = None
         self._factor = None        # the condensation, refactored in place for each new design
         self._slot = None          # Delassus path: the factorization a design's solves go through
-        self._hierarchy = None     # full-space path: the AMG hierarchy of an earlier A(α)
+        self._hierarchy = None     # full-space path: the AMG hierarchy of an earlier A(α) ...
+        self._hierarchy_alpha = None   # ... built at this design (checkpoints rebuild it)
         self.n_state_solves = 0    # designs solved (all cases at once)
         from .sensitivity.cases import build_cases
         self.cases, self.combination = build_cases(self.config, self)
@@ -393,12 +395,18 @@ class ShapeProblem:
         t0 = time.perf_counter()
         warm = ctx.warm if warm_start else None
         u0 = ctx.u_free if warm_start and warm is not None else None
+        t_setup = 0.0
+        if self._hierarchy is None:
+            self._hierarchy = self._build_hierarchy(alpha, asm)
+            self._hierarchy_alpha = np.array(alpha, dtype=float)
+            t_setup = time.perf_counter() - t0
         res = solve_fullspace(asm.A, asm.L, model.contact_dofs, cond.gap, self.friction, coords=asm.coords,
                               free=model.assembler.free, r0=warm, u0=u0, hierarchy=self._hierarchy,
                               tol=max(tol or self.tol, FULLSPACE_TOL), zone=ctx.next_zone if self.use_zone else None,
                               zone_margin=self.zone_margin)
         self._hierarchy = res.hierarchy
         timings = dict(cond.timings, **{f"fullspace_{key}": v for key, v in res.timings.items() if key != "total"})
+        timings["fullspace_amg_setup"] += t_setup
         timings["contact"] = time.perf_counter() - t0
         u3, lam, tau = res.u_c, res.lam, res.tau
         fscale = max(np.abs(lam).max(initial=0.0), np.abs(asm.L).max(initial=0.0))
@@ -422,6 +430,31 @@ class ShapeProblem:
                   f" of load case {self.cases[k].name}" if len(self.cases) > 1 else "", res.newton_steps,
                   sum(res.krylov_iterations), res.error, timings["total"])
         return state
+
+    def _build_hierarchy(self, alpha, asm=None):
+        """The AMG hierarchy of A(α) (:class:`~contactopt.contact.fullspace.ContactHierarchy`).
+
+        pyamg estimates spectral radii from random start vectors of NumPy's global generator: it
+        is seeded here (and its state restored), and OpenBLAS runs on one thread, so that the same
+        design gives the same hierarchy bit for bit — a resumed run rebuilds it from the
+        checkpoint's design and repeats the uninterrupted one."""
+        import scipy.sparse as sp
+        from .contact.fullspace import ContactHierarchy
+        from .fem.iterative import rigid_body_modes
+        if asm is None:
+            asm = self.model.assemble(self.model.surface.as_vector(alpha), self.cases[0].loads)
+        A = sp.csr_matrix(asm.A)
+        if not A.has_sorted_indices:
+            A = A.copy()
+            A.sort_indices()
+        saved = np.random.get_state()
+        np.random.seed(HIERARCHY_SEED)
+        try:      # one OpenBLAS thread, as inside a state solve: the same round-off either way
+            with sequential_openblas():
+                return ContactHierarchy(A, rigid_body_modes(asm.coords, self.model.assembler.free),
+                                        contact_dofs=self.model.contact_dofs)
+        finally:
+            np.random.set_state(saved)
 
     def adjoint_fullspace(self, k: int, cond: Condensed, state: State, y_u, y_lam, choices=None):
         """The adjoint (4.15) of load case k in full space
@@ -537,6 +570,9 @@ class ShapeProblem:
     def jacobian_design(self, case: int = 0):
         """(alpha, zone) of load case ``case``'s kept Delassus block, or None: with them
         :meth:`restore_jacobian` rebuilds the same block (checkpoints)."""
+        if self.path == "amg":      # the design of the AMG hierarchy, with the case's zone
+            a = self._hierarchy_alpha
+            return None if a is None else (a, self.contexts[case].next_zone)
         jac = self.contexts[case].jacobian
         return None if jac is None else (jac[0], jac[1])
 
@@ -545,6 +581,11 @@ class ShapeProblem:
         load case ``case``'s (W_Z does not depend on the load)."""
         alpha = np.array(alpha, dtype=float)
         zone = np.asarray(zone, dtype=np.int64)
+        if self.path == "amg":      # full space: the AMG hierarchy of A(alpha), shared by the cases
+            if self._hierarchy_alpha is None or not np.array_equal(self._hierarchy_alpha, alpha):
+                self._hierarchy = self._build_hierarchy(alpha)
+                self._hierarchy_alpha = alpha
+            return
         for other in self.contexts:           # cases that kept the same block share it
             j = other.jacobian
             if j is not None and np.array_equal(j[0], alpha) and np.array_equal(j[1], zone):

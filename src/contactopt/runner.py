@@ -166,6 +166,9 @@ def _write_checkpoint(path: Path, bstate, oracle: _Oracle, fingerprint: str, ela
                   meta_elapsed=np.array(elapsed), meta_scale=np.array(oracle.scale), meta_eps=np.array(opt["eps"]),
                   meta_max_iter=np.array(opt["max_iter"]), warm=np.asarray(warm if warm is not None else np.zeros(0)),
                   zone=np.asarray(oracle.problem.next_zone))
+    for k, ctx in enumerate(oracle.problem.contexts):   # full-space path: the last displacements
+        if ctx.u_free is not None:
+            arrays[f"case{k}_u_free" if k else "u_free"] = np.asarray(ctx.u_free)
     jac = oracle.problem.jacobian_design()        # rebuilt at resume: the same Newton matrices
     arrays.update(jacobian_alpha=np.asarray(jac[0] if jac else np.zeros(0), dtype=float),
                   jacobian_zone=np.asarray(jac[1] if jac else np.zeros(0), dtype=np.int64))
@@ -209,6 +212,21 @@ def _read_checkpoint(path: Path, fingerprint: str):
                       if data[c + "jacobian_alpha"].size else None))
     return (bstate, int(data["meta_evaluations"]), float(data["meta_elapsed"]), warm,
             float(data["meta_scale"]), zone, jacobian, cases)
+
+
+def _read_u_free(path: Path, n_cases: int, n_free: int) -> list:
+    """The full-space path's last displacement of every load case (None where the checkpoint has
+    none), checked against the mesh's free DOFs."""
+    out = []
+    with np.load(path, allow_pickle=False) as z:
+        for k in range(n_cases):
+            key = f"case{k}_u_free" if k else "u_free"
+            u = z[key] if key in z.files else None
+            if u is not None and (u.shape != (n_free,) or not np.all(np.isfinite(u))):
+                raise CheckpointError(f"checkpoint {path}: its displacement {key} does not fit the mesh "
+                                      f"({u.shape[0] if u.ndim else 0} values for {n_free} free DOFs) or is not finite")
+            out.append(u)
+    return out
 
 
 def _is_node_set(nodes: np.ndarray, n_contact: int) -> bool:
@@ -338,6 +356,8 @@ def run_optimization(config, outdir=None, *, eps=None, max_iter=None, resume=Fal
             problem._warm = warm
             if zone is not None:
                 problem.next_zone = zone
+            for k, u_free in enumerate(_read_u_free(ckpt, len(problem.contexts), model.assembler.n_free)):
+                problem.contexts[k].u_free = u_free
             for ctx, (w, z, _) in zip(problem.contexts[1:], cases):
                 ctx.warm, ctx.next_zone = w, z
             oracle.scale = scale
