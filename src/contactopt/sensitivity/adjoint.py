@@ -257,12 +257,18 @@ def solve_adjoint_delassus(apply, W_approx, state: State, y_u: np.ndarray, y_lam
         f[dofK] = sK
         return Eb @ apply(f)[0][dofK] + Db @ sK
 
-    Qt = np.asarray(Eb @ np.asarray(W_approx, dtype=np.float64)) + Db.toarray()
-    try:
-        lu = sla.lu_factor(Qt, check_finite=True)
-    except (ValueError, sla.LinAlgError) as exc:
-        raise SolverError(f"adjoint system (4.15): its preconditioner could not be factorized: {exc}") from None
-    res = gmres(Q, rhs, lambda r: sla.lu_solve(lu, r), rtol=rtol, max_iter=60, verify=False)
+    # the preconditioner only: single precision, as the Newton matrices of the kept block
+    from ..fem.dense import LUFactor
+    Qt = np.ascontiguousarray(Eb @ np.asarray(W_approx, dtype=np.float32), dtype=np.float32)
+    blk = (3 * np.arange(k)[:, None, None] + np.arange(3)[None, :, None], 3 * np.arange(k)[:, None, None]
+           + np.arange(3)[None, None, :])
+    Qt[blk] += D.astype(np.float32)
+    if not np.all(np.isfinite(Qt)):
+        raise SolverError("adjoint system (4.15): its preconditioner has non-finite entries")
+    lu = LUFactor(Qt)
+    if lu.info != 0:
+        raise SolverError(f"adjoint system (4.15): its preconditioner is singular (getrf info {lu.info})")
+    res = gmres(Q, rhs, lu.solve, rtol=rtol, max_iter=60, verify=False)
     s[dofK] = res.x
     v_u, v_full = apply(s)
     if not (np.all(np.isfinite(v_u)) and np.all(np.isfinite(v_full))):
