@@ -140,8 +140,8 @@ def test_adjoint_in_full_space_agrees_with_the_condensed_one(case):
                                                      pb.friction)
     assert np.array_equal(state.classes, ref.state.classes)
     assert value == pytest.approx(ref.value, rel=1e-9)
-    assert np.abs(adj.v_u - ref.v_u).max() <= 1e-8 * np.abs(ref.v_u).max()
-    assert np.abs(adj.v_lam - ref.v_lam).max() <= 1e-8 * np.abs(ref.v_lam).max()
+    assert np.abs(adj.v_u - ref.v_u).max() <= 1e-7 * np.abs(ref.v_u).max()      # GMRES to 1e-10
+    assert np.abs(adj.v_lam - ref.v_lam).max() <= 1e-7 * np.abs(ref.v_lam).max()
     assert np.abs(xi - ref.gradient).max() <= 1e-8 * np.abs(ref.gradient).max()
     assert adj.iterations == len(adj.history) - 1
 

@@ -111,7 +111,7 @@ def _solve_adjoint(A, contact_dofs, classes, u_c, lam, y_u, y_lam, friction, hie
     rows = np.repeat(cd[slide, :2], 2, axis=1).ravel()
     cols = np.tile(cd[slide, :2], (1, 2)).ravel()
     blk = (k[:, None, None] * tvec[:, :, None] * tvec[:, None, :]).reshape(-1)
-    H = A.copy()
+    H = hierarchy.fine_matrix(A)                 # A + C for the V-cycle
     H.data[_block_positions(A, rows, cols)] += blk
     kt = sp.csr_matrix((blk, (rows, cols)), shape=(n, n))
     T1, T2, Nsl = cd[slide, 0], cd[slide, 1], cd[slide, 2]
@@ -122,7 +122,7 @@ def _solve_adjoint(A, contact_dofs, classes, u_c, lam, y_u, y_lam, friction, hie
     v0[Nsl] = y_lam[slide]
     f = np.zeros(n)
     f[cd.ravel()] = -np.asarray(y_u, dtype=np.float64)
-    rhs = f - H @ v0
+    rhs = f - A @ v0 - kt @ v0
     rhs[D] = 0.0
 
     def lift(x):                        # ṽ − v0 = x + N'x: the normal DOF of M1 nodes from v_t
@@ -131,7 +131,8 @@ def _solve_adjoint(A, contact_dofs, classes, u_c, lam, y_u, y_lam, friction, hie
         return w
 
     def apply(x):
-        y = H @ lift(x)
+        w = lift(x)
+        y = A @ w + kt @ w
         y[D] = 0.0
         return y
 
