@@ -36,11 +36,12 @@ others, substituting R⁺ = B(A u⁺ − L) into the rows I gives one linear sys
 
 where K_t adds k t tᵀ on the tangential DOFs of a sliding node and N copies the normal row of a
 sliding node, times n, into its tangential rows. G is non-symmetric (the friction coupling μ N A)
-and sparse (A plus a few rows): it is applied as one product with H = A + K_t (same sparsity as
-A, its tangential 2×2 blocks changed in place) and a correction of the sliding tangential rows.
-Each step is solved by right-preconditioned restarted GMRES, warm-started at the current iterate,
-to a relative residual η_k (inexact Newton: 0.1·error while the error is large, ``krylov_rtol``
-once it is below 0.1·√tol), preconditioned by a V-cycle of H restricted to I:
+and sparse (A plus a few rows): it is applied as A x + K_t x (K_t: 2×2 blocks at the sliding
+nodes) with a correction of the sliding tangential rows. Each step is solved by right-
+preconditioned restarted GMRES (flexible: it keeps the preconditioned directions), warm-started at
+the current iterate, to a relative residual η_k (inexact Newton: 0.1·error while the error is
+large, ``krylov_rtol`` once it is below 0.01·√tol and the node classes have settled),
+preconditioned by a V-cycle of H = A + K_t restricted to I:
 
 * the smoothed-aggregation hierarchy (pyamg, rigid-body modes as near-null space) of an A(α_ref)
   — of this design, or of an earlier one: :class:`ContactHierarchy`, reused over Newton steps and
@@ -96,10 +97,12 @@ log = logging.getLogger(__name__)
 OPEN, STICK, SLIDE = 0, 1, 2          # node classes of a Newton system
 W_DIAG_FACTOR = 2.0                   # tr(W_mm)/3 ≈ W_DIAG_FACTOR / mean(A_mm) (measured 1.4–5)
 _FCLIB = np.array([2, 0, 1])          # per node (t1, t2, ν) -> (ν, t1, t2)
-_TIGHT_BELOW = 0.1                    # error ≤ this·√tol: Newton is in its fast phase, the step
-                                      # solves to krylov_rtol at once (saves the last, equilibrium-
-                                      # only step; the same GMRES iterations in all, measured at 46k;
-                                      # at 1.0 a 1M-DOF state went tight one step early: 16 + 9 its)
+_TIGHT_BELOW = 0.01                   # error ≤ this·√tol and node classes as in the last step:
+                                      # Newton is in its fast phase, the step solves to krylov_rtol
+                                      # at once (saves the last, equilibrium-only step). Higher
+                                      # thresholds went tight one step early (210k at 8.7e-7: 12 + 7
+                                      # iterations; 1M at 8e-6: 16 + 9); the states of 46k–1M
+                                      # reach 2e-8–8e-8 one step before their end
 _COARSE_DIAG_MIN = 1e-10              # a coarse unknown whose diagonal fell below this fraction
                                       # of A(α_ref)'s lives (almost) inside D: decoupled
 
@@ -339,8 +342,9 @@ class FullSpaceResult:
     ``u`` on the free DOFs; ``u_c`` (p, 3) per node (t1, t2, ν); ``classes`` the node classes
     (OPEN, STICK, SLIDE) of the last Newton system; ``history`` the Siconos error of every
     iterate (``[0]`` the start); ``krylov_iterations`` / ``krylov_histories`` / ``krylov_rtol``
-    per Newton step (preceded by those of the start solve when no u0 was given); ``steps`` the line-search step lengths; ``timings`` in seconds per phase;
-    ``hierarchy`` the AMG hierarchy to pass to the next solve."""
+    per Newton step (preceded by those of the start solve when no u0 was given); ``steps`` the
+    line-search step lengths; ``timings`` in seconds per phase; ``hierarchy`` the AMG hierarchy
+    to pass to the next solve."""
 
     r: np.ndarray
     u: np.ndarray
@@ -408,7 +412,7 @@ def solve_fullspace(A, L, contact_dofs, gap, friction, *, coords, free, r0=None,
     rho_scale : Alart–Curnier ρ_m = rho_scale · mean(A_mm) / W_DIAG_FACTOR.
     max_steps : Newton steps.  krylov_rtol : the tightest Krylov tolerance (default 0.1·tol);
     the step k uses η_k = clip(eta_factor · error_k, krylov_rtol, eta_max) relative to ‖L‖, and
-    krylov_rtol once error_k ≤ 0.1·√tol.
+    krylov_rtol once error_k ≤ 0.01·√tol with the node classes of the step before.
     restart, max_krylov : GMRES restart length and iteration limit per Newton step.
     amg : keyword arguments of pyamg's smoothed_aggregation_solver when a hierarchy is built.
     raise_on_failure : raise ContactNotConverged on a Newton failure (else return converged=False).
@@ -549,6 +553,7 @@ def _solve_fullspace(A, L, contact_dofs, gap, friction, coords, free, r0, u0, to
         t0 = time.perf_counter()
         act, slip = piece.active, piece.slip
         cls = np.where(act, np.where(slip, SLIDE, STICK), OPEN).astype(np.int8)
+        settled = bool(np.array_equal(classes[z], cls)) and len(history) > 1
         classes[:] = OPEN
         classes[z] = cls
         st, sl = z[cls == STICK], z[cls == SLIDE]
@@ -601,7 +606,7 @@ def _solve_fullspace(A, L, contact_dofs, gap, friction, coords, free, r0, u0, to
         Mv = hierarchy.preconditioner(H, dirichlet, kt)
         t2 = time.perf_counter()
         eta = min(eta_max, max(krylov_rtol, eta_factor * err))
-        if err <= _TIGHT_BELOW * np.sqrt(tol):
+        if settled and err <= _TIGHT_BELOW * np.sqrt(tol):
             eta = krylov_rtol
         try:
             kres = gmres(apply, rhs, Mv, atol=eta * Lnorm, restart=restart, max_iter=max_krylov,
