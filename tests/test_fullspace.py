@@ -11,6 +11,8 @@ raises a SolverError with its history, never an inaccurate state.
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 import pytest
 import scipy.sparse as sp
@@ -103,8 +105,9 @@ def test_warm_start_from_forces_only_and_a_small_zone(case):
 @pytest.mark.parametrize("friction", [0.0, 0.6])
 def test_frictionless_and_mostly_sticking(friction):
     """F = 0 (sliding nodes with a zero Robin block, no friction coupling) and F = 0.6 (most
-    nodes in contact stick: three Dirichlet DOFs each) on Example 1."""
-    pb = ShapeProblem(load_config("example1").with_updates({"friction": {"coefficient": friction}}))
+    nodes in contact stick: three Dirichlet DOFs each) on Example 1 at 16×8×5."""
+    pb = ShapeProblem(load_config("example1").with_updates({"friction": {"coefficient": friction},
+                                                             "mesh": {"nx": 16, "ny": 8, "nz": 5}}))
     m = pb.model
     a = m.initial_design()
     st = pb.solve_state(a)
@@ -113,6 +116,22 @@ def test_frictionless_and_mostly_sticking(friction):
                           free=m.assembler.free, tol=1e-11)
     assert_same_state(res, st, friction)
     assert np.sum(res.classes == STICK) == (0 if friction == 0 else st.counts["M3+"])
+
+
+@pytest.mark.parametrize("config", ["bracket.toml", "round_pad.toml"])
+def test_flexible_body_and_tetrahedra(config):
+    """The L-shaped bracket (a flexible foot: the Delassus diagonal is 5–48 times 1/A_mm, so ρ
+    needs the coarse compliance of the hierarchy; with the local estimate alone Newton cycled)
+    and the round pad (ten-node tetrahedra, almost all nodes sticking), cold starts."""
+    root = Path(__file__).resolve().parents[1] / "examples"
+    pb = ShapeProblem(root / config)
+    m = pb.model
+    a = m.initial_design()
+    st = pb.solve_state(a)
+    asm = m.assemble(a, pb.cases[0].loads)
+    res = solve_fullspace(asm.A, asm.L, m.contact_dofs, asm.gap, pb.friction, coords=asm.coords,
+                          free=m.assembler.free, tol=1e-11, max_steps=20)
+    assert_same_state(res, st, pb.friction)
 
 
 def test_newton_failure_raises_with_its_history(case):
