@@ -106,6 +106,8 @@ _TIGHT_BELOW = 0.01                   # error ≤ this·√tol and node classes 
                                       # thresholds went tight one step early (210k at 8.7e-7: 12 + 7
                                       # iterations; 1M at 8e-6: 16 + 9); the states of 46k–1M
                                       # reach 2e-8–8e-8 one step before their end
+_STAGNATION_STEPS = 10                # no halving of the best error over this many steps:
+_RESCALE, _MAX_RESCALES = 0.25, 3     # ρ times _RESCALE, at most _MAX_RESCALES times
 _COARSE_DIAG_MIN = 1e-10              # a coarse unknown whose diagonal fell below this fraction
                                       # of A(α_ref)'s lives (almost) inside D: decoupled
 
@@ -538,6 +540,7 @@ def _solve_fullspace(A, L, contact_dofs, gap, friction, coords, free, r0, u0, to
     history, steps = [], []
     recent = []
     growths = 0
+    rescales, last_rescale = 0, 0
     classes = np.zeros(p, dtype=np.int8)
     converged = False
     reason = ""
@@ -581,6 +584,17 @@ def _solve_fullspace(A, L, contact_dofs, gap, friction, coords, free, r0, u0, to
         if len(history) > max_steps:
             reason = f"{max_steps} Newton steps used"
             break
+        if (len(history) - last_rescale > _STAGNATION_STEPS and rescales < _MAX_RESCALES
+                and min(history[-_STAGNATION_STEPS:]) > 0.5 * min(history[:-_STAGNATION_STEPS])):
+            # no progress: ρ too large for this body (the active-set decisions follow u rather
+            # than r and cycle); a smaller ρ, the merit of the new Φ from here on
+            rho_all *= _RESCALE
+            rescales += 1
+            last_rescale = len(history)
+            recent = []
+            history.pop()                   # the iterate is evaluated again with the new ρ
+            log.debug("full-space Newton: no progress over %d steps, ρ scaled by %g", _STAGNATION_STEPS, _RESCALE)
+            continue
         # -- the Newton system of the current piece
         t0 = time.perf_counter()
         act, slip = piece.active, piece.slip
@@ -685,7 +699,7 @@ def _solve_fullspace(A, L, contact_dofs, gap, friction, coords, free, r0, u0, to
         info={"levels": hierarchy.sizes(), "operator_complexity": hierarchy.operator_complexity,
               "class_counts": {"open": int(np.sum(classes == OPEN)), "stick": int(np.sum(classes == STICK)),
                                "slide": int(np.sum(classes == SLIDE))},
-              "start_solve": u0 is None, "reason": reason})
+              "start_solve": u0 is None, "reason": reason, "rho_rescales": rescales})
     if not converged and raise_on_failure:
         raise ContactNotConverged(f"full-space Newton did not converge: Siconos error {err:.3e}, "
                                   f"equilibrium {eq:.3e} (tol {tol:.1e}) after {len(steps)} steps "
