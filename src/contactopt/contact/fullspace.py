@@ -522,7 +522,9 @@ def _solve_fullspace(A, L, contact_dofs, gap, friction, coords, free, r0, u0, to
         f = L.copy()
         if r0 is not None:
             r0 = np.asarray(r0, dtype=np.float64).reshape(p, 3)
-            f[cd.ravel()] += r0[:, [1, 2, 0]].ravel()
+            rz = np.zeros((p, 3))
+            rz[zone] = r0[zone][:, [1, 2, 0]]          # r = 0 outside the zone
+            f[cd.ravel()] += rz.ravel()
         M0 = hierarchy.preconditioner(H, np.zeros(n, dtype=bool))
         eta0 = max(krylov_rtol, 1e-6)
         res = gmres(A.dot, f, M0, atol=eta0 * np.linalg.norm(f), restart=restart, max_iter=max_krylov,
@@ -554,10 +556,15 @@ def _solve_fullspace(A, L, contact_dofs, gap, friction, coords, free, r0, u0, to
         rphys = contact_force(u)
         R, U = local(u, rphys, z)
         Phi, piece = alart_curnier(R.ravel(), U.ravel(), mu, rho)
-        theta = 0.5 * float(Phi @ Phi)
+        theta_phi = 0.5 * float(Phi @ Phi)
         err = siconos_error(R.ravel(), U.ravel(), U.ravel(), mu)
         Au_L = A @ u - L
-        eq = float(np.linalg.norm(Au_L[other])) / Lnorm
+        e_other = Au_L[other]
+        eq = float(np.linalg.norm(e_other)) / Lnorm
+        # merit ½‖Φ‖² + ½‖(A u − L)_other‖² (both in force units): the equilibrium of the rows
+        # outside the contact zone is part of the nonsmooth system, and a start that is not
+        # in equilibrium (u0 of another design, or forces outside the zone) must not be hidden
+        theta = theta_phi + 0.5 * float(e_other @ e_other)
         history.append(err)
         recent.append(theta)
         timings["newton"] += time.perf_counter() - t0
@@ -670,13 +677,15 @@ def _solve_fullspace(A, L, contact_dofs, gap, friction, coords, free, r0, u0, to
         du = x0 + kres.x - u
         # -- line search on ½‖Φ‖² (r is affine in u)
         dr = (Arows @ du).reshape(p, 3)
+        de_other = (A @ du)[other]
         dR, dU = dr[z][:, _FCLIB].ravel(), du[cd[z]][:, _FCLIB].ravel()
         R0, U0 = R.ravel(), U.ravel()
         ref = max(recent[-4:])
         t = 1.0
         for _ in range(30):
             Phi_t, _ = alart_curnier(R0 + t * dR, U0 + t * dU, mu, rho)
-            if 0.5 * float(Phi_t @ Phi_t) <= ref - 2e-4 * t * theta:
+            e_t = e_other + t * de_other
+            if 0.5 * float(Phi_t @ Phi_t) + 0.5 * float(e_t @ e_t) <= ref - 2e-4 * t * theta:
                 break
             t *= 0.5
         else:
