@@ -150,6 +150,10 @@ class ShapeProblem:
         self._cache = None
         self._factor = None        # the condensation, refactored in place for each new design
         self._slot = None          # Delassus path: the factorization a design's solves go through
+        self._keep_cholesky = True
+        if self.path == "delassus":
+            from .fem.memory import keeps_cholesky
+            self._keep_cholesky = keeps_cholesky(self.model)
         self._hierarchy = None     # full-space path: the AMG hierarchy of an earlier A(α) ...
         self._hierarchy_alpha = None   # ... built at this design (checkpoints rebuild it)
         self.n_state_solves = 0    # designs solved (all cases at once)
@@ -224,16 +228,18 @@ class ShapeProblem:
         """``dofs -> S_D``: the dense Schur complement of A onto the DOFs ``dofs`` (in their
         order), by a factorization that eliminates them last (Delassus path: W_Z = S_D⁻¹).
 
-        The Cholesky factorization of A is released first, so that the two never hold memory at
-        once (at 371k DOFs: 4.5 GB and 7 GB); the condensation then serves the design's remaining
-        solves (:class:`~contactopt.fem.linsolve.SolverSlot`), and the next design factorizes
-        anew (ordering included) instead of numerically only."""
+        Where both factors would not fit in memory together (:func:`contactopt.fem.memory.keeps_cholesky`;
+        at 371k DOFs: 4.5 GB and 7 GB), the Cholesky factorization of A is released first; the
+        condensation then serves the design's remaining solves
+        (:class:`~contactopt.fem.linsolve.SolverSlot`), and the next design factorizes anew
+        (ordering included) instead of numerically only."""
         from .fem.linsolve import condense
 
         def block(dofs):
             t0 = time.perf_counter()
             slot = self._slot
-            released = self._factor is not None and slot.current is self._factor
+            released = (not self._keep_cholesky and self._factor is not None
+                        and slot.current is self._factor)
             if released:
                 self._factor.close()
                 self._factor = None

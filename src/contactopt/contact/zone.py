@@ -263,7 +263,14 @@ class DelassusZoneProblem(ZoneProblem):
 
     def _zone_inverse(self) -> np.ndarray:
         from ..fem.dense import spd_inverse
-        return spd_inverse(self._zone_block(self._contact[self._dof_z]))
+        S = self._zone_block(self._contact[self._dof_z])
+        W = spd_inverse(S)
+        current = getattr(self._factor, "current", None)
+        if current is not None and getattr(current, "S", None) is S:
+            # the zone's condensation now serves this design's solves: it takes W = S⁻¹ for
+            # them and drops S (one dense (3z)² array less at the peak of the design)
+            current.S_inverse, current.S = W, None
+        return W
 
     def free_displacement(self, r_loc: np.ndarray) -> np.ndarray:
         """u = A⁻¹(L + Bᵀr) on the free DOFs for the zone's forces ``r_loc`` (FCLIB order): the

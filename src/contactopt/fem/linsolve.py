@@ -194,6 +194,7 @@ class Condensation:
     """
 
     backend = ""
+    S_inverse = None      # S⁻¹ when the caller has it: solve() then needs no factor of S
 
     def __init__(self, A, c):
         self.n = A.shape[0]
@@ -229,9 +230,11 @@ class Condensation:
         x_i = A_ii⁻¹(b_i − A_ic x_c)."""
         from .dense import cholesky_lower, cholesky_solve
         b = self._full(b, "b")
+        ell = self.condense_load(b)
+        if self.S_inverse is not None:          # S⁻¹ given (the Delassus block of a zone)
+            return self.recover(b, self.S_inverse @ ell)
         if getattr(self, "_chol_S", None) is None or self._chol_S[0] is not self.S:
             self._chol_S = (self.S, cholesky_lower(np.array(self.S, dtype=np.float64, order="C")))
-        ell = self.condense_load(b)
         return self.recover(b, cholesky_solve(self._chol_S[1], ell))
 
     def refactor(self, A, *, trusted=False):

@@ -54,7 +54,7 @@ DENSE_COPIES = 5.3            # S (PARDISO's and ours), its Cholesky factor, W_Z
 # held beside it with dense zone matrices (S_Z, W_Z, the adjoint's) — ZONE_FRACTION of the contact
 # DOFs at most (the zone is the nodes near the foundation).
 CHOLESKY_FILL = 0.64
-ZONE_FRACTION = 0.6
+ZONE_FRACTION = 1.0       # the first design's zone (predicted from A⁻¹L) can hold every contact node
 # The full-space path (``backend = "amg"``): no factorization; A, its modified copy H, the AMG
 # hierarchy (operator complexity ≈ 1.16) and GMRES's Krylov basis (restart 60).
 AMG_SPARSE_COPIES = 6.0
@@ -119,7 +119,7 @@ def matrix_entries(cells: np.ndarray, n_nodes: int, free_per_node=None) -> int:
 
 
 def estimate_counts(n_dofs: int, n_contact_dofs: int, n_cells: int, nnz_A: int,
-                    path: str = "schur") -> MemoryEstimate:
+                    path: str = "schur", keep_cholesky: bool = False) -> MemoryEstimate:
     """The estimate from the sizes alone (see the module docstring for the model); ``path``
     "schur" (dense S on all contact DOFs) or "delassus" (the Cholesky factor of A kept, dense
     matrices on the contact zone only)."""
@@ -127,12 +127,13 @@ def estimate_counts(n_dofs: int, n_contact_dofs: int, n_cells: int, nnz_A: int,
     parts = {"base": BASE_BYTES + CELL_BYTES * n_cells,
              "sparse": SPARSE_COPIES * 12.0 * nnz_A}
     if path == "delassus":
-        # the Cholesky of A, or — released meanwhile — the Schur-mode factor onto a zone (upper
-        # bound: onto all contact DOFs) with the zone's dense matrices
+        # the Cholesky of A, and (beside it, or with it released: keep_cholesky) the Schur-mode
+        # factor onto a zone (upper bound: onto all contact DOFs) with the zone's dense matrices
         nz = ZONE_FRACTION * n_contact_dofs
         zone_L = int(fill_factor(n_dofs) * nnz_A)
         nnz_L = int(CHOLESKY_FILL * nnz_L)
-        parts.update(factor=PARDISO_BYTES * max(nnz_L, zone_L), dense=DENSE_COPIES * 8.0 * nz ** 2)
+        factor = nnz_L + zone_L if keep_cholesky else max(nnz_L, zone_L)
+        parts.update(factor=PARDISO_BYTES * factor, dense=DENSE_COPIES * 8.0 * nz ** 2)
     elif path == "amg":
         nnz_L = 0
         parts.update(sparse=AMG_SPARSE_COPIES * 12.0 * nnz_A, krylov=KRYLOV_VECTORS * 8.0 * n_dofs)
@@ -141,7 +142,7 @@ def estimate_counts(n_dofs: int, n_contact_dofs: int, n_cells: int, nnz_A: int,
     return MemoryEstimate(n_dofs, n_contact_dofs, n_cells, nnz_A, nnz_L, parts)
 
 
-def estimate_evaluation(body, path: str = "schur") -> MemoryEstimate:
+def estimate_evaluation(body, path: str = "schur", keep_cholesky: bool | None = None) -> MemoryEstimate:
     """Estimated peak memory of one evaluation on the condensation path (dense S on all contact
     DOFs) for a :class:`~contactopt.mesh.body.Body` (or anything with a ``.body``, such as an
     :class:`~contactopt.fem.model.ElasticModel`): from the mesh alone, before anything is
@@ -152,7 +153,10 @@ def estimate_evaluation(body, path: str = "schur") -> MemoryEstimate:
     free = np.ones(3 * n_nodes, dtype=bool)
     free[np.asarray(body.fixed_dofs, dtype=np.int64)] = False
     nnz_A = matrix_entries(ref.cells, n_nodes, free.reshape(-1, 3).sum(axis=1))
-    return estimate_counts(int(free.sum()), 3 * len(body.contact_nodes), len(ref.cells), nnz_A, path)
+    if keep_cholesky is None:
+        keep_cholesky = path == "delassus" and keeps_cholesky(body)
+    return estimate_counts(int(free.sum()), 3 * len(body.contact_nodes), len(ref.cells), nnz_A, path,
+                           keep_cholesky)
 
 
 def select_path(body, backend: str, objective: str, crossover: int, *, margin: float = 0.9) -> str:
@@ -164,7 +168,7 @@ def select_path(body, backend: str, objective: str, crossover: int, *, margin: f
     est = estimate_evaluation(body, "schur")
     path = linear_path(backend, est.n_dofs, objective, crossover)[0]
     if backend == "auto" and path == "delassus" \
-            and estimate_evaluation(body, "delassus").total > margin * available_memory():
+            and estimate_evaluation(body, "delassus", keep_cholesky=False).total > margin * available_memory():
         try:
             import pyamg  # noqa: F401
         except ImportError:
@@ -173,6 +177,14 @@ def select_path(body, backend: str, objective: str, crossover: int, *, margin: f
                  "full-space path (AMG)")
         return "amg"
     return path
+
+
+def keeps_cholesky(body, *, margin: float = 0.7) -> bool:
+    """Whether the Delassus path may keep the Cholesky factor of A while a zone's Schur-mode
+    factorization is formed beside it (both estimated, with the dense zone matrices, within
+    ``margin`` × the available memory). When not, the Cholesky is released meanwhile and the next
+    design factorizes anew, ordering included (:meth:`contactopt.ShapeProblem._zone_block`)."""
+    return estimate_evaluation(body, "delassus", keep_cholesky=True).total <= margin * available_memory()
 
 
 def available_memory() -> float:
