@@ -193,10 +193,10 @@ SCHEMA = {
                     "Cholesky factorization of A(α) per design and the contact zone's Delassus products by "
                     "solves with it; 'amg': for meshes no factorization fits, a full-space semismooth Newton "
                     "method with AMG-preconditioned GMRES (pyamg: the 'large' extra) (docs/large_meshes.md); "
-                    "'auto': 'delassus' from `crossover` free DOFs on, else the condensation with PARDISO "
+                    "'auto': 'amg' from `crossover` free DOFs on, else the condensation with PARDISO "
                     "(SciPy without MKL)"),
         "crossover": (60000, _posint, "an integer ≥ 1 (free DOFs from which backend 'auto' takes the "
-                      "Delassus path)"),
+                      "full-space path 'amg')"),
         "memory_check": (True, lambda x: isinstance(x, bool),
                          "true or false (refuse up front a mesh whose estimated peak memory of an "
                          "evaluation exceeds the available memory; contactopt.fem.memory)"),

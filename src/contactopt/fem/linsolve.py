@@ -130,20 +130,26 @@ def linear_path(backend: str, n_free: int, objective: str = "", crossover: int =
 
     Paths: ``"schur"`` — the condensation of :func:`condense`, dense S on all contact DOFs;
     ``"delassus"`` — a sparse Cholesky factorization of A(α) and the contact zone's Delassus
-    products by solves with it (:class:`contactopt.contact.zone.DelassusZoneProblem`), for large
-    meshes. ``backend`` "pardiso"/"scipy" is the Schur path with that library; "delassus" the
-    Delassus path; "auto" the Delassus path from ``crossover`` free DOFs on (measured crossover:
-    docs/large_meshes.md) when PARDISO is there, else the Schur path. The compliance objective
-    needs the condensed load ℓ on every contact DOF, so it stays on the Schur path under "auto"
-    and is refused on the Delassus path.
+    products by solves with it (:class:`contactopt.contact.zone.DelassusZoneProblem`);
+    ``"amg"`` — the full-space semismooth Newton method with AMG-preconditioned GMRES
+    (:mod:`contactopt.contact.fullspace`), nothing factorized. ``backend`` "pardiso"/"scipy" is
+    the Schur path with that library, "delassus" and "amg" those paths; "auto" the full-space path
+    from ``crossover`` free DOFs on (the measured crossover: docs/large_meshes.md), the Schur path
+    below (the Delassus path instead of the full-space one where pyamg is missing). The compliance
+    objective needs the condensed load ℓ on every contact DOF, so it stays on the Schur path under
+    "auto" and is refused on the other paths.
     """
     if backend not in PATHS:
         raise SolverError(f"unknown linear solver backend {backend!r}; choose one of {PATHS}")
     if backend == "auto":
-        big = n_free >= crossover and _pardiso.available() and objective != "compliance"
-        path = "delassus" if big else "schur"
+        path = "schur"
+        if n_free >= crossover and objective != "compliance":
+            if _have_pyamg():
+                path = "amg"
+            elif _pardiso.available():
+                path = "delassus"
         logger.info("linear solver: %s path for %d DOFs (crossover %d)", path, n_free, crossover)
-        return path, (_pick_backend("auto") if big else "auto")
+        return path, {"schur": "auto", "amg": "pyamg"}.get(path) or _pick_backend("auto")
     if backend in ("delassus", "amg"):
         if objective == "compliance":
             from ..errors import ConfigError
@@ -151,6 +157,14 @@ def linear_path(backend: str, n_free: int, objective: str = "", crossover: int =
                                "condensed load on every contact DOF; use backend 'pardiso' or 'auto'"])
         return backend, (_pick_backend("auto") if backend == "delassus" else "pyamg")
     return "schur", backend
+
+
+def _have_pyamg() -> bool:
+    try:
+        import pyamg  # noqa: F401
+    except ImportError:
+        return False
+    return True
 
 
 def _upper_triangle(owner, A, hint=""):

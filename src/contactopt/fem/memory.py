@@ -159,24 +159,11 @@ def estimate_evaluation(body, path: str = "schur", keep_cholesky: bool | None = 
                            keep_cholesky)
 
 
-def select_path(body, backend: str, objective: str, crossover: int, *, margin: float = 0.9) -> str:
-    """The linear-solver path of ``[linear_solver] backend`` for a body
-    (:func:`contactopt.fem.linsolve.linear_path`), where "auto" also steps up to the full-space
-    path ("amg") when the Delassus path's estimated peak exceeds ``margin`` × the available memory
-    and pyamg is installed."""
+def select_path(body, backend: str, objective: str, crossover: int) -> str:
+    """The linear-solver path of ``[linear_solver] backend`` for a body, from its number of free
+    DOFs (:func:`contactopt.fem.linsolve.linear_path`), before anything is assembled."""
     from .linsolve import linear_path
-    est = estimate_evaluation(body, "schur")
-    path = linear_path(backend, est.n_dofs, objective, crossover)[0]
-    if backend == "auto" and path == "delassus" \
-            and estimate_evaluation(body, "delassus", keep_cholesky=False).total > margin * available_memory():
-        try:
-            import pyamg  # noqa: F401
-        except ImportError:
-            return path
-        log.info("linear solver: the Delassus path would need more memory than is available; "
-                 "full-space path (AMG)")
-        return "amg"
-    return path
+    return linear_path(backend, estimate_evaluation(body, "schur").n_dofs, objective, crossover)[0]
 
 
 def keeps_cholesky(body, *, margin: float = 0.7) -> bool:
