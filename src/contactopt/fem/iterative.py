@@ -6,7 +6,7 @@ design: the Cholesky factorization of A(α_ref) is a preconditioner M = A(α_ref
 M A(α) = I + O(|α − α_ref|), and conjugate gradients converge in a few iterations
 (:class:`ReusedFactorSolver`, which refactorizes when the count grows past ``refactor_after``).
 Where no factorization fits in memory, smoothed-aggregation algebraic multigrid with the six
-rigid-body modes as near-null space (pyamg, optional: ``pip install ".[large]"``) is the
+rigid-body modes as near-null space (pyamg) is the
 preconditioner (:func:`amg_preconditioner`).
 
 :func:`pcg` solves a block of right-hand sides at once (each column its own CG, the
@@ -305,7 +305,7 @@ def amg_preconditioner(A, near_null=None, **kw):
     try:
         import pyamg
     except ImportError as exc:
-        raise SolverError("algebraic multigrid needs pyamg: pip install 'contactopt[large]'") from exc
+        raise SolverError("algebraic multigrid needs pyamg: pip install pyamg") from exc
     ml = pyamg.smoothed_aggregation_solver(A.tocsr(), B=near_null, **kw)
     cycle = ml.aspreconditioner()           # one V-cycle, symmetric smoothing: SPD for CG
 
