@@ -210,7 +210,7 @@ class ContactHierarchy:
         try:
             import pyamg
         except ImportError as exc:
-            raise SolverError("algebraic multigrid needs pyamg: pip install 'contactopt[large]'") from exc
+            raise SolverError("algebraic multigrid needs pyamg: pip install pyamg") from exc
         t0 = time.perf_counter()
         A = sp.csr_matrix(A)
         A.sort_indices()
