@@ -16,10 +16,11 @@ that does not converge raises :class:`KrylovNotConverged` (a SolverError) with t
 history; so does a direction of non-positive curvature (A or M not SPD).
 
 :class:`Cholesky` refactorizes numerically with PARDISO's analysis kept, and
-:class:`DelassusOperator` gives products W_D r = B_D A⁻¹ B_Dᵀ r by one solve each — the pieces of
-the path that docs/large_meshes.md recommends for 100k–400k DOFs (one numerical factorization
-per design, exact Delassus products by triangular solves, a kept Delassus block as Newton's
-matrix). Not wired into :class:`contactopt.ShapeProblem` yet.
+:class:`DelassusOperator` gives products W_D r = B_D A⁻¹ B_Dᵀ r by one solve each; :func:`gmres`
+solves the non-symmetric systems of the Delassus path's adjoint (4.15) in W-form
+(:func:`contactopt.sensitivity.adjoint.solve_adjoint_delassus`). The Delassus path itself is
+:class:`contactopt.contact.zone.DelassusZoneProblem` in :class:`contactopt.ShapeProblem`
+(docs/large_meshes.md).
 """
 
 from __future__ import annotations
