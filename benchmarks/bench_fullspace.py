@@ -27,7 +27,7 @@ import time
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from bench_scale import SIZES, _peak_rss_gb, _shape  # noqa: E402
+from bench_scale import SIZES, _peak_rss_gb, _shape, design_direction  # noqa: E402
 
 GOAL_S, GOAL_GB = 120.0, 16.0      # issue #16 at ≥ 900k DOFs: one evaluation, peak memory
 
@@ -53,9 +53,7 @@ def child(shape, step, tol, forces_only):
     n, p = model.assembler.n_free, model.n_contact
     rss_model = _peak_rss_gb()
     a0 = model.initial_design()
-    d = np.random.default_rng(1).standard_normal(model.n_design)
-    d -= d.mean()
-    d /= np.abs(d).max()
+    d = design_direction(model)
     a1 = a0 + step * d
     if not model.admissible.is_feasible(a1):
         raise SystemExit("the next design is not admissible: lower --step")

@@ -60,6 +60,15 @@ def _shape(key):
     return nx, ny, nz
 
 
+def design_direction(model):
+    """d: a volume-preserving direction of the control points with max |d| = 1 (seeded), the
+    shape of an optimization step α → α + h·d."""
+    import numpy as np
+    d = np.random.default_rng(1).standard_normal(model.n_design)
+    d -= d.mean()
+    return d / np.abs(d).max()
+
+
 def _peak_rss_gb() -> float:
     return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 2**20     # KiB on Linux
 
@@ -90,9 +99,7 @@ def child(shape, path, step, out_dir):
         est = None
     rss_model = _peak_rss_gb()
     a0 = model.initial_design()
-    d = np.random.default_rng(1).standard_normal(model.n_design)
-    d -= d.mean()
-    d /= np.abs(d).max()
+    d = design_direction(model)
     a1 = a0 + step * d
     a2 = a0 + 2 * step * d
     if not model.admissible.is_feasible(a2):
@@ -220,9 +227,7 @@ def candidates(shape, steps, block, rtol, skip=(), zone_fraction=0.55):
     model = ElasticModel(load_config("example1").with_updates({"mesh": {"nx": nx, "ny": ny, "nz": nz},
                                                                "linear_solver": {"memory_check": False}}))
     a0 = model.initial_design()
-    d = np.random.default_rng(1).standard_normal(model.n_design)
-    d -= d.mean()
-    d /= np.abs(d).max()
+    d = design_direction(model)
     asm0 = model.assemble(a0)
     A0, L0 = asm0.A, asm0.L
     c = model.contact_dofs
