@@ -148,22 +148,31 @@ def estimate_evaluation(body, path: str = "schur", keep_cholesky: bool | None = 
     :class:`~contactopt.fem.model.ElasticModel`): from the mesh alone, before anything is
     assembled or solved on it."""
     body = getattr(body, "body", body)
-    ref = body.reference
-    n_nodes = ref.n_nodes
-    free = np.ones(3 * n_nodes, dtype=bool)
-    free[np.asarray(body.fixed_dofs, dtype=np.int64)] = False
-    nnz_A = matrix_entries(ref.cells, n_nodes, free.reshape(-1, 3).sum(axis=1))
+    n_free, nnz_A = _sizes(body)
     if keep_cholesky is None:
         keep_cholesky = path == "delassus" and keeps_cholesky(body)
-    return estimate_counts(int(free.sum()), 3 * len(body.contact_nodes), len(ref.cells), nnz_A, path,
+    return estimate_counts(n_free, 3 * len(body.contact_nodes), len(body.reference.cells), nnz_A, path,
                            keep_cholesky)
+
+
+def _sizes(body) -> tuple:
+    """(free DOFs, entries of the stiffness on them) of a body, from its mesh; counted once per
+    body (the path choice, the memory check and the run log all ask)."""
+    out = getattr(body, "_memory_sizes", None)
+    if out is None:
+        ref = body.reference
+        free = np.ones(3 * ref.n_nodes, dtype=bool)
+        free[np.asarray(body.fixed_dofs, dtype=np.int64)] = False
+        out = (int(free.sum()), matrix_entries(ref.cells, ref.n_nodes, free.reshape(-1, 3).sum(axis=1)))
+        object.__setattr__(body, "_memory_sizes", out)      # kept on the body itself
+    return out
 
 
 def select_path(body, backend: str, objective: str, crossover: int) -> str:
     """The linear-solver path of ``[linear_solver] backend`` for a body, from its number of free
     DOFs (:func:`contactopt.fem.linsolve.linear_path`), before anything is assembled."""
     from .linsolve import linear_path
-    return linear_path(backend, estimate_evaluation(body, "schur").n_dofs, objective, crossover)[0]
+    return linear_path(backend, _sizes(getattr(body, "body", body))[0], objective, crossover)[0]
 
 
 def keeps_cholesky(body, *, margin: float = 0.7) -> bool:
