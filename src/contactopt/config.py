@@ -192,7 +192,7 @@ SCHEMA = {
                     "contact DOFs (dense S) with that sparse solver; 'delassus': for large meshes, a sparse "
                     "Cholesky factorization of A(α) per design and the contact zone's Delassus products by "
                     "solves with it; 'amg': for meshes no factorization fits, a full-space semismooth Newton "
-                    "method with AMG-preconditioned GMRES (pyamg: the 'large' extra) (docs/large_meshes.md); "
+                    "method with AMG-preconditioned GMRES (pyamg) (docs/large_meshes.md); "
                     "'auto': 'amg' from `crossover` free DOFs on, else the condensation with PARDISO "
                     "(SciPy without MKL)"),
         "crossover": (60000, _posint, "an integer ≥ 1 (free DOFs from which backend 'auto' takes the "
