@@ -597,8 +597,9 @@ class ShapeProblem:
             if j is not None and np.array_equal(j[0], alpha) and np.array_equal(j[1], zone):
                 self.contexts[case].jacobian = j
                 return
-        cond = self.condensed_system(self.model.surface.as_vector(alpha))
-        self._keep_block(alpha, zone, self._own_block(cond, zone), self.contexts[case])
+        with sequential_openblas():       # the same round-off as inside a state solve
+            cond = self.condensed_system(self.model.surface.as_vector(alpha))
+            self._keep_block(alpha, zone, self._own_block(cond, zone), self.contexts[case])
 
     def _own_block(self, cond, zone):
         """W_Z of ``zone`` from the zone's own (N, Z)-ordered factorization of S (Delassus path:

@@ -23,6 +23,7 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.sparse as sp
 
+from .._threads import sequential_openblas
 from ..config import Config, load_config
 from ..design.admissible import AdmissibleSet
 from ..design.bezier import BezierSurface
@@ -153,11 +154,17 @@ class ElasticModel:
         return (loads or self.loads).vector(coords, self.assembler)
 
     def assemble(self, alpha, loads=None) -> Assembled:
-        """A(α), L(α) and the gaps for a design (no feasibility check against U here)."""
+        """A(α), L(α) and the gaps for a design (no feasibility check against U here).
+
+        Assembled on one OpenBLAS thread wherever it is called: the element kernels' matrix
+        products are split differently over threads, and on some CPUs (AMD, OpenBLAS's Haswell and
+        Prescott kernels) that changes A in its last bits, so a checkpoint's design rebuilt outside
+        a state solve would not give the matrix the uninterrupted run had."""
         alpha = self.surface.as_vector(alpha)
-        coords = self.mesh.coordinates(alpha)
-        A = self.assembler.stiffness(coords)
-        L_full = self.load_vector(coords, loads)
+        with sequential_openblas():
+            coords = self.mesh.coordinates(alpha)
+            A = self.assembler.stiffness(coords)
+            L_full = self.load_vector(coords, loads)
         return Assembled(alpha, coords, A, L_full, L_full[self.assembler.free], self.gap_matrix @ alpha)
 
     def design_contraction(self, coords: np.ndarray, u_full: np.ndarray, v_full: np.ndarray, loads=None) -> np.ndarray:
