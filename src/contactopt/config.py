@@ -204,10 +204,12 @@ SCHEMA = {
     "optimizer": {
         "eps": (1e-4, lambda x: _pos(x) and x < 1, "a number in (0, 1) (BT stopping parameter ε)"),
         "max_iter": (400, _posint, "an integer ≥ 1"),
-        "ftol": (1e-2, lambda x: _nonneg(x) and x < 1,
-                 "a number in [0, 1) (stop when Θ fell by less than this fraction over the last "
-                 "ftol_window serious steps; 0: off)"),
-        "ftol_window": (5, _posint, "an integer ≥ 1 (serious steps of the ftol test)"),
+        "ftol": (1e-3, lambda x: _nonneg(x) and x < 1,
+                 "a number in [0, 1) (stop when, right after a serious step, the bundle model "
+                 "predicts a relative decrease of Θ below this fraction: J within about ftol of a "
+                 "local optimum, docs/stopping.md; 0: off)"),
+        "ftol_window": (5, _posint, "an integer ≥ 1 (serious steps before the ftol test may stop "
+                        "the run)"),
     },
 }
 TOP_LEVEL = {"name": ("custom", lambda x: isinstance(x, str) and x != "", "a non-empty string"),

@@ -416,11 +416,17 @@ def run_optimization(config, outdir=None, *, eps=None, max_iter=None, resume=Fal
 def _stopping(res, opt) -> dict:
     """Both stopping tests of the run at its end, and which one fired (summary.json).
 
-    ``criterion``: "stationarity" (certified, status 0), "relative_decrease" (status 4),
-    "max_iter" (1), "callback" (2) or "stalled" (3); the measures are those of Θ/Θ(α0)."""
+    ``criterion``: "stationarity" (certified, status 0), "predicted_decrease" (status 4),
+    "max_iter" (1), "callback" (2) or "stalled" (3); the measures are those of Θ/Θ(α0).
+    ``J_tolerance``: the relative decrease of J that the bundle model still predicts at the last
+    iterate, from a step of the size of the last serious step — at a practical stop at most
+    ``ftol`` (docs/stopping.md); ``relative_decrease`` the realised one over the last
+    ``ftol_window`` serious steps, for comparison."""
     rel = float(res.relative_decrease)
+    pred = float(res.predicted_decrease)
     return {"criterion": res.criterion,
             "stationarity": float(res.stationarity), "eps": float(opt["eps"]),
+            "J_tolerance": pred if np.isfinite(pred) else None,
             "relative_decrease": rel if np.isfinite(rel) else None,
             "ftol": float(opt.get("ftol", 0.0)), "ftol_window": int(opt.get("ftol_window", 0))}
 
