@@ -11,7 +11,9 @@ J0, Jopt, Jopt/J0, iterations and evaluations, the stopping test that ended the 
 sequence, so a run with the larger ε stops exactly there), the (evaluation, iteration) at which
 J/J0 first reached the paper's Jopt/J0, wall time, peak memory and max |α − α_paper|. The
 manufactured case reports max |α − α*| instead.
-Results go to ``<out>/reproduction.json`` and the figures to ``docs/figures/``.
+Results go to ``<out>/reproduction.json`` and the figures to ``docs/figures/``; the tables of
+REPRODUCTION.md and the run figures quoted in the README (between ``<!-- reproduce.py:NAME -->``
+markers) are rewritten from reproduction.json at the end (``--docs-only`` rewrites them alone).
 """
 
 from __future__ import annotations
@@ -106,11 +108,82 @@ def reference_factorization(repeat: int = 5) -> float:
     return float(out.stdout.strip().splitlines()[-1])
 
 
+BEST_J = {"example1": 8.3545e-8, "example2": 1.3148e-6, "example3": 1.5325e-7}   # long runs, REPRODUCTION.md
+
+
+def _stop(r) -> str:
+    st = r.get("stopping") or {}
+    crit = st.get("criterion")
+    if crit == "predicted_decrease":
+        text = f"predicted decrease {st['J_tolerance']:.1e} < ftol {st['ftol']:.0e}"
+    elif crit == "stationarity":
+        text = f"stationarity {st['stationarity']:.1e} ≤ ε = {st['eps']:.0e}"
+    else:
+        text = str(crit)
+    return text + (", `success: true`" if r["success"] else ", `success: false`")
+
+
+def render_results(results: dict) -> dict:
+    """The generated blocks of REPRODUCTION.md and README.md from reproduction.json."""
+    ex = [n for n in ("example1", "example2", "example3") if n in results]
+    head = "| | " + " | ".join(f"Ex. {n[-1]} paper | Ex. {n[-1]} ours" for n in ex) + " |"
+    sep = "|---|" + "---|---|" * len(ex)
+
+    def row(label, paper, ours):
+        return f"| {label} | " + " | ".join(f"{paper(results[n])} | {ours(results[n])}" for n in ex) + " |"
+
+    dash = lambda r: "–"                                            # noqa: E731
+    lines = [head, sep,
+             row("J0", lambda r: f"{r['paper_J0']:.4e}", lambda r: f"{r['J0']:.4e}"),
+             row("Jopt (÷ best known)", lambda r: f"{r['paper_Jopt']:.4e}",
+                 lambda r: f"{r['J']:.4e} ({r['J'] / BEST_J[r['case']]:.4f})"),
+             row("**Jopt/J0**", lambda r: f"{r['paper_ratio']:.3g}", lambda r: f"**{r['ratio']:.3g}**"),
+             row("stopped by", lambda r: f"ε = 1e-4, {r['paper_iterations'][0]} iterations", _stop),
+             row("evaluations", dash, lambda r: f"**{r['evaluations']}**"),
+             row("iterations; serious / null steps", dash,
+                 lambda r: f"{r['iterations']}; {r['serious']} / {r['null']}"),
+             row("evaluations to the paper's Jopt/J0", dash,
+                 lambda r: str((r.get("evaluations_to_paper_ratio") or ["–"])[0])),
+             row("wall time (whole command)", dash, lambda r: f"{r['wall_time_command_s']:.0f} s"),
+             row("reference factorization around it", dash, lambda r: f"{r['reference_factorization_s']:.2f} s"),
+             row("peak memory", dash, lambda r: f"{r['peak_memory_MB']:.0f} MB"),
+             row("max \\|α − α_paper\\|", dash, lambda r: f"{r['max_abs_alpha_minus_paper']:.4f}")]
+    blocks = {"results": "\n".join(lines)}
+    if "manufactured" in results:
+        m = results["manufactured"]
+        blocks["manufactured"] = "\n".join([
+            "| J0 | J | J/J0 (goal ≤ 1e-6) | max \\|α − α*\\| (goal ≤ 1e-3) | stopped by | evaluations | wall time, peak memory |",
+            "|---|---|---|---|---|---|---|",
+            f"| {m['J0']:.4e} | {m['J']:.3g} | **{m['ratio']:.2g}** | **{m['max_abs_alpha_minus_star']:.2g}** | "
+            f"{_stop(m)} | **{m['evaluations']}** | {m['wall_time_command_s']:.0f} s, {m['peak_memory_MB']:.0f} MB |"])
+    if "example1" in results:
+        r = results["example1"]
+        blocks["example1"] = (f"{r['evaluations']} evaluations, {r['wall_time_command_s']:.0f} s on a 2-core "
+                              f"machine in the REPRODUCTION.md run")
+    return blocks
+
+
+def update_docs(results: dict) -> None:
+    """Rewrite every ``<!-- reproduce.py:NAME -->…<!-- /reproduce.py:NAME -->`` block."""
+    blocks = render_results(results)
+    for doc in (ROOT / "REPRODUCTION.md", ROOT / "README.md"):
+        text = doc.read_text()
+        for name, body in blocks.items():
+            pat = re.compile(rf"(<!-- reproduce.py:{name} -->)(.*?)(<!-- /reproduce.py:{name} -->)", re.S)
+            sep = "\n" if name in ("results", "manufactured") else ""
+            text = pat.sub(lambda m: m.group(1) + sep + body + sep + m.group(3), text)
+        doc.write_text(text)
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--cases", nargs="+", default=list(CASES), choices=list(CASES))
     ap.add_argument("--out", default=str(ROOT / "runs" / "reproduce"))
+    ap.add_argument("--docs-only", action="store_true", help="rewrite the documents from reproduction.json")
     args = ap.parse_args()
+    if args.docs_only:
+        update_docs(json.loads((Path(args.out) / "reproduction.json").read_text()))
+        return
     base = Path(args.out)
     base.mkdir(parents=True, exist_ok=True)
     figures = ROOT / "docs" / "figures"
@@ -129,6 +202,7 @@ def main():
         for png in ("stress.png", "surface.png", "history.png", "classes.png"):
             shutil.copy(out / png, figures / f"{name}_{png}")
         print(json.dumps(r, indent=1), flush=True)
+    update_docs(results)
 
 
 if __name__ == "__main__":
