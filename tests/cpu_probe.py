@@ -26,7 +26,7 @@ def main(outdir: Path) -> dict:
         res = minimize_bundle(prob, prob.x0, eps=1e-6, max_iter=3000)
         out[prob.name] = {"status": int(res.status), "f": float(res.fun), "f_star": prob.f_star,
                           "nfev": int(res.nfev)}
-    cfg = load_config("example2").with_updates({"mesh": {"nx": 12, "ny": 6, "nz": 6},
+    cfg = load_config("example2").with_updates({"mesh": {"nx": 18, "ny": 8, "nz": 8},
                                                 "name": "probe", "optimizer": {"max_iter": 300}})
     s = run_optimization(cfg, outdir / "example2").summary
     out["example2"] = {"status": int(s["status"]), "success": bool(s["success"]), "J": float(s["J"]),

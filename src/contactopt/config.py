@@ -204,7 +204,7 @@ SCHEMA = {
     "optimizer": {
         "eps": (1e-4, lambda x: _pos(x) and x < 1, "a number in (0, 1) (BT stopping parameter ε)"),
         "max_iter": (400, _posint, "an integer ≥ 1"),
-        "ftol": (1e-3, lambda x: _nonneg(x) and x < 1,
+        "ftol": (5e-4, lambda x: _nonneg(x) and x < 1,
                  "a number in [0, 1) (stop when, right after a serious step, the bundle model "
                  "predicts a relative decrease of Θ below this fraction: J within about ftol of a "
                  "local optimum, docs/stopping.md; 0: off)"),

@@ -95,7 +95,7 @@ Stopping tests (what ``eps`` and ``ftol`` mean).
   run is taking that would lower f by more than ``ftol·|f|``.  It measures how far from
   stationarity x is (at that scale), not how much f happened to fall over a window, so the run
   stops near a stationary point whatever the trajectory; on the paper's examples the J at the
-  stop was within 1 % of the best known J at ftol = 1e-3 (docs/stopping.md).  ``ftol = 0``
+  stop was within 1 % of the best known J at ftol = 5e-4 (docs/stopping.md).  ``ftol = 0``
   switches it off.
 
 A run that can certify neither stops as *stalled* (status 3) with its best point when the
