@@ -64,7 +64,12 @@ def _cmd_state(args) -> int:
         if created and not any(out.iterdir()):
             out.rmdir()                  # a failed solve leaves no empty directory behind
         raise
-    state.info["uniqueness_bound_F0"] = bound
+    if np.isfinite(bound):
+        state.info["uniqueness_bound_F0"] = bound
+    else:      # JSON has no NaN: absent, with the reason
+        state.info["uniqueness_bound_F0"] = None
+        state.info["uniqueness_bound_F0_reason"] = ("needs the condensed stiffness S on all contact DOFs, "
+                                                    f"which the {problem.path} path does not form")
     write_state(out, model, state, config=problem.config)
     s = state.summary()
     print(f"state of {problem.config.name} ({problem.config.source}) — method {state.method}, "
@@ -75,7 +80,7 @@ def _cmd_state(args) -> int:
     if np.isfinite(bound):
         print(f"  uniqueness bound (3.16) F0 ≈ {bound:.3g} (F = {state.friction}; pessimistic)")
     else:
-        print("  uniqueness bound (3.16) not computed (it needs S on all contact DOFs; Delassus path)")
+        print(f"  uniqueness bound (3.16) not computed: it {state.info['uniqueness_bound_F0_reason']}")
     print("  time: " + ", ".join(f"{k} {v:.3f}s" for k, v in state.timings.items()))
     print(f"  wrote {out}/ (state.json, state.npz, body.vtu, lambda.png, classes.png) in {time.perf_counter() - t0:.1f}s")
     return 0
