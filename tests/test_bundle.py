@@ -453,6 +453,23 @@ def test_new_options_are_validated_together():
         assert key in text, key
 
 
+def test_the_run_sets_gamma_from_what_the_cuts_show():
+    """Default γ (None): a polyhedral f gets its affine pieces recognised (exact cuts at any
+    distance), a max-type nonconvex f (Crescent) raises γ above its floor and reaches f*."""
+    prob = goffin_problem()
+    res = minimize_bundle(prob, prob.x0, eps=1e-6, max_iter=2000)
+    assert res.status == 0 and res.fun <= 1e-6 and res.state.affine is not None
+    prob = PROBLEMS["Crescent"]
+    t0 = max(1.0, np.abs(prob.x0).max()) / np.linalg.norm(prob(prob.x0)[1])
+    res = minimize_bundle(prob, prob.x0, eps=1e-6, max_iter=2000)
+    assert res.status == 0 and rel_error(res.fun, prob.f_star) <= 1e-6
+    assert res.gamma > 0.0125 / t0
+    with pytest.raises(OptimizerError) as info:
+        minimize_bundle(prob, prob.x0, gamma=-1.0, gamma_t0=float("nan"), gamma_factor=0.5)
+    for key in ("gamma >= 0", "gamma_t0", "gamma_factor"):
+        assert key in str(info.value), key
+
+
 def test_version_1_state_resumes():
     prob = PROBLEMS["CB2"]
     d = minimize_bundle(prob, prob.x0, max_iter=3).state.to_dict()
