@@ -8,6 +8,7 @@ every default filled in, so it can be written back to TOML for a run directory.
 from __future__ import annotations
 
 import copy
+import logging
 import math
 import re
 import tomllib
@@ -16,6 +17,8 @@ from importlib import resources
 from pathlib import Path
 
 from .errors import ConfigError
+
+log = logging.getLogger(__name__)
 
 EXAMPLES = ("example1", "example2", "example3")
 
@@ -187,16 +190,19 @@ SCHEMA = {
                            "an earlier design, with exact residuals, instead of inverting the new one)"),
     },
     "linear_solver": {
-        "backend": ("auto", _oneof("auto", "pardiso", "scipy", "delassus", "amg"),
-                    "'auto', 'pardiso', 'scipy', 'delassus' or 'amg'. 'pardiso'/'scipy': the condensation onto all "
-                    "contact DOFs (dense S) with that sparse solver; 'delassus': for large meshes, a sparse "
-                    "Cholesky factorization of A(α) per design and the contact zone's Delassus products by "
-                    "solves with it; 'amg': for meshes no factorization fits, a full-space semismooth Newton "
-                    "method with AMG-preconditioned GMRES (pyamg) (docs/large_meshes.md); "
-                    "'auto': 'amg' from `crossover` free DOFs on, else the condensation with PARDISO "
-                    "(SciPy without MKL)"),
-        "crossover": (60000, _posint, "an integer ≥ 1 (free DOFs from which backend 'auto' takes the "
-                      "full-space path 'amg')"),
+        "path": ("auto", _oneof("auto", "condensation", "delassus", "fullspace"),
+                 "'auto', 'condensation', 'delassus' or 'fullspace' (how a design's contact problem and "
+                 "its adjoint are solved, docs/architecture.md): 'condensation' onto all contact DOFs "
+                 "(dense S); 'delassus' for large meshes, a sparse Cholesky factorization of A(α) per "
+                 "design and the contact zone's Delassus products by solves with it; 'fullspace' for "
+                 "meshes no factorization fits, a semismooth Newton method on all DOFs with "
+                 "AMG-preconditioned GMRES (pyamg) (docs/large_meshes.md); 'auto': 'fullspace' from "
+                 "`crossover` free DOFs on, else 'condensation'"),
+        "library": ("auto", _oneof("auto", "pardiso", "scipy"),
+                    "'auto', 'pardiso' or 'scipy' (the sparse direct solver of the condensation and "
+                    "Delassus paths; 'auto': MKL PARDISO where the mkl wheel is installed, else SciPy)"),
+        "crossover": (60000, _posint, "an integer ≥ 1 (free DOFs from which path 'auto' takes the "
+                      "full-space path)"),
         "memory_check": (True, lambda x: isinstance(x, bool),
                          "true or false (refuse up front a mesh whose estimated peak memory of an "
                          "evaluation exceeds the available memory; contactopt.fem.memory)"),
@@ -397,6 +403,29 @@ def _check_body(raw, data, problems):
                 data["loads"][k] = [0.0, 0.0, 0.0]
 
 
+# the former [linear_solver] backend: its value as (path, library); None keeps the key's own value
+LEGACY_BACKEND = {"auto": (None, None), "pardiso": ("condensation", "pardiso"),
+                  "scipy": ("condensation", "scipy"), "delassus": ("delassus", None),
+                  "amg": ("fullspace", None)}
+
+
+def _legacy_backend(raw: dict, source: str) -> dict:
+    """``[linear_solver] backend`` (deprecated) read as the keys ``path`` and ``library`` that
+    replaced it, with a warning naming them; it overrides them when both are given."""
+    ls = raw.get("linear_solver")
+    if not isinstance(ls, dict) or "backend" not in ls:
+        return raw
+    value = ls["backend"]
+    if value not in LEGACY_BACKEND:
+        return raw                    # reported as an unknown key with the allowed ones
+    path, library = LEGACY_BACKEND[value]
+    new = {k: v for k, v in ls.items() if k != "backend"}
+    new.update({k: v for k, v in (("path", path), ("library", library)) if v is not None})
+    spelled = ", ".join(f"{k} = {new[k]!r}" for k in ("path", "library") if k in new) or "path = 'auto'"
+    log.warning("%s: [linear_solver] backend = %r is deprecated; write %s instead", source, value, spelled)
+    return {**raw, "linear_solver": new}
+
+
 def validate(raw: dict, source: str = "<dict>") -> Config:
     """Fill defaults and check every key; raise ConfigError listing all problems at once."""
     if not isinstance(raw, dict):
@@ -411,6 +440,7 @@ def validate(raw: dict, source: str = "<dict>") -> Config:
         if not check(val):
             problems.append(f"{key} = {val!r}: must be {desc}")
         data[key] = val
+    raw = _legacy_backend(raw, source)
     for sec, keys in SCHEMA.items():
         given = raw.get(sec, {})
         if not isinstance(given, dict):
@@ -462,7 +492,7 @@ SECTION_DOCS = {
     "design": "The Bézier contact surface ϑ_α and the admissible set U of its control points (paper §5.2).",
     "objective": "The cost functional J(α, y) of the state.",
     "state": "The discrete Coulomb contact problem and its solver.",
-    "linear_solver": "Sparse direct solver of the condensation.",
+    "linear_solver": "The solver path of the state and adjoint, and its sparse direct solver.",
     "optimizer": "The bundle-trust method.",
 }
 

@@ -127,7 +127,8 @@ class ShapeProblem:
         self.method = method or st["method"]
         self.tol = st["tol"]
         self.max_iter = st["max_iter"]
-        self.backend = backend or self.config["linear_solver"]["backend"]
+        from .fem.model import _legacy
+        self.backend = backend or _legacy(self.config["linear_solver"])
         from .fem.linsolve import linear_path
         # "schur" (dense S on all contact DOFs), "delassus" (sparse Cholesky of A, products by
         # solves) or "amg" (full space): [linear_solver] backend, "auto" by the size of the mesh

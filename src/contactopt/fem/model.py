@@ -52,6 +52,11 @@ class Assembled:
     gap: np.ndarray        # g = ϑ_α at the contact nodes
 
 
+def _legacy(ls):
+    return {"condensation": ls["library"] if ls["library"] != "auto" else "pardiso",
+            "delassus": "delassus", "fullspace": "amg"}.get(ls["path"], "auto") if ls["path"] != "auto" else "auto"
+
+
 class ElasticModel:
     """Design-independent part of the discrete problem of a configuration."""
 
@@ -61,7 +66,7 @@ class ElasticModel:
         self.body = body = build_body(cfg)
         ls = cfg["linear_solver"]
         from .memory import check_memory, select_path
-        self.path = select_path(body, ls["backend"], cfg["objective"]["type"], ls["crossover"])
+        self.path = select_path(body, _legacy(ls), cfg["objective"]["type"], ls["crossover"])
         if ls["memory_check"]:   # refuse a mesh too large before building on it
             check_memory(body, path=self.path)
         ref = body.reference
