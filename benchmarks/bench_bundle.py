@@ -22,9 +22,14 @@ import numpy as np
 
 from contactopt.optimize import minimize_bundle
 from contactopt.optimize._bundle_qp import Polyhedron
-from contactopt.optimize.testproblems import (PROBLEMS, goffin_problem, max_linear_problem,
-                                              max_quadratics_problem, max_quadratics_reference,
-                                              paper_admissible_set)
+from contactopt.optimize.testproblems import (
+    PROBLEMS,
+    goffin_problem,
+    max_linear_problem,
+    max_quadratics_problem,
+    max_quadratics_reference,
+    paper_admissible_set,
+)
 
 
 def _run(prob, eps, max_iter, **options):

@@ -18,12 +18,10 @@ import argparse
 import statistics
 import time
 
-import numpy as np
-
+from bench_state import design_path
 from contactopt.config import load_config
 from contactopt.problem import ShapeProblem
 from contactopt.sensitivity.adjoint import subgradient
-from bench_state import design_path
 
 CASES = [{"name": "pull", "right_traction": [5e-2, 0.0, 0.0]},
          {"name": "push", "right_traction": [-5e-2, 0.0, 0.0]},

@@ -33,8 +33,9 @@ GOAL_S, GOAL_GB = 120.0, 16.0      # issue #16 at ≥ 900k DOFs: one evaluation,
 
 
 def child(shape, step, tol, forces_only):
-    import numpy as np
     from types import SimpleNamespace
+
+    import numpy as np
 
     from contactopt.config import load_config
     from contactopt.contact.fullspace import solve_fullspace

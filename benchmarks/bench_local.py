@@ -50,7 +50,6 @@ HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE))
 
 import _brick  # noqa: E402  (shared benchmark helper: Q1 brick stiffness)
-
 from contactopt.contact import node_class, solve_local  # noqa: E402
 from contactopt.io.fclib import read_fclib  # noqa: E402
 

@@ -75,7 +75,6 @@ def _peak_rss_gb() -> float:
 
 def child(shape, path, step, out_dir):
     """One size and path in this (fresh) process; prints one JSON line."""
-    import numpy as np
     import scipy.sparse as sp
 
     from contactopt._threads import sequential_openblas
@@ -363,6 +362,7 @@ def main(argv=None):
 
     sys.path.insert(0, str(Path(__file__).resolve().parent))
     import scipy.sparse as sp
+
     from _reference import clean_factorization
 
     with open("/proc/loadavg") as f:

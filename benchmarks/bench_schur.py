@@ -30,7 +30,6 @@ import scipy.sparse as sp
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from _brick import EXAMPLE1, EXAMPLE2, FINE, brick  # noqa: E402
-
 from contactopt.fem._pardiso import factorization_mflop  # noqa: E402
 from contactopt.fem.linsolve import condense, factorize, pardiso_available  # noqa: E402
 

@@ -35,9 +35,10 @@ import numpy as np
 
 from contactopt._threads import sequential_openblas
 from contactopt.config import load_config
+from contactopt.fem.dense import spd_inverse
 from contactopt.fem.linsolve import condense, factorize
 from contactopt.optimize import minimize_bundle
-from contactopt.problem import ShapeProblem, spd_inverse
+from contactopt.problem import ShapeProblem
 from contactopt.sensitivity.adjoint import subgradient
 
 MESHES = {"example1": ("example1", None), "example2": ("example2", None),

@@ -28,6 +28,7 @@ import sys
 from pathlib import Path
 
 import numpy as np
+
 from calibrate_examples import PAPER
 
 ROOT = Path(__file__).resolve().parents[1]

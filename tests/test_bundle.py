@@ -12,9 +12,14 @@ import pytest
 from contactopt.errors import ContactOptError, OptimizerError
 from contactopt.optimize import BundleResult, BundleState, minimize_bundle
 from contactopt.optimize._bundle_qp import Polyhedron
-from contactopt.optimize.testproblems import (PROBLEMS, goffin_problem, max_linear_problem,
-                                              max_quadratics_problem, max_quadratics_reference,
-                                              paper_admissible_set)
+from contactopt.optimize.testproblems import (
+    PROBLEMS,
+    goffin_problem,
+    max_linear_problem,
+    max_quadratics_problem,
+    max_quadratics_reference,
+    paper_admissible_set,
+)
 
 FEAS_TOL = 1e-9
 

@@ -9,7 +9,8 @@ import tomli_w
 from contactopt.config import load_config
 from contactopt.errors import ConfigError, SolverError
 from contactopt.fem.iterative import KrylovNotConverged, gmres
-from contactopt.fem.linsolve import linear_path, pardiso_available
+from contactopt.fem.linsolve import pardiso_available
+from contactopt.paths import select_path
 from contactopt.problem import ShapeProblem
 from contactopt.runner import run_optimization
 from contactopt.sensitivity.adjoint import subgradient
@@ -19,8 +20,8 @@ pytestmark = pytest.mark.skipif(not pardiso_available(), reason="the Delassus pa
 
 def pair(name, path="delassus"):
     cfg = load_config(name)
-    return (ShapeProblem(cfg.with_updates({"linear_solver": {"backend": "pardiso"}})),
-            ShapeProblem(cfg.with_updates({"linear_solver": {"backend": path}})))
+    return (ShapeProblem(cfg.with_updates({"linear_solver": {"path": "condensation", "library": "pardiso"}})),
+            ShapeProblem(cfg.with_updates({"linear_solver": {"path": path}})))
 
 
 def designs(problem, n=3, step=5e-4):
@@ -32,11 +33,11 @@ def designs(problem, n=3, step=5e-4):
     return [a0 + k * step * d for k in range(n)]
 
 
-@pytest.mark.parametrize("path", ["delassus", "amg"])
+@pytest.mark.parametrize("path", ["delassus", "fullspace"])
 @pytest.mark.parametrize("name", ["example1", "example2"])
 def test_states_and_subgradients_agree_with_the_schur_path(name, path):
     ps, pd = pair(name, path)
-    assert (ps.path, pd.path) == ("schur", path)
+    assert (ps.path.name, pd.path.name) == ("condensation", path)
     how = []
     for alpha in designs(ps):
         rs, rd = subgradient(ps, alpha), subgradient(pd, alpha)
@@ -56,14 +57,14 @@ def test_states_and_subgradients_agree_with_the_schur_path(name, path):
         # the first design forms W_Z (the zone's Schur complement), the next ones reuse it
         assert how[0] == "formed" and "reused" in how[1:]
     else:                           # full space: AMG hierarchy and GMRES, nothing factorized
-        assert pd._hierarchy is not None and d.info["krylov_iterations"] > 0
+        assert pd.path._hierarchy is not None and d.info["krylov_iterations"] > 0
 
 
 def test_load_cases_agree_with_the_schur_path():
     small = {"mesh": {"nx": 8, "ny": 4, "nz": 3}}
     cfg = load_config("examples/example1_two_cases.toml").with_updates(small)
-    ps = ShapeProblem(cfg.with_updates({"linear_solver": {"backend": "pardiso"}}))
-    pd = ShapeProblem(cfg.with_updates({"linear_solver": {"backend": "delassus"}}))
+    ps = ShapeProblem(cfg.with_updates({"linear_solver": {"path": "condensation", "library": "pardiso"}}))
+    pd = ShapeProblem(cfg.with_updates({"linear_solver": {"path": "delassus"}}))
     for alpha in designs(ps, 2):
         rs, rd = subgradient(ps, alpha), subgradient(pd, alpha)
         assert rd.case == rs.case
@@ -82,20 +83,28 @@ def test_gradient_agrees_with_finite_differences():
 
 
 def test_auto_takes_the_full_space_path_from_the_crossover(monkeypatch):
-    from contactopt.fem import linsolve
-    assert linear_path("auto", 10_000, "target_normal_force", 60_000)[0] == "schur"
-    assert linear_path("auto", 60_000, "target_normal_force", 60_000)[0] == "amg"
-    monkeypatch.setattr(linsolve, "_have_pyamg", lambda: False)      # without pyamg: Delassus
+    import contactopt.paths as paths
+    ex1 = load_config("example1")
+
+    def linear_path(path, n_free, objective, crossover=60_000):
+        library = {"pardiso": "pardiso"}.get(path, "auto")
+        path = {"pardiso": "condensation"}.get(path, path)
+        return select_path(ex1.with_updates({"linear_solver": {"path": path, "library": library,
+                                                               "crossover": crossover},
+                                             "objective": {"type": objective}}), n_free)
+    assert linear_path("auto", 10_000, "target_normal_force", 60_000)[0] == "condensation"
+    assert linear_path("auto", 60_000, "target_normal_force", 60_000)[0] == "fullspace"
+    monkeypatch.setattr(paths, "_have_pyamg", lambda: False)      # without pyamg: Delassus
     assert linear_path("auto", 60_000, "target_normal_force", 60_000)[0] == "delassus"
     monkeypatch.undo()
-    assert linear_path("pardiso", 10**6, "target_normal_force", 60_000) == ("schur", "pardiso")
-    assert linear_path("amg", 10, "target_normal_force") == ("amg", "pyamg")
-    # compliance needs ℓ on every contact DOF: auto stays on the Schur path, an explicit choice is refused
-    assert linear_path("auto", 10**6, "compliance", 60_000)[0] == "schur"
+    assert linear_path("pardiso", 10**6, "target_normal_force", 60_000) == ("condensation", "pardiso")
+    assert linear_path("fullspace", 10, "target_normal_force") == ("fullspace", "pyamg")
+    # compliance needs ℓ on every contact DOF: auto stays on the condensation, an explicit choice is refused
+    assert linear_path("auto", 10**6, "compliance", 60_000)[0] == "condensation"
     with pytest.raises(ConfigError, match="compliance"):
         linear_path("delassus", 10, "compliance")
     p = ShapeProblem(load_config("example1").with_updates({"linear_solver": {"crossover": 100}}))
-    assert p.path == "amg" and p.model.path == "amg"
+    assert p.path.name == "fullspace"
 
 
 def test_uniqueness_bound_is_not_computed_without_s():
@@ -104,11 +113,11 @@ def test_uniqueness_bound_is_not_computed_without_s():
 
 
 def test_memory_estimates_of_the_large_mesh_paths():
-    from contactopt.fem.memory import estimate_counts
+    from contactopt.fem.memory import condensation_parts, delassus_parts, estimate_counts, fullspace_parts
     n, c, cells, nnz = 866_688, 23_424, 276_480, 70_000_000
-    s, d = estimate_counts(n, c, cells, nnz, "schur"), estimate_counts(n, c, cells, nnz, "delassus")
-    kept = estimate_counts(n, c, cells, nnz, "delassus", keep_cholesky=True)
-    a = estimate_counts(n, c, cells, nnz, "amg")
+    s, d = estimate_counts(n, c, cells, nnz, condensation_parts), estimate_counts(n, c, cells, nnz, delassus_parts)
+    kept = estimate_counts(n, c, cells, nnz, delassus_parts, keep_cholesky=True)
+    a = estimate_counts(n, c, cells, nnz, fullspace_parts)
     # the Delassus path's peak is its first design (W_Z of a zone that may hold every contact
     # node): the Schur path's, plus the Cholesky where it is kept beside the zone's factor
     assert d.total <= s.total < kept.total
@@ -175,12 +184,12 @@ def test_cholesky_released_for_the_zone_schur_complement_gives_the_same_results(
     the zone's condensation (with S⁻¹ = W_Z) serves the design's remaining solves."""
     from contactopt.fem.linsolve import PardisoCondensation
     ps, pd = pair("example2")
-    pd._keep_cholesky = False
+    pd.path._keep_cholesky = False
     for k, alpha in enumerate(designs(ps, 2)):
         rs, rd = subgradient(ps, alpha), subgradient(pd, alpha)
         if k == 0:       # W_Z formed: the Cholesky is gone, the condensation solves without S
-            assert pd._factor is None and isinstance(pd._slot.current, PardisoCondensation)
-            assert pd._slot.current.S is None and pd._slot.current.S_inverse is not None
+            assert pd.path._factor is None and isinstance(pd.path._slot.current, PardisoCondensation)
+            assert pd.path._slot.current.S is None and pd.path._slot.current.S_inverse is not None
         assert np.abs(rd.state.lam - rs.state.lam).max() <= 1e-8 * np.abs(rs.state.lam).max()
         assert np.linalg.norm(rd.gradient - rs.gradient) <= 1e-6 * np.linalg.norm(rs.gradient)
-    assert pd._factor is not None          # the next design factorized anew
+    assert pd.path._factor is not None          # the next design factorized anew

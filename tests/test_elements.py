@@ -9,12 +9,22 @@ import pytest
 from contactopt.errors import ContactOptError, MeshError
 from contactopt.fem import loads as L
 from contactopt.fem.elasticity import ElasticityAssembler, element_geometry, lame
+from contactopt.fem.elements import (
+    HEX8,
+    QUAD4,
+    TET4,
+    TET10,
+    TRI6,
+    element_type,
+    face_type,
+    gauss_hex,
+    tet_rule,
+    tri_rule,
+)
 from contactopt.fem.linsolve import factorize
-from contactopt.fem.elements import (HEX8, QUAD4, TET4, TET10, TRI6, element_type, face_type, gauss_hex,
-                                     tet_rule, tri_rule)
 from contactopt.mesh.block import block_mesh
 from contactopt.mesh.reference import CELL_FACES
-from contactopt.mesh.tetsplit import (hex_to_tets, quads_to_triangles, tet4_to_tet10, tet_boundary_faces)
+from contactopt.mesh.tetsplit import hex_to_tets, quads_to_triangles, tet4_to_tet10, tet_boundary_faces
 
 E, NU = 21.19, 0.277
 ELEMENTS = {"HEX8": HEX8, "TET4": TET4, "TET10": TET10}

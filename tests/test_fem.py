@@ -8,7 +8,7 @@ from contactopt.config import load_config
 from contactopt.design.bezier import BezierSurface
 from contactopt.fem.elasticity import ElasticityAssembler, element_geometry, gauss_hex, hex_shape, lame
 from contactopt.fem.model import ElasticModel
-from contactopt.mesh.hexmesh import HexMesh
+from contactopt.fem.weight import block_hexmesh
 
 E, NU = 21.19, 0.277
 
@@ -16,7 +16,7 @@ E, NU = 21.19, 0.277
 def curved_mesh(nx, ny, nz, seed=0):
     surf = BezierSurface(3, 2, 2.0, 1.0)
     alpha = 0.05 + 0.25 * np.random.default_rng(seed).random(surf.size)
-    mesh = HexMesh(nx, ny, nz, surf, 1.0)
+    mesh = block_hexmesh(nx, ny, nz, surf, 1.0)
     return mesh, mesh.coordinates(alpha)
 
 

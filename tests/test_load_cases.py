@@ -191,11 +191,11 @@ def test_run_outputs_every_case_and_resume_is_exact(tmp_path):
 
 def test_cases_share_the_factor_of_s_to_the_last_bit():
     from contactopt.contact.zone import ZoneProblem
-    from contactopt.problem import _on_factor
+    from contactopt.paths.condensation import on_factor as _on_factor
     pr = ShapeProblem(two_cases())
     alpha = wavy(pr)
     pr.solve_state(alpha)
-    conds = pr._cache[3][0]
+    conds = [pr.cached_system(alpha, k) for k in range(2)]
     zp0 = ZoneProblem(conds[0].S, conds[0].ell, np.arange(10), ordered=False)
     zone = np.arange(3, 17)
     fresh = ZoneProblem(conds[1].S, conds[1].ell, zone, ordered=False)

@@ -18,8 +18,13 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
 from contactopt.contact import LocalResult, solve_local, solve_tresca
-from contactopt.contact.cones import (complementarity_violations, node_class, project_cone,
-                                      project_tresca_set, siconos_error)
+from contactopt.contact.cones import (
+    complementarity_violations,
+    node_class,
+    project_cone,
+    project_tresca_set,
+    siconos_error,
+)
 from contactopt.contact.fixed_point import solve_fixed_point
 from contactopt.contact.newton import solve_newton
 from contactopt.errors import ContactNotConverged, ProblemDataError
@@ -280,7 +285,7 @@ def test_newton_warm_start_needs_few_steps():
     W, q, mu = lattice_problem(12, 12, seed=5)
     base = solve_newton(W, q, mu, tol=1e-10)
     rng = np.random.default_rng(0)
-    for k in range(3):
+    for _ in range(3):
         q2 = q * (1.0 + 1e-3 * rng.standard_normal(q.size))
         warm = solve_newton(W, q2, mu, tol=1e-8, r0=base.r)
         assert warm.converged and warm.iterations <= 3, warm.history

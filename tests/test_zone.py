@@ -16,7 +16,6 @@ from contactopt.contact.zone import ZoneProblem, missed_nodes, near_nodes
 from contactopt.errors import ConfigError, SolverError
 from contactopt.fem import _pardiso, dense
 from contactopt.problem import ShapeProblem
-from contactopt.runner import _check_contact_data
 from contactopt.sensitivity.adjoint import subgradient
 
 BACKENDS = ["mkl", "scipy"] if _pardiso.available() else ["scipy"]
@@ -166,7 +165,7 @@ def test_a_missing_zone_grows_to_the_state_on_all_contact_nodes(method):
     assert 3 <= in_contact.size < ref.lam.size - 3
     zoned.next_zone = in_contact[: in_contact.size // 2]          # half of the contact nodes only
     st = zoned.solve_state(alpha, method=method)
-    assert st.info["zone_misses"] >= 1 and zoned.n_zone_misses >= 1
+    assert st.info["zone_misses"] >= 1 and zoned.path.n_zone_misses >= 1
     scale = ref.lam.max()
     assert np.abs(st.lam - ref.lam).max() <= 1e-9 * scale
     assert np.abs(st.tau - ref.tau).max() <= 1e-9 * scale
@@ -195,6 +194,25 @@ def test_zone_settings_are_validated():
                                                         "reuse_delassus": 1}})
     text = str(err.value)
     assert "state.zone" in text and "state.zone_margin" in text and "state.reuse_delassus" in text
+
+
+def _check_contact_data(where, warm, zone, n_contact, jacobian=None, n_design=0):
+    """A checkpoint's arrays of one load case put back by a zone path with a mesh of
+    ``n_contact`` contact nodes and ``n_design`` design variables; returns the warm start."""
+    from types import SimpleNamespace
+
+    from contactopt.paths.base import Settings
+    from contactopt.paths.zone_paths import ZonePath
+    path = ZonePath(SimpleNamespace(n_contact=n_contact, n_design=n_design),
+                    Settings(0.3, "newton", 1e-12, 10, True, 0.1, False, "auto"))
+    ctx = path.new_context()
+    arrays = {"warm": warm if warm is not None else np.zeros(0)}
+    if zone is not None:
+        arrays["zone"] = zone
+    if jacobian is not None:
+        arrays.update(jacobian_alpha=jacobian[0], jacobian_zone=jacobian[1])
+    path.import_context(ctx, arrays, f"checkpoint {where}")
+    return ctx.warm
 
 
 def test_checkpoint_contact_data_is_checked(tmp_path):
@@ -281,8 +299,8 @@ def test_reused_delassus_gives_the_states_of_formed_ones():
         assert np.linalg.norm(subgradient(reuse, alpha).gradient - subgradient(formed, alpha).gradient) \
             <= 1e-7 * np.linalg.norm(subgradient(formed, alpha).gradient)
     assert how[0] == "formed" and how.count("reused") >= 3
-    assert reuse.n_delassus < formed.n_delassus
-    assert reuse._jacobian[2].dtype == np.float32        # the kept block is single precision
+    assert reuse.path.n_delassus < formed.path.n_delassus
+    assert reuse.contexts[0].jacobian[2].dtype == np.float32        # the kept block is single precision
 
 
 def test_restored_delassus_repeats_the_solve_bit_for_bit():
@@ -292,14 +310,13 @@ def test_restored_delassus_repeats_the_solve_bit_for_bit():
     path = design_path(pr, 5)
     pr.solve_state(path[0])
     pr.next_zone = np.flatnonzero(pr.solve_state(path[1]).lam > 0)[:3]   # will miss and grow
-    pr._jacobian = None
+    pr.contexts[0].jacobian = None
     st = pr.solve_state(path[2])
     assert st.info["zone_misses"] >= 1 and st.info["delassus"] == "formed"
-    saved = (pr.jacobian_design(), pr._warm.copy(), pr.next_zone.copy())
+    saved = {k: np.array(v) for k, v in pr.export_contexts().items()}     # what a checkpoint holds
     a = pr.solve_state(path[3])
     again = small_problem(zone_margin=0.0)
-    again.restore_jacobian(*saved[0])
-    again._warm, again.next_zone = saved[1], saved[2]
+    again.import_contexts(saved, "a checkpoint")
     b = again.solve_state(path[3])
     assert a.info["delassus"] == b.info["delassus"] == "reused"
     assert np.array_equal(a.lam, b.lam) and np.array_equal(a.u, b.u)

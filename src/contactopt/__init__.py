@@ -14,8 +14,15 @@ from importlib.metadata import PackageNotFoundError, version
 os.environ.setdefault("KMP_BLOCKTIME", "0")
 
 from .config import Config, load_config
-from .errors import (CheckpointError, ConfigError, ContactNotConverged, ContactOptError,
-                     InfeasibleDesignError, MeshError, SolverError)
+from .errors import (
+    CheckpointError,
+    ConfigError,
+    ContactNotConverged,
+    ContactOptError,
+    InfeasibleDesignError,
+    MeshError,
+    SolverError,
+)
 
 try:
     __version__ = version("contactopt")

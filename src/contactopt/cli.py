@@ -15,7 +15,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .errors import ContactOptError, ConfigError
+from .errors import ConfigError, ContactOptError
 
 log = logging.getLogger("contactopt")
 
@@ -45,8 +45,8 @@ def _read_alpha(path: str, model) -> np.ndarray:
 
 
 def _cmd_state(args) -> int:
-    from .io.statefiles import write_state
     from .io.rundir import prepare_output_dir
+    from .io.statefiles import write_state
     from .problem import ShapeProblem
     problem = ShapeProblem(args.config, method=args.method)
     model = problem.model
@@ -59,28 +59,25 @@ def _cmd_state(args) -> int:
     t0 = time.perf_counter()
     try:
         state = problem.solve_state(alpha)
-        bound = problem.uniqueness_bound(alpha)
+        bound, reason = problem.uniqueness_estimate(alpha)
     except Exception:
         if created and not any(out.iterdir()):
             out.rmdir()                  # a failed solve leaves no empty directory behind
         raise
-    if np.isfinite(bound):
-        state.info["uniqueness_bound_F0"] = bound
-    else:      # JSON has no NaN: absent, with the reason
-        state.info["uniqueness_bound_F0"] = None
-        state.info["uniqueness_bound_F0_reason"] = ("needs the condensed stiffness S on all contact DOFs, "
-                                                    f"which the {problem.path} path does not form")
+    state.info["uniqueness_bound_F0"] = bound           # JSON has no NaN: absent, with the reason
+    if reason:
+        state.info["uniqueness_bound_F0_reason"] = reason
     write_state(out, model, state, config=problem.config)
     s = state.summary()
     print(f"state of {problem.config.name} ({problem.config.source}) — method {state.method}, "
           f"backend {s.get('backend')}")
     print(f"  iterations {state.iterations}, residual {state.residual:.2e}, contact conditions {state.complementarity:.2e}")
-    print(f"  nodes: " + ", ".join(f"{k} {v}" for k, v in s['node_classes'].items()))
+    print("  nodes: " + ", ".join(f"{k} {v}" for k, v in s['node_classes'].items()))
     print(f"  total normal force {s['total_normal_force']:.6g}, max {s['max_normal_force']:.4g}")
-    if np.isfinite(bound):
+    if bound is not None:
         print(f"  uniqueness bound (3.16) F0 ≈ {bound:.3g} (F = {state.friction}; pessimistic)")
     else:
-        print(f"  uniqueness bound (3.16) not computed: it {state.info['uniqueness_bound_F0_reason']}")
+        print(f"  uniqueness bound (3.16) not computed: {reason}")
     print("  time: " + ", ".join(f"{k} {v:.3f}s" for k, v in state.timings.items()))
     print(f"  wrote {out}/ (state.json, state.npz, body.vtu, lambda.png, classes.png) in {time.perf_counter() - t0:.1f}s")
     return 0

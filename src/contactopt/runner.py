@@ -91,13 +91,12 @@ def _peak_rss_gb() -> float:
 
 def _log_setup(problem, seconds: float) -> None:
     """The run log's record of the model: sizes, linear-solver path, memory estimate, set-up time."""
-    from .fem.memory import estimate_evaluation
     model = problem.model
-    est = estimate_evaluation(model, problem.path)
+    est = problem.path.memory_estimate(model)
     log.info("model: %d free DOFs, %d elements, %d contact nodes; linear solver: %s path (%s); "
              "estimated peak of an evaluation %s; set-up %.1f s, peak RSS %.2f GB",
-             model.assembler.n_free, len(model.body.reference.cells), model.n_contact, problem.path,
-             problem.backend, est.describe(), seconds, _peak_rss_gb())
+             model.assembler.n_free, len(model.body.reference.cells), model.n_contact, problem.path.name,
+             problem.path.library, est.describe(), seconds, _peak_rss_gb())
 
 
 def _log_evaluation(count: int, res) -> None:
@@ -160,24 +159,11 @@ def _saved_stopping(path: Path) -> dict:
 def _write_checkpoint(path: Path, bstate, oracle: _Oracle, fingerprint: str, elapsed: float):
     d = bstate.to_dict()
     opt = oracle.problem.config["optimizer"]
-    warm = oracle.problem._warm
     arrays = {f"bundle_{k}": np.asarray(v) for k, v in d.items()}
     arrays.update(meta_fingerprint=np.array(fingerprint), meta_evaluations=np.array(oracle.count),
                   meta_elapsed=np.array(elapsed), meta_scale=np.array(oracle.scale), meta_eps=np.array(opt["eps"]),
-                  meta_max_iter=np.array(opt["max_iter"]), warm=np.asarray(warm if warm is not None else np.zeros(0)),
-                  zone=np.asarray(oracle.problem.next_zone))
-    for k, ctx in enumerate(oracle.problem.contexts):   # full-space path: the last displacements
-        if ctx.u_free is not None:
-            arrays[f"case{k}_u_free" if k else "u_free"] = np.asarray(ctx.u_free)
-    jac = oracle.problem.jacobian_design()        # rebuilt at resume: the same Newton matrices
-    arrays.update(jacobian_alpha=np.asarray(jac[0] if jac else np.zeros(0), dtype=float),
-                  jacobian_zone=np.asarray(jac[1] if jac else np.zeros(0), dtype=np.int64))
-    for k, ctx in enumerate(oracle.problem.contexts[1:], start=1):   # the other load cases
-        jac = oracle.problem.jacobian_design(k)
-        arrays.update({f"case{k}_warm": np.asarray(ctx.warm if ctx.warm is not None else np.zeros(0)),
-                       f"case{k}_zone": np.asarray(ctx.next_zone),
-                       f"case{k}_jacobian_alpha": np.asarray(jac[0] if jac else np.zeros(0), dtype=float),
-                       f"case{k}_jacobian_zone": np.asarray(jac[1] if jac else np.zeros(0), dtype=np.int64)})
+                  meta_max_iter=np.array(opt["max_iter"]))
+    arrays.update(oracle.problem.export_contexts())   # what each load case carries, per its path
     atomic_savez(path, **arrays)
 
 
@@ -199,63 +185,9 @@ def _read_checkpoint(path: Path, fingerprint: str):
         bstate = BundleState.from_dict(bundle)
     except ContactOptError as exc:
         raise CheckpointError(f"checkpoint {path}: {exc}") from None
-    warm = data["warm"] if data["warm"].size else None
-    zone = data["zone"].astype(np.int64) if "zone" in data else None
-    jacobian = None
-    if "jacobian_alpha" in data and data["jacobian_alpha"].size:
-        jacobian = (data["jacobian_alpha"].astype(float), data["jacobian_zone"].astype(np.int64))
-    cases = []                     # (warm, zone, jacobian) of load cases 1, 2, ...
-    while f"case{len(cases) + 1}_warm" in data:
-        c = f"case{len(cases) + 1}_"
-        cases.append((data[c + "warm"] if data[c + "warm"].size else None, data[c + "zone"].astype(np.int64),
-                      (data[c + "jacobian_alpha"].astype(float), data[c + "jacobian_zone"].astype(np.int64))
-                      if data[c + "jacobian_alpha"].size else None))
-    return (bstate, int(data["meta_evaluations"]), float(data["meta_elapsed"]), warm,
-            float(data["meta_scale"]), zone, jacobian, cases)
-
-
-def _read_u_free(path: Path, n_cases: int, n_free: int) -> list:
-    """The full-space path's last displacement of every load case (None where the checkpoint has
-    none), checked against the mesh's free DOFs."""
-    out = []
-    with np.load(path, allow_pickle=False) as z:
-        for k in range(n_cases):
-            key = f"case{k}_u_free" if k else "u_free"
-            u = z[key] if key in z.files else None
-            if u is not None and (u.shape != (n_free,) or not np.all(np.isfinite(u))):
-                raise CheckpointError(f"checkpoint {path}: its displacement {key} does not fit the mesh "
-                                      f"({u.shape[0] if u.ndim else 0} values for {n_free} free DOFs) or is not finite")
-            out.append(u)
-    return out
-
-
-def _is_node_set(nodes: np.ndarray, n_contact: int) -> bool:
-    """A non-empty, strictly increasing array of contact node indices 0..n_contact − 1."""
-    return (nodes.ndim == 1 and nodes.size > 0 and nodes[0] >= 0 and nodes[-1] < n_contact
-            and not np.any(np.diff(nodes) <= 0))
-
-
-def _check_contact_data(path: Path, warm, zone, n_contact: int, jacobian=None, n_design: int = 0):
-    """The warm start, contact zone and kept Delassus design of a checkpoint must fit the mesh.
-
-    Returns the warm start as (p, 3) (older checkpoints stored it flat, in the same order)."""
-    if warm is not None:
-        if warm.size != 3 * n_contact or warm.ndim not in (1, 2):
-            raise CheckpointError(f"checkpoint {path}: its warm start has shape {warm.shape}, "
-                                  f"expected ({n_contact}, 3)")
-        warm = warm.reshape(n_contact, 3)
-    if zone is not None and not _is_node_set(zone, n_contact):
-        raise CheckpointError(f"checkpoint {path}: its contact zone is not a sorted set of contact "
-                              f"nodes 0..{n_contact - 1}")
-    if jacobian is not None:
-        alpha, jzone = jacobian
-        if alpha.shape != (n_design,) or not np.all(np.isfinite(alpha)):
-            raise CheckpointError(f"checkpoint {path}: its Delassus design has shape {alpha.shape} "
-                                  f"(expected ({n_design},), finite)")
-        if not _is_node_set(jzone, n_contact):
-            raise CheckpointError(f"checkpoint {path}: its Delassus zone is not a sorted set of "
-                                  f"contact nodes 0..{n_contact - 1}")
-    return warm
+    contexts = {k: v for k, v in data.items() if not k.startswith(("bundle_", "meta_"))}
+    return (bstate, int(data["meta_evaluations"]), float(data["meta_elapsed"]), float(data["meta_scale"]),
+            contexts)
 
 
 def _truncate_history(path: Path, n_rows: int, fields=HISTORY_FIELDS):
@@ -317,19 +249,13 @@ def run_optimization(config, outdir=None, *, eps=None, max_iter=None, resume=Fal
     out = Path(outdir or Path("runs") / cfg.name)
     ckpt = out / "checkpoint.npz"
     if resume:
-        bstate, n_eval, elapsed0, warm, scale, zone, jacobian, cases = _read_checkpoint(ckpt, fingerprint)
-        warm = _check_contact_data(ckpt, warm, zone, model.n_contact, jacobian, model.n_design)
-        if len(cases) != len(problem.cases) - 1:
-            raise CheckpointError(f"checkpoint {ckpt}: holds the warm starts of {len(cases) + 1} load "
+        bstate, n_eval, elapsed0, scale, contexts = _read_checkpoint(ckpt, fingerprint)
+        n_cases = 1 + sum(1 for k in contexts if k.startswith("case") and k.endswith("_warm"))
+        if n_cases != len(problem.cases):
+            raise CheckpointError(f"checkpoint {ckpt}: holds the warm starts of {n_cases} load "
                                   f"case(s), the configuration has {len(problem.cases)}")
-        cases = [(_check_contact_data(ckpt, w, z, model.n_contact, j, model.n_design), z, j) for w, z, j in cases]
-        for k, jac in enumerate([jacobian] + [c[2] for c in cases]):
-            if jac is not None and problem.reuse_delassus:
-                try:                               # before the run directory is touched
-                    problem.restore_jacobian(*jac, case=k)
-                except ContactOptError as exc:
-                    raise CheckpointError(f"checkpoint {ckpt}: its Delassus design cannot be "
-                                          f"rebuilt: {exc}") from None
+        # before the run directory is touched: a kept Delassus block or AMG hierarchy is rebuilt
+        problem.import_contexts(contexts, f"checkpoint {ckpt}")
     out = prepare_output_dir(out, overwrite=overwrite, resume=resume)
     handler = logging.FileHandler(out / "run.log")
     handler.setFormatter(logging.Formatter("%(asctime)s %(levelname)s %(name)s: %(message)s"))
@@ -353,13 +279,6 @@ def run_optimization(config, outdir=None, *, eps=None, max_iter=None, resume=Fal
             oracle.count = n_eval
             oracle.iteration = bstate.nit     # history rows before the first callback
             oracle.t_start -= elapsed0
-            problem._warm = warm
-            if zone is not None:
-                problem.next_zone = zone
-            for k, u_free in enumerate(_read_u_free(ckpt, len(problem.contexts), model.assembler.n_free)):
-                problem.contexts[k].u_free = u_free
-            for ctx, (w, z, _) in zip(problem.contexts[1:], cases):
-                ctx.warm, ctx.next_zone = w, z
             oracle.scale = scale
             state_kw["state"] = bstate
             log.info("resuming %s at iteration %d (%d evaluations)", out, bstate.nit, n_eval)

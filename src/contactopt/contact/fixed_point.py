@@ -24,7 +24,7 @@ import numpy as np
 
 from ..errors import ContactNotConverged
 from .cones import siconos_error
-from .local import LocalResult, check_problem
+from .result import LocalResult, check_problem
 from .tresca import estimate_norm, solve_tresca
 
 __all__ = ["solve_fixed_point"]

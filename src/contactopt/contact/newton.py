@@ -52,7 +52,7 @@ import scipy.sparse.linalg as spla
 from ..errors import ContactNotConverged, ProblemDataError
 from ..fem.dense import LUFactor
 from .cones import siconos_error
-from .local import LocalResult, check_problem
+from .result import LocalResult, check_problem
 
 __all__ = ["solve_newton", "alart_curnier"]
 

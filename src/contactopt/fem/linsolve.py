@@ -45,7 +45,6 @@ from . import _pardiso
 logger = logging.getLogger(__name__)
 
 BACKENDS = ("auto", "pardiso", "scipy")
-PATHS = ("auto", "pardiso", "scipy", "delassus", "amg")   # [linear_solver] backend
 
 __all__ = ["condense", "factorize", "Condensation", "PardisoCondensation", "ScipyCondensation",
            "Factorization", "SolverSlot", "pardiso_available", "BACKENDS"]
@@ -123,40 +122,6 @@ def _pick_backend(backend):
         backend = "pardiso" if _pardiso.available() else "scipy"
         logger.info("linear solver backend: %s", backend)
     return backend
-
-
-def linear_path(backend: str, n_free: int, objective: str = "", crossover: int = 60000):
-    """(path, library) of ``[linear_solver] backend`` for a mesh of ``n_free`` DOFs.
-
-    Paths: ``"schur"`` — the condensation of :func:`condense`, dense S on all contact DOFs;
-    ``"delassus"`` — a sparse Cholesky factorization of A(α) and the contact zone's Delassus
-    products by solves with it (:class:`contactopt.contact.zone.DelassusZoneProblem`);
-    ``"amg"`` — the full-space semismooth Newton method with AMG-preconditioned GMRES
-    (:mod:`contactopt.contact.fullspace`), nothing factorized. ``backend`` "pardiso"/"scipy" is
-    the Schur path with that library, "delassus" and "amg" those paths; "auto" the full-space path
-    from ``crossover`` free DOFs on (the measured crossover: docs/large_meshes.md), the Schur path
-    below (the Delassus path instead of the full-space one where pyamg is missing). The compliance
-    objective needs the condensed load ℓ on every contact DOF, so it stays on the Schur path under
-    "auto" and is refused on the other paths.
-    """
-    if backend not in PATHS:
-        raise SolverError(f"unknown linear solver backend {backend!r}; choose one of {PATHS}")
-    if backend == "auto":
-        path = "schur"
-        if n_free >= crossover and objective != "compliance":
-            if _have_pyamg():
-                path = "amg"
-            elif _pardiso.available():
-                path = "delassus"
-        logger.info("linear solver: %s path for %d DOFs (crossover %d)", path, n_free, crossover)
-        return path, {"schur": "auto", "amg": "pyamg"}.get(path) or _pick_backend("auto")
-    if backend in ("delassus", "amg"):
-        if objective == "compliance":
-            from ..errors import ConfigError
-            raise ConfigError([f"linear_solver.backend = '{backend}': the compliance objective needs the "
-                               "condensed load on every contact DOF; use backend 'pardiso' or 'auto'"])
-        return backend, (_pick_backend("auto") if backend == "delassus" else "pyamg")
-    return "schur", backend
 
 
 def _have_pyamg() -> bool:

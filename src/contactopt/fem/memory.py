@@ -48,14 +48,14 @@ FILL_REF = (15360, 8.0)       # measured nnz(L)/nnz(A) of the Schur-mode factor 
 FILL_EXPONENT = 0.372         # ... and 16.8 at n = 113088: fill ∝ n^0.372
 PARDISO_BYTES = 10.0          # PARDISO's memory per entry of the factor (its iparm[15]+[16]: 9.7–11.6)
 DENSE_COPIES = 5.3            # S (PARDISO's and ours), its Cholesky factor, W_Z, the adjoint's matrix
-# The Delassus path (``[linear_solver] backend = "delassus"``): the Cholesky factor of A (nnz(L)
+# The Delassus path (``[linear_solver] path = "delassus"``): the Cholesky factor of A (nnz(L)
 # 97.1M at 113k, 503M at 371k DOFs: CHOLESKY_FILL of the Schur-mode factor's) is kept, and when a
 # contact zone's Delassus block is formed, the Schur-mode factorization onto the zone's DOFs is
 # held beside it with dense zone matrices (S_Z, W_Z, the adjoint's) — ZONE_FRACTION of the contact
 # DOFs at most (the zone is the nodes near the foundation).
 CHOLESKY_FILL = 0.64
 ZONE_FRACTION = 1.0       # the first design's zone (predicted from A⁻¹L) can hold every contact node
-# The full-space path (``backend = "amg"``): no factorization; A, its modified copy H, the AMG
+# The full-space path (``path = "fullspace"``): no factorization; A, its modified copy H, the AMG
 # hierarchy (operator complexity ≈ 1.16) and GMRES's Krylov basis (restart 60).
 AMG_SPARSE_COPIES = 6.0
 KRYLOV_VECTORS = 130
@@ -118,41 +118,53 @@ def matrix_entries(cells: np.ndarray, n_nodes: int, free_per_node=None) -> int:
     return int(round(f @ (G @ f)))
 
 
-def estimate_counts(n_dofs: int, n_contact_dofs: int, n_cells: int, nnz_A: int,
-                    path: str = "schur", keep_cholesky: bool = False) -> MemoryEstimate:
-    """The estimate from the sizes alone (see the module docstring for the model); ``path``
-    "schur" (dense S on all contact DOFs) or "delassus" (the Cholesky factor of A kept, dense
-    matrices on the contact zone only)."""
+def condensation_parts(n_dofs: int, n_contact_dofs: int, nnz_A: int) -> tuple[dict, int]:
+    """(parts, nnz of the factor) of the condensation path: the Schur-mode factor of A and dense
+    matrices on all contact DOFs (see the module docstring for the model)."""
     nnz_L = int(fill_factor(n_dofs) * nnz_A)
-    parts = {"base": BASE_BYTES + CELL_BYTES * n_cells,
-             "sparse": SPARSE_COPIES * 12.0 * nnz_A}
-    if path == "delassus":
-        # the Cholesky of A, and (beside it, or with it released: keep_cholesky) the Schur-mode
-        # factor onto a zone (upper bound: onto all contact DOFs) with the zone's dense matrices
-        nz = ZONE_FRACTION * n_contact_dofs
-        zone_L = int(fill_factor(n_dofs) * nnz_A)
-        nnz_L = int(CHOLESKY_FILL * nnz_L)
-        factor = nnz_L + zone_L if keep_cholesky else max(nnz_L, zone_L)
-        parts.update(factor=PARDISO_BYTES * factor, dense=DENSE_COPIES * 8.0 * nz ** 2)
-    elif path == "amg":
-        nnz_L = 0
-        parts.update(sparse=AMG_SPARSE_COPIES * 12.0 * nnz_A, krylov=KRYLOV_VECTORS * 8.0 * n_dofs)
-    else:
-        parts.update(factor=PARDISO_BYTES * nnz_L, dense=DENSE_COPIES * 8.0 * float(n_contact_dofs) ** 2)
-    return MemoryEstimate(n_dofs, n_contact_dofs, n_cells, nnz_A, nnz_L, parts)
+    return {"factor": PARDISO_BYTES * nnz_L, "dense": DENSE_COPIES * 8.0 * float(n_contact_dofs) ** 2}, nnz_L
 
 
-def estimate_evaluation(body, path: str = "schur", keep_cholesky: bool | None = None) -> MemoryEstimate:
-    """Estimated peak memory of one evaluation on the condensation path (dense S on all contact
-    DOFs) for a :class:`~contactopt.mesh.body.Body` (or anything with a ``.body``, such as an
+def delassus_parts(n_dofs: int, n_contact_dofs: int, nnz_A: int, keep_cholesky: bool = False) -> tuple[dict, int]:
+    """The Delassus path: the Cholesky of A, and (beside it, or with it released: ``keep_cholesky``
+    False) the Schur-mode factor onto a zone (upper bound: onto all contact DOFs) with the zone's
+    dense matrices."""
+    nz = ZONE_FRACTION * n_contact_dofs
+    zone_L = int(fill_factor(n_dofs) * nnz_A)
+    nnz_L = int(CHOLESKY_FILL * zone_L)
+    factor = nnz_L + zone_L if keep_cholesky else max(nnz_L, zone_L)
+    return {"factor": PARDISO_BYTES * factor, "dense": DENSE_COPIES * 8.0 * nz ** 2}, nnz_L
+
+
+def fullspace_parts(n_dofs: int, n_contact_dofs: int, nnz_A: int) -> tuple[dict, int]:
+    """The full-space path: no factorization; A, its modified copy, the AMG hierarchy and the
+    Krylov basis."""
+    return {"sparse": AMG_SPARSE_COPIES * 12.0 * nnz_A, "krylov": KRYLOV_VECTORS * 8.0 * n_dofs}, 0
+
+
+def estimate_counts(n_dofs: int, n_contact_dofs: int, n_cells: int, nnz_A: int,
+                    parts=condensation_parts, **kw) -> MemoryEstimate:
+    """The estimate from the sizes alone, with the parts of a solver path (``parts``: one of
+    :func:`condensation_parts`, :func:`delassus_parts`, :func:`fullspace_parts`; ``kw`` go to it)."""
+    out = {"base": BASE_BYTES + CELL_BYTES * n_cells, "sparse": SPARSE_COPIES * 12.0 * nnz_A}
+    own, nnz_L = parts(n_dofs, n_contact_dofs, nnz_A, **kw)
+    out.update(own)
+    return MemoryEstimate(n_dofs, n_contact_dofs, n_cells, nnz_A, nnz_L, out)
+
+
+def estimate_evaluation(body, parts=condensation_parts, **kw) -> MemoryEstimate:
+    """Estimated peak memory of one evaluation with a path's ``parts`` (the condensation's by
+    default) for a :class:`~contactopt.mesh.body.Body` (or anything with a ``.body``, such as an
     :class:`~contactopt.fem.model.ElasticModel`): from the mesh alone, before anything is
     assembled or solved on it."""
     body = getattr(body, "body", body)
     n_free, nnz_A = _sizes(body)
-    if keep_cholesky is None:
-        keep_cholesky = path == "delassus" and keeps_cholesky(body)
-    return estimate_counts(n_free, 3 * len(body.contact_nodes), len(body.reference.cells), nnz_A, path,
-                           keep_cholesky)
+    return estimate_counts(n_free, 3 * len(body.contact_nodes), len(body.reference.cells), nnz_A, parts, **kw)
+
+
+def free_dofs(body) -> int:
+    """Free DOFs of a body, counted from its mesh (before anything is assembled)."""
+    return _sizes(getattr(body, "body", body))[0]
 
 
 def _sizes(body) -> tuple:
@@ -168,19 +180,12 @@ def _sizes(body) -> tuple:
     return out
 
 
-def select_path(body, backend: str, objective: str, crossover: int) -> str:
-    """The linear-solver path of ``[linear_solver] backend`` for a body, from its number of free
-    DOFs (:func:`contactopt.fem.linsolve.linear_path`), before anything is assembled."""
-    from .linsolve import linear_path
-    return linear_path(backend, _sizes(getattr(body, "body", body))[0], objective, crossover)[0]
-
-
 def keeps_cholesky(body, *, margin: float = 0.7) -> bool:
     """Whether the Delassus path may keep the Cholesky factor of A while a zone's Schur-mode
     factorization is formed beside it (both estimated, with the dense zone matrices, within
     ``margin`` × the available memory). When not, the Cholesky is released meanwhile and the next
     design factorizes anew, ordering included (:meth:`contactopt.ShapeProblem._zone_block`)."""
-    return estimate_evaluation(body, "delassus", keep_cholesky=True).total <= margin * available_memory()
+    return estimate_evaluation(body, delassus_parts, keep_cholesky=True).total <= margin * available_memory()
 
 
 def available_memory() -> float:
@@ -196,11 +201,12 @@ def available_memory() -> float:
     return float("inf")
 
 
-def check_memory(body, *, margin: float = 0.9, path: str = "schur") -> MemoryEstimate:
+def check_memory(body, *, margin: float = 0.9, estimate=None) -> MemoryEstimate:
     """Refuse (:class:`InsufficientMemoryError`) a body (or model) whose evaluation would need
     more than ``margin`` × the available memory; returns the estimate otherwise (logged at INFO).
-    ``path``: the linear-solver path that will run (:func:`contactopt.fem.linsolve.linear_path`)."""
-    est = estimate_evaluation(body, path)
+    ``estimate``: the estimate of the solver path that will run (a function of the body; the
+    condensation's by default)."""
+    est = (estimate or estimate_evaluation)(body)
     avail = available_memory()
     if est.total > margin * avail:
         raise InsufficientMemoryError(

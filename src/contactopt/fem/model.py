@@ -27,7 +27,7 @@ from .._threads import sequential_openblas
 from ..config import Config, load_config
 from ..design.admissible import AdmissibleSet
 from ..design.bezier import BezierSurface
-from ..errors import ConfigError, MeshError
+from ..errors import ConfigError
 from ..mesh.body import build_body
 from ..mesh.hexmesh import HexMesh
 from ..mesh.morph import JacobianRatio, MorphedMesh
@@ -52,23 +52,20 @@ class Assembled:
     gap: np.ndarray        # g = ϑ_α at the contact nodes
 
 
-def _legacy(ls):
-    return {"condensation": ls["library"] if ls["library"] != "auto" else "pardiso",
-            "delassus": "delassus", "fullspace": "amg"}.get(ls["path"], "auto") if ls["path"] != "auto" else "auto"
-
-
 class ElasticModel:
     """Design-independent part of the discrete problem of a configuration."""
 
-    def __init__(self, config):
+    def __init__(self, config, *, body=None, memory_estimate=None):
+        """``body``: the configuration's body if already built; ``memory_estimate``: the peak
+        memory estimate (a function of the body) of the solver path that will run, checked
+        against the memory available before anything costly is built (the condensation's by
+        default)."""
         cfg = load_config(config) if not isinstance(config, Config) else config
         self.config = cfg
-        self.body = body = build_body(cfg)
-        ls = cfg["linear_solver"]
-        from .memory import check_memory, select_path
-        self.path = select_path(body, _legacy(ls), cfg["objective"]["type"], ls["crossover"])
-        if ls["memory_check"]:   # refuse a mesh too large before building on it
-            check_memory(body, path=self.path)
+        self.body = body = build_body(cfg) if body is None else body
+        if cfg["linear_solver"]["memory_check"]:   # refuse a mesh too large before building on it
+            from .memory import check_memory
+            check_memory(body, estimate=memory_estimate)
         ref = body.reference
         d = cfg["design"]
         d1, d2 = d["degree"]

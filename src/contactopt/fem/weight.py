@@ -86,3 +86,22 @@ def _amg_cg(K, rhs) -> np.ndarray:
     log.debug("morph weight by AMG-CG: %d iterations, relative residual %.1e", len(res) - 1,
               res[-1] / res[0])
     return x
+
+
+def block_hexmesh(nx: int, ny: int, nz: int, surface, c: float):
+    """The paper's block [0, a]×[0, b]×[0, c] as a :class:`~contactopt.mesh.hexmesh.HexMesh` on
+    its own (without a configuration): its weight is the harmonic extension of 1 on the contact
+    face and 0 on the top, and designs that invert an element are refused (``mesh.ratio``)."""
+    from ..mesh.block import block_mesh
+    from ..mesh.hexmesh import HexMesh
+    from ..mesh.morph import JacobianRatio
+    from .elasticity import ElasticityAssembler, element_geometry, hex_reference
+    ref = block_mesh(surface.a, surface.b, c, nx, ny, nz)
+    laplace = ElasticityAssembler(ref.cells, ref.n_nodes, [], 1.0, 0.0)   # its scalar Laplacian only
+    weight = harmonic_weight(laplace, ref.points, ref.parts["contact"].nodes, ref.parts["top"].nodes)
+    mesh = HexMesh(nx, ny, nz, surface, c, reference=ref, weight=weight)
+    G, _ = element_geometry(ref.points[ref.cells], hex_reference()[1])
+    mesh.ratio = JacobianRatio(ref.cells, G[..., 2], mesh.dx3_dalpha(), 0.0,
+                               qpoints=ref.points[ref.cells].mean(axis=1),
+                               fixed_parts={"top": ref.parts["top"].nodes})
+    return mesh

@@ -31,34 +31,19 @@ __all__ = ["HexMesh", "HEX_OFFSETS"]
 class HexMesh(MorphedMesh):
     """Structured Q1 mesh of Ω(α) for a Bézier bottom surface (see the module docstring).
 
-    Built alone (``HexMesh(nx, ny, nz, surface, c)``) it computes its weight by the harmonic
-    extension and refuses designs that invert an element; :class:`~contactopt.fem.model.ElasticModel`
-    passes the reference mesh, weight and contact nodes of its body instead.
+    Geometry only: the weight of the design's lift (a harmonic extension, computed by the FE
+    layer) is given; :func:`contactopt.fem.weight.block_hexmesh` builds the block alone, and
+    :class:`~contactopt.fem.model.ElasticModel` passes the reference mesh, weight and contact nodes
+    of its body.
     """
 
-    def __init__(self, nx, ny, nz, surface, c, *, reference=None, weight=None, contact_nodes=None,
+    def __init__(self, nx, ny, nz, surface, c, *, weight, reference=None, contact_nodes=None,
                  fixed_shape=("top",)):
         ref = reference if reference is not None else block_mesh(surface.a, surface.b, c, nx, ny, nz)
-        if weight is None:
-            from ..fem.elasticity import ElasticityAssembler
-            from ..fem.weight import harmonic_weight
-            laplace = ElasticityAssembler(ref.cells, ref.n_nodes, [], 1.0, 0.0)   # its scalar Laplacian only
-            weight = harmonic_weight(laplace, ref.points, ref.parts["contact"].nodes, ref.parts["top"].nodes)
         if contact_nodes is None:
             contact_nodes = np.setdiff1d(ref.parts["contact"].nodes, ref.parts["clamped"].nodes)
         super().__init__(ref, surface, weight, contact_nodes, fixed_shape=fixed_shape)
         self.nx, self.ny, self.nz, self.c = nx, ny, nz, c
-        if reference is None:
-            self.ratio = self._inversion_check()
-
-    def _inversion_check(self):
-        from ..fem.elasticity import element_geometry, hex_reference
-        from .morph import JacobianRatio
-        ref = self.reference
-        G, _ = element_geometry(ref.points[ref.cells], hex_reference()[1])
-        return JacobianRatio(ref.cells, G[..., 2], self.dx3_dalpha(), 0.0,
-                             qpoints=ref.points[ref.cells].mean(axis=1),
-                             fixed_parts={"top": ref.parts["top"].nodes})
 
     @property
     def ref_coords(self) -> np.ndarray:

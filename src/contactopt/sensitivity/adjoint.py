@@ -37,7 +37,6 @@ the case's state, ℓ_k and loads L_k (the term −ṽᵀ∂L_k/∂α is the cas
 from __future__ import annotations
 
 import logging
-import time
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -76,7 +75,7 @@ class SubgradientResult:
         return len(self.active_cases)
 
 
-def _effective_classes(classes: np.ndarray, choices: dict) -> np.ndarray:
+def effective_classes(classes: np.ndarray, choices: dict) -> np.ndarray:
     """Map degenerate classes onto the subspace they use: returns codes among L, M1, M1lim, M3+, M3-lim."""
     eff = np.array(classes, copy=True)
     c = CLASS_CODES
@@ -91,10 +90,10 @@ def _effective_classes(classes: np.ndarray, choices: dict) -> np.ndarray:
 
 def solve_adjoint(S: np.ndarray, state: State, y_u: np.ndarray, y_lam: np.ndarray, choices=None):
     """Solve the adjoint system (4.15) on the condensed contact system; returns (v_u, v_λ)."""
-    choices = _check_choices(choices)
+    choices = check_choices(choices)
     p = state.lam.size
     F = state.friction
-    eff = _effective_classes(state.classes, choices)
+    eff = effective_classes(state.classes, choices)
     c = CLASS_CODES
     ut = state.u_c[:, :2]
     nut = np.linalg.norm(ut, axis=1)
@@ -164,7 +163,7 @@ ADJOINT_RTOL = 1e-9      # relative residual of the W-form adjoint (Delassus pat
                          # subgradient agrees with the Schur path's to ~1e-9 relative
 
 
-def _check_choices(choices):
+def check_choices(choices):
     choices = {**DEFAULT_CHOICES, **(choices or {})}
     for k, allowed in (("M2", ("L", "M1")), ("M3-", ("M3+", "M1")), ("M4", ("L", "M3+"))):
         if choices[k] not in allowed:
@@ -194,11 +193,11 @@ def solve_adjoint_delassus(apply, W_approx, state: State, y_u: np.ndarray, y_lam
     """
     from ..fem.iterative import gmres
     rtol = ADJOINT_RTOL if rtol is None else rtol
-    choices = _check_choices(choices)
+    choices = check_choices(choices)
     p = state.lam.size
     F = state.friction
     c = CLASS_CODES
-    eff = _effective_classes(state.classes, choices)
+    eff = effective_classes(state.classes, choices)
     K = np.flatnonzero(eff != c["L"])
     s = -np.asarray(y_u, dtype=np.float64).copy()
     s.reshape(p, 3)[K] = 0.0
@@ -285,63 +284,6 @@ def solve_adjoint_delassus(apply, W_approx, state: State, y_u: np.ndarray, y_lam
 
 
 def subgradient(problem, alpha, *, choices=None) -> SubgradientResult:
-    """Θ(α) and one Clarke subgradient for a :class:`contactopt.problem.ShapeProblem` (of the
-    combined load cases, see the module docstring)."""
-    problem.prepare_objectives()
-    t0 = time.perf_counter()
-    states = problem.solve_states(alpha)
-    conds = problem._cache[3][0]
-    t1 = time.perf_counter()
-    parts = []
-    for case, state, cond in zip(problem.cases, states, conds):
-        part = case.objective.evaluate(state, cond)
-        if not np.isfinite(part[0]):
-            raise SolverError(f"objective{_of(problem, case)} is not finite at this design ({part[0]})")
-        parts.append(part)
-    comb = problem.combination.combine([part[0] for part in parts])
-    t_adj = t_design = 0.0
-    g = None
-    nd = 0
-    for k in np.flatnonzero(comb.coefficients):
-        t2 = time.perf_counter()
-        state, cond, case = states[k], conds[k], problem.cases[k]
-        _, y_u, y_lam, dJ_da = parts[k]
-        model = problem.model
-        if cond.path == "amg":
-            v_u_k, v_lam_k, v_free = problem.adjoint_fullspace(k, cond, state, y_u, y_lam, choices)
-            v_full = model.assembler.to_full(v_free)
-            t3 = time.perf_counter()
-        elif cond.delassus:
-            v_u_k, v_lam_k, v_free, kry = problem.adjoint_delassus(k, cond, state, y_u, y_lam, choices)
-            v_full = model.assembler.to_full(v_free)
-            t3 = time.perf_counter()
-        else:
-            v_u_k, v_lam_k = solve_adjoint(cond.S, state, y_u, y_lam, choices)
-            t3 = time.perf_counter()
-            v_full = model.assembler.to_full(cond.factor.extend(v_u_k))
-        xi = dJ_da + model.design_contraction(cond.assembled.coords, state.u, v_full, case.loads) \
-            + model.gap_matrix.T @ v_lam_k
-        g = comb.coefficients[k] * xi if g is None else g + comb.coefficients[k] * xi
-        t_adj, t_design = t_adj + t3 - t2, t_design + time.perf_counter() - t3
-        nd += state.n_degenerate
-        if state.n_degenerate:
-            log.info("subgradient at a design with %d degenerate node(s)%s %s", state.n_degenerate,
-                     _of(problem, case), state.counts)
-        if k == comb.case:
-            v_u, v_lam = v_u_k, v_lam_k
-    if not np.all(np.isfinite(g)):
-        raise SolverError("subgradient has non-finite entries")
-    names = problem.case_names
-    active = tuple(names[i] for i in comb.active)
-    if problem.combination.kind == "max" and len(active) > 1:
-        log.info("subgradient at a design where %d load cases are active (%s): the subgradient is "
-                 "that of %s", len(active), ", ".join(active), names[comb.case])
-    ch = {**DEFAULT_CHOICES, **(choices or {})}
-    exact = nd == 0 and (problem.combination.kind == "sum" or len(active) == 1)
-    return SubgradientResult(comb.value, g, states[comb.case], v_u, v_lam, nd, exact, ch,
-                             {"state": t1 - t0, "adjoint": t_adj, "design_terms": t_design},
-                             comb.values, names, active, names[comb.case], states)
-
-
-def _of(problem, case) -> str:
-    return f" of load case {case.name}" if len(problem.cases) > 1 else ""
+    """Θ(α) and one Clarke subgradient of a :class:`contactopt.problem.ShapeProblem`
+    (:meth:`~contactopt.problem.ShapeProblem.subgradient`)."""
+    return problem.subgradient(alpha, choices=choices)

@@ -87,7 +87,6 @@ def _solve_adjoint(A, contact_dofs, classes, u_c, lam, y_u, y_lam, friction, hie
         A.sort_indices()
     n = A.shape[0]
     cd = np.asarray(contact_dofs, dtype=np.int64).reshape(-1, 3)
-    p = cd.shape[0]
     cc = CLASS_CODES
     classes = np.asarray(classes)
     eff = classes.copy()

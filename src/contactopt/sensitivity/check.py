@@ -74,13 +74,14 @@ def check_gradient(problem, alpha, *, seed: int = 0, n_directions: int = 10, h: 
     ``state_method`` (the successive approximations reach 1e-14; the Newton solver stops at its
     round-off floor, about 1e-13, which costs the quotient a digit).
     """
-    saved = (problem.method, problem.tol, problem._cache)
-    problem.method, problem.tol, problem._cache = state_method, state_tol, None
+    saved = (problem.method, problem.tol)
+    problem.method, problem.tol = state_method, state_tol
+    problem.clear_cache()
     try:
         return _check(problem, alpha, seed, n_directions, h, tol, directions)
     finally:
-        problem.method, problem.tol = saved[0], saved[1]
-        problem._cache = None
+        problem.method, problem.tol = saved
+        problem.clear_cache()
 
 
 def _check(problem, alpha, seed, n_directions, h, tol, directions) -> GradientCheck:

@@ -41,7 +41,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from ..config import load_config, validate
-from ..errors import ContactOptError, ConfigError
+from ..errors import ConfigError
 from ..io.atomic import atomic_write_json, atomic_write_text
 from ..io.rundir import OutputDirError, prepare_output_dir
 from .settings import SweepTask, build_tasks, format_value
@@ -111,6 +111,7 @@ def _worker_threads(threads: dict) -> tuple[int, str]:
     """This worker's thread budget and address (outside dask: 1 and 'local')."""
     try:
         from distributed import get_worker
+
         from .cluster import host_of
         addr = get_worker().address
         return int(threads.get(host_of(addr), 1)), addr

@@ -1,0 +1,81 @@
+"""Solver paths: how a design's contact states and adjoints are solved (docs/architecture.md).
+
+Every path implements :class:`~contactopt.paths.base.SolverPath`; :func:`select_path` decides
+once, from ``[linear_solver]`` and the size of the body, which one a configuration runs on.
+
+======================  ===============================================  =====================
+``path``                a design costs                                   for
+======================  ===============================================  =====================
+``"condensation"``      a sparse factorization of A(α) onto the contact  small and medium meshes
+                        DOFs, dense S and the zone's W_Z
+``"delassus"``          a sparse Cholesky of A(α), products W r by        large meshes with MKL
+                        solves, W_Z on the zone only
+``"fullspace"``         semismooth Newton on all DOFs, AMG-preconditioned meshes no factorization
+                        GMRES, nothing factorized                        fits
+======================  ===============================================  =====================
+"""
+
+from __future__ import annotations
+
+import logging
+
+from ..errors import ConfigError
+from .base import Context, Settings, SolverPath
+from .condensation import CondensationPath
+from .delassus import DelassusPath
+from .fullspace import FullSpacePath
+
+log = logging.getLogger(__name__)
+
+PATHS = {cls.name: cls for cls in (CondensationPath, DelassusPath, FullSpacePath)}
+NAMES = tuple(PATHS)
+
+__all__ = ["PATHS", "NAMES", "SolverPath", "Settings", "Context", "select_path", "make_path", "library_for"]
+
+
+def library_for(name: str, library: str) -> str:
+    """The sparse direct solver of a path: ``library`` unless "auto" (then MKL PARDISO where the
+    mkl wheel is installed, else SciPy); "pyamg" on the full-space path."""
+    if name == "fullspace":
+        return "pyamg"
+    if library != "auto":
+        return library
+    from ..fem.linsolve import pardiso_available
+    return "pardiso" if pardiso_available() else "scipy"
+
+
+def select_path(config, n_free: int) -> tuple[str, str]:
+    """(path, library) of a configuration for a body of ``n_free`` free DOFs.
+
+    ``path = "auto"``: the full-space path from ``crossover`` free DOFs on (the measured crossover,
+    docs/large_meshes.md), the condensation below — the Delassus path instead of the full-space one
+    where pyamg is missing. The compliance objective needs the condensed load ℓ on every contact
+    DOF, so it stays on the condensation under "auto" and is refused on the other paths."""
+    ls = config["linear_solver"]
+    name, objective = ls["path"], config["objective"]["type"]
+    if name == "auto":
+        name = "condensation"
+        if n_free >= ls["crossover"] and objective != "compliance":
+            from ..fem.linsolve import pardiso_available
+            if _have_pyamg():
+                name = "fullspace"
+            elif pardiso_available():
+                name = "delassus"
+        log.info("linear solver: %s path for %d DOFs (crossover %d)", name, n_free, ls["crossover"])
+    elif name != "condensation" and objective == "compliance":
+        raise ConfigError([f"linear_solver.path = '{name}': the compliance objective needs the condensed "
+                           "load on every contact DOF; use path 'condensation' or 'auto'"])
+    return name, library_for(name, ls["library"])
+
+
+def make_path(config, model, name: str, library: str) -> SolverPath:
+    """The path ``name`` for a model, with the configuration's [state] settings."""
+    return PATHS[name](model, Settings.from_config(config, library))
+
+
+def _have_pyamg() -> bool:
+    try:
+        import pyamg  # noqa: F401
+    except ImportError:
+        return False
+    return True

@@ -1,0 +1,167 @@
+"""The interface every solver path implements, and what the paths share.
+
+A solver path turns one design's assembled system (A(α), L(α), the gap g = ϑ_α at the contact
+nodes; :class:`~contactopt.fem.model.Assembled`) into the contact state of each load case and
+the adjoint (4.15) of a state. :class:`~contactopt.problem.ShapeProblem` calls, per design,
+
+    system = path.prepare(assembled)                   # what every load case shares
+    system_k = path.for_load(system, assembled_k)      # another load case: L_k
+    state = path.solve_state(system_k, context, ...)   # the Coulomb state (paper (3.17))
+    v_u, v_λ, ṽ = path.adjoint(system_k, context, state, y*_u, y*_λ, choices)   # (4.15)
+
+and a case's :class:`Context` carries what the path keeps from design to design (warm start,
+contact zone, a kept Delassus block or AMG hierarchy): ``export_context`` gives it as arrays
+(the checkpoint holds them) and ``import_context`` puts it back, so that a resumed run repeats
+the uninterrupted one bit for bit.
+
+Conventions: contact quantities per node m in the order (t1, t2, ν) = (x1, x2, x3); λ = r_ν ≥ 0
+the normal force on the body, τ = −r_t; a warm start is per node in the FCLIB order (N, T1, T2).
+"""
+
+from __future__ import annotations
+
+import logging
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..contact import zone as zone_rules
+from ..contact.state import State, classify_nodes, contact_conditions_violation, displacement_scale
+from ..errors import CheckpointError
+
+log = logging.getLogger(__name__)
+
+
+@dataclass
+class Settings:
+    """The ``[state]`` and ``[linear_solver]`` settings a path solves with."""
+
+    friction: float
+    method: str
+    tol: float
+    max_iter: int
+    use_zone: bool
+    zone_margin: float
+    reuse_delassus: bool
+    library: str
+
+    @classmethod
+    def from_config(cls, config, library: str) -> "Settings":
+        st = config["state"]
+        return cls(float(config["friction"]["coefficient"]), st["method"], st["tol"], st["max_iter"],
+                   bool(st["zone"]), float(st["zone_margin"]), bool(st["reuse_delassus"]), library)
+
+
+@dataclass
+class Context:
+    """What one load case carries from design to design on every path: ``warm`` its last contact
+    forces ((p, 3) per node (N, T1, T2)) and ``next_zone`` the zone of its next state solve."""
+
+    warm: np.ndarray | None
+    next_zone: np.ndarray
+
+
+class SolverPath:
+    """A way to solve a design's contact states and adjoints (module docstring).
+
+    Subclasses set ``name`` (the value of ``[linear_solver] path``) and implement
+    :meth:`prepare`, :meth:`for_load`, :meth:`solve_state`, :meth:`adjoint` and
+    :meth:`memory_estimate`; those that keep more than the warm start and the zone extend
+    :meth:`new_context`, :meth:`export_context` and :meth:`import_context`."""
+
+    name = ""
+    first_loads = None       # the loads of the first case: a checkpoint's design is assembled with them
+
+    def __init__(self, model, settings: Settings):
+        self.model = model
+        self.settings = settings
+        self.library = settings.library
+        self.all_nodes = np.arange(model.n_contact)
+        self.n_zone_misses = 0     # zone problems solved again on a grown zone
+        self.n_delassus = 0        # Delassus blocks W_Z formed (the others were reused)
+
+    # ------------------------------------------------------------------ the interface
+    @classmethod
+    def memory_estimate(cls, body, **kw):
+        """Estimated peak memory of one evaluation (:class:`~contactopt.fem.memory.MemoryEstimate`)."""
+        raise NotImplementedError
+
+    def prepare(self, asm):
+        """The system of a design for its first load case (``asm`` holds L of that case)."""
+        raise NotImplementedError
+
+    def for_load(self, system, asm):
+        """The system of another load case of the same design (``asm`` with that case's L)."""
+        raise NotImplementedError
+
+    def new_context(self) -> Context:
+        return Context(None, self.all_nodes)
+
+    def solve_state(self, system, ctx, alpha, *, method, warm_start, tol, shared, label="") -> State:
+        """The contact state of one load case; ``shared`` is a dict the cases of one design share."""
+        raise NotImplementedError
+
+    def adjoint(self, system, ctx, state, y_u, y_lam, choices=None):
+        """(v_u (3p), v_λ (p), ṽ on all DOFs) of the adjoint system (4.15) of ``state``."""
+        raise NotImplementedError
+
+    def uniqueness_bound(self, system):
+        """(F0, None) of the bound (3.16), or (None, the reason) where the path cannot compute it."""
+        return None, (f"the uniqueness estimate (3.16) needs the condensed stiffness S on all contact "
+                      f"DOFs, which the {self.name} path does not form")
+
+    def export_context(self, ctx) -> dict:
+        """The arrays of ``ctx`` a checkpoint holds (names without the case prefix)."""
+        return {"warm": np.asarray(ctx.warm if ctx.warm is not None else np.zeros(0)),
+                "zone": np.asarray(ctx.next_zone)}
+
+    def import_context(self, ctx, arrays: dict, where: str) -> None:
+        """Put back what :meth:`export_context` gave, checked against the mesh (``where`` names
+        the checkpoint in errors)."""
+        p = self.model.n_contact
+        warm = arrays.get("warm")
+        if warm is not None and warm.size:
+            if warm.size != 3 * p or warm.ndim not in (1, 2):
+                raise CheckpointError(f"{where}: its warm start has shape {warm.shape}, expected ({p}, 3)")
+            ctx.warm = warm.reshape(p, 3)      # older checkpoints stored it flat, in the same order
+        zone = arrays.get("zone")
+        if zone is not None:
+            ctx.next_zone = check_node_set(zone, p, where, "contact zone")
+
+    # ------------------------------------------------------------------ shared by the paths
+    def finish_state(self, ctx, *, alpha, coords, u, u_c, r, gap, load, method, outcome, timings,
+                     info) -> State:
+        """The :class:`State` of contact forces ``r`` ((p, 3) per node (t1, t2, ν)) and
+        displacements, with the node classes of Table 4.1; ``outcome`` the solver's (iterations,
+        error, converged). The case's next zone is set from it."""
+        lam, tau = r[:, 2].copy(), -r[:, :2]
+        # with nothing in contact, forces count as zero against the load scale
+        fscale = max(np.abs(lam).max(initial=0.0), np.abs(load).max(initial=0.0))
+        classes = classify_nodes(u_c, lam, tau, gap, self.settings.friction,
+                                 force_scale=fscale if lam.max(initial=0) <= 0 else None)
+        timings["total"] = sum(timings.values())
+        state = State(alpha=alpha, coords=coords, u=u, u_c=u_c, lam=lam, tau=tau, gap=gap, classes=classes,
+                      friction=self.settings.friction, method=method, iterations=outcome[0],
+                      residual=outcome[1],
+                      complementarity=contact_conditions_violation(u_c, lam, tau, gap, self.settings.friction),
+                      converged=outcome[2], timings=timings, info={"path": self.name, **info})
+        if self.settings.use_zone:
+            ctx.next_zone = zone_rules.near_nodes(lam, u_c[:, 2] + gap, displacement_scale(u_c, gap),
+                                                  self.settings.zone_margin)
+        return state
+
+
+def check_node_set(nodes, n_contact: int, where: str, what: str) -> np.ndarray:
+    """``nodes`` as a non-empty, strictly increasing array of contact nodes 0..n_contact − 1."""
+    nodes = np.asarray(nodes).astype(np.int64)
+    ok = (nodes.ndim == 1 and nodes.size > 0 and nodes[0] >= 0 and nodes[-1] < n_contact and not np.any(np.diff(nodes) <= 0))
+    if not ok:
+        raise CheckpointError(f"{where}: its {what} is not a sorted set of contact nodes 0..{n_contact - 1}")
+    return nodes
+
+
+def check_design(alpha, n_design: int, where: str, what: str) -> np.ndarray:
+    alpha = np.asarray(alpha)
+    if alpha.shape != (n_design,) or not np.all(np.isfinite(alpha)):
+        raise CheckpointError(f"{where}: its {what} has shape {alpha.shape} (expected ({n_design},), finite)")
+    return alpha.astype(float)

@@ -1,0 +1,184 @@
+"""The Delassus path: a sparse Cholesky factorization of A(α) per design, nothing condensed.
+
+W = S⁻¹ = B A⁻¹ Bᵀ (B selects the contact DOFs) is applied by sparse solves, S⁻¹ℓ = (A⁻¹L)_c
+= (x0)_c, and the zone's block W_Z, when Newton needs it, is the inverse of the Schur complement
+of A onto the zone's DOFs (:class:`~contactopt.contact.zone.DelassusZoneProblem`). The local
+problem and its conventions are those of :mod:`.zone_paths`. For meshes where the dense S on all
+contact DOFs would not fit (docs/large_meshes.md).
+
+Where the Cholesky factor and a zone's Schur-mode factorization would not fit in memory together
+(:func:`contactopt.fem.memory.keeps_cholesky`), the Cholesky is released while the zone block is
+formed; the condensation then serves the design's remaining solves
+(:class:`~contactopt.fem.linsolve.SolverSlot`), and the next design factorizes anew.
+"""
+
+from __future__ import annotations
+
+import logging
+import time
+from dataclasses import dataclass, replace
+
+import numpy as np
+
+from ..contact import zone as zone_rules
+from ..contact.state import CLASS_CODES, displacement_scale
+from ..fem import memory
+from ..fem.model import Assembled
+from .zone_paths import ZonePath
+
+log = logging.getLogger(__name__)
+
+NEW_NODES = 24          # new nodes whose exact columns (3 sparse solves each, as one block) extend
+                        # a kept block; 72 columns ≈ 1.5–2 factorizations at 113k DOFs, about the
+                        # cost of the zone's Schur complement
+ADJOINT_MAX_NEW = 0.1   # the adjoint's preconditioner takes exact columns for at most this
+                        # fraction of nodes outside the kept block, else the zone's Schur complement
+
+
+@dataclass
+class FactorizedSystem:
+    """One design's system on the Delassus path: ``factor`` the slot holding the sparse
+    factorization of A(α) (free DOFs), ``x0`` = A(α)⁻¹L(α) the displacement without contact
+    forces, ``gap`` (p,)."""
+
+    assembled: Assembled
+    factor: object
+    x0: np.ndarray
+    gap: np.ndarray
+    timings: dict
+
+
+class DelassusPath(ZonePath):
+    """``[linear_solver] path = "delassus"`` (module docstring)."""
+
+    name = "delassus"
+    reuse_tol_factor = 1.0    # each Newton step costs a sparse solve here: to tol itself
+    accept_at_tol = True      # forming W_Z costs more than a factorization
+    probe_warm = True         # the warm start's product Newton needs first anyway
+
+    def __init__(self, model, settings):
+        super().__init__(model, settings)
+        self._factor = None       # the Cholesky factorization of A(α), numerical only after the first
+        self._slot = None         # the factorization a design's solves go through
+        self._keep_cholesky = memory.keeps_cholesky(model)
+
+    @classmethod
+    def memory_estimate(cls, body, keep_cholesky=None):
+        if keep_cholesky is None:
+            keep_cholesky = memory.keeps_cholesky(body)
+        return memory.estimate_evaluation(body, memory.delassus_parts, keep_cholesky=keep_cholesky)
+
+    def prepare(self, asm) -> FactorizedSystem:
+        from ..fem.linsolve import Factorization, SolverSlot
+        t0 = time.perf_counter()
+        fac = self._factor
+        if fac is None:           # the first design, or the Cholesky was released (_zone_block)
+            fac = self._factor = Factorization(asm.A, self.library)
+        else:
+            fac.refactor(asm.A)
+        if self._slot is None:
+            self._slot = SolverSlot()
+        self._slot.set(fac)       # releases the last design's zone condensation, if any
+        t1 = time.perf_counter()
+        x0 = fac.solve(asm.L)
+        return FactorizedSystem(asm, self._slot, x0, asm.gap,
+                                {"factor": t1 - t0, "load_solve": time.perf_counter() - t1})
+
+    def for_load(self, system, asm) -> FactorizedSystem:
+        t1 = time.perf_counter()
+        return replace(system, assembled=asm, x0=system.factor.solve(asm.L),
+                       timings={"load_solve": time.perf_counter() - t1})
+
+    def _zone_block(self, A):
+        """``dofs -> S_D``: the dense Schur complement of A onto the DOFs ``dofs`` (in their
+        order), by a factorization that eliminates them last (W_Z = S_D⁻¹)."""
+        from ..fem.linsolve import condense
+
+        def block(dofs):
+            t0 = time.perf_counter()
+            slot = self._slot
+            released = not self._keep_cholesky and self._factor is not None and slot.current is self._factor
+            if released:
+                self._factor.close()
+                self._factor = None
+            fac = condense(A, dofs, backend=self.library)
+            S = fac.S
+            if released:
+                slot.current = fac
+            else:
+                fac.close()
+            log.debug("Schur complement onto %d zone DOFs: %.2f s", len(dofs), time.perf_counter() - t0)
+            return S
+        return block
+
+    def _problem(self, system, zone):
+        return zone_rules.DelassusZoneProblem(system.factor, self.model.contact_dofs, system.x0, zone,
+                                              self._zone_block(system.assembled.A))
+
+    def zone_problem(self, system, zone, warm, reuse, shared):
+        if warm is None and self.settings.use_zone and zone.size == self.all_nodes.size:
+            zone = self.predicted_zone(system)
+        if "zone" in shared:
+            return shared["zone"].with_load(system.x0, zone), zone
+        zp = shared["zone"] = self._problem(system, zone)
+        return zp, zone
+
+    def predicted_zone(self, system) -> np.ndarray:
+        """A first contact zone without a warm start: the nodes whose displacement without contact
+        forces, x0, closes the gap to within the margin — the zone grows by every node it misses,
+        so the state does not depend on this guess, and W_Z is not formed on all contact DOFs."""
+        u0 = system.x0[self.model.contact_dofs].reshape(-1, 3)
+        clearance = u0[:, 2] + system.gap
+        return zone_rules.near_nodes(np.zeros(system.gap.size), clearance, displacement_scale(u0, system.gap),
+                                     self.settings.zone_margin)
+
+    def free_displacement(self, system, zp, r_loc, u_c):
+        return zp.free_displacement(r_loc)
+
+    def load_scale(self, system):
+        # without ℓ: the load on the contact DOFs' stiffness scale (|S u0| ≈ |L| there)
+        return system.assembled.L
+
+    def solve_counts(self, zp) -> dict:
+        return {"sparse_solves": zp.n_solves}
+
+    def max_new(self, nodes, fraction):
+        # a column costs a sparse solve here: at most NEW_NODES (beyond that the zone's Schur
+        # complement is cheaper)
+        return {"max_new": min(fraction, NEW_NODES / max(len(nodes), 1))}
+
+    def own_block(self, system, zone):
+        return self._problem(system, zone).W
+
+    def adjoint(self, system, ctx, state, y_u, y_lam, choices=None):
+        """(4.15) in W-form (:func:`contactopt.sensitivity.adjoint.solve_adjoint_delassus`): products
+        W s by sparse solves, preconditioned by the case's kept Delassus block on the nodes in
+        contact (exact columns for nodes outside it; the zone's Schur complement without one)."""
+        from ..sensitivity.adjoint import check_choices, effective_classes, solve_adjoint_delassus
+        contact = self.model.contact_dofs
+        n = system.x0.size
+
+        def apply(s):
+            f = np.zeros(n)
+            f[contact] = s
+            x = system.factor.solve(f)
+            return x[contact], x
+
+        eff = effective_classes(state.classes, check_choices(choices))
+        K = np.flatnonzero(eff != CLASS_CODES["L"])
+        zpK = self._problem(system, K)
+        jac = ctx.jacobian
+        W = None
+        if jac is not None and K.size:
+            W = zpK.block_from(jac[1], jac[2], **self.max_new(K, ADJOINT_MAX_NEW))
+        if W is None:
+            W = zpK.W if K.size else np.zeros((0, 0))
+        perm = (3 * np.arange(K.size)[:, None] + np.array([1, 2, 0])).ravel()   # FCLIB -> (t1, t2, ν)
+        W = W[np.ix_(perm, perm)]
+        t0 = time.perf_counter()
+        v_u, v_lam, v_free, res = solve_adjoint_delassus(apply, W, state, y_u, y_lam, choices)
+        if res is not None:
+            log.debug("adjoint (4.15) in W-form on %d nodes: %d GMRES iterations, %.2f s",
+                      K.size, res.iterations, time.perf_counter() - t0)
+            state.info["adjoint_krylov"] = int(res.iterations)
+        return v_u, v_lam, self.model.assembler.to_full(v_free)

@@ -1,0 +1,171 @@
+"""The full-space path: a semismooth Newton method on all free DOFs, nothing factorized.
+
+The state is :func:`contactopt.contact.fullspace.solve_fullspace` (AMG-preconditioned GMRES on
+A(α) plus the contact rows), the adjoint (4.15) is its transposed Newton system
+(:func:`contactopt.sensitivity.adjoint_fullspace.solve_adjoint_fullspace`) with the same V-cycle.
+For meshes no factorization fits (docs/large_meshes.md). Contact conventions as everywhere:
+per node (t1, t2, ν), λ = r_ν ≥ 0 on the body, warm starts per node (N, T1, T2).
+
+The AMG hierarchy of an earlier A(α) serves every later design and every load case; it is
+rebuilt from its design at a resume (the checkpoint holds that design), with NumPy's global
+generator seeded and OpenBLAS on one thread, so the same design gives the same hierarchy bit for
+bit.
+"""
+
+from __future__ import annotations
+
+import logging
+import time
+from dataclasses import dataclass, replace
+
+import numpy as np
+
+from .._threads import sequential_openblas
+from ..fem import memory
+from ..fem.model import Assembled
+from .base import Context, SolverPath, check_design
+
+log = logging.getLogger(__name__)
+
+FULLSPACE_TOL = 1e-10     # the Newton's Siconos error and equilibrium residual (at least): its
+                          # GMRES then runs to 1e-11, near the AMG V-cycle's floor
+HIERARCHY_SEED = 20090101  # NumPy's global generator while pyamg builds a hierarchy
+
+
+@dataclass
+class FullSystem:
+    """One design's system in full space: A(α), L(α) in ``assembled`` as they are, ``gap`` (p,)."""
+
+    assembled: Assembled
+    gap: np.ndarray
+    timings: dict
+
+
+@dataclass
+class FullContext(Context):
+    """Also ``u_free``: the case's last displacement (free DOFs), Newton's warm start."""
+
+    u_free: np.ndarray | None = None
+
+
+class FullSpacePath(SolverPath):
+    """``[linear_solver] path = "fullspace"`` (module docstring)."""
+
+    name = "fullspace"
+
+    def __init__(self, model, settings):
+        super().__init__(model, settings)
+        self.library = "pyamg"
+        self._hierarchy = None          # the AMG hierarchy of an earlier A(α) ...
+        self._hierarchy_alpha = None    # ... built at this design (checkpoints rebuild it)
+
+    @classmethod
+    def memory_estimate(cls, body, **kw):
+        return memory.estimate_evaluation(body, memory.fullspace_parts)
+
+    def new_context(self) -> FullContext:
+        return FullContext(None, self.all_nodes)
+
+    def prepare(self, asm) -> FullSystem:
+        return FullSystem(asm, asm.gap, {})
+
+    def for_load(self, system, asm) -> FullSystem:
+        return replace(system, assembled=asm, timings={})
+
+    def build_hierarchy(self, alpha, asm=None):
+        """The AMG hierarchy of A(α) (:class:`~contactopt.contact.fullspace.ContactHierarchy`).
+
+        pyamg estimates spectral radii from random start vectors of NumPy's global generator: it
+        is seeded here (and its state restored), and OpenBLAS runs on one thread, so that the same
+        design gives the same hierarchy bit for bit."""
+        import scipy.sparse as sp
+
+        from ..contact.fullspace import ContactHierarchy
+        from ..fem.iterative import rigid_body_modes
+        if asm is None:
+            asm = self.model.assemble(alpha, self.first_loads)
+        A = sp.csr_matrix(asm.A)
+        if not A.has_sorted_indices:
+            A = A.copy()
+            A.sort_indices()
+        saved = np.random.get_state()
+        np.random.seed(HIERARCHY_SEED)
+        try:
+            with sequential_openblas():
+                return ContactHierarchy(A, rigid_body_modes(asm.coords, self.model.assembler.free),
+                                        contact_dofs=self.model.contact_dofs)
+        finally:
+            np.random.set_state(saved)
+
+
+    def solve_state(self, system, ctx, alpha, *, method, warm_start, tol, shared, label=""):
+        """Warm-started from the case's last forces and displacement, on the AMG hierarchy of an
+        earlier design."""
+        from ..contact.fullspace import solve_fullspace
+        s = self.settings
+        asm = system.assembled
+        t0 = time.perf_counter()
+        warm = ctx.warm if warm_start else None
+        u0 = ctx.u_free if warm_start and warm is not None else None
+        t_setup = 0.0
+        if self._hierarchy is None:
+            self._hierarchy = self.build_hierarchy(alpha, asm)
+            self._hierarchy_alpha = np.array(alpha, dtype=float)
+            t_setup = time.perf_counter() - t0
+        res = solve_fullspace(asm.A, asm.L, self.model.contact_dofs, system.gap, s.friction, coords=asm.coords,
+                              free=self.model.assembler.free, r0=warm, u0=u0, hierarchy=self._hierarchy,
+                              tol=max(tol or s.tol, FULLSPACE_TOL), zone=ctx.next_zone if s.use_zone else None,
+                              zone_margin=s.zone_margin)
+        self._hierarchy = res.hierarchy
+        timings = dict(system.timings, **{f"fullspace_{k}": v for k, v in res.timings.items() if k != "total"})
+        timings["fullspace_amg_setup"] += t_setup
+        timings["contact"] = time.perf_counter() - t0
+        r = np.column_stack((-res.tau, res.lam))                # per node (t1, t2, ν)
+        state = self.finish_state(ctx, alpha=alpha, coords=asm.coords, u=self.model.assembler.to_full(res.u),
+                                  u_c=res.u_c, r=r, gap=system.gap, load=asm.L, method="fullspace",
+                                  outcome=(res.newton_steps, res.error, res.converged),
+                                  timings=timings,
+                                  info={"backend": "pyamg", "zone_nodes": int(res.zone.size),
+                                        "zone_misses": int(res.zone_growths), "delassus": "none",
+                                        "krylov_iterations": int(sum(res.krylov_iterations))})
+        ctx.warm, ctx.u_free = res.r.copy(), res.u
+        log.debug("state%s: full-space Newton %d steps, %d GMRES iterations, error %.2e, %.2f s", label,
+                  res.newton_steps, sum(res.krylov_iterations), res.error, timings["total"])
+        return state
+
+    def adjoint(self, system, ctx, state, y_u, y_lam, choices=None):
+        from ..sensitivity.adjoint_fullspace import solve_adjoint_fullspace
+        adj = solve_adjoint_fullspace(system.assembled.A, self.model.contact_dofs, state.classes, state.u_c,
+                                      state.lam, y_u, y_lam, self.settings.friction, hierarchy=self._hierarchy,
+                                      choices=choices)
+        state.info["adjoint_krylov"] = int(adj.iterations)
+        return adj.v_u, adj.v_lam, self.model.assembler.to_full(adj.v)
+
+    # ------------------------------------------------------------------ checkpoints
+    def export_context(self, ctx) -> dict:
+        out = super().export_context(ctx)
+        a = self._hierarchy_alpha       # the design of the AMG hierarchy, shared by the cases
+        out["jacobian_alpha"] = np.asarray(a if a is not None else np.zeros(0), dtype=float)
+        out["jacobian_zone"] = np.asarray(ctx.next_zone if a is not None else np.zeros(0), dtype=np.int64)
+        if ctx.u_free is not None:
+            out["u_free"] = np.asarray(ctx.u_free)
+        return out
+
+    def import_context(self, ctx, arrays: dict, where: str, others=()) -> None:
+        """Also the case's last displacement, and the AMG hierarchy rebuilt at its design."""
+        from ..errors import CheckpointError
+        super().import_context(ctx, arrays, where)
+        n_free = self.model.assembler.n_free
+        u = arrays.get("u_free")
+        if u is not None:
+            if u.shape != (n_free,) or not np.all(np.isfinite(u)):
+                raise CheckpointError(f"{where}: its displacement does not fit the mesh ({u.shape[0] if u.ndim else 0} "
+                                      f"values for {n_free} free DOFs) or is not finite")
+            ctx.u_free = u
+        a = arrays.get("jacobian_alpha")
+        if a is not None and a.size:
+            alpha = check_design(a, self.model.n_design, where, "AMG design")
+            if self._hierarchy_alpha is None or not np.array_equal(self._hierarchy_alpha, alpha):
+                self._hierarchy = self.build_hierarchy(alpha)
+                self._hierarchy_alpha = alpha
+

@@ -1,0 +1,104 @@
+"""The layering of the package (docs/architecture.md), checked on the source itself: one place
+decides and tests the solver path, the mesh layer is geometry only, and no two modules import
+each other (directly or through others, at module level or inside functions)."""
+
+import ast
+from pathlib import Path
+
+import pytest
+
+import contactopt.paths as paths
+
+SRC = Path(paths.__file__).resolve().parents[1]          # src/contactopt
+PATH_NAMES = set(paths.NAMES) | {"schur", "amg"}         # today's names and the former ones
+
+
+def _modules():
+    for f in sorted(SRC.rglob("*.py")):
+        rel = f.relative_to(SRC.parent).with_suffix("")
+        parts = rel.parts[:-1] if rel.name == "__init__" else rel.parts
+        yield ".".join(parts), f, rel.name == "__init__"
+
+
+def _imports(name: str, tree, is_package: bool, known: set):
+    """Modules of the package imported anywhere in ``tree`` (module level or in functions)."""
+    base = name.split(".") if is_package else name.split(".")[:-1]
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Import):
+            targets = [a.name for a in node.names]
+        elif isinstance(node, ast.ImportFrom):
+            mod = ".".join(base[:len(base) - node.level + 1]) if node.level else ""
+            mod = ".".join(p for p in (mod, node.module or "") if p)
+            targets = [f"{mod}.{a.name}" if f"{mod}.{a.name}" in known else mod for a in node.names]
+        else:
+            continue
+        for t in targets:
+            while t and t not in known:       # import a.b.c of a module a.b: the module a.b
+                t = t.rpartition(".")[0]
+            if t and t != name:
+                yield t
+
+
+def _graph():
+    mods = list(_modules())
+    known = {m for m, _, _ in mods}
+    return {m: set(_imports(m, ast.parse(f.read_text()), pkg, known)) for m, f, pkg in mods}
+
+
+def test_no_module_outside_paths_tests_a_path_name():
+    """Comparisons with a path's name (==, !=, in) appear in contactopt.paths and the
+    configuration only: every other module asks the path object."""
+    found = []
+    for name, f, _ in _modules():
+        if name.startswith("contactopt.paths") or name == "contactopt.config":
+            continue
+        for node in ast.walk(ast.parse(f.read_text())):
+            if isinstance(node, ast.Compare):
+                consts = [n for n in ast.walk(node) if isinstance(n, ast.Constant) and n.value in PATH_NAMES]
+                found += [f"{name}:{n.lineno} {n.value!r}" for n in consts]
+    assert not found, "path names tested outside contactopt.paths: " + ", ".join(found)
+
+
+def test_the_detector_sees_a_path_test():
+    """The check above is not vacuous: it finds a comparison in a snippet."""
+    tree = ast.parse("if system.path == 'fullspace':\n    pass\n")
+    assert any(isinstance(n, ast.Constant) and n.value in PATH_NAMES for n in ast.walk(tree))
+
+
+def test_mesh_imports_nothing_from_fem():
+    graph = _graph()
+    bad = {m: sorted(t for t in ts if t.startswith(("contactopt.fem", "contactopt.paths", "contactopt.problem")))
+           for m, ts in graph.items() if m.startswith("contactopt.mesh")}
+    assert not any(bad.values()), {m: t for m, t in bad.items() if t}
+
+
+def test_no_import_cycles():
+    graph = _graph()
+    # package __init__ modules re-export their submodules: an edge into a package is an edge to
+    # what it exports, so cycles through an __init__ that only re-exports are not counted
+    state, stack, cycles = {}, [], []
+
+    def visit(m):
+        state[m] = 1
+        stack.append(m)
+        for t in sorted(graph.get(m, ())):
+            if state.get(t) == 1:
+                cycles.append(stack[stack.index(t):] + [t])
+            elif t not in state:
+                visit(t)
+        stack.pop()
+        state[m] = 2
+
+    for m in sorted(graph):
+        if m not in state:
+            visit(m)
+    pkgs = {m for m, _, pkg in _modules() if pkg}
+    real = [c for c in cycles if not any(m in pkgs for m in c[:-1])]
+    assert not real, "import cycles: " + "; ".join(" -> ".join(c) for c in real)
+
+
+@pytest.mark.parametrize("name", sorted(paths.NAMES))
+def test_every_path_implements_the_interface(name):
+    cls = paths.PATHS[name]
+    for method in ("prepare", "for_load", "solve_state", "adjoint", "memory_estimate"):
+        assert getattr(cls, method) is not getattr(paths.SolverPath, method), f"{name} lacks {method}"
