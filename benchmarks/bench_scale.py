@@ -1,8 +1,8 @@
 """Large meshes (issue #16): cost and peak memory of one evaluation (state + subgradient) at a
 next design on refinements of Example 1, as ratios to one clean-process PARDISO factorization.
 
-    python benchmarks/bench_scale.py            # 113k, 210k, 371k, 867k DOFs, backend 'auto'
-    python benchmarks/bench_scale.py --sizes 113k 210k --paths schur delassus   # paths side by side
+    python benchmarks/bench_scale.py            # 113k, 210k, 371k, 867k DOFs, path 'auto'
+    python benchmarks/bench_scale.py --sizes 113k 210k --paths condensation delassus   # paths side by side
     python benchmarks/bench_scale.py --sizes 48x22x13          # any NXxNYxNZ refinement
 
 Every (size, path) runs in its own child process, so that its peak RSS (``ru_maxrss``, which
@@ -21,9 +21,9 @@ every ratio, and contactopt's own PARDISO Cholesky of it in another clean proces
 yardstick: pypardiso's default is an LU). A reference that does not fit the memory (a Cholesky
 of 867k DOFs) is reported as such.
 
-Paths: ``auto`` is ``[linear_solver] backend = "auto"`` (the path it picks by size and memory:
+Paths: ``auto`` is ``[linear_solver] path = "auto"`` (the path it picks by size and memory:
 ``delassus`` from 60k DOFs, ``amg`` where the Delassus path's estimate exceeds the memory);
-``schur`` the condensation onto all contact DOFs (PARDISO Schur mode, dense S); ``delassus`` a
+``condensation`` the condensation onto all contact DOFs (PARDISO Schur mode, dense S); ``delassus`` a
 sparse Cholesky of A(α) and Delassus products by solves; ``amg`` the full-space Newton with AMG.
 A (size, path) whose estimated peak exceeds ``--max-gb`` (default 16 GB) is skipped and reported.
 
@@ -46,7 +46,7 @@ from pathlib import Path
 
 SIZES = {"15k": (32, 15, 9), "113k": (64, 30, 18), "210k": (80, 37, 22), "371k": (96, 45, 27),
          "867k": (128, 60, 36), "1m": (136, 64, 38)}
-PATHS = ("auto", "schur", "delassus", "amg")   # [linear_solver] backend "auto" / "pardiso" / "delassus" / "amg"
+PATHS = ("auto", "condensation", "delassus", "fullspace")   # [linear_solver] path
 GOALS = {"113k": 1.5, "210k": 1.5, "371k": 1.0}    # evaluation / reference factorization
 
 
@@ -84,18 +84,14 @@ def child(shape, path, step, out_dir):
 
     nx, ny, nz = shape
     cfg = load_config("example1").with_updates({"mesh": {"nx": nx, "ny": ny, "nz": nz},
-                                                "linear_solver": {"backend": "pardiso" if path == "schur" else path,
-                                                                  "memory_check": path != "schur"}})
+                                                "linear_solver": {"path": path,
+                                                                  "memory_check": path != "condensation"}})
     t0 = time.perf_counter()
     problem = ShapeProblem(cfg)
     t_setup = time.perf_counter() - t0
     model = problem.model
     n, p = model.assembler.n_free, model.n_contact
-    try:
-        from contactopt.fem.memory import estimate_evaluation
-        est = estimate_evaluation(model, problem.path).total_gb
-    except ImportError:
-        est = None
+    est = problem.path.memory_estimate(model).total_gb
     rss_model = _peak_rss_gb()
     a0 = model.initial_design()
     d = design_direction(model)
@@ -114,8 +110,9 @@ def child(shape, path, step, out_dir):
         res = subgradient(problem, a2)
         t_eval = time.perf_counter() - t0
     st = res.state
-    fac = problem._factor or (problem._slot.current if problem._slot else None)   # None in full space
-    A = problem._cache[1].assembled.A
+    path = problem.path          # the factorization it keeps, for PARDISO's memory report (none in full space)
+    fac = getattr(path, "_factor", None) or (path._slot.current if getattr(path, "_slot", None) else None)
+    A = problem.cached_system(a2).assembled.A
     if fac is not None:
         ip = fac._ps.iparm    # PARDISO's own memory report (KiB): analysis peak, permanent, factor
         pardiso_gb = max(int(ip[14]), int(ip[15]) + int(ip[16])) / 2**20
@@ -123,7 +120,7 @@ def child(shape, path, step, out_dir):
         pardiso_gb = 0.0
     a_file = Path(out_dir) / f"A_{nx}x{ny}x{nz}.npz"
     sp.save_npz(a_file, A, compressed=False)
-    row = dict(shape=shape, path=problem.path, n=n, p=p, nnz_A=int(A.nnz),
+    row = dict(shape=shape, path=problem.path.name, n=n, p=p, nnz_A=int(A.nnz),
                nnz_factor=int(fac.stats["nnz_factor"]) if fac is not None else 0, pardiso_gb=pardiso_gb,
                setup=t_setup, first=t_first, second=t_second, evaluation=t_eval,
                second_delassus=res1.state.info["delassus"],
@@ -136,15 +133,16 @@ def child(shape, path, step, out_dir):
     print(json.dumps(row))
 
 
-def _estimate_only(shape, path="schur"):
+def _estimate_only(shape, path="condensation"):
     """Estimated peak (GB) of a size and path without running it: a child builds the body only."""
     code = ("import sys, json; from contactopt.config import load_config; "
-            "from contactopt.mesh.body import build_body; from contactopt.fem.memory import estimate_evaluation; "
+            "from contactopt.mesh.body import build_body; from contactopt.fem.memory import free_dofs; "
+            "from contactopt.paths import PATHS, select_path; "
             "nx, ny, nz = map(int, sys.argv[1:4]); "
-            "b = build_body(load_config('example1').with_updates({'mesh': {'nx': nx, 'ny': ny, 'nz': nz}})); "
-            "from contactopt.fem.memory import select_path; "
-            "path = select_path(b, 'auto', 'target_normal_force', 60000) if sys.argv[4] == 'auto' else sys.argv[4]; "
-            "print(json.dumps(estimate_evaluation(b, path).total_gb))")
+            "cfg = load_config('example1').with_updates({'mesh': {'nx': nx, 'ny': ny, 'nz': nz}}); "
+            "b = build_body(cfg); "
+            "path = select_path(cfg, free_dofs(b))[0] if sys.argv[4] == 'auto' else sys.argv[4]; "
+            "print(json.dumps(PATHS[path].memory_estimate(b).total_gb))")
     out = subprocess.run([sys.executable, "-c", code, *map(str, shape), path], capture_output=True, text=True)
     if out.returncode:
         return None
@@ -216,9 +214,10 @@ def candidates(shape, steps, block, rtol, skip=(), zone_fraction=0.55):
     parts not to run (a large size: "schur"). Prints one line per measurement."""
     import numpy as np
 
+    from _iterative import Cholesky, DelassusOperator, amg_preconditioner, pcg
     from contactopt._threads import sequential_openblas
     from contactopt.config import load_config
-    from contactopt.fem.iterative import Cholesky, DelassusOperator, amg_preconditioner, pcg, rigid_body_modes
+    from contactopt.fem.amg import rigid_body_modes
     from contactopt.fem.linsolve import condense, factorize
     from contactopt.fem.model import ElasticModel
 
@@ -338,7 +337,7 @@ def main(argv=None):
     ap.add_argument("--sizes", nargs="+", default=["113k", "210k", "371k", "867k"],
                     help=f"keys ({', '.join(f'{k}={v[0]}x{v[1]}x{v[2]}' for k, v in SIZES.items())}) or NXxNYxNZ")
     ap.add_argument("--paths", nargs="+", choices=PATHS, default=["auto"],
-                    help="auto: [linear_solver] backend = 'auto' (the path it picks by size and memory)")
+                    help="auto: [linear_solver] path = 'auto' (the path it picks by size and memory)")
     ap.add_argument("--step", type=float, default=5e-4, help="max |α1 − α0| of the next design")
     ap.add_argument("--max-gb", type=float, default=16.0, help="skip sizes estimated above this peak")
     ap.add_argument("--repeat", type=int, default=3, help="clean-process reference factorizations (median)")

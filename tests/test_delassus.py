@@ -8,7 +8,7 @@ import tomli_w
 
 from contactopt.config import load_config
 from contactopt.errors import ConfigError, SolverError
-from contactopt.fem.iterative import KrylovNotConverged, gmres
+from contactopt.fem.krylov import KrylovNotConverged, gmres
 from contactopt.fem.linsolve import pardiso_available
 from contactopt.paths import select_path
 from contactopt.problem import ShapeProblem

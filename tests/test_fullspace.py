@@ -18,10 +18,10 @@ import pytest
 import scipy.sparse as sp
 
 from contactopt.config import load_config
-from contactopt.contact.fullspace import OPEN, SLIDE, STICK, gmres, solve_fullspace
+from contactopt.contact.fullspace import OPEN, SLIDE, STICK, solve_fullspace
 from contactopt.contact.state import CLASS_CODES, classify_nodes
 from contactopt.errors import ContactNotConverged, SolverError
-from contactopt.fem.iterative import KrylovNotConverged
+from contactopt.fem.krylov import KrylovNotConverged, gmres
 from contactopt.problem import ShapeProblem
 from contactopt.sensitivity.adjoint import subgradient
 from contactopt.sensitivity.adjoint_fullspace import subgradient_fullspace

@@ -68,7 +68,7 @@ built once per optimization; ρ (``rho_scale`` 0.1–2) changes the step counts 
 
 Convergence: the Siconos error ‖R − P_K(R − Ũ)‖ / max(‖R‖, ‖U‖) on the zone ≤ ``tol`` and the
 equilibrium of the other rows ‖(A u − L)_other‖ / ‖L‖ ≤ ``tol``. A Newton or Krylov failure raises
-:class:`contactopt.errors.ContactNotConverged` / :class:`contactopt.fem.iterative.KrylovNotConverged`
+:class:`contactopt.errors.ContactNotConverged` / :class:`contactopt.fem.krylov.KrylovNotConverged`
 (both SolverErrors) with their histories, never an inaccurate state. With a zone smaller than all
 contact nodes, a converged state whose outside nodes close their gap grows the zone (as
 :mod:`contactopt.contact.zone` does) and Newton continues from the current iterate.
@@ -85,12 +85,13 @@ import scipy.sparse as sp
 
 from .._threads import sequential_openblas
 from ..errors import ContactNotConverged, ProblemDataError, SolverError
-from ..fem.iterative import KrylovNotConverged, KrylovResult, rigid_body_modes
+from ..fem.amg import ContactHierarchy, block_positions, rigid_body_modes
+from ..fem.krylov import KrylovNotConverged, gmres
 from .cones import siconos_error
 from .newton import alart_curnier
 from .state import CLASS_RTOL
 
-__all__ = ["solve_fullspace", "FullSpaceResult", "ContactHierarchy", "gmres", "OPEN", "STICK", "SLIDE"]
+__all__ = ["solve_fullspace", "FullSpaceResult", "OPEN", "STICK", "SLIDE"]
 
 log = logging.getLogger(__name__)
 
@@ -108,261 +109,6 @@ _TIGHT_BELOW = 0.01                   # error ≤ this·√tol and node classes 
                                       # reach 2e-8–8e-8 one step before their end
 _STAGNATION_STEPS = 10                # no halving of the best error over this many steps:
 _RESCALE, _MAX_RESCALES = 0.25, 3     # ρ times _RESCALE, at most _MAX_RESCALES times
-_COARSE_DIAG_MIN = 1e-10              # a coarse unknown whose diagonal fell below this fraction
-                                      # of A(α_ref)'s lives (almost) inside D: decoupled
-
-
-# ----------------------------------------------------------------------------- GMRES
-def gmres(apply, b, M=None, *, x0=None, atol: float, restart: int = 60, max_iter: int = 500,
-          scale: float | None = None) -> KrylovResult:
-    """Right-preconditioned restarted GMRES for G x = b: stops when ‖b − G x‖ ≤ ``atol``.
-
-    ``apply(x)`` is G x, ``M(v)`` the preconditioner. Classical Gram–Schmidt with one
-    reorthogonalization (two matrix–vector products with the basis). ``history`` holds the
-    residual norm divided by ``scale`` (default ‖b‖) after every iteration, ``history[0]`` the
-    initial one. Raises :class:`KrylovNotConverged` with it after ``max_iter`` iterations or on a
-    non-finite residual."""
-    t0 = time.perf_counter()
-    b = np.asarray(b, dtype=np.float64)
-    n = b.size
-    M = M or (lambda v: v)
-    scale = float(scale or np.linalg.norm(b) or 1.0)
-    x = np.zeros(n) if x0 is None else np.array(x0, dtype=np.float64)
-    r = b - apply(x) if x0 is not None else b.copy()
-    beta = float(np.linalg.norm(r))
-    history = [beta / scale]
-    its = 0
-    V = np.empty((restart + 1, n))
-    Z = np.empty((restart, n))
-    while True:
-        if beta <= atol:
-            return KrylovResult(x, its, history, np.array([beta / scale]), time.perf_counter() - t0)
-        if its >= max_iter:
-            raise KrylovNotConverged(f"GMRES did not converge: residual {beta / scale:.3g} (relative) > "
-                                     f"{atol / scale:.3g} after {its} iterations", history)
-        if not np.isfinite(beta):
-            raise KrylovNotConverged(f"GMRES: non-finite residual after {its} iterations", history)
-        H = np.zeros((restart + 1, restart))
-        cs, sn = np.zeros(restart), np.zeros(restart)
-        g = np.zeros(restart + 1)
-        g[0] = beta
-        V[0] = r / beta
-        j = -1
-        for j in range(restart):
-            Z[j] = M(V[j])
-            w = apply(Z[j])
-            its += 1
-            h = V[:j + 1] @ w
-            w -= h @ V[:j + 1]
-            h2 = V[:j + 1] @ w              # reorthogonalization
-            w -= h2 @ V[:j + 1]
-            h += h2
-            hn = float(np.linalg.norm(w))
-            H[:j + 1, j] = h
-            H[j + 1, j] = hn
-            if hn > 0:
-                V[j + 1] = w / hn
-            for i in range(j):              # previous Givens rotations
-                a, c_ = H[i, j], H[i + 1, j]
-                H[i, j], H[i + 1, j] = cs[i] * a + sn[i] * c_, -sn[i] * a + cs[i] * c_
-            d = float(np.hypot(H[j, j], H[j + 1, j]))
-            if d == 0.0:
-                raise KrylovNotConverged("GMRES: breakdown (zero Hessenberg column)", history)
-            cs[j], sn[j] = H[j, j] / d, H[j + 1, j] / d
-            H[j, j], H[j + 1, j] = d, 0.0
-            g[j + 1], g[j] = -sn[j] * g[j], cs[j] * g[j]
-            res = abs(g[j + 1])
-            history.append(res / scale)
-            if not np.isfinite(res):
-                raise KrylovNotConverged(f"GMRES: non-finite residual at iteration {its}", history)
-            if res <= atol or its >= max_iter or hn == 0.0:
-                break
-        k = j + 1
-        y = np.linalg.solve(np.triu(H[:k, :k]), g[:k]) if k else np.zeros(0)
-        x += y @ Z[:k]
-        r = b - apply(x)                    # the true residual (restart or final check)
-        beta = float(np.linalg.norm(r))
-        history[-1] = beta / scale
-
-
-# ----------------------------------------------------------------------------- AMG
-class ContactHierarchy:
-    """The smoothed-aggregation hierarchy of an A(α_ref) (pyamg, rigid-body modes), kept to
-    precondition the Newton systems of later steps and designs.
-
-    Keeps the prolongations P_l, restrictions R_l = P_lᵀ, the coarse operators A_l (l ≥ 1) and
-    the rows of A(α_ref) of the contact DOFs (all Dirichlet DOFs of a Newton system are contact
-    DOFs), not the fine matrix itself. :meth:`preconditioner` returns the V-cycle of a fine matrix
-    H (same pattern as A) with Dirichlet DOFs D, its coarse operators updated by Galerkin products
-    supported near D (module docstring). ``setup_seconds``, ``uses`` (Newton systems served),
-    ``reference_iterations`` (Krylov iterations of the first solve with it; the caller may
-    rebuild when later solves need many more).
-
-    ``precision="single"`` (default) runs the V-cycle in float32 — the fine matrix of the smoother
-    (:meth:`fine_matrix`), the prolongations and the coarse operators: a preconditioner need not be
-    exact, and GMRES keeps its preconditioned directions (flexible GMRES), so the solves reach the
-    same tolerances with the same iterations, while the memory traffic of the smoothing sweeps —
-    about half of an iteration — drops by a third (measured at 113k: GMRES time −18 %, the same
-    iteration counts)."""
-
-    def __init__(self, A, near_null=None, *, contact_dofs, max_coarse: int = 10,
-                 precision: str = "single", **amg_kw):
-        try:
-            import pyamg
-        except ImportError as exc:
-            raise SolverError("algebraic multigrid needs pyamg: pip install pyamg") from exc
-        t0 = time.perf_counter()
-        A = sp.csr_matrix(A)
-        A.sort_indices()
-        if precision not in ("single", "double"):
-            raise SolverError(f"precision must be 'single' or 'double', got {precision!r}")
-        self.dtype = np.float32 if precision == "single" else np.float64
-        ml = pyamg.smoothed_aggregation_solver(A, B=near_null, max_coarse=max_coarse, **amg_kw)
-        self.n = A.shape[0]
-        self.P = [sp.csr_matrix(lvl.P, dtype=self.dtype) for lvl in ml.levels[:-1]]
-        self.R = [sp.csr_matrix(lvl.R, dtype=self.dtype) for lvl in ml.levels[:-1]]
-        self.A = [None] + [sp.csr_matrix(lvl.A) for lvl in ml.levels[1:]]
-        for M_ in self.A[1:]:
-            M_.sort_indices()
-        self.operator_complexity = float(ml.operator_complexity())
-        del ml
-        cdofs = np.unique(np.asarray(contact_dofs, dtype=np.int64))
-        self.contact_rows = A[cdofs]                 # rows of A(α_ref) at the contact DOFs
-        self._row_of = np.full(self.n, -1, dtype=np.int64)
-        self._row_of[cdofs] = np.arange(cdofs.size)
-        self.setup_seconds = time.perf_counter() - t0
-        self.uses = 0
-        self.reference_iterations = None
-
-    @property
-    def levels(self) -> int:
-        return len(self.A)
-
-    def sizes(self) -> list:
-        return [self.n] + [M_.shape[0] for M_ in self.A[1:]]
-
-    def coarse_compliance(self, contact_dofs, max_size: int = 2000, max_flops: float = 2e9):
-        """Per contact node, tr((Φ A_l⁻¹ Φᵀ)_mm)/3 with Φ = B P_0 ⋯ P_{l−1} the composite
-        prolongation of the contact DOFs to level l (the finest level with at most ``max_size``
-        unknowns and a cost 3p·n_l² within ``max_flops``): the part of the Delassus diagonal W_mm
-        that the global, smooth deformations of the body contribute (a Galerkin projection of A⁻¹,
-        so at most W_mm). Cached per contact DOFs (it depends on A(α_ref) only)."""
-        cd = np.asarray(contact_dofs, dtype=np.int64)
-        key = cd.tobytes()
-        if getattr(self, "_compliance", (None,))[0] == key:
-            return self._compliance[1]
-        sizes = self.sizes()
-        lvl = next((k for k in range(1, len(sizes))
-                    if sizes[k] <= max_size and cd.size * sizes[k] ** 2 <= max_flops), len(sizes) - 1)
-        Phi = sp.csr_matrix((np.ones(cd.size), (np.arange(cd.size), cd)), shape=(cd.size, self.n))
-        for k in range(lvl):
-            Phi = sp.csr_matrix(Phi @ self.P[k].astype(np.float64))
-        Ac = self.A[lvl].toarray()
-        w, Q = np.linalg.eigh(0.5 * (Ac + Ac.T))
-        keep = w > 1e-12 * max(w.max(initial=0.0), 1e-300)
-        Y = sp.csr_matrix(Phi) @ (Q[:, keep] / np.sqrt(w[keep]))       # Φ A_l^{-1/2}
-        out = np.einsum("ij,ij->i", Y, Y).reshape(-1, 3).mean(axis=1)
-        self._compliance = (key, out)
-        return out
-
-    def fine_matrix(self, A):
-        """A copy of A in the V-cycle's precision, to be changed in place into H = A + K_t."""
-        return sp.csr_matrix(A, dtype=self.dtype, copy=True)
-
-    def preconditioner(self, H, dirichlet, kt=None) -> "VCycle":
-        """V-cycle for H (a :meth:`fine_matrix`) restricted to the DOFs outside ``dirichlet``
-        (boolean mask); ``kt`` the sparse part H − A added on free rows (the Robin blocks), for the
-        coarse operators."""
-        self.uses += 1
-        D = np.flatnonzero(dirichlet)
-        if D.size and np.any(self._row_of[D] < 0):
-            raise SolverError("Dirichlet DOFs outside the contact DOFs of the hierarchy")
-        # Δ = Π (A_ref + K_t) Π − A_ref: minus the entries of A_ref in a row or column of D, plus K_t
-        n = self.n
-        if D.size:
-            rows = self.contact_rows[self._row_of[D]].tocoo()
-            Er = sp.csr_matrix((rows.data, (D[rows.row], rows.col)), shape=(n, n))
-            keep = dirichlet[rows.col]
-            Edd = sp.csr_matrix((rows.data[keep], (D[rows.row[keep]], rows.col[keep])), shape=(n, n))
-            delta = -(Er + Er.T - Edd)
-        else:
-            delta = sp.csr_matrix((n, n))
-        if kt is not None and kt.nnz:
-            delta = delta + kt
-        ops = []
-        for lvl in range(len(self.P)):
-            Ac = self.A[lvl + 1]
-            delta = sp.csr_matrix(self.R[lvl] @ (delta @ self.P[lvl])) if delta.nnz else sp.csr_matrix(Ac.shape)
-            Anew = (Ac + delta).tocsr() if delta.nnz else Ac
-            d_ref, d_new = Ac.diagonal(), Anew.diagonal()
-            bad = ~(d_new > _COARSE_DIAG_MIN * d_ref)
-            if np.any(bad):            # unknowns (almost) inside D: decouple, keep them harmless
-                keepm = sp.diags((~bad).astype(float))
-                Anew = (keepm @ Anew @ keepm + sp.diags(np.where(bad, d_ref, 0.0))).tocsr()
-            Anew.sort_indices()
-            ops.append(Anew)
-        return VCycle(H, dirichlet, self.P, self.R, ops, self.dtype)
-
-
-class VCycle:
-    """One V-cycle (symmetric Gauss–Seidel pre- and post-smoothing, a dense pseudo-inverse on the
-    coarsest level) for H on the DOFs outside D, as a callable v ↦ M v with (M v)_D = 0: symmetric
-    positive semi-definite, so usable by CG as well as GMRES. Computed in ``dtype`` (the
-    hierarchy's precision), returned in double precision."""
-
-    def __init__(self, H, dirichlet, P, R, ops, dtype=np.float64):
-        from pyamg.relaxation.relaxation import gauss_seidel, gauss_seidel_indexed
-        self._gs, self._gs_idx = gauss_seidel, gauss_seidel_indexed
-        if H.dtype != dtype:
-            raise SolverError(f"the fine matrix is {H.dtype}, the hierarchy {np.dtype(dtype)}")
-        self.dtype = dtype
-        self.H = H
-        self.D = np.flatnonzero(dirichlet)
-        self.rows = np.flatnonzero(~np.asarray(dirichlet)).astype(H.indptr.dtype)
-        self.P, self.R = P, R
-        self.A = [H] + [sp.csr_matrix(o, dtype=dtype) for o in ops]
-        Ac = ops[-1].toarray() if ops else H.toarray()
-        Ac = 0.5 * (Ac + Ac.T).astype(np.float64)
-        w, Q = np.linalg.eigh(Ac)
-        keep = w > 1e-12 * max(w.max(initial=0.0), 1e-300)
-        self._coarse = ((Q[:, keep] / w[keep]) @ Q[:, keep].T).astype(dtype)
-        self.calls = 0
-
-    sweeps = ("symmetric", "symmetric")   # (pre, post); ("forward", "backward") is also symmetric
-
-    def _smooth(self, lvl, x, b, which):
-        sweep = self.sweeps[which]
-        if lvl == 0:
-            self._gs_idx(self.H, x, b, self.rows, sweep=sweep)
-        else:
-            self._gs(self.A[lvl], x, b, sweep=sweep)
-
-    def _cycle(self, lvl, b):
-        if lvl == len(self.A) - 1:
-            return self._coarse @ b
-        A = self.A[lvl]
-        x = np.zeros_like(b)
-        self._smooth(lvl, x, b, 0)
-        r = b - A @ x
-        if lvl == 0:
-            r[self.D] = 0.0
-        e = self.P[lvl] @ self._cycle(lvl + 1, self.R[lvl] @ r)
-        if lvl == 0:
-            e[self.D] = 0.0
-        x += e
-        self._smooth(lvl, x, b, 1)
-        return x
-
-    def __call__(self, v):
-        self.calls += 1
-        v = np.array(v, dtype=self.dtype)
-        v[self.D] = 0.0
-        out = self._cycle(0, v).astype(np.float64)
-        out[self.D] = 0.0
-        return out
-
-
-# ----------------------------------------------------------------------------- result
 @dataclass
 class FullSpaceResult:
     """A state solved in full space.
@@ -405,19 +151,6 @@ class FullSpaceResult:
 
 
 # ----------------------------------------------------------------------------- solver
-def _block_positions(A, rows, cols):
-    """Positions in A.data of the entries (rows[i], cols[i]) (A CSR with sorted indices)."""
-    out = np.empty(rows.size, dtype=np.int64)
-    ip, ind = A.indptr, A.indices
-    for i, (r_, c_) in enumerate(zip(rows.tolist(), cols.tolist())):
-        a, b = ip[r_], ip[r_ + 1]
-        k = a + int(np.searchsorted(ind[a:b], c_))
-        if k >= b or ind[k] != c_:
-            raise SolverError(f"entry ({r_}, {c_}) is not in the sparsity pattern of A")
-        out[i] = k
-    return out
-
-
 def solve_fullspace(A, L, contact_dofs, gap, friction, *, coords, free, r0=None, u0=None,
                     tol: float = 1e-10, hierarchy: ContactHierarchy | None = None, zone=None,
                     rho_scale: float = 0.5, max_steps: int = 50, krylov_rtol: float | None = None,
@@ -501,7 +234,7 @@ def _solve_fullspace(A, L, contact_dofs, gap, friction, coords, free, r0, u0, to
     # positions of the tangential 2×2 blocks of every contact node in A.data (Robin blocks)
     tt_rows = np.repeat(cd[:, :2], 2, axis=1).ravel()          # (t1,t1),(t1,t2),(t2,t1),(t2,t2)
     tt_cols = np.tile(cd[:, :2], (1, 2)).ravel()
-    tt_pos = _block_positions(A, tt_rows, tt_cols).reshape(p, 4)
+    tt_pos = block_positions(A, tt_rows, tt_cols).reshape(p, 4)
     other = np.ones(n, dtype=bool)              # rows that must be in plain equilibrium
     H = hierarchy.fine_matrix(A)                # A + K_t for the smoother, changed in place per step
     touched = np.zeros(0, dtype=np.int64)

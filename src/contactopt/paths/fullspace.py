@@ -73,15 +73,14 @@ class FullSpacePath(SolverPath):
         return replace(system, assembled=asm, timings={})
 
     def build_hierarchy(self, alpha, asm=None):
-        """The AMG hierarchy of A(α) (:class:`~contactopt.contact.fullspace.ContactHierarchy`).
+        """The AMG hierarchy of A(α) (:class:`~contactopt.fem.amg.ContactHierarchy`).
 
         pyamg estimates spectral radii from random start vectors of NumPy's global generator: it
         is seeded here (and its state restored), and OpenBLAS runs on one thread, so that the same
         design gives the same hierarchy bit for bit."""
         import scipy.sparse as sp
 
-        from ..contact.fullspace import ContactHierarchy
-        from ..fem.iterative import rigid_body_modes
+        from ..fem.amg import ContactHierarchy, rigid_body_modes
         if asm is None:
             asm = self.model.assemble(alpha, self.first_loads)
         A = sp.csr_matrix(asm.A)

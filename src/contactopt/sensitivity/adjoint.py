@@ -191,7 +191,7 @@ def solve_adjoint_delassus(apply, W_approx, state: State, y_u: np.ndarray, y_lam
     A-harmonic extension of v_u is ṽ = A⁻¹Bᵀs, the by-product of the last product. Returns
     (v_u (3p), v_λ (p), ṽ on the free DOFs, GMRES result).
     """
-    from ..fem.iterative import gmres
+    from ..fem.krylov import gmres
     rtol = ADJOINT_RTOL if rtol is None else rtol
     choices = check_choices(choices)
     p = state.lam.size
@@ -267,7 +267,7 @@ def solve_adjoint_delassus(apply, W_approx, state: State, y_u: np.ndarray, y_lam
     lu = LUFactor(Qt)
     if lu.info != 0:
         raise SolverError(f"adjoint system (4.15): its preconditioner is singular (getrf info {lu.info})")
-    res = gmres(Q, rhs, lu.solve, rtol=rtol, max_iter=60, verify=False)
+    res = gmres(Q, rhs, lu.solve, rtol=rtol, restart=60, max_iter=60, check=False)
     s[dofK] = res.x
     v_u, v_full = apply(s)
     if not (np.all(np.isfinite(v_u)) and np.all(np.isfinite(v_full))):
@@ -275,7 +275,7 @@ def solve_adjoint_delassus(apply, W_approx, state: State, y_u: np.ndarray, y_lam
     # GMRES's estimate checked by the true residual, from the product at the solution
     true = np.linalg.norm(Eb @ v_u[dofK] + Db @ res.x - h.ravel()) / max(np.linalg.norm(h), 1e-300)
     if not true <= 100 * rtol:
-        from ..fem.iterative import KrylovNotConverged
+        from ..fem.krylov import KrylovNotConverged
         raise KrylovNotConverged(f"adjoint system (4.15): GMRES estimate {res.history[-1]:.2e}, true "
                                  f"relative residual {true:.2e} > {100 * rtol:.0e}", res.history + [true])
     v_lam = np.zeros(p)

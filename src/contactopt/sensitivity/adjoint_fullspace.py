@@ -21,7 +21,7 @@ Newton system of the state at its solution, and the operator is exactly the tran
 Newton system's G_II (the Newton system's friction coupling R_n = μ R_N copies a normal *row* into
 the tangential ones; here the tangential *unknowns* enter the normal DOF: n = −â, μ = F, and the
 Robin block k t tᵀ at the solution is C). It is solved by GMRES preconditioned with the same
-V-cycle (:class:`contactopt.contact.fullspace.ContactHierarchy`, symmetric, so it serves the
+V-cycle (:class:`contactopt.fem.amg.ContactHierarchy`, symmetric, so it serves the
 transpose as well), and ṽ comes out extended already: no extra solve for the design term.
 
 Degenerate classes use the default choices of :mod:`contactopt.sensitivity.adjoint`
@@ -37,10 +37,10 @@ import numpy as np
 import scipy.sparse as sp
 
 from .._threads import sequential_openblas
-from ..contact.fullspace import ContactHierarchy, _block_positions, gmres
 from ..contact.state import CLASS_CODES, State, classify_nodes
 from ..errors import SolverError
-from ..fem.iterative import KrylovNotConverged
+from ..fem.amg import ContactHierarchy, block_positions
+from ..fem.krylov import KrylovNotConverged, gmres
 
 __all__ = ["solve_adjoint_fullspace", "subgradient_fullspace", "FullSpaceAdjoint"]
 
@@ -111,7 +111,7 @@ def _solve_adjoint(A, contact_dofs, classes, u_c, lam, y_u, y_lam, friction, hie
     cols = np.tile(cd[slide, :2], (1, 2)).ravel()
     blk = (k[:, None, None] * tvec[:, :, None] * tvec[:, None, :]).reshape(-1)
     H = hierarchy.fine_matrix(A)                 # A + C for the V-cycle
-    H.data[_block_positions(A, rows, cols)] += blk
+    H.data[block_positions(A, rows, cols)] += blk
     kt = sp.csr_matrix((blk, (rows, cols)), shape=(n, n))
     T1, T2, Nsl = cd[slide, 0], cd[slide, 1], cd[slide, 2]
     fa1, fa2 = F * ahat[:, 0], F * ahat[:, 1]

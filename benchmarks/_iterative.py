@@ -27,40 +27,17 @@ from __future__ import annotations
 
 import logging
 import time
-from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..errors import SolverError
-from .linsolve import Factorization
+from contactopt.errors import SolverError
+from contactopt.fem.amg import rigid_body_modes  # noqa: F401  (the near-null space of amg_preconditioner)
+from contactopt.fem.krylov import KrylovNotConverged, KrylovResult
+from contactopt.fem.linsolve import Factorization
 
 log = logging.getLogger(__name__)
 
-__all__ = ["pcg", "gmres", "KrylovResult", "KrylovNotConverged", "Cholesky", "DelassusOperator", "ReusedFactorSolver",
-           "amg_preconditioner", "rigid_body_modes"]
-
-
-class KrylovNotConverged(SolverError):
-    """A Krylov solve that did not reach its tolerance; ``history`` holds the largest relative
-    residual over the columns after each iteration (``history[0]``: the initial one)."""
-
-    def __init__(self, message, history=()):
-        self.history = list(history)
-        self.iterations = max(len(self.history) - 1, 0)
-        super().__init__(message)
-
-
-@dataclass
-class KrylovResult:
-    """``x`` (shape of b), ``iterations``, ``history`` (largest relative residual per iteration,
-    starting with the initial one), ``residual`` (final, per column), ``seconds``."""
-
-    x: np.ndarray
-    iterations: int
-    history: list
-    residual: np.ndarray
-    seconds: float = 0.0
-    info: dict = field(default_factory=dict)
+__all__ = ["pcg", "Cholesky", "DelassusOperator", "ReusedFactorSolver", "amg_preconditioner"]
 
 
 def pcg(A, b, M=None, *, rtol: float = 1e-10, max_iter: int = 200, x0=None) -> KrylovResult:
@@ -118,81 +95,6 @@ def pcg(A, b, M=None, *, rtol: float = 1e-10, max_iter: int = 200, x0=None) -> K
     raise KrylovNotConverged(f"conjugate gradients did not converge: relative residual "
                              f"{history[-1]:.3g} > rtol {rtol:g} after {max_iter} iterations "
                              f"({int(active.sum())} of {k} column(s))", history)
-
-
-def gmres(apply, b, M=None, *, rtol: float = 1e-10, max_iter: int = 100, x0=None,
-          verify: bool = True) -> KrylovResult:
-    """Solve Q x = b by GMRES, right-preconditioned (Q M y = b, x = M y), without restarts.
-
-    ``apply(x)`` = Q x and ``M(r)`` ≈ Q⁻¹ r on (n,) arrays. Stops when ‖b − Q x‖ ≤ rtol·‖b‖ (the
-    Arnoldi estimate, confirmed by one more product with the true residual — ``verify=False``
-    leaves that check to the caller, whose next product is at the solution anyway); raises
-    :class:`KrylovNotConverged` with the residual history after ``max_iter`` iterations or on a
-    non-finite residual. ``history[0]`` is the initial relative residual.
-    """
-    t0 = time.perf_counter()
-    b = np.asarray(b, dtype=np.float64)
-    M = M or (lambda r: r)
-    bnorm = float(np.linalg.norm(b)) or 1.0
-    x = np.zeros_like(b) if x0 is None else np.array(x0, dtype=np.float64)
-    history = []
-    n_products = 0
-    for _restart in range(3):          # a restart only when the estimate and the true residual differ
-        r = b - apply(x) if np.any(x) else b.copy()
-        n_products += bool(np.any(x))
-        beta = float(np.linalg.norm(r))
-        history.append(beta / bnorm)
-        if not np.isfinite(beta):
-            raise KrylovNotConverged("GMRES: non-finite residual", history)
-        if beta <= rtol * bnorm:
-            return KrylovResult(x, len(history) - 1, history, np.array([beta / bnorm]),
-                                time.perf_counter() - t0, {"products": n_products})
-        m = max_iter - (len(history) - 1)
-        if m <= 0:
-            break
-        V = np.zeros((m + 1, b.size))
-        Zs = []
-        H = np.zeros((m + 1, m))
-        V[0] = r / beta
-        g = np.zeros(m + 1)
-        g[0] = beta
-        cs, sn = np.zeros(m), np.zeros(m)
-        k = 0
-        for k in range(m):
-            z = np.asarray(M(V[k]), dtype=np.float64)
-            Zs.append(z)
-            w = apply(z)
-            n_products += 1
-            for i in range(k + 1):                     # modified Gram–Schmidt, twice
-                H[i, k] = V[i] @ w
-                w -= H[i, k] * V[i]
-            for i in range(k + 1):
-                c = V[i] @ w
-                H[i, k] += c
-                w -= c * V[i]
-            H[k + 1, k] = np.linalg.norm(w)
-            breakdown = not H[k + 1, k] > 0              # the Krylov space is invariant: exact
-            if not breakdown:
-                V[k + 1] = w / H[k + 1, k]
-            for i in range(k):                          # Givens rotations
-                H[i, k], H[i + 1, k] = cs[i] * H[i, k] + sn[i] * H[i + 1, k], -sn[i] * H[i, k] + cs[i] * H[i + 1, k]
-            d = np.hypot(H[k, k], H[k + 1, k])
-            cs[k], sn[k] = (H[k, k] / d, H[k + 1, k] / d) if d > 0 else (1.0, 0.0)
-            H[k, k], H[k + 1, k] = d, 0.0
-            g[k], g[k + 1] = cs[k] * g[k], -sn[k] * g[k]
-            est = abs(g[k + 1]) / bnorm
-            history.append(float(est))
-            if not np.isfinite(est):
-                raise KrylovNotConverged("GMRES: non-finite residual", history)
-            if est <= rtol or breakdown:
-                break
-        y = np.linalg.solve(np.triu(H[:k + 1, :k + 1]), g[:k + 1])
-        x = x + np.column_stack(Zs[:k + 1]) @ y
-        if not verify and history[-1] <= rtol:
-            return KrylovResult(x, len(history) - 1, history, np.array([history[-1]]),
-                                time.perf_counter() - t0, {"products": n_products})
-    raise KrylovNotConverged(f"GMRES did not converge: relative residual {history[-1]:.3g} > rtol "
-                             f"{rtol:g} after {len(history) - 1} iterations", history)
 
 
 class Cholesky(Factorization):
@@ -282,22 +184,6 @@ class ReusedFactorSolver:
         if self._factor is not None:
             self._factor.close()
             self._factor = None
-
-
-def rigid_body_modes(coords: np.ndarray, free: np.ndarray) -> np.ndarray:
-    """The six rigid-body modes (3 translations, 3 rotations) of nodes ``coords`` (N, 3) on the
-    free DOFs ``free`` (full index 3·node + component): an (n_free, 6) array, AMG's near-null space."""
-    coords = np.asarray(coords, dtype=np.float64)
-    x = coords - coords.mean(axis=0)
-    N = coords.shape[0]
-    B = np.zeros((3 * N, 6))
-    for c in range(3):
-        B[c::3, c] = 1.0
-    # rotations e_k × x: about x1 (0, −x3, x2), about x2 (x3, 0, −x1), about x3 (−x2, x1, 0)
-    B[1::3, 3], B[2::3, 3] = -x[:, 2], x[:, 1]
-    B[0::3, 4], B[2::3, 4] = x[:, 2], -x[:, 0]
-    B[0::3, 5], B[1::3, 5] = -x[:, 1], x[:, 0]
-    return B[np.asarray(free)]
 
 
 def amg_preconditioner(A, near_null=None, **kw):
