@@ -221,3 +221,17 @@ def test_sweep(tmp_path, path, cases):
         assert (summary["load_cases"]["names"] == ["pull", "push"]) if cases else "load_cases" not in summary
     table = read_csv(out / "sweep.csv")
     assert [float(t["J"]) for t in table] == [r["J"] for r in rows]
+
+
+# ---------------------------------------------------------------------------------- console log
+def test_commands_in_one_process_print_each_warning_once(tmp_path):
+    """The console log of a command is its own: a later command in the same process (these tests,
+    a notebook) prints its warnings once, not once more per earlier command."""
+    cfg = write_config(tmp_path, "condensation", False)       # F = 0.3 exceeds the estimate (3.16)
+    err = io.StringIO()
+    counts = []
+    with contextlib.redirect_stdout(io.StringIO()), contextlib.redirect_stderr(err):
+        for n in range(3):
+            assert main(["run", str(cfg), "--out", str(tmp_path / f"r{n}"), "--max-iter", "1"]) == 0
+            counts.append(err.getvalue().count("exceeds the uniqueness estimate"))
+    assert counts == [1, 2, 3]
