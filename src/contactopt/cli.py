@@ -224,6 +224,8 @@ def main(argv=None) -> int:
     except KeyboardInterrupt:
         print("contactopt: interrupted", file=sys.stderr)
         return 130
+    finally:      # the next command in this process (tests, a notebook) has its own
+        logging.getLogger().removeHandler(console)
 
 
 if __name__ == "__main__":
