@@ -98,8 +98,9 @@ class FullSpacePath(SolverPath):
 
 
     def solve_state(self, system, ctx, alpha, *, method, warm_start, tol, shared, label=""):
-        """Warm-started from the case's last forces and displacement, on the AMG hierarchy of an
-        earlier design."""
+        """Warm-started from the case's last forces, displacement and contact zone, on the AMG
+        hierarchy of an earlier design; without ``warm_start`` from nothing the case carries (on
+        all contact nodes), so that two such solves of one design agree bit for bit."""
         from ..contact.fullspace import solve_fullspace
         s = self.settings
         asm = system.assembled
@@ -113,7 +114,7 @@ class FullSpacePath(SolverPath):
             t_setup = time.perf_counter() - t0
         res = solve_fullspace(asm.A, asm.L, self.model.contact_dofs, system.gap, s.friction, coords=asm.coords,
                               free=self.model.assembler.free, r0=warm, u0=u0, hierarchy=self._hierarchy,
-                              tol=max(tol or s.tol, FULLSPACE_TOL), zone=ctx.next_zone if s.use_zone else None,
+                              tol=max(tol or s.tol, FULLSPACE_TOL), zone=ctx.next_zone if s.use_zone and warm_start else None,
                               zone_margin=s.zone_margin)
         self._hierarchy = res.hierarchy
         timings = dict(system.timings, **{f"fullspace_{k}": v for k, v in res.timings.items() if k != "total"})
