@@ -281,7 +281,9 @@ def main(argv=None) -> int:
     level = [logging.WARNING, logging.INFO, logging.DEBUG][min(args.verbose, 2)]
     # the console shows warnings (more with -v); a run's log file records INFO and up
     console = logging.StreamHandler(sys.stderr)
-    console.setLevel(level)
+    # progress of long solves (contactopt.progress, INFO on large meshes) shows at every verbosity
+    console.setLevel(min(level, logging.INFO))
+    console.addFilter(lambda r: r.levelno >= level or r.name == "contactopt.progress")
     console.setFormatter(logging.Formatter("%(levelname)s %(name)s: %(message)s"))
     logging.getLogger().addHandler(console)
     logging.getLogger("contactopt").setLevel(min(level, logging.INFO))

@@ -93,6 +93,15 @@ from .state import CLASS_RTOL
 __all__ = ["solve_fullspace", "FullSpaceResult", "ContactHierarchy", "gmres", "OPEN", "STICK", "SLIDE"]
 
 log = logging.getLogger(__name__)
+# progress of a long solve (large meshes: the AMG set-up and the first Newton steps take minutes),
+# at INFO from PROGRESS_DOFS unknowns on or after PROGRESS_SECONDS; the CLI shows this logger's INFO
+progress = logging.getLogger("contactopt.progress")
+PROGRESS_DOFS = 100_000
+PROGRESS_SECONDS = 10.0
+
+
+def _progress_level(n: int, t_start: float) -> int:
+    return logging.INFO if n >= PROGRESS_DOFS or time.perf_counter() - t_start > PROGRESS_SECONDS else logging.DEBUG
 
 OPEN, STICK, SLIDE = 0, 1, 2          # node classes of a Newton system
 W_DIAG_FACTOR = 2.0                   # local part of tr(W_mm)/3 ≈ W_DIAG_FACTOR / mean(A_mm)
@@ -217,7 +226,10 @@ class ContactHierarchy:
         if precision not in ("single", "double"):
             raise SolverError(f"precision must be 'single' or 'double', got {precision!r}")
         self.dtype = np.float32 if precision == "single" else np.float64
+        progress.log(_progress_level(A.shape[0], t0), "AMG hierarchy of %d DOFs: set-up started", A.shape[0])
         ml = pyamg.smoothed_aggregation_solver(A, B=near_null, max_coarse=max_coarse, **amg_kw)
+        progress.log(_progress_level(A.shape[0], t0), "AMG hierarchy of %d DOFs: %d levels in %.1f s",
+                     A.shape[0], len(ml.levels), time.perf_counter() - t0)
         self.n = A.shape[0]
         self.P = [sp.csr_matrix(lvl.P, dtype=self.dtype) for lvl in ml.levels[:-1]]
         self.R = [sp.csr_matrix(lvl.R, dtype=self.dtype) for lvl in ml.levels[:-1]]
@@ -568,7 +580,8 @@ def _solve_fullspace(A, L, contact_dofs, gap, friction, coords, free, r0, u0, to
         history.append(err)
         recent.append(theta)
         timings["newton"] += time.perf_counter() - t0
-        log.debug("full-space Newton %d: error %.3e, equilibrium %.3e, zone %d", len(history) - 1, err, eq, z.size)
+        progress.log(_progress_level(n, t_start), "full-space Newton %d: error %.3e, equilibrium %.3e, zone %d, "
+                     "%.1f s", len(history) - 1, err, eq, z.size, time.perf_counter() - t_start)
         if err <= tol and eq <= tol:
             # nodes outside the zone must end with an open gap
             if z.size < p:
