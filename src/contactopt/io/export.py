@@ -161,11 +161,12 @@ def write_body_mesh(path, model, coords) -> Path:
     return path
 
 
-def roundtrip_config(model, mesh_name: str) -> dict:
+def roundtrip_config(model, mesh_name: str, alpha) -> dict:
     """A configuration of the exported body ``mesh_name`` (relative to the config file) whose
-    state at α = 0 is the state of the exported design: the same material, friction, loads,
-    objective and design rectangle, with ``body.initial_gap = "mesh"`` (the face's height is the
-    gap) and C2 = 0 (α = 0 admissible)."""
+    state at α = 0 is the state of the exported design ``alpha``: the same material, friction,
+    loads, objective and design rectangle, with ``body.initial_gap = "mesh"`` (the face's height
+    is the gap), C2 = 0 (α = 0 admissible) and C0 = the room the bound C0 leaves above the design,
+    C0 − max α (the lifted mesh may allow less: contactopt then names the largest safe C0)."""
     import copy
     cfg = copy.deepcopy(model.config.data)
     block = not cfg["body"]["mesh"]
@@ -178,6 +179,8 @@ def roundtrip_config(model, mesh_name: str) -> dict:
     cfg["design"]["domain"] = [[x1lo, x1hi], [x2lo, x2hi]]
     cfg["design"]["initial"] = 0.0
     cfg["design"]["C2"] = 0.0
+    C0 = float(cfg["design"]["C0"])
+    cfg["design"]["C0"] = max(C0 - float(np.max(alpha)), 1e-3 * C0)
     if block:
         cfg.pop("geometry", None)
         cfg.pop("mesh", None)
@@ -491,7 +494,7 @@ def export_design(model, alpha, outdir, formats=None, *, unit: str = "mm", stric
             name = "optimal_body" + suffix
             write_body_mesh(tmpdir / name, model, coords)
             from ..config import validate
-            cfg = validate(roundtrip_config(model, str(tmpdir / name)), "optimal_body.toml")
+            cfg = validate(roundtrip_config(model, str(tmpdir / name), model.surface.as_vector(alpha)), "optimal_body.toml")
             cfg.data["body"]["mesh"] = name        # relative to the configuration file
             atomic_write_text(tmpdir / "optimal_body.toml",
                               "# the optimal body exported by contactopt; its state at alpha = 0 is the optimal "
