@@ -240,3 +240,22 @@ def test_cli_export_of_a_run_directory(tmp_path, capsys):
             "contact_surface.iges"} <= {p.name for p in run.iterdir()}
     assert main(["export", str(tmp_path / "nothing")]) == 2
     assert main(["export", str(run), "--format", "dxf"]) == 2
+
+
+def test_an_abaqus_body_is_exported_as_abaqus_with_its_sets(tmp_path):
+    import meshio
+    src = meshio.read(EXAMPLES / "round_pad" / "round_pad.msh")
+    sets = {k: v for k, v in src.cell_sets.items() if not k.startswith("gmsh:")}
+    meshio.write(tmp_path / "pad.inp", meshio.Mesh(src.points, src.cells, cell_sets=sets))
+    cfg = file_config("round_pad").with_updates({"body": {"mesh": str(tmp_path / "pad.inp")}})
+    problem = ShapeProblem(cfg)
+    model = problem.model
+    alpha = design(model, seed=4)
+    out = tmp_path / "out"
+    res = export_design(model, alpha, out, ["mesh"])
+    assert res["files"]["mesh"][0] == "optimal_body.inp" and res["mesh_format"] == "abaqus"
+    assert_same_groups(model.body.reference, read_mesh(out / "optimal_body.inp"))
+    st = problem.solve_state(alpha)
+    again = ShapeProblem(load_config(out / "optimal_body.toml"))
+    st0 = again.solve_state(np.zeros(again.model.n_design))
+    assert np.max(np.abs(st0.lam - st.lam)) <= 1e-10 * st.lam.max()
