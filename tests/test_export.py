@@ -259,3 +259,21 @@ def test_an_abaqus_body_is_exported_as_abaqus_with_its_sets(tmp_path):
     again = ShapeProblem(load_config(out / "optimal_body.toml"))
     st0 = again.solve_state(np.zeros(again.model.n_design))
     assert np.max(np.abs(st0.lam - st.lam)) <= 1e-10 * st.lam.max()
+
+
+def test_cad_export_from_a_worker_thread(tmp_path):
+    # the tasks of a sweep run in worker threads, where Gmsh must not install a signal handler
+    import threading
+    pytest.importorskip("gmsh")
+    model = ElasticModel(block_config())
+    errors, results = [], []
+
+    def task():
+        try:
+            results.append(export_design(model, design(model), tmp_path, ["step", "iges"]))
+        except Exception as exc:            # noqa: BLE001 - reported below
+            errors.append(exc)
+    t = threading.Thread(target=task)
+    t.start()
+    t.join()
+    assert errors == [] and set(results[0]["files"]) == {"step", "iges"}

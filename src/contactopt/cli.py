@@ -106,7 +106,7 @@ def _case_dir(name: str, k: int) -> str:
 def _print_state(state, bound) -> None:
     s = state.summary()
     print(f"  iterations {state.iterations}, residual {state.residual:.2e}, contact conditions {state.complementarity:.2e}")
-    print(f"  nodes: " + ", ".join(f"{k} {v}" for k, v in s['node_classes'].items()))
+    print("  nodes: " + ", ".join(f"{k} {v}" for k, v in s['node_classes'].items()))
     print(f"  total normal force {s['total_normal_force']:.6g}, max {s['max_normal_force']:.4g}")
     if np.isfinite(bound):
         print(f"  uniqueness bound (3.16) F0 ≈ {bound:.3g} (F = {state.friction}; pessimistic)")

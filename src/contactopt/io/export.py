@@ -36,6 +36,7 @@ import os
 import shutil
 import struct
 import tempfile
+import threading
 from pathlib import Path
 
 import numpy as np
@@ -323,21 +324,28 @@ def _gmsh():
     return gmsh
 
 
+_GMSH_LOCK = threading.RLock()       # Gmsh is one global state per process
+
+
 @contextlib.contextmanager
 def gmsh_session():
-    """An initialised Gmsh without terminal output; finalised afterwards if it was started here."""
+    """An initialised Gmsh without terminal output; finalised afterwards if it was started here.
+
+    Not interruptible: Gmsh would install a SIGINT handler, which only the main thread may (the
+    tasks of a sweep run in worker threads)."""
     gmsh = _gmsh()
-    started = not gmsh.isInitialized()
-    if started:
-        with _quiet():
-            gmsh.initialize(readConfigFiles=False)
-    gmsh.option.setNumber("General.Terminal", 0)
-    try:
-        yield gmsh
-    finally:
+    with _GMSH_LOCK:
+        started = not gmsh.isInitialized()
         if started:
             with _quiet():
-                gmsh.finalize()
+                gmsh.initialize(readConfigFiles=False, interruptible=False)
+        gmsh.option.setNumber("General.Terminal", 0)
+        try:
+            yield gmsh
+        finally:
+            if started:
+                with _quiet():
+                    gmsh.finalize()
 
 
 def control_net(surface, alpha) -> np.ndarray:
@@ -484,6 +492,7 @@ def export_design(model, alpha, outdir, formats=None, *, unit: str = "mm", stric
                 log.warning("export: %s skipped (no CAD kernel; %s)", f.upper(), CAD_HINT)
     coords = model.mesh.coordinates(alpha)        # MeshError for an invalid design, before any file
     outdir = Path(outdir)
+    created = not outdir.exists()
     outdir.mkdir(parents=True, exist_ok=True)
     tmpdir = Path(tempfile.mkdtemp(prefix=".export.", suffix=".tmp", dir=outdir))
     files: dict[str, list[str]] = {}
@@ -515,6 +524,11 @@ def export_design(model, alpha, outdir, formats=None, *, unit: str = "mm", stric
             for name in names:
                 os.replace(tmpdir / name, outdir / name)
         fsync_dir(outdir)
+    except BaseException:
+        shutil.rmtree(tmpdir, ignore_errors=True)
+        if created and not any(outdir.iterdir()):
+            outdir.rmdir()                    # a failed export leaves no empty directory behind
+        raise
     finally:
         shutil.rmtree(tmpdir, ignore_errors=True)
     return {"files": files, "skipped": skipped, "unit": unit,
