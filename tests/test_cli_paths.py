@@ -166,22 +166,28 @@ def test_state(tmp_path, path, cases):
     out = tmp_path / "state"
     code, stdout, stderr = cli("state", cfg, "--out", out)
     assert_clean(code, stdout, stderr)
-    for name in ("state.json", "state.npz", "body.vtu", "lambda.png", "classes.png"):
-        assert (out / name).stat().st_size > 0, name
-    data = all_json(out)["state.json"]
-    s = data["summary"]
-    assert s["converged"] and finite(s["total_normal_force"]) and s["total_normal_force"] > 0
-    with np.load(out / "state.npz") as z:
-        assert all(np.isfinite(z[k]).all() for k in ("u", "u_c", "lam", "tau", "gap"))
-        assert float(z["lam"].sum()) == pytest.approx(s["total_normal_force"], rel=1e-12)
-    if path == "condensation":
-        assert finite(s["uniqueness_bound_F0"]) and s["uniqueness_bound_F0"] > 0
-        assert "uniqueness_bound_F0_reason" not in s
-        assert "uniqueness bound (3.16) F0" in stdout
+    if cases:        # one directory per load case, listed in cases.json
+        listing = all_json(out)["cases.json"]
+        dirs = [out / c["directory"] for c in listing["cases"]]
+        assert [c["name"] for c in listing["cases"]] == listing["names"] and len(dirs) == 2
     else:
-        assert s.get("uniqueness_bound_F0") is None
-        assert "does not form" in s["uniqueness_bound_F0_reason"]
-        assert "not computed" in stdout
+        dirs = [out]
+    for d in dirs:
+        for name in ("state.json", "state.npz", "body.vtu", "lambda.png", "classes.png"):
+            assert (d / name).stat().st_size > 0, name
+        s = all_json(d)["state.json"]["summary"]
+        assert s["converged"] and finite(s["total_normal_force"]) and s["total_normal_force"] > 0
+        with np.load(d / "state.npz") as z:
+            assert all(np.isfinite(z[k]).all() for k in ("u", "u_c", "lam", "tau", "gap"))
+            assert float(z["lam"].sum()) == pytest.approx(s["total_normal_force"], rel=1e-12)
+        if path == "condensation":
+            assert finite(s["uniqueness_bound_F0"]) and s["uniqueness_bound_F0"] > 0
+            assert "uniqueness_bound_F0_reason" not in s
+            assert "uniqueness bound (3.16) F0" in stdout
+        else:
+            assert s.get("uniqueness_bound_F0") is None
+            assert "does not form" in s["uniqueness_bound_F0_reason"]
+            assert "not computed" in stdout
 
 
 # ---------------------------------------------------------------------------------- check-gradient

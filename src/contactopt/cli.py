@@ -1,4 +1,4 @@
-"""Command-line interface: ``contactopt run | sweep | state | check-gradient | solve-fclib``.
+"""Command-line interface: ``contactopt run | sweep | state | export | check-gradient | solve-fclib``.
 
 Only this module prints. Errors of the library (``ContactOptError``) end with a one-paragraph
 message on stderr and exit code 2; nothing is written for input that is rejected.
@@ -45,8 +45,9 @@ def _read_alpha(path: str, model) -> np.ndarray:
 
 
 def _cmd_state(args) -> int:
+    from .io.atomic import atomic_write_json
     from .io.rundir import prepare_output_dir
-    from .io.statefiles import write_state
+    from .io.statefiles import STATE_FILES, write_state
     from .problem import ShapeProblem
     problem = ShapeProblem(args.config, method=args.method)
     model = problem.model
@@ -58,19 +59,49 @@ def _cmd_state(args) -> int:
     out = prepare_output_dir(out_path, overwrite=args.overwrite)
     t0 = time.perf_counter()
     try:
-        state = problem.solve_state(alpha)
+        states = problem.solve_states(alpha)           # every load case (one assembly)
         bound, reason = problem.uniqueness_estimate(alpha)
     except Exception:
         if created and not any(out.iterdir()):
             out.rmdir()                  # a failed solve leaves no empty directory behind
         raise
-    state.info["uniqueness_bound_F0"] = bound           # JSON has no NaN: absent, with the reason
-    if reason:
-        state.info["uniqueness_bound_F0_reason"] = reason
-    write_state(out, model, state, config=problem.config)
+    for state in states:
+        state.info["uniqueness_bound_F0"] = bound           # JSON has no NaN: absent, with the reason
+        if reason:
+            state.info["uniqueness_bound_F0_reason"] = reason
+    print(f"state of {problem.config.name} ({problem.config.source}) — method {states[0].method}, "
+          f"backend {states[0].summary().get('backend')}")
+    if not problem.has_load_cases:
+        write_state(out, model, states[0], config=problem.config)
+        _print_state(states[0], bound, reason)
+        print(f"  wrote {out}/ ({', '.join(STATE_FILES)}) in {time.perf_counter() - t0:.1f}s")
+        return 0
+    # load cases: one directory per case, and cases.json listing them
+    names = problem.case_names
+    dirs = [_case_dir(name, k) for k, name in enumerate(names)]
+    if len(set(dirs)) < len(dirs):       # names that differ only in unsafe characters
+        dirs = [f"case-{k}-{d[5:]}" for k, d in enumerate(dirs)]
+    for name, d, state in zip(names, dirs, states):
+        write_state(out / d, model, state, config=problem.config)
+        print(f"load case {name!r} → {out / d}/")
+        _print_state(state, bound, reason)
+    atomic_write_json(out / "cases.json", {
+        "name": problem.config.name, "combine": problem.combination.kind, "names": list(names),
+        "cases": [{"name": n, "directory": d, "summary": st.summary()} for n, d, st in zip(names, dirs, states)]})
+    print(f"  wrote {out}/cases.json and {len(names)} case directories ({', '.join(STATE_FILES)}) "
+          f"in {time.perf_counter() - t0:.1f}s")
+    return 0
+
+
+def _case_dir(name: str, k: int) -> str:
+    """Directory of load case ``name`` (k-th): its name where that is a safe file name."""
+    import re
+    safe = re.sub(r"[^A-Za-z0-9_.-]", "_", str(name)).strip(".")
+    return f"case-{safe}" if safe else f"case-{k}"
+
+
+def _print_state(state, bound, reason) -> None:
     s = state.summary()
-    print(f"state of {problem.config.name} ({problem.config.source}) — method {state.method}, "
-          f"backend {s.get('backend')}")
     print(f"  iterations {state.iterations}, residual {state.residual:.2e}, contact conditions {state.complementarity:.2e}")
     print("  nodes: " + ", ".join(f"{k} {v}" for k, v in s['node_classes'].items()))
     print(f"  total normal force {s['total_normal_force']:.6g}, max {s['max_normal_force']:.4g}")
@@ -79,7 +110,31 @@ def _cmd_state(args) -> int:
     else:
         print(f"  uniqueness bound (3.16) not computed: {reason}")
     print("  time: " + ", ".join(f"{k} {v:.3f}s" for k, v in state.timings.items()))
-    print(f"  wrote {out}/ (state.json, state.npz, body.vtu, lambda.png, classes.png) in {time.perf_counter() - t0:.1f}s")
+
+
+def _cmd_export(args) -> int:
+    from .config import load_config
+    from .fem.model import ElasticModel
+    from .io.export import export_design, normalize_formats
+    run = Path(args.run_dir)
+    if not (run / "config.toml").is_file():
+        raise ConfigError([f"{run}: not a run directory (no config.toml; 'contactopt run' writes one)"])
+    formats = normalize_formats([f for item in args.format for f in item.split(",") if f]
+                                if args.format else None)
+    if not args.alpha and not (run / "alpha.json").is_file():
+        raise ConfigError([f"{run}: has no alpha.json (the run has not finished); pass --alpha FILE"])
+    model = ElasticModel(load_config(run / "config.toml"))
+    alpha = _read_alpha(args.alpha or str(run / "alpha.json"), model)
+    out = Path(args.out) if args.out else run
+    res = export_design(model, alpha, out, formats, unit=args.unit, strict=args.format is not None)
+    print(f"exported the design of {run / 'alpha.json' if not args.alpha else args.alpha} into {out}/:")
+    for fmt, names in res["files"].items():
+        print(f"  {fmt:5s} " + ", ".join(names))
+    for fmt, why in res["skipped"].items():
+        print(f"  {fmt:5s} skipped: {why}")
+    if res.get("cad_unit"):
+        print(f"  STEP/IGES in millimetres (model coordinates in {res['unit']}); mesh and STL in the model's units"
+              + (", surface trimmed to the contact face" if res.get("surface_trimmed") else ""))
     return 0
 
 
@@ -175,6 +230,17 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--overwrite", action="store_true")
     s.set_defaults(func=_cmd_state)
 
+    e = sub.add_parser("export", help="the optimal design of a run for CAD and other FE tools")
+    e.add_argument("run_dir", help="run directory of 'contactopt run' (config.toml, alpha.json)")
+    e.add_argument("--format", action="append", metavar="FMT",
+                   help="mesh (alias msh: the body in the input's mesh format), stl, step, iges; repeat or "
+                        "separate by commas (default: all; STEP/IGES need contactopt[cad])")
+    e.add_argument("--out", help="output directory (default RUN_DIR)")
+    e.add_argument("--alpha", help="design file instead of RUN_DIR/alpha.json")
+    e.add_argument("--unit", default="mm", choices=["mm", "cm", "m", "in", "um"],
+                   help="length unit of the model's coordinates; STEP/IGES are written in mm (default mm)")
+    e.set_defaults(func=_cmd_export)
+
     g = sub.add_parser("check-gradient", help="subgradient vs finite differences")
     g.add_argument("config")
     g.add_argument("--seed", type=int, default=0)
@@ -212,7 +278,9 @@ def main(argv=None) -> int:
     level = [logging.WARNING, logging.INFO, logging.DEBUG][min(args.verbose, 2)]
     # the console shows warnings (more with -v); a run's log file records INFO and up
     console = logging.StreamHandler(sys.stderr)
-    console.setLevel(level)
+    # progress of long solves (contactopt.progress, INFO on large meshes) shows at every verbosity
+    console.setLevel(min(level, logging.INFO))
+    console.addFilter(lambda r: r.levelno >= level or r.name == "contactopt.progress")
     console.setFormatter(logging.Formatter("%(levelname)s %(name)s: %(message)s"))
     logging.getLogger().addHandler(console)
     logging.getLogger("contactopt").setLevel(min(level, logging.INFO))

@@ -113,6 +113,10 @@ SCHEMA = {
                       "median boundary edge length)"),
         "min_jacobian_ratio": (0.1, lambda x: _finite(x) and 0 < x < 1,
                                "a number in (0, 1) (smallest det J(α)/det J_ref accepted at a quadrature point)"),
+        "initial_gap": ("zero", lambda x: x in ("zero", "mesh"),
+                        "'zero' (the contact face lies on the foundation plane x3 = 0: the gap is ϑ_α) or 'mesh' "
+                        "(the contact face may lie above it, e.g. an exported optimal body: the gap is its "
+                        "height x3 in the mesh plus ϑ_α)"),
     },
     "geometry": {
         "a": (2.0, _pos, "a number > 0 (length in x1)"),

@@ -9,8 +9,11 @@ Layout of a run directory::
     checkpoint.npz     optimizer + oracle state after the last iteration (written atomically)
     summary.json       DESIGN.md §7 fields
     alpha.json         optimal control points;  surface.csv  ϑ_α on a grid
-    stress.png, surface.png, history.png, classes.png
+    stress.png, pressure.png, surface.png, history.png, classes.png
     initial.vtu, optimal.vtu, bodies.pvd
+    optimal_body.msh (the input's format) + optimal_body.toml, optimal_body.stl,
+    contact_surface.step, contact_surface.iges   the optimal design for CAD and other FE tools
+                                                 (:mod:`contactopt.io.export`; summary.json "export")
 
 A state solve that fails during the run (e.g. Newton does not converge) stops it with
 :class:`RunAborted`; the checkpoint of the last finished iteration stays and ``--resume``
@@ -367,6 +370,11 @@ def _finish(out: Path, problem, alpha0, res, oracle, t_start) -> dict:
     write_pvd(out / "bodies.pvd", [(0, "initial.vtu"), (1, "optimal.vtu")])
     plot_stress_comparison(out / "stress.png", model, target if target is not None else np.zeros_like(s0.lam),
                            s0.lam, s1.lam)
+    from .io.pressure import contact_pressure
+    p0, p1 = contact_pressure(model, s0.lam, s0.coords), contact_pressure(model, s1.lam, s1.coords)
+    # the target in the same units: λ̄ over the optimal design's areas, as the optimal λ
+    p_target = (contact_pressure(model, target, s1.coords) if target is not None else np.zeros_like(p0))
+    plot_stress_comparison(out / "pressure.png", model, p_target, p0, p1, zlabel="contact pressure $p = \\lambda/a$")
     plot_surface(out / "surface.png", model, x)
     plot_node_classes(out / "classes.png", model, s1.classes)
     plot_history(out / "history.png", [{**r, "kind": r.get("step")} for r in res.history])
@@ -393,8 +401,21 @@ def _finish(out: Path, problem, alpha0, res, oracle, t_start) -> dict:
     }
     if problem.has_load_cases:
         summary["load_cases"] = _load_case_outputs(out, problem, (c0, states0), (c1, states1))
+    summary["export"] = _export(out, model, x)
+    summary["time_breakdown_s"]["outputs"] = time.perf_counter() - t0
     atomic_write_json(out / "summary.json", summary)
     return summary
+
+
+def _export(out: Path, model, x) -> dict:
+    """The optimal design for CAD and other FE tools (contactopt.io.export); a failure is recorded
+    in the summary, never lost results: the run's other files are written already."""
+    from .io.export import export_design
+    try:
+        return export_design(model, x, out, strict=False)
+    except ContactOptError as exc:
+        log.warning("export of the optimal design failed: %s", exc)
+        return {"files": {}, "error": str(exc)}
 
 
 def _load_case_outputs(out: Path, problem, initial, optimal) -> dict:

@@ -83,6 +83,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import scipy.sparse as sp
 
+from .._progress import progress, progress_level
 from .._threads import sequential_openblas
 from ..errors import ContactNotConverged, ProblemDataError, SolverError
 from ..fem.amg import ContactHierarchy, block_positions, rigid_body_modes
@@ -301,7 +302,8 @@ def _solve_fullspace(A, L, contact_dofs, gap, friction, coords, free, r0, u0, to
         history.append(err)
         recent.append(theta)
         timings["newton"] += time.perf_counter() - t0
-        log.debug("full-space Newton %d: error %.3e, equilibrium %.3e, zone %d", len(history) - 1, err, eq, z.size)
+        progress.log(progress_level(n, t_start), "full-space Newton %d: error %.3e, equilibrium %.3e, zone %d, "
+                     "%.1f s", len(history) - 1, err, eq, z.size, time.perf_counter() - t_start)
         if err <= tol and eq <= tol:
             # nodes outside the zone must end with an open gap
             if z.size < p:

@@ -9,6 +9,7 @@ import time
 import numpy as np
 import scipy.sparse as sp
 
+from .._progress import progress, progress_level
 from ..errors import SolverError
 
 __all__ = ["ContactHierarchy", "VCycle", "rigid_body_modes", "block_positions"]
@@ -78,7 +79,10 @@ class ContactHierarchy:
         if precision not in ("single", "double"):
             raise SolverError(f"precision must be 'single' or 'double', got {precision!r}")
         self.dtype = np.float32 if precision == "single" else np.float64
+        progress.log(progress_level(A.shape[0], t0), "AMG hierarchy of %d DOFs: set-up started", A.shape[0])
         ml = pyamg.smoothed_aggregation_solver(A, B=near_null, max_coarse=max_coarse, **amg_kw)
+        progress.log(progress_level(A.shape[0], t0), "AMG hierarchy of %d DOFs: %d levels in %.1f s",
+                     A.shape[0], len(ml.levels), time.perf_counter() - t0)
         self.n = A.shape[0]
         self.P = [sp.csr_matrix(lvl.P, dtype=self.dtype) for lvl in ml.levels[:-1]]
         self.R = [sp.csr_matrix(lvl.R, dtype=self.dtype) for lvl in ml.levels[:-1]]

@@ -49,7 +49,7 @@ class Assembled:
     A: sp.csr_matrix
     L_full: np.ndarray
     L: np.ndarray          # on the free DOFs
-    gap: np.ndarray        # g = ϑ_α at the contact nodes
+    gap: np.ndarray        # g = ϑ_α (+ the height of the face in the mesh) at the contact nodes
 
 
 class ElasticModel:
@@ -93,6 +93,8 @@ class ElasticModel:
         self.contact_dofs = self.assembler.full_to_free[full]
         assert np.all(self.contact_dofs >= 0)
         self.gap_matrix = self.mesh.gap_matrix()
+        # initial gap of a contact face above x3 = 0 (body.initial_gap = "mesh"); 0 on the plane
+        self.gap0 = ref.points[self.contact_nodes, 2].copy()
         self.loads = load_set(body, cfg["loads"])
         self.body_force = self.loads.body_force
 
@@ -167,7 +169,8 @@ class ElasticModel:
             coords = self.mesh.coordinates(alpha)
             A = self.assembler.stiffness(coords)
             L_full = self.load_vector(coords, loads)
-        return Assembled(alpha, coords, A, L_full, L_full[self.assembler.free], self.gap_matrix @ alpha)
+        return Assembled(alpha, coords, A, L_full, L_full[self.assembler.free],
+                         self.gap_matrix @ alpha + self.gap0)
 
     def design_contraction(self, coords: np.ndarray, u_full: np.ndarray, v_full: np.ndarray, loads=None) -> np.ndarray:
         """vᵀ(∂A/∂α_k u − ∂L/∂α_k) for every design variable k (full-length u, v; DESIGN.md §2).

@@ -35,7 +35,8 @@ from .atomic import atomic_output
 
 log = logging.getLogger(__name__)
 
-__all__ = ["contact_grid", "face_triangulation", "plot_contact_field", "plot_node_classes", "plot_stress_comparison",
+__all__ = ["contact_grid", "face_triangulation", "plot_contact_field", "plot_force_and_pressure", "plot_node_classes",
+           "plot_stress_comparison",
            "plot_surface", "plot_history", "CLASS_LABELS", "CLASS_COLORS"]
 
 # display names (typographic minus) and colours of Table 4.1's classes, in CLASS_NAMES order
@@ -282,6 +283,27 @@ def _stress_maps(path, model, fields, titles, zlabel, suptitle) -> Path:
     fig.colorbar(m, ax=fig.axes, label=zlabel, shrink=0.85)
     if suptitle:
         fig.suptitle(suptitle)
+    return _save(fig, path)
+
+
+def plot_force_and_pressure(path, model, lam, pressure, *, title=None) -> Path:
+    """Nodal contact forces λ and the contact pressure p = λ/a side by side (each its own scale):
+    on an unstructured face λ follows the nodal spacing, p the load."""
+    fields = [np.asarray(_contact_values(model, v), float) for v in (lam, pressure)]
+    if not all(np.all(np.isfinite(g)) for g in fields):
+        raise ValueError("plot_force_and_pressure: a field has non-finite values")
+    w, h = _figsize_map(model, extra_width=0.0)
+    fig = _new_figure((2 * w * 0.8 + 2.4, h * 0.8 + 0.8))
+    for n, (g, what, label) in enumerate(zip(fields, ("normal contact force", "contact pressure"),
+                                             ("$\\lambda$", "$p = \\lambda / a$"))):
+        ax = _map_axes(fig, model, (1, 2, n + 1))
+        mesh = _field(ax, model, g, cmap="viridis")
+        fig.colorbar(mesh, ax=ax, label=label, shrink=0.85)
+        pos = g[g > 0]
+        spread = f", spread (max/min over contact) {pos.max() / pos.min():.3g}" if pos.size else ""
+        ax.set_title(f"{what}\nmin {g.min():.4g}, max {g.max():.4g}{spread}", fontsize=9)
+    if title:
+        fig.suptitle(title)
     return _save(fig, path)
 
 

@@ -1,4 +1,4 @@
-"""The files of one state solve: state.json, state.npz, body.vtu, lambda.png, classes.png.
+"""The files of one state solve: state.json, state.npz, body.vtu, lambda.png, pressure.png, classes.png.
 
 :func:`write_state` is all-or-nothing: every file is first built in a temporary sibling directory
 of ``outdir``; only when all of them succeeded are they moved into ``outdir`` (each by an atomic
@@ -12,6 +12,8 @@ Conventions of the stored contact arrays (contact-node order m = 0..p−1, see
   x3 ≤ 0 has normal e3);
 * ``gap[m] = ϑ_α(x'_m)``: initial distance to the foundation; non-penetration u_ν + g ≥ 0;
 * ``lam[m] = λ_m = (S u_c − ℓ)_ν ≥ 0``: normal contact force on the body (paper (3.17));
+* ``pressure[m] = p_m = λ_m / a_m``: contact pressure, a_m the node's lumped contact area on Ω(α)
+  (:mod:`contactopt.io.pressure`; force per unit area in the model's units);
 * ``tau[m] = τ_m = −(S u_c − ℓ)_t``: the paper's tangential contact force, ‖τ_m‖ ≤ F λ_m and
   u_t ≠ 0 ⇒ τ_m = F λ_m u_t/‖u_t‖ (the friction force on the body is −τ_m);
 * ``classes[m]``: index into ("L", "M1", "M2", "M3+", "M3-", "M4") of Table 4.1.
@@ -31,12 +33,13 @@ import numpy as np
 from ..contact.state import CLASS_NAMES, State
 from . import plots, vtk
 from .atomic import atomic_savez, atomic_write_json, fsync_dir, to_jsonable
+from .pressure import contact_pressure
 
 log = logging.getLogger(__name__)
 
 __all__ = ["STATE_FILES", "write_state", "read_state_npz", "state_json"]
 
-STATE_FILES = ("state.json", "state.npz", "body.vtu", "lambda.png", "classes.png")
+STATE_FILES = ("state.json", "state.npz", "body.vtu", "lambda.png", "pressure.png", "classes.png")
 FORMAT_VERSION = 1
 
 CONVENTIONS = {
@@ -45,6 +48,8 @@ CONVENTIONS = {
     "u_c": "(u1, u2, u3): tangential u_t = (u1, u2), normal u_nu = u3; foundation x3 <= 0 with normal e3",
     "gap": "g_m = theta_alpha(x'_m) >= 0; non-penetration u_nu + g >= 0",
     "lam": "lambda_m = (S u_c - l)_nu >= 0: normal contact force on the body (paper (3.17))",
+    "pressure": "p_m = lambda_m / a_m: contact pressure, a_m the lumped contact area of node m on the "
+                "design's surface (force per unit area in the model's units)",
     "tau": "tau_m = -(S u_c - l)_t, |tau_m| <= F lambda_m; friction force on the body is -tau_m",
     "classes": "index into class_names (Table 4.1)",
     "alpha": "control points alpha_ij, (d1+1) x (d2+1), row i along x1",
@@ -66,6 +71,7 @@ def state_json(model, state: State, config=None) -> dict:
             "x1": model.mesh.contact_points()[:, 0].tolist(),
             "x2": model.mesh.contact_points()[:, 1].tolist(),
             "lam": np.asarray(state.lam, float).tolist(),
+            "pressure": contact_pressure(model, state.lam, state.coords).tolist(),
             "tau": np.asarray(state.tau, float).tolist(),
             "u_c": np.asarray(state.u_c, float).tolist(),
             "gap": np.asarray(state.gap, float).tolist(),
@@ -87,6 +93,7 @@ def _state_arrays(model, state: State) -> dict:
         "u": np.asarray(state.u, float),
         "u_c": np.asarray(state.u_c, float),
         "lam": np.asarray(state.lam, float),
+        "pressure": contact_pressure(model, state.lam, state.coords),
         "tau": np.asarray(state.tau, float),
         "gap": np.asarray(state.gap, float),
         "classes": np.asarray(state.classes, np.int64),
@@ -148,6 +155,8 @@ def write_state(outdir, model, state: State, *, config=None) -> dict:
         vtk.write_body_vtu(tmpdir / "body.vtu", model, state)
         plots.plot_contact_field(tmpdir / "lambda.png", model, state.lam,
                                  "Normal contact force $\\lambda$", cmap="viridis", label="$\\lambda$")
+        plots.plot_contact_field(tmpdir / "pressure.png", model, contact_pressure(model, state.lam, state.coords),
+                                 "Contact pressure $p = \\lambda / a$", cmap="viridis", label="$p$")
         plots.plot_node_classes(tmpdir / "classes.png", model, state.classes)
         built = sorted(p.name for p in tmpdir.iterdir())
         if built != sorted(STATE_FILES):

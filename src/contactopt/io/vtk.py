@@ -7,6 +7,9 @@ contact surface the contact fields are 0 (``node_class`` −1), never NaN:
   reference coordinates of Ω(α) (the undeformed body of the design); in ParaView apply
   "Warp By Vector" with ``displacement`` to see the deformed body (or pass ``deformed=True``).
 * ``normal_force`` λ: λ_m = (S u_c − ℓ)_ν ≥ 0, the normal contact force on the body (paper (3.17)).
+* ``contact_pressure`` p: p_m = λ_m / a_m with a_m the node's lumped contact area on Ω(α)
+  (force per unit area in the model's units, :mod:`contactopt.io.pressure`); smooth where the
+  nodal forces follow the uneven nodal spacing of an unstructured face.
 * ``tangential_force`` (τ1, τ2, 0): τ_m = −(S u_c − ℓ)_t, the paper's tangential contact force,
   so that ‖τ_m‖ ≤ F λ_m and u_t ≠ 0 ⇒ τ_m = F λ_m u_t/‖u_t‖. The friction force acting on the
   body is −τ_m, opposite to the slip.
@@ -33,6 +36,7 @@ from pathlib import Path, PurePosixPath
 import numpy as np
 
 from .atomic import atomic_output, atomic_write_text
+from .pressure import contact_pressure
 
 log = logging.getLogger(__name__)
 
@@ -86,6 +90,7 @@ def body_point_data(model, state, extra_point_data=None) -> dict:
     data = {
         "displacement": _finite("displacement", u.reshape(n, 3)),
         "normal_force": _on_nodes("normal_force", np.asarray(state.lam, float), n, cn),
+        "contact_pressure": _on_nodes("contact_pressure", contact_pressure(model, state.lam, state.coords), n, cn),
         "tangential_force": _on_nodes("tangential_force", tau3, n, cn),
         "node_class": _on_nodes("node_class", np.asarray(state.classes, np.int32), n, cn, fill=np.int32(-1)),
         "gap": _on_nodes("gap", np.asarray(state.gap, float), n, cn),

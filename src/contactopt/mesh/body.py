@@ -6,7 +6,9 @@ one :class:`~contactopt.mesh.reference.ReferenceMesh`, after which everything is
 
 Conventions (DESIGN.md §1, §9): the foundation is the half-space x3 ≤ 0 with outward normal e3;
 the contact face lies on x3 = 0 in the reference mesh with the body above it (the outward normal
-of the body on the face is −e3) and is a graph over (x1, x2). Its nodes with no clamped
+of the body on the face is −e3) and is a graph over (x1, x2). With ``[body] initial_gap = "mesh"``
+the face may lie above the plane (an exported optimal body, :mod:`contactopt.io.export`): its
+height x3 in the mesh is an initial gap, to which the design surface ϑ_α adds. Its nodes with no clamped
 component are the contact nodes, ordered by node number; contact node m owns the condensed DOFs
 (u1, u2, u3) = (t1, t2, ν).
 """
@@ -94,7 +96,7 @@ def build_body(cfg) -> Body:
     fixed = np.zeros((ref.n_nodes, 3), bool)
     for p, comps in clamped:
         fixed[np.ix_(p.nodes, comps)] = True
-    face = _check_contact_face(ref, face, tol)
+    face = _check_contact_face(ref, face, tol, on_plane=spec.get("initial_gap", "zero") == "zero")
     contact_nodes = face.nodes[~np.any(fixed[face.nodes], axis=1)]
     if contact_nodes.size == 0:
         raise ConfigError([f"{cfg.source}: body.contact = {describe_part(spec['contact'])}: every node of the "
@@ -117,20 +119,26 @@ def _is_on_table(x):
     return isinstance(x, dict) and "on" in x
 
 
-def _check_contact_face(ref: ReferenceMesh, face: Part, tol: float) -> Part:
-    """The contact face lies on x3 = 0 (snapped there), the body above it, and is a graph over (x1, x2)."""
+def _check_contact_face(ref: ReferenceMesh, face: Part, tol: float, on_plane: bool = True) -> Part:
+    """The contact face lies on x3 = 0 (snapped there), the body above it, and is a graph over (x1, x2).
+
+    ``on_plane=False`` (``initial_gap = "mesh"``): the face may lie above the plane, x3 ≥ 0, and
+    keeps its coordinates as they are (they are its initial gap)."""
     name = face.name
     if face.faces.shape[0] == 0:
         raise ConfigError([f"body.contact = {name}: has no boundary faces (it must be a surface of the body "
                            "lying on the foundation plane x3 = 0)"])
     nodes = np.unique(face.faces)
-    off = np.abs(ref.points[nodes, 2]) > tol
+    off = np.abs(ref.points[nodes, 2]) > tol if on_plane else ref.points[nodes, 2] < -tol
     if np.any(off):
         bad = nodes[off][:5]
-        raise ConfigError([f"body.contact = {name}: {int(off.sum())} node(s) do not lie on the foundation "
-                           f"plane x3 = 0 (tolerance {tol:.3g}), first: "
+        where = "do not lie on the foundation plane x3 = 0" if on_plane else "lie below the foundation plane x3 = 0"
+        raise ConfigError([f"body.contact = {name}: {int(off.sum())} node(s) {where} (tolerance {tol:.3g}), first: "
                            + ", ".join(f"node {n} at {_fmt(ref.points[n])}" for n in bad)])
-    ref.points[nodes, 2] = 0.0              # rounded coordinates of the file: exactly on the plane
+    if on_plane:
+        ref.points[nodes, 2] = 0.0          # rounded coordinates of the file: exactly on the plane
+    else:
+        ref.points[nodes, 2] = np.maximum(ref.points[nodes, 2], 0.0)
     nc = FACE_CORNERS[ref.face_type]
     X = ref.points[face.faces[:, :nc]]
     n3 = np.cross(X[:, 1] - X[:, 0], X[:, 2] - X[:, 0])[:, 2]
