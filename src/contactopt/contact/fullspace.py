@@ -1,7 +1,7 @@
 """Full-space semismooth Newton for the discrete Coulomb problem, with AMG-preconditioned Krylov
 solves: the state solver for meshes where no factorization of A(α) fits (issue #16, ≥ 900k DOFs).
 
-Problem (paper (3.17)/(3.18), the same as today's condensed path in :mod:`contactopt.problem`).
+Problem (paper (3.17)/(3.18), the same as the condensation path's, :mod:`contactopt.paths.condensation`).
 On the free DOFs, with B selecting the contact DOFs (``contact_dofs``: per contact node m the DOFs
 (t1, t2, ν) = (x1, x2, x3); the foundation x3 ≤ 0 has normal e3),
 
@@ -50,21 +50,13 @@ preconditioned by a V-cycle of H = A + K_t restricted to I:
 * the coarse operators are the Galerkin products (Π P)ᵀ H (Π P) of the prolongation with the D
   rows removed (Π), obtained from the stored ones of A(α_ref) by sparse updates supported near D
   and the sliding nodes (the fine matrix differs from A(α_ref) only there, up to the design
-  change), so no full triple product is redone per step. Measured on Example 1 (113k DOFs) this
-  keeps the iteration count of a fresh hierarchy of the constrained matrix (18 against 17), where
-  the unconstrained coarse operators need 25.
+  change), so no full triple product is redone per step (docs/large_meshes.md: as few
+  iterations as a fresh hierarchy of the constrained matrix).
 
 Globalization: Armijo backtracking on the merit ½‖Φ‖² along u + t(u⁺ − u) (non-monotone over the
 last four values, as in :mod:`contactopt.contact.newton`); r is affine in u, so a trial step costs
 one product with the contact rows of A. ρ per node is ``rho_scale`` / w̃_m with w̃_m ≈ 2/mean(A_mm)
-an estimate of the Delassus diagonal tr(W_mm)/3 (measured 1.4–5 / A_mm on Examples 1 and 2).
-
-Measured (``benchmarks/bench_fullspace.py``; Example 1 refined, next design at |Δα| = 5e-4, warm
-from the previous design's forces, displacement and hierarchy): 5–6 Newton steps of 3–7 GMRES
-iterations each (η_k = 0.1·error_k: tighter inner tolerances do not save Newton steps, whose early
-ones are spent on the contact and slip sets, and cost more iterations in all); the hierarchy of
-α0 served designs up to |Δα| = 0.05 with the iteration counts of a fresh one (46k DOFs), so it is
-built once per optimization; ρ (``rho_scale`` 0.1–2) changes the step counts by at most one.
+an estimate of the Delassus diagonal tr(W_mm)/3 (docs/large_meshes.md).
 
 Convergence: the Siconos error ‖R − P_K(R − Ũ)‖ / max(‖R‖, ‖U‖) on the zone ≤ ``tol`` and the
 equilibrium of the other rows ‖(A u − L)_other‖ / ‖L‖ ≤ ``tol``. A Newton or Krylov failure raises
@@ -90,7 +82,8 @@ from ..fem.amg import ContactHierarchy, block_positions, rigid_body_modes
 from ..fem.krylov import KrylovNotConverged, gmres
 from .cones import siconos_error
 from .newton import alart_curnier
-from .state import CLASS_RTOL
+from .state import FROM_FCLIB, TO_FCLIB, displacement_scale
+from .zone import missed_nodes, near_nodes
 
 __all__ = ["solve_fullspace", "FullSpaceResult", "OPEN", "STICK", "SLIDE"]
 
@@ -98,16 +91,9 @@ log = logging.getLogger(__name__)
 
 OPEN, STICK, SLIDE = 0, 1, 2          # node classes of a Newton system
 W_DIAG_FACTOR = 2.0                   # local part of tr(W_mm)/3 ≈ W_DIAG_FACTOR / mean(A_mm)
-                                      # (W_mm·A_mm measured 1.3–1.4 on Example 1's block, where
-                                      # the global part is 1–2 % of W_mm; 5–48 on the bracket,
-                                      # a flexible foot: there the coarse part is 50–80 %)
-_FCLIB = np.array([2, 0, 1])          # per node (t1, t2, ν) -> (ν, t1, t2)
 _TIGHT_BELOW = 0.01                   # error ≤ this·√tol and node classes as in the last step:
                                       # Newton is in its fast phase, the step solves to krylov_rtol
-                                      # at once (saves the last, equilibrium-only step). Higher
-                                      # thresholds went tight one step early (210k at 8.7e-7: 12 + 7
-                                      # iterations; 1M at 8e-6: 16 + 9); the states of 46k–1M
-                                      # reach 2e-8–8e-8 one step before their end
+                                      # at once (saves the last, equilibrium-only step)
 _STAGNATION_STEPS = 10                # no halving of the best error over this many steps:
 _RESCALE, _MAX_RESCALES = 0.25, 3     # ρ times _RESCALE, at most _MAX_RESCALES times
 @dataclass
@@ -244,8 +230,8 @@ def _solve_fullspace(A, L, contact_dofs, gap, friction, coords, free, r0, u0, to
         return (Arows @ u).reshape(p, 3) - Lc   # per node (t1, t2, ν)
 
     def local(u, rphys, z):
-        R = rphys[z][:, _FCLIB]
-        U = u[cd[z]][:, _FCLIB]
+        R = rphys[z][:, TO_FCLIB]
+        U = u[cd[z]][:, TO_FCLIB]
         U[:, 0] += gap[z]
         return R, U
 
@@ -257,7 +243,7 @@ def _solve_fullspace(A, L, contact_dofs, gap, friction, coords, free, r0, u0, to
         if r0 is not None:
             r0 = np.asarray(r0, dtype=np.float64).reshape(p, 3)
             rz = np.zeros((p, 3))
-            rz[zone] = r0[zone][:, [1, 2, 0]]          # r = 0 outside the zone
+            rz[zone] = r0[zone][:, FROM_FCLIB]          # r = 0 outside the zone
             f[cd.ravel()] += rz.ravel()
         M0 = hierarchy.preconditioner(H, np.zeros(n, dtype=bool))
         eta0 = max(krylov_rtol, 1e-6)
@@ -308,14 +294,12 @@ def _solve_fullspace(A, L, contact_dofs, gap, friction, coords, free, r0, u0, to
             # nodes outside the zone must end with an open gap
             if z.size < p:
                 clearance = u[cd[:, 2]] + gap
-                u_scale = max(np.abs(u[cd]).max(initial=0.0), np.abs(gap).max(initial=0.0), 1e-300)
-                outside = np.ones(p, dtype=bool)
-                outside[z] = False
-                missed = np.flatnonzero(outside & (clearance <= CLASS_RTOL * u_scale))
+                u_scale = displacement_scale(u[cd], gap)
+                missed = missed_nodes(z, clearance, u_scale)     # the zone rule of the zone paths
                 if missed.size:
                     lam_all = np.zeros(p)
                     lam_all[z] = R[:, 0]
-                    near = np.flatnonzero((lam_all > 0) | (clearance <= zone_margin * u_scale))
+                    near = near_nodes(lam_all, clearance, u_scale, zone_margin, min_nodes=0)
                     zone = np.union1d(np.union1d(z, missed), near)
                     growths += 1
                     log.debug("full-space Newton: %d node(s) outside the zone close their gap; zone "
@@ -413,7 +397,7 @@ def _solve_fullspace(A, L, contact_dofs, gap, friction, coords, free, r0, u0, to
         # -- line search on ½‖Φ‖² (r is affine in u)
         dr = (Arows @ du).reshape(p, 3)
         de_other = (A @ du)[other]
-        dR, dU = dr[z][:, _FCLIB].ravel(), du[cd[z]][:, _FCLIB].ravel()
+        dR, dU = dr[z][:, TO_FCLIB].ravel(), du[cd[z]][:, TO_FCLIB].ravel()
         R0, U0 = R.ravel(), U.ravel()
         ref = max(recent[-4:])
         t = 1.0
@@ -433,7 +417,7 @@ def _solve_fullspace(A, L, contact_dofs, gap, friction, coords, free, r0, u0, to
 
     rphys = contact_force(u)
     r = np.zeros((p, 3))
-    r[zone] = rphys[zone][:, _FCLIB]
+    r[zone] = rphys[zone][:, TO_FCLIB]
     timings["total"] = time.perf_counter() - t_start
     result = FullSpaceResult(
         r=r, u=u, u_c=u[cd].copy(), classes=classes, converged=converged, error=err, equilibrium=eq,

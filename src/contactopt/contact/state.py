@@ -31,6 +31,8 @@ CLASS_CODES = {name: k for k, name in enumerate(CLASS_NAMES)}
 DEGENERATE = ("M2", "M3-", "M4")
 
 
+TO_FCLIB = np.array([2, 0, 1])    # per node (t1, t2, ν) -> the local solvers' (ν, t1, t2)
+FROM_FCLIB = np.array([1, 2, 0])  # and back
 CLASS_RTOL = 1e-7      # relative tolerance below which a displacement or force counts as zero
 
 

@@ -12,7 +12,7 @@ q, the products W_Z r = (S⁻¹ E_Z r)_Z and the displacements of all nodes u = 
 triangular solves each. When W_Z itself is needed, the Cholesky factor of S ordered (N, Z),
 S = L Lᵀ with L = [[L_NN, 0], [L_ZN, L̃]], has L̃ L̃ᵀ = S̃, so W_Z = (L̃ L̃ᵀ)⁻¹: (1/3)(3p)³ +
 (2/3)(3z)³ flops instead of (3p)³ for the whole W, and the zone's local problem is smaller.
-Within an optimization most state solves never form W_Z (:mod:`contactopt.problem`), so the
+Within an optimization most state solves never form W_Z (:mod:`contactopt.paths.zone_paths`), so the
 factor of S in its natural order (no reordered copy of S) serves the products there, and the
 ordered one is computed only if W_Z is asked for (``ordered=False``).
 
@@ -34,12 +34,11 @@ from __future__ import annotations
 import numpy as np
 
 from ..fem.dense import cholesky_lower, cholesky_solve, inverse_from_cholesky
-from .state import CLASS_RTOL
+from .state import CLASS_RTOL, TO_FCLIB
 
 CLEARANCE_RTOL = CLASS_RTOL  # a gap closes exactly where classify_nodes calls it closed
 MIN_ZONE = 8                 # a zone has at least this many nodes (or all, if fewer)
 
-_LOCAL = np.array([2, 0, 1])  # per node (t1, t2, ν) -> (ν, t1, t2)
 
 
 def missed_nodes(zone: np.ndarray, clearance: np.ndarray, u_scale: float) -> np.ndarray:
@@ -49,11 +48,12 @@ def missed_nodes(zone: np.ndarray, clearance: np.ndarray, u_scale: float) -> np.
     return np.flatnonzero(outside & (clearance <= CLEARANCE_RTOL * u_scale))
 
 
-def near_nodes(lam: np.ndarray, clearance: np.ndarray, u_scale: float, margin: float) -> np.ndarray:
-    """Nodes in contact (λ > 0) or within ``margin``·scale of the foundation; at least MIN_ZONE
-    nodes (those of smallest clearance)."""
+def near_nodes(lam: np.ndarray, clearance: np.ndarray, u_scale: float, margin: float,
+               min_nodes: int = MIN_ZONE) -> np.ndarray:
+    """Nodes in contact (λ > 0) or within ``margin``·scale of the foundation; at least
+    ``min_nodes`` nodes (those of smallest clearance)."""
     idx = np.flatnonzero((lam > 0) | (clearance <= margin * u_scale))
-    k = min(MIN_ZONE, clearance.size)
+    k = min(min_nodes, clearance.size)
     if idx.size < k:
         idx = np.union1d(idx, np.argsort(clearance, kind="stable")[:k])
     return idx
@@ -284,7 +284,7 @@ class DelassusZoneProblem(ZoneProblem):
 
 def _local_dofs(nodes: np.ndarray) -> np.ndarray:
     """Contact-vector positions of the DOFs of ``nodes``, per node in FCLIB order (ν, t1, t2)."""
-    return (3 * np.asarray(nodes)[:, None] + _LOCAL).ravel()
+    return (3 * np.asarray(nodes)[:, None] + TO_FCLIB).ravel()
 
 
 def _node_dofs(k: np.ndarray) -> np.ndarray:

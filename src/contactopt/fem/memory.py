@@ -184,7 +184,7 @@ def keeps_cholesky(body, *, margin: float = 0.7) -> bool:
     """Whether the Delassus path may keep the Cholesky factor of A while a zone's Schur-mode
     factorization is formed beside it (both estimated, with the dense zone matrices, within
     ``margin`` × the available memory). When not, the Cholesky is released meanwhile and the next
-    design factorizes anew, ordering included (:meth:`contactopt.ShapeProblem._zone_block`)."""
+    design factorizes anew, ordering included (:class:`contactopt.paths.delassus.DelassusPath`)."""
     return estimate_evaluation(body, delassus_parts, keep_cholesky=True).total <= margin * available_memory()
 
 

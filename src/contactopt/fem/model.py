@@ -94,7 +94,8 @@ class ElasticModel:
         assert np.all(self.contact_dofs >= 0)
         self.gap_matrix = self.mesh.gap_matrix()
         # initial gap of a contact face above x3 = 0 (body.initial_gap = "mesh"); 0 on the plane
-        self.gap0 = ref.points[self.contact_nodes, 2].copy()
+        self.gap0 = (ref.points[self.contact_nodes, 2].copy() if cfg["body"].get("initial_gap") == "mesh"
+                     else np.zeros(self.contact_nodes.size))
         self.loads = load_set(body, cfg["loads"])
         self.body_force = self.loads.body_force
 

@@ -21,7 +21,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from ..contact import zone as zone_rules
-from ..contact.state import CLASS_CODES, displacement_scale
+from ..contact.state import CLASS_CODES, FROM_FCLIB, displacement_scale
 from ..fem import memory
 from ..fem.model import Assembled
 from .zone_paths import ZonePath
@@ -173,7 +173,7 @@ class DelassusPath(ZonePath):
             W = zpK.block_from(jac[1], jac[2], **self.max_new(K, ADJOINT_MAX_NEW))
         if W is None:
             W = zpK.W if K.size else np.zeros((0, 0))
-        perm = (3 * np.arange(K.size)[:, None] + np.array([1, 2, 0])).ravel()   # FCLIB -> (t1, t2, ν)
+        perm = (3 * np.arange(K.size)[:, None] + FROM_FCLIB).ravel()   # FCLIB -> (t1, t2, ν)
         W = W[np.ix_(perm, perm)]
         t0 = time.perf_counter()
         v_u, v_lam, v_free, res = solve_adjoint_delassus(apply, W, state, y_u, y_lam, choices)

@@ -24,7 +24,7 @@ import numpy as np
 
 from .._threads import sequential_openblas
 from ..contact import zone as zone_rules
-from ..contact.state import displacement_scale
+from ..contact.state import FROM_FCLIB, displacement_scale
 from ..errors import CheckpointError, ContactOptError
 from .base import Context, SolverPath, check_design, check_node_set
 
@@ -116,7 +116,7 @@ class ZonePath(SolverPath):
         u = self.model.assembler.to_full(self.free_displacement(system, zp, res.r, u3))
         timings["recovery"] = time.perf_counter() - t3
         r = np.zeros((self.model.n_contact, 3))                      # per node (t1, t2, ν)
-        r[zone] = res.r.reshape(-1, 3)[:, [1, 2, 0]]
+        r[zone] = res.r.reshape(-1, 3)[:, FROM_FCLIB]
         info = {"backend": self.library_of(system), "zone_nodes": int(zone.size), "zone_misses": misses,
                 "delassus": reused[-1], **self.solve_counts(zp)}
         state = self.finish_state(ctx, alpha=alpha, coords=system.assembled.coords, u=u, u_c=u3, r=r,

@@ -41,10 +41,10 @@ from ..contact.state import CLASS_CODES, State, classify_nodes
 from ..errors import SolverError
 from ..fem.amg import ContactHierarchy, block_positions
 from ..fem.krylov import KrylovNotConverged, gmres
+from .adjoint import DEFAULT_CHOICES, effective_classes
 
 __all__ = ["solve_adjoint_fullspace", "subgradient_fullspace", "FullSpaceAdjoint"]
 
-DEFAULT_CHOICES = {"M2": "L", "M3-": "M3+", "M4": "L"}
 
 
 @dataclass
@@ -88,11 +88,7 @@ def _solve_adjoint(A, contact_dofs, classes, u_c, lam, y_u, y_lam, friction, hie
     n = A.shape[0]
     cd = np.asarray(contact_dofs, dtype=np.int64).reshape(-1, 3)
     cc = CLASS_CODES
-    classes = np.asarray(classes)
-    eff = classes.copy()
-    eff[classes == cc["M2"]] = cc["L"]
-    eff[classes == cc["M3-"]] = cc["M3+"]
-    eff[classes == cc["M4"]] = cc["L"]
+    eff = effective_classes(np.asarray(classes), DEFAULT_CHOICES)
     F = float(friction)
     stick = np.flatnonzero(eff == cc["M3+"])
     slide = np.flatnonzero(eff == cc["M1"])
