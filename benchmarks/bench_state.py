@@ -121,7 +121,7 @@ def next_design(cfg, a0, repeat):
             label = f"{method}{' warm' if warm else ' cold'}"
             print(f"  next design, {label:16s} {t:7.3f} s = {statistics.median(ratios):5.2f} × "
                   f"(max {max(ratios):.2f} ×) | zone {st.info['zone_nodes']} "
-                  f"nodes, {pr.n_zone_misses} misses | assembly {tm['assembly']:.3f}, "
+                  f"nodes, {pr.path.n_zone_misses} misses | assembly {tm['assembly']:.3f}, "
                   f"Schur {tm['schur']:.3f}, Delassus {tm['delassus']:.3f}, contact {tm['contact']:.3f} "
                   f"({st.iterations} it, residual {st.residual:.1e}), recovery {tm['recovery']:.3f}")
             rows[label] = (pr, st, t)
@@ -191,7 +191,7 @@ def in_optimization(cfg, n_iter):
           f"{np.percentile(ratio, 90):.2f} ×, worst {ratio.max():.2f} × | "
           f"Delassus block reused in {sum(s[4] for s in states)} of {len(states)} solves, "
           f"{np.mean([s[5] for s in states]):.1f} Newton steps on average | "
-          f"{pr.n_zone_misses} zone misses, zone {min(zones)}–{max(zones)} of "
+          f"{pr.path.n_zone_misses} zone misses, zone {min(zones)}–{max(zones)} of "
           f"{model.n_contact} nodes | subgradient median {np.median(subs):.3f} s = "
           f"{np.median(subs) / np.median(t):.2f} × state solve | {wall:.1f} s in all")
     return t
