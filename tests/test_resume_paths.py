@@ -2,8 +2,9 @@
 solver path (issue #21).
 
 Per path, ``contactopt run`` runs uninterrupted in a subprocess, then again killed with SIGKILL
-(after 5, 20 and 40 iterations, before its first checkpoint, and at three seeded random times within
-the uninterrupted run's wall time, so mostly mid-evaluation) and continued with ``--resume`` as a
+(after 5, 20 and 40 iterations, before its first checkpoint, and at three seeded random moments:
+a random delay of up to one iteration's share of the wall time after a random iteration, so mostly
+mid-evaluation) and continued with ``--resume`` as a
 user would (no ``--max-iter``: the checkpoint's is kept). J (summary.json), α (alpha.json) and the
 trajectory (iterations.csv) must be bit-identical to the uninterrupted run's. The processes get the
 environment users have (thread counts not forced), the same for every run.
@@ -74,10 +75,10 @@ def finish(cmd, env, log: Path) -> tuple[int, str, float]:
     return proc.returncode, proc.stdout, wall
 
 
-def kill_when(cmd, env, log: Path, *, iteration=None, seconds=None, first_evaluation=None) -> str:
-    """Start a run and SIGKILL it after its progress line of ``iteration``, after ``seconds``, or
-    once history.csv in ``first_evaluation`` (the run directory) has its first row. Returns what
-    happened: 'killed' or 'finished' (it ended before the moment came)."""
+def kill_when(cmd, env, log: Path, *, iteration=None, seconds=None, first_evaluation=None, delay=0.0) -> str:
+    """Start a run and SIGKILL it ``delay`` seconds after its progress line of ``iteration``, after
+    ``seconds``, or once history.csv in ``first_evaluation`` (the run directory) has its first row.
+    Returns what happened: 'killed' or 'finished' (it ended before the moment came)."""
     with open(log, "w") as fh:
         proc = subprocess.Popen(cmd, env=env, stdout=subprocess.PIPE, stderr=fh, text=True)
         watchdog = threading.Timer(TIMEOUT, proc.kill)
@@ -89,6 +90,11 @@ def kill_when(cmd, env, log: Path, *, iteration=None, seconds=None, first_evalua
                     m = PROGRESS.match(line)
                     if m and int(m.group(1)) >= iteration:
                         break
+                if delay:
+                    try:
+                        proc.wait(timeout=delay)
+                    except subprocess.TimeoutExpired:
+                        pass
             elif seconds is not None:
                 try:
                     proc.wait(timeout=seconds)
@@ -191,7 +197,11 @@ def test_killed_and_resumed_run_is_bit_identical(tmp_path, path):
 
     rng = random.Random(f"resume-{path}")
     moments = [("iteration", n) for n in KILL_AFTER_ITERATIONS] + [("before the first checkpoint", None)]
-    moments += [("seconds", round(rng.uniform(0.0, ref_wall), 3)) for _ in range(N_RANDOM_KILLS)]
+    # random moments inside the optimization, mostly mid-evaluation: a random delay of up to one
+    # iteration's share of the wall time after the progress line of a random iteration
+    per_iteration = ref_wall / max_iter
+    moments += [("random", (rng.randint(1, max_iter - 2), round(rng.uniform(0.0, per_iteration), 3)))
+                for _ in range(N_RANDOM_KILLS)]
     failures = []
     for n, (kind, when) in enumerate(moments):
         out = tmp_path / f"kill{n}"
@@ -200,8 +210,8 @@ def test_killed_and_resumed_run_is_bit_identical(tmp_path, path):
         t0 = time.perf_counter()
         if kind == "iteration":
             what = kill_when(start, env, log, iteration=when)
-        elif kind == "seconds":
-            what = kill_when(start, env, log, seconds=when)
+        elif kind == "random":
+            what = kill_when(start, env, log, iteration=when[0], delay=when[1])
         else:
             what = kill_when(start, env, log, first_evaluation=out)
         t_kill = time.perf_counter() - t0
@@ -219,11 +229,12 @@ def test_killed_and_resumed_run_is_bit_identical(tmp_path, path):
             how = f"resumed at iteration {position[0]} ({position[1]} evaluations)"
             assert f"at iteration {position[0]} ({position[1]} evaluations)" in (out / "run.log").read_text()
         assert code == 0, text
-        if kind == "iteration" and what == "killed":
-            assert position is not None and position[0] >= when
+        if kind in ("iteration", "random") and what == "killed":
+            assert position is not None and position[0] >= (when if kind == "iteration" else when[0])
         got = result(out)
         bad = compare(ref, got)
-        label = f"{kind} {when}" if when is not None else kind
+        label = (f"iteration {when[0]} + {when[1]} s" if kind == "random" else f"{kind} {when}" if when is not None
+                 else kind)
         print(f"[{path}] kill at {label} ({what} after {t_kill:.2f} s): {how}; continued in {wall:.1f} s: "
               + ("bit-identical" if not bad else "DIFFERS: " + "; ".join(bad)))
         if bad:
