@@ -53,9 +53,13 @@ class ShapeProblem:
         self.n_state_solves = 0    # designs solved (all cases at once)
         self._cache = None         # (alpha bytes, method, systems per case, states per case)
         from .sensitivity.cases import build_cases
-        self.cases, self.combination = build_cases(self.config, self)
+        self.cases, self.combination = build_cases(self.config, self.model, self._design_lambda)
         self.path.first_loads = self.cases[0].loads
         self.contexts = [self.path.new_context() for _ in self.cases]
+
+    def _design_lambda(self, alpha, case: int) -> np.ndarray:
+        """λ of load case ``case`` at α, solved without warm start (a 'design' target)."""
+        return self.solve_state(alpha, warm_start=False, case=case).lam.copy()
 
     # ------------------------------------------------------------------ load cases
     @property

@@ -81,21 +81,21 @@ def case_tables(config) -> list[dict]:
     return list(config.data.get("load_cases", []))
 
 
-def build_cases(config, problem) -> tuple[list[LoadCase], Combination]:
-    """The load cases of a configuration and their combination."""
+def build_cases(config, model, solve=None) -> tuple[list[LoadCase], Combination]:
+    """The load cases of a configuration and their combination; ``solve(alpha, case)`` returns λ
+    of a design's state under a case's loads (the objectives' 'design' targets)."""
     from ..fem.loadset import load_set
     from .objectives import make_objective
-    model = problem.model
     tables = case_tables(config)
     obj = config["objective"]
     if not tables:
-        cases = [LoadCase(config.name, None, make_objective(config, problem))]
+        cases = [LoadCase(config.name, None, make_objective(config, model, solve=solve))]
     else:
         cases = []
         for k, table in enumerate(tables):
             loads = model.loads + load_set(model.body, table, where=f"load_cases[{k}]")
             # a case's own objective: a 'design' target is λ(α*) of the case's loads
-            objective = make_objective(config, problem, target=table.get("target"), case=k)
+            objective = make_objective(config, model, target=table.get("target"), case=k, solve=solve)
             cases.append(LoadCase(table["name"], loads, objective))
     names = tuple(c.name for c in cases)
     w = obj["weights"]

@@ -7,7 +7,9 @@ condensed system of the design, and returns
 
 The adjoint (:mod:`contactopt.sensitivity.adjoint`) turns these into a Clarke subgradient of
 Θ(α) = J(α, S(α)). To add an objective, subclass :class:`Objective` and register it in
-``OBJECTIVES``; nothing in the solver changes.
+``OBJECTIVES``; nothing in the solver changes. An objective holds the model (for the geometry
+and the design terms) and, for a 'design' target, a function that solves the state of a design
+— not the problem itself.
 """
 
 from __future__ import annotations
@@ -22,8 +24,8 @@ class Objective:
 
     name = "objective"
 
-    def __init__(self, problem, scale: float = 1.0):
-        self.problem = problem
+    def __init__(self, model, scale: float = 1.0):
+        self.model = model
         self.scale = float(scale)
 
     def evaluate(self, state, cond):
@@ -35,16 +37,17 @@ class TargetNormalForce(Objective):
 
     name = "target_normal_force"
 
-    def __init__(self, problem, target_spec: dict, scale: float = 1.0, case: int = 0):
-        super().__init__(problem, scale)
+    def __init__(self, model, target_spec: dict, scale: float = 1.0, case: int = 0, solve=None):
+        super().__init__(model, scale)
         self.spec = target_spec
         self.case = case              # the load case whose state a 'design' target is
+        self.solve = solve            # (alpha, case) -> λ of that design's state: a 'design' target
         self._target = None
 
     @property
     def target(self) -> np.ndarray:
         if self._target is None:
-            self._target = target_values(self.spec, self.problem, self.case)
+            self._target = target_values(self.spec, self.model, self.case, self.solve)
         return self._target
 
     def evaluate(self, state, cond):
@@ -76,7 +79,7 @@ class Compliance(Objective):
     name = "compliance"
 
     def evaluate(self, state, cond):
-        model = self.problem.model
+        model = self.model
         asm = cond.assembled
         value = float(asm.L_full @ state.u)
         zhat = model.assembler.to_full(cond.factor.recover(asm.L, np.zeros(3 * state.lam.size)))
@@ -89,26 +92,26 @@ OBJECTIVES = {"target_normal_force": TargetNormalForce, "pressure_uniformity": P
               "compliance": Compliance}
 
 
-def make_objective(config, problem, *, target=None, case: int = 0) -> Objective:
+def make_objective(config, model, *, target=None, case: int = 0, solve=None) -> Objective:
     """The objective of ``[objective]``; ``target`` (a load case's own) replaces objective.target,
-    ``case`` is the load case it belongs to (:mod:`contactopt.sensitivity.cases`)."""
+    ``case`` is the load case it belongs to (:mod:`contactopt.sensitivity.cases`), ``solve(alpha,
+    case)`` returns λ of a design's state (for a 'design' target)."""
     obj = config["objective"]
     cls = OBJECTIVES[obj["type"]]
     if cls is TargetNormalForce:
-        return cls(problem, obj["target"] if target is None else target, obj["scale"], case)
-    return cls(problem, obj["scale"])
+        return cls(model, obj["target"] if target is None else target, obj["scale"], case, solve)
+    return cls(model, obj["scale"])
 
 
-def target_values(spec: dict, problem, case: int = 0) -> np.ndarray:
+def target_values(spec: dict, model, case: int = 0, solve=None) -> np.ndarray:
     """Target normal force λ̄ per contact node from a target table of the configuration.
 
     kinds: ``constant`` (value), ``step`` (default, then regions {x1 = [lo, hi], x2 = [lo, hi], value}
     applied in order, bounds inclusive, later regions win; with ``per_area = true`` the values are
     contact stresses, multiplied by the nodes' tributary areas), ``values`` (one number per contact node),
     ``design`` (manufactured target λ̄ = λ(α*) for the given control points α*, under the loads
-    of load case ``case``).
+    of load case ``case``, by ``solve(alpha, case)``).
     """
-    model = problem.model
     xy = model.mesh.contact_points()
     p = xy.shape[0]
     kind = spec["kind"]
@@ -134,5 +137,5 @@ def target_values(spec: dict, problem, case: int = 0) -> np.ndarray:
     if kind == "design":
         alpha_star = model.surface.as_vector(spec["alpha"]) if not np.isscalar(spec["alpha"]) \
             else np.full(model.n_design, float(spec["alpha"]))
-        return problem.solve_state(alpha_star, warm_start=False, case=case).lam.copy()
+        return np.array(solve(alpha_star, case), dtype=float)
     raise ConfigError([f"objective.target.kind = {kind!r} is not known"])
