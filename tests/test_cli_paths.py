@@ -12,6 +12,7 @@ import csv
 import io
 import json
 import math
+import os
 import re
 
 import numpy as np
@@ -209,13 +210,17 @@ def test_check_gradient(tmp_path, path, cases):
 @pytest.mark.parametrize(("path", "cases"), COMBOS, ids=IDS)
 def test_sweep(tmp_path, path, cases):
     """A two-task sweep (F = 0 and 0.3) on one local worker: both runs finish, the tables are strict
-    JSON and repeat each run's summary."""
+    JSON and repeat each run's summary; the workers' thread limits stay in the workers (this
+    process's environment is as before)."""
     pytest.importorskip("distributed")
     cfg = write_config(tmp_path, path, cases)
     out = tmp_path / "sweep"
+    threads = ("OMP_NUM_THREADS", "MKL_NUM_THREADS", "OPENBLAS_NUM_THREADS")
+    before = {v: os.environ.get(v) for v in threads}
     code, stdout, stderr = cli("sweep", cfg, "--set", "friction.coefficient=0,0.3", "--workers", 1,
                                "--threads", 1, "--max-iter", 2, "--out", out)
     assert_clean(code, stdout, stderr)
+    assert {v: os.environ.get(v) for v in threads} == before
     js = all_json(out)
     rows = js["sweep.json"]
     assert [r["friction.coefficient"] for r in rows] == [0.0, 0.3]

@@ -34,7 +34,10 @@ def probes(tmp_path_factory):
     out = {}
     for name, extra in VARIANTS.items():
         env = dict(os.environ, **extra)
-        env.pop("CONTACTOPT_OPENBLAS_THREADS", None)
+        # the libraries' own thread counts, whatever an earlier test set in this process (the
+        # trajectory also depends on how many OpenBLAS threads the adjoint runs on: docs/stopping.md)
+        for var in ("CONTACTOPT_OPENBLAS_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS", "OPENBLAS_NUM_THREADS"):
+            env.pop(var, None)
         tmp = tmp_path_factory.mktemp(name.replace(" ", "_"))
         proc = subprocess.run([sys.executable, str(PROBE), str(tmp)], env=env, capture_output=True,
                               text=True, timeout=600)

@@ -85,7 +85,7 @@ from .newton import alart_curnier
 from .state import FROM_FCLIB, TO_FCLIB, displacement_scale
 from .zone import missed_nodes, near_nodes
 
-__all__ = ["solve_fullspace", "FullSpaceResult", "OPEN", "STICK", "SLIDE"]
+__all__ = ["solve_fullspace", "FullSpaceResult", "NewtonSystem", "OPEN", "STICK", "SLIDE"]
 
 log = logging.getLogger(__name__)
 
@@ -96,6 +96,72 @@ _TIGHT_BELOW = 0.01                   # error ≤ this·√tol and node classes 
                                       # at once (saves the last, equilibrium-only step)
 _STAGNATION_STEPS = 10                # no halving of the best error over this many steps:
 _RESCALE, _MAX_RESCALES = 0.25, 3     # ρ times _RESCALE, at most _MAX_RESCALES times
+# ----------------------------------------------------------------------------- Newton system
+class NewtonSystem:
+    """The linear system of one smooth piece of the full-space Newton method (module docstring),
+    per contact node (t1, t2, ν) DOFs ``cd``: Dirichlet DOFs D (all three of a sticking node, the
+    normal one of a sliding node), the Robin blocks K_t = k t tᵀ on the sliding nodes' tangential
+    DOFs, and the friction coupling c = μ n of a sliding node's normal row into its tangential
+    rows, so that on the rows I outside D
+
+        G = (I − C_N)(A + K_t),   (C_N y)_t = c y_ν.
+
+    :meth:`apply` is G (the state's Newton step), :meth:`apply_transpose` its transpose on I (the
+    adjoint (4.15), :mod:`contactopt.sensitivity.adjoint_fullspace`): the tangential unknowns
+    enter the normal DOF through −c."""
+
+    def __init__(self, A, cd, stick, slide, tvec, k, coupling):
+        n = A.shape[0]
+        self.A = A
+        self.dirichlet = np.zeros(n, dtype=bool)
+        self.dirichlet[cd[stick].ravel()] = True
+        self.dirichlet[cd[slide, 2]] = True
+        self.D = np.flatnonzero(self.dirichlet)
+        self.rows = np.repeat(cd[slide, :2], 2, axis=1).ravel()        # (t1,t1),(t1,t2),(t2,t1),(t2,t2)
+        self.cols = np.tile(cd[slide, :2], (1, 2)).ravel()
+        self.blk = (k[:, None, None] * tvec[:, :, None] * tvec[:, None, :]).reshape(-1)
+        self.kt = sp.csr_matrix((self.blk, (self.rows, self.cols)), shape=(n, n))
+        self.T1, self.T2, self.Nsl = cd[slide, 0], cd[slide, 1], cd[slide, 2]
+        self.c1, self.c2 = coupling[:, 0], coupling[:, 1]
+
+    def stiffness(self, x):
+        """(A + K_t) x."""
+        y = self.A @ x
+        if self.kt.nnz:
+            y += self.kt @ x
+        return y
+
+    def couple(self, y):
+        """(I − C_N) y in place: a sliding node's normal row, times c, out of its tangential rows."""
+        y[self.T1] -= self.c1 * y[self.Nsl]
+        y[self.T2] -= self.c2 * y[self.Nsl]
+        return y
+
+    def apply(self, x):
+        """G x on the rows I (zero on D)."""
+        y = self.couple(self.stiffness(x))
+        y[self.D] = 0.0
+        return y
+
+    def lift(self, x):
+        """x with the normal DOF of every sliding node set from its tangential ones, −cᵀx_t."""
+        w = x.copy()
+        w[self.Nsl] = -(self.c1 * x[self.T1] + self.c2 * x[self.T2])
+        return w
+
+    def apply_transpose(self, x):
+        """Gᵀ x on the rows I, for x zero on D."""
+        y = self.stiffness(self.lift(x))
+        y[self.D] = 0.0
+        return y
+
+    def fine_matrix(self, hierarchy):
+        """A + K_t for the V-cycle's smoother (a fresh copy)."""
+        H = hierarchy.fine_matrix(self.A)
+        H.data[block_positions(self.A, self.rows, self.cols)] += self.blk
+        return H
+
+
 @dataclass
 class FullSpaceResult:
     """A state solved in full space.
@@ -330,48 +396,27 @@ def _solve_fullspace(A, L, contact_dofs, gap, friction, coords, free, r0, u0, to
         classes[z] = cls
         st, sl = z[cls == STICK], z[cls == SLIDE]
         lsl = np.flatnonzero(cls == SLIDE)
-        dirichlet = np.zeros(n, dtype=bool)
-        dirichlet[cd[st].ravel()] = True
-        dirichlet[cd[sl, 2]] = True
         nvec = piece.nvec[lsl]
         tvec = np.column_stack((-nvec[:, 1], nvec[:, 0]))
         c = piece.c[lsl]
         k = c * rho[lsl] / (1.0 - c)
         mus = mu[lsl]
+        system = NewtonSystem(A, cd, st, sl, tvec, k, np.column_stack((mus * nvec[:, 0], mus * nvec[:, 1])))
+        dirichlet, kt, D, Nsl = system.dirichlet, system.kt, system.D, system.Nsl
         # H = A + K_t: restore the blocks of the last step, add the new ones
         if touched.size:
             H.data[touched] = A.data[touched]
         pos = tt_pos[sl].ravel()
-        blk = (k[:, None, None] * tvec[:, :, None] * tvec[:, None, :]).reshape(-1)
-        H.data[pos] += blk
+        H.data[pos] += system.blk
         touched = pos
-        kt = sp.csr_matrix((blk, (tt_rows.reshape(p, 4)[sl].ravel(), tt_cols.reshape(p, 4)[sl].ravel())),
-                           shape=(n, n))
-        T1, T2, Nsl = cd[sl, 0], cd[sl, 1], cd[sl, 2]
-        cn1, cn2 = mus * nvec[:, 0], mus * nvec[:, 1]
-        D = np.flatnonzero(dirichlet)
-
-        def apply(x):                   # G x on the rows I: (A + K_t) x, friction rows
-            y = A @ x
-            if kt.nnz:
-                y += kt @ x
-            y[T1] -= cn1 * y[Nsl]
-            y[T2] -= cn2 * y[Nsl]
-            y[D] = 0.0
-            return y
-
-        b = L.copy()
-        b[T1] -= cn1 * L[Nsl]
-        b[T2] -= cn2 * L[Nsl]
+        b = system.couple(L.copy())
         b[D] = 0.0
         x0 = u.copy()
         x0[cd[st, 0]] = 0.0
         x0[cd[st, 1]] = 0.0
         x0[cd[st, 2]] = -gap[st]
         x0[Nsl] = -gap[sl]
-        y0 = A @ x0 + kt @ x0           # b − G x0 on the rows I
-        y0[T1] -= cn1 * y0[Nsl]
-        y0[T2] -= cn2 * y0[Nsl]
+        y0 = system.couple(A @ x0 + kt @ x0)    # b − G x0 on the rows I
         rhs = b - y0
         rhs[D] = 0.0
         t1 = time.perf_counter()
@@ -381,7 +426,7 @@ def _solve_fullspace(A, L, contact_dofs, gap, friction, coords, free, r0, u0, to
         if settled and err <= _TIGHT_BELOW * np.sqrt(tol):
             eta = krylov_rtol
         try:
-            kres = gmres(apply, rhs, Mv, atol=eta * Lnorm, restart=restart, max_iter=max_krylov,
+            kres = gmres(system.apply, rhs, Mv, atol=eta * Lnorm, restart=restart, max_iter=max_krylov,
                          scale=Lnorm)
         except KrylovNotConverged as exc:
             exc.args = (f"full-space Newton step {len(history)}: {exc.args[0]}",)

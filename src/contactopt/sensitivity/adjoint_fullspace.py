@@ -37,9 +37,10 @@ import numpy as np
 import scipy.sparse as sp
 
 from .._threads import sequential_openblas
+from ..contact.fullspace import NewtonSystem
 from ..contact.state import CLASS_CODES, State, classify_nodes
 from ..errors import SolverError
-from ..fem.amg import ContactHierarchy, block_positions
+from ..fem.amg import ContactHierarchy
 from ..fem.krylov import KrylovNotConverged, gmres
 from .adjoint import DEFAULT_CHOICES, effective_classes
 
@@ -99,18 +100,10 @@ def _solve_adjoint(A, contact_dofs, classes, u_c, lam, y_u, y_lam, friction, hie
     ahat = ut / nut[:, None]
     tvec = np.column_stack((-ahat[:, 1], ahat[:, 0]))     # C = k t tᵀ, t ⊥ â
     k = F * np.asarray(lam)[slide] / nut
-    dirichlet = np.zeros(n, dtype=bool)
-    dirichlet[cd[stick].ravel()] = True
-    dirichlet[cd[slide, 2]] = True
-    D = np.flatnonzero(dirichlet)
-    rows = np.repeat(cd[slide, :2], 2, axis=1).ravel()
-    cols = np.tile(cd[slide, :2], (1, 2)).ravel()
-    blk = (k[:, None, None] * tvec[:, :, None] * tvec[:, None, :]).reshape(-1)
-    H = hierarchy.fine_matrix(A)                 # A + C for the V-cycle
-    H.data[block_positions(A, rows, cols)] += blk
-    kt = sp.csr_matrix((blk, (rows, cols)), shape=(n, n))
-    T1, T2, Nsl = cd[slide, 0], cd[slide, 1], cd[slide, 2]
-    fa1, fa2 = F * ahat[:, 0], F * ahat[:, 1]
+    # the transpose of the state's Newton system at the solution: n = −â, μ = F, K_t = C
+    system = NewtonSystem(A, cd, stick, slide, tvec, k, -F * ahat)
+    dirichlet, kt, D, Nsl = system.dirichlet, system.kt, system.D, system.Nsl
+    H = system.fine_matrix(hierarchy)            # A + C for the V-cycle
     # the known part v0: (0, 0, y*_λ) on M3+ nodes, y*_λ in the normal DOF of M1 nodes
     v0 = np.zeros(n)
     v0[cd[stick, 2]] = y_lam[stick]
@@ -119,17 +112,6 @@ def _solve_adjoint(A, contact_dofs, classes, u_c, lam, y_u, y_lam, friction, hie
     f[cd.ravel()] = -np.asarray(y_u, dtype=np.float64)
     rhs = f - A @ v0 - kt @ v0
     rhs[D] = 0.0
-
-    def lift(x):                        # ṽ − v0 = x + N'x: the normal DOF of M1 nodes from v_t
-        w = x.copy()
-        w[Nsl] = fa1 * x[T1] + fa2 * x[T2]
-        return w
-
-    def apply(x):
-        w = lift(x)
-        y = A @ w + kt @ w
-        y[D] = 0.0
-        return y
 
     t1 = time.perf_counter()
     M = hierarchy.preconditioner(H, dirichlet, kt)
@@ -140,12 +122,12 @@ def _solve_adjoint(A, contact_dofs, classes, u_c, lam, y_u, y_lam, friction, hie
         if warm is not None:
             x0 = np.array(warm, dtype=np.float64)
             x0[D] = 0.0
-        res = gmres(apply, rhs, M, x0=x0, atol=rtol * scale, restart=restart, max_iter=max_iter, scale=scale)
+        res = gmres(system.apply_transpose, rhs, M, x0=x0, atol=rtol * scale, restart=restart, max_iter=max_iter, scale=scale)
     except KrylovNotConverged as exc:
         exc.args = (f"full-space adjoint (4.15): {exc.args[0]}",)
         raise
     t3 = time.perf_counter()
-    v = lift(res.x) + v0
+    v = system.lift(res.x) + v0             # ṽ − v0: the normal DOF of M1 nodes from v_t
     resid = (A @ v)[cd.ravel()] + y_u
     free_lam = eff != cc["L"]
     v_lam = np.where(free_lam, -resid[2::3], 0.0)

@@ -68,10 +68,16 @@ def connect(*, workers: int | None = None, scheduler: str | None = None, threads
         return
     n = workers or usable_cores()
     per_task = threads or max(1, usable_cores() // n)
-    # set before MKL and OpenBLAS load in the worker processes
+    # set before MKL and OpenBLAS load in the worker processes; dask puts them into this
+    # process's environment to spawn the workers, and they are taken out again afterwards, so
+    # that a sweep started from Python (a notebook, a test) leaves the caller's threads alone
     env = {var: str(per_task) for var in THREAD_VARS}
-    cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True,
-                           dashboard_address=dashboard_address, env=env)
+    saved = {var: os.environ.get(var) for var in THREAD_VARS}
+    try:
+        cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True,
+                               dashboard_address=dashboard_address, env=env)
+    finally:
+        _restore_environment(saved)
     try:
         client = Client(cluster)
         try:
@@ -80,6 +86,14 @@ def connect(*, workers: int | None = None, scheduler: str | None = None, threads
             client.close()
     finally:
         cluster.close()
+
+
+def _restore_environment(saved: dict) -> None:
+    for var, value in saved.items():
+        if value is None:
+            os.environ.pop(var, None)
+        else:
+            os.environ[var] = value
 
 
 def dashboard_link(client) -> str | None:
