@@ -72,7 +72,7 @@ class Foundation:
         PW = (P @ self.W_f)                                      # (3p, n) dense
         C = np.asarray((P @ PW.T).T)
         self.C = 0.5 * (C + C.T)
-        self._P = P
+        self.P = P                # Π on the free support DOFs (the clamped ones do not move)
         self.q_f = np.zeros(3 * p)
         log.info("elastic foundation %s: %d nodes, %d free DOFs, E = %g, nu = %g; %d top-face nodes carry "
                  "the partners of %d contact nodes", ref.source, ref.n_nodes, self.assembler.n_free, fm.E, fm.nu,
@@ -89,7 +89,7 @@ class Foundation:
     def displacement(self, r: np.ndarray) -> np.ndarray:
         """The foundation's full displacement (3·n_f,) under −Πᵀ r (zero on its clamped DOFs)."""
         f = np.zeros(self.assembler.n_free)
-        f[self._support_free] = -(self._P.T @ np.ravel(r))
+        f[self._support_free] = -(self.P.T @ np.ravel(r))
         return self.assembler.to_full(self.condensation.solve(f))
 
     def summary(self) -> dict:
@@ -97,6 +97,57 @@ class Foundation:
         return {"source": fm.reference.source, "cell_type": fm.reference.cell_type, "nodes": int(self.n_nodes),
                 "cells": int(fm.reference.n_cells), "free_dofs": int(self.assembler.n_free), "E": fm.E,
                 "nu": fm.nu, "support_nodes": int(self.support.size)}
+
+
+class Coupling:
+    """The body's condensed stiffness S(α) of one design coupled with the foundation (module
+    docstring): S_eff = (S⁻¹ + C)⁻¹ by the Woodbury identity, with C = P W_f Pᵀ, W_f = S_f⁻¹
+    (S_f the foundation's stiffness condensed on its free support DOFs, P = Π on them):
+
+        S_eff = S − G M⁻¹ Gᵀ,   G = S P,   M = S_f + Pᵀ S P   (m × m, m = free support DOFs),
+
+    formed as S − Y Yᵀ with Y = G L_M⁻ᵀ (M = L_M L_Mᵀ): no inverse of S and none of S + …, one
+    Cholesky factorization of M (m is about the number of top-face DOFs under the contact face;
+    where the foundation is coarser than the body, m < 3p). The transfers
+
+        S_eff S⁻¹ x = x − G M⁻¹ Pᵀ x,     S⁻¹ S_eff v = v − P M⁻¹ Gᵀ v
+
+    give ℓ_eff = S_eff (S⁻¹ℓ − Π q_f) and the adjoint's z = S⁻¹ S_eff v_u. Per contact node the
+    order is (t1, t2, ν); r is the contact force on the body."""
+
+    def __init__(self, S: np.ndarray, foundation: Foundation):
+        from scipy.linalg import solve_triangular
+
+        from .dense import cholesky_lower
+        self.foundation = f = foundation
+        P = f.P
+        self._P = P
+        G = np.ascontiguousarray((P.T @ S).T)                    # S P, S symmetric
+        M = np.array(f.condensation.S, dtype=np.float64, order="C") + np.asarray(P.T @ G)
+        self._L = cholesky_lower(0.5 * (M + M.T))
+        self._G = G
+        Y = solve_triangular(self._L.T, G.T, lower=False, trans="T", check_finite=False)   # L_M⁻¹ Gᵀ
+        self.S_eff = S - Y.T @ Y
+        self.S_eff = 0.5 * (self.S_eff + self.S_eff.T)
+
+    def _solve_M(self, b: np.ndarray) -> np.ndarray:
+        from .dense import cholesky_solve
+        return cholesky_solve(self._L, b)
+
+    def ell_eff(self, ell: np.ndarray) -> np.ndarray:
+        """ℓ_eff = S_eff (S⁻¹ℓ − Π q_f) (3p,)."""
+        out = ell - self._G @ self._solve_M(self._P.T @ ell)
+        if np.any(self.foundation.q_f):
+            out -= self.S_eff @ self.foundation.q_f
+        return out
+
+    def adjoint_z(self, v_u: np.ndarray) -> np.ndarray:
+        """z = S⁻¹ S_eff v_u (3p,): the design terms' adjoint on the body's contact DOFs."""
+        return v_u - self._P @ self._solve_M(self._G.T @ v_u)
+
+    def body_displacement(self, w: np.ndarray, r: np.ndarray) -> np.ndarray:
+        """The body's contact displacement u_c = w + Π u_f = w + Π q_f − C r (3p,)."""
+        return np.ravel(w) + self.foundation.partner_displacement(r)
 
 
 def locate_partners(points: np.ndarray, faces: np.ndarray, ftype: str, xy: np.ndarray, contact_nodes, where: str):

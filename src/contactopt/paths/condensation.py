@@ -16,10 +16,11 @@ w = W r + S⁻¹ℓ − Π q_f with W = S⁻¹ + C. With
 
 the zone problems are those of the rigid foundation on (S_eff, ℓ_eff) — the state's ``u_c`` is
 w, its node classes those of w, the gap ϑ_α as before — and the body's own contact
-displacement is u_c = S⁻¹(ℓ + r). The adjoint (4.15) is solved with S_eff; differentiating
-S_eff w − ℓ_eff at fixed w gives S_eff S⁻¹(∂S u_c − ∂ℓ), so the design terms take
-z = S⁻¹ S_eff v_u in place of v_u: ṽ is the A-harmonic extension of z. Without a foundation
-(C = 0) nothing of this is formed.
+displacement is u_c = S⁻¹(ℓ + r) = w + Π q_f − C r. The adjoint (4.15) is solved with S_eff;
+differentiating S_eff w − ℓ_eff at fixed w gives S_eff S⁻¹(∂S u_c − ∂ℓ), so the design terms take
+z = S⁻¹ S_eff v_u in place of v_u: ṽ is the A-harmonic extension of z. S_eff and both
+transfers come from the Woodbury identity (:class:`contactopt.fem.foundation.Coupling`), with no
+inverse of S. Without a foundation (C = 0) nothing of this is formed.
 """
 
 from __future__ import annotations
@@ -47,9 +48,12 @@ class CondensedSystem:
     ell: np.ndarray
     gap: np.ndarray
     timings: dict
-    W_body: np.ndarray | None = None   # on an elastic foundation: S⁻¹ ...
-    S_eff: np.ndarray | None = None    # ... S_eff = (S⁻¹ + C)⁻¹ ...
+    coupling: object = None            # on an elastic foundation: fem.foundation.Coupling, S_eff ...
     ell_eff: np.ndarray | None = None  # ... and ℓ_eff = S_eff (S⁻¹ℓ − Π q_f) (module docstring)
+
+    @property
+    def S_eff(self):
+        return None if self.coupling is None else self.coupling.S_eff
 
     @property
     def contact_S(self) -> np.ndarray:
@@ -94,10 +98,9 @@ class CondensationPath(ZonePath):
             fac = self._factor = condense(asm.A, self.model.contact_dofs, backend=self.library)
         system = CondensedSystem(asm, fac, fac.S, fac.condense_load(asm.L), asm.gap, {})
         if self.foundation is not None:
-            from ..fem.dense import spd_inverse
-            system.W_body = spd_inverse(system.S)
-            system.S_eff = spd_inverse(system.W_body + self.foundation.C)
-            system.ell_eff = self._ell_eff(system)
+            from ..fem.foundation import Coupling
+            system.coupling = Coupling(system.S, self.foundation)
+            system.ell_eff = system.coupling.ell_eff(system.ell)
         system.timings["schur"] = time.perf_counter() - t1
         return system
 
@@ -105,16 +108,12 @@ class CondensationPath(ZonePath):
     def foundation(self):
         return getattr(self.model, "foundation", None)
 
-    def _ell_eff(self, system) -> np.ndarray:
-        """ℓ_eff = S_eff (S⁻¹ℓ − Π q_f) (module docstring)."""
-        return system.S_eff @ (system.W_body @ system.ell - self.foundation.q_f)
-
     def for_load(self, system, asm) -> CondensedSystem:
         t1 = time.perf_counter()
         ell = system.factor.condense_load(asm.L)
         out = replace(system, assembled=asm, ell=ell, timings={})
-        if out.S_eff is not None:
-            out.ell_eff = self._ell_eff(out)
+        if out.coupling is not None:
+            out.ell_eff = out.coupling.ell_eff(ell)
         out.timings["schur"] = time.perf_counter() - t1
         return out
 
@@ -127,19 +126,19 @@ class CondensationPath(ZonePath):
         return zp, zone
 
     def free_displacement(self, system, zp, r_loc, u_c):
-        if system.W_body is None:
+        if system.coupling is None:
             return system.factor.recover(system.assembled.L, u_c.ravel())
-        # on a foundation u_c is the relative displacement w; the body's own is S⁻¹(ℓ + r)
+        # on a foundation u_c is the relative displacement w; the body's own is w + Π u_f
         r = np.zeros((self.model.n_contact, 3))
         r[zp.zone] = r_loc.reshape(-1, 3)[:, FROM_FCLIB]
-        return system.factor.recover(system.assembled.L, system.W_body @ (system.ell + r.ravel()))
+        return system.factor.recover(system.assembled.L, system.coupling.body_displacement(u_c, r))
 
     def contact_info(self, system, u_c, r) -> dict:
         """On a foundation: the body's contact displacement and its partners' (p, 3) per node
         (t1, t2, ν); w = u_c − partner is the state's ``u_c``."""
-        if system.W_body is None:
+        if system.coupling is None:
             return {}
-        body = (system.W_body @ (system.ell + r.ravel())).reshape(-1, 3)
+        body = system.coupling.body_displacement(u_c, r).reshape(-1, 3)
         return {"foundation": True, "u_body_c": body, "u_partner": body - u_c,
                 "foundation_u": self.foundation.displacement(r)}
 
@@ -154,7 +153,7 @@ class CondensationPath(ZonePath):
         z = S⁻¹ S_eff v_u (module docstring)."""
         from ..sensitivity.adjoint import solve_adjoint
         v_u, v_lam = solve_adjoint(system.contact_S, state, y_u, y_lam, choices)
-        z = v_u if system.W_body is None else system.W_body @ (system.S_eff @ v_u)
+        z = v_u if system.coupling is None else system.coupling.adjoint_z(v_u)
         return v_u, v_lam, self.model.assembler.to_full(system.factor.extend(z))
 
     def uniqueness_bound(self, system):
