@@ -257,6 +257,11 @@ FOUNDATION = {
                 "foundation in place (no rigid-body motion)"),
     "material": ({}, _material_spec, "a table { E = ..., nu = ... } (Young's modulus > 0, Poisson's ratio in "
                  "(−1, 0.5)); a key not given is the body's [material] value"),
+    "partner": ("point", _oneof("point", "average"),
+                "'point' (a contact node's partner is the point of the top face directly below it: exact "
+                "node-to-node coupling on matching meshes) or 'average' (the mean of the foundation's "
+                "displacement over the node's tributary area: a foundation finer than the body then "
+                "converges; linear body elements only)"),
     "tolerance": (1e-3, lambda x: _pos(x) and x < 0.5,
                   "a number in (0, 0.5) (geometric tolerance of the checks of the foundation's mesh, "
                   "relative to its median boundary edge length)"),

@@ -45,23 +45,32 @@ class Foundation:
 
     Attributes: ``mesh`` (:class:`~contactopt.mesh.foundation.FoundationMesh`), ``assembler`` (on
     its free DOFs), ``support`` (top-face nodes carrying partners), ``Pi`` (3p × 3n_s sparse, per
-    contact node (t1, t2, ν) and support node (x1, x2, x3)), ``partner_faces`` (p,), ``W_f``
+    contact node (t1, t2, ν) and support node (x1, x2, x3)), ``partner`` ('point' or 'average'), ``W_f``
     (on the free support DOFs), ``C`` (3p × 3p), ``q_f`` (3p,), ``condensation`` (of K_f onto the
     free support DOFs: the foundation's displacement for outputs)."""
 
-    def __init__(self, cfg, contact_xy: np.ndarray, contact_nodes: np.ndarray, backend: str = "auto"):
+    def __init__(self, cfg, body, backend: str = "auto"):
         from .linsolve import condense
+        contact_nodes = body.contact_nodes
+        contact_xy = body.reference.points[contact_nodes, :2]
         self.mesh = fm = build_foundation_mesh(cfg, contact_xy)
         ref = fm.reference
+        self.partner = cfg["foundation"]["partner"]
         self.assembler = ElasticityAssembler(ref.cells, ref.n_nodes, fm.fixed_dofs, fm.E, fm.nu,
                                              element=element_type(ref.cell_type))
-        faces, weights = locate_partners(ref.points, fm.top.faces, ref.face_type, contact_xy, contact_nodes,
-                                         f"{cfg.source}: foundation.top")
-        self.partner_faces = faces
+        where = f"{cfg.source}: foundation.top"
         p = contact_xy.shape[0]
-        nodes = fm.top.faces[faces]                              # (p, k) support nodes of each partner
-        self.support = np.unique(nodes)
-        self.Pi = _partner_matrix(nodes, weights, self.support, p)
+        if self.partner == "point":
+            faces, weights = locate_partners(ref.points, fm.top.faces, ref.face_type, contact_xy, contact_nodes,
+                                             where)
+            rows, cols, vals = np.repeat(np.arange(p), weights.shape[1]), fm.top.faces[faces].ravel(), weights.ravel()
+        else:
+            rows, cols, vals = averaged_partners(body, fm, where)
+        Pn = sp.csr_matrix((vals, (rows, cols)), shape=(p, ref.n_nodes))
+        Pn.sum_duplicates()
+        Pn.eliminate_zeros()
+        self.support = np.unique(Pn.indices)                     # top-face nodes carrying partners
+        self.Pi = sp.kron(Pn[:, self.support], sp.identity(3), format="csr")
         free = self.assembler.full_to_free[(3 * self.support[:, None] + np.arange(3)).ravel()]
         keep = free >= 0                                         # clamped components do not move
         self._support_free = free[keep]
@@ -150,7 +159,8 @@ class Coupling:
         return np.ravel(w) + self.foundation.partner_displacement(r)
 
 
-def locate_partners(points: np.ndarray, faces: np.ndarray, ftype: str, xy: np.ndarray, contact_nodes, where: str):
+def locate_partners(points: np.ndarray, faces: np.ndarray, ftype: str, xy: np.ndarray, contact_nodes, where: str,
+                    what: str = "contact node(s)"):
     """(face (p,), weights (p, k)): the top face containing each point of ``xy`` (p, 2) in its
     projection on x3 = 0, and its shape functions there. A point no face contains is an error
     naming their count and the first ones (``contact_nodes``: the body's node numbers)."""
@@ -171,8 +181,12 @@ def locate_partners(points: np.ndarray, faces: np.ndarray, ftype: str, xy: np.nd
                 break
     miss = np.flatnonzero(face < 0)
     if miss.size:
-        first = ", ".join(f"contact node {m} (body node {int(contact_nodes[m])}) at {_fmt(xy[m])}" for m in miss[:5])
-        raise ConfigError([f"{where}: the vertical lines of {miss.size} of {p} contact node(s) miss the foundation's "
+        if what == "contact node(s)":
+            first = ", ".join(f"contact node {m} (body node {int(contact_nodes[m])}) at {_fmt(xy[m])}"
+                              for m in miss[:5])
+        else:
+            first = ", ".join(f"{_fmt(xy[m])} (on the face of body node {int(contact_nodes[m])})" for m in miss[:5])
+        raise ConfigError([f"{where}: the vertical lines of {miss.size} of {p} {what} miss the foundation's "
                            f"top face, first: {first}"])
     N, _ = ft.shape(ref)
     return face, N
@@ -199,14 +213,75 @@ def _reference_point(X: np.ndarray, x: np.ndarray, nc: int):
     return xi, bool(np.abs(xi).max() <= 1 + INSIDE_TOL)
 
 
-def _partner_matrix(nodes: np.ndarray, weights: np.ndarray, support: np.ndarray, p: int) -> sp.csr_matrix:
-    """Π (3p × 3n_s): row 3m + k, column 3j + k holds the weight of support node j at partner m."""
-    col = np.searchsorted(support, nodes)                         # (p, k)
-    k = np.arange(3)
-    rows = (3 * np.arange(p)[:, None, None] + k).repeat(nodes.shape[1], axis=1)   # (p, k, 3)
-    cols = 3 * col[:, :, None] + k
-    vals = np.broadcast_to(weights[:, :, None], cols.shape)
-    return sp.csr_matrix((vals.ravel(), (rows.ravel(), cols.ravel())), shape=(3 * p, 3 * support.size))
+def averaged_partners(body, fm, where: str):
+    """(rows, cols, values) of Π for ``partner = "average"``: contact node m's partner
+    displacement is the mean of u_f over its tributary area on the contact face,
+
+        (Π u_f)_m = ∫ φ_m u_f dA / ∫ φ_m dA,
+
+    φ_m the body's face shape function of node m, integrated over the body's contact faces
+    projected on x3 = 0 by a composite Gauss rule fine enough for the foundation's faces. The
+    force −r_m on the foundation is then the traction r_m φ_m/∫φ_m (work-conjugate): a smooth
+    load, so the foundation's compliance converges as its mesh is refined, where point partners
+    carry a point load whose compliance grows like 1/h_f (docs/foundation.md). Rows are contact
+    nodes, columns foundation nodes."""
+    ref = body.reference
+    ftype = face_type(ref.face_type)
+    if ftype.degree != 1:
+        raise ConfigError([f"{where}: foundation.partner = 'average' needs a body of linear elements "
+                           f"(its contact face has {ftype.name} faces, whose corner nodes carry no area); "
+                           "use partner = 'point'"])
+    faces = body.contact_face.faces
+    X = ref.points[faces, :2]                                     # (F, n, 2)
+    top = fm.reference.points[fm.top.faces[:, :FACE_CORNERS[fm.reference.face_type]], :2]
+    h_body = np.median(np.linalg.norm(X - np.roll(X, -1, axis=1), axis=2))
+    h_top = np.median(np.linalg.norm(top - np.roll(top, -1, axis=1), axis=2))
+    k = max(2, int(np.ceil(2.0 * h_body / h_top)))
+    q, w = _composite_rule(ftype.name, k)
+    N, dN = ftype.shape(q)                                        # (Q, n), (Q, n, 2)
+    x = np.einsum("qa,fai->fqi", N, X)
+    J = np.einsum("qaj,fai->fqij", dN, X)
+    dA = np.abs(np.linalg.det(J)) * w                             # (F, Q)
+    which = np.full(ref.n_nodes, -1)
+    which[body.contact_nodes] = np.arange(body.contact_nodes.size)
+    xq = x.reshape(-1, 2)
+    fq, Nf = locate_partners(fm.reference.points, fm.top.faces, fm.reference.face_type, xq,
+                             np.repeat(faces[:, 0], q.shape[0]), where, what="quadrature point(s) of the contact face")
+    fnodes = fm.top.faces[fq]                                     # (F·Q, nf)
+    rows, cols, vals = [], [], []
+    phi = (N[None] * dA[:, :, None]).reshape(-1, N.shape[1])      # (F·Q, n): φ_a dA
+    for a in range(N.shape[1]):
+        m = which[np.repeat(faces[:, a], q.shape[0])]
+        ok = m >= 0                                               # clamped face nodes: no contact node
+        rows.append(np.repeat(m[ok], fnodes.shape[1]))
+        cols.append(fnodes[ok].ravel())
+        vals.append((phi[ok, a][:, None] * Nf[ok]).ravel())
+    rows, cols, vals = np.concatenate(rows), np.concatenate(cols), np.concatenate(vals)
+    area = np.bincount(rows, weights=vals, minlength=body.contact_nodes.size)   # Σ_b N_b = 1: ∫φ_m dA
+    return rows, cols, vals / area[rows]
+
+
+def _composite_rule(name: str, k: int):
+    """Points (Q, 2) and weights of a composite rule on the reference face: k×k squares with
+    2×2 Gauss on [−1, 1]², or k² triangles with the 3-point rule on the unit triangle."""
+    if name == "quad":
+        g = np.array([-1.0, 1.0]) / np.sqrt(3.0)
+        t = (np.arange(k)[:, None] + (g[None] + 1) / 2).ravel() * (2.0 / k) - 1.0      # (2k,)
+        q = np.array([(a, b) for b in t for a in t])
+        return q, np.full(q.shape[0], (1.0 / k) ** 2)
+    from .elements import tri_rule
+    qt, wt = tri_rule(2)
+    pts, wts = [], []
+    for i in range(k):
+        for j in range(k - i):
+            tris = [((i, j), (i + 1, j), (i, j + 1))]
+            if i + j <= k - 2:
+                tris.append(((i + 1, j), (i + 1, j + 1), (i, j + 1)))
+            for A, B, C in tris:
+                A, B, C = np.array(A) / k, np.array(B) / k, np.array(C) / k
+                pts.append(A + np.outer(qt[:, 0], B - A) + np.outer(qt[:, 1], C - A))
+                wts.append(wt / k ** 2)
+    return np.vstack(pts), np.concatenate(wts)
 
 
 def _fmt(x) -> str:

@@ -101,7 +101,7 @@ class ElasticModel:
         self.foundation = None      # [foundation]: the elastic foundation under the contact face
         if "foundation" in cfg.data:
             from .foundation import Foundation
-            self.foundation = Foundation(cfg, ref.points[self.contact_nodes, :2], self.contact_nodes)
+            self.foundation = Foundation(cfg, body)
 
     # ------------------------------------------------------------------ checks
     def _check_reference(self, ref) -> None:
