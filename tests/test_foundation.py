@@ -203,6 +203,37 @@ def test_averaged_partners_converge_on_a_finer_foundation_point_partners_do_not(
     assert 1.8 < c2 / c1 < 2.2
 
 
+# ------------------------------------------------------------------ outputs
+GOOD = ('name = "slab"\n[mesh]\nnx = 8\nny = 4\nnz = 3\n[foundation]\n'
+        'block = { size = [3.0, 2.0, 1.0], cells = [6, 4, 2], origin = [-0.5, -0.5] }\nmaterial = { E = 2.0 }\n')
+
+
+def test_state_and_run_write_the_foundation(tmp_path, capsys):
+    import json
+
+    cfg = tmp_path / "slab.toml"
+    cfg.write_text(GOOD)
+    assert main(["state", str(cfg), "--out", str(tmp_path / "st")]) == 0
+    st = tmp_path / "st"
+    assert {"foundation.vtu", "foundation.png", "body.vtu"} <= {p.name for p in st.iterdir()}
+    doc = json.loads((st / "state.json").read_text())
+    assert doc["foundation"]["E"] == 2.0 and doc["foundation"]["cell_type"] == "hexahedron"
+    w, body, partner = (np.array(doc["contact"][k]) for k in ("u_c", "u_body", "u_partner"))
+    assert np.allclose(w, body - partner, atol=1e-15)
+    f = meshio.read(st / "foundation.vtu")
+    force = f.point_data["contact_force"].sum(axis=0)
+    assert np.isclose(force[2], -sum(doc["contact"]["lam"]), rtol=1e-12)     # −λ on the foundation
+    assert np.abs(f.point_data["displacement"][f.point_data["part:bottom"] == 1]).max() == 0.0
+    b = meshio.read(st / "body.vtu")
+    assert {"foundation_displacement", "relative_displacement"} <= set(b.point_data)
+    from contactopt.runner import run_optimization
+    res = run_optimization(load_config(cfg), tmp_path / "run", max_iter=2)
+    assert res.summary["foundation"]["nodes"] == 7 * 5 * 3
+    pvd = (tmp_path / "run" / "bodies.pvd").read_text()
+    assert 'part="1" file="optimal_foundation.vtu"' in pvd
+    assert "elastic foundation: source foundation block 6×4×2" in (tmp_path / "run" / "run.log").read_text()
+
+
 # ------------------------------------------------------------------ bad input
 def _toml(tmp_path, foundation: str) -> Path:
     p = tmp_path / "bad.toml"
