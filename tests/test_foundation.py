@@ -203,6 +203,19 @@ def test_averaged_partners_converge_on_a_finer_foundation_point_partners_do_not(
     assert 1.8 < c2 / c1 < 2.2
 
 
+def test_load_cases_on_a_foundation():
+    """A case's state is the same whether it is the first case (prepare) or another (for_load)."""
+    cfg = load_config(Path(__file__).parent.parent / "examples" / "example1_two_cases.toml")
+    cfg = cfg.with_updates({**COARSE, "foundation": {"block": _block(), "material": {"E": E_BODY / 10}}})
+    swapped = cfg.with_updates({"load_cases": cfg["load_cases"][::-1]})
+    a, b = ShapeProblem(cfg), ShapeProblem(swapped)
+    alpha = a.model.initial_design()
+    sa, sb = a.solve_states(alpha), b.solve_states(alpha)
+    for x, y in ((sa[0], sb[1]), (sa[1], sb[0])):
+        assert np.abs(x.lam - y.lam).max() <= 1e-10 * x.lam.max()
+    assert np.abs(sa[0].lam - sa[1].lam).max() > 0.02 * sa[0].lam.max()        # the cases differ
+
+
 # ------------------------------------------------------------------ outputs
 GOOD = ('name = "slab"\n[mesh]\nnx = 8\nny = 4\nnz = 3\n[foundation]\n'
         'block = { size = [3.0, 2.0, 1.0], cells = [6, 4, 2], origin = [-0.5, -0.5] }\nmaterial = { E = 2.0 }\n')
