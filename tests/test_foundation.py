@@ -247,6 +247,22 @@ def test_state_and_run_write_the_foundation(tmp_path, capsys):
     assert "elastic foundation: source foundation block 6×4×2" in (tmp_path / "run" / "run.log").read_text()
 
 
+def test_resumed_run_on_a_foundation_repeats_the_uninterrupted_one(tmp_path):
+    """The checkpoint's contexts (warm start, zone, kept Delassus block of S_eff) are rebuilt."""
+    import json
+
+    from contactopt.runner import run_optimization
+    cfg = load_config("example1").with_updates({"mesh": {"nx": 8, "ny": 4, "nz": 3}, "optimizer": {"ftol": 0.0, "eps": 1e-12},
+                                                "foundation": {"block": _block(cells=(6, 4, 2)), "material": {"E": 2.0}}})
+    full = run_optimization(cfg, tmp_path / "full", max_iter=8)
+    run_optimization(cfg, tmp_path / "part", max_iter=4)
+    resumed = run_optimization(cfg, tmp_path / "part", max_iter=8, resume=True)
+    assert full.summary["iterations"] == resumed.summary["iterations"] == 8
+    assert resumed.summary["J"] == full.summary["J"]
+    assert (json.loads((tmp_path / "part" / "alpha.json").read_text())
+            == json.loads((tmp_path / "full" / "alpha.json").read_text()))
+
+
 # ------------------------------------------------------------------ bad input
 def _toml(tmp_path, foundation: str) -> Path:
     p = tmp_path / "bad.toml"

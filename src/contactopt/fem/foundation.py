@@ -126,8 +126,9 @@ class Coupling:
 
     def __init__(self, S: np.ndarray, foundation: Foundation):
         from scipy.linalg import solve_triangular
+        from scipy.linalg.blas import dsyrk
 
-        from .dense import cholesky_lower
+        from .dense import cholesky_lower, symmetrize_lower
         self.foundation = f = foundation
         P = f.P
         self._P = P
@@ -136,8 +137,8 @@ class Coupling:
         self._L = cholesky_lower(0.5 * (M + M.T))
         self._G = G
         Y = solve_triangular(self._L.T, G.T, lower=False, trans="T", check_finite=False)   # L_M⁻¹ Gᵀ
-        self.S_eff = S - Y.T @ Y
-        self.S_eff = 0.5 * (self.S_eff + self.S_eff.T)
+        YtY = dsyrk(1.0, Y.T, trans=0, lower=1)                  # lower triangle of YᵀY (half a product)
+        self.S_eff = symmetrize_lower(np.ascontiguousarray(np.tril(S) - YtY))
 
     def _solve_M(self, b: np.ndarray) -> np.ndarray:
         from .dense import cholesky_solve
