@@ -47,7 +47,7 @@ def _read_alpha(path: str, model) -> np.ndarray:
 def _cmd_state(args) -> int:
     from .io.atomic import atomic_write_json
     from .io.rundir import prepare_output_dir
-    from .io.statefiles import STATE_FILES, write_state
+    from .io.statefiles import state_files, write_state
     from .problem import ShapeProblem
     problem = ShapeProblem(args.config, method=args.method)
     model = problem.model
@@ -74,7 +74,7 @@ def _cmd_state(args) -> int:
     if not problem.has_load_cases:
         write_state(out, model, states[0], config=problem.config)
         _print_state(states[0], bound, reason)
-        print(f"  wrote {out}/ ({', '.join(STATE_FILES)}) in {time.perf_counter() - t0:.1f}s")
+        print(f"  wrote {out}/ ({', '.join(state_files(model))}) in {time.perf_counter() - t0:.1f}s")
         return 0
     # load cases: one directory per case, and cases.json listing them
     names = problem.case_names
@@ -88,7 +88,7 @@ def _cmd_state(args) -> int:
     atomic_write_json(out / "cases.json", {
         "name": problem.config.name, "combine": problem.combination.kind, "names": list(names),
         "cases": [{"name": n, "directory": d, "summary": st.summary()} for n, d, st in zip(names, dirs, states)]})
-    print(f"  wrote {out}/cases.json and {len(names)} case directories ({', '.join(STATE_FILES)}) "
+    print(f"  wrote {out}/cases.json and {len(names)} case directories ({', '.join(state_files(model))}) "
           f"in {time.perf_counter() - t0:.1f}s")
     return 0
 

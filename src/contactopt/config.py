@@ -222,6 +222,51 @@ SCHEMA = {
                         "the run)"),
     },
 }
+
+
+def _block_spec(x):
+    """A foundation block: {size = [s1, s2, s3] > 0, cells = [n1, n2, n3] ≥ 1, origin = [o1, o2],
+    element = 'hexahedron' | 'tetra'} (origin and element optional)."""
+    if not isinstance(x, dict) or set(x) - {"size", "cells", "origin", "element"} or not {"size", "cells"} <= set(x):
+        return False
+    size, cells = x["size"], x["cells"]
+    origin, element = x.get("origin", [0.0, 0.0]), x.get("element", "hexahedron")
+    return (isinstance(size, list) and len(size) == 3 and all(_pos(v) for v in size)
+            and isinstance(cells, list) and len(cells) == 3 and all(_posint(v) for v in cells)
+            and isinstance(origin, list) and len(origin) == 2 and all(_finite(v) for v in origin)
+            and element in ("hexahedron", "tetra"))
+
+
+def _material_spec(x):
+    if not isinstance(x, dict) or set(x) - {"E", "nu"}:
+        return False
+    return _pos(x.get("E", 1.0)) and _finite(x.get("nu", 0.0)) and -1.0 < x.get("nu", 0.0) < 0.5
+
+
+# [foundation]: optional — absent, the foundation is the rigid half-space x3 ≤ 0 (docs/foundation.md)
+FOUNDATION = {
+    "mesh": ("", lambda x: isinstance(x, str),
+             "a path to the foundation's mesh file (as body.mesh), relative to this file; or empty with `block`"),
+    "block": ({}, lambda x: x == {} or _block_spec(x),
+              "a table { size = [s1, s2, s3], cells = [n1, n2, n3], origin = [o1, o2], element = 'hexahedron' "
+              "| 'tetra' }: the box [o1, o1+s1]×[o2, o2+s2]×[−s3, 0] (top face on x3 = 0, the foundation below) "
+              "with parts top, bottom, left (x1 = o1), right, front (x2 = o2), back; origin defaults to "
+              "[0, 0], element to hexahedra (tetra: each split into six)"),
+    "top": ("top", _part_spec, _PART + " (the foundation's face on x3 = 0 under the contact face)"),
+    "clamped": ("bottom", _clamp_spec, "as body.clamped, on the foundation's mesh; it must hold the "
+                "foundation in place (no rigid-body motion)"),
+    "material": ({}, _material_spec, "a table { E = ..., nu = ... } (Young's modulus > 0, Poisson's ratio in "
+                 "(−1, 0.5)); a key not given is the body's [material] value"),
+    "partner": ("point", _oneof("point", "average"),
+                "'point' (a contact node's partner is the point of the top face directly below it: exact "
+                "node-to-node coupling on matching meshes) or 'average' (the mean of the foundation's "
+                "displacement over the node's tributary area: a foundation finer than the body then "
+                "converges; linear body elements only)"),
+    "tolerance": (1e-3, lambda x: _pos(x) and x < 0.5,
+                  "a number in (0, 0.5) (geometric tolerance of the checks of the foundation's mesh, "
+                  "relative to its median boundary edge length)"),
+}
+
 TOP_LEVEL = {"name": ("custom", lambda x: isinstance(x, str) and x != "", "a non-empty string"),
              "description": ("", lambda x: isinstance(x, str), "a string")}
 
@@ -407,6 +452,43 @@ def _check_body(raw, data, problems):
                 data["loads"][k] = [0.0, 0.0, 0.0]
 
 
+def _check_foundation(given, data, problems) -> dict:
+    """[foundation]: exactly one of `mesh` and `block`; the material's missing keys are the body's.
+    The compliance objective is refused (its ∂J/∂u_c is the body's, the state's u_c is relative)."""
+    if not isinstance(given, dict):
+        problems.append("[foundation]: must be a table")
+        return {}
+    out = {}
+    for k in given:
+        if k not in FOUNDATION:
+            problems.append(f"foundation.{k}: unknown key (allowed: {', '.join(FOUNDATION)})")
+    for k, (default, check, desc) in FOUNDATION.items():
+        val = given.get(k, copy.deepcopy(default))
+        try:
+            ok = check(val)
+        except Exception:
+            ok = False
+        if not ok:
+            problems.append(f"foundation.{k} = {val!r}: must be {desc}")
+        out[k] = float(val) if isinstance(val, int) and isinstance(default, float) and not isinstance(val, bool) else val
+    if isinstance(out["mesh"], str) and isinstance(out["block"], dict):
+        if bool(out["mesh"]) == bool(out["block"]):
+            problems.append("[foundation]: give exactly one of `mesh` (a mesh file) and `block` (a generated box)")
+        elif out["mesh"] and not Path(out["mesh"]).is_file():
+            problems.append(f"foundation.mesh = {out['mesh']!r}: no such file")
+    if isinstance(out["block"], dict) and out["block"] and _block_spec(out["block"]):
+        b = out["block"]
+        out["block"] = {"size": [float(v) for v in b["size"]], "cells": list(b["cells"]),
+                        "origin": [float(v) for v in b.get("origin", [0.0, 0.0])],
+                        "element": b.get("element", "hexahedron")}
+    if isinstance(out["material"], dict) and _material_spec(out["material"]):
+        out["material"] = {k: float(out["material"].get(k, data["material"][k])) for k in ("E", "nu")}
+    if data["objective"]["type"] == "compliance":
+        problems.append("[foundation]: the compliance objective is not available on an elastic foundation "
+                        "(use 'target_normal_force' or 'pressure_uniformity')")
+    return out
+
+
 # the former [linear_solver] backend: its value as (path, library); None keeps the key's own value
 LEGACY_BACKEND = {"auto": (None, None), "pardiso": ("condensation", "pardiso"),
                   "scipy": ("condensation", "scipy"), "delassus": ("delassus", None),
@@ -437,8 +519,9 @@ def validate(raw: dict, source: str = "<dict>") -> Config:
     problems = []
     data = {}
     for key in raw:
-        if key not in SCHEMA and key not in TOP_LEVEL and key != "load_cases":
-            problems.append(f"{key}: unknown section (allowed: {', '.join(list(TOP_LEVEL) + list(SCHEMA))})")
+        if key not in SCHEMA and key not in TOP_LEVEL and key not in ("load_cases", "foundation"):
+            problems.append(f"{key}: unknown section (allowed: "
+                            f"{', '.join(list(TOP_LEVEL) + list(SCHEMA) + ['foundation', 'load_cases'])})")
     for key, (default, check, desc) in TOP_LEVEL.items():
         val = raw.get(key, default)
         if not check(val):
@@ -473,6 +556,8 @@ def validate(raw: dict, source: str = "<dict>") -> Config:
         data["load_cases"] = _check_load_cases(raw["load_cases"], d1d2, problems)
     _check_combination(raw, data, problems)
     _check_body(raw, data, problems)
+    if "foundation" in raw:
+        data["foundation"] = _check_foundation(raw["foundation"], data, problems)
     if "geometry" in data:
         g = data["geometry"]
         if _pos(g["c"]) and _pos(data["design"]["C0"]) and data["design"]["C0"] >= g["c"]:
@@ -491,7 +576,7 @@ SECTION_DOCS = {
     "geometry": "The built-in block [0,a]×[0,b]×[0,c] (only without `body.mesh`).",
     "mesh": "Elements of the built-in block per direction (only without `body.mesh`).",
     "material": "Isotropic linear elasticity.",
-    "friction": "Coulomb friction between the body and the rigid foundation x3 ≤ 0.",
+    "friction": "Coulomb friction between the body and the foundation (the rigid x3 ≤ 0, or [foundation]).",
     "loads": "Loads on parts of the body, integrated on the current (designed) geometry.",
     "design": "The Bézier contact surface ϑ_α and the admissible set U of its control points (paper §5.2).",
     "objective": "The cost functional J(α, y) of the state.",
@@ -518,6 +603,15 @@ def reference_markdown() -> str:
             shown = tomli_w.dumps({"v": default}).split("=", 1)[1].strip() if default != [] else "[]"
             text = desc.replace("|", "\\|")
             lines.append(f"| `{k}` | `{shown}` | {text} |")
+    lines += ["", "## [foundation]", "",
+              "Optional: an elastic foundation under the body (docs/foundation.md). Absent, the foundation is "
+              "the rigid half-space x3 ≤ 0. Its top face lies on x3 = 0 under the contact face; each contact "
+              "node's partner is the point of that face directly below it. Runs on the condensation path.",
+              "", "| key | default | meaning |", "|---|---|---|"]
+    for k, (default, _, desc) in FOUNDATION.items():
+        shown = tomli_w.dumps({"v": default}).split("=", 1)[1].strip() if default not in ([], {}) else repr(default)
+        text = desc.replace("|", "\\|")
+        lines.append(f"| `{k}` | `{shown}` | {text} |")
     lines += ["", "## [[load_cases]]", "",
               "Optional named load cases (an array of tables). Each has a `name` (letters, digits, `_ . + -`), "
               "any of the keys of [loads] (none required) and optionally a `target` in the form of "
@@ -553,6 +647,9 @@ def load_config(path_or_name) -> Config:
     if name not in EXAMPLES and isinstance(body, dict) and isinstance(body.get("mesh"), str) and body["mesh"]:
         # a mesh path is relative to the TOML file; the resolved configuration keeps it absolute
         body["mesh"] = str((Path(name).parent / body["mesh"]).resolve())
+    found = raw.get("foundation")
+    if name not in EXAMPLES and isinstance(found, dict) and isinstance(found.get("mesh"), str) and found["mesh"]:
+        found["mesh"] = str((Path(name).parent / found["mesh"]).resolve())
     return validate(raw, source)
 
 

@@ -100,6 +100,8 @@ def _log_setup(problem, seconds: float) -> None:
              "estimated peak of an evaluation %s; set-up %.1f s, peak RSS %.2f GB",
              model.assembler.n_free, len(model.body.reference.cells), model.n_contact, problem.path.name,
              problem.path.library, est.describe(), seconds, _peak_rss_gb())
+    if model.foundation is not None:
+        log.info("elastic foundation: %s", ", ".join(f"{k} {v}" for k, v in model.foundation.summary().items()))
 
 
 def _log_evaluation(count: int, res) -> None:
@@ -355,7 +357,7 @@ def _stopping(res, opt) -> dict:
 
 def _finish(out: Path, problem, alpha0, res, oracle, t_start) -> dict:
     from .io.plots import plot_history, plot_node_classes, plot_stress_comparison, plot_surface
-    from .io.vtk import write_body_vtu, write_pvd
+    from .io.vtk import write_body_vtu, write_foundation_vtu, write_pvd
     model = problem.model
     x = np.asarray(res.x)
     t0 = time.perf_counter()
@@ -367,7 +369,12 @@ def _finish(out: Path, problem, alpha0, res, oracle, t_start) -> dict:
     target = getattr(problem.cases[c1.case].objective, "target", None)
     write_body_vtu(out / "initial.vtu", model, s0)
     write_body_vtu(out / "optimal.vtu", model, s1)
-    write_pvd(out / "bodies.pvd", [(0, "initial.vtu"), (1, "optimal.vtu")])
+    pvd = [(0, "initial.vtu"), (1, "optimal.vtu")]
+    if model.foundation is not None:          # the elastic foundation: part 1 of each time step
+        write_foundation_vtu(out / "initial_foundation.vtu", model.foundation, s0)
+        write_foundation_vtu(out / "optimal_foundation.vtu", model.foundation, s1)
+        pvd += [(0, "initial_foundation.vtu", 1), (1, "optimal_foundation.vtu", 1)]
+    write_pvd(out / "bodies.pvd", pvd)
     plot_stress_comparison(out / "stress.png", model, target if target is not None else np.zeros_like(s0.lam),
                            s0.lam, s1.lam)
     from .io.pressure import contact_pressure
@@ -399,6 +406,8 @@ def _finish(out: Path, problem, alpha0, res, oracle, t_start) -> dict:
         "time_breakdown_s": {**oracle.time, "outputs": time.perf_counter() - t0},
         "final_state": s1.summary(),
     }
+    if model.foundation is not None:
+        summary["foundation"] = model.foundation.summary()
     if problem.has_load_cases:
         summary["load_cases"] = _load_case_outputs(out, problem, (c0, states0), (c1, states1))
     summary["export"] = _export(out, model, x)

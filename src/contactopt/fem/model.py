@@ -98,6 +98,10 @@ class ElasticModel:
                      else np.zeros(self.contact_nodes.size))
         self.loads = load_set(body, cfg["loads"])
         self.body_force = self.loads.body_force
+        self.foundation = None      # [foundation]: the elastic foundation under the contact face
+        if "foundation" in cfg.data:
+            from .foundation import Foundation
+            self.foundation = Foundation(cfg, body)
 
     # ------------------------------------------------------------------ checks
     def _check_reference(self, ref) -> None:

@@ -17,6 +17,12 @@ Conventions of the stored contact arrays (contact-node order m = 0..p−1, see
 * ``tau[m] = τ_m = −(S u_c − ℓ)_t``: the paper's tangential contact force, ‖τ_m‖ ≤ F λ_m and
   u_t ≠ 0 ⇒ τ_m = F λ_m u_t/‖u_t‖ (the friction force on the body is −τ_m);
 * ``classes[m]``: index into ("L", "M1", "M2", "M3+", "M3-", "M4") of Table 4.1.
+
+On an elastic foundation ``u_c`` is the relative displacement w = u_body − u_partner of a contact
+node and its partner on the foundation's top face (the contact law acts on it), ``u_body`` and
+``u_partner`` are stored beside it, and ``foundation.vtu`` (the foundation with its displacement)
+and ``foundation.png`` (the partners' vertical displacement −(Π u_f)_3, the foundation's
+indentation under the contact face) join the files.
 """
 
 from __future__ import annotations
@@ -37,9 +43,10 @@ from .pressure import contact_pressure
 
 log = logging.getLogger(__name__)
 
-__all__ = ["STATE_FILES", "write_state", "read_state_npz", "state_json"]
+__all__ = ["STATE_FILES", "FOUNDATION_FILES", "state_files", "write_state", "read_state_npz", "state_json"]
 
 STATE_FILES = ("state.json", "state.npz", "body.vtu", "lambda.png", "pressure.png", "classes.png")
+FOUNDATION_FILES = ("foundation.vtu", "foundation.png")      # with an elastic [foundation]
 FORMAT_VERSION = 1
 
 CONVENTIONS = {
@@ -79,6 +86,11 @@ def state_json(model, state: State, config=None) -> dict:
             "class": [CLASS_NAMES[k] for k in np.asarray(state.classes, int)],
         },
     }
+    if "u_partner" in state.info:             # an elastic foundation: u_c is w = u_body − u_partner
+        doc["contact"]["u_body"] = np.asarray(state.info["u_body_c"], float).tolist()
+        doc["contact"]["u_partner"] = np.asarray(state.info["u_partner"], float).tolist()
+    if getattr(model, "foundation", None) is not None:
+        doc["foundation"] = model.foundation.summary()
     if config is not None:
         doc["config"] = getattr(config, "data", config)
     return doc
@@ -108,6 +120,9 @@ def _state_arrays(model, state: State) -> dict:
         "converged": np.bool_(state.converged),
         "timings_json": np.array(json.dumps(to_jsonable(state.timings))),
         "info_json": np.array(json.dumps(to_jsonable(scalars))),
+        **({"u_body_c": np.asarray(state.info["u_body_c"], float),
+            "u_partner": np.asarray(state.info["u_partner"], float),
+            "foundation_u": np.asarray(state.info["foundation_u"], float)} if "u_partner" in state.info else {}),
     }
 
 
@@ -118,7 +133,12 @@ def _check_finite(state: State) -> None:
             raise ValueError(f"state.{name} has non-finite values; refusing to write the state")
 
 
-def _move_into(tmpdir: Path, outdir: Path) -> None:
+def state_files(model) -> tuple:
+    """The files :func:`write_state` writes for ``model``'s states."""
+    return STATE_FILES + (FOUNDATION_FILES if getattr(model, "foundation", None) is not None else ())
+
+
+def _move_into(tmpdir: Path, outdir: Path, names=STATE_FILES) -> None:
     """Move the finished files of ``tmpdir`` into ``outdir``; rename the whole directory if it is new."""
     if not outdir.exists():
         os.chmod(tmpdir, 0o755)               # mkdtemp makes 0o700
@@ -131,7 +151,7 @@ def _move_into(tmpdir: Path, outdir: Path) -> None:
                 raise
     if not outdir.is_dir():
         raise NotADirectoryError(f"{outdir} exists and is not a directory")
-    for name in STATE_FILES:
+    for name in names:
         os.replace(tmpdir / name, outdir / name)
     fsync_dir(outdir)
 
@@ -158,15 +178,21 @@ def write_state(outdir, model, state: State, *, config=None) -> dict:
         plots.plot_contact_field(tmpdir / "pressure.png", model, contact_pressure(model, state.lam, state.coords),
                                  "Contact pressure $p = \\lambda / a$", cmap="viridis", label="$p$")
         plots.plot_node_classes(tmpdir / "classes.png", model, state.classes)
+        if getattr(model, "foundation", None) is not None:
+            vtk.write_foundation_vtu(tmpdir / "foundation.vtu", model.foundation, state)
+            plots.plot_contact_field(tmpdir / "foundation.png", model, -np.asarray(state.info["u_partner"])[:, 2],
+                                     "Indentation of the foundation $-(\\Pi u_f)_3$ under the contact nodes",
+                                     cmap="viridis", label="$-(\\Pi u_f)_3$")
+        names = state_files(model)
         built = sorted(p.name for p in tmpdir.iterdir())
-        if built != sorted(STATE_FILES):
-            raise RuntimeError(f"write_state built {built}, expected {sorted(STATE_FILES)}")
-        _move_into(tmpdir, outdir)
+        if built != sorted(names):
+            raise RuntimeError(f"write_state built {built}, expected {sorted(names)}")
+        _move_into(tmpdir, outdir, names)
     finally:
         if tmpdir.exists():
             shutil.rmtree(tmpdir, ignore_errors=True)
-    log.info("wrote the state files %s into %s", ", ".join(STATE_FILES), outdir)
-    return {name: outdir / name for name in STATE_FILES}
+    log.info("wrote the state files %s into %s", ", ".join(names), outdir)
+    return {name: outdir / name for name in names}
 
 
 _NPZ_KEYS = ("alpha", "coords", "u", "u_c", "lam", "tau", "gap", "classes", "friction", "method",

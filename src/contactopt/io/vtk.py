@@ -20,6 +20,13 @@ contact surface the contact fields are 0 (``node_class`` −1), never NaN:
 * ``part:<name>``: 1 on the nodes of each named part of the body (the groups of the mesh file, or
   the block's clamped, top, right, front, back, contact), 0 elsewhere.
 
+On an elastic foundation ([foundation], docs/foundation.md) the body's file also has, per contact
+node, ``foundation_displacement`` Π u_f (the displacement of the partner point on the foundation's
+top face) and ``relative_displacement`` w = u_c − Π u_f, on which the contact law acts (the gap
+and the node classes are those of w), and :func:`write_foundation_vtu` writes the foundation:
+its reference mesh with ``displacement`` u_f (zero on its clamped parts), ``contact_force`` (the
+force −Πᵀr the body exerts on it, per node) and its parts.
+
 Cells are the body's volume cells (hexahedra, tetrahedra or ten-node tetrahedra, in VTK order).
 
 The foundation is the half-space x3 ≤ 0 with normal e3, so tangential = (x1, x2), normal = x3.
@@ -40,7 +47,7 @@ from .pressure import contact_pressure
 
 log = logging.getLogger(__name__)
 
-__all__ = ["body_point_data", "write_body_vtu", "write_pvd"]
+__all__ = ["body_point_data", "write_body_vtu", "write_foundation_vtu", "write_pvd"]
 
 
 def _finite(name: str, arr: np.ndarray) -> np.ndarray:
@@ -96,6 +103,9 @@ def body_point_data(model, state, extra_point_data=None) -> dict:
         "gap": _on_nodes("gap", np.asarray(state.gap, float), n, cn),
         "contact_node": _on_nodes("contact_node", np.ones(p, np.int8), n, cn, fill=np.int8(0)),
     }
+    if "u_partner" in state.info:               # an elastic foundation (module docstring)
+        data["foundation_displacement"] = _on_nodes("foundation_displacement", state.info["u_partner"], n, cn)
+        data["relative_displacement"] = _on_nodes("relative_displacement", np.asarray(state.u_c, float), n, cn)
     for name, part in getattr(model.mesh, "parts", {}).items():
         tag = np.zeros(n, np.int8)
         tag[part.nodes] = 1
@@ -134,10 +144,35 @@ def write_body_vtu(path, model, state, extra_point_data=None, *, deformed: bool 
     return path
 
 
+def write_foundation_vtu(path, foundation, state) -> Path:
+    """Write the elastic foundation of ``state`` (its reference mesh, module docstring) as a VTU."""
+    import meshio
+
+    path = Path(path)
+    ref = foundation.mesh.reference
+    n = ref.n_nodes
+    u = _finite("foundation displacement", np.asarray(state.info["foundation_u"], float).reshape(n, 3))
+    r = np.zeros(3 * state.lam.size)
+    r[0::3], r[1::3], r[2::3] = -state.tau[:, 0], -state.tau[:, 1], state.lam
+    f = np.zeros((n, 3))
+    f[foundation.support] = -(foundation.Pi.T @ r).reshape(-1, 3)
+    data = {"displacement": u, "contact_force": _finite("contact_force", f)}
+    for name, part in ref.parts.items():
+        tag = np.zeros(n, np.int8)
+        tag[part.nodes] = 1
+        data[f"part:{name}"] = tag
+    mesh = meshio.Mesh(ref.points, [(ref.cell_type, ref.cells)], point_data=data)
+    with atomic_output(path) as tmp:
+        meshio.write(tmp, mesh, file_format="vtu")
+    log.info("wrote %s (the foundation: %d nodes, %d %s cells)", path, n, ref.n_cells, ref.cell_type)
+    return path
+
+
 def write_pvd(path, entries) -> Path:
     """Write a ParaView collection (.pvd) listing VTU files, atomically.
 
-    ``entries``: iterable of ``(time_or_index, filename)``; the filename is relative to the
+    ``entries``: iterable of ``(time_or_index, filename)`` or ``(time_or_index, filename, part)``
+    (several parts of one time step: the body and its foundation); the filename is relative to the
     directory of the .pvd file (absolute names are refused: the collection must stay valid when the
     run directory is moved). ParaView shows the entries as time steps ``time_or_index``.
     """
@@ -146,9 +181,12 @@ def write_pvd(path, entries) -> Path:
     coll = ET.SubElement(root, "Collection")
     for n, entry in enumerate(entries):
         try:
-            time, fname = entry
+            time, fname, *part = entry
+            part = int(part[0]) if part else 0
+            if len(entry) > 3:
+                raise ValueError
         except (TypeError, ValueError):
-            raise ValueError(f"pvd entry {n}: expected (time_or_index, filename), got {entry!r}") from None
+            raise ValueError(f"pvd entry {n}: expected (time_or_index, filename[, part]), got {entry!r}") from None
         try:
             t = float(time)
         except (TypeError, ValueError):
@@ -159,7 +197,7 @@ def write_pvd(path, entries) -> Path:
         if os.path.isabs(fname) or PurePosixPath(fname.replace("\\", "/")).is_absolute():
             raise ValueError(f"pvd entry {n}: {fname!r} must be relative to the .pvd file's directory")
         ET.SubElement(coll, "DataSet", timestep=repr(t) if not t.is_integer() else str(int(t)),
-                      group="", part="0", file=fname.replace(os.sep, "/"))
+                      group="", part=str(part), file=fname.replace(os.sep, "/"))
     ET.indent(root, space="  ")
     text = '<?xml version="1.0"?>\n' + ET.tostring(root, encoding="unicode") + "\n"
     atomic_write_text(path, text)

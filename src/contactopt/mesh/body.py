@@ -156,7 +156,7 @@ def _check_contact_face(ref: ReferenceMesh, face: Part, tol: float, on_plane: bo
     return Part(name, nodes, face.faces, face.origin)
 
 
-def _check_rigid_modes(ref: ReferenceMesh, fixed: np.ndarray, source: str) -> None:
+def _check_rigid_modes(ref: ReferenceMesh, fixed: np.ndarray, source: str, key: str = "body.clamped") -> None:
     """The clamped DOFs must remove the six rigid-body motions (else A is singular)."""
     x = ref.points - ref.points.mean(axis=0)
     nodes, comps = np.nonzero(fixed)
@@ -167,7 +167,7 @@ def _check_rigid_modes(ref: ReferenceMesh, fixed: np.ndarray, source: str) -> No
     sv = np.linalg.svd(R, compute_uv=False) if R.size else np.zeros(0)
     rank = int(np.sum(sv > 1e-9 * max(sv.max(initial=0.0), 1e-300))) if sv.size else 0
     if rank < 6:
-        raise ConfigError([f"{source}: body.clamped leaves {6 - rank} rigid-body motion(s) free "
+        raise ConfigError([f"{source}: {key} leaves {6 - rank} rigid-body motion(s) free "
                            f"({int(fixed.sum())} clamped DOFs): the stiffness would be singular. Clamp a part "
                            "that holds the body in place; bodies held only by the foundation are not supported yet"])
 

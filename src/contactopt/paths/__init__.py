@@ -50,9 +50,17 @@ def select_path(config, n_free: int) -> tuple[str, str]:
     ``path = "auto"``: the full-space path from ``crossover`` free DOFs on (the measured crossover,
     docs/large_meshes.md), the condensation below — the Delassus path instead of the full-space one
     where pyamg is missing. The compliance objective needs the condensed load ℓ on every contact
-    DOF, so it stays on the condensation under "auto" and is refused on the other paths."""
+    DOF, so it stays on the condensation under "auto" and is refused on the other paths; so does
+    an elastic ``[foundation]`` (:mod:`.condensation`)."""
     ls = config["linear_solver"]
     name, objective = ls["path"], config["objective"]["type"]
+    if "foundation" in config.data:
+        # the foundation's compliance C enters the condensed Delassus operator W = S⁻¹ + C
+        if name not in ("auto", "condensation"):
+            raise ConfigError([f"linear_solver.path = '{name}': an elastic [foundation] is solved on the "
+                               "'condensation' path only; use path 'condensation' or 'auto'"])
+        log.info("linear solver: condensation path (elastic foundation)")
+        return "condensation", library_for("condensation", ls["library"])
     if name == "auto":
         name = "condensation"
         if n_free >= ls["crossover"] and objective != "compliance":

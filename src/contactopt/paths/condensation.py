@@ -7,6 +7,20 @@ handed to the local solvers on the contact zone with W = S⁻¹ (:mod:`.zone_pat
 factorization and S do not depend on the load: a design is condensed once (PARDISO's ordering and
 analysis reused from design to design, the pattern never changes with α), and each load case adds
 ℓ_k. The adjoint (4.15) is the dense system of :func:`contactopt.sensitivity.adjoint.solve_adjoint`.
+
+On an elastic foundation (:mod:`contactopt.fem.foundation`, docs/foundation.md) the contact law
+acts on the relative displacement w = u_c − Π u_f of a contact node and its partner,
+w = W r + S⁻¹ℓ − Π q_f with W = S⁻¹ + C. With
+
+    S_eff = W⁻¹,   ℓ_eff = S_eff (S⁻¹ℓ − Π q_f)   (w = S_eff⁻¹(ℓ_eff + r)),
+
+the zone problems are those of the rigid foundation on (S_eff, ℓ_eff) — the state's ``u_c`` is
+w, its node classes those of w, the gap ϑ_α as before — and the body's own contact
+displacement is u_c = S⁻¹(ℓ + r) = w + Π q_f − C r. The adjoint (4.15) is solved with S_eff;
+differentiating S_eff w − ℓ_eff at fixed w gives S_eff S⁻¹(∂S u_c − ∂ℓ), so the design terms take
+z = S⁻¹ S_eff v_u in place of v_u: ṽ is the A-harmonic extension of z. S_eff and both
+transfers come from the Woodbury identity (:class:`contactopt.fem.foundation.Coupling`), with no
+inverse of S. Without a foundation (C = 0) nothing of this is formed.
 """
 
 from __future__ import annotations
@@ -17,6 +31,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from ..contact import zone as zone_rules
+from ..contact.state import FROM_FCLIB
 from ..fem import memory
 from ..fem.model import Assembled
 from .zone_paths import ZonePath
@@ -33,6 +48,21 @@ class CondensedSystem:
     ell: np.ndarray
     gap: np.ndarray
     timings: dict
+    coupling: object = None            # on an elastic foundation: fem.foundation.Coupling, S_eff ...
+    ell_eff: np.ndarray | None = None  # ... and ℓ_eff = S_eff (S⁻¹ℓ − Π q_f) (module docstring)
+
+    @property
+    def S_eff(self):
+        return None if self.coupling is None else self.coupling.S_eff
+
+    @property
+    def contact_S(self) -> np.ndarray:
+        """The stiffness of the contact law's displacement: S, or S_eff on an elastic foundation."""
+        return self.S if self.S_eff is None else self.S_eff
+
+    @property
+    def contact_ell(self) -> np.ndarray:
+        return self.ell if self.ell_eff is None else self.ell_eff
 
 
 def on_factor(zp, ell: np.ndarray, zone: np.ndarray):
@@ -66,35 +96,65 @@ class CondensationPath(ZonePath):
             fac.refactor(asm.A, trusted=True)     # symmetric, positive diagonal: assembled
         else:
             fac = self._factor = condense(asm.A, self.model.contact_dofs, backend=self.library)
-        t2 = time.perf_counter()
-        return CondensedSystem(asm, fac, fac.S, fac.condense_load(asm.L), asm.gap, {"schur": t2 - t1})
+        system = CondensedSystem(asm, fac, fac.S, fac.condense_load(asm.L), asm.gap, {})
+        if self.foundation is not None:
+            from ..fem.foundation import Coupling
+            system.coupling = Coupling(system.S, self.foundation)
+            system.ell_eff = system.coupling.ell_eff(system.ell)
+        system.timings["schur"] = time.perf_counter() - t1
+        return system
+
+    @property
+    def foundation(self):
+        return getattr(self.model, "foundation", None)
 
     def for_load(self, system, asm) -> CondensedSystem:
         t1 = time.perf_counter()
         ell = system.factor.condense_load(asm.L)
-        return replace(system, assembled=asm, ell=ell, timings={"schur": time.perf_counter() - t1})
+        out = replace(system, assembled=asm, ell=ell, timings={})
+        if out.coupling is not None:
+            out.ell_eff = out.coupling.ell_eff(ell)
+        out.timings["schur"] = time.perf_counter() - t1
+        return out
 
     def zone_problem(self, system, zone, warm, reuse, shared):
         if reuse and "zone" in shared:
-            return on_factor(shared["zone"], system.ell, zone), zone
-        zp = zone_rules.ZoneProblem(system.S, system.ell, zone, ordered=not reuse)
+            return on_factor(shared["zone"], system.contact_ell, zone), zone
+        zp = zone_rules.ZoneProblem(system.contact_S, system.contact_ell, zone, ordered=not reuse)
         if reuse:
             shared["zone"] = zp
         return zp, zone
 
     def free_displacement(self, system, zp, r_loc, u_c):
-        return system.factor.recover(system.assembled.L, u_c.ravel())
+        if system.coupling is None:
+            return system.factor.recover(system.assembled.L, u_c.ravel())
+        # on a foundation u_c is the relative displacement w; the body's own is w + Π u_f
+        r = np.zeros((self.model.n_contact, 3))
+        r[zp.zone] = r_loc.reshape(-1, 3)[:, FROM_FCLIB]
+        return system.factor.recover(system.assembled.L, system.coupling.body_displacement(u_c, r))
+
+    def contact_info(self, system, u_c, r) -> dict:
+        """On a foundation: the body's contact displacement and its partners' (p, 3) per node
+        (t1, t2, ν); w = u_c − partner is the state's ``u_c``."""
+        if system.coupling is None:
+            return {}
+        body = system.coupling.body_displacement(u_c, r).reshape(-1, 3)
+        return {"foundation": True, "u_body_c": body, "u_partner": body - u_c,
+                "foundation_u": self.foundation.displacement(r)}
 
     def load_scale(self, system):
-        return system.ell
+        return system.contact_ell
 
     def own_block(self, system, zone):
-        return zone_rules.ZoneProblem(system.S, system.ell, zone).W
+        return zone_rules.ZoneProblem(system.contact_S, system.contact_ell, zone).W
 
     def adjoint(self, system, ctx, state, y_u, y_lam, choices=None):
+        """(v_u, v_λ, ṽ) of (4.15); on a foundation (4.15) is solved with S_eff and ṽ extends
+        z = S⁻¹ S_eff v_u (module docstring)."""
         from ..sensitivity.adjoint import solve_adjoint
-        v_u, v_lam = solve_adjoint(system.S, state, y_u, y_lam, choices)
-        return v_u, v_lam, self.model.assembler.to_full(system.factor.extend(v_u))
+        v_u, v_lam = solve_adjoint(system.contact_S, state, y_u, y_lam, choices)
+        z = v_u if system.coupling is None else system.coupling.adjoint_z(v_u)
+        return v_u, v_lam, self.model.assembler.to_full(system.factor.extend(z))
 
     def uniqueness_bound(self, system):
         """F0 = λ_min(S)/λ_max(S) of the bound (3.16) applied to the condensed system: with A := S,
@@ -102,6 +162,6 @@ class CondensationPath(ZonePath):
         from scipy.sparse.linalg import eigsh
 
         from ..fem.dense import spd_inverse
-        lmax = eigsh(system.S, k=1, which="LA", return_eigenvectors=False, tol=1e-6)[0]
-        wmax = eigsh(spd_inverse(system.S), k=1, which="LA", return_eigenvectors=False, tol=1e-6)[0]
+        lmax = eigsh(system.contact_S, k=1, which="LA", return_eigenvectors=False, tol=1e-6)[0]
+        wmax = eigsh(spd_inverse(system.contact_S), k=1, which="LA", return_eigenvectors=False, tol=1e-6)[0]
         return float((1.0 / wmax) / lmax), None

@@ -118,7 +118,7 @@ class ZonePath(SolverPath):
         r = np.zeros((self.model.n_contact, 3))                      # per node (t1, t2, ν)
         r[zone] = res.r.reshape(-1, 3)[:, FROM_FCLIB]
         info = {"backend": self.library_of(system), "zone_nodes": int(zone.size), "zone_misses": misses,
-                "delassus": reused[-1], **self.solve_counts(zp)}
+                "delassus": reused[-1], **self.solve_counts(zp), **self.contact_info(system, u3, r)}
         state = self.finish_state(ctx, alpha=alpha, coords=system.assembled.coords, u=u, u_c=u3, r=r,
                                   gap=system.gap, load=self.load_scale(system), method=method,
                                   outcome=(res.iterations, res.error, res.converged),
@@ -133,6 +133,10 @@ class ZonePath(SolverPath):
         return getattr(system.factor, "backend", "?")
 
     def solve_counts(self, zp) -> dict:
+        return {}
+
+    def contact_info(self, system, u_c, r) -> dict:
+        """More of the state for its ``info`` (the condensation path's elastic foundation)."""
         return {}
 
     def solve_local(self, zp, system, warm, method, tol, alpha, ctx):

@@ -1,0 +1,289 @@
+"""An elastic foundation under the body: partners Π, stiffness K_f and compliance C (issue #22).
+
+The foundation (mesh and parts: :mod:`contactopt.mesh.foundation`) has its top face on x3 = 0.
+Design moves are vertical, so contact node m of the body (reference (x1, x2)) has a fixed
+partner: the point of the top face directly below it, with weights Π_m, the top face's shape
+functions there (bilinear on quadrilaterals, linear/quadratic on triangles). The Coulomb law acts
+on the relative displacement w_m = u_c,m − (Π u_f)_m of the body's node and its partner.
+
+Contact convention (per contact node m, order (t1, t2, ν) = (x1, x2, x3)): r_m is the contact
+force on the body, λ = r_ν ≥ 0, τ = −r_t; the foundation carries −r_m, spread by Π_m:
+K_f u_f = f_f − Πᵀ r. With W_f the foundation's compliance on the DOFs of its top-face nodes
+that carry partners (clamped components fixed) and q_f = (K_f⁻¹ f_f) there,
+
+    Π u_f = Π q_f − C r,     C = Π W_f Πᵀ   (3p × 3p, symmetric positive semidefinite),
+
+independent of the design α: computed once per run. Condensed with the body's S(α) u_c = ℓ + r,
+
+    w = W r + S⁻¹ℓ − Π q_f,   W = S⁻¹ + C
+
+(docs/foundation.md). The foundation carries no loads of its own yet: q_f = 0.
+"""
+
+from __future__ import annotations
+
+import logging
+
+import numpy as np
+import scipy.sparse as sp
+
+from ..errors import ConfigError
+from ..mesh.foundation import build_foundation_mesh
+from ..mesh.reference import FACE_CORNERS
+from .dense import spd_inverse
+from .elasticity import ElasticityAssembler
+from .elements import element_type, face_type
+
+log = logging.getLogger(__name__)
+
+INSIDE_TOL = 1e-8     # reference-coordinate slack of "the point lies in the face"
+NEWTON_STEPS = 30     # inverse of the bilinear map of a quadrilateral face
+
+
+class Foundation:
+    """The elastic foundation of a configuration (module docstring).
+
+    Attributes: ``mesh`` (:class:`~contactopt.mesh.foundation.FoundationMesh`), ``assembler`` (on
+    its free DOFs), ``support`` (top-face nodes carrying partners), ``Pi`` (3p × 3n_s sparse, per
+    contact node (t1, t2, ν) and support node (x1, x2, x3)), ``partner`` ('point' or 'average'), ``W_f``
+    (on the free support DOFs), ``C`` (3p × 3p), ``q_f`` (3p,), ``condensation`` (of K_f onto the
+    free support DOFs: the foundation's displacement for outputs)."""
+
+    def __init__(self, cfg, body, backend: str = "auto"):
+        from .linsolve import condense
+        contact_nodes = body.contact_nodes
+        contact_xy = body.reference.points[contact_nodes, :2]
+        self.mesh = fm = build_foundation_mesh(cfg, contact_xy)
+        ref = fm.reference
+        self.partner = cfg["foundation"]["partner"]
+        self.assembler = ElasticityAssembler(ref.cells, ref.n_nodes, fm.fixed_dofs, fm.E, fm.nu,
+                                             element=element_type(ref.cell_type))
+        where = f"{cfg.source}: foundation.top"
+        p = contact_xy.shape[0]
+        if self.partner == "point":
+            faces, weights = locate_partners(ref.points, fm.top.faces, ref.face_type, contact_xy, contact_nodes,
+                                             where)
+            rows, cols, vals = np.repeat(np.arange(p), weights.shape[1]), fm.top.faces[faces].ravel(), weights.ravel()
+        else:
+            rows, cols, vals = averaged_partners(body, fm, where)
+        Pn = sp.csr_matrix((vals, (rows, cols)), shape=(p, ref.n_nodes))
+        Pn.sum_duplicates()
+        Pn.eliminate_zeros()
+        self.support = np.unique(Pn.indices)                     # top-face nodes carrying partners
+        self.Pi = sp.kron(Pn[:, self.support], sp.identity(3), format="csr")
+        free = self.assembler.full_to_free[(3 * self.support[:, None] + np.arange(3)).ravel()]
+        keep = free >= 0                                         # clamped components do not move
+        self._support_free = free[keep]
+        K = self.assembler.stiffness(ref.points)
+        self.condensation = condense(K, self._support_free, backend=backend)
+        self.W_f = spd_inverse(self.condensation.S)
+        P = self.Pi.tocsc()[:, np.flatnonzero(keep)]
+        PW = (P @ self.W_f)                                      # (3p, n) dense
+        C = np.asarray((P @ PW.T).T)
+        self.C = 0.5 * (C + C.T)
+        self.P = P                # Π on the free support DOFs (the clamped ones do not move)
+        self.q_f = np.zeros(3 * p)
+        log.info("elastic foundation %s: %d nodes, %d free DOFs, E = %g, nu = %g; %d top-face nodes carry "
+                 "the partners of %d contact nodes", ref.source, ref.n_nodes, self.assembler.n_free, fm.E, fm.nu,
+                 self.support.size, p)
+
+    @property
+    def n_nodes(self) -> int:
+        return self.mesh.reference.n_nodes
+
+    def partner_displacement(self, r: np.ndarray) -> np.ndarray:
+        """Π u_f = Π q_f − C r (3p,) for the contact forces r on the body (3p, per node (t1, t2, ν))."""
+        return self.q_f - self.C @ np.ravel(r)
+
+    def displacement(self, r: np.ndarray) -> np.ndarray:
+        """The foundation's full displacement (3·n_f,) under −Πᵀ r (zero on its clamped DOFs)."""
+        f = np.zeros(self.assembler.n_free)
+        f[self._support_free] = -(self.P.T @ np.ravel(r))
+        return self.assembler.to_full(self.condensation.solve(f))
+
+    def summary(self) -> dict:
+        fm = self.mesh
+        return {"source": fm.reference.source, "cell_type": fm.reference.cell_type, "nodes": int(self.n_nodes),
+                "cells": int(fm.reference.n_cells), "free_dofs": int(self.assembler.n_free), "E": fm.E,
+                "nu": fm.nu, "support_nodes": int(self.support.size)}
+
+
+class Coupling:
+    """The body's condensed stiffness S(α) of one design coupled with the foundation (module
+    docstring): S_eff = (S⁻¹ + C)⁻¹ by the Woodbury identity, with C = P W_f Pᵀ, W_f = S_f⁻¹
+    (S_f the foundation's stiffness condensed on its free support DOFs, P = Π on them):
+
+        S_eff = S − G M⁻¹ Gᵀ,   G = S P,   M = S_f + Pᵀ S P   (m × m, m = free support DOFs),
+
+    formed as S − Y Yᵀ with Y = G L_M⁻ᵀ (M = L_M L_Mᵀ): no inverse of S and none of S + …, one
+    Cholesky factorization of M (m is about the number of top-face DOFs under the contact face;
+    where the foundation is coarser than the body, m < 3p). The transfers
+
+        S_eff S⁻¹ x = x − G M⁻¹ Pᵀ x,     S⁻¹ S_eff v = v − P M⁻¹ Gᵀ v
+
+    give ℓ_eff = S_eff (S⁻¹ℓ − Π q_f) and the adjoint's z = S⁻¹ S_eff v_u. Per contact node the
+    order is (t1, t2, ν); r is the contact force on the body."""
+
+    def __init__(self, S: np.ndarray, foundation: Foundation):
+        from scipy.linalg import solve_triangular
+        from scipy.linalg.blas import dsyrk
+
+        from .dense import cholesky_lower, symmetrize_lower
+        self.foundation = f = foundation
+        P = f.P
+        self._P = P
+        G = np.ascontiguousarray((P.T @ S).T)                    # S P, S symmetric
+        M = np.array(f.condensation.S, dtype=np.float64, order="C") + np.asarray(P.T @ G)
+        self._L = cholesky_lower(0.5 * (M + M.T))
+        self._G = G
+        Y = solve_triangular(self._L.T, G.T, lower=False, trans="T", check_finite=False)   # L_M⁻¹ Gᵀ
+        YtY = dsyrk(1.0, Y.T, trans=0, lower=1)                  # lower triangle of YᵀY (half a product)
+        self.S_eff = symmetrize_lower(np.ascontiguousarray(np.tril(S) - YtY))
+
+    def _solve_M(self, b: np.ndarray) -> np.ndarray:
+        from .dense import cholesky_solve
+        return cholesky_solve(self._L, b)
+
+    def ell_eff(self, ell: np.ndarray) -> np.ndarray:
+        """ℓ_eff = S_eff (S⁻¹ℓ − Π q_f) (3p,)."""
+        out = ell - self._G @ self._solve_M(self._P.T @ ell)
+        if np.any(self.foundation.q_f):
+            out -= self.S_eff @ self.foundation.q_f
+        return out
+
+    def adjoint_z(self, v_u: np.ndarray) -> np.ndarray:
+        """z = S⁻¹ S_eff v_u (3p,): the design terms' adjoint on the body's contact DOFs."""
+        return v_u - self._P @ self._solve_M(self._G.T @ v_u)
+
+    def body_displacement(self, w: np.ndarray, r: np.ndarray) -> np.ndarray:
+        """The body's contact displacement u_c = w + Π u_f = w + Π q_f − C r (3p,)."""
+        return np.ravel(w) + self.foundation.partner_displacement(r)
+
+
+def locate_partners(points: np.ndarray, faces: np.ndarray, ftype: str, xy: np.ndarray, contact_nodes, where: str,
+                    what: str = "contact node(s)"):
+    """(face (p,), weights (p, k)): the top face containing each point of ``xy`` (p, 2) in its
+    projection on x3 = 0, and its shape functions there. A point no face contains is an error
+    naming their count and the first ones (``contact_nodes``: the body's node numbers)."""
+    ft = face_type(ftype)
+    nc = FACE_CORNERS[ftype]
+    corners = points[faces[:, :nc], :2]                           # (F, nc, 2)
+    lo, hi = corners.min(axis=1), corners.max(axis=1)
+    slack = 1e-9 * max(float(np.max(hi - lo)), 1e-300)
+    p = xy.shape[0]
+    face = np.full(p, -1)
+    ref = np.zeros((p, 2))
+    for m in range(p):
+        cand = np.flatnonzero(np.all((xy[m] >= lo - slack) & (xy[m] <= hi + slack), axis=1))
+        for f in cand:
+            xi, inside = _reference_point(corners[f], xy[m], nc)
+            if inside:
+                face[m], ref[m] = f, xi
+                break
+    miss = np.flatnonzero(face < 0)
+    if miss.size:
+        if what == "contact node(s)":
+            first = ", ".join(f"contact node {m} (body node {int(contact_nodes[m])}) at {_fmt(xy[m])}"
+                              for m in miss[:5])
+        else:
+            first = ", ".join(f"{_fmt(xy[m])} (on the face of body node {int(contact_nodes[m])})" for m in miss[:5])
+        raise ConfigError([f"{where}: the vertical lines of {miss.size} of {p} {what} miss the foundation's "
+                           f"top face, first: {first}"])
+    N, _ = ft.shape(ref)
+    return face, N
+
+
+def _reference_point(X: np.ndarray, x: np.ndarray, nc: int):
+    """(ξ, inside) of the point x in the face of corners X (nc, 2): barycentric (η, ζ) of the
+    triangle 0-1-2, or the inverse of the bilinear map of the quadrilateral on [−1, 1]²."""
+    if nc == 3:
+        J = np.column_stack([X[1] - X[0], X[2] - X[0]])
+        xi = np.linalg.solve(J, x - X[0])
+        return xi, bool(xi.min() >= -INSIDE_TOL and xi.sum() <= 1 + INSIDE_TOL)
+    s = np.array([(-1, -1), (1, -1), (1, 1), (-1, 1)], float)
+    xi = np.zeros(2)
+    for _ in range(NEWTON_STEPS):
+        lin = 1.0 + xi[None] * s
+        N = lin[:, 0] * lin[:, 1] / 4.0
+        dN = np.column_stack([s[:, 0] * lin[:, 1], s[:, 1] * lin[:, 0]]) / 4.0
+        res = N @ X - x
+        step = np.linalg.solve(X.T @ dN, res)
+        xi -= step
+        if np.abs(step).max() < 1e-14:
+            break
+    return xi, bool(np.abs(xi).max() <= 1 + INSIDE_TOL)
+
+
+def averaged_partners(body, fm, where: str):
+    """(rows, cols, values) of Π for ``partner = "average"``: contact node m's partner
+    displacement is the mean of u_f over its tributary area on the contact face,
+
+        (Π u_f)_m = ∫ φ_m u_f dA / ∫ φ_m dA,
+
+    φ_m the body's face shape function of node m, integrated over the body's contact faces
+    projected on x3 = 0 by a composite Gauss rule fine enough for the foundation's faces. The
+    force −r_m on the foundation is then the traction r_m φ_m/∫φ_m (work-conjugate): a smooth
+    load, so the foundation's compliance converges as its mesh is refined, where point partners
+    carry a point load whose compliance grows like 1/h_f (docs/foundation.md). Rows are contact
+    nodes, columns foundation nodes."""
+    ref = body.reference
+    ftype = face_type(ref.face_type)
+    if ftype.degree != 1:
+        raise ConfigError([f"{where}: foundation.partner = 'average' needs a body of linear elements "
+                           f"(its contact face has {ftype.name} faces, whose corner nodes carry no area); "
+                           "use partner = 'point'"])
+    faces = body.contact_face.faces
+    X = ref.points[faces, :2]                                     # (F, n, 2)
+    top = fm.reference.points[fm.top.faces[:, :FACE_CORNERS[fm.reference.face_type]], :2]
+    h_body = np.median(np.linalg.norm(X - np.roll(X, -1, axis=1), axis=2))
+    h_top = np.median(np.linalg.norm(top - np.roll(top, -1, axis=1), axis=2))
+    k = max(2, int(np.ceil(2.0 * h_body / h_top)))
+    q, w = _composite_rule(ftype.name, k)
+    N, dN = ftype.shape(q)                                        # (Q, n), (Q, n, 2)
+    x = np.einsum("qa,fai->fqi", N, X)
+    J = np.einsum("qaj,fai->fqij", dN, X)
+    dA = np.abs(np.linalg.det(J)) * w                             # (F, Q)
+    which = np.full(ref.n_nodes, -1)
+    which[body.contact_nodes] = np.arange(body.contact_nodes.size)
+    xq = x.reshape(-1, 2)
+    fq, Nf = locate_partners(fm.reference.points, fm.top.faces, fm.reference.face_type, xq,
+                             np.repeat(faces[:, 0], q.shape[0]), where, what="quadrature point(s) of the contact face")
+    fnodes = fm.top.faces[fq]                                     # (F·Q, nf)
+    rows, cols, vals = [], [], []
+    phi = (N[None] * dA[:, :, None]).reshape(-1, N.shape[1])      # (F·Q, n): φ_a dA
+    for a in range(N.shape[1]):
+        m = which[np.repeat(faces[:, a], q.shape[0])]
+        ok = m >= 0                                               # clamped face nodes: no contact node
+        rows.append(np.repeat(m[ok], fnodes.shape[1]))
+        cols.append(fnodes[ok].ravel())
+        vals.append((phi[ok, a][:, None] * Nf[ok]).ravel())
+    rows, cols, vals = np.concatenate(rows), np.concatenate(cols), np.concatenate(vals)
+    area = np.bincount(rows, weights=vals, minlength=body.contact_nodes.size)   # Σ_b N_b = 1: ∫φ_m dA
+    return rows, cols, vals / area[rows]
+
+
+def _composite_rule(name: str, k: int):
+    """Points (Q, 2) and weights of a composite rule on the reference face: k×k squares with
+    2×2 Gauss on [−1, 1]², or k² triangles with the 3-point rule on the unit triangle."""
+    if name == "quad":
+        g = np.array([-1.0, 1.0]) / np.sqrt(3.0)
+        t = (np.arange(k)[:, None] + (g[None] + 1) / 2).ravel() * (2.0 / k) - 1.0      # (2k,)
+        q = np.array([(a, b) for b in t for a in t])
+        return q, np.full(q.shape[0], (1.0 / k) ** 2)
+    from .elements import tri_rule
+    qt, wt = tri_rule(2)
+    pts, wts = [], []
+    for i in range(k):
+        for j in range(k - i):
+            tris = [((i, j), (i + 1, j), (i, j + 1))]
+            if i + j <= k - 2:
+                tris.append(((i + 1, j), (i + 1, j + 1), (i, j + 1)))
+            for A, B, C in tris:
+                A, B, C = np.array(A) / k, np.array(B) / k, np.array(C) / k
+                pts.append(A + np.outer(qt[:, 0], B - A) + np.outer(qt[:, 1], C - A))
+                wts.append(wt / k ** 2)
+    return np.vstack(pts), np.concatenate(wts)
+
+
+def _fmt(x) -> str:
+    return "(" + ", ".join(f"{v:.6g}" for v in np.asarray(x)) + ")"

@@ -1,0 +1,145 @@
+"""The foundation's reference mesh and its parts: a second body under the contact face (issue #22).
+
+``[foundation]`` gives a mesh file (``mesh``, read as ``[body] mesh``) or a generated box
+(``block``): the box [o1, o1+s1]×[o2, o2+s2]×[−s3, 0] on a structured grid of Q1 hexahedra (or
+each split into six P1 tetrahedra), its top face on x3 = 0 and the foundation below it, with
+the parts ``top`` (x3 = 0), ``bottom`` (x3 = −s3), ``left`` (x1 = o1), ``right`` (x1 = o1+s1),
+``front`` (x2 = o2) and ``back`` (x2 = o2+s2).
+
+Geometry only (this layer imports nothing from ``fem/``): the checks that need no stiffness —
+the top face lies on x3 = 0 with the foundation below it (outward normal +e3), no foundation
+node lies above x3 = 0 under the contact face (the bodies would overlap), the parts exist
+(unknown names list the known ones) — and the clamped DOFs. Partners, stiffness and compliance
+are computed in :mod:`contactopt.fem.foundation`.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..errors import ConfigError, MeshError
+from .block import block_mesh
+from .body import COMPONENTS, _as_list, _check_rigid_modes, _is_on_table
+from .reference import FACE_CORNERS, Part, ReferenceMesh, describe_part, select_part
+
+
+@dataclass
+class FoundationMesh:
+    """The foundation's reference mesh, its ``top`` part (faces outward +e3, nodes on x3 = 0),
+    its clamped DOFs ``fixed_dofs`` (full DOF indices 3n + m) and absolute tolerance ``tol``."""
+
+    reference: ReferenceMesh
+    top: Part
+    fixed_dofs: np.ndarray
+    tol: float
+    E: float
+    nu: float
+
+
+def foundation_block(size, cells, origin=(0.0, 0.0), element: str = "hexahedron") -> ReferenceMesh:
+    """The generated box of ``[foundation] block`` (module docstring)."""
+    (s1, s2, s3), (n1, n2, n3) = size, cells
+    ref = block_mesh(s1, s2, s3, n1, n2, n3)
+    points = ref.points + np.array([origin[0], origin[1], -s3])
+    points[np.abs(points[:, 2]) <= 1e-14 * s3, 2] = 0.0
+    cells_ = ref.cells
+    ctype = "hexahedron"
+    if element == "tetra":
+        from .tetsplit import hex_to_tets
+        cells_, ctype = hex_to_tets(ref.cells, points), "tetra"
+    mesh = ReferenceMesh(points, cells_, ctype, source=f"foundation block {n1}×{n2}×{n3} ({ctype})")
+    x, lo, hi = points, points.min(axis=0), points.max(axis=0)
+    h = min(s1 / n1, s2 / n2, s3 / n3) * 1e-6
+    for name, on in (("top", np.abs(x[:, 2] - hi[2]) <= h), ("bottom", np.abs(x[:, 2] - lo[2]) <= h),
+                     ("left", np.abs(x[:, 0] - lo[0]) <= h), ("right", np.abs(x[:, 0] - hi[0]) <= h),
+                     ("front", np.abs(x[:, 1] - lo[1]) <= h), ("back", np.abs(x[:, 1] - hi[1]) <= h)):
+        nodes = np.flatnonzero(on)
+        mesh.parts[name] = Part(name, nodes, mesh.faces_within(nodes), "block")
+    return mesh
+
+
+def build_foundation_mesh(cfg, contact_xy: np.ndarray) -> FoundationMesh:
+    """Resolve ``[foundation]`` of a validated configuration against the body's contact face,
+    given by the (x1, x2) of its nodes ``contact_xy`` (p, 2). ConfigError names every problem."""
+    spec, where = cfg["foundation"], f"{cfg.source}: foundation"
+    try:
+        if spec["mesh"]:
+            from .reader import read_mesh
+            ref = read_mesh(spec["mesh"])
+        else:
+            b = spec["block"]
+            ref = foundation_block(b["size"], b["cells"], b["origin"], b["element"])
+    except MeshError as exc:
+        raise ConfigError([f"{where}: {exc}"]) from None
+    bad = ref.inverted_cells()
+    if bad.size:
+        raise ConfigError([f"{where}: {ref.source}: the mesh is inverted as given: {bad.size} of {ref.n_cells} "
+                           f"cell(s) have a negative orientation, first cell {int(bad[0])}"])
+    tol = float(spec["tolerance"]) * ref.typical_size()
+    problems = []
+
+    def part(key, s):
+        try:
+            return select_part(ref, s, tol)
+        except MeshError as exc:
+            problems.append(f"{where}.{key}: {exc}")
+            return None
+
+    top = part("top", spec["top"])
+    fixed = np.zeros((ref.n_nodes, 3), bool)
+    for entry in _as_list(spec["clamped"]):
+        on, comps = (entry["on"], entry.get("components", [1, 2, 3])) if _is_on_table(entry) else (entry, [1, 2, 3])
+        p = part("clamped", on)
+        if p is not None:
+            fixed[np.ix_(p.nodes, sorted({COMPONENTS[c] for c in comps}))] = True
+    if problems:
+        raise ConfigError(problems)
+    top = _check_top(ref, top, tol, describe_part(spec["top"]), where)
+    _check_overlap(ref, contact_xy, tol, where)
+    try:
+        _check_rigid_modes(ref, fixed, cfg.source, key="foundation.clamped")
+    except ConfigError as exc:
+        raise ConfigError([p.replace("bodies held only by the foundation are not supported yet",
+                                     "the foundation must be held in place by its own clamps")
+                           for p in exc.problems]) from None
+    mat = spec["material"]
+    return FoundationMesh(ref, top, np.flatnonzero(fixed.ravel()), tol, float(mat["E"]), float(mat["nu"]))
+
+
+def _check_top(ref: ReferenceMesh, top: Part, tol: float, name: str, where: str) -> Part:
+    """The top face: boundary faces, every node on x3 = 0 (snapped there), outward normal +e3."""
+    if top.faces.shape[0] == 0:
+        raise ConfigError([f"{where}.top = {name}: has no boundary faces (it must be the foundation's face on "
+                           "x3 = 0 under the contact face)"])
+    nodes = np.unique(top.faces)
+    off = np.abs(ref.points[nodes, 2]) > tol
+    if np.any(off):
+        first = ", ".join(f"node {n} at {_fmt(ref.points[n])}" for n in nodes[off][:5])
+        raise ConfigError([f"{where}.top = {name}: {int(off.sum())} node(s) do not lie on x3 = 0 "
+                           f"(tolerance {tol:.3g}), first: {first}"])
+    ref.points[nodes, 2] = 0.0
+    nc = FACE_CORNERS[ref.face_type]
+    X = ref.points[top.faces[:, :nc]]
+    n3 = np.cross(X[:, 1] - X[:, 0], X[:, 2] - X[:, 0])[:, 2]
+    if np.any(n3 <= 0):
+        raise ConfigError([f"{where}.top = {name}: {int(np.sum(n3 <= 0))} face(s) have the foundation above "
+                           "them (outward normal not +x3; the foundation must lie in x3 ≤ 0 below the body)"])
+    return Part(top.name, nodes, top.faces, top.origin)
+
+
+def _check_overlap(ref: ReferenceMesh, contact_xy: np.ndarray, tol: float, where: str) -> None:
+    """No foundation node above x3 = 0 within the bounding rectangle of the contact face."""
+    lo, hi = contact_xy.min(axis=0) - tol, contact_xy.max(axis=0) + tol
+    used = ref.used_nodes()
+    x = ref.points[used]
+    above = (x[:, 2] > tol) & np.all((x[:, :2] >= lo) & (x[:, :2] <= hi), axis=1)
+    if np.any(above):
+        first = ", ".join(f"node {n} at {_fmt(ref.points[n])}" for n in used[above][:5])
+        raise ConfigError([f"{where}: the bodies overlap: {int(above.sum())} node(s) of the foundation lie above "
+                           f"x3 = 0 under the contact face (tolerance {tol:.3g}), first: {first}"])
+
+
+def _fmt(x) -> str:
+    return "(" + ", ".join(f"{v:.6g}" for v in np.asarray(x)) + ")"
