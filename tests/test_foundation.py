@@ -311,3 +311,20 @@ def test_config_needs_one_mesh_source():
     assert cfg["foundation"]["material"] == {"E": E_BODY, "nu": 0.277}     # the body's material
     with pytest.raises(ConfigError, match="compliance"):
         _config({"block": _block()}, objective={"type": "compliance"})
+
+
+def test_a_slab_one_cell_thick_has_every_free_dof_under_a_partner():
+    """Clamped at its bottom and one cell thick, the slab's free DOFs all carry partners: its
+    compliance on them is K_f⁻¹ itself, C = P K_f⁻¹ Pᵀ (checked by sparse solves of K_f)."""
+    pb = ShapeProblem(_config({"block": _block(cells=(4, 2, 1), size=(2.0, 1.0, 0.5), origin=(0.0, 0.0)),
+                               "material": {"E": E_BODY / 10}}))
+    f = pb.model.foundation
+    K = f.assembler.stiffness(f.mesh.reference.points)
+    assert f._support_free.size == K.shape[0]
+    sf, P = f._support_free, f.P.toarray()        # Π on the free support DOFs, in the order sf
+    B = np.zeros((K.shape[0], P.shape[0]))
+    B[sf] = P.T
+    C = P @ sla.splu(sp.csc_matrix(K)).solve(B)[sf]   # P K⁻¹ Pᵀ by sparse solves
+    assert np.abs(f.C - C).max() <= 1e-10 * np.abs(C).max()
+    st = pb.solve_state(pb.model.initial_design())
+    assert st.converged and st.lam.sum() > 0

@@ -75,7 +75,10 @@ class Foundation:
         keep = free >= 0                                         # clamped components do not move
         self._support_free = free[keep]
         K = self.assembler.stiffness(ref.points)
-        self.condensation = condense(K, self._support_free, backend=backend)
+        if self._support_free.size < K.shape[0]:
+            self.condensation = condense(K, self._support_free, backend=backend)
+        else:                       # a slab one cell thick: every free DOF carries a partner
+            self.condensation = _WholeMatrix(K, self._support_free)
         self.W_f = spd_inverse(self.condensation.S)
         P = self.Pi.tocsc()[:, np.flatnonzero(keep)]
         PW = (P @ self.W_f)                                      # (3p, n) dense
@@ -106,6 +109,24 @@ class Foundation:
         return {"source": fm.reference.source, "cell_type": fm.reference.cell_type, "nodes": int(self.n_nodes),
                 "cells": int(fm.reference.n_cells), "free_dofs": int(self.assembler.n_free), "E": fm.E,
                 "nu": fm.nu, "support_nodes": int(self.support.size)}
+
+
+class _WholeMatrix:
+    """K condensed onto all its DOFs (``order``, a permutation of them): S = K in that order,
+    dense, and solves K x = f by its Cholesky factorization — what :func:`condense` gives when
+    there is no interior to eliminate."""
+
+    def __init__(self, K, order: np.ndarray):
+        import scipy.linalg as sla
+        self._order = np.asarray(order)
+        self.S = np.asarray(K[np.ix_(self._order, self._order)].toarray())
+        self._factor = sla.cho_factor(self.S, lower=True)
+
+    def solve(self, f: np.ndarray) -> np.ndarray:
+        import scipy.linalg as sla
+        x = np.zeros_like(f)
+        x[self._order] = sla.cho_solve(self._factor, f[self._order])
+        return x
 
 
 class Coupling:
