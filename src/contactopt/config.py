@@ -458,19 +458,7 @@ def _check_foundation(given, data, problems) -> dict:
     if not isinstance(given, dict):
         problems.append("[foundation]: must be a table")
         return {}
-    out = {}
-    for k in given:
-        if k not in FOUNDATION:
-            problems.append(f"foundation.{k}: unknown key (allowed: {', '.join(FOUNDATION)})")
-    for k, (default, check, desc) in FOUNDATION.items():
-        val = given.get(k, copy.deepcopy(default))
-        try:
-            ok = check(val)
-        except Exception:
-            ok = False
-        if not ok:
-            problems.append(f"foundation.{k} = {val!r}: must be {desc}")
-        out[k] = float(val) if isinstance(val, int) and isinstance(default, float) and not isinstance(val, bool) else val
+    out = _check_table(given, FOUNDATION, "foundation", problems)
     if isinstance(out["mesh"], str) and isinstance(out["block"], dict):
         if bool(out["mesh"]) == bool(out["block"]):
             problems.append("[foundation]: give exactly one of `mesh` (a mesh file) and `block` (a generated box)")
@@ -512,6 +500,25 @@ def _legacy_backend(raw: dict, source: str) -> dict:
     return {**raw, "linear_solver": new}
 
 
+def _check_table(given: dict, keys: dict, sec: str, problems: list) -> dict:
+    """The keys of table ``sec`` with their defaults filled in; unknown keys and values that fail
+    their check are appended to ``problems`` (an integer where a float is expected becomes one)."""
+    for k in given:
+        if k not in keys:
+            problems.append(f"{sec}.{k}: unknown key (allowed: {', '.join(keys)})")
+    out = {}
+    for k, (default, check, desc) in keys.items():
+        val = given.get(k, copy.deepcopy(default))
+        try:
+            ok = check(val)
+        except Exception:
+            ok = False
+        if not ok:
+            problems.append(f"{sec}.{k} = {val!r}: must be {desc}")
+        out[k] = float(val) if isinstance(val, int) and isinstance(default, float) and not isinstance(val, bool) else val
+    return out
+
+
 def validate(raw: dict, source: str = "<dict>") -> Config:
     """Fill defaults and check every key; raise ConfigError listing all problems at once."""
     if not isinstance(raw, dict):
@@ -533,20 +540,7 @@ def validate(raw: dict, source: str = "<dict>") -> Config:
         if not isinstance(given, dict):
             problems.append(f"[{sec}]: must be a table")
             given = {}
-        for k in given:
-            if k not in keys:
-                problems.append(f"{sec}.{k}: unknown key (allowed: {', '.join(keys)})")
-        out = {}
-        for k, (default, check, desc) in keys.items():
-            val = given.get(k, copy.deepcopy(default))
-            try:
-                ok = check(val)
-            except Exception:
-                ok = False
-            if not ok:
-                problems.append(f"{sec}.{k} = {val!r}: must be {desc}")
-            out[k] = float(val) if isinstance(val, int) and isinstance(default, float) and not isinstance(val, bool) else val
-        data[sec] = out
+        data[sec] = _check_table(given, keys, sec, problems)
     deg = data["design"]["degree"]
     d1d2 = deg if isinstance(deg, list) and len(deg) == 2 and all(_posint(v) for v in deg) else None
     _check_matrix(data["design"]["initial"], d1d2, "design.initial", problems)

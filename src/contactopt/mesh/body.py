@@ -21,7 +21,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..errors import ConfigError, MeshError
-from .reference import FACE_CORNERS, Part, ReferenceMesh, describe_part, select_part
+from .reference import FACE_CORNERS, Part, ReferenceMesh, describe_part, part_selector, select_part
 
 log = logging.getLogger(__name__)
 
@@ -76,13 +76,7 @@ def build_body(cfg) -> Body:
                            f"{_fmt(ref.points[ref.cells[e]].mean(axis=0))} (node order of the cells: meshio/VTK)"])
     tol = float(spec["tolerance"]) * ref.typical_size()
     problems = []
-
-    def part(key, s):
-        try:
-            return select_part(ref, s, tol)
-        except MeshError as exc:
-            problems.append(f"body.{key}: {exc}")
-            return None
+    part = part_selector(ref, tol, "body", problems)
 
     clamped = []
     for entry in _as_list(spec["clamped"]):

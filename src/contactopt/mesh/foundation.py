@@ -22,7 +22,7 @@ import numpy as np
 from ..errors import ConfigError, MeshError
 from .block import block_mesh
 from .body import COMPONENTS, _as_list, _check_rigid_modes, _is_on_table
-from .reference import FACE_CORNERS, Part, ReferenceMesh, describe_part, select_part
+from .reference import FACE_CORNERS, Part, ReferenceMesh, describe_part, part_selector
 
 
 @dataclass
@@ -79,13 +79,7 @@ def build_foundation_mesh(cfg, contact_xy: np.ndarray) -> FoundationMesh:
                            f"cell(s) have a negative orientation, first cell {int(bad[0])}"])
     tol = float(spec["tolerance"]) * ref.typical_size()
     problems = []
-
-    def part(key, s):
-        try:
-            return select_part(ref, s, tol)
-        except MeshError as exc:
-            problems.append(f"{where}.{key}: {exc}")
-            return None
+    part = part_selector(ref, tol, where, problems)
 
     top = part("top", spec["top"])
     fixed = np.zeros((ref.n_nodes, 3), bool)

@@ -213,6 +213,18 @@ def describe_part(spec) -> str:
     return "{" + ", ".join(f"{k} = {v}" for k, v in spec.items()) + "}"
 
 
+def part_selector(mesh: ReferenceMesh, tol: float, prefix: str, problems: list):
+    """``part(key, spec)``: :func:`select_part` of a configuration's key, its MeshError appended
+    to ``problems`` as ``"{prefix}.{key}: …"`` (then None), so that every problem is listed at once."""
+    def part(key, spec):
+        try:
+            return select_part(mesh, spec, tol)
+        except MeshError as exc:
+            problems.append(f"{prefix}.{key}: {exc}")
+            return None
+    return part
+
+
 def select_part(mesh: ReferenceMesh, spec, tol: float, *, origin="predicate") -> Part:
     """The part named by ``spec``: a part name, or a predicate table on the reference coordinates.
 
