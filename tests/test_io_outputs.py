@@ -242,3 +242,28 @@ def test_atomic_helpers(tmp_path):
             raise RuntimeError("writer crashed")
     assert (tmp_path / "a.txt").read_text(encoding="utf-8") == "héllo\n"
     assert sorted(os.listdir(tmp_path)) == ["a.txt", "b.bin", "c.json", "d.data", "e.npz"]
+
+
+@pytest.mark.parametrize("element", ["hexahedron", "tetra", "tetra10"])
+def test_cell_stresses_pass_the_patch_test(element):
+    """A displacement linear in x (u = H x) has the same strain in every cell of any element
+    type: every cell's stress is λ tr(ε) I + 2με, ε = (H + Hᵀ)/2, to round-off."""
+    from contactopt.fem.elasticity import ElasticityAssembler, lame
+    from contactopt.mesh.block import block_mesh
+    from contactopt.mesh.tetsplit import hex_to_tets, tet4_to_tet10
+    ref = block_mesh(2.0, 1.0, 0.5, 4, 2, 2)
+    rng = np.random.default_rng(3)
+    points = ref.points + 0.02 * rng.standard_normal(ref.points.shape)       # distorted cells
+    cells = ref.cells
+    if element != "hexahedron":
+        cells = hex_to_tets(ref.cells, points)
+    if element == "tetra10":
+        points, cells = tet4_to_tet10(points, cells)
+    H = rng.standard_normal((3, 3)) * 1e-3
+    asm = ElasticityAssembler(cells, points.shape[0], [], 21.19, 0.277, element=element)
+    s = asm.cell_stresses(points, (points @ H.T).ravel())
+    lam, mu = lame(21.19, 0.277)
+    eps = 0.5 * (H + H.T)
+    sig = lam * np.trace(eps) * np.eye(3) + 2 * mu * eps
+    expect = np.array([sig[0, 0], sig[1, 1], sig[2, 2], sig[1, 2], sig[0, 2], sig[0, 1]])
+    assert np.abs(s - expect).max() <= 1e-12 * np.abs(expect).max()

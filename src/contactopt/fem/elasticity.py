@@ -232,6 +232,21 @@ class ElasticityAssembler:
         inverted element)."""
         return element_geometry(coords[self.elements], self.dN, check=False)[1]
 
+    def cell_stresses(self, coords: np.ndarray, u_full: np.ndarray) -> np.ndarray:
+        """Cauchy stress σ = λ tr(ε) I + 2μ ε of the displacement ``u_full`` (3·n_nodes), averaged
+        over each cell's quadrature points (weights w det J): (E, 6) in Voigt order
+        (xx, yy, zz, yz, xz, xy). Exact for a displacement linear in x on every element type."""
+        X = coords[self.elements]
+        G, det = element_geometry(X, self.dN)
+        ue = np.asarray(u_full, float).reshape(-1, 3)[self.elements]          # (E, k, 3)
+        grad = np.einsum("eqam,eai->eqim", G, ue)                           # ∂u_i/∂x_m
+        eps = 0.5 * (grad + grad.transpose(0, 1, 3, 2))
+        wq = det * self.w
+        eps = np.einsum("eqij,eq->eij", eps, wq) / wq.sum(axis=1)[:, None, None]
+        sig = 2.0 * self.mu * eps
+        sig[:, [0, 1, 2], [0, 1, 2]] += (self.lam * np.trace(eps, axis1=1, axis2=2))[:, None]
+        return np.stack([sig[:, 0, 0], sig[:, 1, 1], sig[:, 2, 2], sig[:, 1, 2], sig[:, 0, 2], sig[:, 0, 1]], axis=1)
+
     def scalar_laplacian(self, coords: np.ndarray) -> sp.csr_matrix:
         """Matrix of ∫∇φ_a·∇φ_b dx (n_nodes × n_nodes, CSR) with the element's shape functions
         and stiffness rule: the operator of the harmonic morph weight (DESIGN.md §9)."""

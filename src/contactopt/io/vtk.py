@@ -27,7 +27,9 @@ and the node classes are those of w), and :func:`write_foundation_vtu` writes th
 its reference mesh with ``displacement`` u_f (zero on its clamped parts), ``contact_force`` (the
 force −Πᵀr the body exerts on it, per node) and its parts.
 
-Cells are the body's volume cells (hexahedra, tetrahedra or ten-node tetrahedra, in VTK order).
+Cells are the body's volume cells (hexahedra, tetrahedra or ten-node tetrahedra, in VTK order),
+with cell data ``stress`` (the Cauchy stress averaged over the cell, Voigt order xx, yy, zz, yz,
+xz, xy, tension positive) and ``von_mises``; the foundation's file has the same.
 
 The foundation is the half-space x3 ≤ 0 with normal e3, so tangential = (x1, x2), normal = x3.
 """
@@ -136,12 +138,22 @@ def write_body_vtu(path, model, state, extra_point_data=None, *, deformed: bool 
     points = coords + point_data["displacement"] if deformed else coords
     # the body's cells are in meshio's (= VTK's) node order for every supported type
     mesh = meshio.Mesh(points, [(model.mesh.cell_type, np.asarray(model.mesh.elements, np.int64))],
-                       point_data=point_data)
+                       point_data=point_data,
+                       cell_data=cell_stress_data(model.assembler, coords, point_data["displacement"].ravel()))
     with atomic_output(path) as tmp:
         meshio.write(tmp, mesh, file_format="vtu")
     log.info("wrote %s (%d nodes, %d %s cells, %s)", path, n, model.mesh.n_elements, model.mesh.cell_type,
              "deformed" if deformed else "reference configuration")
     return path
+
+
+def cell_stress_data(assembler, coords, u_full) -> dict:
+    """Cell data of a body: the Cauchy stress (cell average, Voigt order xx, yy, zz, yz, xz, xy;
+    tension positive) and its von Mises equivalent."""
+    s = _finite("stress", assembler.cell_stresses(np.asarray(coords, float), np.asarray(u_full, float)))
+    vm = np.sqrt(0.5 * ((s[:, 0] - s[:, 1]) ** 2 + (s[:, 1] - s[:, 2]) ** 2 + (s[:, 2] - s[:, 0]) ** 2)
+                 + 3.0 * (s[:, 3] ** 2 + s[:, 4] ** 2 + s[:, 5] ** 2))
+    return {"stress": [s], "von_mises": [vm]}
 
 
 def write_foundation_vtu(path, foundation, state) -> Path:
@@ -161,7 +173,8 @@ def write_foundation_vtu(path, foundation, state) -> Path:
         tag = np.zeros(n, np.int8)
         tag[part.nodes] = 1
         data[f"part:{name}"] = tag
-    mesh = meshio.Mesh(ref.points, [(ref.cell_type, ref.cells)], point_data=data)
+    mesh = meshio.Mesh(ref.points, [(ref.cell_type, ref.cells)], point_data=data,
+                       cell_data=cell_stress_data(foundation.assembler, ref.points, u.ravel()))
     with atomic_output(path) as tmp:
         meshio.write(tmp, mesh, file_format="vtu")
     log.info("wrote %s (the foundation: %d nodes, %d %s cells)", path, n, ref.n_cells, ref.cell_type)
