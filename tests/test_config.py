@@ -43,3 +43,12 @@ def test_target_tables_are_checked():
         validate({"objective": {"target": {"kind": "wave"}}})
     with pytest.raises(ConfigError, match=r"regions\[0\].x1"):
         validate({"objective": {"target": {"kind": "step", "regions": [{"x1": [1.0, 0.0], "value": 1.0}]}}})
+
+
+def test_the_deprecated_backend_key_is_read_and_a_wrong_value_named():
+    """[linear_solver] backend still selects the path (with a warning naming path and library);
+    a value it never had is refused with the values it had and the keys to write instead."""
+    ls = load_config("example1").with_updates({"linear_solver": {"backend": "amg"}})["linear_solver"]
+    assert (ls["path"], "backend" in ls) == ("fullspace", False)
+    with pytest.raises(ConfigError, match=r"linear_solver.backend = 'foo': must be one of .*'amg'.*linear_solver.path"):
+        load_config("example1").with_updates({"linear_solver": {"backend": "foo"}})

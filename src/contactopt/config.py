@@ -483,17 +483,20 @@ LEGACY_BACKEND = {"auto": (None, None), "pardiso": ("condensation", "pardiso"),
                   "amg": ("fullspace", None)}
 
 
-def _legacy_backend(raw: dict, source: str) -> dict:
+def _legacy_backend(raw: dict, source: str, problems: list) -> dict:
     """``[linear_solver] backend`` (deprecated) read as the keys ``path`` and ``library`` that
     replaced it, with a warning naming them; it overrides them when both are given."""
     ls = raw.get("linear_solver")
     if not isinstance(ls, dict) or "backend" not in ls:
         return raw
     value = ls["backend"]
-    if value not in LEGACY_BACKEND:
-        return raw                    # reported as an unknown key with the allowed ones
-    path, library = LEGACY_BACKEND[value]
     new = {k: v for k, v in ls.items() if k != "backend"}
+    if value not in LEGACY_BACKEND:
+        problems.append(f"linear_solver.backend = {value!r}: must be one of "
+                        f"{', '.join(repr(v) for v in LEGACY_BACKEND)} (a deprecated key: write "
+                        "linear_solver.path and linear_solver.library instead)")
+        return {**raw, "linear_solver": new}
+    path, library = LEGACY_BACKEND[value]
     new.update({k: v for k, v in (("path", path), ("library", library)) if v is not None})
     spelled = ", ".join(f"{k} = {new[k]!r}" for k in ("path", "library") if k in new) or "path = 'auto'"
     log.warning("%s: [linear_solver] backend = %r is deprecated; write %s instead", source, value, spelled)
@@ -534,7 +537,7 @@ def validate(raw: dict, source: str = "<dict>") -> Config:
         if not check(val):
             problems.append(f"{key} = {val!r}: must be {desc}")
         data[key] = val
-    raw = _legacy_backend(raw, source)
+    raw = _legacy_backend(raw, source, problems)
     for sec, keys in SCHEMA.items():
         given = raw.get(sec, {})
         if not isinstance(given, dict):
