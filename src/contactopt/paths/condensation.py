@@ -31,7 +31,6 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from ..contact import zone as zone_rules
-from ..contact.state import FROM_FCLIB
 from ..fem import memory
 from ..fem.model import Assembled
 from .zone_paths import ZonePath
@@ -125,20 +124,21 @@ class CondensationPath(ZonePath):
             shared["zone"] = zp
         return zp, zone
 
-    def free_displacement(self, system, zp, r_loc, u_c):
-        if system.coupling is None:
-            return system.factor.recover(system.assembled.L, u_c.ravel())
-        # on a foundation u_c is the relative displacement w; the body's own is w + Π u_f
-        r = np.zeros((self.model.n_contact, 3))
-        r[zp.zone] = r_loc.reshape(-1, 3)[:, FROM_FCLIB]
-        return system.factor.recover(system.assembled.L, system.coupling.body_displacement(u_c, r))
+    def free_displacement(self, system, zp, r_loc, u_body):
+        return system.factor.recover(system.assembled.L, u_body)
 
-    def contact_info(self, system, u_c, r) -> dict:
+    def body_contact_displacement(self, system, u_c, r):
+        """On a foundation u_c is the relative displacement w; the body's own is w + Π u_f."""
+        if system.coupling is None:
+            return np.ravel(u_c)
+        return system.coupling.body_displacement(u_c, r)
+
+    def contact_info(self, system, u_c, r, u_body) -> dict:
         """On a foundation: the body's contact displacement and its partners' (p, 3) per node
         (t1, t2, ν); w = u_c − partner is the state's ``u_c``."""
         if system.coupling is None:
             return {}
-        body = system.coupling.body_displacement(u_c, r).reshape(-1, 3)
+        body = u_body.reshape(-1, 3)
         return {"foundation": True, "u_body_c": body, "u_partner": body - u_c,
                 "foundation_u": self.foundation.displacement(r)}
 

@@ -132,7 +132,7 @@ class DelassusPath(ZonePath):
         return zone_rules.near_nodes(np.zeros(system.gap.size), clearance, displacement_scale(u0, system.gap),
                                      self.settings.zone_margin)
 
-    def free_displacement(self, system, zp, r_loc, u_c):
+    def free_displacement(self, system, zp, r_loc, u_body):
         return zp.free_displacement(r_loc)
 
     def load_scale(self, system):

@@ -64,9 +64,15 @@ class ZonePath(SolverPath):
         """(zone problem, zone) of a load case's system (the zone may be predicted anew)."""
         raise NotImplementedError
 
-    def free_displacement(self, system, zp, r_loc, u_c) -> np.ndarray:
-        """The displacement on the free DOFs of the zone's forces ``r_loc`` (contact DOFs: ``u_c``)."""
+    def free_displacement(self, system, zp, r_loc, u_body) -> np.ndarray:
+        """The displacement on the free DOFs of the zone's forces ``r_loc`` (FCLIB order), whose
+        contact DOFs are ``u_body`` (:meth:`body_contact_displacement`)."""
         raise NotImplementedError
+
+    def body_contact_displacement(self, system, u_c, r) -> np.ndarray:
+        """The body's own displacement on the contact DOFs (3p,) for the contact law's ``u_c`` and
+        the forces ``r`` (p, 3) per node (t1, t2, ν): ``u_c`` itself on the rigid foundation."""
+        return np.ravel(u_c)
 
     def load_scale(self, system) -> np.ndarray:
         """The load against which forces count as zero when nothing is in contact."""
@@ -113,12 +119,13 @@ class ZonePath(SolverPath):
             warm = self._zone_warm(res.r, zone)
             zone = zp.zone
         t3 = time.perf_counter()
-        u = self.model.assembler.to_full(self.free_displacement(system, zp, res.r, u3))
-        timings["recovery"] = time.perf_counter() - t3
         r = np.zeros((self.model.n_contact, 3))                      # per node (t1, t2, ν)
         r[zone] = res.r.reshape(-1, 3)[:, FROM_FCLIB]
+        u_body = self.body_contact_displacement(system, u3, r)
+        u = self.model.assembler.to_full(self.free_displacement(system, zp, res.r, u_body))
+        timings["recovery"] = time.perf_counter() - t3
         info = {"backend": self.library_of(system), "zone_nodes": int(zone.size), "zone_misses": misses,
-                "delassus": reused[-1], **self.solve_counts(zp), **self.contact_info(system, u3, r)}
+                "delassus": reused[-1], **self.solve_counts(zp), **self.contact_info(system, u3, r, u_body)}
         state = self.finish_state(ctx, alpha=alpha, coords=system.assembled.coords, u=u, u_c=u3, r=r,
                                   gap=system.gap, load=self.load_scale(system), method=method,
                                   outcome=(res.iterations, res.error, res.converged),
@@ -135,7 +142,7 @@ class ZonePath(SolverPath):
     def solve_counts(self, zp) -> dict:
         return {}
 
-    def contact_info(self, system, u_c, r) -> dict:
+    def contact_info(self, system, u_c, r, u_body) -> dict:
         """More of the state for its ``info`` (the condensation path's elastic foundation)."""
         return {}
 
