@@ -19,6 +19,7 @@ from contactopt.contact.local import solve_local
 from contactopt.contact.state import FROM_FCLIB, TO_FCLIB, classify_nodes
 from contactopt.errors import ConfigError
 from contactopt.fem.elasticity import ElasticityAssembler
+from contactopt.fem.loads import body_load
 from contactopt.mesh.block import block_mesh
 from contactopt.mesh.foundation import foundation_block
 from contactopt.problem import ShapeProblem
@@ -88,7 +89,10 @@ def _monolithic_state(pb, alpha, f_cells_z=3, f_depth=0.5):
                                pb.config["material"]["nu"])
     K_b = basm.full_stiffness(asm_b.coords)
     K = sp.block_diag([K_b, K_f]).tocsr()
-    L = np.concatenate([asm_b.L_full, np.zeros(3 * fref.n_nodes)])
+    # the foundation's own body force, integrated here by the element rule of its block
+    bf = np.array(pb.config["foundation"]["loads"]["body_force"], float)
+    L_f = body_load(fpts, fref.cells, bf) if np.any(bf) else np.zeros(3 * fref.n_nodes)
+    L = np.concatenate([asm_b.L_full, L_f])
     fixed = np.concatenate([model.body.fixed_dofs,
                             3 * nb + (3 * np.flatnonzero(np.isclose(fpts[:, 2], -f_depth))[:, None]
                                       + np.arange(3)).ravel()])
@@ -126,10 +130,17 @@ def _monolithic_state(pb, alpha, f_cells_z=3, f_depth=0.5):
     return lam, tau, w, classify_nodes(w, lam, tau, asm_b.gap, pb.friction)
 
 
-def test_matching_meshes_agree_with_a_monolithic_model():
-    """Foundation nodes under every body contact node: λ, τ to 1e-10, the same node classes."""
+@pytest.mark.parametrize("body_force", [None, [0.01, 0.0, -0.04]])
+def test_matching_meshes_agree_with_a_monolithic_model(body_force):
+    """Foundation nodes under every body contact node ('auto' takes point partners there): λ, τ
+    to 1e-10, the same node classes; with the foundation's own body force (its weight, and a
+    sideways pull) as well."""
     f = {"block": _block(cells=(12, 6, 3), size=(2.0, 1.0, 0.5), origin=(0.0, 0.0)), "material": {"E": E_BODY / 3}}
+    if body_force is not None:
+        f["loads"] = {"body_force": body_force}
     pb = ShapeProblem(_config(f, state={"tol": 1e-14, "max_iter": 200}))
+    assert pb.model.foundation.partner == "point"
+    assert np.any(pb.model.foundation.q_f) == (body_force is not None)
     for alpha in (pb.model.initial_design(), _design(pb.model)):
         st = pb.solve_state(alpha)
         lam, tau, w, classes = _monolithic_state(pb, alpha)
@@ -159,18 +170,24 @@ def _write_foundation_msh(path, ref, parts=("top", "bottom")):
     return path
 
 
-@pytest.mark.parametrize("kind", ["hex block", "tet file"])
+@pytest.mark.parametrize("kind", ["hex block", "tet file", "loaded hex block"])
 def test_subgradient_matches_central_differences(kind, tmp_path):
     """Non-matching meshes (the foundation coarser, wider): ξ·d against Richardson central
-    differences to 1e-6 in random directions."""
+    differences to 1e-6 in random directions; point partners on the hex block, 'auto' (averaged)
+    on the others, and the foundation's own loads on the last."""
     if kind == "hex block":
-        f = {"block": _block(cells=(9, 5, 3))}
+        f = {"block": _block(cells=(9, 5, 3)), "partner": "point"}
+    elif kind == "loaded hex block":
+        f = {"block": _block(cells=(9, 5, 3)),
+             "loads": {"body_force": [0.0, 0.0, -0.02], "pressure": [{"on": "top", "value": 0.005}]}}
     else:
         ref = foundation_block([3.0, 2.0, 1.0], [9, 5, 3], [-0.5, -0.5], "tetra")
         f = {"mesh": str(_write_foundation_msh(tmp_path / "slab.msh", ref))}
     f["material"] = {"E": E_BODY / 10}
     pb = ShapeProblem(_config(f))
-    assert pb.model.foundation.mesh.reference.cell_type == ("hexahedron" if kind == "hex block" else "tetra")
+    assert pb.model.foundation.mesh.reference.cell_type == ("tetra" if kind == "tet file" else "hexahedron")
+    assert pb.model.foundation.partner == ("point" if kind == "hex block" else "average")
+    assert np.any(pb.model.foundation.q_f) == (kind == "loaded hex block")
     alpha = _design(pb.model)
     gc = check_gradient(pb, alpha, n_directions=3, seed=0)
     assert gc.n_degenerate == 0
@@ -183,7 +200,8 @@ def test_averaged_partners_gradient_and_partition_of_unity():
                                "partner": "average"}))
     Pi = pb.model.foundation.Pi
     assert np.allclose(np.asarray(Pi.sum(axis=1)).ravel(), 1.0, atol=1e-13) and Pi.data.min() >= 0
-    point = ShapeProblem(_config({"block": _block(cells=(9, 5, 3)), "material": {"E": E_BODY / 10}}))
+    point = ShapeProblem(_config({"block": _block(cells=(9, 5, 3)), "material": {"E": E_BODY / 10},
+                                  "partner": "point"}))
     assert np.allclose(np.asarray(point.model.foundation.Pi.sum(axis=1)).ravel(), 1.0, atol=1e-13)
     gc = check_gradient(pb, _design(pb.model), n_directions=2, seed=3)
     assert gc.n_degenerate == 0 and gc.passed, gc.rel_errors
@@ -279,6 +297,11 @@ BAD = {
                           'clamped = { on = "bottom", components = [3] }\n', "foundation.clamped leaves 3 rigid-body"),
     "unknown group": ('block = { size = [3.0, 2.0, 1.0], cells = [6, 4, 2], origin = [-0.5, -0.5] }\n'
                       'clamped = "base"\n', "the mesh has: back, bottom, front, left, right, top"),
+    "load on an unknown group": ('block = { size = [3.0, 2.0, 1.0], cells = [6, 4, 2], origin = [-0.5, -0.5] }\n'
+                                 'loads = { pressure = [{ on = "side", value = 1.0 }] }\n',
+                                 "foundation.loads.pressure[0]: foundation block 6×4×2 (hexahedron): no part named 'side'"),
+    "unknown load form": ('block = { size = [3.0, 2.0, 1.0], cells = [6, 4, 2], origin = [-0.5, -0.5] }\n'
+                          'loads = { top_traction = [0.0, 0.0, -1.0] }\n', "foundation.loads = "),
 }
 
 
@@ -328,3 +351,24 @@ def test_a_slab_one_cell_thick_has_every_free_dof_under_a_partner():
     assert np.abs(f.C - C).max() <= 1e-10 * np.abs(C).max()
     st = pb.solve_state(pb.model.initial_design())
     assert st.converged and st.lam.sum() > 0
+
+
+def test_memory_estimate_holds_the_foundation_and_refuses_one_too_large(monkeypatch):
+    """The foundation's factor and dense matrices join the evaluation's estimate (measured peak
+    RSS of `contactopt state examples/example1_elastic.toml`: 0.59 GB, rigid 0.44 GB; docs/foundation.md),
+    and a foundation that does not fit beside the body is refused before K_f is factorized."""
+    from contactopt.fem import memory
+    from contactopt.fem.linsolve import condense as real_condense
+    cfg = _config({"block": _block(cells=(36, 24, 8)), "material": {"E": E_BODY / 10}})
+    calls = []
+    monkeypatch.setattr("contactopt.fem.linsolve.condense", lambda *a, **k: calls.append(1) or real_condense(*a, **k))
+    pb = ShapeProblem(cfg)
+    assert len(calls) == 1          # the foundation's condensation, once per run
+    est = pb.path.memory_estimate(pb.model)
+    f = est.parts["foundation"]
+    assert f > 0 and "foundation" in est.describe()
+    body_only = est.total - f
+    monkeypatch.setattr(memory, "available_memory", lambda: (body_only + 0.5 * f) / 0.9)
+    with pytest.raises(memory.InsufficientMemoryError, match="foundation"):
+        ShapeProblem(cfg)
+    assert len(calls) == 1          # refused before the foundation's condensation

@@ -243,6 +243,9 @@ def _material_spec(x):
     return _pos(x.get("E", 1.0)) and _finite(x.get("nu", 0.0)) and -1.0 < x.get("nu", 0.0) < 0.5
 
 
+# the foundation's own loads: the forms of [loads] that need no block part
+FOUNDATION_LOADS = {k: SCHEMA["loads"][k] for k in ("traction", "pressure", "body_force")}
+
 # [foundation]: optional — absent, the foundation is the rigid half-space x3 ≤ 0 (docs/foundation.md)
 FOUNDATION = {
     "mesh": ("", lambda x: isinstance(x, str),
@@ -257,11 +260,17 @@ FOUNDATION = {
                 "foundation in place (no rigid-body motion)"),
     "material": ({}, _material_spec, "a table { E = ..., nu = ... } (Young's modulus > 0, Poisson's ratio in "
                  "(−1, 0.5)); a key not given is the body's [material] value"),
-    "partner": ("point", _oneof("point", "average"),
+    "loads": ({}, lambda x: isinstance(x, dict) and set(x) <= set(FOUNDATION_LOADS) and all(
+        FOUNDATION_LOADS[k][1](v) for k, v in x.items()),
+        "a table with any of traction, pressure (lists of { on = <part of the foundation>, value = … }, as "
+        "in [loads]) and body_force = [f1, f2, f3] (per unit volume): the foundation's own loads, the same "
+        "in every load case"),
+    "partner": ("auto", _oneof("auto", "point", "average"),
                 "'point' (a contact node's partner is the point of the top face directly below it: exact "
-                "node-to-node coupling on matching meshes) or 'average' (the mean of the foundation's "
+                "node-to-node coupling on matching meshes), 'average' (the mean of the foundation's "
                 "displacement over the node's tributary area: a foundation finer than the body then "
-                "converges; linear body elements only)"),
+                "converges; linear body elements only) or 'auto' ('point' where every partner is a node of "
+                "the top face or the body's faces are quadratic, else 'average')"),
     "tolerance": (1e-3, lambda x: _pos(x) and x < 0.5,
                   "a number in (0, 0.5) (geometric tolerance of the checks of the foundation's mesh, "
                   "relative to its median boundary edge length)"),
@@ -469,6 +478,8 @@ def _check_foundation(given, data, problems) -> dict:
         out["block"] = {"size": [float(v) for v in b["size"]], "cells": list(b["cells"]),
                         "origin": [float(v) for v in b.get("origin", [0.0, 0.0])],
                         "element": b.get("element", "hexahedron")}
+    if isinstance(out["loads"], dict):
+        out["loads"] = {**{k: copy.deepcopy(v[0]) for k, v in FOUNDATION_LOADS.items()}, **out["loads"]}
     if isinstance(out["material"], dict) and _material_spec(out["material"]):
         out["material"] = {k: float(out["material"].get(k, data["material"][k])) for k in ("E", "nu")}
     if data["objective"]["type"] == "compliance":
@@ -603,7 +614,7 @@ def reference_markdown() -> str:
     lines += ["", "## [foundation]", "",
               "Optional: an elastic foundation under the body (docs/foundation.md). Absent, the foundation is "
               "the rigid half-space x3 ≤ 0. Its top face lies on x3 = 0 under the contact face; each contact "
-              "node's partner is the point of that face directly below it. Runs on the condensation path.",
+              "node has a partner on that face (`partner`). Runs on the condensation path.",
               "", "| key | default | meaning |", "|---|---|---|"]
     for k, (default, _, desc) in FOUNDATION.items():
         shown = tomli_w.dumps({"v": default}).split("=", 1)[1].strip() if default not in ([], {}) else repr(default)

@@ -17,7 +17,8 @@ independent of the design α: computed once per run. Condensed with the body's S
 
     w = W r + S⁻¹ℓ − Π q_f,   W = S⁻¹ + C
 
-(docs/foundation.md). The foundation carries no loads of its own yet: q_f = 0.
+(docs/foundation.md). The foundation's own loads f_f (``[foundation] loads``: tractions,
+pressures on its parts and a body force, the same in every load case) give q_f; without them q_f = 0.
 """
 
 from __future__ import annotations
@@ -33,6 +34,7 @@ from ..mesh.reference import FACE_CORNERS
 from .dense import spd_inverse
 from .elasticity import ElasticityAssembler
 from .elements import element_type, face_type
+from .loadset import load_set
 
 log = logging.getLogger(__name__)
 
@@ -49,20 +51,26 @@ class Foundation:
     (on the free support DOFs), ``C`` (3p × 3p), ``q_f`` (3p,), ``condensation`` (of K_f onto the
     free support DOFs: the foundation's displacement for outputs)."""
 
-    def __init__(self, cfg, body, backend: str = "auto"):
+    def __init__(self, cfg, body, backend: str = "auto", check=None):
+        """``check(parts)``: called with :attr:`memory_parts` before K_f is assembled and
+        condensed (the model's memory check), so that a foundation too large is refused first."""
         from .linsolve import condense
+        from .memory import foundation_parts, matrix_entries
         contact_nodes = body.contact_nodes
         contact_xy = body.reference.points[contact_nodes, :2]
         self.mesh = fm = build_foundation_mesh(cfg, contact_xy)
         ref = fm.reference
         self.partner = cfg["foundation"]["partner"]
+        self.loads = load_set(fm, cfg["foundation"]["loads"], where=f"{cfg.source}: foundation.loads")
         self.assembler = ElasticityAssembler(ref.cells, ref.n_nodes, fm.fixed_dofs, fm.E, fm.nu,
                                              element=element_type(ref.cell_type))
         where = f"{cfg.source}: foundation.top"
         p = contact_xy.shape[0]
+        faces, weights = locate_partners(ref.points, fm.top.faces, ref.face_type, contact_xy, contact_nodes, where)
+        if self.partner == "auto":
+            self.partner = auto_partner(weights, face_type(body.reference.face_type).degree)
+            log.info("foundation.partner = 'auto': %r", self.partner)
         if self.partner == "point":
-            faces, weights = locate_partners(ref.points, fm.top.faces, ref.face_type, contact_xy, contact_nodes,
-                                             where)
             rows, cols, vals = np.repeat(np.arange(p), weights.shape[1]), fm.top.faces[faces].ravel(), weights.ravel()
         else:
             rows, cols, vals = averaged_partners(body, fm, where)
@@ -74,6 +82,13 @@ class Foundation:
         free = self.assembler.full_to_free[(3 * self.support[:, None] + np.arange(3)).ravel()]
         keep = free >= 0                                         # clamped components do not move
         self._support_free = free[keep]
+        free_per_node = np.ones(3 * ref.n_nodes, bool)
+        free_per_node[fm.fixed_dofs] = False
+        self.memory_parts = foundation_parts(
+            self.assembler.n_free, matrix_entries(ref.cells, ref.n_nodes, free_per_node.reshape(-1, 3).sum(axis=1)),
+            self._support_free.size, 3 * p)
+        if check is not None:
+            check(self.memory_parts)
         K = self.assembler.stiffness(ref.points)
         if self._support_free.size < K.shape[0]:
             self.condensation = condense(K, self._support_free, backend=backend)
@@ -85,7 +100,11 @@ class Foundation:
         C = np.asarray((P @ PW.T).T)
         self.C = 0.5 * (C + C.T)
         self.P = P                # Π on the free support DOFs (the clamped ones do not move)
-        self.q_f = np.zeros(3 * p)
+        f_full = self.loads.vector(ref.points, self.assembler)
+        self.load_resultant = f_full.reshape(-1, 3).sum(axis=0)
+        self.f_f = f_full[self.assembler.free]                    # K_f u_f0 = f_f
+        self._u0 = self.condensation.solve(self.f_f) if np.any(self.f_f) else np.zeros_like(self.f_f)
+        self.q_f = P @ self._u0[self._support_free]               # Π K_f⁻¹ f_f (3p,)
         log.info("elastic foundation %s: %d nodes, %d free DOFs, E = %g, nu = %g; %d top-face nodes carry "
                  "the partners of %d contact nodes", ref.source, ref.n_nodes, self.assembler.n_free, fm.E, fm.nu,
                  self.support.size, p)
@@ -99,16 +118,21 @@ class Foundation:
         return self.q_f - self.C @ np.ravel(r)
 
     def displacement(self, r: np.ndarray) -> np.ndarray:
-        """The foundation's full displacement (3·n_f,) under −Πᵀ r (zero on its clamped DOFs)."""
+        """The foundation's full displacement (3·n_f,) under its own loads f_f and −Πᵀ r (zero on
+        its clamped DOFs)."""
         f = np.zeros(self.assembler.n_free)
         f[self._support_free] = -(self.P.T @ np.ravel(r))
-        return self.assembler.to_full(self.condensation.solve(f))
+        return self.assembler.to_full(self.condensation.solve(f) + self._u0)
 
     def summary(self) -> dict:
         fm = self.mesh
         return {"source": fm.reference.source, "cell_type": fm.reference.cell_type, "nodes": int(self.n_nodes),
                 "cells": int(fm.reference.n_cells), "free_dofs": int(self.assembler.n_free), "E": fm.E,
-                "nu": fm.nu, "support_nodes": int(self.support.size)}
+                "nu": fm.nu, "support_nodes": int(self.support.size), "partner": self.partner,
+                "loads": {"tractions": [name for name, _, _ in self.loads.tractions],
+                          "pressures": [name for name, _, _ in self.loads.pressures],
+                          "body_force": self.loads.body_force.tolist(),
+                          "resultant": self.load_resultant.tolist()}}
 
 
 class _WholeMatrix:
@@ -233,6 +257,15 @@ def _reference_point(X: np.ndarray, x: np.ndarray, nc: int):
         if np.abs(step).max() < 1e-14:
             break
     return xi, bool(np.abs(xi).max() <= 1 + INSIDE_TOL)
+
+
+def auto_partner(weights: np.ndarray, body_degree: int, tol: float = 1e-9) -> str:
+    """``partner = "auto"``: 'point' where every point partner is a node of the top face (one
+    weight 1: matching meshes, where point partners are exact node-to-node contact) or the body's
+    faces are quadratic (averaging needs linear faces), else 'average' — point partners do not
+    converge as the foundation alone is refined (docs/foundation.md)."""
+    on_nodes = bool(np.all(np.abs(weights).max(axis=1) >= 1.0 - tol))
+    return "point" if on_nodes or body_degree != 1 else "average"
 
 
 def averaged_partners(body, fm, where: str):

@@ -59,6 +59,12 @@ ZONE_FRACTION = 1.0       # the first design's zone (predicted from A⁻¹L) can
 # hierarchy (operator complexity ≈ 1.16) and GMRES's Krylov basis (restart 60).
 AMG_SPARSE_COPIES = 6.0
 KRYLOV_VECTORS = 130
+# An elastic foundation (``[foundation]``, condensation path): K_f and the Schur-mode factor of it
+# onto the m free top-face DOFs that carry partners, held once per run, with dense S_f, W_f, M and
+# its Cholesky factor (m × m), C and S_eff (3p × 3p) and the products between them (3p × m).
+FOUNDATION_DENSE_M = 5.0
+FOUNDATION_DENSE_C = 3.0
+FOUNDATION_DENSE_CM = 3.0
 
 
 class InsufficientMemoryError(ContactOptError):
@@ -91,6 +97,11 @@ class MemoryEstimate:
     @property
     def total_gb(self) -> float:
         return self.total / GB
+
+    def with_parts(self, extra: dict) -> "MemoryEstimate":
+        """The estimate with more parts held at the same time (an elastic foundation's)."""
+        return MemoryEstimate(self.n_dofs, self.n_contact_dofs, self.n_cells, self.nnz_A, self.nnz_factor,
+                              {**self.parts, **extra})
 
     def describe(self) -> str:
         parts = ", ".join(f"{k} {v / GB:.2f}" for k, v in self.parts.items())
@@ -140,6 +151,16 @@ def fullspace_parts(n_dofs: int, n_contact_dofs: int, nnz_A: int) -> tuple[dict,
     """The full-space path: no factorization; A, its modified copy, the AMG hierarchy and the
     Krylov basis."""
     return {"sparse": AMG_SPARSE_COPIES * 12.0 * nnz_A, "krylov": KRYLOV_VECTORS * 8.0 * n_dofs}, 0
+
+
+def foundation_parts(n_dofs: int, nnz_K: int, n_support_dofs: int, n_contact_dofs: int) -> dict:
+    """The elastic foundation's part (bytes), held for the whole run beside an evaluation's: its
+    sparse K_f and Schur-mode factor (``n_dofs`` free DOFs, ``nnz_K`` entries) and the dense
+    matrices on its ``n_support_dofs`` free top-face DOFs and the body's contact DOFs."""
+    m, c = float(n_support_dofs), float(n_contact_dofs)
+    factor = PARDISO_BYTES * fill_factor(n_dofs) * nnz_K + SPARSE_COPIES * 12.0 * nnz_K
+    dense = 8.0 * (FOUNDATION_DENSE_M * m * m + FOUNDATION_DENSE_C * c * c + FOUNDATION_DENSE_CM * c * m)
+    return {"foundation": factor + dense}
 
 
 def estimate_counts(n_dofs: int, n_contact_dofs: int, n_cells: int, nnz_A: int,

@@ -63,9 +63,13 @@ class ElasticModel:
         cfg = load_config(config) if not isinstance(config, Config) else config
         self.config = cfg
         self.body = body = build_body(cfg) if body is None else body
+        check = None
         if cfg["linear_solver"]["memory_check"]:   # refuse a mesh too large before building on it
             from .memory import check_memory
-            check_memory(body, estimate=memory_estimate)
+            est = check_memory(body, estimate=memory_estimate)
+
+            def check(extra):                      # an elastic foundation's part, held beside it
+                return check_memory(body, estimate=lambda b: est.with_parts(extra))
         ref = body.reference
         d = cfg["design"]
         d1, d2 = d["degree"]
@@ -101,7 +105,7 @@ class ElasticModel:
         self.foundation = None      # [foundation]: the elastic foundation under the contact face
         if "foundation" in cfg.data:
             from .foundation import Foundation
-            self.foundation = Foundation(cfg, body)
+            self.foundation = Foundation(cfg, body, check=check)
 
     # ------------------------------------------------------------------ checks
     def _check_reference(self, ref) -> None:

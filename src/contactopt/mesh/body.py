@@ -21,7 +21,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..errors import ConfigError, MeshError
-from .reference import FACE_CORNERS, Part, ReferenceMesh, describe_part, part_selector, select_part
+from .reference import FACE_CORNERS, HasParts, Part, ReferenceMesh, describe_part, part_selector, select_part
 
 log = logging.getLogger(__name__)
 
@@ -29,7 +29,7 @@ COMPONENTS = {"x1": 0, "x2": 1, "x3": 2, 1: 0, 2: 1, 3: 2}
 
 
 @dataclass
-class Body:
+class Body(HasParts):
     """A reference mesh with its resolved parts (see the module docstring)."""
 
     reference: ReferenceMesh
@@ -41,13 +41,6 @@ class Body:
     fixed_shape: dict             # name → nodes with morph weight 0
     domain: tuple                 # ((x1lo, x1hi), (x2lo, x2hi)) of the design rectangle
     warnings: list = field(default_factory=list)
-
-    def part(self, spec) -> Part:
-        """The part of a spec (a name or a predicate table), as in the configuration."""
-        try:
-            return select_part(self.reference, spec, self.tol)
-        except MeshError as exc:
-            raise ConfigError([str(exc)]) from None
 
 
 def reference_mesh(cfg):

@@ -22,11 +22,11 @@ import numpy as np
 from ..errors import ConfigError, MeshError
 from .block import block_mesh
 from .body import COMPONENTS, _as_list, _check_rigid_modes, _is_on_table
-from .reference import FACE_CORNERS, Part, ReferenceMesh, describe_part, part_selector
+from .reference import FACE_CORNERS, HasParts, Part, ReferenceMesh, describe_part, part_selector
 
 
 @dataclass
-class FoundationMesh:
+class FoundationMesh(HasParts):
     """The foundation's reference mesh, its ``top`` part (faces outward +e3, nodes on x3 = 0),
     its clamped DOFs ``fixed_dofs`` (full DOF indices 3n + m) and absolute tolerance ``tol``."""
 

@@ -22,7 +22,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..errors import MeshError
+from ..errors import ConfigError, MeshError
 
 # local faces of each volume cell type, outward (right-hand rule), and the face cell type
 CELL_FACES = {
@@ -211,6 +211,17 @@ def describe_part(spec) -> str:
     if isinstance(spec, str):
         return repr(spec)
     return "{" + ", ".join(f"{k} = {v}" for k, v in spec.items()) + "}"
+
+
+class HasParts:
+    """``part(spec)`` of a mesh with resolved parts (its ``reference`` and absolute ``tol``): a
+    configuration's part spec (a name or a predicate table); ConfigError names the parts that exist."""
+
+    def part(self, spec) -> Part:
+        try:
+            return select_part(self.reference, spec, self.tol)
+        except MeshError as exc:
+            raise ConfigError([str(exc)]) from None
 
 
 def part_selector(mesh: ReferenceMesh, tol: float, prefix: str, problems: list):

@@ -85,7 +85,9 @@ class CondensationPath(ZonePath):
 
     @classmethod
     def memory_estimate(cls, body, **kw):
-        return memory.estimate_evaluation(body, memory.condensation_parts)
+        est = memory.estimate_evaluation(body, memory.condensation_parts)
+        foundation = getattr(body, "foundation", None)       # a model's elastic foundation
+        return est if foundation is None else est.with_parts(foundation.memory_parts)
 
     def prepare(self, asm) -> CondensedSystem:
         from ..fem.linsolve import condense
