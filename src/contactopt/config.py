@@ -462,8 +462,7 @@ def _check_body(raw, data, problems):
 
 
 def _check_foundation(given, data, problems) -> dict:
-    """[foundation]: exactly one of `mesh` and `block`; the material's missing keys are the body's.
-    The compliance objective is refused (its ∂J/∂u_c is the body's, the state's u_c is relative)."""
+    """[foundation]: exactly one of `mesh` and `block`; the material's missing keys are the body's."""
     if not isinstance(given, dict):
         problems.append("[foundation]: must be a table")
         return {}
@@ -482,9 +481,6 @@ def _check_foundation(given, data, problems) -> dict:
         out["loads"] = {**{k: copy.deepcopy(v[0]) for k, v in FOUNDATION_LOADS.items()}, **out["loads"]}
     if isinstance(out["material"], dict) and _material_spec(out["material"]):
         out["material"] = {k: float(out["material"].get(k, data["material"][k])) for k in ("E", "nu")}
-    if data["objective"]["type"] == "compliance":
-        problems.append("[foundation]: the compliance objective is not available on an elastic foundation "
-                        "(use 'target_normal_force' or 'pressure_uniformity')")
     return out
 
 

@@ -189,9 +189,13 @@ class Coupling:
         from .dense import cholesky_solve
         return cholesky_solve(self._L, b)
 
+    def to_eff(self, x: np.ndarray) -> np.ndarray:
+        """S_eff S⁻¹ x (3p,)."""
+        return x - self._G @ self._solve_M(self._P.T @ x)
+
     def ell_eff(self, ell: np.ndarray) -> np.ndarray:
         """ℓ_eff = S_eff (S⁻¹ℓ − Π q_f) (3p,)."""
-        out = ell - self._G @ self._solve_M(self._P.T @ ell)
+        out = self.to_eff(ell)
         if np.any(self.foundation.q_f):
             out -= self.S_eff @ self.foundation.q_f
         return out

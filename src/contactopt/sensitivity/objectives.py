@@ -74,6 +74,11 @@ class Compliance(Objective):
 
     In condensed form J = ℓᵀu_c + L_iᵀA_ii⁻¹L_i, so ∂J/∂u_c = ℓ and, with ẑ = (0, A_ii⁻¹L_i) and
     u the full displacement, ∂J/∂α|_{u_c} = −ĉ(ẑ, u) − ĉ(0, ẑ) where ĉ(a, b) = bᵀ(∂A a − ∂L).
+
+    On an elastic foundation J is the body's compliance L(α)ᵀu and the state's u_c is the relative
+    displacement w, with the body's contact displacement u_b = w + Πq_f − C r and r = S_eff w −
+    ℓ_eff: ∂J/∂w = (I − S_eff C)ℓ = S_eff S⁻¹ℓ, and at fixed w the term −ℓᵀC d(S_eff w − ℓ_eff) =
+    z̃ᵀ(∂A u − ∂L) with z = −S⁻¹S_eff Cℓ (z̃ its A-harmonic extension) joins ∂J/∂α (docs/foundation.md).
     """
 
     name = "compliance"
@@ -85,7 +90,13 @@ class Compliance(Objective):
         zhat = model.assembler.to_full(cond.factor.recover(asm.L, np.zeros(3 * state.lam.size)))
         dc = model.design_contraction
         dalpha = -dc(asm.coords, zhat, state.u) - dc(asm.coords, np.zeros_like(zhat), zhat)
-        return (self.scale * value, self.scale * cond.ell.copy(), np.zeros(state.lam.size), self.scale * dalpha)
+        dw = cond.ell.copy()
+        coupling = getattr(cond, "coupling", None)
+        if coupling is not None:                  # an elastic foundation (class docstring)
+            dw = coupling.to_eff(cond.ell)
+            z = -coupling.adjoint_z(coupling.foundation.C @ cond.ell)
+            dalpha += dc(asm.coords, state.u, model.assembler.to_full(cond.factor.extend(z)))
+        return (self.scale * value, self.scale * dw, np.zeros(state.lam.size), self.scale * dalpha)
 
 
 OBJECTIVES = {"target_normal_force": TargetNormalForce, "pressure_uniformity": PressureUniformity,
