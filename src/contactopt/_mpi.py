@@ -33,7 +33,6 @@ def petsc_missing() -> str | None:
         import petsc4py  # noqa: F401
         from petsc4py import PETSc  # noqa: F401
     except ImportError as exc:
-        return (f"{exc}; install them with Debian's python3-petsc4py-real and python3-mpi4py (a venv "
-                "made with --system-site-packages, numpy<2) or from source (README: 'One optimization "
-                "on many cores')")
+        return (f"{exc}; install Debian's python3-petsc4py-real and python3-mpi4py, or PETSc and "
+                "petsc4py from source (README: 'One optimization on many cores')")
     return None

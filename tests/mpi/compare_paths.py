@@ -10,7 +10,7 @@ import sys
 import numpy as np
 
 from contactopt.config import load_config
-from contactopt.paths.petsc import run_on_ranks
+from contactopt.ranks import run_on_ranks
 
 
 def overrides(items):
@@ -49,8 +49,9 @@ def evaluations(config, path):
 
 def main(argv):
     config = load_config(argv[0]).with_updates(overrides(argv[2:]))
+    from contactopt._mpi import world_size
     out = evaluations(config, "petsc")
-    np.savez(argv[1], **out)
+    np.savez(argv[1], ranks=world_size(), **out)
     return 0
 
 

@@ -12,7 +12,7 @@ per node (N, T1, T2).
 
 How the ranks share one optimization: rank 0 runs everything above the path interface (the
 bundle method, the objective, the run directory) as on one process; the other ranks run
-:func:`serve`. Every call of rank 0 on this path that needs the other ranks (prepare, for_load,
+:func:`contactopt.ranks.serve`. Every call of rank 0 on this path that needs the other ranks (prepare, for_load,
 solve_state, adjoint, the design terms, a checkpoint's context) first sends them its arguments
 (α's mesh coordinates and loads, not matrices), then all ranks do the call together; states and
 adjoints come back on every rank (the contact forces and displacements are gathered, u and ṽ
@@ -31,7 +31,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..errors import CheckpointError, ConfigError, ContactOptError, SolverError
+from ..errors import CheckpointError, ConfigError, SolverError
 from ..fem import memory
 from ..fem.model import Assembled
 from .base import Context, SolverPath, check_design
@@ -125,7 +125,7 @@ class PetscPath(SolverPath):
         return memory.estimate_evaluation(body, memory.fullspace_parts)
 
     def _call(self, name, *args):
-        """Rank 0: the other ranks make the same call (their :func:`serve`); then this rank's."""
+        """Rank 0: the other ranks make the same call (:func:`contactopt.ranks.serve`); then this rank's."""
         if self.leader:
             _send(("call", self.id, name, args))
         return getattr(self, "_" + name)(*args)
@@ -326,7 +326,8 @@ def _send(msg) -> None:
     comm.bcast(msg, root=0)
 
 
-def _receive():
+def receive():
+    """A rank > 0: the next message of rank 0 (waiting without spinning a core)."""
     comm = _world()
     flag = np.zeros(1, dtype=np.int64)
     req = comm.Ibcast(flag, root=0)
@@ -335,58 +336,21 @@ def _receive():
     return comm.bcast(None, root=0)
 
 
-def serve() -> None:
-    """A rank > 0: build the problems rank 0 builds and make its PETSc paths' calls with it, until
-    rank 0 sends "stop". An error that rank 0 meets as well (a solver error, a bad input) is
-    logged and the rank waits for the next call; any other error aborts all ranks (rank 0 would
-    wait for this one forever)."""
-    from .. import problem as problem_module
-    problems = {}
-    while True:
-        msg = _receive()
-        try:
-            if msg[0] == "stop":
-                return
-            if msg[0] == "problem":
-                _pending[0] = msg[1]
-                try:
-                    problems[msg[1]] = problem_module.ShapeProblem(msg[2])
-                finally:
-                    _pending[0] = None
-            elif msg[0] == "call":
-                _, pid, name, args = msg
-                path = _served[pid]
-                getattr(path, "_" + name)(*args)
-        except ContactOptError as exc:
-            log.debug("rank %d: %s", _world().Get_rank(), exc)
-        except BaseException:
-            log.exception("rank %d failed; aborting all ranks", _world().Get_rank())
-            _world().Abort(1)
+def make_call(msg) -> None:
+    """A rank > 0: make the call of rank 0 that ``msg`` ("call", path id, name, arguments) names."""
+    _, pid, name, args = msg
+    getattr(_served[pid], "_" + name)(*args)
+
+
+def served_problem(pid):
+    """The id the next PetscPath built on this rank takes (:func:`contactopt.ranks.serve`)."""
+    _pending[0] = pid
 
 
 def stop_serving() -> None:
-    """Rank 0: the serving ranks return from :func:`serve`."""
+    """Rank 0: the serving ranks return from :func:`contactopt.ranks.serve`."""
     if _world().Get_size() > 1 and _world().Get_rank() == 0:
         _send(("stop",))
-
-
-def run_on_ranks(main, *args, **kw):
-    """Run ``main`` on rank 0 while the other ranks serve its PETSc paths; their result is 0.
-    Without MPI (one process) it is ``main(*args, **kw)``."""
-    from .._mpi import world_size
-    if world_size() <= 1:
-        return main(*args, **kw)
-    comm = _world()
-    if comm.Get_rank() == 0:
-        try:
-            return main(*args, **kw)
-        finally:
-            stop_serving()
-    quiet = logging.getLogger("contactopt")
-    quiet.handlers[:] = [logging.NullHandler()]
-    quiet.propagate = False
-    serve()
-    return 0
 
 
 def _set_options(text: str) -> None:
