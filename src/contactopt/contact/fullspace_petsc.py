@@ -43,6 +43,14 @@ __all__ = ["PetscHierarchy", "PetscNewton", "PetscSolve"]
 log = logging.getLogger(__name__)
 
 
+# GAMG's options unless [linear_solver] petsc_options sets them: the prolongations kept when H
+# changes; a drop tolerance and a coarsest level of up to 2000 unknowns (solved directly) that
+# make the Galerkin products of a new H — the price of every Newton system with a new D — 1.8×
+# cheaper at 113k DOFs for the same iteration counts (docs/scaling.md)
+GAMG_DEFAULTS = {"pc_gamg_reuse_interpolation": "true", "pc_gamg_threshold": "0.01",
+                 "pc_gamg_coarse_eq_limit": "2000"}
+
+
 def petsc():
     from petsc4py import PETSc
     return PETSc
@@ -61,7 +69,7 @@ class PetscHierarchy:
         xyz.getArray()[:] = coords_local.ravel()
         H.setNearNullSpace(PETSc.NullSpace().createRigidBody(xyz))
         opts = PETSc.Options()
-        for key, value in (("pc_gamg_reuse_interpolation", "true"),):
+        for key, value in GAMG_DEFAULTS.items():
             if not opts.hasName(key):
                 opts.setValue(key, value)
         ksp = PETSc.KSP().create(H.getComm())
@@ -79,8 +87,11 @@ class PetscHierarchy:
         self.setup_seconds = time.perf_counter() - t0
         self.uses = 0
 
-    def solve(self, Amat, b, x, atol: float, what: str) -> int:
-        """x = Amat⁻¹ b to ‖b − Amat x‖ ≤ atol (the preconditioner of the current values of H)."""
+    def solve(self, Amat, b, x, atol: float, what: str, refresh: bool = True) -> int:
+        """x = Amat⁻¹ b to ‖b − Amat x‖ ≤ atol, preconditioned by the V-cycle of the current values
+        of H (``refresh``: the Galerkin coarse operators recomputed from them) or of the values H
+        had at the last refresh."""
+        self.ksp.getPC().setReusePreconditioner(not refresh)
         self.uses += 1
         self.ksp.setOperators(Amat, self.H)
         self.ksp.setTolerances(rtol=0.0, atol=atol, max_it=self.max_iter)
@@ -143,6 +154,8 @@ class PetscNewton:
         self._cscatter = PETSc.Scatter().create(A.createVecRight(), idx, self._cvec, None)
         self._all_scatter, self._all = PETSc.Scatter.toAll(A.createVecRight())
         self._Gt = None
+        self._d_signature = None      # D of the last Newton system whose coarse operators were formed
+        self.refresh_pc = True
         self.refresh()
 
     def refresh(self):
@@ -202,6 +215,8 @@ class PetscNewton:
             rt = self._row_slices(cd[sl, a] - d.rstart)
             rn = self._row_slices(cd[sl, 2] - d.rstart)
             g[rt] -= (np.repeat(c[:, a], self._row_len(cd[sl, a] - d.rstart)) * h[rn])
+        self.refresh_pc = self._d_signature is None or not np.array_equal(self._d_signature, D)
+        self._d_signature = D
         zero = D[self.indices] | D[self._rows + d.rstart]
         for arr in (g, h):
             arr[zero] = 0.0
@@ -215,6 +230,7 @@ class PetscNewton:
     def plain(self):
         """H = A (the start solve's preconditioner)."""
         PETSc = petsc()
+        self._d_signature = None
         self.H.setValuesCSR(self.indptr, self.indices, self.a_data, addv=PETSc.InsertMode.INSERT)
         self.H.assemble()
 
@@ -261,6 +277,10 @@ class PetscNewton:
 
         t0 = time.perf_counter()
         krylov_its = []
+        # the coarse operators are formed anew at the first Newton system of every solve and when D
+        # changes, not for Newton steps of the same D: a solve depends on its own data only (and on
+        # the hierarchy's prolongations), so a resumed run repeats the uninterrupted one
+        self._d_signature = None
         if u0 is None:
             f = L.copy()
             if r0 is not None:
@@ -366,7 +386,8 @@ class PetscNewton:
             eta = min(eta_max, max(krylov_rtol, eta_factor * err))
             if settled and err <= _TIGHT_BELOW * np.sqrt(tol):
                 eta = krylov_rtol
-            its = hier.solve(self.G, rhs, x, eta * Lnorm, f"full-space Newton step {len(history)}")
+            its = hier.solve(self.G, rhs, x, eta * Lnorm, f"full-space Newton step {len(history)}",
+                             refresh=self.refresh_pc)
             xa = x.getArray()
             xa[D[self.dist.rstart:self.dist.rend]] = 0.0      # D rows are decoupled: exact zeros
             t2 = time.perf_counter()
@@ -474,7 +495,7 @@ class PetscNewton:
         if self._Gt is None:
             self._Gt = petsc().Mat()
         self.G.transpose(self._Gt)
-        its = hier.solve(self._Gt, rhs, x, rtol * scale, "full-space adjoint (4.15)")
+        its = hier.solve(self._Gt, rhs, x, rtol * scale, "full-space adjoint (4.15)", refresh=self.refresh_pc)
         xa = x.getArray()
         xa[D[d.rstart:d.rend]] = 0.0
         # ṽ = lift(x) + v0: the normal DOF of a sliding node from its tangential ones, −cᵀx_t

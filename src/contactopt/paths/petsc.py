@@ -371,6 +371,8 @@ def _set_options(text: str) -> None:
             value = tokens[i + 1]
             i += 1
         opts.setValue(key.lstrip("-"), value if value is not None else "")
+        if key.startswith("-log_view"):
+            PETSc.Log.begin()           # -log_view after PETSc's start: the events from here on
         i += 1
 
 
