@@ -6,7 +6,7 @@ Dirichlet set D, the inexact-Newton tolerances and the line search — with the 
 PETSc: A(α) an MPIAIJ matrix of block size 3 over the ranks (:mod:`contactopt.fem.distributed`),
 each Newton system assembled explicitly (G and H = A + K_t have the pattern of A: a node's three
 rows share their columns, so the friction coupling of a sliding node's normal row into its
-tangential rows adds no entry; the rows and columns of D keep only their diagonal), solved by
+tangential rows adds no entry; the rows and columns of D are unit rows and columns), solved by
 GMRES (right preconditioning, so the tolerance is on the true residual) preconditioned by GAMG
 (smoothed aggregation, the rigid-body modes as near-null space) built on H.
 
@@ -145,6 +145,8 @@ class PetscNewton:
     def __init__(self, dist, A, G, H):
         PETSc = petsc()
         self.dist, self.A, self.G, self.H = dist, A, G, H
+        for M in (G, H):        # zeroed rows and columns stay in the pattern (GAMG reuses it)
+            M.setOption(PETSc.Mat.Option.KEEP_NONZERO_PATTERN, True)
         self.comm = A.getComm()
         cd = dist.contact
         self.cd = cd
@@ -159,17 +161,9 @@ class PetscNewton:
         self.refresh()
 
     def refresh(self):
-        """Read A's local rows (after a new design's values) and the positions Newton changes."""
+        """Read A's owned rows after a new design's values (the normal rows of the friction coupling)."""
         ip, ind, data = self.A.getValuesCSR()
         self.indptr, self.indices, self.a_data = ip.copy(), ind.copy(), data.copy()
-        r0 = self.dist.rstart
-        n_loc = ip.size - 1
-        rows = np.repeat(np.arange(n_loc), np.diff(ip))
-        self.diag_pos = np.flatnonzero(ind == rows + r0)
-        if self.diag_pos.size != n_loc:
-            raise SolverError("a row of A(α) has no diagonal entry")
-        self.diag = data[self.diag_pos].copy()
-        self._rows = rows
 
     # ------------------------------------------------------------------ gathers
     def at_contact(self, vec) -> np.ndarray:
@@ -193,7 +187,7 @@ class PetscNewton:
 
     # ------------------------------------------------------------------ Newton systems
     def system(self, stick, slide, tvec, k, coupling):
-        """Fill H = A + K_t and G = (I − C_N) H (rows and columns of D: diagonal only) for the
+        """Fill H = A + K_t and G = (I − C_N) H (rows and columns of D: a unit row) for the
         node classes of one Newton piece (nodes ``stick``, ``slide``; per sliding node its Robin
         block k t tᵀ and coupling c); returns the boolean D over all PETSc DOFs."""
         PETSc = petsc()
@@ -202,57 +196,35 @@ class PetscNewton:
         D = np.zeros(d.n, dtype=bool)
         D[cd[stick].ravel()] = True
         D[cd[slide, 2]] = True
-        h = self.a_data.copy()
         own = d.owns_contact[slide]
         sl = slide[own]
-        blk = (k[own, None, None] * tvec[own, :, None] * tvec[own, None, :])
-        for a in range(2):
-            for b in range(2):
-                h[self._pos(cd[sl, a] - d.rstart, cd[sl, b])] += blk[:, a, b]
-        g = h.copy()
+        blk = k[own, None, None] * tvec[own, :, None] * tvec[own, None, :]
         c = coupling[own]
-        for a in range(2):
-            rt = self._row_slices(cd[sl, a] - d.rstart)
-            rn = self._row_slices(cd[sl, 2] - d.rstart)
-            g[rt] -= (np.repeat(c[:, a], self._row_len(cd[sl, a] - d.rstart)) * h[rn])
+        same, add = PETSc.Mat.Structure.SAME_NONZERO_PATTERN, PETSc.InsertMode.ADD
+        self.A.copy(self.H, structure=same)
+        tt = cd[sl, :2].astype(PETSc.IntType)
+        for i in range(sl.size):                  # the Robin blocks k t tᵀ
+            self.H.setValues(tt[i], tt[i], blk[i], addv=add)
+        self.H.assemble()
+        self.H.copy(self.G, structure=same)
+        ip, ind, a = self.indptr, self.indices, self.a_data
+        for i, rn in enumerate((cd[sl, 2] - d.rstart).tolist()):     # the normal row, times c
+            cols, vals = ind[ip[rn]:ip[rn + 1]], a[ip[rn]:ip[rn + 1]]
+            for comp in range(2):
+                self.G.setValues(tt[i, comp], cols, -c[i, comp] * vals, addv=add)
+        self.G.assemble()
         self.refresh_pc = self._d_signature is None or not np.array_equal(self._d_signature, D)
         self._d_signature = D
-        zero = D[self.indices] | D[self._rows + d.rstart]
-        for arr in (g, h):
-            arr[zero] = 0.0
-            arr[self.diag_pos] = np.where(D[d.rstart:d.rend], self.diag, arr[self.diag_pos])
-        self.G.setValuesCSR(self.indptr, self.indices, g, addv=PETSc.InsertMode.INSERT)
-        self.G.assemble()
-        self.H.setValuesCSR(self.indptr, self.indices, h, addv=PETSc.InsertMode.INSERT)
-        self.H.assemble()
+        rows = (np.flatnonzero(D[d.rstart:d.rend]) + d.rstart).astype(PETSc.IntType)
+        self.H.zeroRowsColumns(rows, diag=1.0)
+        self.G.zeroRowsColumns(rows, diag=1.0)
         return D
 
     def plain(self):
         """H = A (the start solve's preconditioner)."""
         PETSc = petsc()
         self._d_signature = None
-        self.H.setValuesCSR(self.indptr, self.indices, self.a_data, addv=PETSc.InsertMode.INSERT)
-        self.H.assemble()
-
-    def _pos(self, lrows, cols):
-        ip, ind = self.indptr, self.indices
-        out = np.empty(lrows.size, dtype=np.int64)
-        for i, (r, c) in enumerate(zip(lrows.tolist(), cols.tolist())):
-            a, b = ip[r], ip[r + 1]
-            j = a + int(np.searchsorted(ind[a:b], c))
-            if j >= b or ind[j] != c:
-                raise SolverError(f"entry ({r}, {c}) is not in the pattern of A")
-            out[i] = j
-        return out
-
-    def _row_len(self, lrows):
-        return self.indptr[lrows + 1] - self.indptr[lrows]
-
-    def _row_slices(self, lrows):
-        if lrows.size == 0:
-            return np.zeros(0, dtype=np.int64)
-        starts, lens = self.indptr[lrows], self._row_len(lrows)
-        return np.repeat(starts - np.cumsum(lens) + lens, lens) + np.arange(lens.sum())
+        self.A.copy(self.H, structure=PETSc.Mat.Structure.SAME_NONZERO_PATTERN)
 
     # ------------------------------------------------------------------ the state
     def solve(self, hier: PetscHierarchy, L, gap, friction, *, r0=None, u0=None, tol=1e-10, zone=None,
