@@ -56,8 +56,11 @@ def serve() -> None:
                 return
             if msg[0] == "problem":
                 petsc.served_problem(msg[1])
+                # rank 0 checks the memory; a check here could fail where rank 0's passed, and rank 0
+                # would wait for this rank in PETSc's collective calls
+                config = msg[2].with_updates({"linear_solver": {"memory_check": False}})
                 try:
-                    problems[msg[1]] = ShapeProblem(msg[2])
+                    problems[msg[1]] = ShapeProblem(config)
                 finally:
                     petsc.served_problem(None)
             else:

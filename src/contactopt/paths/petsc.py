@@ -78,10 +78,12 @@ class PetscPath(SolverPath):
 
     @classmethod
     def starting(cls, config) -> None:
-        """Before rank 0 builds its model: the other ranks build theirs from ``config``."""
-        if _pending[0] is None:
+        """Before rank 0 builds its model: the other ranks build theirs from ``config`` (a serving
+        rank has its id from :func:`served_problem`)."""
+        from .._mpi import world_rank, world_size
+        if world_rank() == 0:
             _pending[0] = next(_ids)
-            if _world().Get_size() > 1:
+            if world_size() > 1:
                 _send(("problem", _pending[0], config))
 
     def __init__(self, model, settings):
