@@ -191,3 +191,18 @@ def test_a_resumed_run_repeats_the_uninterrupted_one_on_two_ranks(tmp_path):
         rows = (tmp_path / d / "history.csv").read_text().splitlines()
         return [",".join(r.split(",")[:4]) for r in rows]
     assert values("part") == values("whole")
+
+
+def test_petsc_options_reach_petsc(tmp_path):
+    """[linear_solver] petsc_options go to PETSc's options database: -ksp_view shows the GAMG
+    preconditioner (printed by rank 0), an option that does not start with '-' is refused."""
+    cfg = write_config(tmp_path, "opts", {**SMALL, "linear_solver": {"path": "petsc", "petsc_options": "-ksp_view"}},
+                       base="example1")
+    proc = mpiexec(2, "-m", "contactopt.cli", "state", str(cfg), "--out", str(tmp_path / "s"))
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    assert "type: gamg" in proc.stdout
+    bad = write_config(tmp_path, "bad", {**SMALL, "linear_solver": {"path": "petsc", "petsc_options": "ksp_view"}},
+                       base="example1")
+    code, out = run_here("state", bad, "--out", tmp_path / "b")
+    assert code == 2 and "is not an option" in out, out
+    assert not (tmp_path / "b").exists()
