@@ -29,9 +29,18 @@ def run_on_ranks(main, *args, **kw):
     from .paths import petsc
     if MPI.COMM_WORLD.Get_rank() == 0:
         try:
-            return main(*args, **kw)
-        finally:
+            out = main(*args, **kw)
+        except (SystemExit, ContactOptError):
             petsc.stop_serving()
+            raise
+        except BaseException:
+            # an error of rank 0 alone: the others may be inside a collective call and never
+            # read "stop" — end them all, after the traceback
+            import traceback
+            traceback.print_exc()
+            MPI.COMM_WORLD.Abort(1)
+        petsc.stop_serving()
+        return out
     quiet = logging.getLogger("contactopt")      # the log and the progress are rank 0's
     quiet.handlers[:] = [logging.NullHandler()]
     quiet.propagate = False
