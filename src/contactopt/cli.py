@@ -274,6 +274,13 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv=None) -> int:
+    """The command line; under ``mpiexec`` rank 0 runs it and the other ranks serve its PETSc path
+    (:mod:`contactopt.ranks`), so only rank 0 prints, logs and writes."""
+    from .ranks import run_on_ranks
+    return run_on_ranks(_main, argv)
+
+
+def _main(argv=None) -> int:
     args = build_parser().parse_args(argv)
     level = [logging.WARNING, logging.INFO, logging.DEBUG][min(args.verbose, 2)]
     # the console shows warnings (more with -v); a run's log file records INFO and up

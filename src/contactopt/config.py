@@ -194,19 +194,25 @@ SCHEMA = {
                            "an earlier design, with exact residuals, instead of inverting the new one)"),
     },
     "linear_solver": {
-        "path": ("auto", _oneof("auto", "condensation", "delassus", "fullspace"),
-                 "'auto', 'condensation', 'delassus' or 'fullspace' (how a design's contact problem and "
+        "path": ("auto", _oneof("auto", "condensation", "delassus", "fullspace", "petsc"),
+                 "'auto', 'condensation', 'delassus', 'fullspace' or 'petsc' (how a design's contact problem and "
                  "its adjoint are solved, docs/architecture.md): 'condensation' onto all contact DOFs "
                  "(dense S); 'delassus' for large meshes, a sparse Cholesky factorization of A(α) per "
                  "design and the contact zone's Delassus products by solves with it; 'fullspace' for "
                  "meshes no factorization fits, a semismooth Newton method on all DOFs with "
-                 "AMG-preconditioned GMRES (pyamg) (docs/large_meshes.md); 'auto': 'fullspace' from "
-                 "`crossover` free DOFs on, else 'condensation'"),
+                 "AMG-preconditioned GMRES (pyamg) (docs/large_meshes.md); 'petsc' the same method on "
+                 "PETSc under MPI (`mpiexec -n N contactopt run`, petsc4py; README 'One optimization on "
+                 "many cores'); 'auto': 'petsc' under mpiexec with more than one rank, else 'fullspace' "
+                 "from `crossover` free DOFs on, else 'condensation'"),
         "library": ("auto", _oneof("auto", "pardiso", "scipy"),
                     "'auto', 'pardiso' or 'scipy' (the sparse direct solver of the condensation and "
                     "Delassus paths; 'auto': MKL PARDISO where the mkl wheel is installed, else SciPy)"),
         "crossover": (60000, _posint, "an integer ≥ 1 (free DOFs from which path 'auto' takes the "
                       "full-space path)"),
+        "petsc_options": ("", lambda x: isinstance(x, str),
+                          "a string of PETSc options for path 'petsc' (e.g. \"-ksp_view -log_view\", "
+                          "\"-pc_gamg_threshold 0.02\"), given to PETSc's options database as on a "
+                          "command line"),
         "memory_check": (True, lambda x: isinstance(x, bool),
                          "true or false (refuse up front a mesh whose estimated peak memory of an "
                          "evaluation exceeds the available memory; contactopt.fem.memory)"),

@@ -45,6 +45,7 @@ class ShapeProblem:
         self.config = config if isinstance(config, Config) else load_config(config)
         body = build_body(self.config)
         name, library = select_path(self.config, memory.free_dofs(body))
+        PATHS[name].starting(self.config)
         self.model = ElasticModel(self.config, body=body, memory_estimate=PATHS[name].memory_estimate)
         self.path = make_path(self.config, self.model, name, library)
         self.friction = self.path.settings.friction
@@ -84,7 +85,7 @@ class ShapeProblem:
     def _systems(self, alpha) -> list:
         """The system of every load case at α: assembled once, prepared by the path once."""
         t0 = time.perf_counter()
-        asm = self.model.assemble(alpha, self.cases[0].loads)
+        asm = self.path.assemble(alpha, self.cases[0].loads)
         t1 = time.perf_counter()
         system = self.path.prepare(asm)
         system.timings = {"assembly": t1 - t0, **system.timings}
@@ -218,8 +219,8 @@ class ShapeProblem:
             _, y_u, y_lam, dJ_da = parts[k]
             v_u_k, v_lam_k, v_full = self.path.adjoint(system, self.contexts[k], state, y_u, y_lam, choices)
             t3 = time.perf_counter()
-            xi = dJ_da + self.model.design_contraction(system.assembled.coords, state.u, v_full,
-                                                       self.cases[k].loads) + self.model.gap_matrix.T @ v_lam_k
+            xi = dJ_da + self.path.design_contraction(system, state.u, v_full, self.cases[k].loads) \
+                + self.model.gap_matrix.T @ v_lam_k
             g = comb.coefficients[k] * xi if g is None else g + comb.coefficients[k] * xi
             t_adj, t_design = t_adj + t3 - t2, t_design + time.perf_counter() - t3
             nd += state.n_degenerate

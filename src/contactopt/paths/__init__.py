@@ -12,7 +12,11 @@ once, from ``[linear_solver]`` and the size of the body, which one a configurati
                         solves, W_Z on the zone only
 ``"fullspace"``         semismooth Newton on all DOFs, AMG-preconditioned meshes no factorization
                         GMRES, nothing factorized                        fits
+``"petsc"``             the full-space method on PETSc (GAMG, GMRES),    one optimization on
+                        the mesh split over MPI ranks                    many cores / machines
 ======================  ===============================================  =====================
+
+The PETSc path imports petsc4py and mpi4py only when it runs: ``pip install .`` does not need them.
 """
 
 from __future__ import annotations
@@ -24,10 +28,12 @@ from .base import Context, Settings, SolverPath
 from .condensation import CondensationPath
 from .delassus import DelassusPath
 from .fullspace import FullSpacePath
+from .petsc import PetscPath
 
 log = logging.getLogger(__name__)
 
-PATHS = {cls.name: cls for cls in (CondensationPath, DelassusPath, FullSpacePath)}
+
+PATHS = {cls.name: cls for cls in (CondensationPath, DelassusPath, FullSpacePath, PetscPath)}
 NAMES = tuple(PATHS)
 
 __all__ = ["PATHS", "NAMES", "SolverPath", "Settings", "Context", "select_path", "make_path", "library_for"]
@@ -38,6 +44,8 @@ def library_for(name: str, library: str) -> str:
     mkl wheel is installed, else SciPy); "pyamg" on the full-space path."""
     if name == "fullspace":
         return "pyamg"
+    if name == "petsc":
+        return "petsc"
     if library != "auto":
         return library
     from ..fem.linsolve import pardiso_available
@@ -51,9 +59,35 @@ def select_path(config, n_free: int) -> tuple[str, str]:
     docs/large_meshes.md), the condensation below — the Delassus path instead of the full-space one
     where pyamg is missing. The compliance objective needs the condensed load ℓ on every contact
     DOF, so it stays on the condensation under "auto" and is refused on the other paths; so does
-    an elastic ``[foundation]`` (:mod:`.condensation`)."""
+    an elastic ``[foundation]`` (:mod:`.condensation`).
+
+    Under ``mpiexec`` with more than one rank only the PETSc path shares one optimization among
+    the ranks: "auto" takes it, and another path is refused (every rank would run the whole
+    optimization); so is "petsc" without petsc4py."""
+    from .._mpi import petsc_missing, world_size
     ls = config["linear_solver"]
     name, objective = ls["path"], config["objective"]["type"]
+    ranks = world_size()
+    if ranks > 1 and name not in ("auto", "petsc"):
+        raise ConfigError([f"linear_solver.path = '{name}' runs on one process, and this run has {ranks} MPI "
+                           "ranks: use path 'petsc' (or 'auto'), or run without mpiexec"])
+    if name == "petsc" or (name == "auto" and ranks > 1):
+        problems = []
+        if "foundation" in config.data:
+            problems.append("linear_solver.path = 'petsc': an elastic [foundation] is solved on the "
+                            "'condensation' path only (one process)")
+        if objective == "compliance":
+            problems.append("linear_solver.path = 'petsc': the compliance objective needs the condensed "
+                            "load on every contact DOF; use path 'condensation' on one process")
+        missing = petsc_missing()
+        if missing:
+            problems.append(f"linear_solver.path = '{name}'"
+                            + (f" under mpiexec with {ranks} ranks" if name == "auto" else "")
+                            + f" needs petsc4py and mpi4py: {missing}")
+        if problems:
+            raise ConfigError(problems)
+        log.info("linear solver: petsc path on %d rank(s)", ranks)
+        return "petsc", "petsc"
     if "foundation" in config.data:
         # the foundation's compliance C enters the condensed Delassus operator W = S⁻¹ + C
         if name not in ("auto", "condensation"):

@@ -82,9 +82,18 @@ class SolverPath:
 
     # ------------------------------------------------------------------ the interface
     @classmethod
+    def starting(cls, config) -> None:
+        """Called with the configuration before the model is built (the PETSc path starts the
+        other MPI ranks' problem there)."""
+
+    @classmethod
     def memory_estimate(cls, body, **kw):
         """Estimated peak memory of one evaluation (:class:`~contactopt.fem.memory.MemoryEstimate`)."""
         raise NotImplementedError
+
+    def assemble(self, alpha, loads=None):
+        """A(α), L(α) and the gaps of a design (:meth:`contactopt.fem.model.ElasticModel.assemble`)."""
+        return self.model.assemble(alpha, loads)
 
     def prepare(self, asm):
         """The system of a design for its first load case (``asm`` holds L of that case)."""
@@ -104,6 +113,10 @@ class SolverPath:
     def adjoint(self, system, ctx, state, y_u, y_lam, choices=None):
         """(v_u (3p), v_λ (p), ṽ on all DOFs) of the adjoint system (4.15) of ``state``."""
         raise NotImplementedError
+
+    def design_contraction(self, system, u_full, v_full, loads=None) -> np.ndarray:
+        """vᵀ(∂A/∂α_k u − ∂L/∂α_k) at the system's design (full-length u, v; DESIGN.md §2)."""
+        return self.model.design_contraction(system.assembled.coords, u_full, v_full, loads)
 
     def uniqueness_bound(self, system):
         """(F0, None) of the bound (3.16), or (None, the reason) where the path cannot compute it."""

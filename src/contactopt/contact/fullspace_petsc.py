@@ -1,0 +1,489 @@
+"""The full-space semismooth Newton method and its adjoint on PETSc objects (MPI).
+
+The same method as :mod:`contactopt.contact.fullspace` — read its docstring for the problem, the
+Alart–Curnier function, the Newton system G = (I − C_N)(A + K_t) on the rows I outside the
+Dirichlet set D, the inexact-Newton tolerances and the line search — with the linear algebra on
+PETSc: A(α) an MPIAIJ matrix of block size 3 over the ranks (:mod:`contactopt.fem.distributed`),
+each Newton system assembled explicitly (G and H = A + K_t have the pattern of A: a node's three
+rows share their columns, so the friction coupling of a sliding node's normal row into its
+tangential rows adds no entry; the rows and columns of D are unit rows and columns), solved by
+GMRES (right preconditioning, so the tolerance is on the true residual) preconditioned by GAMG
+(smoothed aggregation, the rigid-body modes as near-null space) built on H.
+
+Conventions as everywhere: per contact node (t1, t2, ν), r = (A u − L)_c the contact force on the
+body, λ = r_ν ≥ 0, τ = −r_t; a warm start is per node in the FCLIB order (N, T1, T2).
+
+The hierarchy (:class:`PetscHierarchy`) is built on A(α_ref) of one design and kept: later Newton
+systems and designs reuse its prolongations, and PETSc recomputes only the Galerkin coarse
+operators of each new H (``-pc_gamg_reuse_interpolation``), as the pyamg path updates its own.
+The per-node work of Newton (node classes, line search) is done on every rank on the contact
+forces and displacements gathered from their owners (3p numbers per product): every rank takes
+the same decisions, and the norms are global reductions.
+"""
+
+from __future__ import annotations
+
+import logging
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .._progress import progress, progress_level
+from ..errors import ContactNotConverged, SolverError
+from ..fem.krylov import KrylovNotConverged
+from .cones import siconos_error
+from .fullspace import _MAX_RESCALES, _RESCALE, _STAGNATION_STEPS, _TIGHT_BELOW, OPEN, SLIDE, STICK, W_DIAG_FACTOR
+from .newton import alart_curnier
+from .state import FROM_FCLIB, TO_FCLIB, displacement_scale
+from .zone import missed_nodes, near_nodes
+
+__all__ = ["PetscHierarchy", "PetscNewton", "PetscSolve"]
+
+log = logging.getLogger(__name__)
+
+
+# GAMG's options unless [linear_solver] petsc_options sets them: the prolongations kept when H
+# changes; a drop tolerance and a coarsest level of up to 2000 unknowns (solved directly) that
+# make the Galerkin products of a new H — the price of every Newton system with a new D — 1.8×
+# cheaper at 113k DOFs for the same iteration counts (docs/scaling.md)
+GAMG_DEFAULTS = {"pc_gamg_reuse_interpolation": "true", "pc_gamg_threshold": "0.01",
+                 "pc_gamg_coarse_eq_limit": "2000"}
+
+
+REFRESH_CHANGES = 0.01     # fraction of the contact DOFs whose change of D forms the coarse operators anew
+
+
+def petsc():
+    from petsc4py import PETSc
+    return PETSc
+
+
+class PetscHierarchy:
+    """A KSP (GMRES, right-preconditioned) with GAMG built on the matrix ``H`` of one design
+    (its values as given), the rigid-body modes of ``coords`` (PETSc order, owned nodes) as
+    near-null space; later values of H with the same pattern reuse the prolongations."""
+
+    def __init__(self, H, coords_local: np.ndarray, restart: int = 60, max_iter: int = 400):
+        PETSc = petsc()
+        t0 = time.perf_counter()
+        xyz = H.createVecRight()
+        xyz.setBlockSize(3)
+        xyz.getArray()[:] = coords_local.ravel()
+        H.setNearNullSpace(PETSc.NullSpace().createRigidBody(xyz))
+        opts = PETSc.Options()
+        for key, value in GAMG_DEFAULTS.items():
+            if not opts.hasName(key):
+                opts.setValue(key, value)
+        ksp = PETSc.KSP().create(H.getComm())
+        ksp.setType("gmres")
+        ksp.setGMRESRestart(restart)
+        ksp.setPCSide(PETSc.PC.Side.RIGHT)
+        ksp.getPC().setType("gamg")
+        ksp.setTolerances(rtol=0.0, atol=0.0, max_it=max_iter)
+        ksp.setInitialGuessNonzero(False)
+        ksp.setFromOptions()                # -ksp_view, -pc_gamg_* ... of [linear_solver] petsc_options
+        ksp.setOperators(H, H)
+        ksp.setUp()
+        self.ksp, self.H = ksp, H
+        self.max_iter = max_iter
+        self.setup_seconds = time.perf_counter() - t0
+        self.uses = 0
+
+    def solve(self, Amat, b, x, atol: float, what: str, refresh: bool = True) -> int:
+        """x = Amat⁻¹ b to ‖b − Amat x‖ ≤ atol, preconditioned by the V-cycle of the current values
+        of H (``refresh``: the Galerkin coarse operators recomputed from them) or of the values H
+        had at the last refresh."""
+        self.ksp.getPC().setReusePreconditioner(not refresh)
+        self.uses += 1
+        self.ksp.setOperators(Amat, self.H)
+        self.ksp.setTolerances(rtol=0.0, atol=atol, max_it=self.max_iter)
+        self.ksp.setConvergenceHistory(reset=True)
+        self.ksp.solve(b, x)
+        its = self.ksp.getIterationNumber()
+        if self.ksp.getConvergedReason() <= 0:
+            history = list(self.ksp.getConvergenceHistory())
+            raise KrylovNotConverged(f"{what}: PETSc GMRES stopped ({_reason(self.ksp.getConvergedReason())}) "
+                                     f"after {its} iterations at residual {self.ksp.getResidualNorm():.3e} "
+                                     f"(asked {atol:.3e})", history)
+        return its
+
+    def destroy(self):
+        self.ksp.destroy()
+
+
+def _reason(code: int) -> str:
+    PETSc = petsc()
+    names = {v: k for k, v in vars(PETSc.KSP.ConvergedReason).items() if isinstance(v, int)}
+    return names.get(code, str(code))
+
+
+@dataclass
+class PetscSolve:
+    """A state solved on PETSc: ``r`` (p, 3) FCLIB order (N, T1, T2); ``u_all`` on all PETSc DOFs
+    (every rank); ``u`` (its owned part, a PETSc Vec, the next warm start); the rest as
+    :class:`~contactopt.contact.fullspace.FullSpaceResult`."""
+
+    r: np.ndarray
+    u_all: np.ndarray
+    u: object
+    u_c: np.ndarray
+    classes: np.ndarray
+    converged: bool
+    error: float
+    equilibrium: float
+    newton_steps: int
+    krylov_iterations: list
+    history: list
+    zone: np.ndarray
+    zone_growths: int
+    timings: dict
+    info: dict = field(default_factory=dict)
+
+
+class PetscNewton:
+    """The Newton systems of one design: A(α) (``A``, PETSc Mat, assembled), the distributed body
+    ``dist`` and persistent matrices G, H of A's pattern (module docstring)."""
+
+    def __init__(self, dist, A, G, H):
+        PETSc = petsc()
+        self.dist, self.A, self.G, self.H = dist, A, G, H
+        for M in (G, H):        # zeroed rows and columns stay in the pattern (GAMG reuses it)
+            M.setOption(PETSc.Mat.Option.KEEP_NONZERO_PATTERN, True)
+        self.comm = A.getComm()
+        cd = dist.contact
+        self.cd = cd
+        self.p = cd.shape[0]
+        idx = PETSc.IS().createGeneral(cd.ravel().astype(PETSc.IntType), comm=PETSc.COMM_SELF)
+        self._cvec = PETSc.Vec().createSeq(cd.size, comm=PETSc.COMM_SELF)
+        self._cscatter = PETSc.Scatter().create(A.createVecRight(), idx, self._cvec, None)
+        self._all_scatter, self._all = PETSc.Scatter.toAll(A.createVecRight())
+        self._Gt = None
+        self._d_signature = None      # D of the last Newton system whose coarse operators were formed
+        self.refresh_pc = True
+        self.refresh()
+
+    def refresh(self):
+        """Read A's owned rows after a new design's values (the normal rows of the friction coupling)."""
+        ip, ind, data = self.A.getValuesCSR()
+        self.indptr, self.indices, self.a_data = ip.copy(), ind.copy(), data.copy()
+
+    # ------------------------------------------------------------------ gathers
+    def at_contact(self, vec) -> np.ndarray:
+        """(p, 3) values of a PETSc vector at the contact DOFs, on every rank."""
+        PETSc = petsc()
+        self._cscatter.scatter(vec, self._cvec, addv=PETSc.InsertMode.INSERT, mode=PETSc.ScatterMode.FORWARD)
+        return self._cvec.getArray().reshape(self.p, 3).copy()
+
+    def everywhere(self, vec) -> np.ndarray:
+        """All entries of a PETSc vector, on every rank."""
+        PETSc = petsc()
+        self._all_scatter.scatter(vec, self._all, addv=PETSc.InsertMode.INSERT, mode=PETSc.ScatterMode.FORWARD)
+        return self._all.getArray().copy()
+
+    def set_owned(self, vec, dofs: np.ndarray, values: np.ndarray) -> None:
+        """vec[dofs] = values for the dofs (PETSc, any rank's) this rank owns."""
+        dofs = np.asarray(dofs, dtype=np.int64)
+        own = (dofs >= self.dist.rstart) & (dofs < self.dist.rend)
+        arr = vec.getArray()
+        arr[dofs[own] - self.dist.rstart] = np.broadcast_to(values, dofs.shape)[own]
+
+    # ------------------------------------------------------------------ Newton systems
+    def system(self, stick, slide, tvec, k, coupling):
+        """Fill H = A + K_t and G = (I − C_N) H (rows and columns of D: a unit row) for the
+        node classes of one Newton piece (nodes ``stick``, ``slide``; per sliding node its Robin
+        block k t tᵀ and coupling c); returns the boolean D over all PETSc DOFs."""
+        PETSc = petsc()
+        d = self.dist
+        cd = self.cd
+        D = np.zeros(d.n, dtype=bool)
+        D[cd[stick].ravel()] = True
+        D[cd[slide, 2]] = True
+        own = d.owns_contact[slide]
+        sl = slide[own]
+        blk = k[own, None, None] * tvec[own, :, None] * tvec[own, None, :]
+        c = coupling[own]
+        same, add = PETSc.Mat.Structure.SAME_NONZERO_PATTERN, PETSc.InsertMode.ADD
+        self.A.copy(self.H, structure=same)
+        tt = cd[sl, :2].astype(PETSc.IntType)
+        for i in range(sl.size):                  # the Robin blocks k t tᵀ
+            self.H.setValues(tt[i], tt[i], blk[i], addv=add)
+        self.H.assemble()
+        self.H.copy(self.G, structure=same)
+        ip, ind, a = self.indptr, self.indices, self.a_data
+        for i, rn in enumerate((cd[sl, 2] - d.rstart).tolist()):     # the normal row, times c
+            cols, vals = ind[ip[rn]:ip[rn + 1]], a[ip[rn]:ip[rn + 1]]
+            for comp in range(2):
+                self.G.setValues(tt[i, comp], cols, -c[i, comp] * vals, addv=add)
+        self.G.assemble()
+        # coarse operators of a D that differs in a few DOFs still precondition well (GMRES pays
+        # about an iteration per DOF); more than REFRESH_CHANGES of them: form them anew
+        self.refresh_pc = (self._d_signature is None
+                           or np.count_nonzero(self._d_signature != D) > REFRESH_CHANGES * cd.size)
+        if self.refresh_pc:
+            self._d_signature = D
+        rows = (np.flatnonzero(D[d.rstart:d.rend]) + d.rstart).astype(PETSc.IntType)
+        self.H.zeroRowsColumns(rows, diag=1.0)
+        self.G.zeroRowsColumns(rows, diag=1.0)
+        return D
+
+    def plain(self):
+        """H = A (the start solve's preconditioner)."""
+        PETSc = petsc()
+        self._d_signature = None
+        self.A.copy(self.H, structure=PETSc.Mat.Structure.SAME_NONZERO_PATTERN)
+
+    # ------------------------------------------------------------------ the state
+    def solve(self, hier: PetscHierarchy, L, gap, friction, *, r0=None, u0=None, tol=1e-10, zone=None,
+              rho_scale=0.5, max_steps=50, krylov_rtol=None, eta_max=1e-2, eta_factor=0.1,
+              zone_margin=0.1, compliance=None) -> PetscSolve:
+        """The contact state of load ``L`` (PETSc Vec) and gaps ``gap`` (p,) from the warm start
+        ``r0`` (p, 3; FCLIB order) or ``u0`` (a PETSc Vec); the arguments and the stopping rule as
+        :func:`contactopt.contact.fullspace.solve_fullspace`. ``compliance`` (p,): the part of
+        the Delassus diagonal estimate beyond the local W_DIAG_FACTOR / mean(A_mm)."""
+        t_start = time.perf_counter()
+        timings = dict.fromkeys(("amg_setup", "preconditioner", "krylov", "newton", "start"), 0.0)
+        p, cd = self.p, self.cd
+        A = self.A
+        mu_all = np.broadcast_to(np.asarray(friction, dtype=np.float64), (p,)).copy()
+        krylov_rtol = 0.1 * tol if krylov_rtol is None else krylov_rtol
+        zone = np.arange(p) if zone is None else np.unique(np.asarray(zone, dtype=np.int64))
+        Lnorm = L.norm() or 1.0
+        diag_c = self._diag_at_contact()
+        w_est = W_DIAG_FACTOR / diag_c.mean(axis=1) + (0.0 if compliance is None else compliance)
+        rho_all = rho_scale / w_est
+        u, w, x, rhs, du, Adu, mask, e_t = (A.createVecRight() for _ in range(8))
+
+        t0 = time.perf_counter()
+        krylov_its = []
+        # the coarse operators are formed anew at the first Newton system of every solve and when D
+        # changes, not for Newton steps of the same D: a solve depends on its own data only (and on
+        # the hierarchy's prolongations), so a resumed run repeats the uninterrupted one
+        self._d_signature = None
+        if u0 is None:
+            f = L.copy()
+            if r0 is not None:
+                rz = np.zeros((p, 3))
+                rz[zone] = np.asarray(r0, dtype=np.float64).reshape(p, 3)[zone][:, FROM_FCLIB]
+                arr = f.getArray()
+                own = self.dist.owns_contact
+                arr[cd[own].ravel() - self.dist.rstart] += rz[own].ravel()
+            self.plain()
+            eta0 = max(krylov_rtol, 1e-6)
+            krylov_its.append(hier.solve(A, f, u, eta0 * f.norm(), "full-space start solve"))
+        else:
+            u0.copy(u)
+        timings["start"] = time.perf_counter() - t0
+
+        history, steps, recent = [], [], []
+        growths = rescales = last_rescale = 0
+        classes = np.zeros(p, dtype=np.int8)
+        converged, reason = False, ""
+        err = eq = np.inf
+        while True:
+            t0 = time.perf_counter()
+            z = zone
+            mu, rho = mu_all[z], rho_all[z]
+            mask.set(1.0)
+            self.set_owned(mask, cd[z].ravel(), 0.0)
+            A.mult(u, w)
+            w.axpy(-1.0, L)                                   # A u − L
+            rphys = self.at_contact(w)
+            uc = self.at_contact(u)
+            R = rphys[z][:, TO_FCLIB]
+            U = uc[z][:, TO_FCLIB]
+            U[:, 0] += gap[z]
+            Phi, piece = alart_curnier(R.ravel(), U.ravel(), mu, rho)
+            theta_phi = 0.5 * float(Phi @ Phi)
+            err = siconos_error(R.ravel(), U.ravel(), U.ravel(), mu)
+            e_other = w.copy()
+            e_other.pointwiseMult(e_other, mask)
+            e_norm = e_other.norm()
+            eq = e_norm / Lnorm
+            theta = theta_phi + 0.5 * e_norm ** 2
+            history.append(err)
+            recent.append(theta)
+            timings["newton"] += time.perf_counter() - t0
+            progress.log(progress_level(self.dist.n, t_start), "full-space Newton (PETSc) %d: error %.3e, "
+                         "equilibrium %.3e, zone %d, %.1f s", len(history) - 1, err, eq, z.size,
+                         time.perf_counter() - t_start)
+            if err <= tol and eq <= tol:
+                if z.size < p:
+                    clearance = uc[:, 2] + gap
+                    u_scale = displacement_scale(uc, gap)
+                    missed = missed_nodes(z, clearance, u_scale)
+                    if missed.size:
+                        lam_all = np.zeros(p)
+                        lam_all[z] = R[:, 0]
+                        near = near_nodes(lam_all, clearance, u_scale, zone_margin, min_nodes=0)
+                        zone = np.union1d(np.union1d(z, missed), near)
+                        growths += 1
+                        continue
+                converged = True
+                break
+            if len(history) > max_steps:
+                reason = f"{max_steps} Newton steps used"
+                break
+            if (len(history) - last_rescale > _STAGNATION_STEPS and rescales < _MAX_RESCALES
+                    and min(history[-_STAGNATION_STEPS:]) > 0.5 * min(history[:-_STAGNATION_STEPS])):
+                rho_all *= _RESCALE
+                rescales += 1
+                last_rescale = len(history)
+                recent = []
+                history.pop()
+                continue
+            # -- the Newton system of the current piece
+            t0 = time.perf_counter()
+            act, slip = piece.active, piece.slip
+            cls = np.where(act, np.where(slip, SLIDE, STICK), OPEN).astype(np.int8)
+            settled = bool(np.array_equal(classes[z], cls)) and len(history) > 1
+            classes[:] = OPEN
+            classes[z] = cls
+            st, sl = z[cls == STICK], z[cls == SLIDE]
+            lsl = np.flatnonzero(cls == SLIDE)
+            nvec = piece.nvec[lsl]
+            tvec = np.column_stack((-nvec[:, 1], nvec[:, 0]))
+            c = piece.c[lsl]
+            k = c * rho[lsl] / (1.0 - c)
+            coupling = mu[lsl, None] * nvec
+            D = self.system(st, sl, tvec, k, coupling)
+            # x0: the current iterate with the Dirichlet values of D
+            x0c = uc.copy()
+            x0c[st] = 0.0
+            x0c[st, 2] = -gap[st]
+            x0c[sl, 2] = -gap[sl]
+            x0 = u.copy()
+            self.set_owned(x0, cd[st].ravel(), x0c[st].ravel())
+            self.set_owned(x0, cd[sl, 2], x0c[sl, 2])
+            # rhs = (I − C_N)(L − (A + K_t) x0) on I, 0 on D
+            A.mult(x0, rhs)
+            rhs.aypx(-1.0, L)
+            self._robin_and_couple(rhs, x0c, sl, tvec, k, coupling)
+            arr = rhs.getArray()
+            arr[D[self.dist.rstart:self.dist.rend]] = 0.0
+            t1 = time.perf_counter()
+            eta = min(eta_max, max(krylov_rtol, eta_factor * err))
+            if settled and err <= _TIGHT_BELOW * np.sqrt(tol):
+                eta = krylov_rtol
+            its = hier.solve(self.G, rhs, x, eta * Lnorm, f"full-space Newton step {len(history)}",
+                             refresh=self.refresh_pc)
+            xa = x.getArray()
+            xa[D[self.dist.rstart:self.dist.rend]] = 0.0      # D rows are decoupled: exact zeros
+            t2 = time.perf_counter()
+            timings["newton"] += t1 - t0
+            timings["krylov"] += t2 - t1
+            krylov_its.append(its)
+            # du = x0 + x − u; line search on the merit (r is affine in u)
+            x0.axpy(1.0, x)
+            x0.axpy(-1.0, u)
+            x0.copy(du)
+            A.mult(du, Adu)
+            dr = self.at_contact(Adu)
+            duc = self.at_contact(du)
+            de_other = Adu.copy()
+            de_other.pointwiseMult(de_other, mask)
+            dR, dU = dr[z][:, TO_FCLIB].ravel(), duc[z][:, TO_FCLIB].ravel()
+            R0, U0 = R.ravel(), U.ravel()
+            ref = max(recent[-4:])
+            t = 1.0
+            for _ in range(30):
+                Phi_t, _ = alart_curnier(R0 + t * dR, U0 + t * dU, mu, rho)
+                e_t.waxpy(t, de_other, e_other)
+                if 0.5 * float(Phi_t @ Phi_t) + 0.5 * e_t.norm() ** 2 <= ref - 2e-4 * t * theta:
+                    break
+                t *= 0.5
+            else:
+                reason = "line search found no decrease of the merit ½‖Φ‖²"
+                timings["newton"] += time.perf_counter() - t2
+                break
+            u.axpy(t, du)
+            steps.append(t)
+            timings["newton"] += time.perf_counter() - t2
+
+        A.mult(u, w)
+        w.axpy(-1.0, L)
+        rphys = self.at_contact(w)
+        r = np.zeros((p, 3))
+        r[zone] = rphys[zone][:, TO_FCLIB]
+        u_all = self.everywhere(u)
+        timings["total"] = time.perf_counter() - t_start
+        result = PetscSolve(r=r, u_all=u_all, u=u, u_c=u_all[cd], classes=classes, converged=converged,
+                            error=err, equilibrium=eq, newton_steps=len(steps), krylov_iterations=krylov_its,
+                            history=history, zone=zone, zone_growths=growths, timings=timings,
+                            info={"reason": reason, "rho_rescales": rescales})
+        if not converged:
+            raise ContactNotConverged(f"full-space Newton (PETSc) did not converge: Siconos error {err:.3e}, "
+                                      f"equilibrium {eq:.3e} (tol {tol:.1e}) after {len(steps)} steps "
+                                      f"({reason})", history)
+        return result
+
+    def _robin_and_couple(self, vec, xc, slide, tvec, k, coupling):
+        """vec ← (I − C_N)(vec − K_t x) at the owned sliding nodes (x given at the contact DOFs)."""
+        d = self.dist
+        own = d.owns_contact[slide]
+        if not own.any():
+            return
+        sl, tv, kk, c = slide[own], tvec[own], k[own], coupling[own]
+        arr = vec.getArray()
+        kt_x = kk[:, None] * tv * np.einsum("ij,ij->i", tv, xc[sl, :2])[:, None]
+        for a in range(2):
+            arr[self.cd[sl, a] - d.rstart] -= kt_x[:, a]
+        vn = arr[self.cd[sl, 2] - d.rstart]
+        for a in range(2):
+            arr[self.cd[sl, a] - d.rstart] -= c[:, a] * vn
+
+    def _diag_at_contact(self) -> np.ndarray:
+        d = self.A.getDiagonal()
+        return self.at_contact(d)
+
+    # ------------------------------------------------------------------ the adjoint (4.15)
+    def adjoint(self, hier: PetscHierarchy, stick, slide, free_lam, u_c, lam, y_u, y_lam, friction, *,
+                rtol=1e-10):
+        """(ṽ on all PETSc DOFs, v_u (3p), v_λ (p), GMRES iterations) of the adjoint system (4.15)
+        of a state whose nodes ``stick`` are of class M3+, ``slide`` of class M1, ``free_lam`` not
+        of class L (after the degenerate choices): the transpose of the state's Newton system at
+        the solution (:mod:`contactopt.sensitivity.adjoint_fullspace`, whose docstring derives
+        it), solved with the explicit transpose of G and the same GAMG hierarchy (H is symmetric)."""
+        cd, d = self.cd, self.dist
+        F = float(friction)
+        ut = np.asarray(u_c)[slide, :2]
+        nut = np.linalg.norm(ut, axis=1)
+        if np.any(nut <= 0):
+            raise SolverError("a sliding node (M1) without slip")
+        ahat = ut / nut[:, None]
+        tvec = np.column_stack((-ahat[:, 1], ahat[:, 0]))
+        k = F * np.asarray(lam)[slide] / nut
+        coupling = -F * ahat
+        D = self.system(stick, slide, tvec, k, coupling)
+        # v0: (0, 0, y*_λ) on M3+ nodes, y*_λ in the normal DOF of M1 nodes
+        v0c = np.zeros((self.p, 3))
+        v0c[stick, 2] = y_lam[stick]
+        v0c[slide, 2] = y_lam[slide]
+        v0, rhs, x, Av = (self.A.createVecRight() for _ in range(4))
+        self.set_owned(v0, cd.ravel(), v0c.ravel())
+        # rhs = −Bᵀy*_u − (A + K_t) v0 on I (K_t v0 = 0: v0 is zero on tangential DOFs)
+        self.A.mult(v0, rhs)
+        rhs.scale(-1.0)
+        arr = rhs.getArray()
+        own = d.owns_contact
+        arr[cd[own].ravel() - d.rstart] -= np.asarray(y_u, dtype=np.float64).reshape(-1, 3)[own].ravel()
+        arr[D[d.rstart:d.rend]] = 0.0
+        scale = max(rhs.norm(), 1e-300)
+        # Gᵀ into a matrix of its own (petsc4py's transpose() without one transposes G in place);
+        # later adjoints reuse its storage
+        if self._Gt is None:
+            self._Gt = petsc().Mat()
+        self.G.transpose(self._Gt)
+        its = hier.solve(self._Gt, rhs, x, rtol * scale, "full-space adjoint (4.15)", refresh=self.refresh_pc)
+        xa = x.getArray()
+        xa[D[d.rstart:d.rend]] = 0.0
+        # ṽ = lift(x) + v0: the normal DOF of a sliding node from its tangential ones, −cᵀx_t
+        xc = self.at_contact(x)
+        lift = -(coupling[:, 0] * xc[slide, 0] + coupling[:, 1] * xc[slide, 1])
+        self.set_owned(x, cd[slide, 2], lift)
+        x.axpy(1.0, v0)
+        self.A.mult(x, Av)
+        resid = self.at_contact(Av).ravel() + y_u
+        v_lam = np.where(free_lam, -resid[2::3], 0.0)
+        v_all = self.everywhere(x)
+        return v_all, v_all[cd].ravel(), v_lam, its

@@ -1,0 +1,164 @@
+"""The body's mesh split over MPI ranks for the PETSc path: partition, numbering, A(α) on PETSc.
+
+Partition: recursive coordinate bisection of the element centroids (split along the axis of
+largest extent, in proportion to the ranks on each side). It needs no graph partitioner (the
+Debian PETSc's ParMETIS/PT-Scotch are optional and differ between versions), it is deterministic
+(the same mesh and number of ranks give the same split, so a resumed run repeats itself), and on
+the bodies here — plates and pads of nearly uniform elements — it gives compact parts with
+balanced element counts and interfaces of the order of a cut plane. The contact face x3 = 0 is
+cut along x1/x2 like the rest, so the contact nodes are spread over the ranks.
+
+Numbering: a node belongs to the lowest rank among its elements' ranks; nodes are renumbered by
+owner (stable), so rank r owns a contiguous range of nodes and the PETSc DOF of node n,
+component c is 3·new(n) + c: block size 3, every DOF of a node on one rank. All 3·N DOFs are in
+the PETSc matrix; a clamped DOF keeps its diagonal entry and nothing else (its row and column are
+zero otherwise), so its value stays 0 and the other rows are those of A on the free DOFs.
+
+Assembly: each rank computes the stiffness of its own elements (the serial pair assembler of
+:mod:`contactopt.fem.elasticity` on the rank's elements and nodes) and adds it into a
+preallocated MPIAIJ matrix (block size 3); rows of other ranks travel in PETSc's stash at
+assembly. The mesh itself (points, cells) is held by every rank; only the matrices, the
+multigrid hierarchy and the Krylov vectors are distributed (docs/scaling.md).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..errors import ConfigError
+from .elasticity import ElasticityAssembler
+
+__all__ = ["rcb_partition", "DistributedBody"]
+
+
+def rcb_partition(centroids: np.ndarray, n_parts: int) -> np.ndarray:
+    """Part (0..n_parts − 1) of every element by recursive coordinate bisection of ``centroids``
+    (E, 3); parts differ in size by at most one element per level."""
+    part = np.zeros(centroids.shape[0], dtype=np.int64)
+
+    def split(idx, first, n):
+        if n == 1 or idx.size == 0:
+            part[idx] = first
+            return
+        pts = centroids[idx]
+        axis = int(np.argmax(pts.max(axis=0) - pts.min(axis=0)))
+        order = idx[np.argsort(pts[:, axis], kind="stable")]
+        n1 = n // 2
+        cut = int(round(idx.size * n1 / n))
+        split(order[:cut], first, n1)
+        split(order[cut:], first + n1, n - n1)
+
+    split(np.arange(centroids.shape[0]), 0, n_parts)
+    return part
+
+
+class DistributedBody:
+    """The model's mesh over ``size`` ranks, seen from rank ``rank`` (module docstring).
+
+    ``dof_of_free`` maps the model's free-DOF order to PETSc DOFs; ``contact`` (p, 3) the PETSc
+    DOFs of the contact nodes, per node (t1, t2, ν); ``rstart``/``rend`` this rank's DOF range."""
+
+    def __init__(self, model, size: int, rank: int):
+        asm = model.assembler
+        cells = np.asarray(asm.elements, dtype=np.int64)
+        n_nodes = asm.n_nodes
+        if size > cells.shape[0]:
+            raise ConfigError([f"{size} MPI ranks: the mesh has {cells.shape[0]} elements, fewer than the "
+                               "ranks it would be split over; run on fewer ranks"])
+        coords = model.body.reference.points
+        part = rcb_partition(coords[cells].mean(axis=1), size)
+        owner = np.full(n_nodes, size, dtype=np.int64)
+        np.minimum.at(owner, cells.ravel(), np.repeat(part, cells.shape[1]))
+        owner[owner == size] = 0                        # a node in no element (none in practice)
+        counts = np.bincount(owner, minlength=size)
+        if np.any(counts == 0):
+            raise ConfigError([f"{size} MPI ranks: the mesh ({n_nodes} nodes, {cells.shape[0]} elements) "
+                               f"cannot be split so that every rank owns nodes ({int(np.sum(counts == 0))} "
+                               "would own none); run on fewer ranks"])
+        self.size, self.rank = size, rank
+        self.n_nodes = n_nodes
+        self.n = 3 * n_nodes
+        order = np.argsort(owner, kind="stable")        # new node -> old node
+        self.new_of = np.empty(n_nodes, dtype=np.int64)
+        self.new_of[order] = np.arange(n_nodes)
+        starts = np.concatenate([[0], np.cumsum(counts)])
+        self.node_range = (int(starts[rank]), int(starts[rank + 1]))
+        self.rstart, self.rend = 3 * self.node_range[0], 3 * self.node_range[1]
+        self.n_local = self.rend - self.rstart
+        self.ranges = 3 * starts                        # DOF ranges of all ranks
+        full = np.arange(self.n)
+        self.dof_of_full = 3 * self.new_of[full // 3] + full % 3
+        self.dof_of_free = self.dof_of_full[asm.free]
+        self.fixed = np.ones(self.n, dtype=bool)        # by PETSc DOF
+        self.fixed[self.dof_of_free] = False
+        self.contact = self.dof_of_free[np.asarray(model.contact_dofs)].reshape(-1, 3)
+        self.owns_contact = (self.contact[:, 0] >= self.rstart) & (self.contact[:, 0] < self.rend)
+        self.old_of = order
+        new_cells = self.new_of[cells]
+        lo, hi = self.node_range
+        E, nu = model.config["material"]["E"], model.config["material"]["nu"]
+        # the stiffness of the owned rows: every element at an owned node (a layer of elements of
+        # the neighbouring ranks computed here too, so assembly needs no communication)
+        touch = np.flatnonzero(((new_cells >= lo) & (new_cells < hi)).any(axis=1))
+        self.n_ghost_elements = int(np.sum(part[touch] != rank))
+        self._stiff = self._local(new_cells[touch], E, nu, asm.element)
+        nodes = self._stiff[1]
+        first = int(np.searchsorted(nodes, lo))
+        self._owned_rows = slice(3 * first, 3 * (first + hi - lo))
+        # the design term: this rank's own elements only (each element counted on one rank)
+        self.n_elements = int(np.sum(part == rank))
+        self._own = self._local(new_cells[part == rank], E, nu, asm.element)
+        self._csr = None
+
+    def _local(self, new_cells, E, nu, element):
+        """(assembler on the nodes of ``new_cells``, those nodes' new numbers (sorted), their
+        PETSc DOFs)."""
+        nodes, local = np.unique(new_cells, return_inverse=True)
+        sub = ElasticityAssembler(local.reshape(new_cells.shape), nodes.size, np.zeros(0, np.int64), E, nu,
+                                  element=element)
+        return sub, nodes, (3 * nodes[:, None] + np.arange(3)).ravel()
+
+    # ------------------------------------------------------------------ the matrix
+    def owned_stiffness(self, coords: np.ndarray):
+        """The owned rows of A(α) as CSR (indptr, PETSc columns, values), coordinates ``coords``
+        in the model's node order; clamped DOFs keep only their diagonal entries."""
+        sub, nodes, ldofs = self._stiff
+        K = sub.stiffness(coords[self.old_of[nodes]])
+        K = K[self._owned_rows]
+        K.sort_indices()
+        if self._csr is None:
+            rows = np.repeat(np.arange(self.rstart, self.rend), np.diff(K.indptr))
+            cols = ldofs[K.indices]
+            self._drop = (self.fixed[rows] | self.fixed[cols]) & (rows != cols)
+            self._csr = (K.indptr.astype(np.int32), cols.astype(np.int32))
+        data = K.data
+        data[self._drop] = 0.0
+        return self._csr[0], self._csr[1], data
+
+    def owned(self, v_full_petsc: np.ndarray) -> np.ndarray:
+        return v_full_petsc[self.rstart:self.rend]
+
+    def petsc_of_free(self, v_free: np.ndarray) -> np.ndarray:
+        """A vector on the model's free DOFs in PETSc order, all DOFs (0 on clamped DOFs)."""
+        out = np.zeros(self.n)
+        out[self.dof_of_free] = v_free
+        return out
+
+    def free_vector(self, v_all: np.ndarray) -> np.ndarray:
+        """A vector on all PETSc DOFs in the model's free-DOF order."""
+        return v_all[self.dof_of_free]
+
+    def coordinates(self, coords: np.ndarray) -> np.ndarray:
+        """The owned nodes' coordinates (n_owned, 3), PETSc order."""
+        return coords[self.old_of[self.node_range[0]:self.node_range[1]]]
+
+    def contraction(self, model, coords, u_full, v_full) -> np.ndarray:
+        """This rank's own elements' part of vᵀ(∂A/∂α_k)u (stiffness only; u, v full-length in the
+        model's order), contracted with ∂x3/∂α (:meth:`~contactopt.fem.model.ElasticModel.design_contraction`)."""
+        sub, nodes, _ = self._own
+        old = self.old_of[nodes]
+        uu, vv = u_full.reshape(-1, 3)[old].ravel(), v_full.reshape(-1, 3)[old].ravel()
+        d = sub.stiffness_shape_contraction(coords[old], uu, vv)
+        d3 = np.zeros(self.n_nodes)
+        d3[old] = d[:, 2]
+        return model.mesh.contract_dx3(d3)

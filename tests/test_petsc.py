@@ -1,0 +1,208 @@
+"""The PETSc path (paths/petsc.py) against the pyamg full-space path: Θ, the state (u, λ, τ) and the
+subgradient ξ (with v_λ) at two designs — the second warm-started from the first — on one process
+and under ``mpiexec -n 2`` (tests/mpi/compare_paths.py), for Examples 1 and 2 (hexahedra) and the
+round pad (tetrahedra from a mesh file). Both paths solve to the same tolerance (Siconos error and
+equilibrium ≤ 1e-10), so they agree to 1e-8 relative.
+
+Skipped without petsc4py/mpi4py (``pip install .`` does not install them; README 'One optimization
+on many cores'); ``.ci/run`` installs them and runs this file.
+"""
+
+import contextlib
+import io
+import json
+import os
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+import tomli_w
+
+from contactopt._mpi import petsc_missing
+from contactopt.cli import main
+from contactopt.config import load_config
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT / "tests" / "mpi"))
+from compare_paths import evaluations, overrides  # noqa: E402
+
+MISSING = petsc_missing()
+pytestmark = pytest.mark.skipif(MISSING is not None, reason=f"PETSc path: {MISSING}")
+
+TOL = 1e-8
+CASES = {
+    "example1": ("example1", ["mesh.nx=12", "mesh.ny=6", "mesh.nz=4"]),
+    "example2": ("example2", ["mesh.nx=12", "mesh.ny=6", "mesh.nz=6"]),
+    "round_pad": (str(ROOT / "examples" / "round_pad.toml"), []),
+}
+_reference = {}
+
+
+def reference(name):
+    """The pyamg full-space path's evaluations of a case (computed once per session)."""
+    if name not in _reference:
+        src, sets = CASES[name]
+        _reference[name] = evaluations(load_config(src).with_updates(overrides(sets)), "fullspace")
+    return _reference[name]
+
+
+def assert_agree(ref, got, what):
+    assert set(ref) == set(got)
+    for key in sorted(ref):
+        x, y = np.atleast_1d(ref[key]), np.atleast_1d(got[key])
+        assert x.shape == y.shape, f"{what}: {key} has shape {y.shape}, expected {x.shape}"
+        scale = max(float(np.abs(x).max()), 1e-300)
+        err = float(np.abs(x - y).max()) / scale
+        assert err <= TOL, f"{what}: {key} differs from the pyamg path by {err:.2e} (relative) > {TOL:g}"
+
+
+def mpi_env():
+    env = dict(os.environ)
+    if hasattr(os, "geteuid") and os.geteuid() == 0:      # OpenMPI refuses root without these
+        env.update(OMPI_ALLOW_RUN_AS_ROOT="1", OMPI_ALLOW_RUN_AS_ROOT_CONFIRM="1")
+    env.setdefault("OMPI_MCA_rmaps_base_oversubscribe", "1")
+    env["PYTHONPATH"] = os.pathsep.join([str(ROOT / "src"), env.get("PYTHONPATH", "")])
+    return env
+
+
+def mpiexec(n, *args, timeout=600):
+    exe = shutil.which("mpiexec")
+    if exe is None:
+        pytest.skip("mpiexec not found")
+    return subprocess.run([exe, "-n", str(n), sys.executable, *args], env=mpi_env(), capture_output=True,
+                          text=True, timeout=timeout, cwd=ROOT)
+
+
+@pytest.mark.parametrize("name", sorted(CASES))
+def test_one_rank_equals_the_pyamg_path(name):
+    src, sets = CASES[name]
+    got = evaluations(load_config(src).with_updates(overrides(sets)), "petsc")
+    assert_agree(reference(name), got, f"{name}, PETSc path on 1 rank")
+
+
+@pytest.mark.parametrize("name", sorted(CASES))
+def test_two_ranks_equal_the_pyamg_path(name, tmp_path):
+    src, sets = CASES[name]
+    out = tmp_path / "petsc.npz"
+    proc = mpiexec(2, str(ROOT / "tests" / "mpi" / "compare_paths.py"), src, str(out), *sets)
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    with np.load(out) as npz:
+        got = dict(npz)
+    assert int(got.pop("ranks")) == 2
+    assert_agree(reference(name), got, f"{name}, PETSc path on 2 ranks")
+
+
+def test_the_comparison_sees_a_wrong_subgradient():
+    """The agreement test fails for a subgradient off by a relative 1e-6."""
+    ref = reference("example1")
+    bad = dict(ref, xi0=ref["xi0"] * (1 + 1e-6))
+    with pytest.raises(AssertionError, match="xi0"):
+        assert_agree(ref, bad, "perturbed")
+
+
+# ---------------------------------------------------------------------------- contactopt run
+def write_config(directory, name, updates, base="example2"):
+    cfg = load_config(base).with_updates({"name": name, **updates})
+    file = directory / f"{name}.toml"
+    file.write_text(tomli_w.dumps(cfg.data))
+    return file
+
+
+def run_here(*args):
+    """``contactopt ARGS`` in this process (one rank): (exit code, stdout + stderr)."""
+    out = io.StringIO()
+    with contextlib.redirect_stdout(out), contextlib.redirect_stderr(out):
+        code = main([str(a) for a in args])
+    return code, out.getvalue()
+
+
+def summary(run_dir):
+    return json.loads((run_dir / "summary.json").read_text())
+
+
+SMALL = {"mesh": {"nx": 8, "ny": 4, "nz": 4}}
+CASES2 = {"loads": {"right_traction": [0.0, 0.0, 0.0]},
+          "load_cases": [{"name": "pull", "right_traction": [5e-2, 0.0, 0.0]},
+                         {"name": "push", "right_traction": [-5e-2, 0.0, 0.0]}]}
+
+
+def test_mpiexec_run_equals_the_run_on_one_process(tmp_path):
+    """Two load cases, path "auto" (the PETSc path under mpiexec) against the pyamg path on one
+    process: the same J after the same iterations; one run directory, one log, progress from rank 0."""
+    mpi = write_config(tmp_path, "mpi", {**SMALL, **CASES2, "linear_solver": {"path": "auto"}})
+    one = write_config(tmp_path, "one", {**SMALL, **CASES2, "linear_solver": {"path": "fullspace"}})
+    code, out = run_here("run", one, "--out", tmp_path / "one", "--max-iter", 4)
+    assert code == 0, out
+    proc = mpiexec(2, "-m", "contactopt.cli", "run", str(mpi), "--out", str(tmp_path / "mpi"), "--max-iter", "4")
+    assert proc.returncode == 0, proc.stdout[-2000:] + proc.stderr[-3000:]
+    ref, got = summary(tmp_path / "one"), summary(tmp_path / "mpi")
+    assert got["iterations"] == ref["iterations"] == 4
+    assert abs(got["J"] - ref["J"]) <= 1e-6 * abs(ref["J"]), (got["J"], ref["J"])
+    assert proc.stdout.count("it    1 ") == 1                    # one progress line per iteration
+    log = (tmp_path / "mpi" / "run.log").read_text()
+    assert log.count("Θ(α0) =") == 1 and "petsc path" in log
+
+
+def test_a_checkpoint_resumes_on_another_number_of_ranks(tmp_path):
+    """Stopped after 2 iterations on 2 ranks, continued to 4 on one process (and the other way
+    round): J as the uninterrupted run's on one process."""
+    cfg = write_config(tmp_path, "r", {**SMALL, "linear_solver": {"path": "petsc"}})
+    code, out = run_here("run", cfg, "--out", tmp_path / "whole", "--max-iter", 4)
+    assert code == 0, out
+    J = summary(tmp_path / "whole")["J"]
+    proc = mpiexec(2, "-m", "contactopt.cli", "run", str(cfg), "--out", str(tmp_path / "a"), "--max-iter", "2")
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    code, out = run_here("run", cfg, "--out", tmp_path / "a", "--max-iter", 4, "--resume")
+    assert code == 0, out
+    code, out = run_here("run", cfg, "--out", tmp_path / "b", "--max-iter", 2)
+    assert code == 0, out
+    proc = mpiexec(2, "-m", "contactopt.cli", "run", str(cfg), "--out", str(tmp_path / "b"), "--max-iter", "4",
+                   "--resume")
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    for d in ("a", "b"):
+        s = summary(tmp_path / d)
+        assert s["iterations"] == 4
+        assert abs(s["J"] - J) <= 1e-6 * abs(J), (d, s["J"], J)
+
+
+def test_more_ranks_than_the_mesh_can_be_split_over(tmp_path):
+    cfg = write_config(tmp_path, "tiny", {"mesh": {"nx": 1, "ny": 1, "nz": 1}, "linear_solver": {"path": "petsc"}})
+    proc = mpiexec(2, "-m", "contactopt.cli", "run", str(cfg), "--out", str(tmp_path / "out"))
+    assert proc.returncode == 2, proc.stderr[-3000:]
+    assert "fewer than the ranks" in proc.stderr
+    assert "Traceback" not in proc.stderr
+    assert not (tmp_path / "out").exists()
+
+
+def test_a_resumed_run_repeats_the_uninterrupted_one_on_two_ranks(tmp_path):
+    """Same number of ranks: the resumed run's history equals the uninterrupted one's bit for bit
+    (the GAMG hierarchy is rebuilt at the design the checkpoint names; a solve forms its coarse
+    operators from its own data only)."""
+    cfg = write_config(tmp_path, "bits", {**SMALL, "linear_solver": {"path": "petsc"}}, base="example1")
+    for out, iters, extra in (("whole", "5", ()), ("part", "2", ()), ("part", "5", ("--resume",))):
+        proc = mpiexec(2, "-m", "contactopt.cli", "run", str(cfg), "--out", str(tmp_path / out), "--max-iter",
+                       iters, *extra)
+        assert proc.returncode == 0, proc.stderr[-3000:]
+
+    def values(d):
+        rows = (tmp_path / d / "history.csv").read_text().splitlines()
+        return [",".join(r.split(",")[:4]) for r in rows]
+    assert values("part") == values("whole")
+
+
+def test_petsc_options_reach_petsc(tmp_path):
+    """[linear_solver] petsc_options go to PETSc's options database: -ksp_view shows the GAMG
+    preconditioner (printed by rank 0), an option that does not start with '-' is refused."""
+    cfg = write_config(tmp_path, "opts", {**SMALL, "linear_solver": {"path": "petsc", "petsc_options": "-ksp_view"}},
+                       base="example1")
+    proc = mpiexec(2, "-m", "contactopt.cli", "state", str(cfg), "--out", str(tmp_path / "s"))
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    assert "type: gamg" in proc.stdout
+    bad = write_config(tmp_path, "bad", {**SMALL, "linear_solver": {"path": "petsc", "petsc_options": "ksp_view"}},
+                       base="example1")
+    code, out = run_here("state", bad, "--out", tmp_path / "b")
+    assert code == 2 and "is not an option" in out, out
+    assert not (tmp_path / "b").exists()
