@@ -43,12 +43,15 @@ __all__ = ["PetscHierarchy", "PetscNewton", "PetscSolve"]
 log = logging.getLogger(__name__)
 
 
-# GAMG's options unless [linear_solver] petsc_options sets them: the prolongations kept when H
-# changes; a drop tolerance and a coarsest level of up to 2000 unknowns (solved directly) that
-# make the Galerkin products of a new H — the price of every Newton system with a new D — 1.8×
-# cheaper at 113k DOFs for the same iteration counts (docs/scaling.md)
-GAMG_DEFAULTS = {"pc_gamg_reuse_interpolation": "true", "pc_gamg_threshold": "0.01",
-                 "pc_gamg_coarse_eq_limit": "2000"}
+# The KSP's options unless [linear_solver] petsc_options sets them: GMRES's classical Gram–Schmidt
+# orthogonalized twice (CGS2, as the pyamg path's GMRES; with PETSc's default of no refinement the
+# Krylov basis lost orthogonality at 867k DOFs and GMRES stopped in a breakdown at residual 1.4e-5,
+# 4.3e-7 asked); GAMG's prolongations kept when H changes; a drop tolerance and a coarsest level of
+# up to 2000 unknowns (solved directly) that make the Galerkin products of a new H — the price of
+# every Newton system with a new D — 1.8× cheaper at 113k DOFs for the same iteration counts
+# (docs/scaling.md)
+KSP_DEFAULTS = {"ksp_gmres_cgs_refinement_type": "refine_always", "pc_gamg_reuse_interpolation": "true",
+                "pc_gamg_threshold": "0.01", "pc_gamg_coarse_eq_limit": "2000"}
 
 
 REFRESH_CHANGES = 0.01     # fraction of the contact DOFs whose change of D forms the coarse operators anew
@@ -72,7 +75,7 @@ class PetscHierarchy:
         xyz.getArray()[:] = coords_local.ravel()
         H.setNearNullSpace(PETSc.NullSpace().createRigidBody(xyz))
         opts = PETSc.Options()
-        for key, value in GAMG_DEFAULTS.items():
+        for key, value in KSP_DEFAULTS.items():
             if not opts.hasName(key):
                 opts.setValue(key, value)
         ksp = PETSc.KSP().create(H.getComm())
