@@ -204,6 +204,23 @@ class FullSpaceResult:
 
 
 # ----------------------------------------------------------------------------- solver
+def piece_classes(piece, z, classes, rho, mu, steps: int):
+    """The node classes of the current piece of the Alart–Curnier map on the zone ``z``, written
+    into ``classes`` (all contact nodes; OPEN off the piece's active set), and what the Newton
+    system of that piece needs: (settled — the zone's classes as at the last step, from the second
+    step on —, stick nodes, slide nodes, tangential directions t ⊥ n (per slide node, (t1, t2)
+    order), k = cρ/(1 − c), the friction coupling μn (per slide node))."""
+    cls = np.where(piece.active, np.where(piece.slip, SLIDE, STICK), OPEN).astype(np.int8)
+    settled = bool(np.array_equal(classes[z], cls)) and steps > 1
+    classes[:] = OPEN
+    classes[z] = cls
+    lsl = np.flatnonzero(cls == SLIDE)
+    nvec = piece.nvec[lsl]
+    c = piece.c[lsl]
+    return (settled, z[cls == STICK], z[cls == SLIDE], np.column_stack((-nvec[:, 1], nvec[:, 0])),
+            c * rho[lsl] / (1.0 - c), mu[lsl, None] * nvec)
+
+
 def solve_fullspace(A, L, contact_dofs, gap, friction, *, coords, free, r0=None, u0=None,
                     tol: float = 1e-10, hierarchy: ContactHierarchy | None = None, zone=None,
                     rho_scale: float = 0.5, max_steps: int = 50, krylov_rtol: float | None = None,
@@ -389,19 +406,8 @@ def _solve_fullspace(A, L, contact_dofs, gap, friction, coords, free, r0, u0, to
             continue
         # -- the Newton system of the current piece
         t0 = time.perf_counter()
-        act, slip = piece.active, piece.slip
-        cls = np.where(act, np.where(slip, SLIDE, STICK), OPEN).astype(np.int8)
-        settled = bool(np.array_equal(classes[z], cls)) and len(history) > 1
-        classes[:] = OPEN
-        classes[z] = cls
-        st, sl = z[cls == STICK], z[cls == SLIDE]
-        lsl = np.flatnonzero(cls == SLIDE)
-        nvec = piece.nvec[lsl]
-        tvec = np.column_stack((-nvec[:, 1], nvec[:, 0]))
-        c = piece.c[lsl]
-        k = c * rho[lsl] / (1.0 - c)
-        mus = mu[lsl]
-        system = NewtonSystem(A, cd, st, sl, tvec, k, np.column_stack((mus * nvec[:, 0], mus * nvec[:, 1])))
+        settled, st, sl, tvec, k, coupling = piece_classes(piece, z, classes, rho, mu, len(history))
+        system = NewtonSystem(A, cd, st, sl, tvec, k, coupling)
         dirichlet, kt, D, Nsl = system.dirichlet, system.kt, system.D, system.Nsl
         # H = A + K_t: restore the blocks of the last step, add the new ones
         if touched.size:

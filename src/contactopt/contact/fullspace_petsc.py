@@ -33,7 +33,7 @@ from .._progress import progress, progress_level
 from ..errors import ContactNotConverged, SolverError
 from ..fem.krylov import KrylovNotConverged
 from .cones import siconos_error
-from .fullspace import _MAX_RESCALES, _RESCALE, _STAGNATION_STEPS, _TIGHT_BELOW, OPEN, SLIDE, STICK, W_DIAG_FACTOR
+from .fullspace import _MAX_RESCALES, _RESCALE, _STAGNATION_STEPS, _TIGHT_BELOW, W_DIAG_FACTOR, piece_classes
 from .newton import alart_curnier
 from .state import FROM_FCLIB, TO_FCLIB, displacement_scale
 from .zone import missed_nodes, near_nodes
@@ -337,18 +337,7 @@ class PetscNewton:
                 continue
             # -- the Newton system of the current piece
             t0 = time.perf_counter()
-            act, slip = piece.active, piece.slip
-            cls = np.where(act, np.where(slip, SLIDE, STICK), OPEN).astype(np.int8)
-            settled = bool(np.array_equal(classes[z], cls)) and len(history) > 1
-            classes[:] = OPEN
-            classes[z] = cls
-            st, sl = z[cls == STICK], z[cls == SLIDE]
-            lsl = np.flatnonzero(cls == SLIDE)
-            nvec = piece.nvec[lsl]
-            tvec = np.column_stack((-nvec[:, 1], nvec[:, 0]))
-            c = piece.c[lsl]
-            k = c * rho[lsl] / (1.0 - c)
-            coupling = mu[lsl, None] * nvec
+            settled, st, sl, tvec, k, coupling = piece_classes(piece, z, classes, rho, mu, len(history))
             D = self.system(st, sl, tvec, k, coupling)
             # x0: the current iterate with the Dirichlet values of D
             x0c = uc.copy()
