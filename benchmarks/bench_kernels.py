@@ -20,6 +20,7 @@ import re
 import subprocess
 import sys
 import tempfile
+from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -100,6 +101,9 @@ def main():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--cores", nargs="+", default=CORES)
     ap.add_argument("--examples", action="store_true", help="also run Examples 1-3 (about 15 min)")
+    ap.add_argument("--jobs", type=int, default=1,
+                    help="example runs at a time (their evaluations do not depend on it, their "
+                         "wall times do)")
     args = ap.parse_args()
     out_path = ROOT / "runs" / "bench_kernels.json"
     out_path.parent.mkdir(parents=True, exist_ok=True)
@@ -109,11 +113,13 @@ def main():
     print(problems_table(probs), flush=True)
     write_block("problems", problems_table(probs))
     if args.examples:
-        ex = {}
-        with tempfile.TemporaryDirectory() as tmp:
-            for c in args.cores:
-                ex[c] = {n: run(EXAMPLE_CODE, c, n, str(Path(tmp) / f"{c}_{n}")) for n in BEST_J}
-                print(c, json.dumps(ex[c]), flush=True)
+        ex = {c: {} for c in args.cores}
+        with tempfile.TemporaryDirectory() as tmp, ThreadPoolExecutor(args.jobs) as pool:
+            jobs = {(c, n): pool.submit(run, EXAMPLE_CODE, c, n, str(Path(tmp) / f"{c}_{n}"))
+                    for c in args.cores for n in BEST_J}
+            for (c, n), job in jobs.items():
+                ex[c][n] = job.result()
+                print(c, n, json.dumps(ex[c][n]), flush=True)
         results["examples"] = ex
         write_block("examples", examples_table(ex))
         print(examples_table(ex))

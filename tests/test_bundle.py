@@ -11,6 +11,7 @@ import pytest
 
 from contactopt.errors import ContactOptError, OptimizerError
 from contactopt.optimize import BundleResult, BundleState, minimize_bundle
+from contactopt.optimize._bundle_control import direction, update_metric
 from contactopt.optimize._bundle_qp import Polyhedron
 from contactopt.optimize.testproblems import (
     PROBLEMS,
@@ -128,10 +129,12 @@ def _record(prob, **kw):
     return xs, res
 
 
-@pytest.mark.parametrize("name,fmt", [("Shor", "npz"), ("MAD5", "json"), ("MAXQUAD-U32", "npz")])
-def test_restore_mid_run_gives_bit_identical_iterates(name, fmt, tmp_path):
+@pytest.mark.parametrize("name,fmt,metric", [("Shor", "npz", "diagonal"), ("MAD5", "json", "diagonal"),
+                                             ("MAXQUAD-U32", "npz", "diagonal"),
+                                             ("MAXQUAD-U32", "json", "bfgs")])
+def test_restore_mid_run_gives_bit_identical_iterates(name, fmt, metric, tmp_path):
     prob = max_quadratics_problem() if name == "MAXQUAD-U32" else PROBLEMS[name]
-    kw = dict(eps=1e-7, max_iter=60)
+    kw = dict(eps=1e-7, max_iter=60, metric=metric)
     xs_full, res_full = _record(prob, **kw)
     k = len(xs_full) // 2
     assert k >= 3
@@ -280,12 +283,14 @@ def test_library_does_not_print(capsys):
 
 
 # ------------------------------------------------------------------ the direction-finding QP
-def _qp_reference(poly, x, G, alpha, t):
+def _qp_reference(poly, x, G, alpha, t, W=None):
     clarabel = pytest.importorskip("clarabel")
     import scipy.sparse as sp
 
     n, m = poly.n, G.shape[0]
-    P = sp.csc_matrix(np.diag(np.r_[np.full(n, 1.0 / t), 0.0]))
+    H = np.zeros((n + 1, n + 1))
+    H[:n, :n] = np.eye(n) / t if W is None else W / t
+    P = sp.csc_matrix(np.triu(H))
     q = np.r_[np.zeros(n), 1.0]
     fin_u, fin_l = np.isfinite(poly.ub), np.isfinite(poly.lb)
     A_in = np.vstack([np.hstack([G, -np.ones((m, 1))]),
@@ -327,6 +332,63 @@ def test_direction_qp_matches_clarabel(seed):
     assert Polyhedron(32, **cons).violation(x + qp.d) <= 1e-10
     # KKT identity of the aggregate: −v = t‖p‖² + α_p + (μᵀC d ≥ 0)
     assert -qp.v >= t * qp.p @ qp.p + qp.lam @ alpha - 1e-9
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_direction_qp_with_a_full_metric_matches_clarabel(seed):
+    """min max_j(g_jᵀd − α_j) + dᵀWd/(2t) over x + d ∈ U, solved in e = Lᵀd (W = LLᵀ)."""
+    rng = np.random.default_rng(10 + seed)
+    cons = paper_admissible_set()
+    poly = Polyhedron(32, **cons)
+    x = np.full(32, 0.01)
+    G = rng.normal(size=(15, 32))
+    alpha = np.abs(rng.normal(size=15)) * 0.1
+    alpha[0] = 0.0
+    R = rng.normal(size=(32, 32))
+    W = R @ R.T / 32 + 0.05 * np.eye(32)           # condition ~1e2, far from diagonal
+    t = 10.0 ** rng.uniform(-3, -2)                # a step inside the box: W shapes it
+    qp = direction(poly, x, G, alpha, t, W)
+    d_ref = _qp_reference(poly, x, G, alpha, t, W)
+    phi = lambda d: np.max(G @ d - alpha) + d @ W @ d / (2 * t)     # noqa: E731
+    assert phi(qp.d) == pytest.approx(phi(d_ref), rel=1e-7, abs=1e-10)
+    assert np.linalg.norm(qp.d - d_ref) <= 1e-5 * (1 + np.linalg.norm(d_ref))
+    assert np.allclose(qp.p, -W @ qp.d / t, rtol=0, atol=1e-12 * (1 + np.abs(qp.p).max()))
+    assert qp.lam.sum() == pytest.approx(1.0, abs=1e-12) and np.all(qp.lam >= 0)
+    assert np.allclose(qp.xi, qp.lam @ G)
+    assert poly.violation(x + qp.d) <= 1e-10
+    assert np.linalg.norm(qp.d - direction(poly, x, G, alpha, t, None).d) > 1e-3   # W matters
+    # a diagonal metric given as a matrix: the step of the diagonal (box-preserving) transform
+    w = rng.uniform(0.1, 10.0, 32)
+    a, b = direction(poly, x, G, alpha, t, w), direction(poly, x, G, alpha, t, np.diag(w))
+    assert np.linalg.norm(a.d - b.d) <= 1e-8 * (1 + np.linalg.norm(a.d))
+
+
+def test_bfgs_metric_is_a_secant_metric_and_stays_positive_definite():
+    from types import SimpleNamespace
+
+    rng = np.random.default_rng(3)
+    n = 8
+    Q, _ = np.linalg.qr(rng.normal(size=(n, n)))
+    A = Q @ np.diag(np.linspace(0.5, 2.0, n)) @ Q.T          # f = ½xᵀAx: y = A s
+    st = SimpleNamespace(x=np.zeros(n), w=None, S=None, Y=None)
+    for _ in range(12):
+        s = rng.normal(size=n)
+        update_metric(st, s, A @ s, 20, 100.0, "bfgs")
+    W = st.w
+    assert W.shape == (n, n) and np.array_equal(W, W.T)
+    ev = np.linalg.eigvalsh(W)
+    assert ev.min() > 0 and abs(np.mean(np.log(ev))) < 1e-12        # geometric mean 1
+    # the last secant equation W s = c·y holds, c the normalisation
+    y = A @ s
+    c = (W @ s) @ y / (y @ y)
+    assert np.linalg.norm(W @ s - c * y) <= 1e-10 * np.linalg.norm(W @ s)
+    # a pair with negative curvature (f not convex there) is damped: W stays positive definite
+    update_metric(st, s, -3.0 * (A @ s), 20, 100.0, "bfgs")
+    assert np.linalg.eigvalsh(st.w).min() > 0
+    # the diagonal estimate stays a vector
+    st2 = SimpleNamespace(x=np.zeros(n), w=None, S=None, Y=None)
+    update_metric(st2, s, A @ s, 20, 100.0, "diagonal")
+    assert st2.w.shape == (n,)
 
 
 def test_direction_qp_survives_degenerate_bundles():
@@ -452,9 +514,9 @@ def test_max_linear_60_to_1e6():
 def test_new_options_are_validated_together():
     with pytest.raises(OptimizerError) as info:
         minimize_bundle(PROBLEMS["CB2"], np.zeros(2), ftol=-1.0, ftol_window=0, t_factor=1.0,
-                        m_r=2.0, adapt_t="yes")
+                        m_r=2.0, adapt_t="yes", metric="newton")
     text = str(info.value)
-    for key in ("ftol <", "ftol_window", "t_factor", "m_r", "adapt_t"):
+    for key in ("ftol <", "ftol_window", "t_factor", "m_r", "adapt_t", "metric must be one of"):
         assert key in text, key
 
 

@@ -315,7 +315,8 @@ def run_optimization(config, outdir=None, *, eps=None, max_iter=None, resume=Fal
         try:
             res = minimize_bundle(oracle, alpha0, **model.admissible.constraints(), eps=opt["eps"],
                                   max_iter=opt["max_iter"], callback=callback,
-                                  **{k: opt[k] for k in ("ftol", "ftol_window") if k in opt},
+                                  **{k: opt[k] for k in ("ftol", "ftol_window", "metric", "metric_memory")
+                                     if k in opt},
                                   **state_kw)
         except RunAborted as exc:
             exc.checkpoint = ckpt if ckpt.exists() else None

@@ -1,9 +1,9 @@
-"""Proximity control, diagonal metric and stopping measures of the bundle method.
+"""Proximity control, variable metric and stopping measures of the bundle method.
 
 Helpers of :mod:`.bundle` (see its docstring for the rules and references): Kiwiel's
-safeguarded update of t with the rise test (:func:`next_t`), the diagonal secant metric of the
-proximal term (:func:`update_metric`, :func:`direction`), and the measures of the practical
-and stall stops (:func:`relative_decrease`, :func:`no_progress`).
+safeguarded update of t with the rise test (:func:`next_t`), the variable metric of the
+proximal term, damped BFGS or diagonal (:func:`update_metric`, :func:`direction`), and the
+measures of the practical and stall stops (:func:`relative_decrease`, :func:`no_progress`).
 """
 
 from __future__ import annotations
@@ -19,22 +19,44 @@ logger = logging.getLogger("contactopt.optimize.bundle")
 
 
 def direction(poly: Polyhedron, x, G, alpha, t, w):
-    """The QP with the proximal term Σ w_i d_i²/(2t): solved in e = √w·d (the box stays a box)."""
+    """The QP with the proximal term dᵀWd/(2t), solved in e = Lᵀd for W = LLᵀ.
+
+    ``w`` None is W = I; a vector is a diagonal W (then L = diag(√w) and the box of U stays a
+    box); a matrix is a full W, whose box becomes general rows of the transformed polyhedron.
+    """
     if w is None:
         return poly.direction(x, G, alpha, t)
-    r = np.sqrt(w)
-    pe = Polyhedron(poly.n, poly.lb * r, poly.ub * r,
-                    poly.A_ub / r if poly.n_ub else None, poly.b_ub if poly.n_ub else None,
-                    poly.A_eq / r if poly.n_eq else None, poly.b_eq if poly.n_eq else None)
-    qp = pe.direction(x * r, G / r, alpha, t)
-    d = qp.d / r
-    return DirectionQP(d=d, v=qp.v, lam=qp.lam, p=-w * d / t, xi=qp.lam @ G, sigma=qp.sigma,
+    if w.ndim == 1:
+        r = np.sqrt(w)
+        pe = Polyhedron(poly.n, poly.lb * r, poly.ub * r,
+                        poly.A_ub / r if poly.n_ub else None, poly.b_ub if poly.n_ub else None,
+                        poly.A_eq / r if poly.n_eq else None, poly.b_eq if poly.n_eq else None)
+        qp = pe.direction(x * r, G / r, alpha, t)
+        d = qp.d / r
+        return DirectionQP(d=d, v=qp.v, lam=qp.lam, p=-w * d / t, xi=qp.lam @ G,
+                           sigma=qp.sigma, solver=qp.solver)
+    L = np.linalg.cholesky(w)
+    M = np.linalg.inv(L).T                              # d = M e
+    up, lo = np.isfinite(poly.ub), np.isfinite(poly.lb)
+    A_ub = np.vstack([poly.A_ub @ M, M[up], -M[lo]])
+    b_ub = np.concatenate([poly.b_ub, poly.ub[up], -poly.lb[lo]])
+    pe = Polyhedron(poly.n, None, None, A_ub if A_ub.shape[0] else None,
+                    b_ub if A_ub.shape[0] else None,
+                    poly.A_eq @ M if poly.n_eq else None, poly.b_eq if poly.n_eq else None)
+    qp = pe.direction(L.T @ x, G @ M, alpha, t)
+    d = M @ qp.d
+    return DirectionQP(d=d, v=qp.v, lam=qp.lam, p=-(w @ d) / t, xi=qp.lam @ G, sigma=qp.sigma,
                        solver=qp.solver)
 
 
-def update_metric(st, s, y, memory: int, bound: float) -> None:
-    """Diagonal secant estimate w_i = Σ|y_i s_i| / Σ s_i² over the last serious steps,
-    normalised to geometric mean 1 and clipped to [1/bound, bound]."""
+def update_metric(st, s, y, memory: int, bound: float, kind: str = "bfgs") -> None:
+    """The metric W of the proximal term from the last ``memory`` serious steps (s, y).
+
+    ``"diagonal"``: the secant estimate w_i = Σ|y_i s_i| / Σ s_i².  ``"bfgs"``: damped BFGS
+    updates (Powell's damping, sᵀy ≥ 0.2 sᵀWs, keeps W positive definite where f is not convex)
+    with the pairs oldest first, from that diagonal.  Either is normalised to geometric mean 1 of
+    its eigenvalues (t keeps its scale) and its eigenvalues clipped to [1/bound, bound].
+    """
     n = st.x.size
     S = np.zeros((0, n)) if st.S is None else st.S
     Y = np.zeros((0, n)) if st.Y is None else st.Y
@@ -48,8 +70,26 @@ def update_metric(st, s, y, memory: int, bound: float) -> None:
     w = np.ones(n)
     w[ok] = num[ok] / den[ok]
     w[~ok] = np.exp(np.mean(np.log(w[ok])))
-    w = w / np.exp(np.mean(np.log(w)))
-    st.w = np.clip(w, 1.0 / bound, bound)
+    if kind == "diagonal":
+        w = w / np.exp(np.mean(np.log(w)))
+        st.w = np.clip(w, 1.0 / bound, bound)
+        return
+    W = np.diag(w)
+    for sk, yk in zip(st.S, st.Y):
+        Ws = W @ sk
+        sWs, sy = float(sk @ Ws), float(sk @ yk)
+        if not sWs > 0:
+            continue
+        if sy < 0.2 * sWs:                              # Powell's damping
+            theta = 0.8 * sWs / (sWs - sy)
+            yk = theta * yk + (1.0 - theta) * Ws
+            sy = float(sk @ yk)
+        W = W - np.outer(Ws, Ws) / sWs + np.outer(yk, yk) / sy
+    ev, V = np.linalg.eigh(0.5 * (W + W.T))
+    ev = np.maximum(ev, np.finfo(float).tiny)
+    ev = np.clip(ev / np.exp(np.mean(np.log(ev))), 1.0 / bound, bound)
+    W = (V * ev) @ V.T
+    st.w = 0.5 * (W + W.T)
 
 
 def next_t(st, step, f_old: float, o) -> float:
