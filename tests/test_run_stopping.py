@@ -44,7 +44,9 @@ def test_run_with_the_practical_stop_off_reports_max_iter(tmp_path):
 
 
 # the figures of REPRODUCTION.md: the built-in examples stop by themselves within 1.02x the best
-# J known (long runs to a predicted decrease of 1e-5, REPRODUCTION.md), in at most 170 evaluations
+# J known (long runs to a predicted decrease of 1e-5, REPRODUCTION.md), in at most 120 evaluations
+# (measured with the BFGS metric under four OpenBLAS kernels: 94-117, J within 0.2 %,
+# docs/stopping.md)
 BEST_J = {"example1": 8.3545e-8, "example2": 1.3148e-6, "example3": 1.5325e-7}
 
 
@@ -53,5 +55,5 @@ BEST_J = {"example1": 8.3545e-8, "example2": 1.3148e-6, "example3": 1.5325e-7}
 def test_examples_stop_by_themselves_near_the_best_known_optimum(name, tmp_path):
     s = run_optimization(name, tmp_path / name).summary
     assert s["success"] is True and s["status"] in (0, 4), s["message"]
-    assert s["evaluations"] <= 170
+    assert s["evaluations"] <= 120
     assert s["J"] <= 1.02 * BEST_J[name]

@@ -70,9 +70,9 @@ Notation (current serious iterate x, bundle elements j):
   - ``"bfgs"`` (the default of ``contactopt run``, with ``metric_memory = 20``): damped BFGS
     updates with the kept pairs, oldest first, from that diagonal (Powell's damping
     sᵀy ≥ 0.2 sᵀWs keeps W positive definite where f is not convex).  Θ is piecewise smooth
-    with curvature coupling the control points; on Examples 1–3 the runs end within 0.1 % of
-    the best known J in 98–115 evaluations, where the diagonal needed 101–176 to end within
-    0.8 % (docs/stopping.md).  On polyhedral problems it is slower (L1HILB 33 → 871
+    with curvature coupling the control points; on Examples 1–3 under four OpenBLAS kernels
+    the runs end within 0.2 % of the best known J after 94–117 evaluations, where the diagonal
+    needed 101–176 to end within 0.8 % (docs/stopping.md).  On polyhedral problems it is slower (L1HILB 33 → 871
     evaluations, MAXLIN-60 301 → 943);
 
   either is normalised to geometric mean 1 of its eigenvalues (t keeps its scale) and its
