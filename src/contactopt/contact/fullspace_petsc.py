@@ -430,12 +430,13 @@ class PetscNewton:
 
     # ------------------------------------------------------------------ the adjoint (4.15)
     def adjoint(self, hier: PetscHierarchy, stick, slide, free_lam, u_c, lam, y_u, y_lam, friction, *,
-                rtol=1e-10):
+                rtol: float):
         """(ṽ on all PETSc DOFs, v_u (3p), v_λ (p), GMRES iterations) of the adjoint system (4.15)
         of a state whose nodes ``stick`` are of class M3+, ``slide`` of class M1, ``free_lam`` not
         of class L (after the degenerate choices): the transpose of the state's Newton system at
         the solution (:mod:`contactopt.sensitivity.adjoint_fullspace`, whose docstring derives
-        it), solved with the explicit transpose of G and the same GAMG hierarchy (H is symmetric)."""
+        it), solved with the explicit transpose of G and the same GAMG hierarchy (H is symmetric), to
+        a residual ≤ ``rtol``·‖right-hand side‖."""
         cd, d = self.cd, self.dist
         F = float(friction)
         ut = np.asarray(u_c)[slide, :2]

@@ -253,11 +253,12 @@ class PetscPath(SolverPath):
     def _adjoint(self, skey, classes, u_c, lam, y_u, y_lam):
         from ..contact.state import CLASS_CODES as cc
         from ..sensitivity.adjoint import DEFAULT_CHOICES, effective_classes
+        from ..sensitivity.adjoint_fullspace import ADJOINT_RTOL
         system = self._systems[skey]
         eff = effective_classes(classes, DEFAULT_CHOICES)
         v_all, v_u, v_lam, its = self.newton.adjoint(
             self._hier, np.flatnonzero(eff == cc["M3+"]), np.flatnonzero(eff == cc["M1"]), eff != cc["L"],
-            u_c, lam, y_u, y_lam, self.settings.friction)
+            u_c, lam, y_u, y_lam, self.settings.friction, rtol=ADJOINT_RTOL)
         system.v_all = v_all
         return v_u, v_lam, its
 

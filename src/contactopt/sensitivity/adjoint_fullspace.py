@@ -44,8 +44,14 @@ from ..fem.amg import ContactHierarchy
 from ..fem.krylov import KrylovNotConverged, gmres
 from .adjoint import DEFAULT_CHOICES, effective_classes
 
-__all__ = ["solve_adjoint_fullspace", "subgradient_fullspace", "FullSpaceAdjoint"]
+__all__ = ["solve_adjoint_fullspace", "subgradient_fullspace", "FullSpaceAdjoint", "ADJOINT_RTOL"]
 
+# GMRES tolerance of (4.15), relative to its right-hand side, on the pyamg and the PETSc path. The
+# subgradient feeds the bundle method, whose trajectory amplifies its error (nearly parallel cutting
+# planes): with 1e-10, the subgradients of two solvers (one process, 2 ranks) at the same design
+# differed by 7e-10 and J after ten iterations of example1_fine by 5e-4; with 1e-13, by ≤ 6e-8, for
+# a few more GMRES iterations (docs/scaling.md "The same answer on any number of ranks").
+ADJOINT_RTOL = 1e-13
 
 
 @dataclass
@@ -62,7 +68,7 @@ class FullSpaceAdjoint:
 
 
 def solve_adjoint_fullspace(A, contact_dofs, classes, u_c, lam, y_u, y_lam, friction, *,
-                            hierarchy: ContactHierarchy, rtol: float = 1e-10, restart: int = 60,
+                            hierarchy: ContactHierarchy, rtol: float = ADJOINT_RTOL, restart: int = 60,
                             max_iter: int = 400, choices=None, v0=None) -> FullSpaceAdjoint:
     """Solve (4.15) in full space (module docstring) for a state with Table 4.1 ``classes``
     (codes of :data:`contactopt.contact.state.CLASS_CODES`), ``u_c`` (p, 3), ``lam`` (p,),
@@ -136,7 +142,7 @@ def _solve_adjoint(A, contact_dofs, classes, u_c, lam, y_u, y_lam, friction, hie
                              "total": time.perf_counter() - t0})
 
 
-def subgradient_fullspace(model, objective, alpha, asm, result, friction, *, loads=None, rtol=1e-10,
+def subgradient_fullspace(model, objective, alpha, asm, result, friction, *, loads=None, rtol=ADJOINT_RTOL,
                           **kw):
     """Θ(α) and one Clarke subgradient from a full-space state ``result`` (a
     :class:`~contactopt.contact.fullspace.FullSpaceResult` of A(α), L(α) in ``asm``):
