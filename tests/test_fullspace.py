@@ -24,7 +24,7 @@ from contactopt.errors import ContactNotConverged, SolverError
 from contactopt.fem.krylov import KrylovNotConverged, gmres
 from contactopt.problem import ShapeProblem
 from contactopt.sensitivity.adjoint import subgradient
-from contactopt.sensitivity.adjoint_fullspace import subgradient_fullspace
+from contactopt.sensitivity.adjoint_fullspace import ADJOINT_RTOL, subgradient_fullspace
 
 TOL = 1e-8
 NEWTON_CLASS = {OPEN: CLASS_CODES["L"], STICK: CLASS_CODES["M3+"], SLIDE: CLASS_CODES["M1"]}
@@ -159,7 +159,9 @@ def test_adjoint_in_full_space_agrees_with_the_condensed_one(case):
                                                      pb.friction)
     assert np.array_equal(state.classes, ref.state.classes)
     assert value == pytest.approx(ref.value, rel=1e-9)
-    assert np.abs(adj.v_u - ref.v_u).max() <= 1e-7 * np.abs(ref.v_u).max()      # GMRES to 1e-10
+    assert adj.history[-1] <= ADJOINT_RTOL
+    # measured 1e-10 and 1e-8 (the two designs): the state's tolerance 1e-11 limits them, not GMRES
+    assert np.abs(adj.v_u - ref.v_u).max() <= 1e-7 * np.abs(ref.v_u).max()
     assert np.abs(adj.v_lam - ref.v_lam).max() <= 1e-7 * np.abs(ref.v_lam).max()
     assert np.abs(xi - ref.gradient).max() <= 1e-8 * np.abs(ref.gradient).max()
     assert adj.iterations == len(adj.history) - 1

@@ -2,7 +2,9 @@
 subgradient ξ (with v_λ) at two designs — the second warm-started from the first — on one process
 and under ``mpiexec -n 2`` (tests/mpi/compare_paths.py), for Examples 1 and 2 (hexahedra) and the
 round pad (tetrahedra from a mesh file). Both paths solve to the same tolerance (Siconos error and
-equilibrium ≤ 1e-10), so they agree to 1e-8 relative.
+equilibrium ≤ 1e-10), so they agree to 1e-8 relative; Θ and the subgradient, whose error the bundle
+method amplifies, to 2e-10 (the adjoint (4.15) is solved to 1e-13; measured ≤ 2.8e-11 on 1 and 2
+ranks, docs/scaling.md "The same answer on any number of ranks").
 
 Skipped without petsc4py/mpi4py (``pip install .`` does not install them; README 'One optimization
 on many cores'); ``.ci/run`` installs them and runs this file.
@@ -33,6 +35,7 @@ MISSING = petsc_missing()
 pytestmark = pytest.mark.skipif(MISSING is not None, reason=f"PETSc path: {MISSING}")
 
 TOL = 1e-8
+SUBGRADIENT_TOL = 2e-10                  # value, xi and v_lam keys
 CASES = {
     "example1": ("example1", ["mesh.nx=12", "mesh.ny=6", "mesh.nz=4"]),
     "example2": ("example2", ["mesh.nx=12", "mesh.ny=6", "mesh.nz=6"]),
@@ -56,7 +59,8 @@ def assert_agree(ref, got, what):
         assert x.shape == y.shape, f"{what}: {key} has shape {y.shape}, expected {x.shape}"
         scale = max(float(np.abs(x).max()), 1e-300)
         err = float(np.abs(x - y).max()) / scale
-        assert err <= TOL, f"{what}: {key} differs from the pyamg path by {err:.2e} (relative) > {TOL:g}"
+        tol = SUBGRADIENT_TOL if key.startswith(("value", "xi", "v_lam")) else TOL
+        assert err <= tol, f"{what}: {key} differs from the pyamg path by {err:.2e} (relative) > {tol:g}"
 
 
 def mpi_env():
@@ -96,11 +100,12 @@ def test_two_ranks_equal_the_pyamg_path(name, tmp_path):
 
 
 def test_the_comparison_sees_a_wrong_subgradient():
-    """The agreement test fails for a subgradient off by a relative 1e-6."""
+    """The agreement test fails for a subgradient off by a relative 1e-9 and a state off by 1e-7."""
     ref = reference("example1")
-    bad = dict(ref, xi0=ref["xi0"] * (1 + 1e-6))
     with pytest.raises(AssertionError, match="xi0"):
-        assert_agree(ref, bad, "perturbed")
+        assert_agree(ref, dict(ref, xi0=ref["xi0"] * (1 + 1e-9)), "perturbed")
+    with pytest.raises(AssertionError, match="u1"):
+        assert_agree(ref, dict(ref, u1=ref["u1"] * (1 + 1e-7)), "perturbed")
 
 
 # ---------------------------------------------------------------------------- contactopt run
