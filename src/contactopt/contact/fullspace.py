@@ -64,6 +64,11 @@ equilibrium of the other rows ‖(A u − L)_other‖ / ‖L‖ ≤ ``tol``. A N
 (both SolverErrors) with their histories, never an inaccurate state. With a zone smaller than all
 contact nodes, a converged state whose outside nodes close their gap grows the zone (as
 :mod:`contactopt.contact.zone` does) and Newton continues from the current iterate.
+
+The iteration itself (stopping test, zone growth, ρ rescaling, forcing term, line search) is
+:func:`newton_loop`, shared with the PETSc path (:mod:`contactopt.contact.fullspace_petsc`):
+each path gives it a backend (:class:`NewtonBackend`) for the residual, the Newton system and
+the update, here :class:`_PyamgBackend` on NumPy/SciPy arrays.
 """
 
 from __future__ import annotations
@@ -71,6 +76,7 @@ from __future__ import annotations
 import logging
 import time
 from dataclasses import dataclass, field
+from typing import Protocol
 
 import numpy as np
 import scipy.sparse as sp
@@ -85,7 +91,8 @@ from .newton import alart_curnier
 from .state import FROM_FCLIB, TO_FCLIB, displacement_scale
 from .zone import missed_nodes, near_nodes
 
-__all__ = ["solve_fullspace", "FullSpaceResult", "NewtonSystem", "OPEN", "STICK", "SLIDE"]
+__all__ = ["solve_fullspace", "FullSpaceResult", "NewtonSystem", "newton_loop", "NewtonBackend",
+           "NewtonOutcome", "OPEN", "STICK", "SLIDE"]
 
 log = logging.getLogger(__name__)
 
@@ -221,6 +228,252 @@ def piece_classes(piece, z, classes, rho, mu, steps: int):
             c * rho[lsl] / (1.0 - c), mu[lsl, None] * nvec)
 
 
+# ----------------------------------------------------------------------------- the Newton loop
+class NewtonBackend(Protocol):
+    """What :func:`newton_loop` asks of a linear-algebra backend (the pyamg path's arrays, the
+    PETSc path's distributed Vecs). ``u`` and the directions are the backend's own vectors on the
+    free DOFs; everything per contact node is a (p, 3) array (on every rank) in the physical
+    order (t1, t2, ν), r = (A u − L)_c the contact force on the body (λ = r_ν ≥ 0, τ = −r_t); the
+    loop forms the FCLIB-order R, U from them. The rows "other" are those outside the contact
+    DOFs of the zone of the last :meth:`residual`."""
+
+    label: str          # the start of the progress lines: "full-space Newton", "... (PETSc)"
+    n: int              # unknowns (the progress level)
+
+    def residual(self, u, z):
+        """(r(u) (p, 3), u_c (p, 3), e_other = (A u − L)_other, ½‖e_other‖², ‖e_other‖ / ‖L‖),
+        the rows "other" now those outside the contact DOFs of the nodes ``z``."""
+
+    def newton_step(self, u, uc, stick, slide, tvec, k, coupling, eta, step):
+        """(du = u⁺ − u, seconds per ``timings`` key) of the Newton system of the current piece
+        (:func:`piece_classes`): u⁺_c = (0, 0, −g) at the nodes ``stick``, u⁺_ν = −g at the nodes
+        ``slide`` with per sliding node the direction t (t1, t2) ⊥ n, the Robin k and the coupling
+        μn; solved to a residual ≤ eta·‖L‖ from ``u`` and ``uc`` = u_c (p, 3), ``step`` naming the
+        Newton step in a Krylov failure. Records its Krylov iterations."""
+
+    def line(self, du, e_other):
+        """((A du)_c (p, 3), du_c (p, 3), t ↦ ½‖e_other + t·de_other‖² with de_other = (A du)_other)
+        for the line search along u + t du (r is affine in u: r(u + t du) = r(u) + t (A du)_c)."""
+
+    def advance(self, u, t, du):
+        """The next iterate u + t du (the pyamg backend: a new array; PETSc: u updated in place)."""
+
+
+@dataclass
+class NewtonOutcome:
+    """How :func:`newton_loop` ended: the last iterate ``u`` (the backend's vector), the contact
+    ``zone`` (grown or as given), the ``classes`` (OPEN, STICK, SLIDE per contact node) of the last
+    Newton system, ``converged`` or the failure ``reason``, the Siconos ``error`` and relative
+    ``equilibrium`` of the last iterate, ``history`` (the Siconos error of every iterate, ``[0]``
+    the start), the line-search ``steps``, ``zone_growths`` and ``rho_rescales``."""
+
+    u: object
+    zone: np.ndarray
+    classes: np.ndarray
+    converged: bool
+    reason: str
+    error: float
+    equilibrium: float
+    history: list
+    steps: list
+    zone_growths: int
+    rho_rescales: int
+
+
+def newton_loop(backend: NewtonBackend, u, zone, *, gap, mu_all, rho_all, tol, max_steps, krylov_rtol,
+                eta_max, eta_factor, zone_margin, timings, t_start) -> NewtonOutcome:
+    """The full-space semismooth Newton iteration from ``u`` on the contact ``zone`` (node
+    indices), the same for the pyamg and the PETSc path: only the linear algebra is the
+    ``backend``'s (:class:`NewtonBackend`). Per contact node ``gap`` (p,) the initial gap,
+    ``mu_all`` (p,) the friction coefficient, ``rho_all`` (p,) the Alart–Curnier ρ (scaled in
+    place on stagnation); the contact law in the FCLIB order (normal, t1, t2) on the zone:
+    R = (λ, −τ), U = (u_ν + g, u_t1, u_t2).
+
+    Per iterate: the Siconos error and equilibrium ‖(A u − L)_other‖ / ‖L‖ against ``tol`` (a
+    converged state whose outside nodes close their gap grows the zone and goes on); ρ times
+    _RESCALE when the error has not halved over _STAGNATION_STEPS steps (at most _MAX_RESCALES
+    times); the Newton system of the current piece solved to η = clip(eta_factor · error,
+    krylov_rtol, eta_max), krylov_rtol once the classes have settled below _TIGHT_BELOW·√tol;
+    the nonmonotone Armijo search on ½‖Φ‖² + ½‖e_other‖² (reference the largest of the last four
+    merits, 30 halvings). Adds its seconds to ``timings`` ("newton" and the backend's phases) and
+    logs progress against ``t_start``."""
+    p = gap.size
+    history, steps, recent = [], [], []
+    growths = rescales = last_rescale = 0
+    classes = np.zeros(p, dtype=np.int8)
+    converged, reason = False, ""
+    err = eq = np.inf
+    while True:
+        t0 = time.perf_counter()
+        z = zone
+        mu, rho = mu_all[z], rho_all[z]
+        rphys, uc, e_other, theta_other, eq = backend.residual(u, z)
+        R = rphys[z][:, TO_FCLIB]
+        U = uc[z][:, TO_FCLIB]
+        U[:, 0] += gap[z]
+        Phi, piece = alart_curnier(R.ravel(), U.ravel(), mu, rho)
+        theta_phi = 0.5 * float(Phi @ Phi)
+        err = siconos_error(R.ravel(), U.ravel(), U.ravel(), mu)
+        # merit ½‖Φ‖² + ½‖(A u − L)_other‖² (both in force units): the equilibrium of the rows
+        # outside the contact zone is part of the nonsmooth system, and a start that is not
+        # in equilibrium (u0 of another design, or forces outside the zone) must not be hidden
+        theta = theta_phi + theta_other
+        history.append(err)
+        recent.append(theta)
+        timings["newton"] += time.perf_counter() - t0
+        progress.log(progress_level(backend.n, t_start), backend.label + " %d: error %.3e, equilibrium %.3e, "
+                     "zone %d, %.1f s", len(history) - 1, err, eq, z.size, time.perf_counter() - t_start)
+        if err <= tol and eq <= tol:
+            # nodes outside the zone must end with an open gap
+            if z.size < p:
+                clearance = uc[:, 2] + gap
+                u_scale = displacement_scale(uc, gap)
+                missed = missed_nodes(z, clearance, u_scale)     # the zone rule of the zone paths
+                if missed.size:
+                    lam_all = np.zeros(p)
+                    lam_all[z] = R[:, 0]
+                    near = near_nodes(lam_all, clearance, u_scale, zone_margin, min_nodes=0)
+                    zone = np.union1d(np.union1d(z, missed), near)
+                    growths += 1
+                    log.debug("%s: %d node(s) outside the zone close their gap; zone %d -> %d nodes",
+                              backend.label, missed.size, z.size, zone.size)
+                    continue
+            converged = True
+            break
+        if len(history) > max_steps:
+            reason = f"{max_steps} Newton steps used"
+            break
+        if (len(history) - last_rescale > _STAGNATION_STEPS and rescales < _MAX_RESCALES
+                and min(history[-_STAGNATION_STEPS:]) > 0.5 * min(history[:-_STAGNATION_STEPS])):
+            # no progress: ρ too large for this body (the active-set decisions follow u rather
+            # than r and cycle); a smaller ρ, the merit of the new Φ from here on
+            rho_all *= _RESCALE
+            rescales += 1
+            last_rescale = len(history)
+            recent = []
+            history.pop()                   # the iterate is evaluated again with the new ρ
+            log.debug("%s: no progress over %d steps, ρ scaled by %g", backend.label, _STAGNATION_STEPS, _RESCALE)
+            continue
+        # -- the Newton system of the current piece
+        t0 = time.perf_counter()
+        settled, st, sl, tvec, k, coupling = piece_classes(piece, z, classes, rho, mu, len(history))
+        eta = min(eta_max, max(krylov_rtol, eta_factor * err))
+        if settled and err <= _TIGHT_BELOW * np.sqrt(tol):
+            eta = krylov_rtol
+        timings["newton"] += time.perf_counter() - t0
+        du, spent = backend.newton_step(u, uc, st, sl, tvec, k, coupling, eta, len(history))
+        for key, seconds in spent.items():
+            timings[key] += seconds
+        # -- line search on the merit (r is affine in u)
+        t0 = time.perf_counter()
+        dr, duc, theta_other_at = backend.line(du, e_other)
+        dR, dU = dr[z][:, TO_FCLIB].ravel(), duc[z][:, TO_FCLIB].ravel()
+        R0, U0 = R.ravel(), U.ravel()
+        ref = max(recent[-4:])
+        t = 1.0
+        for _ in range(30):
+            Phi_t, _ = alart_curnier(R0 + t * dR, U0 + t * dU, mu, rho)
+            if 0.5 * float(Phi_t @ Phi_t) + theta_other_at(t) <= ref - 2e-4 * t * theta:
+                break
+            t *= 0.5
+        else:
+            reason = "line search found no decrease of the merit ½‖Φ‖²"
+            timings["newton"] += time.perf_counter() - t0
+            break
+        u = backend.advance(u, t, du)
+        steps.append(t)
+        timings["newton"] += time.perf_counter() - t0
+    return NewtonOutcome(u=u, zone=zone, classes=classes, converged=converged, reason=reason, error=err,
+                         equilibrium=eq, history=history, steps=steps, zone_growths=growths,
+                         rho_rescales=rescales)
+
+
+class _PyamgBackend:
+    """:class:`NewtonBackend` on NumPy/SciPy arrays: the Newton systems as :class:`NewtonSystem`,
+    solved by GMRES preconditioned by a V-cycle of the hierarchy's H = A + K_t (module
+    docstring). Per contact node ``cd`` the free DOFs (t1, t2, ν); r = (A u − L)_c is the
+    contact force on the body. Appends each step's Krylov iterations, residual history and
+    tolerance to the lists given (those of the start solve before them)."""
+
+    label = "full-space Newton"
+
+    def __init__(self, A, L, cd, gap, hierarchy, H, Lnorm, restart, max_krylov, krylov_its, krylov_hist,
+                 krylov_eta):
+        self.A, self.L, self.cd, self.gap, self.hierarchy, self.H = A, L, cd, gap, hierarchy, H
+        self.n, p = A.shape[0], cd.shape[0]
+        self.Lnorm, self.restart, self.max_krylov = Lnorm, restart, max_krylov
+        self.krylov_its, self.krylov_hist, self.krylov_eta = krylov_its, krylov_hist, krylov_eta
+        self.Arows = A[cd.ravel()]                  # contact rows: r(u) = Arows u − L_c
+        self.Lc = L[cd.ravel()].reshape(p, 3)
+        # positions of the tangential 2×2 blocks of every contact node in A.data (Robin blocks)
+        tt_rows = np.repeat(cd[:, :2], 2, axis=1).ravel()      # (t1,t1),(t1,t2),(t2,t1),(t2,t2)
+        tt_cols = np.tile(cd[:, :2], (1, 2)).ravel()
+        self.tt_pos = block_positions(A, tt_rows, tt_cols).reshape(p, 4)
+        self.other = np.ones(self.n, dtype=bool)    # rows that must be in plain equilibrium
+        self.touched = np.zeros(0, dtype=np.int64)  # entries of H holding the last Robin blocks
+
+    def contact_force(self, u):
+        """r(u) = (A u − L)_c per node (t1, t2, ν)."""
+        return (self.Arows @ u).reshape(-1, 3) - self.Lc
+
+    def residual(self, u, z):
+        other = self.other
+        other[:] = True
+        other[self.cd[z].ravel()] = False
+        rphys = self.contact_force(u)
+        Au_L = self.A @ u - self.L
+        e_other = Au_L[other]
+        return rphys, u[self.cd], e_other, 0.5 * float(e_other @ e_other), float(np.linalg.norm(e_other)) / self.Lnorm
+
+    def newton_step(self, u, uc, stick, slide, tvec, k, coupling, eta, step):
+        A, L, cd, gap, H = self.A, self.L, self.cd, self.gap, self.H
+        t0 = time.perf_counter()
+        system = NewtonSystem(A, cd, stick, slide, tvec, k, coupling)
+        dirichlet, kt, D, Nsl = system.dirichlet, system.kt, system.D, system.Nsl
+        # H = A + K_t: restore the blocks of the last step, add the new ones
+        if self.touched.size:
+            H.data[self.touched] = A.data[self.touched]
+        pos = self.tt_pos[slide].ravel()
+        H.data[pos] += system.blk
+        self.touched = pos
+        b = system.couple(L.copy())
+        b[D] = 0.0
+        x0 = u.copy()
+        x0[cd[stick, 0]] = 0.0
+        x0[cd[stick, 1]] = 0.0
+        x0[cd[stick, 2]] = -gap[stick]
+        x0[Nsl] = -gap[slide]
+        y0 = system.couple(A @ x0 + kt @ x0)    # b − G x0 on the rows I
+        rhs = b - y0
+        rhs[D] = 0.0
+        t1 = time.perf_counter()
+        Mv = self.hierarchy.preconditioner(H, dirichlet, kt)
+        t2 = time.perf_counter()
+        try:
+            kres = gmres(system.apply, rhs, Mv, atol=eta * self.Lnorm, restart=self.restart,
+                         max_iter=self.max_krylov, scale=self.Lnorm)
+        except KrylovNotConverged as exc:
+            exc.args = (f"full-space Newton step {step}: {exc.args[0]}",)
+            raise
+        t3 = time.perf_counter()
+        self.krylov_its.append(kres.iterations), self.krylov_hist.append(kres.history), self.krylov_eta.append(eta)
+        if self.hierarchy.reference_iterations is None:
+            self.hierarchy.reference_iterations = kres.iterations
+        return x0 + kres.x - u, {"newton": t1 - t0, "preconditioner": t2 - t1, "krylov": t3 - t2}
+
+    def line(self, du, e_other):
+        dr = (self.Arows @ du).reshape(-1, 3)
+        de_other = (self.A @ du)[self.other]
+
+        def theta_other(t):
+            e_t = e_other + t * de_other
+            return 0.5 * float(e_t @ e_t)
+        return dr, du[self.cd], theta_other
+
+    def advance(self, u, t, du):
+        return u + t * du
+
+
 def solve_fullspace(A, L, contact_dofs, gap, friction, *, coords, free, r0=None, u0=None,
                     tol: float = 1e-10, hierarchy: ContactHierarchy | None = None, zone=None,
                     rho_scale: float = 0.5, max_steps: int = 50, krylov_rtol: float | None = None,
@@ -294,29 +547,12 @@ def _solve_fullspace(A, L, contact_dofs, gap, friction, coords, free, r0, u0, to
     elif hierarchy.n != n:
         raise SolverError(f"the AMG hierarchy is of a matrix with {hierarchy.n} rows, A has {n}")
 
-    Arows = A[cd.ravel()]                       # contact rows: r(u) = Arows u − L_c
-    Lc = L[cd.ravel()].reshape(p, 3)
     diagA = A.diagonal()
     # ρ_m = rho_scale / w̃_m, w̃_m ≈ tr(W_mm)/3: a local part W_DIAG_FACTOR / mean(A_mm) and the
     # compliance of the body's global deformations from a coarse level of the hierarchy
     w_est = W_DIAG_FACTOR / diagA[cd].mean(axis=1) + hierarchy.coarse_compliance(cd.ravel())
     rho_all = rho_scale / w_est
-    # positions of the tangential 2×2 blocks of every contact node in A.data (Robin blocks)
-    tt_rows = np.repeat(cd[:, :2], 2, axis=1).ravel()          # (t1,t1),(t1,t2),(t2,t1),(t2,t2)
-    tt_cols = np.tile(cd[:, :2], (1, 2)).ravel()
-    tt_pos = block_positions(A, tt_rows, tt_cols).reshape(p, 4)
-    other = np.ones(n, dtype=bool)              # rows that must be in plain equilibrium
     H = hierarchy.fine_matrix(A)                # A + K_t for the smoother, changed in place per step
-    touched = np.zeros(0, dtype=np.int64)
-
-    def contact_force(u):
-        return (Arows @ u).reshape(p, 3) - Lc   # per node (t1, t2, ν)
-
-    def local(u, rphys, z):
-        R = rphys[z][:, TO_FCLIB]
-        U = u[cd[z]][:, TO_FCLIB]
-        U[:, 0] += gap[z]
-        return R, U
 
     # -- the start
     t0 = time.perf_counter()
@@ -342,145 +578,28 @@ def _solve_fullspace(A, L, contact_dofs, gap, friction, coords, free, r0, u0, to
             raise ProblemDataError(f"u0 of shape {u.shape}, expected ({n},)")
     timings["start"] = time.perf_counter() - t0
 
-    history, steps = [], []
-    recent = []
-    growths = 0
-    rescales, last_rescale = 0, 0
-    classes = np.zeros(p, dtype=np.int8)
-    converged = False
-    reason = ""
-    err = eq = np.inf
-    while True:
-        t0 = time.perf_counter()
-        z = zone
-        mu, rho = mu_all[z], rho_all[z]
-        other[:] = True
-        other[cd[z].ravel()] = False
-        rphys = contact_force(u)
-        R, U = local(u, rphys, z)
-        Phi, piece = alart_curnier(R.ravel(), U.ravel(), mu, rho)
-        theta_phi = 0.5 * float(Phi @ Phi)
-        err = siconos_error(R.ravel(), U.ravel(), U.ravel(), mu)
-        Au_L = A @ u - L
-        e_other = Au_L[other]
-        eq = float(np.linalg.norm(e_other)) / Lnorm
-        # merit ½‖Φ‖² + ½‖(A u − L)_other‖² (both in force units): the equilibrium of the rows
-        # outside the contact zone is part of the nonsmooth system, and a start that is not
-        # in equilibrium (u0 of another design, or forces outside the zone) must not be hidden
-        theta = theta_phi + 0.5 * float(e_other @ e_other)
-        history.append(err)
-        recent.append(theta)
-        timings["newton"] += time.perf_counter() - t0
-        progress.log(progress_level(n, t_start), "full-space Newton %d: error %.3e, equilibrium %.3e, zone %d, "
-                     "%.1f s", len(history) - 1, err, eq, z.size, time.perf_counter() - t_start)
-        if err <= tol and eq <= tol:
-            # nodes outside the zone must end with an open gap
-            if z.size < p:
-                clearance = u[cd[:, 2]] + gap
-                u_scale = displacement_scale(u[cd], gap)
-                missed = missed_nodes(z, clearance, u_scale)     # the zone rule of the zone paths
-                if missed.size:
-                    lam_all = np.zeros(p)
-                    lam_all[z] = R[:, 0]
-                    near = near_nodes(lam_all, clearance, u_scale, zone_margin, min_nodes=0)
-                    zone = np.union1d(np.union1d(z, missed), near)
-                    growths += 1
-                    log.debug("full-space Newton: %d node(s) outside the zone close their gap; zone "
-                              "%d -> %d nodes", missed.size, z.size, zone.size)
-                    continue
-            converged = True
-            break
-        if len(history) > max_steps:
-            reason = f"{max_steps} Newton steps used"
-            break
-        if (len(history) - last_rescale > _STAGNATION_STEPS and rescales < _MAX_RESCALES
-                and min(history[-_STAGNATION_STEPS:]) > 0.5 * min(history[:-_STAGNATION_STEPS])):
-            # no progress: ρ too large for this body (the active-set decisions follow u rather
-            # than r and cycle); a smaller ρ, the merit of the new Φ from here on
-            rho_all *= _RESCALE
-            rescales += 1
-            last_rescale = len(history)
-            recent = []
-            history.pop()                   # the iterate is evaluated again with the new ρ
-            log.debug("full-space Newton: no progress over %d steps, ρ scaled by %g", _STAGNATION_STEPS, _RESCALE)
-            continue
-        # -- the Newton system of the current piece
-        t0 = time.perf_counter()
-        settled, st, sl, tvec, k, coupling = piece_classes(piece, z, classes, rho, mu, len(history))
-        system = NewtonSystem(A, cd, st, sl, tvec, k, coupling)
-        dirichlet, kt, D, Nsl = system.dirichlet, system.kt, system.D, system.Nsl
-        # H = A + K_t: restore the blocks of the last step, add the new ones
-        if touched.size:
-            H.data[touched] = A.data[touched]
-        pos = tt_pos[sl].ravel()
-        H.data[pos] += system.blk
-        touched = pos
-        b = system.couple(L.copy())
-        b[D] = 0.0
-        x0 = u.copy()
-        x0[cd[st, 0]] = 0.0
-        x0[cd[st, 1]] = 0.0
-        x0[cd[st, 2]] = -gap[st]
-        x0[Nsl] = -gap[sl]
-        y0 = system.couple(A @ x0 + kt @ x0)    # b − G x0 on the rows I
-        rhs = b - y0
-        rhs[D] = 0.0
-        t1 = time.perf_counter()
-        Mv = hierarchy.preconditioner(H, dirichlet, kt)
-        t2 = time.perf_counter()
-        eta = min(eta_max, max(krylov_rtol, eta_factor * err))
-        if settled and err <= _TIGHT_BELOW * np.sqrt(tol):
-            eta = krylov_rtol
-        try:
-            kres = gmres(system.apply, rhs, Mv, atol=eta * Lnorm, restart=restart, max_iter=max_krylov,
-                         scale=Lnorm)
-        except KrylovNotConverged as exc:
-            exc.args = (f"full-space Newton step {len(history)}: {exc.args[0]}",)
-            raise
-        t3 = time.perf_counter()
-        timings["newton"] += t1 - t0
-        timings["preconditioner"] += t2 - t1
-        timings["krylov"] += t3 - t2
-        krylov_its.append(kres.iterations), krylov_hist.append(kres.history), krylov_eta.append(eta)
-        if hierarchy.reference_iterations is None:
-            hierarchy.reference_iterations = kres.iterations
-        du = x0 + kres.x - u
-        # -- line search on ½‖Φ‖² (r is affine in u)
-        dr = (Arows @ du).reshape(p, 3)
-        de_other = (A @ du)[other]
-        dR, dU = dr[z][:, TO_FCLIB].ravel(), du[cd[z]][:, TO_FCLIB].ravel()
-        R0, U0 = R.ravel(), U.ravel()
-        ref = max(recent[-4:])
-        t = 1.0
-        for _ in range(30):
-            Phi_t, _ = alart_curnier(R0 + t * dR, U0 + t * dU, mu, rho)
-            e_t = e_other + t * de_other
-            if 0.5 * float(Phi_t @ Phi_t) + 0.5 * float(e_t @ e_t) <= ref - 2e-4 * t * theta:
-                break
-            t *= 0.5
-        else:
-            reason = "line search found no decrease of the merit ½‖Φ‖²"
-            timings["newton"] += time.perf_counter() - t3
-            break
-        u = u + t * du
-        steps.append(t)
-        timings["newton"] += time.perf_counter() - t3
+    backend = _PyamgBackend(A, L, cd, gap, hierarchy, H, Lnorm, restart, max_krylov, krylov_its, krylov_hist,
+                            krylov_eta)
+    out = newton_loop(backend, u, zone, gap=gap, mu_all=mu_all, rho_all=rho_all, tol=tol, max_steps=max_steps,
+                      krylov_rtol=krylov_rtol, eta_max=eta_max, eta_factor=eta_factor, zone_margin=zone_margin,
+                      timings=timings, t_start=t_start)
+    u, zone, classes, converged, err, eq = out.u, out.zone, out.classes, out.converged, out.error, out.equilibrium
 
-    rphys = contact_force(u)
+    rphys = backend.contact_force(u)
     r = np.zeros((p, 3))
     r[zone] = rphys[zone][:, TO_FCLIB]
     timings["total"] = time.perf_counter() - t_start
     result = FullSpaceResult(
         r=r, u=u, u_c=u[cd].copy(), classes=classes, converged=converged, error=err, equilibrium=eq,
-        newton_steps=len(steps), krylov_iterations=krylov_its, krylov_histories=krylov_hist,
-        krylov_rtol=krylov_eta, history=history, steps=steps, zone=zone, zone_growths=growths,
+        newton_steps=len(out.steps), krylov_iterations=krylov_its, krylov_histories=krylov_hist,
+        krylov_rtol=krylov_eta, history=out.history, steps=out.steps, zone=zone, zone_growths=out.zone_growths,
         timings=timings, hierarchy=hierarchy,
         info={"levels": hierarchy.sizes(), "operator_complexity": hierarchy.operator_complexity,
               "class_counts": {"open": int(np.sum(classes == OPEN)), "stick": int(np.sum(classes == STICK)),
                                "slide": int(np.sum(classes == SLIDE))},
-              "start_solve": u0 is None, "reason": reason, "rho_rescales": rescales})
+              "start_solve": u0 is None, "reason": out.reason, "rho_rescales": out.rho_rescales})
     if not converged and raise_on_failure:
         raise ContactNotConverged(f"full-space Newton did not converge: Siconos error {err:.3e}, "
-                                  f"equilibrium {eq:.3e} (tol {tol:.1e}) after {len(steps)} steps "
-                                  f"({reason})", history)
+                                  f"equilibrium {eq:.3e} (tol {tol:.1e}) after {len(out.steps)} steps "
+                                  f"({out.reason})", out.history)
     return result

@@ -18,7 +18,8 @@ systems and designs reuse its prolongations, and PETSc recomputes only the Galer
 operators of each new H (``-pc_gamg_reuse_interpolation``), as the pyamg path updates its own.
 The per-node work of Newton (node classes, line search) is done on every rank on the contact
 forces and displacements gathered from their owners (3p numbers per product): every rank takes
-the same decisions, and the norms are global reductions.
+the same decisions, and the norms are global reductions. The iteration is the pyamg path's
+(:func:`contactopt.contact.fullspace.newton_loop`) on the PETSc backend :class:`_PetscBackend`.
 """
 
 from __future__ import annotations
@@ -29,14 +30,10 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .._progress import progress, progress_level
 from ..errors import ContactNotConverged, SolverError
 from ..fem.krylov import KrylovNotConverged
-from .cones import siconos_error
-from .fullspace import _MAX_RESCALES, _RESCALE, _STAGNATION_STEPS, _TIGHT_BELOW, W_DIAG_FACTOR, piece_classes
-from .newton import alart_curnier
-from .state import FROM_FCLIB, TO_FCLIB, displacement_scale
-from .zone import missed_nodes, near_nodes
+from .fullspace import W_DIAG_FACTOR, newton_loop
+from .state import FROM_FCLIB, TO_FCLIB
 
 __all__ = ["PetscHierarchy", "PetscNewton", "PetscSolve"]
 
@@ -242,8 +239,10 @@ class PetscNewton:
               zone_margin=0.1, compliance=None) -> PetscSolve:
         """The contact state of load ``L`` (PETSc Vec) and gaps ``gap`` (p,) from the warm start
         ``r0`` (p, 3; FCLIB order) or ``u0`` (a PETSc Vec); the arguments and the stopping rule as
-        :func:`contactopt.contact.fullspace.solve_fullspace`. ``compliance`` (p,): the part of
-        the Delassus diagonal estimate beyond the local W_DIAG_FACTOR / mean(A_mm)."""
+        :func:`contactopt.contact.fullspace.solve_fullspace`, whose Newton loop
+        (:func:`~contactopt.contact.fullspace.newton_loop`) runs here on :class:`_PetscBackend`.
+        ``compliance`` (p,): the part of the Delassus diagonal estimate beyond the local
+        W_DIAG_FACTOR / mean(A_mm)."""
         t_start = time.perf_counter()
         timings = dict.fromkeys(("amg_setup", "preconditioner", "krylov", "newton", "start"), 0.0)
         p, cd = self.p, self.cd
@@ -255,7 +254,7 @@ class PetscNewton:
         diag_c = self._diag_at_contact()
         w_est = W_DIAG_FACTOR / diag_c.mean(axis=1) + (0.0 if compliance is None else compliance)
         rho_all = rho_scale / w_est
-        u, w, x, rhs, du, Adu, mask, e_t = (A.createVecRight() for _ in range(8))
+        u = A.createVecRight()
 
         t0 = time.perf_counter()
         krylov_its = []
@@ -278,151 +277,26 @@ class PetscNewton:
             u0.copy(u)
         timings["start"] = time.perf_counter() - t0
 
-        history, steps, recent = [], [], []
-        growths = rescales = last_rescale = 0
-        classes = np.zeros(p, dtype=np.int8)
-        converged, reason = False, ""
-        err = eq = np.inf
-        while True:
-            t0 = time.perf_counter()
-            z = zone
-            mu, rho = mu_all[z], rho_all[z]
-            mask.set(1.0)
-            self.set_owned(mask, cd[z].ravel(), 0.0)
-            A.mult(u, w)
-            w.axpy(-1.0, L)                                   # A u − L
-            rphys = self.at_contact(w)
-            uc = self.at_contact(u)
-            R = rphys[z][:, TO_FCLIB]
-            U = uc[z][:, TO_FCLIB]
-            U[:, 0] += gap[z]
-            Phi, piece = alart_curnier(R.ravel(), U.ravel(), mu, rho)
-            theta_phi = 0.5 * float(Phi @ Phi)
-            err = siconos_error(R.ravel(), U.ravel(), U.ravel(), mu)
-            e_other = w.copy()
-            e_other.pointwiseMult(e_other, mask)
-            e_norm = e_other.norm()
-            eq = e_norm / Lnorm
-            theta = theta_phi + 0.5 * e_norm ** 2
-            history.append(err)
-            recent.append(theta)
-            timings["newton"] += time.perf_counter() - t0
-            progress.log(progress_level(self.dist.n, t_start), "full-space Newton (PETSc) %d: error %.3e, "
-                         "equilibrium %.3e, zone %d, %.1f s", len(history) - 1, err, eq, z.size,
-                         time.perf_counter() - t_start)
-            if err <= tol and eq <= tol:
-                if z.size < p:
-                    clearance = uc[:, 2] + gap
-                    u_scale = displacement_scale(uc, gap)
-                    missed = missed_nodes(z, clearance, u_scale)
-                    if missed.size:
-                        lam_all = np.zeros(p)
-                        lam_all[z] = R[:, 0]
-                        near = near_nodes(lam_all, clearance, u_scale, zone_margin, min_nodes=0)
-                        zone = np.union1d(np.union1d(z, missed), near)
-                        growths += 1
-                        continue
-                converged = True
-                break
-            if len(history) > max_steps:
-                reason = f"{max_steps} Newton steps used"
-                break
-            if (len(history) - last_rescale > _STAGNATION_STEPS and rescales < _MAX_RESCALES
-                    and min(history[-_STAGNATION_STEPS:]) > 0.5 * min(history[:-_STAGNATION_STEPS])):
-                rho_all *= _RESCALE
-                rescales += 1
-                last_rescale = len(history)
-                recent = []
-                history.pop()
-                continue
-            # -- the Newton system of the current piece
-            t0 = time.perf_counter()
-            settled, st, sl, tvec, k, coupling = piece_classes(piece, z, classes, rho, mu, len(history))
-            D = self.system(st, sl, tvec, k, coupling)
-            # x0: the current iterate with the Dirichlet values of D
-            x0c = uc.copy()
-            x0c[st] = 0.0
-            x0c[st, 2] = -gap[st]
-            x0c[sl, 2] = -gap[sl]
-            x0 = u.copy()
-            self.set_owned(x0, cd[st].ravel(), x0c[st].ravel())
-            self.set_owned(x0, cd[sl, 2], x0c[sl, 2])
-            # rhs = (I − C_N)(L − (A + K_t) x0) on I, 0 on D
-            A.mult(x0, rhs)
-            rhs.aypx(-1.0, L)
-            self._robin_and_couple(rhs, x0c, sl, tvec, k, coupling)
-            arr = rhs.getArray()
-            arr[D[self.dist.rstart:self.dist.rend]] = 0.0
-            t1 = time.perf_counter()
-            eta = min(eta_max, max(krylov_rtol, eta_factor * err))
-            if settled and err <= _TIGHT_BELOW * np.sqrt(tol):
-                eta = krylov_rtol
-            its = hier.solve(self.G, rhs, x, eta * Lnorm, f"full-space Newton step {len(history)}",
-                             refresh=self.refresh_pc)
-            xa = x.getArray()
-            xa[D[self.dist.rstart:self.dist.rend]] = 0.0      # D rows are decoupled: exact zeros
-            t2 = time.perf_counter()
-            timings["newton"] += t1 - t0
-            timings["krylov"] += t2 - t1
-            krylov_its.append(its)
-            # du = x0 + x − u; line search on the merit (r is affine in u)
-            x0.axpy(1.0, x)
-            x0.axpy(-1.0, u)
-            x0.copy(du)
-            A.mult(du, Adu)
-            dr = self.at_contact(Adu)
-            duc = self.at_contact(du)
-            de_other = Adu.copy()
-            de_other.pointwiseMult(de_other, mask)
-            dR, dU = dr[z][:, TO_FCLIB].ravel(), duc[z][:, TO_FCLIB].ravel()
-            R0, U0 = R.ravel(), U.ravel()
-            ref = max(recent[-4:])
-            t = 1.0
-            for _ in range(30):
-                Phi_t, _ = alart_curnier(R0 + t * dR, U0 + t * dU, mu, rho)
-                e_t.waxpy(t, de_other, e_other)
-                if 0.5 * float(Phi_t @ Phi_t) + 0.5 * e_t.norm() ** 2 <= ref - 2e-4 * t * theta:
-                    break
-                t *= 0.5
-            else:
-                reason = "line search found no decrease of the merit ½‖Φ‖²"
-                timings["newton"] += time.perf_counter() - t2
-                break
-            u.axpy(t, du)
-            steps.append(t)
-            timings["newton"] += time.perf_counter() - t2
+        backend = _PetscBackend(self, hier, L, gap, Lnorm, krylov_its)
+        out = newton_loop(backend, u, zone, gap=gap, mu_all=mu_all, rho_all=rho_all, tol=tol, max_steps=max_steps,
+                          krylov_rtol=krylov_rtol, eta_max=eta_max, eta_factor=eta_factor, zone_margin=zone_margin,
+                          timings=timings, t_start=t_start)
+        zone, err, eq = out.zone, out.error, out.equilibrium
 
-        A.mult(u, w)
-        w.axpy(-1.0, L)
-        rphys = self.at_contact(w)
+        rphys = backend.contact_force(u)
         r = np.zeros((p, 3))
         r[zone] = rphys[zone][:, TO_FCLIB]
         u_all = self.everywhere(u)
         timings["total"] = time.perf_counter() - t_start
-        result = PetscSolve(r=r, u_all=u_all, u=u, u_c=u_all[cd], classes=classes, converged=converged,
-                            error=err, equilibrium=eq, newton_steps=len(steps), krylov_iterations=krylov_its,
-                            history=history, zone=zone, zone_growths=growths, timings=timings,
-                            info={"reason": reason, "rho_rescales": rescales})
-        if not converged:
+        result = PetscSolve(r=r, u_all=u_all, u=u, u_c=u_all[cd], classes=out.classes, converged=out.converged,
+                            error=err, equilibrium=eq, newton_steps=len(out.steps), krylov_iterations=krylov_its,
+                            history=out.history, zone=zone, zone_growths=out.zone_growths, timings=timings,
+                            info={"reason": out.reason, "rho_rescales": out.rho_rescales})
+        if not out.converged:
             raise ContactNotConverged(f"full-space Newton (PETSc) did not converge: Siconos error {err:.3e}, "
-                                      f"equilibrium {eq:.3e} (tol {tol:.1e}) after {len(steps)} steps "
-                                      f"({reason})", history)
+                                      f"equilibrium {eq:.3e} (tol {tol:.1e}) after {len(out.steps)} steps "
+                                      f"({out.reason})", out.history)
         return result
-
-    def _robin_and_couple(self, vec, xc, slide, tvec, k, coupling):
-        """vec ← (I − C_N)(vec − K_t x) at the owned sliding nodes (x given at the contact DOFs)."""
-        d = self.dist
-        own = d.owns_contact[slide]
-        if not own.any():
-            return
-        sl, tv, kk, c = slide[own], tvec[own], k[own], coupling[own]
-        arr = vec.getArray()
-        kt_x = kk[:, None] * tv * np.einsum("ij,ij->i", tv, xc[sl, :2])[:, None]
-        for a in range(2):
-            arr[self.cd[sl, a] - d.rstart] -= kt_x[:, a]
-        vn = arr[self.cd[sl, 2] - d.rstart]
-        for a in range(2):
-            arr[self.cd[sl, a] - d.rstart] -= c[:, a] * vn
 
     def _diag_at_contact(self) -> np.ndarray:
         d = self.A.getDiagonal()
@@ -480,3 +354,104 @@ class PetscNewton:
         v_lam = np.where(free_lam, -resid[2::3], 0.0)
         v_all = self.everywhere(x)
         return v_all, v_all[cd].ravel(), v_lam, its
+
+
+class _PetscBackend:
+    """:class:`~contactopt.contact.fullspace.NewtonBackend` on PETSc Vecs for one solve of
+    ``newton`` (:class:`PetscNewton`): u and the directions are distributed Vecs, the Newton
+    systems are assembled as G and H by :meth:`PetscNewton.system` and solved by ``hier``'s GMRES
+    (appending their iterations to ``krylov_its``); per contact node the values are gathered on
+    every rank in the order (t1, t2, ν), r = (A u − L)_c the contact force on the body, so every
+    rank takes the same decisions. The update u ← u + t du is in place."""
+
+    label = "full-space Newton (PETSc)"
+
+    def __init__(self, newton, hier, L, gap, Lnorm, krylov_its):
+        self.newton, self.hier, self.L, self.gap, self.Lnorm = newton, hier, L, gap, Lnorm
+        self.krylov_its = krylov_its
+        self.n = newton.dist.n
+        self.w, self.x, self.rhs, self.du, self.Adu, self.mask, self.e_t = (
+            newton.A.createVecRight() for _ in range(7))
+
+    def contact_force(self, u):
+        """r(u) = (A u − L)_c per node (t1, t2, ν); A u − L stays in ``w``."""
+        self.newton.A.mult(u, self.w)
+        self.w.axpy(-1.0, self.L)
+        return self.newton.at_contact(self.w)
+
+    def residual(self, u, z):
+        nw = self.newton
+        self.mask.set(1.0)
+        nw.set_owned(self.mask, nw.cd[z].ravel(), 0.0)
+        rphys = self.contact_force(u)
+        uc = nw.at_contact(u)
+        e_other = self.w.copy()
+        e_other.pointwiseMult(e_other, self.mask)
+        e_norm = e_other.norm()
+        return rphys, uc, e_other, 0.5 * e_norm ** 2, e_norm / self.Lnorm
+
+    def newton_step(self, u, uc, stick, slide, tvec, k, coupling, eta, step):
+        nw, gap, x, rhs = self.newton, self.gap, self.x, self.rhs
+        cd, d = nw.cd, nw.dist
+        t0 = time.perf_counter()
+        D = nw.system(stick, slide, tvec, k, coupling)
+        # x0: the current iterate with the Dirichlet values of D
+        x0c = uc.copy()
+        x0c[stick] = 0.0
+        x0c[stick, 2] = -gap[stick]
+        x0c[slide, 2] = -gap[slide]
+        x0 = u.copy()
+        nw.set_owned(x0, cd[stick].ravel(), x0c[stick].ravel())
+        nw.set_owned(x0, cd[slide, 2], x0c[slide, 2])
+        # rhs = (I − C_N)(L − (A + K_t) x0) on I, 0 on D
+        nw.A.mult(x0, rhs)
+        rhs.aypx(-1.0, self.L)
+        self._robin_and_couple(rhs, x0c, slide, tvec, k, coupling)
+        arr = rhs.getArray()
+        arr[D[d.rstart:d.rend]] = 0.0
+        t1 = time.perf_counter()
+        its = self.hier.solve(nw.G, rhs, x, eta * self.Lnorm, f"full-space Newton step {step}",
+                              refresh=nw.refresh_pc)
+        xa = x.getArray()
+        xa[D[d.rstart:d.rend]] = 0.0      # D rows are decoupled: exact zeros
+        t2 = time.perf_counter()
+        self.krylov_its.append(its)
+        # du = x0 + x − u
+        x0.axpy(1.0, x)
+        x0.axpy(-1.0, u)
+        x0.copy(self.du)
+        return self.du, {"newton": t1 - t0, "krylov": t2 - t1}
+
+    def _robin_and_couple(self, vec, xc, slide, tvec, k, coupling):
+        """vec ← (I − C_N)(vec − K_t x) at the owned sliding nodes: ``xc`` x at the contact DOFs
+        per node (t1, t2, ν); per sliding node its direction t (t1, t2), Robin k, coupling c = μn."""
+        d, cd = self.newton.dist, self.newton.cd
+        own = d.owns_contact[slide]
+        if not own.any():
+            return
+        sl, tv, kk, c = slide[own], tvec[own], k[own], coupling[own]
+        arr = vec.getArray()
+        kt_x = kk[:, None] * tv * np.einsum("ij,ij->i", tv, xc[sl, :2])[:, None]
+        for a in range(2):
+            arr[cd[sl, a] - d.rstart] -= kt_x[:, a]
+        vn = arr[cd[sl, 2] - d.rstart]
+        for a in range(2):
+            arr[cd[sl, a] - d.rstart] -= c[:, a] * vn
+
+    def line(self, du, e_other):
+        nw = self.newton
+        nw.A.mult(du, self.Adu)
+        dr = nw.at_contact(self.Adu)
+        duc = nw.at_contact(du)
+        de_other = self.Adu.copy()
+        de_other.pointwiseMult(de_other, self.mask)
+        e_t = self.e_t
+
+        def theta_other(t):
+            e_t.waxpy(t, de_other, e_other)
+            return 0.5 * e_t.norm() ** 2
+        return dr, duc, theta_other
+
+    def advance(self, u, t, du):
+        u.axpy(t, du)
+        return u
