@@ -403,8 +403,6 @@ class _PyamgBackend:
         self.n, p = A.shape[0], cd.shape[0]
         self.Lnorm, self.restart, self.max_krylov = Lnorm, restart, max_krylov
         self.krylov_its, self.krylov_hist, self.krylov_eta = krylov_its, krylov_hist, krylov_eta
-        self.Arows = A[cd.ravel()]                  # contact rows: r(u) = Arows u − L_c
-        self.Lc = L[cd.ravel()].reshape(p, 3)
         # positions of the tangential 2×2 blocks of every contact node in A.data (Robin blocks)
         tt_rows = np.repeat(cd[:, :2], 2, axis=1).ravel()      # (t1,t1),(t1,t2),(t2,t1),(t2,t2)
         tt_cols = np.tile(cd[:, :2], (1, 2)).ravel()
@@ -412,16 +410,18 @@ class _PyamgBackend:
         self.other = np.ones(self.n, dtype=bool)    # rows that must be in plain equilibrium
         self.touched = np.zeros(0, dtype=np.int64)  # entries of H holding the last Robin blocks
 
-    def contact_force(self, u):
-        """r(u) = (A u − L)_c per node (t1, t2, ν)."""
-        return (self.Arows @ u).reshape(-1, 3) - self.Lc
+    def contact_force(self, u, Au_L=None):
+        """r(u) = (A u − L)_c per node (t1, t2, ν), from ``Au_L`` = A u − L where given."""
+        if Au_L is None:
+            Au_L = self.A @ u - self.L
+        return Au_L[self.cd.ravel()].reshape(-1, 3)
 
     def residual(self, u, z):
         other = self.other
         other[:] = True
         other[self.cd[z].ravel()] = False
-        rphys = self.contact_force(u)
         Au_L = self.A @ u - self.L
+        rphys = self.contact_force(u, Au_L)
         e_other = Au_L[other]
         return rphys, u[self.cd], e_other, 0.5 * float(e_other @ e_other), float(np.linalg.norm(e_other)) / self.Lnorm
 
@@ -462,8 +462,9 @@ class _PyamgBackend:
         return x0 + kres.x - u, {"newton": t1 - t0, "preconditioner": t2 - t1, "krylov": t3 - t2}
 
     def line(self, du, e_other):
-        dr = (self.Arows @ du).reshape(-1, 3)
-        de_other = (self.A @ du)[self.other]
+        Adu = self.A @ du                           # r is affine in u: its contact rows give dr
+        dr = Adu[self.cd.ravel()].reshape(-1, 3)
+        de_other = Adu[self.other]
 
         def theta_other(t):
             e_t = e_other + t * de_other
