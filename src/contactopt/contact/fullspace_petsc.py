@@ -142,13 +142,16 @@ class PetscSolve:
 
 
 class PetscNewton:
-    """The Newton systems of one design: A(α) (``A``, PETSc Mat, assembled), the distributed body
-    ``dist`` and persistent matrices G, H of A's pattern (module docstring)."""
+    """The Newton systems of one design on the distributed body ``dist``: A(α) twice, ``A``
+    (MPIBAIJ, block size 3) for every product and ``A_aij`` (MPIAIJ, the same values; the caller
+    assembles both) for GAMG, which takes AIJ only; ``G`` a matrix of A's type and pattern, H one
+    of A_aij's (module docstring)."""
 
-    def __init__(self, dist, A, G, H):
+    def __init__(self, dist, A, A_aij, G):
         PETSc = petsc()
-        self.dist, self.A, self.G, self.H = dist, A, G, H
-        for M in (G, H):        # zeroed rows and columns stay in the pattern (GAMG reuses it)
+        self.dist, self.A, self.A_aij = dist, A, A_aij
+        self.G, self.H = G, A_aij.duplicate()
+        for M in (self.G, self.H):      # zeroed rows and columns stay in the pattern (GAMG reuses it)
             M.setOption(PETSc.Mat.Option.KEEP_NONZERO_PATTERN, True)
         self.comm = A.getComm()
         cd = dist.contact
@@ -158,14 +161,12 @@ class PetscNewton:
         self._cvec = PETSc.Vec().createSeq(cd.size, comm=PETSc.COMM_SELF)
         self._cscatter = PETSc.Scatter().create(A.createVecRight(), idx, self._cvec, None)
         self._all_scatter, self._all = PETSc.Scatter.toAll(A.createVecRight())
-        self._Gt = None
         self._d_signature = None      # D of the last Newton system whose coarse operators were formed
         self.refresh_pc = True
-        self.refresh()
 
     def refresh(self):
         """Read A's owned rows after a new design's values (the normal rows of the friction coupling)."""
-        ip, ind, data = self.A.getValuesCSR()
+        ip, ind, data = self.A_aij.getValuesCSR()
         self.indptr, self.indices, self.a_data = ip.copy(), ind.copy(), data.copy()
 
     # ------------------------------------------------------------------ gathers
@@ -204,34 +205,36 @@ class PetscNewton:
         blk = k[own, None, None] * tvec[own, :, None] * tvec[own, None, :]
         c = coupling[own]
         same, add = PETSc.Mat.Structure.SAME_NONZERO_PATTERN, PETSc.InsertMode.ADD
-        self.A.copy(self.H, structure=same)
+        # coarse operators of a D that differs in a few DOFs still precondition well (GMRES pays
+        # about an iteration per DOF); more than REFRESH_CHANGES of them: form them anew. H is
+        # GAMG's matrix only, so it is filled for a refresh only
+        self.refresh_pc = (self._d_signature is None
+                           or np.count_nonzero(self._d_signature != D) > REFRESH_CHANGES * cd.size)
+        if self.refresh_pc:
+            self._d_signature = D
+        rows = (np.flatnonzero(D[d.rstart:d.rend]) + d.rstart).astype(PETSc.IntType)
         tt = cd[sl, :2].astype(PETSc.IntType)
-        for i in range(sl.size):                  # the Robin blocks k t tᵀ
-            self.H.setValues(tt[i], tt[i], blk[i], addv=add)
-        self.H.assemble()
-        self.H.copy(self.G, structure=same)
+        for M, base in ((self.G, self.A), (self.H, self.A_aij)) if self.refresh_pc else ((self.G, self.A),):
+            base.copy(M, structure=same)
+            for i in range(sl.size):                  # the Robin blocks k t tᵀ
+                M.setValues(tt[i], tt[i], blk[i], addv=add)
+            M.assemble()
         ip, ind, a = self.indptr, self.indices, self.a_data
         for i, rn in enumerate((cd[sl, 2] - d.rstart).tolist()):     # the normal row, times c
             cols, vals = ind[ip[rn]:ip[rn + 1]], a[ip[rn]:ip[rn + 1]]
             for comp in range(2):
                 self.G.setValues(tt[i, comp], cols, -c[i, comp] * vals, addv=add)
         self.G.assemble()
-        # coarse operators of a D that differs in a few DOFs still precondition well (GMRES pays
-        # about an iteration per DOF); more than REFRESH_CHANGES of them: form them anew
-        self.refresh_pc = (self._d_signature is None
-                           or np.count_nonzero(self._d_signature != D) > REFRESH_CHANGES * cd.size)
-        if self.refresh_pc:
-            self._d_signature = D
-        rows = (np.flatnonzero(D[d.rstart:d.rend]) + d.rstart).astype(PETSc.IntType)
-        self.H.zeroRowsColumns(rows, diag=1.0)
         self.G.zeroRowsColumns(rows, diag=1.0)
+        if self.refresh_pc:
+            self.H.zeroRowsColumns(rows, diag=1.0)
         return D
 
     def plain(self):
         """H = A (the start solve's preconditioner)."""
         PETSc = petsc()
         self._d_signature = None
-        self.A.copy(self.H, structure=PETSc.Mat.Structure.SAME_NONZERO_PATTERN)
+        self.A_aij.copy(self.H, structure=PETSc.Mat.Structure.SAME_NONZERO_PATTERN)
 
     # ------------------------------------------------------------------ the state
     def solve(self, hier: PetscHierarchy, L, gap, friction, *, r0=None, u0=None, tol=1e-10, zone=None,
@@ -336,12 +339,10 @@ class PetscNewton:
         arr[cd[own].ravel() - d.rstart] -= np.asarray(y_u, dtype=np.float64).reshape(-1, 3)[own].ravel()
         arr[D[d.rstart:d.rend]] = 0.0
         scale = max(rhs.norm(), 1e-300)
-        # Gᵀ into a matrix of its own (petsc4py's transpose() without one transposes G in place);
-        # later adjoints reuse its storage
-        if self._Gt is None:
-            self._Gt = petsc().Mat()
-        self.G.transpose(self._Gt)
-        its = hier.solve(self._Gt, rhs, x, rtol * scale, "full-space adjoint (4.15)", refresh=self.refresh_pc)
+        # Gᵀ as G's transposed product (MatMultTranspose of a BAIJ matrix costs what its MatMult
+        # does; PETSc 3.18's explicit MPIBAIJ transpose into an existing matrix is wrong on 2 ranks)
+        Gt = petsc().Mat().createTranspose(self.G)
+        its = hier.solve(Gt, rhs, x, rtol * scale, "full-space adjoint (4.15)", refresh=self.refresh_pc)
         xa = x.getArray()
         xa[D[d.rstart:d.rend]] = 0.0
         # ṽ = lift(x) + v0: the normal DOF of a sliding node from its tangential ones, −cᵀx_t

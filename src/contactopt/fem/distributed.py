@@ -109,6 +109,7 @@ class DistributedBody:
         self.n_elements = int(np.sum(part == rank))
         self._own = self._local(new_cells[part == rank], E, nu, asm.element)
         self._csr = None
+        self._bsr = None
 
     def _local(self, new_cells, E, nu, element):
         """(assembler on the nodes of ``new_cells``, those nodes' new numbers (sorted), their
@@ -133,7 +134,27 @@ class DistributedBody:
             self._csr = (K.indptr.astype(np.int32), cols.astype(np.int32))
         data = K.data
         data[self._drop] = 0.0
+        if self._bsr is None:
+            self._bsr = self._block_pattern(K, nodes)
         return self._csr[0], self._csr[1], data
+
+    def _block_pattern(self, K, nodes):
+        """(block indptr, block columns (PETSc nodes), the position in ``K.data`` of every entry of
+        the 3×3 blocks, row-major) of the owned rows ``K`` (rows 3·node + c, local columns)."""
+        import scipy.sparse as sp
+        tag = sp.csr_matrix((np.arange(1, K.nnz + 1, dtype=np.float64), K.indices, K.indptr), shape=K.shape)
+        B = tag.tobsr(blocksize=(3, 3))
+        B.sort_indices()
+        where = B.data.ravel().astype(np.int64) - 1       # −1: an entry outside the CSR pattern
+        where[where < 0] = K.nnz                           # ... reads the zero appended below
+        return B.indptr.astype(np.int32), nodes[B.indices].astype(np.int32), where
+
+    def owned_blocks(self, data: np.ndarray):
+        """The values ``data`` of :meth:`owned_stiffness` as 3×3 blocks of the owned rows: (block
+        indptr, block columns (PETSc nodes), values, block-row-major, 9 per block), the form of a
+        matrix of block size 3 (MPIBAIJ)."""
+        bip, bcols, where = self._bsr
+        return bip, bcols, np.append(data, 0.0)[where]
 
     def owned(self, v_full_petsc: np.ndarray) -> np.ndarray:
         return v_full_petsc[self.rstart:self.rend]
