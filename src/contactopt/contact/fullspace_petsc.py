@@ -3,12 +3,20 @@
 The same method as :mod:`contactopt.contact.fullspace` — read its docstring for the problem, the
 Alart–Curnier function, the Newton system G = (I − C_N)(A + K_t) on the rows I outside the
 Dirichlet set D, the inexact-Newton tolerances and the line search — with the linear algebra on
-PETSc: A(α) an MPIAIJ matrix of block size 3 over the ranks (:mod:`contactopt.fem.distributed`),
-each Newton system assembled explicitly (G and H = A + K_t have the pattern of A: a node's three
-rows share their columns, so the friction coupling of a sliding node's normal row into its
-tangential rows adds no entry; the rows and columns of D are unit rows and columns), solved by
-GMRES (right preconditioning, so the tolerance is on the true residual) preconditioned by GAMG
-(smoothed aggregation, the rigid-body modes as near-null space) built on H.
+PETSc: A(α) a matrix of block size 3 over the ranks (:mod:`contactopt.fem.distributed`), each
+Newton system assembled explicitly (G and H = A + K_t have the pattern of A: a node's three rows
+share their columns, so the friction coupling of a sliding node's normal row into its tangential
+rows adds no entry; the rows and columns of D are unit rows and columns), solved by GMRES (right
+preconditioning, so the tolerance is on the true residual) preconditioned by GAMG (smoothed
+aggregation, the rigid-body modes as near-null space) built on H.
+
+Storage: A, G and the Krylov operators are MPIBAIJ (3×3 blocks: one column index per block, and
+PETSc's unrolled 3×3 kernel multiplies in half the time of the same matrix in MPIAIJ); GAMG takes
+MPIAIJ only, so A is assembled a second time in MPIAIJ (``A_aij``) and H is of that type, filled
+only when the coarse operators are formed anew. GAMG's finest smoother (Chebyshev) multiplies
+with the operator the KSP had when they were formed — G, whose values follow the Newton systems
+(an adjoint that forms none smooths with G, not Gᵀ: a preconditioner all the same) — so its
+products are BAIJ products too; the finest residual of the V-cycle multiplies with H.
 
 Conventions as everywhere: per contact node (t1, t2, ν), r = (A u − L)_c the contact force on the
 body, λ = r_ν ≥ 0, τ = −r_t; a warm start is per node in the FCLIB order (N, T1, T2).
@@ -60,11 +68,23 @@ def petsc():
 
 
 class PetscHierarchy:
-    """A KSP (GMRES, right-preconditioned) with GAMG built on the matrix ``H`` of one design
-    (its values as given), the rigid-body modes of ``coords`` (PETSc order, owned nodes) as
-    near-null space; later values of H with the same pattern reuse the prolongations."""
+    """A KSP (GMRES, right-preconditioned) with GAMG built on ``H`` = A(α_ref) of one design (the
+    rigid-body modes of ``coords`` — PETSc order, owned nodes — as near-null space), ``G`` its
+    operator at the build (GAMG's finest smoother multiplies with it, later with the values G
+    takes).
 
-    def __init__(self, H, coords_local: np.ndarray, restart: int = 60, max_iter: int = 400):
+    GAMG runs once. The coarse operators of a later Newton system with Dirichlet set D and Robin
+    blocks K_t are those of H_ref = Π(A(α_ref) + K_t)Π + I_D (Π: the rows and columns of D
+    zeroed), as the pyamg path's (:meth:`contactopt.fem.amg.ContactHierarchy.preconditioner`):
+    A_1 = A_1,ref + P_0ᵀ Δ P_0 with Δ = H_ref − A(α_ref) supported on the rows and columns of D
+    and the sliding nodes, and on down the levels, A_{l+1} = A_{l+1,ref} + P_lᵀ Δ_l P_l — Galerkin
+    products of a few rows instead of the whole matrix, and coarse operators that depend on
+    (α_ref, D, K_t) only, so a resumed run forms the same ones. ``contact_rows``: the PETSc DOFs
+    of the contact nodes (every Dirichlet DOF of a Newton system is one of them). A user's
+    ``-pc_type`` other than GAMG makes every refresh a set-up of that preconditioner on H."""
+
+    def __init__(self, G, H, coords_local: np.ndarray, contact_rows: np.ndarray, restart: int = 60,
+                 max_iter: int = 400):
         PETSc = petsc()
         t0 = time.perf_counter()
         xyz = H.createVecRight()
@@ -83,18 +103,98 @@ class PetscHierarchy:
         ksp.setTolerances(rtol=0.0, atol=0.0, max_it=max_iter)
         ksp.setInitialGuessNonzero(False)
         ksp.setFromOptions()                # -ksp_view, -pc_gamg_* ... of [linear_solver] petsc_options
-        ksp.setOperators(H, H)
+        ksp.setOperators(G, H)
         ksp.setUp()
         self.ksp, self.H = ksp, H
         self.max_iter = max_iter
+        self._levels = None
+        pc = ksp.getPC()
+        if pc.getType() == "gamg" and pc.getMGLevels() > 1:
+            L = pc.getMGLevels()
+            # from the level below the finest to the coarsest: the operators PCMG holds (updated in
+            # place), their reference values, and the prolongation from each level to the one above
+            self._levels = [(pc.getMGCoarseSolve() if lvl == 0 else pc.getMGSmoother(lvl)).getOperators()[0]
+                            for lvl in range(L - 2, -1, -1)]
+            self._ref = [M.duplicate(copy=True) for M in self._levels]
+            self._P = [pc.getMGInterpolation(lvl) for lvl in range(L - 1, 0, -1)]
+            self._contact_rows(np.asarray(contact_rows, dtype=np.int64).ravel())
+            pc.setReusePreconditioner(True)
         self.setup_seconds = time.perf_counter() - t0
         self.uses = 0
 
-    def solve(self, Amat, b, x, atol: float, what: str, refresh: bool = True) -> int:
-        """x = Amat⁻¹ b to ‖b − Amat x‖ ≤ atol, preconditioned by the V-cycle of the current values
-        of H (``refresh``: the Galerkin coarse operators recomputed from them) or of the values H
-        had at the last refresh."""
-        self.ksp.getPC().setReusePreconditioner(not refresh)
+    def _contact_rows(self, rows):
+        """Keep H's owned rows at the DOFs ``rows`` (CSR by sorted global row)."""
+        lo, hi = self.H.getOwnershipRange()
+        rows = np.sort(rows[(rows >= lo) & (rows < hi)])
+        ip, ind, val = self.H.getValuesCSR()
+        start, stop = ip[rows - lo], ip[rows - lo + 1]
+        take = np.concatenate([np.arange(a, b) for a, b in zip(start.tolist(), stop.tolist())]) \
+            if rows.size else np.zeros(0, dtype=np.int64)
+        self._crow = rows
+        self._cptr = np.concatenate([[0], np.cumsum(stop - start)])
+        self._ccol, self._cval = ind[take].astype(np.int64), val[take].copy()
+
+    def coarse(self, D: np.ndarray, robin=None) -> None:
+        """Form the coarse operators of the Newton system with Dirichlet DOFs ``D`` (boolean over
+        all PETSc DOFs, the same on every rank) and Robin blocks ``robin`` = (rows (m, 2), blocks
+        (m, 2, 2)) of the owned sliding nodes' tangential DOFs (class docstring). Collective."""
+        PETSc = petsc()
+        if self._levels is None:
+            return
+        same = PETSc.Mat.Structure.SAME_NONZERO_PATTERN
+        for M, ref in zip(self._levels, self._ref):
+            ref.copy(M, structure=same)
+        lo, hi = self.H.getOwnershipRange()
+        d_own = np.flatnonzero(D[lo:hi]) + lo
+        has_robin = robin is not None and len(robin[0]) > 0
+        if not self.H.getComm().tompi4py().allreduce(bool(d_own.size or has_robin)):
+            return
+        # Δ = Y + Yᵀ with Y = −E_D + ½E_DD + ½I_D + ½K_t on the owned rows only (E_D: the rows of
+        # D of A(α_ref), E_DD their columns in D; A(α_ref) and K_t are symmetric)
+        k = np.searchsorted(self._crow, d_own)
+        if np.any(k >= self._crow.size) or np.any(self._crow[np.minimum(k, self._crow.size - 1)] != d_own):
+            raise SolverError("a Dirichlet DOF of a Newton system is not a contact DOF of the hierarchy")
+        counts = self._cptr[k + 1] - self._cptr[k]
+        take = np.concatenate([np.arange(self._cptr[i], self._cptr[i + 1]) for i in k.tolist()]) \
+            if k.size else np.zeros(0, dtype=np.int64)
+        rows = [np.repeat(d_own, counts), d_own]
+        cols = [self._ccol[take], d_own]
+        vals = [-self._cval[take] * np.where(D[self._ccol[take]], 0.5, 1.0), np.full(d_own.size, 0.5)]
+        if has_robin:
+            tt, blk = np.asarray(robin[0], dtype=np.int64), np.asarray(robin[1], dtype=np.float64)
+            rows.append(np.repeat(tt, 2, axis=1).ravel())
+            cols.append(np.tile(tt, (1, 2)).ravel())
+            vals.append(0.5 * blk.ravel())
+        import scipy.sparse as sp
+        n = self.H.getSize()[0]
+        Y = sp.csr_matrix((np.concatenate(vals), (np.concatenate(rows) - lo, np.concatenate(cols))),
+                          shape=(hi - lo, n))
+        Y.sum_duplicates()
+        Y.sort_indices()
+        Ym = PETSc.Mat().createAIJ(size=self.H.getSizes(), comm=self.H.getComm())
+        Ym.setPreallocationCSR((Y.indptr.astype(PETSc.IntType), Y.indices.astype(PETSc.IntType)))
+        Ym.setValuesCSR(Y.indptr.astype(PETSc.IntType), Y.indices.astype(PETSc.IntType), Y.data)
+        Ym.assemble()
+        C = Ym.ptap(self._P[0])
+        delta = PETSc.Mat()
+        C.transpose(delta)
+        delta.axpy(1.0, C, structure=PETSc.Mat.Structure.DIFFERENT_NONZERO_PATTERN)
+        for lvl, M in enumerate(self._levels):
+            M.axpy(1.0, delta, structure=PETSc.Mat.Structure.SUBSET_NONZERO_PATTERN)
+            if lvl + 1 < len(self._levels):
+                delta = delta.ptap(self._P[lvl + 1])
+
+    def solve(self, Amat, b, x, atol: float, what: str, coarse=None) -> int:
+        """x = Amat⁻¹ b to ‖b − Amat x‖ ≤ atol, preconditioned by the V-cycle; ``coarse`` =
+        (D, robin) forms its coarse operators for that Newton system first (:meth:`coarse`),
+        otherwise it keeps those of the last one."""
+        if coarse is not None:
+            if self._levels is None:
+                self.ksp.getPC().setReusePreconditioner(False)
+            else:
+                self.coarse(*coarse)
+        elif self._levels is None:
+            self.ksp.getPC().setReusePreconditioner(True)
         self.uses += 1
         self.ksp.setOperators(Amat, self.H)
         self.ksp.setTolerances(rtol=0.0, atol=atol, max_it=self.max_iter)
@@ -163,6 +263,7 @@ class PetscNewton:
         self._all_scatter, self._all = PETSc.Scatter.toAll(A.createVecRight())
         self._d_signature = None      # D of the last Newton system whose coarse operators were formed
         self.refresh_pc = True
+        self.coarse = None            # (D, Robin blocks) of the system whose coarse operators are due
 
     def refresh(self):
         """Read A's owned rows after a new design's values (the normal rows of the friction coupling)."""
@@ -228,13 +329,17 @@ class PetscNewton:
         self.G.zeroRowsColumns(rows, diag=1.0)
         if self.refresh_pc:
             self.H.zeroRowsColumns(rows, diag=1.0)
+        self.coarse = (D, (tt, blk)) if self.refresh_pc else None
         return D
 
     def plain(self):
-        """H = A (the start solve's preconditioner)."""
+        """G = A and H = A (the start solve's system and preconditioner); ``coarse`` their coarse
+        operators' data (:meth:`PetscHierarchy.coarse`)."""
         PETSc = petsc()
         self._d_signature = None
+        self.A.copy(self.G, structure=PETSc.Mat.Structure.SAME_NONZERO_PATTERN)
         self.A_aij.copy(self.H, structure=PETSc.Mat.Structure.SAME_NONZERO_PATTERN)
+        self.coarse = (np.zeros(self.dist.n, dtype=bool), None)
 
     # ------------------------------------------------------------------ the state
     def solve(self, hier: PetscHierarchy, L, gap, friction, *, r0=None, u0=None, tol=1e-10, zone=None,
@@ -275,7 +380,8 @@ class PetscNewton:
                 arr[cd[own].ravel() - self.dist.rstart] += rz[own].ravel()
             self.plain()
             eta0 = max(krylov_rtol, 1e-6)
-            krylov_its.append(hier.solve(A, f, u, eta0 * f.norm(), "full-space start solve"))
+            krylov_its.append(hier.solve(self.G, f, u, eta0 * f.norm(), "full-space start solve",
+                                         coarse=self.coarse))
         else:
             u0.copy(u)
         timings["start"] = time.perf_counter() - t0
@@ -312,7 +418,7 @@ class PetscNewton:
         of a state whose nodes ``stick`` are of class M3+, ``slide`` of class M1, ``free_lam`` not
         of class L (after the degenerate choices): the transpose of the state's Newton system at
         the solution (:mod:`contactopt.sensitivity.adjoint_fullspace`, whose docstring derives
-        it), solved with the explicit transpose of G and the same GAMG hierarchy (H is symmetric), to
+        it), solved with the transposed products of G and the same GAMG hierarchy (H is symmetric), to
         a residual ≤ ``rtol``·‖right-hand side‖."""
         cd, d = self.cd, self.dist
         F = float(friction)
@@ -342,7 +448,7 @@ class PetscNewton:
         # Gᵀ as G's transposed product (MatMultTranspose of a BAIJ matrix costs what its MatMult
         # does; PETSc 3.18's explicit MPIBAIJ transpose into an existing matrix is wrong on 2 ranks)
         Gt = petsc().Mat().createTranspose(self.G)
-        its = hier.solve(Gt, rhs, x, rtol * scale, "full-space adjoint (4.15)", refresh=self.refresh_pc)
+        its = hier.solve(Gt, rhs, x, rtol * scale, "full-space adjoint (4.15)", coarse=self.coarse)
         xa = x.getArray()
         xa[D[d.rstart:d.rend]] = 0.0
         # ṽ = lift(x) + v0: the normal DOF of a sliding node from its tangential ones, −cᵀx_t
@@ -412,7 +518,7 @@ class _PetscBackend:
         arr[D[d.rstart:d.rend]] = 0.0
         t1 = time.perf_counter()
         its = self.hier.solve(nw.G, rhs, x, eta * self.Lnorm, f"full-space Newton step {step}",
-                              refresh=nw.refresh_pc)
+                              coarse=nw.coarse)
         xa = x.getArray()
         xa[D[d.rstart:d.rend]] = 0.0      # D rows are decoupled: exact zeros
         t2 = time.perf_counter()

@@ -4,9 +4,9 @@
 method is the full-space path's (:mod:`contactopt.paths.fullspace`), its linear algebra PETSc's
 (:mod:`contactopt.contact.fullspace_petsc`): the mesh split over the ranks by recursive coordinate
 bisection (:mod:`contactopt.fem.distributed`), each rank assembling the rows of its nodes into an
-MPIBAIJ matrix of block size 3 (and an MPIAIJ copy for GAMG), GMRES with GAMG (rigid-body near-null space) whose prolongations
-are kept from the design they were built at, the adjoint (4.15) by the explicit transpose of the
-Newton matrix, and the design terms ṽᵀ(∂A/∂α)u summed per rank over its own elements and reduced.
+MPIBAIJ matrix of block size 3 (and an MPIAIJ copy for GAMG), GMRES with GAMG (rigid-body
+near-null space) whose prolongations are kept from the design they were built at, the adjoint
+(4.15) by the transposed products of the Newton matrix, and the design terms ṽᵀ(∂A/∂α)u summed per rank over its own elements and reduced.
 Contact conventions as everywhere: per node (t1, t2, ν), λ = r_ν ≥ 0 on the body, warm starts
 per node (N, T1, T2).
 
@@ -198,7 +198,7 @@ class PetscPath(SolverPath):
         if self._hier is not None:
             self._hier.destroy()
         self.newton.plain()
-        self._hier = PetscHierarchy(self.newton.H, self.dist.coordinates(coords))
+        self._hier = PetscHierarchy(self.newton.G, self.newton.H, self.dist.coordinates(coords), self.dist.contact)
         self._hier_alpha = np.array(alpha, dtype=float)
         return self._hier.setup_seconds
 
