@@ -108,6 +108,69 @@ def test_the_comparison_sees_a_wrong_subgradient():
         assert_agree(ref, dict(ref, u1=ref["u1"] * (1 + 1e-7)), "perturbed")
 
 
+def test_the_coarse_operators_are_galerkin_products_of_the_reference_newton_matrix():
+    """The coarse operators the PETSc hierarchy forms for a Newton system from a few changed rows
+    (PetscHierarchy.coarse) equal the Galerkin products, level by level, of the whole matrix
+    Π(A(α_ref) + K_t)Π + I_D; and those of the plain system (no D, no K_t) those of A(α_ref)."""
+    from petsc4py import PETSc
+
+    from contactopt.problem import ShapeProblem
+
+    cfg = load_config("example1").with_updates(overrides(["mesh.nx=24", "mesh.ny=12", "mesh.nz=8",
+                                                          "linear_solver.path=petsc"]))
+    options = PETSc.Options()
+    options.setValue("pc_gamg_coarse_eq_limit", "200")        # three coarse levels on this mesh
+    try:
+        problem = ShapeProblem(cfg)
+        problem.subgradient(problem.model.initial_design())     # the hierarchy, at α_ref = α0
+    finally:
+        options.delValue("pc_gamg_coarse_eq_limit")
+    nw, hier = problem.path.newton, problem.path._hier
+    assert len(hier._levels) >= 2, [M.getSize() for M in hier._levels]
+    cd = nw.cd
+    rng = np.random.default_rng(3)
+    nodes = rng.permutation(cd.shape[0])
+    stick, slide = nodes[:40], nodes[40:90]
+    D = np.zeros(nw.dist.n, dtype=bool)
+    D[cd[stick].ravel()] = True
+    D[cd[slide, 2]] = True
+    angle = rng.uniform(0, 2 * np.pi, slide.size)
+    t = np.column_stack((np.cos(angle), np.sin(angle)))
+    blk = rng.uniform(1.0, 5.0, slide.size)[:, None, None] * t[:, :, None] * t[:, None, :]
+    tt = cd[slide, :2]
+
+    def levels_of(H):
+        out, M = [], H
+        for P in hier._P:
+            M = M.ptap(P)
+            out.append(M)
+        return out
+
+    def dense(M):
+        ip, ind, val = M.getValuesCSR()
+        out = np.zeros(M.getSize())
+        out[np.repeat(np.arange(ip.size - 1), np.diff(ip)), ind] = val
+        return out
+
+    for case in ("plain", "newton"):
+        H = nw.A_aij.duplicate(copy=True)
+        if case == "newton":
+            for i in range(slide.size):
+                H.setValues(tt[i].astype(PETSc.IntType), tt[i].astype(PETSc.IntType), blk[i],
+                            addv=PETSc.InsertMode.ADD)
+            H.assemble()
+            H.zeroRowsColumns(np.flatnonzero(D).astype(PETSc.IntType), diag=1.0)
+            hier.coarse(D, (tt, blk))
+        else:
+            hier.coarse(np.zeros(nw.dist.n, dtype=bool))
+        for lvl, (want, got) in enumerate(zip(levels_of(H), hier._levels)):
+            w, g = dense(want), dense(got)
+            err = np.abs(w - g).max() / np.abs(w).max()
+            assert err < 1e-12, f"{case}: level {lvl + 1} coarse operator off by {err:.2e}"
+        if case == "newton":     # and the comparison sees a wrong one
+            assert np.abs(dense(levels_of(nw.A_aij)[0]) - dense(hier._levels[0])).max() > 1e-6 * np.abs(w).max()
+
+
 # ---------------------------------------------------------------------------- contactopt run
 def write_config(directory, name, updates, base="example2"):
     cfg = load_config(base).with_updates({"name": name, **updates})
