@@ -22,8 +22,8 @@ Conventions as everywhere: per contact node (t1, t2, ν), r = (A u − L)_c the 
 body, λ = r_ν ≥ 0, τ = −r_t; a warm start is per node in the FCLIB order (N, T1, T2).
 
 The hierarchy (:class:`PetscHierarchy`) is built on A(α_ref) of one design and kept: later Newton
-systems and designs reuse its prolongations, and PETSc recomputes only the Galerkin coarse
-operators of each new H (``-pc_gamg_reuse_interpolation``), as the pyamg path updates its own.
+systems and designs reuse its prolongations and its coarse operators, corrected by the Galerkin
+products of the rows a Newton system changes (D, the Robin blocks), as the pyamg path does.
 The per-node work of Newton (node classes, line search) is done on every rank on the contact
 forces and displacements gathered from their owners (3p numbers per product): every rank takes
 the same decisions, and the norms are global reductions. The iteration is the pyamg path's
@@ -51,10 +51,10 @@ log = logging.getLogger(__name__)
 # The KSP's options unless [linear_solver] petsc_options sets them: GMRES's classical Gram–Schmidt
 # orthogonalized twice (CGS2, as the pyamg path's GMRES; with PETSc's default of no refinement the
 # Krylov basis lost orthogonality at 867k DOFs and GMRES stopped in a breakdown at residual 1.4e-5,
-# 4.3e-7 asked); GAMG's prolongations kept when H changes; a drop tolerance and a coarsest level of
-# up to 2000 unknowns (solved directly) that make the Galerkin products of a new H — the price of
-# every Newton system with a new D — 1.8× cheaper at 113k DOFs for the same iteration counts
-# (docs/scaling.md)
+# 4.3e-7 asked); GAMG's prolongations kept if it is set up again (a preconditioner of the user's
+# own choosing is, on every new D); a drop tolerance and a coarsest level of up to 2000 unknowns
+# (solved directly) that made GAMG's Galerkin products 1.8× cheaper at 113k DOFs for the same
+# iteration counts (docs/scaling.md)
 KSP_DEFAULTS = {"ksp_gmres_cgs_refinement_type": "refine_always", "pc_gamg_reuse_interpolation": "true",
                 "pc_gamg_threshold": "0.01", "pc_gamg_coarse_eq_limit": "2000"}
 
