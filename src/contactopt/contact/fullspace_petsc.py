@@ -37,6 +37,7 @@ import time
 from dataclasses import dataclass, field
 
 import numpy as np
+import scipy.sparse as sp
 
 from ..errors import ContactNotConverged, SolverError
 from ..fem.krylov import KrylovNotConverged
@@ -123,16 +124,12 @@ class PetscHierarchy:
         self.uses = 0
 
     def _contact_rows(self, rows):
-        """Keep H's owned rows at the DOFs ``rows`` (CSR by sorted global row)."""
+        """Keep H's owned rows at the DOFs ``rows`` (a CSR matrix by sorted global row ``_crow``)."""
         lo, hi = self.H.getOwnershipRange()
         rows = np.sort(rows[(rows >= lo) & (rows < hi)])
         ip, ind, val = self.H.getValuesCSR()
-        start, stop = ip[rows - lo], ip[rows - lo + 1]
-        take = np.concatenate([np.arange(a, b) for a, b in zip(start.tolist(), stop.tolist())]) \
-            if rows.size else np.zeros(0, dtype=np.int64)
-        self._crow = rows
-        self._cptr = np.concatenate([[0], np.cumsum(stop - start)])
-        self._ccol, self._cval = ind[take].astype(np.int64), val[take].copy()
+        owned = sp.csr_matrix((val, ind, ip), shape=(hi - lo, self.H.getSize()[1]))
+        self._crow, self._cmat = rows, owned[rows - lo]
 
     def coarse(self, D: np.ndarray, robin=None) -> None:
         """Form the coarse operators of the Newton system with Dirichlet DOFs ``D`` (boolean over
@@ -154,18 +151,15 @@ class PetscHierarchy:
         k = np.searchsorted(self._crow, d_own)
         if np.any(k >= self._crow.size) or np.any(self._crow[np.minimum(k, self._crow.size - 1)] != d_own):
             raise SolverError("a Dirichlet DOF of a Newton system is not a contact DOF of the hierarchy")
-        counts = self._cptr[k + 1] - self._cptr[k]
-        take = np.concatenate([np.arange(self._cptr[i], self._cptr[i + 1]) for i in k.tolist()]) \
-            if k.size else np.zeros(0, dtype=np.int64)
-        rows = [np.repeat(d_own, counts), d_own]
-        cols = [self._ccol[take], d_own]
-        vals = [-self._cval[take] * np.where(D[self._ccol[take]], 0.5, 1.0), np.full(d_own.size, 0.5)]
+        E = self._cmat[k].tocoo()
+        rows = [d_own[E.row], d_own]
+        cols = [E.col.astype(np.int64), d_own]
+        vals = [-E.data * np.where(D[E.col], 0.5, 1.0), np.full(d_own.size, 0.5)]
         if has_robin:
             tt, blk = np.asarray(robin[0], dtype=np.int64), np.asarray(robin[1], dtype=np.float64)
             rows.append(np.repeat(tt, 2, axis=1).ravel())
             cols.append(np.tile(tt, (1, 2)).ravel())
             vals.append(0.5 * blk.ravel())
-        import scipy.sparse as sp
         n = self.H.getSize()[0]
         Y = sp.csr_matrix((np.concatenate(vals), (np.concatenate(rows) - lo, np.concatenate(cols))),
                           shape=(hi - lo, n))
