@@ -206,6 +206,16 @@ class PetscHierarchy:
         self.ksp.destroy()
 
 
+def _ranges(starts, counts) -> np.ndarray:
+    """The indices start_i, …, start_i + count_i − 1 of every i, one after the other."""
+    counts = np.asarray(counts, dtype=np.int64)
+    total = int(counts.sum())
+    if total == 0:
+        return np.zeros(0, dtype=np.int64)
+    first = np.concatenate([[0], np.cumsum(counts)[:-1]])
+    return np.repeat(np.asarray(starts, dtype=np.int64) - first, counts) + np.arange(total)
+
+
 def _reason(code: int) -> str:
     PETSc = petsc()
     names = {v: k for k, v in vars(PETSc.KSP.ConvergedReason).items() if isinstance(v, int)}
@@ -259,10 +269,17 @@ class PetscNewton:
         self.refresh_pc = True
         self.coarse = None            # (D, Robin blocks) of the system whose coarse operators are due
 
-    def refresh(self):
-        """Read A's owned rows after a new design's values (the normal rows of the friction coupling)."""
-        ip, ind, data = self.A_aij.getValuesCSR()
-        self.indptr, self.indices, self.a_data = ip.copy(), ind.copy(), data.copy()
+    def refresh(self, indptr, cols, data):
+        """Keep the normal rows of A(α) at the owned contact nodes (the friction coupling of the
+        Newton systems) from the owned rows of a new design (CSR: PETSc columns, as assembled)."""
+        d = self.dist
+        own = np.flatnonzero(d.owns_contact)
+        rows = self.cd[own, 2] - d.rstart
+        count = np.zeros(self.p, dtype=np.int64)
+        count[own] = indptr[rows + 1] - indptr[rows]
+        self._nptr = np.concatenate([[0], np.cumsum(count)])
+        take = _ranges(indptr[rows], count[own])
+        self._ncols, self._nvals = cols[take], data[take]
 
     # ------------------------------------------------------------------ gathers
     def at_contact(self, vec) -> np.ndarray:
@@ -309,22 +326,37 @@ class PetscNewton:
             self._d_signature = D
         rows = (np.flatnonzero(D[d.rstart:d.rend]) + d.rstart).astype(PETSc.IntType)
         tt = cd[sl, :2].astype(PETSc.IntType)
+        # the rows the sliding nodes change, owned rows only, as CSR: the Robin blocks k t tᵀ
+        # (rows t1, t2; columns t1, t2) and, in G, the normal row times c (rows t1, t2)
+        order = np.argsort(tt[:, 0], kind="stable")
+        tt_o = tt[order]
+        robin = self._local_csr(tt_o.ravel(), np.full(2 * sl.size, 2),
+                                np.repeat(tt_o, 2, axis=0).ravel(), blk[order].ravel())
+        n0, n1 = self._nptr[sl[order]], self._nptr[sl[order] + 1]
+        take = _ranges(np.repeat(n0, 2), np.repeat(n1 - n0, 2))
+        scale = np.repeat(-c[order].ravel(), np.repeat(n1 - n0, 2))
+        coupling = self._local_csr(tt_o.ravel(), np.repeat(n1 - n0, 2), self._ncols[take],
+                                   scale * self._nvals[take])
         for M, base in ((self.G, self.A), (self.H, self.A_aij)) if self.refresh_pc else ((self.G, self.A),):
             base.copy(M, structure=same)
-            for i in range(sl.size):                  # the Robin blocks k t tᵀ
-                M.setValues(tt[i], tt[i], blk[i], addv=add)
+            M.setValuesCSR(*robin, addv=add)
+        self.G.setValuesCSR(*coupling, addv=add)
+        for M in (self.G, self.H) if self.refresh_pc else (self.G,):
             M.assemble()
-        ip, ind, a = self.indptr, self.indices, self.a_data
-        for i, rn in enumerate((cd[sl, 2] - d.rstart).tolist()):     # the normal row, times c
-            cols, vals = ind[ip[rn]:ip[rn + 1]], a[ip[rn]:ip[rn + 1]]
-            for comp in range(2):
-                self.G.setValues(tt[i, comp], cols, -c[i, comp] * vals, addv=add)
-        self.G.assemble()
         self.G.zeroRowsColumns(rows, diag=1.0)
         if self.refresh_pc:
             self.H.zeroRowsColumns(rows, diag=1.0)
         self.coarse = (D, (tt, blk)) if self.refresh_pc else None
         return D
+
+    def _local_csr(self, rows, lengths, cols, vals):
+        """(indptr over the owned rows, columns, values) of the entries in ``rows`` (global, owned,
+        increasing; ``lengths`` entries each, in that order): the form of ``Mat.setValuesCSR``."""
+        PETSc = petsc()
+        count = np.zeros(self.dist.n_local, dtype=np.int64)
+        count[rows - self.dist.rstart] = lengths
+        indptr = np.concatenate([[0], np.cumsum(count)]).astype(PETSc.IntType)
+        return indptr, np.asarray(cols, dtype=PETSc.IntType), np.asarray(vals, dtype=np.float64)
 
     def plain(self):
         """G = A and H = A (the start solve's system and preconditioner); ``coarse`` their coarse

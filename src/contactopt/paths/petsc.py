@@ -184,7 +184,7 @@ class PetscPath(SolverPath):
         nw.A.setValuesBlockedCSR(bip, bcols, bdata, addv=PETSc.InsertMode.INSERT)
         for M in (nw.A, nw.A_aij):
             M.assemble()
-        nw.refresh()
+        nw.refresh(indptr, cols, data)
 
     def _load(self, L_full):
         v = self.newton.A.createVecRight()
