@@ -14,11 +14,14 @@ component c is 3·new(n) + c: block size 3, every DOF of a node on one rank. All
 the PETSc matrix; a clamped DOF keeps its diagonal entry and nothing else (its row and column are
 zero otherwise), so its value stays 0 and the other rows are those of A on the free DOFs.
 
-Assembly: each rank computes the stiffness of its own elements (the serial pair assembler of
-:mod:`contactopt.fem.elasticity` on the rank's elements and nodes) and adds it into a
-preallocated MPIAIJ matrix (block size 3); rows of other ranks travel in PETSc's stash at
-assembly. The mesh itself (points, cells) is held by every rank; only the matrices, the
-multigrid hierarchy and the Krylov vectors are distributed (docs/scaling.md).
+Assembly: each rank computes the stiffness of every element at one of its nodes (the serial pair
+assembler of :mod:`contactopt.fem.elasticity` on those elements: a layer of the neighbours'
+elements is computed twice, and assembly needs no communication) and takes its owned rows, in
+CSR for the MPIAIJ matrix and in 3×3 blocks for the MPIBAIJ one. The mesh itself (points, cells)
+is held by every rank; only the matrices, the multigrid hierarchy and the Krylov vectors are
+distributed (docs/scaling.md). Nodes bisected on their own coordinates instead (owned rows equal
+to a row, against 3 % more on rank 0 at 113k DOFs on 2 ranks) split the cut plane irregularly:
+GAMG took 4 % more iterations and an evaluation 8 % longer.
 """
 
 from __future__ import annotations
