@@ -28,6 +28,7 @@ from ..errors import MeshError
 from .elements import GAUSS_1D, HEX8, ElementType, element_type, gauss_hex, hex_shape  # noqa: F401 (re-exported)
 
 _CHUNK_MIN = 1024    # elements per assembly chunk, at least (smaller meshes: one chunk)
+_CONTRACTION_CHUNK = 2048   # elements per chunk of the shape contraction (its temporaries in L2/L3)
 _pool = None         # (pid, ThreadPoolExecutor): a forked child makes its own (threads do not fork)
 
 
@@ -92,10 +93,11 @@ def det_inv_3x3(J: np.ndarray):
     return det, inv
 
 
-def require_positive_det(det: np.ndarray, element_axis: int = 0) -> None:
-    """Raise MeshError naming the elements with a Jacobian determinant ≤ 0 (inverted elements)."""
+def require_positive_det(det: np.ndarray, element_axis: int = 0, first: int = 0) -> None:
+    """Raise MeshError naming the elements with a Jacobian determinant ≤ 0 (inverted elements;
+    ``first``: the number of the element at index 0 of ``det``)."""
     if not np.all(det > 0):
-        bad = np.unique(np.nonzero(~(det > 0))[element_axis])
+        bad = first + np.unique(np.nonzero(~(det > 0))[element_axis])
         raise MeshError(f"{bad.size} element(s) inverted or degenerate (det J ≤ 0), first: {bad[:5].tolist()}")
 
 
@@ -274,10 +276,27 @@ class ElasticityAssembler:
         derivative of the assembled matrix (DESIGN.md §2). Every product runs component by
         component on arrays over (quadrature point, element).
         """
-        G, det = self._gradients(coords[self.elements])                 # G[m, a, q, e]
+        # element chunks whose temporaries (some 20 arrays over (quadrature point, element)) stay
+        # in the cache: one pass over memory instead of one per product (2–3× faster, docs/scaling.md)
+        E = self.elements.shape[0]
+        de = np.empty((3, self.k, E))                                    # [m, a, e]
+        u3, v3 = u_full.reshape(-1, 3), v_full.reshape(-1, 3)
+        for lo in range(0, E, _CONTRACTION_CHUNK):
+            el = self.elements[lo:lo + _CONTRACTION_CHUNK]
+            de[:, :, lo:lo + el.shape[0]] = self._shape_contraction_chunk(coords[el], u3[el], v3[el], lo)
+        idx = self.elements.T.ravel()
+        out = np.empty((self.n_nodes, 3))
+        for m in range(3):
+            out[:, m] = np.bincount(idx, weights=de[m].ravel(), minlength=self.n_nodes)
+        return out
+
+    def _shape_contraction_chunk(self, X, U, V, first) -> np.ndarray:
+        """The elements' parts de[m, a, e] of :meth:`stiffness_shape_contraction` for element
+        coordinates X and nodal values U, V (E, k, 3) of the elements from number ``first`` on."""
+        G, det = self._gradients(X, first)                                    # G[m, a, q, e]
         wd = det * self.w[:, None]                                       # (Q, E)
-        ue = np.ascontiguousarray(u_full.reshape(-1, 3)[self.elements].transpose(2, 1, 0))   # [i, a, e]
-        ve = np.ascontiguousarray(v_full.reshape(-1, 3)[self.elements].transpose(2, 1, 0))
+        ue = np.ascontiguousarray(U.transpose(2, 1, 0))                  # [i, a, e]
+        ve = np.ascontiguousarray(V.transpose(2, 1, 0))
         Q, E = wd.shape
         Hu, Hv = np.zeros((3, 3, Q, E)), np.zeros((3, 3, Q, E))       # H[i, j] = ∂u_i/∂x_j
         for i in range(3):
@@ -297,20 +316,16 @@ class ElasticityAssembler:
         for m in range(3):
             for n in range(3):
                 de[m] += (G[n] * R[m, n]).sum(axis=1)
-        idx = self.elements.T.ravel()
-        out = np.empty((self.n_nodes, 3))
-        for m in range(3):
-            out[:, m] = np.bincount(idx, weights=de[m].ravel(), minlength=self.n_nodes)
-        return out
+        return de
 
-    def _gradients(self, X: np.ndarray):
+    def _gradients(self, X: np.ndarray, first: int = 0):
         """∂N_a/∂x_m as G[m, a, q, e] and det J (Q, E) for element coordinates X (E, k, 3);
         MeshError naming the inverted elements."""
         E, Q, k = X.shape[0], self.w.size, self.k
         J = (X.transpose(2, 0, 1).reshape(3 * E, k) @ self._dN_a).reshape(3, E, Q, 3)
         J = np.ascontiguousarray(J.transpose(0, 3, 2, 1))               # [m, n, q, e]
         det, adj = det_adj_3x3(J)
-        require_positive_det(det, element_axis=1)
+        require_positive_det(det, element_axis=1, first=first)
         adj /= det                                                        # J⁻¹[n, m]
         dN = self.dN.transpose(2, 1, 0)[..., None]                        # [n, a, q, 1]
         G = np.zeros((3, k, Q, E))
