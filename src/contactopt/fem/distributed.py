@@ -157,7 +157,7 @@ class DistributedBody:
         B = tag.tobsr(blocksize=(3, 3))
         B.sort_indices()
         where = B.data.ravel().astype(np.int64) - 1       # −1: an entry outside the CSR pattern
-        where[where < 0] = nnz                             # ... reads the zero appended below
+        where[where < 0] = nnz                             # ... reads the zero kept at the end of the buffer
         return B.indptr.astype(np.int32), nodes[B.indices].astype(np.int32), where
 
     def owned_blocks(self, data: np.ndarray):
