@@ -15,7 +15,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .errors import ConfigError, ContactOptError
+from .errors import ConfigError, ContactOptError, MeshError
 
 log = logging.getLogger("contactopt")
 
@@ -52,8 +52,13 @@ def _cmd_state(args) -> int:
     problem = ShapeProblem(args.config, method=args.method)
     model = problem.model
     alpha = _read_alpha(args.alpha, model) if args.alpha else model.initial_design()
-    model.admissible.require_feasible(alpha, tol=1e-8)
-    model.mesh.coordinates(alpha)                       # mesh validity before any output
+    what = f"--alpha {args.alpha}" if args.alpha else "the initial design (design.initial)"
+    try:
+        model.mesh.coordinates(alpha)                   # mesh validity before any output
+    except MeshError as exc:
+        raise MeshError(f"{what}: {exc}; a state is solved for any design outside the admissible set "
+                        "U, but not for one that inverts or distorts the mesh") from None
+    warnings = _design_warnings(model, alpha, what)
     out_path = Path(args.out or f"state-{problem.config.name}")
     created = not out_path.exists()
     out = prepare_output_dir(out_path, overwrite=args.overwrite)
@@ -72,7 +77,7 @@ def _cmd_state(args) -> int:
     print(f"state of {problem.config.name} ({problem.config.source}) — method {states[0].method}, "
           f"backend {states[0].summary().get('backend')}")
     if not problem.has_load_cases:
-        write_state(out, model, states[0], config=problem.config)
+        write_state(out, model, states[0], config=problem.config, warnings=warnings)
         _print_state(states[0], bound, reason)
         print(f"  wrote {out}/ ({', '.join(state_files(model))}) in {time.perf_counter() - t0:.1f}s")
         return 0
@@ -82,15 +87,28 @@ def _cmd_state(args) -> int:
     if len(set(dirs)) < len(dirs):       # names that differ only in unsafe characters
         dirs = [f"case-{k}-{d[5:]}" for k, d in enumerate(dirs)]
     for name, d, state in zip(names, dirs, states):
-        write_state(out / d, model, state, config=problem.config)
+        write_state(out / d, model, state, config=problem.config, warnings=warnings)
         print(f"load case {name!r} → {out / d}/")
         _print_state(state, bound, reason)
     atomic_write_json(out / "cases.json", {
-        "name": problem.config.name, "combine": problem.combination.kind, "names": list(names),
+        "name": problem.config.name, "combine": problem.combination.kind, "names": list(names), "warnings": warnings,
         "cases": [{"name": n, "directory": d, "summary": st.summary()} for n, d, st in zip(names, dirs, states)]})
     print(f"  wrote {out}/cases.json and {len(names)} case directories ({', '.join(state_files(model))}) "
           f"in {time.perf_counter() - t0:.1f}s")
     return 0
+
+
+def _design_warnings(model, alpha, what: str) -> list[str]:
+    """The constraints of the admissible set U that α breaks (bounds, slopes, the mean value,
+    ϑ_α ≥ 0 on the contact face), as warnings: a single state solve needs none of them."""
+    broken = model.admissible.violations(alpha, tol=1e-8)
+    if not broken:
+        return []
+    head = (f"{what} lies outside the admissible set U ({len(broken)} constraint(s) broken); "
+            "the state is solved all the same")
+    for line in [head, *broken]:
+        print(f"contactopt: warning: {line}", file=sys.stderr)
+    return [head, *broken]
 
 
 def _case_dir(name: str, k: int) -> str:

@@ -45,6 +45,10 @@ def _vec3(x):
     return isinstance(x, (list, tuple)) and len(x) == 3 and all(_finite(v) for v in x)
 
 
+def _axis(x):
+    return x == [] or (isinstance(x, list) and len(x) >= 2 and all(_finite(v) for v in x))
+
+
 def _oneof(*options):
     def check(x):
         return x in options
@@ -127,6 +131,13 @@ SCHEMA = {
         "nx": (32, _posint, "an integer ≥ 1"),
         "ny": (15, _posint, "an integer ≥ 1"),
         "nz": (9, _posint, "an integer ≥ 1"),
+        "x1": ([], _axis, "a list of node coordinates in x1, strictly increasing from 0 to geometry.a (which "
+               "the last one sets when [geometry] does not give a), instead of nx: a graded block; empty: nx "
+               "equal elements"),
+        "x2": ([], _axis, "a list of node coordinates in x2, strictly increasing from 0 to geometry.b, instead "
+               "of ny (see x1)"),
+        "x3": ([], _axis, "a list of node coordinates in x3, strictly increasing from 0 (the contact face) to "
+               "geometry.c, instead of nz (see x1)"),
     },
     "material": {
         "E": (21.19, _pos, "a number > 0 (Young's modulus)"),
@@ -151,6 +162,12 @@ SCHEMA = {
         "degree": ([7, 3], lambda x: isinstance(x, list) and len(x) == 2 and all(_posint(v) for v in x),
                    "a list of 2 integers ≥ 1 (Bézier degrees d1, d2)"),
         "C0": (0.75, _pos, "a number > 0 (upper bound of the control points)"),
+        "lower": (0.0, _finite, "a number ≤ C0 (lower bound of the control points; 0 is the paper's U, a negative "
+                  "bound admits crowned faces such as a paraboloid, whose Bézier net dips below 0)"),
+        "nonnegative_gap": (True, lambda x: isinstance(x, bool),
+                            "true or false (keep the contact face on or above the foundation plane: "
+                            "ϑ_α ≥ 0 at every node of the face, with initial_gap = 'mesh' its height in the "
+                            "mesh + ϑ_α ≥ 0; linear constraints of U, needed only where design.lower < 0)"),
         "C1": (0.5, _pos, "a number > 0 (slope bound)"),
         "C2": (0.01, _nonneg, "a number ≥ 0 (mean control point: the volume constraint)"),
         "slope_divisor": ("degree", _oneof("degree", "count"), "'degree' or 'count'"),
@@ -474,6 +491,41 @@ def _check_body(raw, data, problems):
                 data["loads"][k] = [0.0, 0.0, 0.0]
 
 
+def _check_graded_block(raw, data, problems) -> None:
+    """[mesh] x1/x2/x3: node coordinates from 0 to a/b/c, strictly increasing, instead of nx/ny/nz.
+    A coordinate list sets its side of the block when [geometry] does not (and must end on it when
+    it does); the resolved configuration keeps the list and drops the count it replaces."""
+    m, g = data["mesh"], data["geometry"]
+    raw_m = raw.get("mesh", {}) if isinstance(raw.get("mesh"), dict) else {}
+    raw_g = raw.get("geometry", {}) if isinstance(raw.get("geometry"), dict) else {}
+    for ax, n, side in (("x1", "nx", "a"), ("x2", "ny", "b"), ("x3", "nz", "c")):
+        x = m[ax]
+        if not (_axis(x) and x):
+            continue
+        if n in raw_m:
+            problems.append(f"mesh.{ax} and mesh.{n}: give the node coordinates or the number of elements "
+                            f"in {ax}, not both")
+        m.pop(n, None)
+        m[ax] = x = [float(v) for v in x]
+        drops = [k for k in range(1, len(x)) if not x[k] > x[k - 1]]
+        if drops:
+            k = drops[0]
+            problems.append(f"mesh.{ax} = {x}: must be strictly increasing ({ax}[{k}] = {x[k]:g} ≤ "
+                            f"{ax}[{k - 1}] = {x[k - 1]:g}; {len(drops)} such step(s))")
+            continue
+        if x[0] != 0.0:
+            problems.append(f"mesh.{ax} = {x}: must start at 0 (the block is [0, a]×[0, b]×[0, c], its contact "
+                            "face on x3 = 0)")
+            continue
+        if side in raw_g:
+            if _pos(g[side]) and not math.isclose(x[-1], g[side], rel_tol=1e-12):
+                problems.append(f"mesh.{ax} ends at {x[-1]:g}, geometry.{side} = {g[side]:g}: the coordinates "
+                                f"run from 0 to geometry.{side} (or leave geometry.{side} out: the last "
+                                "coordinate sets it)")
+        else:
+            g[side] = x[-1]
+
+
 def _check_foundation(given, data, problems) -> dict:
     """[foundation]: exactly one of `mesh` and `block`; the material's missing keys are the body's."""
     if not isinstance(given, dict):
@@ -575,6 +627,12 @@ def validate(raw: dict, source: str = "<dict>") -> Config:
     _check_body(raw, data, problems)
     if "foundation" in raw:
         data["foundation"] = _check_foundation(raw["foundation"], data, problems)
+    if "mesh" in data:
+        _check_graded_block(raw, data, problems)
+    dsg = data["design"]
+    if _finite(dsg["lower"]) and _pos(dsg["C0"]) and dsg["lower"] > dsg["C0"]:
+        problems.append(f"design.lower = {dsg['lower']}: must be ≤ design.C0 = {dsg['C0']} (the control "
+                        "points' lower bound above their upper bound leaves no admissible design)")
     if "geometry" in data:
         g = data["geometry"]
         if _pos(g["c"]) and _pos(data["design"]["C0"]) and data["design"]["C0"] >= g["c"]:
@@ -591,7 +649,9 @@ SECTION_DOCS = {
             "`clamped`, `top`, `right`, `front`, `back`, `contact`) or predicate tables on the reference "
             "coordinates, `{ x1 = 0.0 }` or `{ box = [[x1lo, x1hi], [x2lo, x2hi], [x3lo, x3hi]] }`.",
     "geometry": "The built-in block [0,a]×[0,b]×[0,c] (only without `body.mesh`).",
-    "mesh": "Elements of the built-in block per direction (only without `body.mesh`).",
+    "mesh": "Elements of the built-in block per direction (only without `body.mesh`): `nx`, `ny`, `nz` equal "
+            "elements, or a graded block with the node coordinates `x1`, `x2`, `x3` of a direction instead of its "
+            "count (e.g. `x3 = [0.0, 0.05, 0.1, 0.2, 0.4, 0.7, 1.0]`, fine at the contact face).",
     "material": "Isotropic linear elasticity.",
     "friction": "Coulomb friction between the body and the foundation (the rigid x3 ≤ 0, or [foundation]).",
     "loads": "Loads on parts of the body, integrated on the current (designed) geometry.",

@@ -1,9 +1,17 @@
 """The admissible set U of control points (paper §5.2) as explicit linear constraints.
 
-    U = { α ∈ R^{(d1+1)×(d2+1)} :  0 ≤ α_ij ≤ C0,
+    U = { α ∈ R^{(d1+1)×(d2+1)} :  lower ≤ α_ij ≤ C0,
                                    |α_{i+1,j} − α_ij| ≤ C1·a/d1,
                                    |α_{i,j+1} − α_ij| ≤ C1·b/d2,
-                                   Σ_ij α_ij = C2·(d1+1)(d2+1) }.
+                                   Σ_ij α_ij = C2·(d1+1)(d2+1),
+                                   g0_m + ϑ_α(x'_m) ≥ 0 at every node m of the contact face }.
+
+The paper's U has lower = 0. A negative ``lower`` admits crowned faces (a paraboloid needs a
+negative control point although ϑ_α ≥ 0 everywhere); the last rows keep the face on or above
+the foundation plane at its nodes (g0 the face's height in the reference mesh, 0 on the plane).
+With lower ≥ 0 and g0 ≥ 0 they follow from the bounds (Bernstein polynomials are ≥ 0 and sum to
+1, so ϑ_α ≥ min α), and in general every row that cannot be active on the other constraints is
+dropped: the paper's U has exactly its bound, slope and volume rows.
 
 d1, d2 are the polynomial degrees: with them the slope rows guarantee |∂ϑ/∂x_k| ≤ C1, the stated
 purpose of the constraints (the derivative of a Bézier surface is a Bézier surface of degree d−1
@@ -16,16 +24,25 @@ The optimizer sees only ``lb, ub, A_ub, b_ub, A_eq, b_eq`` (design vector in C o
 
 from __future__ import annotations
 
+import logging
 from dataclasses import dataclass, field
 
 import numpy as np
 
 from ..errors import InfeasibleDesignError
 
+log = logging.getLogger(__name__)
+
 
 @dataclass
 class AdmissibleSet:
-    """Linear description of U: lb ≤ α ≤ ub, A_ub α ≤ b_ub, A_eq α = b_eq."""
+    """Linear description of U: lb ≤ α ≤ ub, A_ub α ≤ b_ub, A_eq α = b_eq.
+
+    ``gap_basis`` (p, n): ϑ_α = gap_basis @ α at the p nodes of the contact face,
+    ``gap_offset`` (p,) their initial gap g0 (default 0); given, the rows −ϑ_α(x'_m) ≤ g0_m that
+    can be active join A_ub after the slope rows (``gap_rows`` lists which face nodes they are).
+    ``gap_nodes``, ``gap_points``: node numbers and (x1, x2) of those nodes, for messages.
+    """
 
     d1: int
     d2: int
@@ -35,6 +52,11 @@ class AdmissibleSet:
     C1: float
     C2: float
     slope_divisor: str = "degree"
+    lower: float = 0.0
+    gap_basis: np.ndarray | None = None
+    gap_offset: np.ndarray | None = None
+    gap_nodes: np.ndarray | None = None
+    gap_points: np.ndarray | None = None
     lb: np.ndarray = field(init=False)
     ub: np.ndarray = field(init=False)
     A_ub: np.ndarray = field(init=False)
@@ -42,10 +64,13 @@ class AdmissibleSet:
     A_eq: np.ndarray = field(init=False)
     b_eq: np.ndarray = field(init=False)
     row_names: list = field(init=False)
+    gap_rows: np.ndarray = field(init=False)
 
     def __post_init__(self):
         if self.slope_divisor not in ("degree", "count"):
             raise ValueError("slope_divisor must be 'degree' or 'count'")
+        if not self.lower <= self.C0:
+            raise ValueError(f"lower = {self.lower:g} > C0 = {self.C0:g}: the box of the control points is empty")
         n1, n2 = self.d1 + 1, self.d2 + 1
         n = n1 * n2
         idx = np.arange(n).reshape(n1, n2)
@@ -69,13 +94,80 @@ class AdmissibleSet:
                     rows.append(r)
                     rhs.append(s2)
                     names.append(f"slope x2: {'+' if sign > 0 else '-'}(α[{i},{j + 1}] − α[{i},{j}]) ≤ {s2:.6g}")
-        self.lb = np.zeros(n)
+        self.lb = np.zeros(n) if self.lower == 0 else np.full(n, float(self.lower))
         self.ub = np.full(n, float(self.C0))
         self.A_ub = np.array(rows).reshape(-1, n)
         self.b_ub = np.array(rhs)
         self.A_eq = np.ones((1, n))
         self.b_eq = np.array([self.C2 * n])
         self.row_names = names
+        self.gap_rows = np.zeros(0, np.int64)
+        if self.gap_basis is not None:
+            self._add_gap_rows()
+
+    # ------------------------------------------------------------------ ϑ_α ≥ 0 on the face
+    def _gap(self):
+        B = np.asarray(self.gap_basis, float)
+        g0 = np.zeros(B.shape[0]) if self.gap_offset is None else np.asarray(self.gap_offset, float)
+        return B, g0
+
+    def _add_gap_rows(self) -> None:
+        """Append −ϑ_α(x'_m) ≤ g0_m for the face nodes m where it can be active on the rest of U.
+
+        ϑ_α(x'_m) = Σ_k B_mk α_k with B ≥ 0, Σ_k B_mk = 1, so ϑ_α(x'_m) ≥ Σ_k B_mk ℓ_k for any
+        lower bounds ℓ_k of the control points on U: first ℓ = lower (the box), then, for the rows
+        this leaves, the least value of each α_k over the box, slope and volume rows (one small
+        LP per control point, independent of the mesh)."""
+        B, g0 = self._gap()
+        keep = self.lower + g0 < 0
+        if np.any(keep):
+            ell = self._least_control_points()
+            if ell is not None:
+                keep &= B @ ell + g0 < 0
+        self.gap_rows = np.flatnonzero(keep)
+        if not self.gap_rows.size:
+            return
+        self.A_ub = np.vstack([self.A_ub, -B[self.gap_rows]])
+        self.b_ub = np.concatenate([self.b_ub, g0[self.gap_rows]])
+        self.row_names = self.row_names + [f"gap: ϑ ≥ {-g0[m]:.6g} at {self._where(m)}" for m in self.gap_rows]
+        log.info("admissible set: ϑ_α ≥ 0 at %d of %d nodes of the contact face (the others cannot "
+                 "be active)", self.gap_rows.size, B.shape[0])
+
+    def _least_control_points(self):
+        """min α_k over the box, slope and volume rows, for every k (None if that set is empty)."""
+        from scipy.optimize import linprog
+        n = self.size
+        A, b = self.A_ub, self.b_ub
+        out = np.empty(n)
+        for k in range(n):
+            c = np.zeros(n)
+            c[k] = 1.0
+            res = linprog(c, A_ub=A, b_ub=b, A_eq=self.A_eq, b_eq=self.b_eq,
+                          bounds=list(zip(self.lb, self.ub)), method="highs")
+            if res.status != 0:
+                return None
+            out[k] = res.fun - 1e-9 * max(1.0, abs(self.C0))     # the LP's tolerance, to the safe side
+        return out
+
+    def _where(self, m) -> str:
+        node = f"node {int(self.gap_nodes[m])}" if self.gap_nodes is not None else f"face node {int(m)}"
+        if self.gap_points is not None:
+            node += " (" + ", ".join(f"{v:.4g}" for v in self.gap_points[m]) + ")"
+        return node
+
+    def gap_violations(self, alpha, tol: float = 1e-9) -> list[str]:
+        """ϑ_α + g0 < 0 at nodes of the contact face (all of them, not only the kept rows): one line."""
+        if self.gap_basis is None:
+            return []
+        B, g0 = self._gap()
+        gap = B @ np.asarray(alpha, float).reshape(-1) + g0
+        bad = np.flatnonzero(gap < -tol)
+        if not bad.size:
+            return []
+        m = int(bad[np.argmin(gap[bad])])
+        what = "ϑ ≥ 0" if not np.any(g0) else "height + ϑ ≥ 0"
+        return [f"gap: {what} broken at {bad.size} of {gap.size} nodes of the contact face (the face "
+                f"below the foundation plane), the deepest {gap[m]:.6g} at {self._where(m)}"]
 
     @property
     def size(self) -> int:
@@ -95,17 +187,19 @@ class AdmissibleSet:
             return ["design contains NaN or infinite entries"]
         out = []
         n2 = self.d2 + 1
+        low = "0" if self.lower == 0 else f"lower = {self.lower:.6g}"
         for k in np.flatnonzero(x < self.lb - tol):
-            out.append(f"bound: α[{k // n2},{k % n2}] = {x[k]:.6g} < 0")
+            out.append(f"bound: α[{k // n2},{k % n2}] = {x[k]:.6g} < {low}")
         for k in np.flatnonzero(x > self.ub + tol):
             out.append(f"bound: α[{k // n2},{k % n2}] = {x[k]:.6g} > C0 = {self.C0:.6g}")
-        res = self.A_ub @ x - self.b_ub
+        n_slope = self.A_ub.shape[0] - self.gap_rows.size
+        res = self.A_ub[:n_slope] @ x - self.b_ub[:n_slope]
         for r in np.flatnonzero(res > tol):
             out.append(f"{self.row_names[r]} violated by {res[r]:.3g}")
         eq = float(self.A_eq[0] @ x - self.b_eq[0])
         if abs(eq) > tol * max(1.0, abs(self.b_eq[0])):
             out.append(f"volume: Σα = {x.sum():.8g} ≠ C2·(d1+1)(d2+1) = {self.b_eq[0]:.8g}")
-        return out
+        return out + self.gap_violations(x, tol)
 
     def is_feasible(self, alpha, tol: float = 1e-9) -> bool:
         return not self.violations(alpha, tol)

@@ -76,7 +76,6 @@ class ElasticModel:
         (x1lo, x1hi), (x2lo, x2hi) = body.domain
         a, b = x1hi - x1lo, x2hi - x2lo
         self.surface = BezierSurface(d1, d2, a, b, x1lo, x2lo)
-        self.admissible = AdmissibleSet(d1, d2, a, b, d["C0"], d["C1"], d["C2"], d["slope_divisor"])
         mat = cfg["material"]
         self.assembler = ElasticityAssembler(ref.cells, ref.n_nodes, body.fixed_dofs, mat["E"], mat["nu"],
                                              element=element_type(ref.cell_type))
@@ -87,10 +86,12 @@ class ElasticModel:
             self.mesh = MorphedMesh(ref, self.surface, self.weight, body.contact_nodes,
                                     fixed_shape=tuple(body.fixed_shape))
         else:
-            m = cfg["mesh"]
-            self.mesh = HexMesh(m["nx"], m["ny"], m["nz"], self.surface, cfg["geometry"]["c"], reference=ref,
+            from ..mesh.block import block_axes
+            nx, ny, nz = (x.size - 1 for x in block_axes(cfg["geometry"], cfg["mesh"]))
+            self.mesh = HexMesh(nx, ny, nz, self.surface, cfg["geometry"]["c"], reference=ref,
                                 weight=self.weight, contact_nodes=body.contact_nodes,
                                 fixed_shape=tuple(body.fixed_shape))
+        self.admissible = self._admissible_set(ref, body)
         self.mesh.ratio = self._jacobian_ratio(ref, body)
         self.contact_nodes = body.contact_nodes
         full = (3 * self.contact_nodes[:, None] + np.arange(3)).ravel()
@@ -119,6 +120,21 @@ class ElasticModel:
                                " (node order of the cells: meshio/VTK)"])
         self._det_ref = det
 
+    def _admissible_set(self, ref, body) -> AdmissibleSet:
+        """U of ``[design]``; with ``nonnegative_gap`` ϑ_α + g0 ≥ 0 at the nodes of the contact face
+        (g0 the face's height in the mesh with ``initial_gap = "mesh"``, else 0)."""
+        d, s = self.config["design"], self.surface
+        gap = {}
+        if d.get("nonnegative_gap", True):
+            nodes = body.contact_face.nodes
+            xy = self.mesh._in_domain(ref.points[nodes, :2])
+            g0 = (ref.points[nodes, 2].copy() if self.config["body"].get("initial_gap") == "mesh"
+                  else np.zeros(nodes.size))
+            gap = dict(gap_basis=s.basis_matrix(xy[:, 0], xy[:, 1]), gap_offset=g0, gap_nodes=nodes,
+                       gap_points=ref.points[nodes, :2])
+        return AdmissibleSet(s.d1, s.d2, s.a, s.b, d["C0"], d["C1"], d["C2"], d["slope_divisor"],
+                             lower=d.get("lower", 0.0), **gap)
+
     def _jacobian_ratio(self, ref, body) -> JacobianRatio:
         """det J(α)/det J_ref = 1 + Rα (mesh.morph); C0 must keep it above the threshold on U."""
         G, _ = element_geometry(ref.points[ref.cells], self.assembler.dN)
@@ -126,14 +142,17 @@ class ElasticModel:
         thr = self.config["body"]["min_jacobian_ratio"]
         jr = JacobianRatio(ref.cells, G[..., 2], self.mesh.dx3_dalpha(), thr, qpoints=centroids,
                            fixed_parts={name: nodes for name, nodes in body.fixed_shape.items()})
-        C0 = self.config["design"]["C0"]
-        worst, e, _, _ = jr.worst_on_box(C0)
-        self.safe_C0 = jr.safe_C0()
+        C0, lower = self.config["design"]["C0"], self.config["design"].get("lower", 0.0)
+        worst, e, _, _ = jr.worst_on_box(C0, lower)
+        self.safe_C0 = jr.safe_C0(lower)
         if worst <= thr:
-            raise ConfigError([f"{self.config.source}: design.C0 = {C0:g} lets admissible designs "
+            what = f"design.C0 = {C0:g}" + (f" with design.lower = {lower:g}" if lower else "")
+            safe = (f"the largest safe C0 for this mesh and morph is {self.safe_C0:.4g}" if self.safe_C0 > lower
+                    else "no C0 is safe with this lower bound: raise design.lower towards 0")
+            raise ConfigError([f"{self.config.source}: {what} lets admissible designs "
                                f"{'invert' if worst <= 0 else 'distort'} element {e} at {_fmt(centroids[e])} "
                                f"(Jacobian ratio down to {worst:.3g} ≤ body.min_jacobian_ratio = {thr:g}); "
-                               f"the largest safe C0 for this mesh and morph is {self.safe_C0:.4g}"])
+                               f"{safe}"])
         return jr
 
     # ------------------------------------------------------------------ sizes

@@ -49,9 +49,11 @@ def reference_mesh(cfg):
     if path:
         from .reader import read_mesh
         return read_mesh(path)
-    from .block import block_mesh
+    from .block import block_axes, block_mesh, graded_block_mesh
     g, m = cfg["geometry"], cfg["mesh"]
-    return block_mesh(g["a"], g["b"], g["c"], m["nx"], m["ny"], m["nz"])
+    if not any(m.get(ax) for ax in ("x1", "x2", "x3")):
+        return block_mesh(g["a"], g["b"], g["c"], m["nx"], m["ny"], m["nz"])
+    return graded_block_mesh(*block_axes(g, m))
 
 
 def build_body(cfg) -> Body:

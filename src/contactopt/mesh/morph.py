@@ -10,14 +10,15 @@ to the foundation x3 ≤ 0 (outward normal e3 of the foundation) is g = ϑ_α(x1
 
 ϑ_α is evaluated at the node's (x1, x2) clamped to the design rectangle: nodes of the body that
 lie beyond the rectangle (they have w < 1) move like its nearest point, so the Bernstein
-polynomials are never extrapolated and the lift stays within [0, C0]·w on U.
+polynomials are never extrapolated and the lift stays within [lower, C0]·w on U.
 
 Element quality (DESIGN.md §9): with h = ϑ_α w the lift, the Jacobian of a morphed element is
 J = J_ref + e3 ⊗ ∇_ξ h, so det J / det J_ref = 1 + ∂h/∂x3 (the derivative on the reference
 element) — exactly, for every element type, and affine in α: ratio = 1 + R α with R fixed.
 :class:`JacobianRatio` checks it per design before assembly and bounds it over U: on U every
-control point lies in [0, C0], the Bernstein basis is non-negative, so
-min_U (Rα)_q ≥ C0·Σ_k min(0, R_qk) — exact for the block (R ≤ 0 there: ratio = 1 − ϑ_α/c).
+control point lies in [lower, C0] (lower = 0 in the paper), so
+min_U (Rα)_q ≥ C0·Σ_k min(0, R_qk) + lower·Σ_k max(0, R_qk) — exact for the block (R ≤ 0
+there: ratio = 1 − ϑ_α/c, which a negative ϑ_α only raises).
 """
 
 from __future__ import annotations
@@ -158,14 +159,27 @@ class JacobianRatio:
                     + " face" + ("s" if len(touched) > 1 else "") + " (fixed in shape)")
         raise MeshError(msg)
 
-    def worst_on_box(self, C0: float):
-        """(smallest ratio, element, quadrature point) over designs with 0 ≤ α ≤ C0: a bound of
-        the worst ratio on U (exact where R ≤ 0, as for the block)."""
+    def worst_on_box(self, C0: float, lower: float = 0.0):
+        """(smallest ratio, element, quadrature point, −Σ_k min(0, R_qk) there) over designs with
+        lower ≤ α ≤ C0: a bound of the worst ratio on U (exact where R ≤ 0, as for the block,
+        whose ratio 1 − ϑ_α/c only grows where ϑ_α < 0)."""
         neg = np.minimum(self.R, 0.0).sum(axis=1, dtype=np.float64)
-        q = int(np.argmin(neg))
-        return 1.0 + C0 * float(neg[q]), q // self.shape[1], q % self.shape[1], float(-neg[q])
+        if lower == 0:
+            q = int(np.argmin(neg))
+            return 1.0 + C0 * float(neg[q]), q // self.shape[1], q % self.shape[1], float(-neg[q])
+        worst = 1.0 + C0 * neg + lower * np.maximum(self.R, 0.0).sum(axis=1, dtype=np.float64)
+        q = int(np.argmin(worst))
+        return float(worst[q]), q // self.shape[1], q % self.shape[1], float(-neg[q])
 
-    def safe_C0(self) -> float:
-        """Largest C0 for which every design of the box keeps the ratio above the threshold."""
-        s = self.worst_on_box(1.0)[3]
-        return np.inf if s <= 0 else (1.0 - self.threshold) / s
+    def safe_C0(self, lower: float = 0.0) -> float:
+        """Largest C0 for which every design of the box [lower, C0] keeps the ratio above the
+        threshold (−inf when ``lower`` alone takes some ratio down to it)."""
+        if lower == 0:
+            s = self.worst_on_box(1.0)[3]
+            return np.inf if s <= 0 else (1.0 - self.threshold) / s
+        neg = -np.minimum(self.R, 0.0).sum(axis=1, dtype=np.float64)
+        room = 1.0 - self.threshold + lower * np.maximum(self.R, 0.0).sum(axis=1, dtype=np.float64)
+        if np.any(room <= 0):
+            return -np.inf
+        with np.errstate(divide="ignore"):
+            return float(np.min(np.where(neg > 0, room / neg, np.inf)))
