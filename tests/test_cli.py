@@ -45,7 +45,7 @@ def test_state_that_does_not_converge_exits_2_and_leaves_no_directory(tmp_path, 
     assert not out.exists()
 
 
-@pytest.mark.parametrize("case", ["bad_value", "unknown_key", "infeasible", "inverted", "missing"])
+@pytest.mark.parametrize("case", ["bad_value", "unknown_key", "inverting_design", "inverted", "missing"])
 def test_bad_input_exit_code_2_and_nothing_written(tmp_path, capsys, case):
     out = tmp_path / "out"
     args = []
@@ -55,9 +55,10 @@ def test_bad_input_exit_code_2_and_nothing_written(tmp_path, capsys, case):
         p = tmp_path / "u.toml"
         p.write_text("[mesh]\nnx = 4\nsize = 3\n")
         args = [str(p)]
-    elif case == "infeasible":
+    elif case == "inverting_design":
+        # a design outside U is solved with warnings (test_design_space); one above c = 1 inverts the mesh
         alpha = tmp_path / "a.json"
-        alpha.write_text(json.dumps({"alpha": np.full((8, 4), 0.02).tolist()}))
+        alpha.write_text(json.dumps({"alpha": np.full((8, 4), 1.2).tolist()}))
         args = [str(small_toml(tmp_path)), "--alpha", str(alpha)]
     elif case == "inverted":
         # C0 ≥ c would let the surface reach the top face and invert the mapped elements
