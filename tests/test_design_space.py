@@ -266,3 +266,39 @@ def test_a_design_outside_U_is_solved_with_a_warning_naming_the_constraint(tmp_p
     assert "contactopt: warning: volume: Σα = 0.64" in capsys.readouterr().err
     assert main(["state", str(cfg), "--out", str(tmp_path / "t")]) == 0      # α0 ∈ U: no warning
     assert json.loads((tmp_path / "t" / "state.json").read_text())["warnings"] == []
+
+
+def test_with_initial_gap_mesh_the_rows_hold_the_total_gap(tmp_path):
+    """initial_gap = "mesh": the constraint is height + ϑ_α ≥ 0; rows only where lower + height < 0."""
+    _, mesh = crowned_configs(tmp_path)
+    cfg = load_config(mesh).with_updates({"design": {"lower": -0.1}})
+    model = ElasticModel(cfg)
+    U = model.admissible
+    nodes = model.body.contact_face.nodes
+    height = paraboloid(*model.body.reference.points[nodes, :2].T)
+    assert np.min(np.abs(height - 0.1)) > 1e-3
+    assert np.array_equal(U.gap_rows, np.flatnonzero(height < 0.1))       # ℓ_k = lower = −0.1 here
+    assert np.allclose(U.b_ub[-U.gap_rows.size:], height[U.gap_rows], rtol=0, atol=1e-15)
+    assert U.is_feasible(np.zeros(9)) and U.violations(np.full(9, 0.0)) == []
+    low = U.violations(np.full(9, -0.05))                                  # the face lowered by 0.05
+    assert low[0].startswith("volume") and low[1:] == [f"gap: height + ϑ ≥ 0 broken at {np.sum(height < 0.05)} of 45 nodes of the contact face "
+                   "(the face below the foundation plane), the deepest -0.05 at node 22 (1, 0.5)"]
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_worst_jacobian_ratio_on_the_box_is_attained_at_a_vertex(seed):
+    """min over lower ≤ α ≤ C0 of 1 + Rα (the C0 check with a negative lower bound) equals the
+    minimum over the box's vertices, and safe_C0 is the C0 where it meets the threshold."""
+    from contactopt.mesh.morph import JacobianRatio
+    rng = np.random.default_rng(seed)
+    grad3 = rng.standard_normal((6, 2, 4))
+    dx3 = rng.standard_normal((10, 4)) * 0.3
+    elements = rng.integers(0, 10, (6, 4))
+    jr = JacobianRatio(elements, grad3, dx3, 0.1)
+    C0, lower = 0.4, -0.2
+    vertices = np.array(np.meshgrid(*[[lower, C0]] * 4)).reshape(4, -1).T
+    brute = min(jr.ratios(v).min() for v in vertices)
+    assert np.isclose(jr.worst_on_box(C0, lower)[0], brute, rtol=0, atol=1e-14)
+    safe = jr.safe_C0(lower)
+    if np.isfinite(safe) and safe > lower:
+        assert np.isclose(jr.worst_on_box(safe, lower)[0], 0.1, rtol=0, atol=1e-12)
