@@ -494,13 +494,16 @@ def _check_body(raw, data, problems):
 def _check_graded_block(raw, data, problems) -> None:
     """[mesh] x1/x2/x3: node coordinates from 0 to a/b/c, strictly increasing, instead of nx/ny/nz.
     A coordinate list sets its side of the block when [geometry] does not (and must end on it when
-    it does); the resolved configuration keeps the list and drops the count it replaces."""
+    it does); the resolved configuration keeps either the list or the count of a direction."""
     m, g = data["mesh"], data["geometry"]
     raw_m = raw.get("mesh", {}) if isinstance(raw.get("mesh"), dict) else {}
     raw_g = raw.get("geometry", {}) if isinstance(raw.get("geometry"), dict) else {}
     for ax, n, side in (("x1", "nx", "a"), ("x2", "ny", "b"), ("x3", "nz", "c")):
         x = m[ax]
-        if not (_axis(x) and x):
+        if x == []:
+            m.pop(ax)            # equal elements: the resolved configuration keeps the count alone
+            continue
+        if not _axis(x):
             continue
         if n in raw_m:
             problems.append(f"mesh.{ax} and mesh.{n}: give the node coordinates or the number of elements "
