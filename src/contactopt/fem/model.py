@@ -132,6 +132,10 @@ class ElasticModel:
                   else np.zeros(nodes.size))
             gap = dict(gap_basis=s.basis_matrix(xy[:, 0], xy[:, 1]), gap_offset=g0, gap_nodes=nodes,
                        gap_points=ref.points[nodes, :2])
+        elif d.get("lower", 0.0) < 0:
+            log.warning("%s: design.lower = %g < 0 with design.nonnegative_gap = false: admissible designs may "
+                        "put the contact face below the foundation plane (an initial penetration)",
+                        self.config.source, d["lower"])
         return AdmissibleSet(s.d1, s.d2, s.a, s.b, d["C0"], d["C1"], d["C2"], d["slope_divisor"],
                              lower=d.get("lower", 0.0), **gap)
 

@@ -1,6 +1,7 @@
 """The paper's block as a morphed mesh: the structured source with the harmonic morph.
 
-Reference block [0,a]×[0,b]×[0,c] (:func:`contactopt.mesh.block.block_mesh`) moved by the one
+Reference block [0,a]×[0,b]×[0,c] (:func:`contactopt.mesh.block.block_mesh`; graded, the grid of
+:func:`~contactopt.mesh.block.graded_block_mesh`, for which read x1[i], x2[j], x3[k] below) moved by the one
 morph of :mod:`contactopt.mesh.morph`, x3 = c·s + ϑ_α(x1, x2)·w. The harmonic weight of the
 block (w = 1 on the contact face x3 = 0, 0 on the top x3 = c, natural on the sides) is
 w = 1 − s, so this is the vertical map of DESIGN.md §1,
