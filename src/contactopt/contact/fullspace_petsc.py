@@ -588,3 +588,6 @@ class _PetscBackend:
     def advance(self, u, t, du):
         u.axpy(t, du)
         return u
+
+    def max_abs(self, u) -> float:
+        return float(u.norm(petsc().NormType.INFINITY))
