@@ -9,7 +9,7 @@ One geometry path (DESIGN.md §9): a reference mesh (the block, or a mesh file) 
 face on x3 = 0, moved by x(α) = x_ref + ϑ_α(x1, x2)·w·e3 with a harmonic weight w
 (:mod:`contactopt.mesh.morph`, :mod:`contactopt.fem.weight`).
 
-Contact ordering: contact node m (the nodes of the contact face with no clamped component, by
+Contact ordering: contact node m (the nodes of the contact face whose normal component is not clamped, by
 node number) owns the condensed DOFs 3m, 3m+1, 3m+2 = (u1, u2, u3) = (tangent t1, tangent t2,
 normal ν) — the foundation is the half-space x3 ≤ 0 with outward normal e3 of the foundation, so
 u_ν = u3 and the gap is g_m = ϑ_α(x'_m) (non-penetration u_ν + g ≥ 0).

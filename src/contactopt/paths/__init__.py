@@ -66,20 +66,16 @@ def select_path(config, n_free: int, pinned: int = 0) -> tuple[str, str]:
     optimization); so is "petsc" without petsc4py.
 
     ``pinned``: the number of clamped tangential components of contact nodes (a symmetry plane
-    through the contact face, :mod:`contactopt.mesh.body`). The condensation, Delassus and
-    full-space paths take them; the PETSc path and an elastic ``[foundation]`` refuse them."""
+    through the contact face, :mod:`contactopt.mesh.body`). Every path takes them; an elastic
+    ``[foundation]`` refuses them."""
     from .._mpi import petsc_missing, world_size
     ls = config["linear_solver"]
     name, objective = ls["path"], config["objective"]["type"]
     ranks = world_size()
-    if pinned:
-        where = ("linear_solver.path = 'petsc'" if name == "petsc" or (name == "auto" and ranks > 1)
-                 else "[foundation]" if "foundation" in config.data else None)
-        if where:
-            raise ConfigError([f"body.clamped: {pinned} tangential component(s) of contact nodes are clamped (a "
-                               f"symmetry plane through the contact face), which {where} does not take; the "
-                               "'condensation', 'delassus' and 'fullspace' paths on one process without an elastic "
-                               "foundation do"])
+    if pinned and "foundation" in config.data:
+        raise ConfigError([f"body.clamped: {pinned} tangential component(s) of contact nodes are clamped (a "
+                           "symmetry plane through the contact face), which an elastic [foundation] does not "
+                           "take (its compliance would add to the clamped direction); the rigid foundation does"])
     if ranks > 1 and name not in ("auto", "petsc"):
         raise ConfigError([f"linear_solver.path = '{name}' runs on one process, and this run has {ranks} MPI "
                            "ranks: use path 'petsc' (or 'auto'), or run without mpiexec"])
