@@ -161,7 +161,7 @@ def column(friction, path):
 def test_a_column_whose_contact_face_does_not_move_sticks_everywhere(friction, path):
     pr = column(friction, path)
     st = pr.solve_state(pr.model.initial_design())
-    assert np.abs(st.u_c).max() < 1e-12 * np.abs(st.u).max()          # u_c is round-off
+    assert np.abs(st.u_c).max() < 1e-10 * np.abs(st.u).max()          # u_c is the solver's tolerance
     areas = pr.model.contact_areas()
     assert np.ptp(st.lam / areas) < 1e-10 * np.max(st.lam / areas)     # uniform pressure
     # every node sticks in contact: M3+ with friction; without friction the tangential law is
