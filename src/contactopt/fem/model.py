@@ -9,9 +9,9 @@ One geometry path (DESIGN.md §9): a reference mesh (the block, or a mesh file) 
 face on x3 = 0, moved by x(α) = x_ref + ϑ_α(x1, x2)·w·e3 with a harmonic weight w
 (:mod:`contactopt.mesh.morph`, :mod:`contactopt.fem.weight`).
 
-Contact ordering: contact node m (the nodes of the contact face whose normal component is not clamped, by
-node number) owns the condensed DOFs 3m, 3m+1, 3m+2 = (u1, u2, u3) = (tangent t1, tangent t2,
-normal ν) — the foundation is the half-space x3 ≤ 0 with outward normal e3 of the foundation, so
+Contact ordering: contact node m (the nodes of the contact face whose normal component is not
+clamped, by node number) owns the condensed DOFs 3m, 3m+1, 3m+2 = (u1, u2, u3) = (tangent t1,
+tangent t2, normal ν) — the foundation is the half-space x3 ≤ 0 with outward normal e3 of the foundation, so
 u_ν = u3 and the gap is g_m = ϑ_α(x'_m) (non-penetration u_ν + g ≥ 0).
 
 A clamped tangential component of a contact node (a symmetry plane through the contact face,
@@ -107,7 +107,7 @@ class ElasticModel:
         self.pinned_free = self.assembler.full_to_free[self.pinned_dofs]
         # (p, 3) per contact node (t1, t2, ν): True on the pinned components
         self.contact_pinned = np.isin(full, self.pinned_dofs).reshape(-1, 3)
-        self._pin_mask = None       # CSR entries of A(α) that pinning zeroes, and its diagonal
+        self._pin_mask = None       # ((shape, nnz) of A's pattern, the CSR entries pinning zeroes)
         self.gap_matrix = self.mesh.gap_matrix()
         # initial gap of a contact face above x3 = 0 (body.initial_gap = "mesh"); 0 on the plane
         self.gap0 = (ref.points[self.contact_nodes, 2].copy() if cfg["body"].get("initial_gap") == "mesh"

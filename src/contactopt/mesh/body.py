@@ -20,7 +20,8 @@ u = 0 and a zero contact force there (a decoupled spring cannot balance a fricti
 to its own displacement), so the node keeps the normal law and Coulomb friction in its other
 tangential direction (|τ_free| ≤ Fλ), or the normal law alone when both are clamped; the clamp
 carries the reaction. A clamped normal component u3 takes the node out of the contact set (with a
-warning when the node is not clamped in every component), and more than half of the face so is an error.
+warning when the node is not clamped in every component); u3 clamped on more than half of the
+face is a ConfigError.
 """
 
 from __future__ import annotations
