@@ -258,6 +258,9 @@ class NewtonBackend(Protocol):
     def advance(self, u, t, du):
         """The next iterate u + t du (the pyamg backend: a new array; PETSc: u updated in place)."""
 
+    def max_abs(self, u) -> float:
+        """max |u| over all free DOFs (on every rank)."""
+
 
 @dataclass
 class NewtonOutcome:
@@ -327,7 +330,8 @@ def newton_loop(backend: NewtonBackend, u, zone, *, gap, mu_all, rho_all, tol, m
             # nodes outside the zone must end with an open gap
             if z.size < p:
                 clearance = uc[:, 2] + gap
-                u_scale = displacement_scale(uc, gap)
+                # against the whole displacement's scale, as the node classes count a gap closed
+                u_scale = displacement_scale(uc, gap, backend.max_abs(u))
                 missed = missed_nodes(z, clearance, u_scale)     # the zone rule of the zone paths
                 if missed.size:
                     lam_all = np.zeros(p)
@@ -424,6 +428,9 @@ class _PyamgBackend:
         rphys = self.contact_force(u, Au_L)
         e_other = Au_L[other]
         return rphys, u[self.cd], e_other, 0.5 * float(e_other @ e_other), float(np.linalg.norm(e_other)) / self.Lnorm
+
+    def max_abs(self, u) -> float:
+        return float(np.abs(u).max(initial=0.0))
 
     def newton_step(self, u, uc, stick, slide, tvec, k, coupling, eta, step):
         A, L, cd, gap, H = self.A, self.L, self.cd, self.gap, self.H

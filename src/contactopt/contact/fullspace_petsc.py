@@ -450,11 +450,13 @@ class PetscNewton:
         F = float(friction)
         ut = np.asarray(u_c)[slide, :2]
         nut = np.linalg.norm(ut, axis=1)
-        if np.any(nut <= 0):
+        if F > 0 and np.any(nut <= 0):
             raise SolverError("a sliding node (M1) without slip")
-        ahat = ut / nut[:, None]
+        # without friction u_t = 0 may be M1 (sensitivity.adjoint_fullspace): â and C = 0 there
+        safe = np.where(nut > 0, nut, 1.0)
+        ahat = np.where(nut[:, None] > 0, ut / safe[:, None], 0.0)
         tvec = np.column_stack((-ahat[:, 1], ahat[:, 0]))
-        k = F * np.asarray(lam)[slide] / nut
+        k = F * np.asarray(lam)[slide] / safe
         coupling = -F * ahat
         D = self.system(stick, slide, tvec, k, coupling)
         # v0: (0, 0, y*_λ) on M3+ nodes, y*_λ in the normal DOF of M1 nodes
@@ -588,3 +590,6 @@ class _PetscBackend:
     def advance(self, u, t, du):
         u.axpy(t, du)
         return u
+
+    def max_abs(self, u) -> float:
+        return float(u.norm(petsc().NormType.NORM_INFINITY))

@@ -17,7 +17,10 @@ Table 4.1 classes of node m, with a = (u_t, u_ν, λ) and b = (τ, 0, −(u_ν +
     M3− weak sticking ‖τ‖ = Fλ, u_t = 0, contact M4  weak sticking, weak contact
 
 A quantity counts as zero below ``rtol`` times its scale: displacements against the largest of
-|u_c| and g, forces against the largest |λ| (or |ℓ| when nothing is in contact).
+|u_c|, g and the body's whole displacement |u|, forces against the largest |λ| (or the load when
+nothing is in contact). Scales that cannot vanish while the body is loaded: a contact face that
+does not move (a column held at its top and pressed on the plane, u_c = 0 to round-off) still
+has a displacement scale from the rest of the body, so round-off of u_c does not decide its classes.
 """
 
 from __future__ import annotations
@@ -36,16 +39,20 @@ FROM_FCLIB = np.array([1, 2, 0])  # and back
 CLASS_RTOL = 1e-7      # relative tolerance below which a displacement or force counts as zero
 
 
-def displacement_scale(u_c: np.ndarray, gap: np.ndarray) -> float:
-    """max(|u_c|, |g|): the scale against which displacements and clearances count as zero."""
-    return max(np.abs(u_c).max(initial=0.0), np.abs(gap).max(initial=0.0), 1e-300)
+def displacement_scale(u_c: np.ndarray, gap: np.ndarray, u=None) -> float:
+    """max(|u_c|, |g|, |u|): the scale against which displacements and clearances count as zero
+    (``u``: the whole displacement of the body, any layout; None: the contact nodes' alone)."""
+    whole = 0.0 if u is None else np.abs(u).max(initial=0.0)
+    return max(np.abs(u_c).max(initial=0.0), np.abs(gap).max(initial=0.0), whole, 1e-300)
 
 
 def classify_nodes(u_c: np.ndarray, lam: np.ndarray, tau: np.ndarray, gap: np.ndarray,
-                   friction: float, rtol: float = CLASS_RTOL, force_scale: float | None = None) -> np.ndarray:
-    """Class code (index into CLASS_NAMES) of every contact node, Table 4.1."""
+                   friction: float, rtol: float = CLASS_RTOL, force_scale: float | None = None,
+                   u=None) -> np.ndarray:
+    """Class code (index into CLASS_NAMES) of every contact node, Table 4.1; ``u`` the body's
+    whole displacement (module docstring: the displacement scale)."""
     u_c = np.asarray(u_c).reshape(-1, 3)
-    u_scale = displacement_scale(u_c, gap)
+    u_scale = displacement_scale(u_c, gap, u)
     f_scale = force_scale if force_scale is not None else max(np.abs(lam).max(initial=0.0), 1e-300)
     tol_u, tol_f = rtol * u_scale, rtol * f_scale
     slide = np.linalg.norm(u_c[:, :2], axis=1) > tol_u

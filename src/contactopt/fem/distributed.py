@@ -94,6 +94,10 @@ class DistributedBody:
         self.dof_of_free = self.dof_of_full[asm.free]
         self.fixed = np.ones(self.n, dtype=bool)        # by PETSc DOF
         self.fixed[self.dof_of_free] = False
+        # rows and columns reduced to the diagonal: the clamped DOFs and the pinned contact DOFs
+        # (clamped tangential components of contact nodes, :class:`~contactopt.fem.model.ElasticModel`)
+        self.decoupled = self.fixed.copy()
+        self.decoupled[self.dof_of_full[np.asarray(getattr(model, "pinned_dofs", ()), np.int64)]] = True
         self.contact = self.dof_of_free[np.asarray(model.contact_dofs)].reshape(-1, 3)
         self.owns_contact = (self.contact[:, 0] >= self.rstart) & (self.contact[:, 0] < self.rend)
         self.old_of = order
@@ -125,7 +129,7 @@ class DistributedBody:
     # ------------------------------------------------------------------ the matrix
     def owned_stiffness(self, coords: np.ndarray):
         """The owned rows of A(α) as CSR (indptr, PETSc columns, values), coordinates ``coords``
-        in the model's node order; clamped DOFs keep only their diagonal entries."""
+        in the model's node order; clamped and pinned DOFs keep only their diagonal entries."""
         sub, nodes, ldofs = self._stiff
         K = sub.stiffness(coords[self.old_of[nodes]])
         K.sort_indices()
@@ -138,7 +142,7 @@ class DistributedBody:
             indptr = K.indptr[a:b + 1] - lo
             rows = np.repeat(np.arange(self.rstart, self.rend), np.diff(indptr))
             cols = ldofs[K.indices[lo:hi]]
-            self._drop = (self.fixed[rows] | self.fixed[cols]) & (rows != cols)
+            self._drop = (self.decoupled[rows] | self.decoupled[cols]) & (rows != cols)
             self._csr = (indptr.astype(np.int32), cols.astype(np.int32))
             self._bsr = self._block_pattern(self._csr[0], K.indices[lo:hi], K.shape[1], nodes)
             self._ext = np.zeros(data.size + 1)

@@ -9,10 +9,17 @@ One geometry path (DESIGN.md §9): a reference mesh (the block, or a mesh file) 
 face on x3 = 0, moved by x(α) = x_ref + ϑ_α(x1, x2)·w·e3 with a harmonic weight w
 (:mod:`contactopt.mesh.morph`, :mod:`contactopt.fem.weight`).
 
-Contact ordering: contact node m (the nodes of the contact face with no clamped component, by
-node number) owns the condensed DOFs 3m, 3m+1, 3m+2 = (u1, u2, u3) = (tangent t1, tangent t2,
-normal ν) — the foundation is the half-space x3 ≤ 0 with outward normal e3 of the foundation, so
+Contact ordering: contact node m (the nodes of the contact face whose normal component is not
+clamped, by node number) owns the condensed DOFs 3m, 3m+1, 3m+2 = (u1, u2, u3) = (tangent t1,
+tangent t2, normal ν) — the foundation is the half-space x3 ≤ 0 with outward normal e3 of the foundation, so
 u_ν = u3 and the gap is g_m = ϑ_α(x'_m) (non-penetration u_ν + g ≥ 0).
+
+A clamped tangential component of a contact node (a symmetry plane through the contact face,
+:mod:`contactopt.mesh.body`) is a *pinned* DOF: a free DOF whose row and column of A(α) keep only
+the diagonal entry and whose load is zero, so that the contact DOF layout stays three per node on
+every path. The Coulomb law then gives u = 0 and a zero contact force there, the paths set both
+exactly (:attr:`ElasticModel.contact_pinned`), and the design contraction sees u = ṽ = 0 on
+them: the rows and columns of A(α) it differentiates are the clamped ones.
 """
 
 from __future__ import annotations
@@ -97,6 +104,11 @@ class ElasticModel:
         full = (3 * self.contact_nodes[:, None] + np.arange(3)).ravel()
         self.contact_dofs = self.assembler.full_to_free[full]
         assert np.all(self.contact_dofs >= 0)
+        self.pinned_dofs = np.asarray(body.pinned_dofs, np.int64)       # full DOF indices
+        self.pinned_free = self.assembler.full_to_free[self.pinned_dofs]
+        # (p, 3) per contact node (t1, t2, ν): True on the pinned components
+        self.contact_pinned = np.isin(full, self.pinned_dofs).reshape(-1, 3)
+        self._pin_mask = None       # ((shape, nnz) of A's pattern, the CSR entries pinning zeroes)
         self.gap_matrix = self.mesh.gap_matrix()
         # initial gap of a contact face above x3 = 0 (body.initial_gap = "mesh"); 0 on the plane
         self.gap0 = (ref.points[self.contact_nodes, 2].copy() if cfg["body"].get("initial_gap") == "mesh"
@@ -201,14 +213,50 @@ class ElasticModel:
             coords = self.mesh.coordinates(alpha)
             A = self.assembler.stiffness(coords)
             L_full = self.load_vector(coords, loads)
-        return Assembled(alpha, coords, A, L_full, L_full[self.assembler.free],
-                         self.gap_matrix @ alpha + self.gap0)
+        if self.pinned_free.size:
+            A = self.pin(A)
+        return Assembled(alpha, coords, A, L_full, self.free_load(L_full), self.gap_matrix @ alpha + self.gap0)
+
+    def free_load(self, L_full: np.ndarray) -> np.ndarray:
+        """L on the free DOFs, zero on the pinned ones."""
+        L = L_full[self.assembler.free]
+        if self.pinned_free.size:
+            L[self.pinned_free] = 0.0
+        return L
+
+    def pin(self, A: sp.csr_matrix) -> sp.csr_matrix:
+        """A with the rows and columns of the pinned DOFs reduced to their diagonal entry (the
+        symmetric elimination of u = 0 there; the CSR pattern is kept, so factorizations that
+        reuse it still apply)."""
+        A = sp.csr_matrix(A)
+        if not A.has_sorted_indices:
+            A = A.copy()
+            A.sort_indices()
+        if self._pin_mask is None or self._pin_mask[0] != (A.shape, A.nnz):
+            pinned = np.zeros(A.shape[0], bool)
+            pinned[self.pinned_free] = True
+            rows = np.repeat(np.arange(A.shape[0]), np.diff(A.indptr))
+            off = (pinned[rows] | pinned[A.indices]) & (rows != A.indices)
+            self._pin_mask = ((A.shape, A.nnz), np.flatnonzero(off))
+        data = A.data.copy()
+        data[self._pin_mask[1]] = 0.0
+        return sp.csr_matrix((data, A.indices, A.indptr), shape=A.shape)
+
+    def unpin(self, u_full: np.ndarray) -> np.ndarray:
+        """``u_full`` (full length) with exact zeros on the pinned DOFs."""
+        if self.pinned_dofs.size == 0:
+            return u_full
+        u_full = np.array(u_full, dtype=float)
+        u_full[self.pinned_dofs] = 0.0
+        return u_full
 
     def design_contraction(self, coords: np.ndarray, u_full: np.ndarray, v_full: np.ndarray, loads=None) -> np.ndarray:
         """vᵀ(∂A/∂α_k u − ∂L/∂α_k) for every design variable k (full-length u, v; DESIGN.md §2).
 
-        Only the x3 coordinates move with α: ∂x3/∂α_k = β_k(x1, x2)·w (mesh.morph).
+        Only the x3 coordinates move with α: ∂x3/∂α_k = β_k(x1, x2)·w (mesh.morph). The pinned
+        DOFs are clamped: u and v are zero there (module docstring).
         """
+        u_full, v_full = self.unpin(u_full), self.unpin(v_full)
         d = self.assembler.stiffness_shape_contraction(coords, u_full, v_full)
         d -= (loads or self.loads).shape_contraction(coords, v_full, self.assembler)
         return self.mesh.contract_dx3(d[:, 2])

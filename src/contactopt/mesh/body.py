@@ -8,9 +8,20 @@ Conventions (DESIGN.md §1, §9): the foundation is the half-space x3 ≤ 0 with
 the contact face lies on x3 = 0 in the reference mesh with the body above it (the outward normal
 of the body on the face is −e3) and is a graph over (x1, x2). With ``[body] initial_gap = "mesh"``
 the face may lie above the plane (an exported optimal body, :mod:`contactopt.io.export`): its
-height x3 in the mesh is an initial gap, to which the design surface ϑ_α adds. Its nodes with no clamped
-component are the contact nodes, ordered by node number; contact node m owns the condensed DOFs
-(u1, u2, u3) = (t1, t2, ν).
+height x3 in the mesh is an initial gap, to which the design surface ϑ_α adds. Its nodes whose
+normal component u3 is not clamped are the contact nodes, ordered by node number; contact node m
+owns the condensed DOFs (u1, u2, u3) = (t1, t2, ν).
+
+Partly clamped contact nodes (a symmetry plane through the contact face): a clamped tangential
+component u1 or u2 of a contact node stays a contact DOF, *pinned* (``Body.pinned_dofs``): it is a
+free DOF of A(α) whose row and column are replaced by the diagonal entry, with no load
+(:meth:`contactopt.fem.model.ElasticModel.assemble`). The Coulomb law of the node then forces
+u = 0 and a zero contact force there (a decoupled spring cannot balance a friction force opposed
+to its own displacement), so the node keeps the normal law and Coulomb friction in its other
+tangential direction (|τ_free| ≤ Fλ), or the normal law alone when both are clamped; the clamp
+carries the reaction. A clamped normal component u3 takes the node out of the contact set (with a
+warning when the node is not clamped in every component); u3 clamped on more than half of the
+face is a ConfigError.
 """
 
 from __future__ import annotations
@@ -34,13 +45,16 @@ class Body(HasParts):
 
     reference: ReferenceMesh
     tol: float                    # absolute geometric tolerance
-    fixed_dofs: np.ndarray        # full DOF indices 3n + m with u = 0
+    fixed_dofs: np.ndarray        # full DOF indices 3n + m with u = 0, eliminated from A
     clamped: list                 # [(Part, components)]
     contact_face: Part
     contact_nodes: np.ndarray
     fixed_shape: dict             # name → nodes with morph weight 0
     domain: tuple                 # ((x1lo, x1hi), (x2lo, x2hi)) of the design rectangle
     warnings: list = field(default_factory=list)
+    pinned_dofs: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))
+    # full DOF indices of the clamped tangential components of contact nodes: free DOFs of A
+    # with u = 0 held by the contact law (module docstring)
 
 
 def reference_mesh(cfg):
@@ -86,18 +100,47 @@ def build_body(cfg) -> Body:
     for p, comps in clamped:
         fixed[np.ix_(p.nodes, comps)] = True
     face = _check_contact_face(ref, face, tol, on_plane=spec.get("initial_gap", "zero") == "zero")
-    contact_nodes = face.nodes[~np.any(fixed[face.nodes], axis=1)]
-    if contact_nodes.size == 0:
-        raise ConfigError([f"{cfg.source}: body.contact = {describe_part(spec['contact'])}: every node of the "
-                           f"contact face is clamped ({face.nodes.size} nodes); no node is left to touch the foundation"])
+    contact_nodes, pinned, warnings = _contact_nodes(face, fixed, spec, cfg.source)
     _check_rigid_modes(ref, fixed, cfg.source)
     fixed_shape = _fixed_shape(ref, spec["fixed_shape"], face, tol, cfg.source)
     domain = _domain(cfg, ref, face, tol)
-    body = Body(ref, tol, np.flatnonzero(fixed.ravel()), clamped, face, contact_nodes, fixed_shape, domain)
-    body.warnings += _thin_tetrahedra(ref) + _poor_cells(ref)
+    eliminated = fixed.copy()
+    eliminated.ravel()[pinned] = False
+    body = Body(ref, tol, np.flatnonzero(eliminated.ravel()), clamped, face, contact_nodes, fixed_shape, domain,
+                pinned_dofs=pinned)
+    body.warnings += warnings + _thin_tetrahedra(ref) + _poor_cells(ref)
     for w in body.warnings:
         log.warning("%s", w)
     return body
+
+
+def _contact_nodes(face: Part, fixed: np.ndarray, spec, source: str):
+    """(contact nodes, pinned DOFs, warnings) of the contact face under the clamps ``fixed``.
+
+    A node whose normal component u3 is clamped is no contact node (a warning names those clamped
+    in u3 but not in every component); a clamped u1 or u2 of a contact node is pinned (module
+    docstring). ConfigError when no node is left, or when u3 is clamped on more than half of the face."""
+    name = describe_part(spec["contact"])
+    f = fixed[face.nodes]
+    normal = f[:, 2]
+    contact_nodes = face.nodes[~normal]
+    if contact_nodes.size == 0:
+        raise ConfigError([f"{source}: body.contact = {name}: every node of the contact face is clamped in its "
+                           f"normal component u3 ({face.nodes.size} nodes); no node is left to touch the foundation"])
+    if 2 * int(normal.sum()) > face.nodes.size:
+        raise ConfigError([f"{source}: body.clamped: the normal component u3 is clamped on {int(normal.sum())} of the "
+                           f"{face.nodes.size} nodes of the contact face {name} (more than half); those nodes "
+                           "cannot touch the foundation. Clamp only tangential components (u1, u2) on a symmetry "
+                           "plane through the contact face"])
+    warnings = []
+    partly = face.nodes[normal & ~np.all(f, axis=1)]
+    if partly.size:
+        warnings.append(f"body.clamped: {partly.size} node(s) of the contact face {name} have their normal "
+                        f"component u3 clamped and are no contact nodes: nodes "
+                        + ", ".join(str(int(n)) for n in partly[:10]) + (", …" if partly.size > 10 else ""))
+    tangential = fixed[contact_nodes, :2]
+    pinned = (3 * contact_nodes[:, None] + np.arange(2))[tangential].astype(np.int64)
+    return contact_nodes, np.sort(pinned), warnings
 
 
 def _as_list(x):

@@ -52,7 +52,7 @@ def library_for(name: str, library: str) -> str:
     return "pardiso" if pardiso_available() else "scipy"
 
 
-def select_path(config, n_free: int) -> tuple[str, str]:
+def select_path(config, n_free: int, pinned: int = 0) -> tuple[str, str]:
     """(path, library) of a configuration for a body of ``n_free`` free DOFs.
 
     ``path = "auto"``: the full-space path from ``crossover`` free DOFs on (the measured crossover,
@@ -63,11 +63,19 @@ def select_path(config, n_free: int) -> tuple[str, str]:
 
     Under ``mpiexec`` with more than one rank only the PETSc path shares one optimization among
     the ranks: "auto" takes it, and another path is refused (every rank would run the whole
-    optimization); so is "petsc" without petsc4py."""
+    optimization); so is "petsc" without petsc4py.
+
+    ``pinned``: the number of clamped tangential components of contact nodes (a symmetry plane
+    through the contact face, :mod:`contactopt.mesh.body`). Every path takes them; an elastic
+    ``[foundation]`` refuses them."""
     from .._mpi import petsc_missing, world_size
     ls = config["linear_solver"]
     name, objective = ls["path"], config["objective"]["type"]
     ranks = world_size()
+    if pinned and "foundation" in config.data:
+        raise ConfigError([f"body.clamped: {pinned} tangential component(s) of contact nodes are clamped (a "
+                           "symmetry plane through the contact face), which an elastic [foundation] does not "
+                           "take (its compliance would add to the clamped direction); the rigid foundation does"])
     if ranks > 1 and name not in ("auto", "petsc"):
         raise ConfigError([f"linear_solver.path = '{name}' runs on one process, and this run has {ranks} MPI "
                            "ranks: use path 'petsc' (or 'auto'), or run without mpiexec"])

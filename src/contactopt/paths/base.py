@@ -147,11 +147,15 @@ class SolverPath:
         """The :class:`State` of contact forces ``r`` ((p, 3) per node (t1, t2, ν)) and
         displacements, with the node classes of Table 4.1; ``outcome`` the solver's (iterations,
         error, converged). The case's next zone is set from it."""
+        pinned = self.model.contact_pinned
+        if np.any(pinned):         # u = 0 and no contact force there, exactly (fem.model)
+            r, u_c = np.where(pinned, 0.0, r), np.where(pinned, 0.0, u_c)
+            u = self.model.unpin(u)
         lam, tau = r[:, 2].copy(), -r[:, :2]
         # with nothing in contact, forces count as zero against the load scale
         fscale = max(np.abs(lam).max(initial=0.0), np.abs(load).max(initial=0.0))
         classes = classify_nodes(u_c, lam, tau, gap, self.settings.friction,
-                                 force_scale=fscale if lam.max(initial=0) <= 0 else None)
+                                 force_scale=fscale if lam.max(initial=0) <= 0 else None, u=u)
         timings["total"] = sum(timings.values())
         state = State(alpha=alpha, coords=coords, u=u, u_c=u_c, lam=lam, tau=tau, gap=gap, classes=classes,
                       friction=self.settings.friction, method=method, iterations=outcome[0],

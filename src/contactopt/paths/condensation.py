@@ -164,6 +164,10 @@ class CondensationPath(ZonePath):
         from scipy.sparse.linalg import eigsh
 
         from ..fem.dense import spd_inverse
-        lmax = eigsh(system.contact_S, k=1, which="LA", return_eigenvectors=False, tol=1e-6)[0]
-        wmax = eigsh(spd_inverse(system.contact_S), k=1, which="LA", return_eigenvectors=False, tol=1e-6)[0]
+        S = system.contact_S
+        keep = ~self.model.contact_pinned.ravel()
+        if not np.all(keep):           # pinned DOFs: decoupled diagonal entries, no contact law
+            S = np.ascontiguousarray(S[np.ix_(keep, keep)])
+        lmax = eigsh(S, k=1, which="LA", return_eigenvectors=False, tol=1e-6)[0]
+        wmax = eigsh(spd_inverse(S), k=1, which="LA", return_eigenvectors=False, tol=1e-6)[0]
         return float((1.0 / wmax) / lmax), None

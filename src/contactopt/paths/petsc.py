@@ -144,7 +144,7 @@ class PetscPath(SolverPath):
         alpha = m.surface.as_vector(alpha)
         coords = m.mesh.coordinates(alpha)
         L_full = m.load_vector(coords, loads)
-        return Assembled(alpha, coords, None, L_full, L_full[m.assembler.free], m.gap_matrix @ alpha + m.gap0)
+        return Assembled(alpha, coords, None, L_full, m.free_load(L_full), m.gap_matrix @ alpha + m.gap0)
 
     def prepare(self, asm) -> PetscSystem:
         key = next(self._keys)
@@ -158,7 +158,7 @@ class PetscPath(SolverPath):
         t0 = time.perf_counter()
         self._assemble_matrix(coords)
         self._systems.clear()              # the systems of earlier designs are not asked again
-        asm = Assembled(np.asarray(alpha), coords, None, L_full, L_full[self.model.assembler.free], gap)
+        asm = Assembled(np.asarray(alpha), coords, None, L_full, self.model.free_load(L_full), gap)
         self._design_key = key
         system = PetscSystem(key, asm, gap, self._load(L_full), {})
         system.timings["petsc_assembly"] = time.perf_counter() - t0
@@ -168,7 +168,7 @@ class PetscPath(SolverPath):
     def _for_load(self, base_key, key, L_full):
         base = self._systems[base_key]
         asm = Assembled(base.assembled.alpha, base.assembled.coords, None, L_full,
-                        L_full[self.model.assembler.free], base.gap)
+                        self.model.free_load(L_full), base.gap)
         system = PetscSystem(key, asm, base.gap, self._load(L_full), {})
         self._systems[key] = system
         return system
@@ -189,7 +189,7 @@ class PetscPath(SolverPath):
     def _load(self, L_full):
         v = self.newton.A.createVecRight()
         d = self.dist
-        v.getArray()[:] = d.owned(d.petsc_of_free(L_full[self.model.assembler.free]))
+        v.getArray()[:] = d.owned(d.petsc_of_free(self.model.free_load(L_full)))
         return v
 
     def _hierarchy(self, alpha, coords):
@@ -277,13 +277,15 @@ class PetscPath(SolverPath):
         part = self._call("contraction", system.key)
         m = self.model
         coords = system.assembled.coords
+        v_full = m.unpin(v_full)            # the pinned DOFs are clamped (fem.model)
         return part - m.mesh.contract_dx3((loads or m.loads).shape_contraction(coords, v_full, m.assembler)[:, 2])
 
     def _contraction(self, skey):
         from mpi4py import MPI
         system = self._systems[skey]
         full = self.dist.dof_of_full
-        part = self.dist.contraction(self.model, system.assembled.coords, system.u_all[full], system.v_all[full])
+        m = self.model
+        part = self.dist.contraction(m, system.assembled.coords, m.unpin(system.u_all[full]), m.unpin(system.v_all[full]))
         total = np.zeros_like(part)
         _world().Reduce(part, total, op=MPI.SUM, root=0)
         return total

@@ -120,7 +120,7 @@ def solve_adjoint(S: np.ndarray, state: State, y_u: np.ndarray, y_lam: np.ndarra
                 Zr.append(base + m), Zc.append(nz + m), Zv.append(1.0)
                 Zr.append(base + 2), Zc.append(nz + m), Zv.append(F * ahat[m])
                 Rr.append(base + m), Rc.append(nz + m), Rv.append(1.0)
-            if e == c["M1"]:
+            if e == c["M1"] and nut[i] > 0:      # u_t = 0 only without friction (C = 0)
                 Cb = F * state.lam[i] / nut[i] * (np.eye(2) - np.outer(ahat, ahat))
                 Cblocks.append((nz, Cb))
             nz += 2

@@ -101,11 +101,14 @@ def _solve_adjoint(A, contact_dofs, classes, u_c, lam, y_u, y_lam, friction, hie
     slide = np.flatnonzero(eff == cc["M1"])
     ut = np.asarray(u_c)[slide, :2]
     nut = np.linalg.norm(ut, axis=1)
-    if np.any(nut <= 0):
+    if F > 0 and np.any(nut <= 0):
         raise SolverError("a sliding node (M1) without slip")
-    ahat = ut / nut[:, None]
+    # without friction a node in contact is M1 even where u_t = 0 (both tangential components
+    # pinned, or none moving): â and C = 0 there
+    safe = np.where(nut > 0, nut, 1.0)
+    ahat = np.where(nut[:, None] > 0, ut / safe[:, None], 0.0)
     tvec = np.column_stack((-ahat[:, 1], ahat[:, 0]))     # C = k t tᵀ, t ⊥ â
-    k = F * np.asarray(lam)[slide] / nut
+    k = F * np.asarray(lam)[slide] / safe
     # the transpose of the state's Newton system at the solution: n = −â, μ = F, K_t = C
     system = NewtonSystem(A, cd, stick, slide, tvec, k, -F * ahat)
     dirichlet, kt, D, Nsl = system.dirichlet, system.kt, system.D, system.Nsl
@@ -151,8 +154,8 @@ def subgradient_fullspace(model, objective, alpha, asm, result, friction, *, loa
     ``evaluate(state, None)``), e.g. the examples' target normal force."""
     t0 = time.perf_counter()
     lam, tau, u_c = result.lam, result.tau, result.u_c
-    classes = classify_nodes(u_c, lam, tau, asm.gap, friction)
     u_full = model.assembler.to_full(result.u)
+    classes = classify_nodes(u_c, lam, tau, asm.gap, friction, u=u_full)
     state = State(alpha=np.asarray(alpha, dtype=float), coords=asm.coords, u=u_full, u_c=u_c, lam=lam,
                   tau=tau, gap=asm.gap, classes=classes, friction=friction, method="fullspace",
                   iterations=result.newton_steps, residual=result.error, complementarity=float("nan"),
