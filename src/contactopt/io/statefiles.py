@@ -50,8 +50,9 @@ FOUNDATION_FILES = ("foundation.vtu", "foundation.png")      # with an elastic [
 FORMAT_VERSION = 1
 
 CONVENTIONS = {
-    "ordering": "contact-node order m = 0..p-1: the nodes of the contact face with no clamped component, "
-                "by node number (the block: i fastest, then j, i >= 1)",
+    "ordering": "contact-node order m = 0..p-1: the nodes of the contact face with no clamped normal component, "
+                "by node number (the block: i fastest, then j, i >= 1); a clamped tangential component of a "
+                "node is pinned: u = 0 and no contact force in that direction",
     "u_c": "(u1, u2, u3): tangential u_t = (u1, u2), normal u_nu = u3; foundation x3 <= 0 with normal e3",
     "gap": "g_m = theta_alpha(x'_m) >= 0; non-penetration u_nu + g >= 0",
     "lam": "lambda_m = (S u_c - l)_nu >= 0: normal contact force on the body (paper (3.17))",
