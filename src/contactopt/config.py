@@ -220,8 +220,8 @@ SCHEMA = {
                  "design and the contact zone's Delassus products by solves with it; 'fullspace' for "
                  "meshes no factorization fits, a semismooth Newton method on all DOFs with "
                  "AMG-preconditioned GMRES (pyamg) (docs/large_meshes.md); 'petsc' the same method on "
-                 "PETSc under MPI (`mpiexec -n N contactopt run`, petsc4py; README 'One optimization on "
-                 "many cores'); 'auto': 'petsc' under mpiexec with more than one rank, else 'fullspace' "
+                 "PETSc under MPI (`mpiexec -n N contactopt run`, petsc4py; docs/guide/large-meshes.md); "
+                 "'auto': 'petsc' under mpiexec with more than one rank, else 'fullspace' "
                  "from `crossover` free DOFs on, else 'condensation'"),
         "library": ("auto", _oneof("auto", "pardiso", "scipy"),
                     "'auto', 'pardiso' or 'scipy' (the sparse direct solver of the condensation and "
