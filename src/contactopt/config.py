@@ -131,6 +131,12 @@ SCHEMA = {
     "material": {
         "E": (21.19, _pos, "a number > 0 (Young's modulus)"),
         "nu": (0.277, lambda x: _finite(x) and -1.0 < x < 0.5, "a number in (−1, 0.5) (Poisson's ratio)"),
+        "formulation": ("auto", lambda x: x in ("auto", "standard", "bbar"),
+                        "'auto', 'standard' or 'bbar': the element formulation. 'bbar' (hexahedra only): the "
+                        "dilatation replaced by its element mean (Hughes' B-bar), free of volumetric locking as "
+                        "ν → 0.5; 'auto': 'bbar' on hexahedra from ν ≥ 0.45, else 'standard'. Tetrahedra take "
+                        "'standard' (or 'auto'); for nearly incompressible materials on tetrahedra use tetra10 "
+                        "(docs/materials.md)"),
     },
     "friction": {
         "coefficient": (0.3, _nonneg, "a number ≥ 0 (Coulomb coefficient F)"),
