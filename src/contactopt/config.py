@@ -570,6 +570,9 @@ def validate(raw: dict, source: str = "<dict>") -> Config:
             problems.append(f"[{sec}]: must be a table")
             given = {}
         data[sec] = _check_table(given, keys, sec, problems)
+    if not (isinstance(raw.get("material"), dict) and "formulation" in raw["material"]):
+        # absent means 'auto': a configuration that does not name it resolves as it did before the key
+        data["material"].pop("formulation", None)
     deg = data["design"]["degree"]
     d1d2 = deg if isinstance(deg, list) and len(deg) == 2 and all(_posint(v) for v in deg) else None
     _check_matrix(data["design"]["initial"], d1d2, "design.initial", problems)
