@@ -288,7 +288,8 @@ class ElasticityAssembler:
     def cell_stresses(self, coords: np.ndarray, u_full: np.ndarray) -> np.ndarray:
         """Cauchy stress σ = λ tr(ε) I + 2μ ε of the displacement ``u_full`` (3·n_nodes), averaged
         over each cell's quadrature points (weights w det J): (E, 6) in Voigt order
-        (xx, yy, zz, yz, xz, xy). Exact for a displacement linear in x on every element type."""
+        (xx, yy, zz, yz, xz, xy). Exact for a displacement linear in x on every element type. With
+        B-bar too: its stress σ̄ has the same cell average (the mean of θ̄ − div u is zero)."""
         X = coords[self.elements]
         G, det = element_geometry(X, self.dN)
         ue = np.asarray(u_full, float).reshape(-1, 3)[self.elements]          # (E, k, 3)
