@@ -203,8 +203,9 @@ def _formulation(cfg, cell_type) -> str:
     except ValueError:
         raise ConfigError([f"{cfg.source}: material.formulation = {form!r}: B-bar is a formulation of hexahedra; "
                            f"the mesh has {cell_type} cells, which take 'standard' (or 'auto'). For a nearly "
-                           "incompressible material on tetrahedra use quadratic ones (tetra10), which do not "
-                           "lock"]) from None
+                           "incompressible material on tetrahedra use quadratic ones (tetra10), which lock far "
+                           "less than linear ones; from ν ≈ 0.49 on, hexahedra with 'bbar' "
+                           "(docs/materials.md)"]) from None
     if cell_type == "tetra" and mat["nu"] >= BBAR_AUTO_NU:
         log.warning("%s: linear tetrahedra lock at ν = %g (too stiff, contact pressures too high); use "
                     "quadratic tetrahedra (tetra10) or hexahedra with material.formulation = 'auto'",
