@@ -327,3 +327,68 @@ def test_distributed_assembly_and_contraction_with_bbar_equal_the_serial_ones():
         assert abs(got - Ap[order]).max() <= 1e-13 * abs(A).max()
         total += db.contraction(model, asm.coords, u, v)
     assert np.abs(total - serial).max() <= 1e-10 * np.abs(serial).max()
+
+
+# ---------------------------------------------------------------------- Hertz (slow)
+def hertz_toml(tmp_path, nu, formulation, fine=4, R=5.0):
+    """A block [−1, 1]² × [0, 1] with the bottom x3 = r²/2R in the mesh, cubes of side a/fine under
+    the contact (a = 0.1), graded (ratio ≤ 1.35) to the faces; top clamped, frictionless."""
+    import meshio
+    mesh = tmp_path / "hertz.vtu"
+    if not mesh.exists():
+        h = 0.1 / fine                      # a = 0.1: the Hertz radius of R = 5, δ = 0.002
+        x = list(np.arange(0, int(1.5 * fine) + 1) * h)
+        step = h
+        while x[-1] < 1.0 - 1e-12:
+            step *= 1.35
+            x.append(x[-1] + step)
+        x = np.array(x)
+        core = int(1.5 * fine)
+        x[core:] = x[core] + (x[core:] - x[core]) * (1.0 - x[core]) / (x[-1] - x[core])
+        xs = np.concatenate([-x[:0:-1], x])
+        n, m = xs.size, x.size
+        X, Y, Z = np.meshgrid(xs, xs, x, indexing="ij")
+        pts = np.column_stack([X.ravel(), Y.ravel(), Z.ravel()])
+        pts[:, 2] += (1.0 - pts[:, 2]) * (pts[:, 0] ** 2 + pts[:, 1] ** 2) / (2 * R)
+        i, j, k = (v.ravel() for v in np.meshgrid(np.arange(n - 1), np.arange(n - 1), np.arange(m - 1), indexing="ij"))
+
+        def nid(i, j, k):
+            return (i * n + j) * m + k
+        cells = np.column_stack([nid(i, j, k), nid(i + 1, j, k), nid(i + 1, j + 1, k), nid(i, j + 1, k),
+                                 nid(i, j, k + 1), nid(i + 1, j, k + 1), nid(i + 1, j + 1, k + 1),
+                                 nid(i, j + 1, k + 1)])
+        meshio.write(mesh, meshio.Mesh(pts, [("hexahedron", cells)]))
+    c = 0.15 + 1e-9
+    data = {"name": "hertz", "body": {"mesh": str(mesh), "clamped": {"x3": 1.0}, "initial_gap": "mesh",
+                                      "contact": {"box": [[-c, c], [-c, c], [-0.01, 0.01]]}},
+            "material": {"E": 1.0, "nu": nu, "formulation": formulation}, "friction": {"coefficient": 0.0},
+            "loads": {"body_force": [0.0, 0.0, 0.0]},
+            "design": {"degree": [1, 1], "C0": 0.01, "C1": 1.0, "C2": 1.0, "initial": 0.0},
+            "objective": {"target": {"kind": "constant", "value": 0.0}},
+            "linear_solver": {"path": "delassus"}}
+    path = tmp_path / "hertz.toml"
+    path.write_text(tomli_w.dumps(data))
+    return path
+
+
+def hertz_peak_error(tmp_path, nu, formulation, R=5.0, delta=0.002):
+    """|p(0) − p0|/p0 with Hertz's p0 = 3P/(2πa²), a = (3PR/4E*)^(1/3), E* = E/(1 − ν²) of the
+    measured force P; p(0) the centre node's force over its tributary area."""
+    pr = ShapeProblem(load_config(hertz_toml(tmp_path, nu, formulation)))
+    st = pr.solve_state(np.full(pr.model.n_design, -delta))
+    P = st.lam.sum()
+    a = (3 * P * R * (1 - nu ** 2) / 4) ** (1 / 3)
+    p0 = 3 * P / (2 * np.pi * a ** 2)
+    centre = np.argmin(np.linalg.norm(pr.model.body.reference.points[pr.model.contact_nodes, :2], axis=1))
+    assert 0.09 < a < 0.13
+    return abs(st.lam[centre] / pr.model.contact_areas()[centre] - p0) / p0
+
+
+@pytest.mark.slow
+def test_hertz_peak_pressure_does_not_lock_with_bbar(tmp_path):
+    """benchmarks/bench_locking.py at --fine 4 (docs/materials.md): B-bar's peak error at ν = 0.499
+    within twice its error at ν = 0.3; the standard element's many times larger."""
+    b3, b499 = hertz_peak_error(tmp_path, 0.3, "bbar"), hertz_peak_error(tmp_path, 0.499, "bbar")
+    s499 = hertz_peak_error(tmp_path, 0.499, "standard")
+    assert b3 < 0.02 and b499 <= 2 * b3, (b3, b499)
+    assert s499 > 10 * b499, (s499, b499)
