@@ -20,8 +20,8 @@ B-bar (``formulation="bbar"``, hexahedra): the dilatation div u is replaced by i
 a(u, v) = Σ_e [ ∫_e 2μ dev ε(u):dev ε(v) dx + κ |e| θ̄(u) θ̄(v) ], κ = λ + 2μ/3 the bulk modulus.
 Written as ∫ λ' div u div v + 2μ ε(u):ε(v) with λ' = −2μ/3 plus the element term κ m mᵀ/|e|
 (m_(i,a) = ∫_e ∂N_a/∂x_i), it keeps the pair assembly (Hooke's law with λ' per block) and adds
-one rank-one matrix per element: the 2×2×2 Gauss rule integrates no volumetric constraint at
-the points one by one, so the element does not lock as ν → 1/2.
+one rank-one matrix per element. The near-incompressibility is then one constraint per element
+instead of one at each of its eight Gauss points, so the element does not lock as ν → 1/2.
 """
 
 from __future__ import annotations
@@ -68,8 +68,7 @@ BBAR_AUTO_NU = 0.45      # from this ν on, "auto" takes B-bar on hexahedra
 def resolve_formulation(formulation: str, element, nu: float) -> str:
     """The element formulation of ``[material] formulation`` for an element type and ν: ``auto``
     is B-bar on hexahedra from ν ≥ 0.45 and standard otherwise; B-bar is for hexahedra only
-    (ValueError otherwise: tetrahedra keep their formulation, P2 for nearly incompressible
-    materials)."""
+    (ValueError otherwise: tetrahedra keep their formulation)."""
     el = element_type(element)
     if formulation == "auto":
         return "bbar" if el is HEX8 and nu >= BBAR_AUTO_NU else "standard"
