@@ -144,6 +144,12 @@ SCHEMA = {
     "material": {
         "E": (21.19, _pos, "a number > 0 (Young's modulus)"),
         "nu": (0.277, lambda x: _finite(x) and -1.0 < x < 0.5, "a number in (−1, 0.5) (Poisson's ratio)"),
+        "formulation": ("auto", lambda x: x in ("auto", "standard", "bbar"),
+                        "'auto', 'standard' or 'bbar': the element formulation. 'bbar' (hexahedra only): the "
+                        "dilatation replaced by its element mean (Hughes' B-bar), free of volumetric locking as "
+                        "ν → 0.5; 'auto': 'bbar' on hexahedra from ν ≥ 0.45, else 'standard'. Tetrahedra take "
+                        "'standard' (or 'auto'); for nearly incompressible materials on tetrahedra use tetra10 "
+                        "(docs/materials.md)"),
     },
     "friction": {
         "coefficient": (0.3, _nonneg, "a number ≥ 0 (Coulomb coefficient F)"),
@@ -621,6 +627,9 @@ def validate(raw: dict, source: str = "<dict>") -> Config:
             problems.append(f"[{sec}]: must be a table")
             given = {}
         data[sec] = _check_table(given, keys, sec, problems)
+    if not (isinstance(raw.get("material"), dict) and "formulation" in raw["material"]):
+        # absent means 'auto': a configuration that does not name it resolves as it did before the key
+        data["material"].pop("formulation", None)
     deg = data["design"]["degree"]
     d1d2 = deg if isinstance(deg, list) and len(deg) == 2 and all(_posint(v) for v in deg) else None
     _check_matrix(data["design"]["initial"], d1d2, "design.initial", problems)
