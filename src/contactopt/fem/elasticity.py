@@ -302,7 +302,7 @@ class ElasticityAssembler:
 
     def scalar_laplacian(self, coords: np.ndarray) -> sp.csr_matrix:
         """Matrix of ∫∇φ_a·∇φ_b dx (n_nodes × n_nodes, CSR) with the element's shape functions
-        and stiffness rule: the operator of the harmonic morph weight (DESIGN.md §9)."""
+        and stiffness rule: the operator of the harmonic morph weight (docs/theory.md)."""
         G, det = element_geometry(coords[self.elements], self.dN)
         Ke = np.einsum("eqam,eqbm,eq->eab", G, G, det * self.w)
         rows = np.broadcast_to(self.elements[:, :, None], Ke.shape).ravel()
@@ -324,7 +324,7 @@ class ElasticityAssembler:
         Shape derivative of a(u, v) = ∫ C∇u:∇v for the nodal mesh velocity V = N_c e_m:
             ∫ [ (σ(u):∇v) div V − σ(u):(∇v ∇V) − σ(v):(∇u ∇V) ] dx,
         evaluated element by element with the element's stiffness rule, so it is the exact
-        derivative of the assembled matrix (DESIGN.md §2). Every product runs component by
+        derivative of the assembled matrix. Every product runs component by
         component on arrays over (quadrature point, element).
         """
         # element chunks whose temporaries (some 20 arrays over (quadrature point, element)) stay
