@@ -237,10 +237,25 @@ class ShapeProblem:
             log.info("subgradient at a design where %d load cases are active (%s): the subgradient is "
                      "that of %s", len(active), ", ".join(active), names[comb.case])
         exact = nd == 0 and (self.combination.kind == "sum" or len(active) == 1)
+        terms = dict(getattr(self.cases[comb.case].objective, "last_terms", {}))
         return SubgradientResult(comb.value, g, states[comb.case], v_u, v_lam, nd, exact,
                                  {**DEFAULT_CHOICES, **(choices or {})},
                                  {"state": t1 - t0, "adjoint": t_adj, "design_terms": t_design},
-                                 comb.values, names, active, names[comb.case], states)
+                                 comb.values, names, active, names[comb.case], states, terms)
+
+    def term_names(self) -> list:
+        """The names of the [[objective.terms]] (their type, numbered from the second of a type on)."""
+        return [t[0] for t in getattr(self.objective, "terms", [])]
+
+    def objective_report(self, alpha) -> dict:
+        """{type, value, terms} of the objective at α (the combined load cases' value; the terms'
+        values, unweighted, of the case the combination picks), e.g. for state.json."""
+        comb = self.evaluate_cases(alpha)
+        obj = self.cases[comb.case].objective
+        out = {"type": self.config["objective"]["type"], "value": float(comb.value), "terms": {}}
+        for name, weight, _ in getattr(obj, "terms", []):
+            out["terms"][name] = {"value": obj.last_terms[name], "weight": weight}
+        return out
 
     def _of(self, k: int) -> str:
         return f" of load case {self.cases[k].name}" if len(self.cases) > 1 else ""
