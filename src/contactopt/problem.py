@@ -247,12 +247,16 @@ class ShapeProblem:
         """The names of the [[objective.terms]] (their type, numbered from the second of a type on)."""
         return [t[0] for t in getattr(self.objective, "terms", [])]
 
-    def objective_report(self, alpha) -> dict:
-        """{type, value, terms} of the objective at α (the combined load cases' value; the terms'
-        values, unweighted, of the case the combination picks), e.g. for state.json."""
-        comb = self.evaluate_cases(alpha)
-        obj = self.cases[comb.case].objective
-        out = {"type": self.config["objective"]["type"], "value": float(comb.value), "terms": {}}
+    def objective_report(self, alpha, case: int | None = None, **kw) -> dict:
+        """{type, value, terms} of the objective at α, e.g. for state.json: the combined load
+        cases' value (``case`` None; the terms of the case the combination picks) or load case
+        ``case``'s own Θ_k and terms. ``terms`` maps each term's name to its value (unweighted)
+        and weight; empty without [[objective.terms]]. ``kw`` go to :meth:`solve_state`."""
+        comb = self.evaluate_cases(alpha, **kw)
+        k = comb.case if case is None else case
+        obj = self.cases[k].objective
+        value = comb.value if case is None else float(comb.values[case])
+        out = {"type": self.config["objective"]["type"], "value": float(value), "terms": {}}
         for name, weight, _ in getattr(obj, "terms", []):
             out["terms"][name] = {"value": obj.last_terms[name], "weight": weight}
         return out

@@ -48,9 +48,10 @@ HISTORY_FIELDS = ["evaluation", "iteration", "f", "subgradient_norm", "degenerat
 def history_fields(problem) -> list[str]:
     """The columns of history.csv: with load cases also Θ_k per case (``f_<name>``, unweighted)
     and the names of the active cases (separated by ';')."""
+    terms = [f"term_{name}" for name in problem.term_names()]     # [[objective.terms]], unweighted
     if not problem.has_load_cases:
-        return HISTORY_FIELDS
-    return HISTORY_FIELDS + [f"f_{name}" for name in problem.case_names] + ["active_cases"]
+        return HISTORY_FIELDS + terms
+    return HISTORY_FIELDS + [f"f_{name}" for name in problem.case_names] + ["active_cases"] + terms
 
 
 class RunAborted(ContactOptError):
@@ -148,6 +149,7 @@ class _Oracle:
                f"{time.perf_counter() - self.t_start:.3f}"]
         if self.problem.has_load_cases:
             row += [repr(float(v)) for v in res.case_values] + [";".join(res.active_cases)]
+        row += [repr(float(v)) for v in res.terms.values()]
         with open(self.history_path, "a", newline="") as fh:
             csv.writer(fh).writerow(row)
         return res.value / self.scale, res.gradient / self.scale
@@ -409,6 +411,9 @@ def _finish(out: Path, problem, alpha0, res, oracle, t_start) -> dict:
     }
     if model.foundation is not None:
         summary["foundation"] = model.foundation.summary()
+    if problem.term_names():            # each term's value at α0 and at the optimum
+        summary["objective"] = {"J0": problem.objective_report(alpha0, warm_start=False),
+                                "J": problem.objective_report(x, warm_start=False)}
     if problem.has_load_cases:
         summary["load_cases"] = _load_case_outputs(out, problem, (c0, states0), (c1, states1))
     summary["export"] = _export(out, model, x)

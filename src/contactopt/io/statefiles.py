@@ -63,8 +63,9 @@ CONVENTIONS = {
 }
 
 
-def state_json(model, state: State, config=None) -> dict:
-    """The content of state.json: summary, design, contact arrays as lists, conventions."""
+def state_json(model, state: State, config=None, objective=None) -> dict:
+    """The content of state.json: summary, design, contact arrays as lists, conventions, and
+    ``objective`` ({type, value, terms}) when given."""
     doc = {
         "format_version": FORMAT_VERSION,
         "summary": state.summary(),
@@ -91,6 +92,8 @@ def state_json(model, state: State, config=None) -> dict:
         doc["contact"]["u_partner"] = np.asarray(state.info["u_partner"], float).tolist()
     if getattr(model, "foundation", None) is not None:
         doc["foundation"] = model.foundation.summary()
+    if objective is not None:
+        doc["objective"] = objective
     if config is not None:
         doc["config"] = getattr(config, "data", config)
     return doc
@@ -156,11 +159,13 @@ def _move_into(tmpdir: Path, outdir: Path, names=STATE_FILES) -> None:
     fsync_dir(outdir)
 
 
-def write_state(outdir, model, state: State, *, config=None) -> dict:
+def write_state(outdir, model, state: State, *, config=None, objective=None) -> dict:
     """Write the files of :data:`STATE_FILES` into ``outdir``, all or nothing.
 
     ``config`` (a :class:`~contactopt.config.Config` or a plain dict), when given, is stored
-    resolved in state.json under ``"config"``. Existing files of the same names are replaced;
+    resolved in state.json under ``"config"``; ``objective`` ({type, value, terms}: the objective
+    at the state's design, :meth:`contactopt.problem.ShapeProblem.objective_report`) under
+    ``"objective"``. Existing files of the same names are replaced;
     other files in ``outdir`` are left alone. Returns ``{file name: Path}`` of the written files.
     Raises ``ValueError`` for a state with non-finite arrays (nothing is written).
     """
@@ -170,7 +175,7 @@ def write_state(outdir, model, state: State, *, config=None) -> dict:
     parent.mkdir(parents=True, exist_ok=True)
     tmpdir = Path(tempfile.mkdtemp(prefix=f".{outdir.name}.", suffix=".tmp", dir=parent))
     try:
-        atomic_write_json(tmpdir / "state.json", state_json(model, state, config))
+        atomic_write_json(tmpdir / "state.json", state_json(model, state, config, objective))
         atomic_savez(tmpdir / "state.npz", **_state_arrays(model, state))
         vtk.write_body_vtu(tmpdir / "body.vtu", model, state)
         plots.plot_contact_field(tmpdir / "lambda.png", model, state.lam,
