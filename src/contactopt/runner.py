@@ -9,7 +9,8 @@ Layout of a run directory::
     checkpoint.npz     optimizer + oracle state after the last iteration (written atomically)
     summary.json       DESIGN.md §7 fields
     alpha.json         optimal control points;  surface.csv  ϑ_α on a grid
-    stress.png, pressure.png, surface.png, history.png, classes.png
+    stress.png, pressure.png, surface.png, history.png, classes.png, contact.png (pressure, ‖τ‖,
+                       slip, stick/slip), von_mises.png (the largest von Mises stresses)
     initial.vtu, optimal.vtu, bodies.pvd
     optimal_body.msh (the input's format) + optimal_body.toml, optimal_body.stl,
     contact_surface.step, contact_surface.iges   the optimal design for CAD and other FE tools
@@ -387,6 +388,10 @@ def _finish(out: Path, problem, alpha0, res, oracle, t_start) -> dict:
     plot_stress_comparison(out / "pressure.png", model, p_target, p0, p1, zlabel="contact pressure $p = \\lambda/a$")
     plot_surface(out / "surface.png", model, x)
     plot_node_classes(out / "classes.png", model, s1.classes)
+    from .io.plots import plot_contact_response, plot_peak_stress
+    plot_contact_response(out / "contact.png", model, p1, s1.tau, s1.u_c[:, :2], s1.classes,
+                          title="optimal design")
+    plot_peak_stress(out / "von_mises.png", model, s1.coords, s1.u, title="optimal design")
     plot_history(out / "history.png", [{**r, "kind": r.get("step")} for r in res.history])
     atomic_write_text(out / "iterations.csv", "iteration,J,step,t,stationarity,evaluations\n" + "".join(
         f"{r['iteration']},{r['f'] * oracle.scale!r},{r['step']},{r['t']:.6e},{r['stationarity']:.6e},"

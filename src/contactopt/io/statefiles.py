@@ -1,4 +1,6 @@
-"""The files of one state solve: state.json, state.npz, body.vtu, lambda.png, pressure.png, classes.png.
+"""The files of one state solve: state.json, state.npz, body.vtu, lambda.png, pressure.png, classes.png,
+contact.png (pressure, ‖τ‖, slip ‖u_t‖, stick/slip) and von_mises.png (where the von Mises stress
+is largest, the peak marked).
 
 :func:`write_state` is all-or-nothing: every file is first built in a temporary sibling directory
 of ``outdir``; only when all of them succeeded are they moved into ``outdir`` (each by an atomic
@@ -45,7 +47,8 @@ log = logging.getLogger(__name__)
 
 __all__ = ["STATE_FILES", "FOUNDATION_FILES", "state_files", "write_state", "read_state_npz", "state_json"]
 
-STATE_FILES = ("state.json", "state.npz", "body.vtu", "lambda.png", "pressure.png", "classes.png")
+STATE_FILES = ("state.json", "state.npz", "body.vtu", "lambda.png", "pressure.png", "classes.png", "contact.png",
+               "von_mises.png")
 FOUNDATION_FILES = ("foundation.vtu", "foundation.png")      # with an elastic [foundation]
 FORMAT_VERSION = 1
 
@@ -183,6 +186,10 @@ def write_state(outdir, model, state: State, *, config=None, objective=None) -> 
         plots.plot_contact_field(tmpdir / "pressure.png", model, contact_pressure(model, state.lam, state.coords),
                                  "Contact pressure $p = \\lambda / a$", cmap="viridis", label="$p$")
         plots.plot_node_classes(tmpdir / "classes.png", model, state.classes)
+        plots.plot_contact_response(tmpdir / "contact.png", model, contact_pressure(model, state.lam, state.coords),
+                                    state.tau, np.asarray(state.u_c)[:, :2], state.classes)
+        plots.plot_peak_stress(tmpdir / "von_mises.png", model, np.asarray(state.coords, float),
+                               np.asarray(state.u, float))
         if getattr(model, "foundation", None) is not None:
             vtk.write_foundation_vtu(tmpdir / "foundation.vtu", model.foundation, state)
             plots.plot_contact_field(tmpdir / "foundation.png", model, -np.asarray(state.info["u_partner"])[:, 2],
