@@ -12,8 +12,8 @@ and on the axis (ζ = z/a) σ_z = −p0/(1 + ζ²), σ_r = σ_θ = p0[−(1 + ν
 so σ_vM = |σ_z − σ_r|, whose maximum at ν = 0.3 is 0.620 p0 at ζ = 0.481. The mesh is uniform
 (h = a/n) in a cube of side 3a around the contact centre and graded outside; L = H = 8a.
 
-Run: ``PYTHONPATH=src python benchmarks/bench_hertz.py [n ...]`` (default n = 3 4 6 8): one row
-per refinement, FE peak against the analytic value and the depth of the peak. Results in
+Run: ``PYTHONPATH=src python benchmarks/bench_hertz.py [n ...] [--figure PNG]`` (default n = 3 4
+6 8): one row per refinement, FE peak against the analytic value and the depth of the peak. Results in
 docs/objectives.md.
 """
 
@@ -110,7 +110,8 @@ def hertz_peak(n: int, *, a: float = A_TARGET, path: str = "condensation", workd
         obj = problem.objective
         vm = obj.values(state)
         e, q = np.unravel_index(int(np.argmax(vm)), vm.shape)
-        x = quadrature_points(model.assembler, state.coords, obj.cells[[e]])[0, q]
+        xq = quadrature_points(model.assembler, state.coords, obj.cells)
+        x = xq[e, q]
         seconds = time.perf_counter() - t0
     P = float(state.lam.sum())
     Es = E / (1 - NU ** 2)
@@ -121,20 +122,61 @@ def hertz_peak(n: int, *, a: float = A_TARGET, path: str = "condensation", workd
             "p0": p0, "peak": float(vm[e, q]), "peak_over_p0": float(vm[e, q]) / p0,
             "analytic_over_p0": ratio, "error": float(vm[e, q]) / (ratio * p0) - 1.0,
             "depth_over_a": float(x[2]) / a_h, "analytic_depth": zeta, "r_over_a": float(np.hypot(x[0], x[1])) / a_h,
-            "contact_radius_nodes": int(np.sum(state.lam > 0)), "seconds": seconds}
+            "contact_radius_nodes": int(np.sum(state.lam > 0)), "seconds": seconds,
+            "axis": _near_axis(xq.reshape(-1, 3), vm.ravel(), a_h, p0)}
+
+
+def _near_axis(x, vm, a, p0, radius=0.25):
+    """(depth/a, σ_vM/p0) at the quadrature points within ``radius``·a of the axis, by depth."""
+    near = (np.hypot(x[:, 0], x[:, 1]) < radius * a) & (x[:, 2] < 2.5 * a)
+    order = np.argsort(x[near, 2])
+    return x[near, 2][order] / a, vm[near][order] / p0
+
+
+def axis_figure(path, rows):
+    """σ_vM/p0 against depth/a near the axis for each refinement, and Hertz's curve on it."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+    fig = Figure(figsize=(6.4, 4.2), layout="constrained")
+    FigureCanvasAgg(fig)
+    ax = fig.add_subplot()
+    z = np.linspace(1e-3, 2.5, 400)
+    sz = -1.0 / (1.0 + z * z)
+    sr = -(1.0 + NU) * (1.0 - z * np.arctan(1.0 / z)) + 0.5 / (1.0 + z * z)
+    ax.plot(z, np.abs(sz - sr), "k-", lw=1.5, label="Hertz, on the axis")
+    for r, marker in zip(rows, "os^dv"):
+        d, v = r["axis"]
+        ax.plot(d, v, marker, ms=3.5, alpha=0.7, label=f"n = {r['n']} (quadrature points, r < a/4)")
+    ratio, zeta = hertz_axis()
+    ax.axvline(zeta, color="0.6", lw=0.8, ls="--")
+    ax.set_xlabel("depth $z/a$")
+    ax.set_ylabel("$\\sigma_{vM} / p_0$")
+    ax.set_title(f"Hertz contact, $\\nu$ = {NU}: peak {ratio:.3f} $p_0$ at $z$ = {zeta:.3f} $a$", fontsize=10)
+    ax.legend(fontsize=8)
+    fig.savefig(path, dpi=120)
 
 
 def main(argv=None):
-    ns = [int(v) for v in (argv or [])] or [3, 4, 6, 8]
+    argv = list(argv or [])
+    figure = None
+    if "--figure" in argv:
+        k = argv.index("--figure")
+        figure = argv[k + 1]
+        del argv[k:k + 2]
+    ns = [int(v) for v in argv] or [3, 4, 6, 8]
+    rows = []
     ratio, zeta = hertz_axis()
     print(f"Hertz on the axis, nu = {NU}: max von Mises {ratio:.4f} p0 at depth {zeta:.4f} a")
     print("| n = a/h | free DOFs | P | a (Hertz) | p0 | peak σ_vM/p0 | error | depth/a | r/a | time s |")
     print("|---|---|---|---|---|---|---|---|---|---|")
     for n in ns:
         r = hertz_peak(n)
+        rows.append(r)
         print(f"| {n} | {r['dofs']} | {r['P']:.5g} | {r['a']:.4f} | {r['p0']:.4f} | {r['peak_over_p0']:.4f} | "
               f"{100 * r['error']:+.2f} % | {r['depth_over_a']:.3f} | {r['r_over_a']:.3f} | {r['seconds']:.1f} |",
               flush=True)
+    if figure:
+        axis_figure(figure, rows)
 
 
 if __name__ == "__main__":
