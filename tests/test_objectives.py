@@ -335,3 +335,18 @@ def test_load_cases_each_have_their_own_loads_in_the_design_term():
     assert np.max(rep.rel_errors) <= 1e-6, rep.rel_errors
     res = problem.subgradient(alpha)
     assert len(res.case_values) == 2 and np.all(res.case_values > 0)
+
+
+def test_the_vtu_and_the_maps_show_the_peak_stress(tmp_path):
+    from contactopt.io import plots, vtk
+    problem = hex_problem({"type": "peak_stress"}, "condensation")
+    alpha = wavy(problem)
+    st = problem.solve_state(alpha)
+    peak = problem.objective.evaluate(st, None)[0]
+    vtk.write_body_vtu(tmp_path / "b.vtu", problem.model, st)
+    cell = meshio.read(tmp_path / "b.vtu").cell_data["von_mises_max"][0]
+    assert abs(cell.max() - peak) <= 1e-12 * peak
+    assert np.all(cell >= meshio.read(tmp_path / "b.vtu").cell_data["von_mises"][0] * (1 - 1e-12))
+    plots.plot_peak_stress(tmp_path / "vm.png", problem.model, st.coords, st.u)
+    plots.plot_contact_response(tmp_path / "c.png", problem.model, st.lam, st.tau, st.u_c[:, :2], st.classes)
+    assert (tmp_path / "vm.png").stat().st_size > 10000 and (tmp_path / "c.png").stat().st_size > 10000

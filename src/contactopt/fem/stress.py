@@ -22,6 +22,8 @@ import numpy as np
 
 from .elasticity import element_geometry
 
+_CHUNK = 8192        # elements per chunk of von_mises_points
+
 
 def _fields(assembler, coords, u_full, cells):
     X = coords[assembler.elements[cells]]
@@ -39,7 +41,11 @@ def von_mises_points(assembler, coords: np.ndarray, u_full: np.ndarray, cells=No
     """σ_vM at the quadrature points of the stiffness rule: (E, Q) for the elements ``cells``
     (all by default) of the displacement ``u_full`` (3·n_nodes) on the mesh ``coords``."""
     cells = np.arange(assembler.elements.shape[0]) if cells is None else np.asarray(cells)
-    return _fields(assembler, coords, u_full, cells)[3]
+    if cells.size <= _CHUNK:
+        return _fields(assembler, coords, u_full, cells)[3]
+    # in element chunks: the gradients (E, Q, k, 3) of a large mesh need not be held at once
+    return np.concatenate([_fields(assembler, coords, u_full, cells[i:i + _CHUNK])[3]
+                           for i in range(0, cells.size, _CHUNK)])
 
 
 def von_mises_gradients(assembler, coords: np.ndarray, u_full: np.ndarray, cells, weights: np.ndarray):
