@@ -191,7 +191,7 @@ OBJECTIVES = {
                                       "target": {"kind": "constant", "value": 0.001}}]},
 }
 FAST = {("hex", "condensation", "peak_stress"), ("hex", "condensation", "max_pressure"),
-        ("hex", "condensation", "frictional_dissipation"), ("hex", "condensation", "sum"),
+        ("hex", "condensation", "sum"),
         ("tet", "delassus", "peak_stress"), ("tet", "fullspace", "frictional_dissipation")}
 
 
@@ -330,7 +330,7 @@ def test_load_cases_each_have_their_own_loads_in_the_design_term():
                                 {"type": "peak_stress", "aggregate": "ks", "rho": 20.0, "weight": 1e-4}]}})
     problem = ShapeProblem(cfg)
     alpha = wavy(problem)
-    rep = check_gradient(problem, alpha, seed=2, n_directions=2)
+    rep = check_gradient(problem, alpha, seed=2, n_directions=1)
     assert rep.n_degenerate == 0
     assert np.max(rep.rel_errors) <= 1e-6, rep.rel_errors
     res = problem.subgradient(alpha)
