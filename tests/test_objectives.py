@@ -350,3 +350,15 @@ def test_the_vtu_and_the_maps_show_the_peak_stress(tmp_path):
     plots.plot_peak_stress(tmp_path / "vm.png", problem.model, st.coords, st.u)
     plots.plot_contact_response(tmp_path / "c.png", problem.model, st.lam, st.tau, st.u_c[:, :2], st.classes)
     assert (tmp_path / "vm.png").stat().st_size > 10000 and (tmp_path / "c.png").stat().st_size > 10000
+
+
+def test_a_design_target_in_a_sum_is_solved_before_the_state():
+    """A term's 'design' target solves a state at its own design: it is computed before the
+    state and its adjoint (else the adjoint would run on that design's factorization)."""
+    problem = hex_problem({"type": "sum", "terms": [
+        {"type": "target_normal_force", "weight": 1.0, "target": {"kind": "design", "alpha": 0.012}},
+        {"type": "peak_stress", "aggregate": "ks", "rho": 20.0, "weight": 1e-3}]}, "condensation")
+    alpha = wavy(problem)
+    rep = check_gradient(problem, alpha, seed=3, n_directions=1)
+    assert rep.n_degenerate == 0
+    assert np.max(rep.rel_errors) <= 1e-6, rep.rel_errors

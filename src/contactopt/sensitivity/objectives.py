@@ -272,6 +272,17 @@ class WeightedSum(Objective):
         self.last_terms = {}
 
     @property
+    def target(self):
+        """The target of the first target_normal_force term, else None. Reading it computes every
+        term's target: a 'design' target solves a state, which must not come between a state and
+        its adjoint (:meth:`contactopt.problem.ShapeProblem.prepare_objectives`)."""
+        out = None
+        for _, _, o in self.terms:
+            t = getattr(o, "target", None)
+            out = t if out is None else out
+        return out
+
+    @property
     def loads(self):
         return self.terms[0][2].loads if self.terms else None
 
