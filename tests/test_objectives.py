@@ -362,3 +362,18 @@ def test_a_design_target_in_a_sum_is_solved_before_the_state():
     rep = check_gradient(problem, alpha, seed=3, n_directions=1)
     assert rep.n_degenerate == 0
     assert np.max(rep.rel_errors) <= 1e-6, rep.rel_errors
+
+
+def test_load_cases_give_their_targets_to_a_target_normal_force_term():
+    base = Path(__file__).resolve().parents[1] / "examples" / "example1_two_cases.toml"
+    data = load_config(base).with_updates({"mesh": {"nx": 8, "ny": 4, "nz": 3}}).data
+    data["load_cases"][1]["target"] = {"kind": "constant", "value": 0.002}
+    data["objective"] = {"combine": "max", "terms": [
+        {"type": "target_normal_force", "target": {"kind": "constant", "value": 0.001}},
+        {"type": "max_pressure", "weight": 0.5}]}
+    problem = ShapeProblem(load_config(data))
+    targets = [c.objective.terms[0][2].target for c in problem.cases]
+    assert np.all(targets[0] == 0.001) and np.all(targets[1] == 0.002)
+    data["objective"]["terms"] = [{"type": "max_pressure"}]
+    with pytest.raises(ConfigError, match="a case's target"):
+        load_config(data)

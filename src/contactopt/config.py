@@ -457,7 +457,9 @@ def _check_combination(raw, data, problems):
     if cases and w and all(_nonneg(v) for v in w) and not any(v > 0 for v in w) and (
             isinstance(weights, list) or len(weights) == len(cases)):
         problems.append("objective.weights: at least one load case must weigh more than 0")
-    if any("target" in c for c in cases) and obj["type"] != "target_normal_force":
+    has_target = obj["type"] == "target_normal_force" or any(
+        isinstance(t, dict) and t.get("type") == "target_normal_force" for t in obj.get("terms") or [])
+    if any("target" in c for c in cases) and not has_target:
         problems.append(f"load_cases: a case's target is the target of objective.type = "
                         f"'target_normal_force', not {obj['type']!r}")
 
