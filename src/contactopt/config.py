@@ -73,6 +73,9 @@ def _part_spec(x):
     return True
 
 
+OBJECTIVE_TYPES = ("target_normal_force", "compliance", "pressure_uniformity", "max_pressure",
+                   "frictional_dissipation", "peak_stress")
+_PART_SHORT = "a part (a group name or a predicate table)"
 _PART = "a part: a group name such as \"bottom\", or a predicate table such as { x1 = 0.0 } or { box = [[x1lo, x1hi], [x2lo, x2hi], [x3lo, x3hi]] }"
 
 
@@ -188,11 +191,25 @@ SCHEMA = {
     },
     "objective": {
         "type": ("target_normal_force",
-                 _oneof("target_normal_force", "compliance", "pressure_uniformity"),
-                 "'target_normal_force', 'compliance' or 'pressure_uniformity'"),
+                 _oneof(*OBJECTIVE_TYPES, "sum"),
+                 "'target_normal_force', 'compliance', 'pressure_uniformity' (the spread Σ a_m (p_m − p̄)² "
+                 "of the contact pressure p_m = λ_m/a_m), 'max_pressure', 'frictional_dissipation' "
+                 "(Σ τ_m·u_t,m), 'peak_stress' (the largest von Mises stress of `region`) or 'sum' (of "
+                 "[[objective.terms]]; implied by them)"),
         "target": ({"kind": "constant", "value": 0.0}, lambda x: isinstance(x, dict),
                    "a table with 'kind' = 'constant' | 'step' | 'values' | 'design'"),
         "scale": (1.0, _pos, "a number > 0 (multiplies the objective)"),
+        "region": ("", lambda x: x == "" or _part_spec(x),
+                   "empty (the whole body) or " + _PART_SHORT + " (peak_stress: the elements with every "
+                   "node in the part, or with a node in it for a boundary part)"),
+        "aggregate": ("max", _oneof("max", "ks", "pnorm"),
+                      "'max' (nonsmooth, exact), 'ks' (max + ln Σ exp(ρ(x − max))/ρ) or 'pnorm' "
+                      "((Σ x^p)^(1/p)): how peak_stress and max_pressure take the largest value"),
+        "rho": (50.0, _pos, "a number > 0 (aggregate 'ks': ρ, in 1/units of the stress or pressure)"),
+        "p": (8.0, _pos, "a number > 0 (aggregate 'pnorm': the exponent)"),
+        "terms": ([], lambda x: isinstance(x, list) and all(isinstance(t, dict) for t in x),
+                  "an array of tables [[objective.terms]], each with `type`, `weight` (≥ 0, default 1) "
+                  "and that type's keys (region, aggregate, rho, p, target): the objective is Σ weight·J_term"),
         "combine": ("max", _oneof("max", "sum"),
                     "'max' (the worst of the [[load_cases]]) or 'sum' (their weighted sum); "
                     "'sum' needs load cases"),
@@ -465,9 +482,63 @@ def _check_combination(raw, data, problems):
     if cases and w and all(_nonneg(v) for v in w) and not any(v > 0 for v in w) and (
             isinstance(weights, list) or len(weights) == len(cases)):
         problems.append("objective.weights: at least one load case must weigh more than 0")
-    if any("target" in c for c in cases) and obj["type"] != "target_normal_force":
+    has_target = obj["type"] == "target_normal_force" or any(
+        isinstance(t, dict) and t.get("type") == "target_normal_force" for t in obj.get("terms") or [])
+    if any("target" in c for c in cases) and not has_target:
         problems.append(f"load_cases: a case's target is the target of objective.type = "
                         f"'target_normal_force', not {obj['type']!r}")
+
+
+TERM_KEYS = {"type", "weight", "region", "aggregate", "rho", "p", "target"}
+
+
+def _check_objective(raw, data, d1d2, problems):
+    """[[objective.terms]]: each a known type with its weight and keys (defaults filled in); with
+    terms the type is 'sum' (implied), and 'sum' needs terms."""
+    obj = data["objective"]
+    given = raw.get("objective", {}) if isinstance(raw.get("objective"), dict) else {}
+    terms = obj["terms"] if isinstance(obj["terms"], list) else []
+    if terms and "type" not in given:
+        obj["type"] = "sum"
+    if terms and obj["type"] != "sum":
+        problems.append(f"objective.type = {obj['type']!r}: with [[objective.terms]] the objective is their "
+                        "weighted sum (write type = 'sum' or leave it out)")
+    if obj["type"] == "sum" and not terms:
+        problems.append("objective.type = 'sum': needs [[objective.terms]]")
+    out = []
+    for n, t in enumerate(terms):
+        key = f"objective.terms[{n}]"
+        for k in t:
+            if k not in TERM_KEYS:
+                problems.append(f"{key}.{k}: unknown key (allowed: {', '.join(sorted(TERM_KEYS))})")
+        if t.get("type") not in OBJECTIVE_TYPES:
+            problems.append(f"{key}.type = {t.get('type')!r}: must be one of "
+                            f"{', '.join(repr(v) for v in OBJECTIVE_TYPES)}")
+        term = {"type": t.get("type")}
+        for k in ("weight", "region", "aggregate", "rho", "p"):
+            default, check, desc = (1.0, _nonneg, "a number ≥ 0") if k == "weight" else SCHEMA["objective"][k]
+            val = t.get(k, default)
+            try:
+                ok = check(val)
+            except Exception:
+                ok = False
+            if not ok:
+                problems.append(f"{key}.{k} = {val!r}: must be {desc}")
+            term[k] = float(val) if isinstance(val, int) and not isinstance(val, bool) and k != "region" else val
+        if "target" in t:
+            if t.get("type") != "target_normal_force":
+                problems.append(f"{key}.target: only a target_normal_force term has a target")
+            elif isinstance(t["target"], dict):
+                _check_target(t["target"], d1d2, problems, key=f"{key}.target")
+            else:
+                problems.append(f"{key}.target: must be a table like objective.target")
+            term["target"] = t["target"]
+        elif t.get("type") == "target_normal_force":
+            term["target"] = {"kind": "constant", "value": 0.0}
+        out.append(term)
+    if terms and not any(_nonneg(t["weight"]) and t["weight"] > 0 for t in out):
+        problems.append("objective.terms: at least one term must weigh more than 0")
+    obj["terms"] = out if terms else obj["terms"]
 
 
 def _check_body(raw, data, problems):
@@ -637,6 +708,7 @@ def validate(raw: dict, source: str = "<dict>") -> Config:
         _check_target(data["objective"]["target"], d1d2, problems)
     if "load_cases" in raw:
         data["load_cases"] = _check_load_cases(raw["load_cases"], d1d2, problems)
+    _check_objective(raw, data, d1d2, problems)
     _check_combination(raw, data, problems)
     _check_body(raw, data, problems)
     if "foundation" in raw:

@@ -9,7 +9,8 @@ Layout of a run directory::
     checkpoint.npz     optimizer + oracle state after the last iteration (written atomically)
     summary.json       DESIGN.md §7 fields
     alpha.json         optimal control points;  surface.csv  ϑ_α on a grid
-    stress.png, pressure.png, surface.png, history.png, classes.png
+    stress.png, pressure.png, surface.png, history.png, classes.png, contact.png (pressure, ‖τ‖,
+                       slip, stick/slip), von_mises.png (the largest von Mises stresses)
     initial.vtu, optimal.vtu, bodies.pvd
     optimal_body.msh (the input's format) + optimal_body.toml, optimal_body.stl,
     contact_surface.step, contact_surface.iges   the optimal design for CAD and other FE tools
@@ -48,9 +49,10 @@ HISTORY_FIELDS = ["evaluation", "iteration", "f", "subgradient_norm", "degenerat
 def history_fields(problem) -> list[str]:
     """The columns of history.csv: with load cases also Θ_k per case (``f_<name>``, unweighted)
     and the names of the active cases (separated by ';')."""
+    terms = [f"term_{name}" for name in problem.term_names()]     # [[objective.terms]], unweighted
     if not problem.has_load_cases:
-        return HISTORY_FIELDS
-    return HISTORY_FIELDS + [f"f_{name}" for name in problem.case_names] + ["active_cases"]
+        return HISTORY_FIELDS + terms
+    return HISTORY_FIELDS + [f"f_{name}" for name in problem.case_names] + ["active_cases"] + terms
 
 
 class RunAborted(ContactOptError):
@@ -148,6 +150,7 @@ class _Oracle:
                f"{time.perf_counter() - self.t_start:.3f}"]
         if self.problem.has_load_cases:
             row += [repr(float(v)) for v in res.case_values] + [";".join(res.active_cases)]
+        row += [repr(float(v)) for v in res.terms.values()]
         with open(self.history_path, "a", newline="") as fh:
             csv.writer(fh).writerow(row)
         return res.value / self.scale, res.gradient / self.scale
@@ -385,6 +388,10 @@ def _finish(out: Path, problem, alpha0, res, oracle, t_start) -> dict:
     plot_stress_comparison(out / "pressure.png", model, p_target, p0, p1, zlabel="contact pressure $p = \\lambda/a$")
     plot_surface(out / "surface.png", model, x)
     plot_node_classes(out / "classes.png", model, s1.classes)
+    from .io.plots import plot_contact_response, plot_peak_stress
+    plot_contact_response(out / "contact.png", model, p1, s1.tau, s1.u_c[:, :2], s1.classes,
+                          title="optimal design")
+    plot_peak_stress(out / "von_mises.png", model, s1.coords, s1.u, title="optimal design")
     plot_history(out / "history.png", [{**r, "kind": r.get("step")} for r in res.history])
     atomic_write_text(out / "iterations.csv", "iteration,J,step,t,stationarity,evaluations\n" + "".join(
         f"{r['iteration']},{r['f'] * oracle.scale!r},{r['step']},{r['t']:.6e},{r['stationarity']:.6e},"
@@ -409,6 +416,9 @@ def _finish(out: Path, problem, alpha0, res, oracle, t_start) -> dict:
     }
     if model.foundation is not None:
         summary["foundation"] = model.foundation.summary()
+    if problem.term_names():            # each term's value at α0 and at the optimum
+        summary["objective"] = {"J0": problem.objective_report(alpha0, warm_start=False),
+                                "J": problem.objective_report(x, warm_start=False)}
     if problem.has_load_cases:
         summary["load_cases"] = _load_case_outputs(out, problem, (c0, states0), (c1, states1))
     summary["export"] = _export(out, model, x)
