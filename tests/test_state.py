@@ -19,7 +19,7 @@ def random_admissible(model, seed, amp=0.003):
     return a
 
 
-@pytest.mark.parametrize("example", ["example1", "example2"])
+@pytest.mark.parametrize("example", [pytest.param("example1", marks=pytest.mark.integration), "example2"])
 def test_newton_and_fixed_point_agree_and_the_contact_conditions_hold(example):
     newton, fixed = ShapeProblem(example, method="newton"), ShapeProblem(example, method="fixed-point")
     model = newton.model
