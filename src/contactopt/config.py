@@ -518,12 +518,7 @@ def _check_objective(raw, data, d1d2, problems):
         for k in ("weight", "region", "aggregate", "rho", "p"):
             default, check, desc = (1.0, _nonneg, "a number ≥ 0") if k == "weight" else SCHEMA["objective"][k]
             val = t.get(k, default)
-            try:
-                ok = check(val)
-            except Exception:
-                ok = False
-            if not ok:
-                problems.append(f"{key}.{k} = {val!r}: must be {desc}")
+            _check_value(f"{key}.{k}", val, check, desc, problems)
             term[k] = float(val) if isinstance(val, int) and not isinstance(val, bool) and k != "region" else val
         if "target" in t:
             if t.get("type") != "target_normal_force":
@@ -657,6 +652,16 @@ def _legacy_backend(raw: dict, source: str, problems: list) -> dict:
     return {**raw, "linear_solver": new}
 
 
+def _check_value(key: str, val, check, desc: str, problems: list) -> None:
+    """Append ``"key = val: must be desc"`` to ``problems`` when ``check(val)`` fails or raises."""
+    try:
+        ok = check(val)
+    except Exception:
+        ok = False
+    if not ok:
+        problems.append(f"{key} = {val!r}: must be {desc}")
+
+
 def _check_table(given: dict, keys: dict, sec: str, problems: list) -> dict:
     """The keys of table ``sec`` with their defaults filled in; unknown keys and values that fail
     their check are appended to ``problems`` (an integer where a float is expected becomes one)."""
@@ -666,12 +671,7 @@ def _check_table(given: dict, keys: dict, sec: str, problems: list) -> dict:
     out = {}
     for k, (default, check, desc) in keys.items():
         val = given.get(k, copy.deepcopy(default))
-        try:
-            ok = check(val)
-        except Exception:
-            ok = False
-        if not ok:
-            problems.append(f"{sec}.{k} = {val!r}: must be {desc}")
+        _check_value(f"{sec}.{k}", val, check, desc, problems)
         out[k] = float(val) if isinstance(val, int) and isinstance(default, float) and not isinstance(val, bool) else val
     return out
 

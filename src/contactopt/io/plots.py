@@ -84,6 +84,17 @@ def contact_grid(model, values=None):
     return X1, X2, v.reshape(ny + 1, nx)
 
 
+
+def _categories(ax, model, codes, cmap, norm) -> None:
+    """A per-node category (node class, stick/slip) on the contact face: cells on a grid face,
+    coloured nodes on the triangulation of any other face."""
+    if _has_grid(model):
+        _pcolor(ax, model, contact_grid(model, codes)[2], cmap=cmap, norm=norm, edgecolors="white", linewidth=0.3)
+    else:
+        tri = face_triangulation(model)
+        ax.triplot(tri, color="0.8", linewidth=0.4)
+        ax.scatter(tri.x, tri.y, c=codes, cmap=cmap, norm=norm, s=14, edgecolors="0.3", linewidths=0.3)
+
 def _has_grid(model) -> bool:
     if not hasattr(model.mesh, "nx"):
         return False
@@ -201,12 +212,7 @@ def plot_node_classes(path, model, classes, title="Contact node classes (Table 4
     norm = BoundaryNorm(np.arange(-0.5, len(CLASS_NAMES) + 0.5), cmap.N)
     fig = _new_figure(_figsize_map(model, extra_width=2.6))
     ax = _map_axes(fig, model)
-    if _has_grid(model):
-        _pcolor(ax, model, contact_grid(model, codes)[2], cmap=cmap, norm=norm, edgecolors="white", linewidth=0.3)
-    else:
-        tri = face_triangulation(model)
-        ax.triplot(tri, color="0.8", linewidth=0.4)
-        ax.scatter(tri.x, tri.y, c=codes, cmap=cmap, norm=norm, s=14, edgecolors="0.3", linewidths=0.3)
+    _categories(ax, model, codes, cmap, norm)
     handles = [Patch(facecolor=CLASS_COLORS[k], edgecolor="0.4",
                      label=f"{CLASS_LABELS[k]} ({int(np.sum(codes == k))}): {CLASS_DESCRIPTIONS[k]}")
                for k in range(len(CLASS_NAMES))]
@@ -460,12 +466,7 @@ def plot_contact_response(path, model, pressure, tau, u_t, classes, *, title=Non
     ax = _map_axes(fig, model, (2, 2, 4))
     cmap = ListedColormap(SLIP_COLORS, name="stick_slip")
     norm = BoundaryNorm(np.arange(-0.5, 3.5), cmap.N)
-    if _has_grid(model):
-        _pcolor(ax, model, contact_grid(model, status)[2], cmap=cmap, norm=norm, edgecolors="white", linewidth=0.3)
-    else:
-        tri = face_triangulation(model)
-        ax.triplot(tri, color="0.8", linewidth=0.4)
-        ax.scatter(tri.x, tri.y, c=status, cmap=cmap, norm=norm, s=14, edgecolors="0.3", linewidths=0.3)
+    _categories(ax, model, status, cmap, norm)
     ax.legend(handles=[Patch(facecolor=SLIP_COLORS[k], edgecolor="0.4",
                              label=f"{SLIP_LABELS[k]} ({int(np.sum(status == k))})") for k in range(3)],
               loc="upper left", bbox_to_anchor=(1.02, 1.0), fontsize=8, frameon=False)
