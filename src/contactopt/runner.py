@@ -261,10 +261,10 @@ def run_optimization(config, outdir=None, *, eps=None, max_iter=None, resume=Fal
     t_setup = time.perf_counter() - t_setup
     model = problem.model
     alpha0 = model.initial_design()
-    model.admissible.require_feasible(alpha0, tol=1e-9)
-    model.mesh.coordinates(alpha0)
     from .design.reduction import reduction_of
     red = reduction_of(problem, alpha0)        # [design] symmetry / fixed: α = P β + α_fixed, else None
+    model.admissible.require_feasible(alpha0, tol=1e-9)
+    model.mesh.coordinates(alpha0)
     fingerprint = config_fingerprint(cfg.with_updates({"optimizer": {"max_iter": 1}}))
     out = Path(outdir or Path("runs") / cfg.name)
     ckpt = out / "checkpoint.npz"
