@@ -117,6 +117,18 @@ def test_symmetric_run_is_exactly_symmetric_with_fewer_variables_and_fixed_point
     assert not any("symmetry" in w for w in rr.summary["warnings"])
 
 
+def test_round_pad_symmetric_short_run(tmp_path):
+    """examples/round_pad_symmetric.toml (a disc face, tetrahedra, friction): two iterations."""
+    from pathlib import Path
+    cfg = Path(__file__).resolve().parents[1] / "examples" / "round_pad_symmetric.toml"
+    rr = run_optimization(str(cfg), tmp_path / "run", max_iter=2)
+    a = np.array(rr.summary["alpha"])
+    assert np.array_equal(a, a[:, ::-1])
+    assert rr.summary["design_variables"] == {"alpha": 25, "optimized": 15}
+    assert rr.summary["J"] <= rr.summary["J0"]
+    assert not any("symmetry" in w for w in rr.summary["warnings"])
+
+
 def test_grow_keeps_every_iterate_above_the_initial_design(tmp_path, monkeypatch):
     seen = _recording(monkeypatch)
     cfg = small(direction="grow", C2=0.012)          # room for 20 % more material
