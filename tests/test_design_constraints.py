@@ -181,7 +181,7 @@ def _all_but(i, j):
 
 
 @pytest.mark.parametrize("case", ["fixed_outside", "linear_shape", "linear_scalar", "rows_contradict_bounds",
-                                  "fixed_and_mean_value", "grow_and_row"])
+                                  "fixed_and_mean_value", "grow_and_row", "all_fixed"])
 def test_bad_design_constraints_exit_2_and_nothing_written(tmp_path, capsys, case):
     one = np.zeros((8, 4))
     one[0, 0] = 1.0
@@ -197,6 +197,8 @@ def test_bad_design_constraints_exit_2_and_nothing_written(tmp_path, capsys, cas
         "fixed_and_mean_value": ({"fixed": _all_but(0, 0), "linear": [{"coefficients": one.tolist(),
                                                                        "upper": 0.005}]},
                                  "design.fixed / design.symmetry leave no admissible design"),
+        "all_fixed": ({"fixed": _all_but(0, 0)[:-4] + [[0, 0]], "symmetry": ["x1"]},
+                      "nothing is left to optimize"),
         "grow_and_row": ({"direction": "grow", "C2": 0.012,
                           "linear": [{"coefficients": one.tolist(), "upper": 0.005}]},
                          "leave no admissible design"),

@@ -66,6 +66,9 @@ class DesignReduction:
         for i, j in fixed:
             is_fixed[roots == roots[i * n2 + j]] = True
         free_roots = np.unique(roots[~is_fixed])
+        if not free_roots.size:
+            raise ConfigError([f"{where}: design.fixed fixes every control point (with design.symmetry, "
+                               "their mirror images): nothing is left to optimize"])
         col = {int(r): c for c, r in enumerate(free_roots)}
         self.orbit = np.array([-1 if is_fixed[k] else col[int(roots[k])] for k in range(n)])
         self.n_alpha, self.n_beta = n, free_roots.size
