@@ -188,6 +188,23 @@ SCHEMA = {
             isinstance(iv, list) and len(iv) == 2 and all(_finite(t) for t in iv) and iv[0] < iv[1] for iv in x)),
                    "[[x1lo, x1hi], [x2lo, x2hi]] (the rectangle carrying the control net; "
                    "empty: the bounding rectangle of the contact face)"),
+        "symmetry": ([], lambda x: isinstance(x, list) and len(set(x)) == len(x) and all(v in ("x1", "x2") for v in x),
+                     "a list of 'x1' and/or 'x2' (mirror the control net about the mid-line of the design "
+                     "rectangle normal to that axis: 'x2' keeps α[i, j] = α[i, d2 − j]; the optimizer works "
+                     "on the reduced variables)"),
+        "fixed": ([], lambda x: isinstance(x, list) and all(
+            isinstance(p, list) and len(p) == 2 and all(isinstance(v, int) and not isinstance(v, bool) for v in p)
+            for p in x),
+                  "a list of [i, j] control points kept at their initial value"),
+        "direction": ("both", _oneof("both", "grow", "shrink"),
+                      "'both', 'grow' (α ≥ initial; the mean value becomes an upper bound Σα ≤ "
+                      "C2·(d1+1)(d2+1)) or 'shrink' (α ≤ initial; the mean value a lower bound)"),
+        "linear": ([], lambda x: isinstance(x, list) and all(
+            isinstance(r, dict) and "coefficients" in r and len(set(r) & {"upper", "equal"}) == 1
+            and not set(r) - {"coefficients", "upper", "equal"} and all(
+                _finite(r[k]) for k in ("upper", "equal") if k in r) for r in x),
+                   "a list of tables { coefficients = (d1+1)×(d2+1) nested list, upper = u } (Σ c·α ≤ u) or "
+                   "{ coefficients = …, equal = e } (Σ c·α = e)"),
     },
     "objective": {
         "type": ("target_normal_force",
@@ -421,6 +438,28 @@ def _check_matrix(value, d1d2, key, problems):
           and all(isinstance(r, list) and len(r) == n2 and all(_finite(v) for v in r) for r in value))
     if not ok:
         problems.append(f"{key}: must be a number or a {n1}×{n2} nested list of numbers")
+
+
+def _check_design_constraints(dsg, d1d2, problems):
+    """[design] fixed inside the control net, [[design.linear]] coefficients of its shape."""
+    if d1d2 is None:
+        return
+    n1, n2 = d1d2[0] + 1, d1d2[1] + 1
+    fixed = dsg.get("fixed")
+    if isinstance(fixed, list):
+        for p in fixed:
+            if isinstance(p, list) and len(p) == 2 and not (0 <= p[0] < n1 and 0 <= p[1] < n2):
+                problems.append(f"design.fixed: control point {p} is outside the {n1}×{n2} control net "
+                                f"(i in 0..{n1 - 1}, j in 0..{n2 - 1})")
+    rows = dsg.get("linear")
+    if isinstance(rows, list):
+        for k, r in enumerate(rows):
+            if isinstance(r, dict) and "coefficients" in r:
+                c = r["coefficients"]
+                if _finite(c) or not (isinstance(c, list) and len(c) == n1 and all(
+                        isinstance(v, list) and len(v) == n2 and all(_finite(t) for t in v) for v in c)):
+                    problems.append(f"design.linear[{k}].coefficients: must be a {n1}×{n2} nested list of numbers "
+                                    "(one per control point, like design.initial)")
 
 
 BLOCK_LOADS = ("top_traction", "right_traction")
@@ -704,6 +743,7 @@ def validate(raw: dict, source: str = "<dict>") -> Config:
     deg = data["design"]["degree"]
     d1d2 = deg if isinstance(deg, list) and len(deg) == 2 and all(_posint(v) for v in deg) else None
     _check_matrix(data["design"]["initial"], d1d2, "design.initial", problems)
+    _check_design_constraints(data["design"], d1d2, problems)
     if isinstance(data["objective"]["target"], dict):
         _check_target(data["objective"]["target"], d1d2, problems)
     if "load_cases" in raw:

@@ -156,6 +156,14 @@ class _Oracle:
         return res.value / self.scale, res.gradient / self.scale
 
 
+def _reduced(oracle, red):
+    """The oracle of β: Θ(P β + α_fixed) and its subgradient Pᵀ ξ."""
+    def f(beta):
+        value, xi = oracle(red.expand(beta))
+        return value, red.pullback(xi)
+    return f
+
+
 def _saved_stopping(path: Path) -> dict:
     try:
         with np.load(path, allow_pickle=False) as z:
@@ -171,6 +179,8 @@ def _write_checkpoint(path: Path, bstate, oracle: _Oracle, fingerprint: str, ela
     arrays.update(meta_fingerprint=np.array(fingerprint), meta_evaluations=np.array(oracle.count),
                   meta_elapsed=np.array(elapsed), meta_scale=np.array(oracle.scale), meta_eps=np.array(opt["eps"]),
                   meta_max_iter=np.array(opt["max_iter"]))
+    if getattr(oracle, "reduction", None) is not None:     # the bundle works on β: the design in α
+        arrays["meta_alpha"] = oracle.reduction.expand(d["x"])
     arrays.update(oracle.problem.export_contexts())   # what each load case carries, per its path
     atomic_savez(path, **arrays)
 
@@ -251,6 +261,8 @@ def run_optimization(config, outdir=None, *, eps=None, max_iter=None, resume=Fal
     t_setup = time.perf_counter() - t_setup
     model = problem.model
     alpha0 = model.initial_design()
+    from .design.reduction import reduction_of
+    red = reduction_of(problem, alpha0)        # [design] symmetry / fixed: α = P β + α_fixed, else None
     model.admissible.require_feasible(alpha0, tol=1e-9)
     model.mesh.coordinates(alpha0)
     fingerprint = config_fingerprint(cfg.with_updates({"optimizer": {"max_iter": 1}}))
@@ -281,6 +293,7 @@ def run_optimization(config, outdir=None, *, eps=None, max_iter=None, resume=Fal
         t_start = time.perf_counter()
         hist = out / "history.csv"
         oracle = _Oracle(problem, hist, t_start)
+        oracle.reduction = red
         state_kw = {}
         if resume:
             _truncate_history(hist, n_eval, history_fields(problem))
@@ -301,6 +314,8 @@ def run_optimization(config, outdir=None, *, eps=None, max_iter=None, resume=Fal
         # at α0 (a resumed run asks a separate problem: its own must continue bit for bit)
         run_warnings = uniqueness_warnings(ShapeProblem(cfg) if resume and problem.friction > 0 else problem,
                                            alpha0)
+        if red is not None:
+            run_warnings += red.warnings
 
         def callback(inter):
             st = inter.state
@@ -316,7 +331,10 @@ def run_optimization(config, outdir=None, *, eps=None, max_iter=None, resume=Fal
 
         opt = cfg["optimizer"]
         try:
-            res = minimize_bundle(oracle, alpha0, **model.admissible.constraints(), eps=opt["eps"],
+            f, x0, cons = oracle, alpha0, model.admissible.constraints()
+            if red is not None:       # the optimizer works on β; Pᵀ ξ its subgradient
+                f, x0, cons = _reduced(oracle, red), red.beta0, red.bounds
+            res = minimize_bundle(f, x0, **cons, eps=opt["eps"],
                                   max_iter=opt["max_iter"], callback=callback,
                                   **{k: opt[k] for k in ("ftol", "ftol_window", "metric", "metric_memory")
                                      if k in opt},
@@ -328,11 +346,15 @@ def run_optimization(config, outdir=None, *, eps=None, max_iter=None, resume=Fal
                         "no iteration had finished, so there is no checkpoint"),)
             log.error("run stopped: %s", exc)
             raise
+        if red is not None:
+            res.x = red.expand(res.x)
         if res.status is not None and res.success:
             log.info("finished: %s", res.message)
         _write_checkpoint(ckpt, res.state, oracle, fingerprint, time.perf_counter() - oracle.t_start)
         summary = _finish(out, problem, alpha0, res, oracle, t_start)
         summary["warnings"] = run_warnings
+        if red is not None:
+            summary["design_variables"] = {"alpha": red.n_alpha, "optimized": red.n_beta}
         atomic_write_json(out / "summary.json", summary)
     finally:
         logging.getLogger("contactopt").removeHandler(handler)

@@ -150,8 +150,18 @@ class ElasticModel:
             log.warning("%s: design.lower = %g < 0 with design.nonnegative_gap = false: admissible designs may "
                         "put the contact face below the foundation plane (an initial penetration)",
                         self.config.source, d["lower"])
-        return AdmissibleSet(s.d1, s.d2, s.a, s.b, d["C0"], d["C1"], d["C2"], d["slope_divisor"],
-                             lower=d.get("lower", 0.0), **gap)
+        extra = {}             # [design] direction and [[design.linear]] (absent: the paper's U)
+        if d.get("direction", "both") != "both":
+            extra.update(direction=d["direction"], initial=self.initial_design())
+        if d.get("linear"):
+            extra["linear"] = tuple((r["coefficients"], "upper" if "upper" in r else "equal",
+                                     r.get("upper", r.get("equal"))) for r in d["linear"])
+        U = AdmissibleSet(s.d1, s.d2, s.a, s.b, d["C0"], d["C1"], d["C2"], d["slope_divisor"],
+                          lower=d.get("lower", 0.0), **gap, **extra)
+        if extra and not U.nonempty():
+            raise ConfigError([f"{self.config.source}: design.direction / design.linear leave no admissible "
+                               "design: the bounds, slopes, mean value and these rows have no common point"])
+        return U
 
     def _jacobian_ratio(self, ref, body) -> JacobianRatio:
         """det J(α)/det J_ref = 1 + Rα (mesh.morph); C0 must keep it above the threshold on U."""
