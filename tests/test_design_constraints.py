@@ -117,6 +117,7 @@ def test_symmetric_run_is_exactly_symmetric_with_fewer_variables_and_fixed_point
     assert not any("symmetry" in w for w in rr.summary["warnings"])
 
 
+@pytest.mark.integration
 def test_round_pad_symmetric_short_run(tmp_path):
     """examples/round_pad_symmetric.toml (a disc face, tetrahedra, friction): two iterations."""
     from pathlib import Path
@@ -140,6 +141,7 @@ def test_grow_keeps_every_iterate_above_the_initial_design(tmp_path, monkeypatch
     assert rr.summary["feasible"]
 
 
+@pytest.mark.integration
 def test_linear_row_holds_at_the_optimum(tmp_path):
     c = np.zeros((8, 4))
     c[:4] = 1.0                    # the material of the half x1 < 1 at most its initial share
