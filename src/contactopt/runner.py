@@ -27,6 +27,9 @@ from __future__ import annotations
 import csv
 import hashlib
 import logging
+import os
+import shlex
+import signal
 import time
 from dataclasses import dataclass
 from importlib.metadata import PackageNotFoundError, version
@@ -36,8 +39,9 @@ import numpy as np
 
 from .config import Config, load_config
 from .errors import CheckpointError, ConfigError, ContactOptError, SolverError
-from .io.atomic import atomic_savez, atomic_write_json, atomic_write_text
-from .io.rundir import prepare_output_dir
+from .io.atomic import WriteError, atomic_savez, atomic_write_json, atomic_write_text, write_error
+from .io.lock import LockedError, held_by
+from .io.rundir import claim_output_dir
 
 log = logging.getLogger(__name__)
 
@@ -59,6 +63,23 @@ class RunAborted(ContactOptError):
     ``checkpoint`` is its path (None when no iteration had finished)."""
 
     checkpoint = None
+
+
+class Interrupted(KeyboardInterrupt):
+    """The process was asked to stop (SIGINT, SIGTERM): the evaluation in progress is abandoned.
+
+    ``signum`` is the signal; a run's summary.json then says ``"status": "interrupted"``, and
+    ``message``/``resume`` say where the run stands and the command that continues it."""
+
+    def __init__(self, signum=signal.SIGINT, message: str = "", resume: str | None = None):
+        self.signum = int(signum)
+        self.message = message
+        self.resume = resume
+        super().__init__(message)
+
+    @property
+    def signal_name(self) -> str:
+        return signal.Signals(self.signum).name
 
 
 def package_versions() -> dict:
@@ -148,8 +169,11 @@ class _Oracle:
                f"{time.perf_counter() - self.t_start:.3f}"]
         if self.problem.has_load_cases:
             row += [repr(float(v)) for v in res.case_values] + [";".join(res.active_cases)]
-        with open(self.history_path, "a", newline="") as fh:
-            csv.writer(fh).writerow(row)
+        try:     # appended: rows after the checkpoint's evaluations are dropped on --resume
+            with open(self.history_path, "a", newline="") as fh:
+                csv.writer(fh).writerow(row)
+        except OSError as exc:
+            raise write_error(self.history_path, exc) from exc
         return res.value / self.scale, res.gradient / self.scale
 
 
@@ -161,15 +185,47 @@ def _saved_stopping(path: Path) -> dict:
         return {}       # a missing or corrupt checkpoint is reported by _read_checkpoint
 
 
-def _write_checkpoint(path: Path, bstate, oracle: _Oracle, fingerprint: str, elapsed: float):
+def _write_checkpoint(path: Path, bstate, oracle: _Oracle, fingerprint: str, elapsed: float, result=None):
+    """The optimizer's and the oracle's state (atomically, after history.csv is on disk).
+
+    ``result``: the optimizer's result once it has stopped, so that a resumed finished run
+    writes its outputs again without another iteration."""
+    try:
+        with open(oracle.history_path, "rb+") as fh:
+            os.fsync(fh.fileno())
+    except FileNotFoundError:
+        pass
+    except OSError as exc:
+        raise write_error(oracle.history_path, exc) from exc
     d = bstate.to_dict()
     opt = oracle.problem.config["optimizer"]
     arrays = {f"bundle_{k}": np.asarray(v) for k, v in d.items()}
     arrays.update(meta_fingerprint=np.array(fingerprint), meta_evaluations=np.array(oracle.count),
                   meta_elapsed=np.array(elapsed), meta_scale=np.array(oracle.scale), meta_eps=np.array(opt["eps"]),
                   meta_max_iter=np.array(opt["max_iter"]))
+    if result is not None:
+        arrays.update(meta_result_status=np.array(int(result.status)), meta_result_message=np.array(result.message),
+                      meta_result_criterion=np.array(result.criterion or ""),
+                      meta_result_relative_decrease=np.array(float(result.relative_decrease)))
     arrays.update(oracle.problem.export_contexts())   # what each load case carries, per its path
     atomic_savez(path, **arrays)
+
+
+def _saved_result(path: Path, bstate, max_iter: int):
+    """The optimizer's result stored with a finished run's checkpoint (None: the run had not
+    stopped, or it is resumed with another ``max_iter`` and so goes on)."""
+    from .optimize import BundleResult
+    with np.load(path, allow_pickle=False) as z:
+        if "meta_result_status" not in z.files or int(z["meta_max_iter"]) != max_iter:
+            return None
+        status, message = int(z["meta_result_status"]), str(z["meta_result_message"])
+        criterion, rel = str(z["meta_result_criterion"]) or None, float(z["meta_result_relative_decrease"])
+    st = bstate.copy()
+    return BundleResult(x=st.x.copy(), fun=st.f, jac=st.xi.copy(), nit=st.nit, nfev=st.nfev,
+                        n_serious=st.n_serious, n_null=st.n_null, success=status in (0, 4), status=status,
+                        message=message, criterion=criterion, stationarity=st.stationarity,
+                        relative_decrease=rel, predicted_decrease=st.predicted, gamma=st.gamma, t=st.t,
+                        history=[dict(r) for r in st.history], state=st)
 
 
 def _read_checkpoint(path: Path, fingerprint: str):
@@ -197,9 +253,9 @@ def _read_checkpoint(path: Path, fingerprint: str):
 
 def _truncate_history(path: Path, n_rows: int, fields=HISTORY_FIELDS):
     rows = []
-    if path.exists():
-        with open(path, newline="") as fh:
-            rows = list(csv.reader(fh))
+    if path.exists():     # the rows after the checkpoint may be cut short (a full disk): harmless
+        text = path.read_bytes().decode("utf-8", errors="replace").replace("\0", "")
+        rows = list(csv.reader(text.splitlines()))
     body = rows[1:1 + n_rows] if rows else []
     atomic_write_text(path, ",".join(fields) + "\n" + "".join(",".join(r) + "\n" for r in body))
 
@@ -232,14 +288,63 @@ def uniqueness_warnings(problem, alpha0) -> list[str]:
     return [msg]
 
 
+class _RunLog(logging.FileHandler):
+    """run.log; a write that fails (a full disk) silences it instead of printing a traceback:
+    the write of a file that matters fails soon after and says why."""
+
+    def handleError(self, record):
+        self.setLevel(logging.CRITICAL + 1)
+
+
+def _config_arg(config, out: Path) -> str:
+    """The configuration as the user gave it, else the run's resolved config.toml."""
+    return shlex.quote(str(config) if isinstance(config, (str, os.PathLike)) else str(out / "config.toml"))
+
+
+def resume_command(config, out: Path) -> str:
+    """The command that continues the run in ``out``."""
+    return f"contactopt run {_config_arg(config, out)} --out {shlex.quote(str(out))} --resume"
+
+
+class _Position:
+    """Where the run stands on disk: the iteration and evaluations of its last checkpoint, and
+    whether that checkpoint is of the finished optimization (only the outputs were missing)."""
+
+    def __init__(self, iteration=None, evaluations=None, finished=False):
+        self.iteration, self.evaluations, self.finished = iteration, evaluations, finished
+
+    def describe(self) -> str:
+        if self.iteration is None:
+            return "no iteration had finished, so there is no checkpoint"
+        what = "the finished optimization" if self.finished else "iteration"
+        return f"the checkpoint of {what} {self.iteration} ({self.evaluations} evaluations) stands"
+
+    def hint(self, config, out: Path) -> str:
+        if self.iteration is None:
+            return (f"; start it again with: contactopt run {_config_arg(config, out)} "
+                    f"--out {shlex.quote(str(out))} --overwrite")
+        return f"; continue with: {resume_command(config, out)}"
+
+
 def run_optimization(config, outdir=None, *, eps=None, max_iter=None, resume=False, overwrite=False,
                      progress=None) -> RunResult:
-    """Optimize the contact surface of a configuration; see the module docstring for the outputs."""
+    """Optimize the contact surface of a configuration; see the module docstring for the outputs.
+
+    One writer per run directory: its lock is taken before anything is written
+    (:class:`~contactopt.io.lock.LockedError` if another live process holds it). A failed write
+    raises :class:`~contactopt.io.atomic.WriteError`, an interruption (KeyboardInterrupt,
+    :class:`Interrupted`) :class:`Interrupted` after summary.json says ``"status": "interrupted"``;
+    both say where the run stands and how it continues."""
     from .optimize import minimize_bundle
     from .problem import ShapeProblem
+    out = Path(outdir) if outdir else Path("runs") / load_config(config).name
+    if out.is_dir():
+        holder = held_by(out)          # refused before the set-up, not only once it is done
+        if holder is not None:
+            raise LockedError(out, holder, "run directory")
     if resume and (eps is None or max_iter is None):
         # a resumed run keeps the stopping parameters it was started with unless told otherwise
-        saved = _saved_stopping(Path(outdir or Path("runs") / load_config(config).name) / "checkpoint.npz")
+        saved = _saved_stopping(out / "checkpoint.npz")
         eps = saved.get("eps") if eps is None else eps
         max_iter = saved.get("max_iter") if max_iter is None else max_iter
     cfg = resolve_config(config, eps=eps, max_iter=max_iter)
@@ -253,6 +358,8 @@ def run_optimization(config, outdir=None, *, eps=None, max_iter=None, resume=Fal
     fingerprint = config_fingerprint(cfg.with_updates({"optimizer": {"max_iter": 1}}))
     out = Path(outdir or Path("runs") / cfg.name)
     ckpt = out / "checkpoint.npz"
+    position = _Position()
+    finished = None
     if resume:
         bstate, n_eval, elapsed0, scale, contexts = _read_checkpoint(ckpt, fingerprint)
         n_cases = 1 + sum(1 for k in contexts if k.startswith("case") and k.endswith("_warm"))
@@ -261,16 +368,27 @@ def run_optimization(config, outdir=None, *, eps=None, max_iter=None, resume=Fal
                                   f"case(s), the configuration has {len(problem.cases)}")
         # before the run directory is touched: a kept Delassus block or AMG hierarchy is rebuilt
         problem.import_contexts(contexts, f"checkpoint {ckpt}")
-    out = prepare_output_dir(out, overwrite=overwrite, resume=resume)
-    handler = logging.FileHandler(out / "run.log")
-    handler.setFormatter(logging.Formatter("%(asctime)s %(levelname)s %(name)s: %(message)s"))
-    logging.getLogger("contactopt").addHandler(handler)
-    handler.setLevel(logging.INFO)
+        finished = _saved_result(ckpt, bstate, cfg["optimizer"]["max_iter"])
+        position = _Position(bstate.nit, n_eval, finished is not None)
+    lock = claim_output_dir(out, overwrite=overwrite, resume=resume)
     root = logging.getLogger("contactopt")
     old_level = root.level
-    if root.getEffectiveLevel() > logging.INFO:
-        root.setLevel(logging.INFO)
+    handler = None
+    oracle = None
     try:
+        try:
+            handler = _RunLog(out / "run.log")
+        except OSError as exc:
+            raise write_error(out / "run.log", exc) from exc
+        handler.setFormatter(logging.Formatter("%(asctime)s %(levelname)s %(name)s: %(message)s"))
+        root.addHandler(handler)
+        handler.setLevel(logging.INFO)
+        if root.getEffectiveLevel() > logging.INFO:
+            root.setLevel(logging.INFO)
+        if lock.previous:
+            from .io.lock import describe
+            log.warning("took over the lock of %s from a writer that no longer runs (%s)", out,
+                        describe(lock.previous))
         _log_setup(problem, t_setup)
         vers = package_versions()
         atomic_write_text(out / "config.toml", "# resolved configuration of this run\n# versions: "
@@ -286,7 +404,8 @@ def run_optimization(config, outdir=None, *, eps=None, max_iter=None, resume=Fal
             oracle.t_start -= elapsed0
             oracle.scale = scale
             state_kw["state"] = bstate
-            log.info("resuming %s at iteration %d (%d evaluations)", out, bstate.nit, n_eval)
+            log.info("resuming %s at iteration %d (%d evaluations)%s", out, bstate.nit, n_eval,
+                     "; the optimization had finished, its results are written again" if finished else "")
         else:
             atomic_write_text(hist, ",".join(history_fields(problem)) + "\n")
             log.info("run %s in %s", cfg.name, out)
@@ -306,36 +425,71 @@ def run_optimization(config, outdir=None, *, eps=None, max_iter=None, resume=Fal
             # after every iteration (a few kB, atomic): a killed or aborted run loses at most
             # the evaluations of one iteration
             _write_checkpoint(ckpt, st, oracle, fingerprint, time.perf_counter() - oracle.t_start)
+            position.iteration, position.evaluations = st.nit, oracle.count
             if progress:
                 progress(dict(iteration=st.nit, f=st.f * oracle.scale, step=h.get("step", ""), t=st.t,
                               stationarity=st.stationarity, nfev=oracle.count,
                               elapsed=time.perf_counter() - oracle.t_start))
 
         opt = cfg["optimizer"]
-        try:
-            res = minimize_bundle(oracle, alpha0, **model.admissible.constraints(), eps=opt["eps"],
-                                  max_iter=opt["max_iter"], callback=callback,
-                                  **{k: opt[k] for k in ("ftol", "ftol_window", "metric", "metric_memory")
-                                     if k in opt},
-                                  **state_kw)
-        except RunAborted as exc:
-            exc.checkpoint = ckpt if ckpt.exists() else None
-            exc.args = (f"{exc.args[0]}; " + (f"the checkpoint of iteration {oracle.iteration} is kept "
-                        f"(continue with --resume)" if exc.checkpoint else
-                        "no iteration had finished, so there is no checkpoint"),)
-            log.error("run stopped: %s", exc)
-            raise
-        if res.status is not None and res.success:
-            log.info("finished: %s", res.message)
-        _write_checkpoint(ckpt, res.state, oracle, fingerprint, time.perf_counter() - oracle.t_start)
+        if finished is not None:
+            res = finished
+        else:
+            try:
+                res = minimize_bundle(oracle, alpha0, **model.admissible.constraints(), eps=opt["eps"],
+                                      max_iter=opt["max_iter"], callback=callback,
+                                      **{k: opt[k] for k in ("ftol", "ftol_window", "metric", "metric_memory")
+                                         if k in opt},
+                                      **state_kw)
+            except RunAborted as exc:
+                exc.checkpoint = ckpt if ckpt.exists() else None
+                exc.args = (f"{exc.args[0]}; " + (f"the checkpoint of iteration {oracle.iteration} is kept "
+                            f"(continue with --resume)" if exc.checkpoint else
+                            "no iteration had finished, so there is no checkpoint"),)
+                log.error("run stopped: %s", exc)
+                raise
+            if res.status is not None and res.success:
+                log.info("finished: %s", res.message)
+            _write_checkpoint(ckpt, res.state, oracle, fingerprint, time.perf_counter() - oracle.t_start, res)
+            position = _Position(res.state.nit, oracle.count, True)
         summary = _finish(out, problem, alpha0, res, oracle, t_start)
         summary["warnings"] = run_warnings
         atomic_write_json(out / "summary.json", summary)
+    except WriteError as exc:
+        exc.args = (f"{exc.args[0]}; {position.describe()}" + position.hint(config, out),)
+        log.error("run stopped: %s", exc)
+        raise
+    except KeyboardInterrupt as exc:
+        raise _interrupted(exc, config, out, cfg, position, oracle) from None
     finally:
-        logging.getLogger("contactopt").removeHandler(handler)
-        handler.close()
+        if handler is not None:
+            root.removeHandler(handler)
+            handler.close()
         root.setLevel(old_level)
+        lock.release()
     return RunResult(out, summary)
+
+
+def _interrupted(exc, config, out: Path, cfg, position: _Position, oracle) -> Interrupted:
+    """summary.json of an interrupted run (where it stands, how to continue) and the exception
+    that carries the same to the caller."""
+    signum = getattr(exc, "signum", signal.SIGINT)
+    name = signal.Signals(signum).name
+    doing = ("while writing the results" if position.finished else
+             f"during iteration {(position.iteration or 0) + 1}" if oracle is not None else "during the set-up")
+    message = f"interrupted by {name} {doing}; {position.describe()}"
+    resume = resume_command(config, out) if position.iteration is not None else None
+    summary = {"name": cfg.name, "status": "interrupted", "signal": name, "message": message,
+               "checkpoint": ({"iteration": position.iteration, "evaluations": position.evaluations}
+                              if position.iteration is not None else None),
+               "resume": resume,
+               "evaluations": int(oracle.count) if oracle is not None else 0}
+    try:
+        atomic_write_json(out / "summary.json", summary)
+    except (WriteError, KeyboardInterrupt) as err:     # a full disk or a second signal: said, not fatal
+        log.error("summary.json of the interrupted run not written: %s", err)
+    log.error("run %s", message)
+    return Interrupted(signum, message + position.hint(config, out), resume)
 
 
 def _stopping(res, opt) -> dict:
