@@ -316,8 +316,10 @@ class _Position:
     def describe(self) -> str:
         if self.iteration is None:
             return "no iteration had finished, so there is no checkpoint"
-        what = "the finished optimization" if self.finished else "iteration"
-        return f"the checkpoint of {what} {self.iteration} ({self.evaluations} evaluations) stands"
+        if self.finished:
+            return (f"the checkpoint of the finished optimization (iteration {self.iteration}, "
+                    f"{self.evaluations} evaluations) stands")
+        return f"the checkpoint of iteration {self.iteration} ({self.evaluations} evaluations) stands"
 
     def hint(self, config, out: Path) -> str:
         if self.iteration is None:
@@ -577,6 +579,8 @@ def _export(out: Path, model, x) -> dict:
     from .io.export import export_design
     try:
         return export_design(model, x, out, strict=False)
+    except WriteError:          # a full disk is not an export problem: the run stops and says so
+        raise
     except ContactOptError as exc:
         log.warning("export of the optimal design failed: %s", exc)
         return {"files": {}, "error": str(exc)}

@@ -50,7 +50,7 @@ from pathlib import Path
 from ..config import load_config, validate
 from ..errors import ConfigError
 from ..io.atomic import WriteError, atomic_write_json, atomic_write_text, write_error
-from ..io.lock import DirLock
+from ..io.lock import DirLock, LockedError, held_by
 from ..io.rundir import claim_output_dir
 from .settings import SweepTask, build_tasks, format_value
 
@@ -308,6 +308,8 @@ def run_sweep(config, settings, outdir, *, workers: int | None = None, scheduler
     tasks = build_tasks(base, settings)          # every problem listed before anything is written
     keys = [k for k, _ in settings]
     outdir = Path(outdir)
+    if outdir.is_dir() and held_by(outdir) is not None:     # before a cluster is started for nothing
+        raise LockedError(outdir, held_by(outdir) or {}, "sweep directory")
     again = resume_command(config, settings, outdir, max_iter, eps)
     t0 = time.perf_counter()
     lock = None
