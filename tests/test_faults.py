@@ -116,6 +116,14 @@ def checkpoint_position(out: Path):
         return int(z["bundle_nit"]), int(z["meta_evaluations"])
 
 
+@pytest.fixture(scope="module", autouse=True)
+def one_thread():
+    """The in-process runs on one thread per library (see environment())."""
+    from threadpoolctl import threadpool_limits
+    with threadpool_limits(limits=1):
+        yield
+
+
 @pytest.fixture(scope="module")
 def small(tmp_path_factory) -> Path:
     return write_config(tmp_path_factory.mktemp("cfg") / "small.toml")
@@ -297,7 +305,9 @@ def free_bytes(path: Path) -> int:
 
 
 def environment() -> dict:
-    env = dict(os.environ)
+    """This contactopt first on the path; one thread per library, so that the last bits of a
+    result do not depend on how a parallel reduction was split (between processes they may)."""
+    env = dict(os.environ, OMP_NUM_THREADS="1", MKL_NUM_THREADS="1", OPENBLAS_NUM_THREADS="1")
     env["PYTHONPATH"] = os.pathsep.join([SRC] + [p for p in env.get("PYTHONPATH", "").split(os.pathsep) if p])
     return env
 
@@ -592,6 +602,8 @@ def test_the_summary_of_an_interrupted_run_is_not_a_result(small, tmp_path):
 
 # ------------------------------------------------------------------------------ sweeps
 SWEEP_SET = "friction.coefficient=0,0.3"
+SWEEP = ("--set", SWEEP_SET, "--max-iter", 4)
+ONE_WORKER = ("--workers", 1, "--threads", 1)          # resources: not part of the resume command
 
 
 def sweep_rows(out: Path) -> list[dict]:
@@ -603,8 +615,7 @@ def sweep_rows(out: Path) -> list[dict]:
 def sweep_reference(small, tmp_path_factory):
     pytest.importorskip("distributed")
     out = tmp_path_factory.mktemp("swref") / "sw"
-    proc = subprocess.run(contactopt_cmd("sweep", small, "--set", SWEEP_SET, "--workers", 1, "--max-iter", 4,
-                                         "--out", out), env=environment(), capture_output=True, text=True,
+    proc = subprocess.run(contactopt_cmd("sweep", small, *SWEEP, *ONE_WORKER, "--out", out), env=environment(), capture_output=True, text=True,
                           timeout=900)
     assert proc.returncode == 0, proc.stdout + proc.stderr
     return {r["friction.coefficient"]: (r["J"], (out / r["run_dir"] / "alpha.json").read_text())
@@ -625,7 +636,7 @@ def test_interrupted_sweep_marks_its_tasks_and_resumes_them(small, sweep_referen
     out = tmp_path / "sw"
     rng = random.Random(seed)
     delay = rng.uniform(4.0, 14.0)        # after the cluster has started, during the first or second task
-    cmd = contactopt_cmd("sweep", small, "--set", SWEEP_SET, "--workers", 1, "--max-iter", 4, "--out", out)
+    cmd = contactopt_cmd("sweep", small, *SWEEP, *ONE_WORKER, "--out", out)
     proc = subprocess.Popen(cmd, env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
     time.sleep(delay)
     proc.send_signal(signum)
@@ -641,8 +652,8 @@ def test_interrupted_sweep_marks_its_tasks_and_resumes_them(small, sweep_referen
     assert set(status) <= {"new", "interrupted"} and "interrupted" in status
     again = re.search(r"continue with: (.*)$", text, re.M).group(1)
     assert again.endswith("--resume")
-    proc = subprocess.run(contactopt_cmd(*shlex.split(again)[1:]), env=env, capture_output=True, text=True,
-                          timeout=900)
+    proc = subprocess.run(contactopt_cmd(*shlex.split(again)[1:], *ONE_WORKER), env=env, capture_output=True,
+                          text=True, timeout=900)
     assert proc.returncode == 0, proc.stdout + proc.stderr
     same_sweep_results(out, sweep_reference)
     assert not list(out.rglob(LOCK_NAME))
@@ -655,7 +666,7 @@ def test_full_disk_at_a_write_of_a_sweep(small, sweep_reference, tmp_path, monke
     out = tmp_path / "sw"
     with monkeypatch.context() as mp:
         enospc(mp, name, nth)
-        code, text = cli("sweep", small, "--set", SWEEP_SET, "--workers", 1, "--max-iter", 4, "--out", out)
+        code, text = cli("sweep", small, *SWEEP, *ONE_WORKER, "--out", out)
     assert code == 74, text
     assert f"cannot write {out / name}: no space left on the device" in text, text
     assert "--resume" in text
@@ -664,6 +675,6 @@ def test_full_disk_at_a_write_of_a_sweep(small, sweep_reference, tmp_path, monke
             (sweep_rows(out) if p.endswith("csv") else json.loads((out / p).read_text()))
     gather(out, write=False)                 # the run directories are readable as they are
     again = re.search(r"'?(contactopt sweep .*--resume)'?", text).group(1)
-    code, text = cli(*shlex.split(again)[1:])
+    code, text = cli(*shlex.split(again)[1:], *ONE_WORKER)
     assert code == 0, text
     same_sweep_results(out, sweep_reference)

@@ -176,7 +176,7 @@ def acquire(directory, *, what: str = "directory") -> DirLock:
                     pass
             raise
         if previous:
-            log.warning("%s: took over the lock of a writer that no longer runs (%s)", directory,
+            log.info("%s: took over the lock of a writer that no longer runs (%s)", directory,
                         describe(previous))
         return DirLock(directory, fd, previous)
     raise OSError(errno.EAGAIN, f"cannot take the lock {path}: it keeps being replaced")
