@@ -313,6 +313,16 @@ class _Position:
     def __init__(self, iteration=None, evaluations=None, finished=False):
         self.iteration, self.evaluations, self.finished = iteration, evaluations, finished
 
+    @classmethod
+    def on_disk(cls, ckpt: Path) -> "_Position":
+        """Read from the checkpoint itself: a signal may come between its write and any record
+        of it kept here, the file (written atomically) is the truth."""
+        try:
+            with np.load(ckpt, allow_pickle=False) as z:
+                return cls(int(z["bundle_nit"]), int(z["meta_evaluations"]), "meta_result_status" in z.files)
+        except Exception:         # none, or not readable: --resume would say so
+            return cls()
+
     def describe(self) -> str:
         if self.iteration is None:
             return "no iteration had finished, so there is no checkpoint"
@@ -360,7 +370,6 @@ def run_optimization(config, outdir=None, *, eps=None, max_iter=None, resume=Fal
     fingerprint = config_fingerprint(cfg.with_updates({"optimizer": {"max_iter": 1}}))
     out = Path(outdir or Path("runs") / cfg.name)
     ckpt = out / "checkpoint.npz"
-    position = _Position()
     finished = None
     if resume:
         bstate, n_eval, elapsed0, scale, contexts = _read_checkpoint(ckpt, fingerprint)
@@ -371,7 +380,6 @@ def run_optimization(config, outdir=None, *, eps=None, max_iter=None, resume=Fal
         # before the run directory is touched: a kept Delassus block or AMG hierarchy is rebuilt
         problem.import_contexts(contexts, f"checkpoint {ckpt}")
         finished = _saved_result(ckpt, bstate, cfg["optimizer"]["max_iter"])
-        position = _Position(bstate.nit, n_eval, finished is not None)
     lock = claim_output_dir(out, overwrite=overwrite, resume=resume)
     root = logging.getLogger("contactopt")
     old_level = root.level
@@ -427,7 +435,6 @@ def run_optimization(config, outdir=None, *, eps=None, max_iter=None, resume=Fal
             # after every iteration (a few kB, atomic): a killed or aborted run loses at most
             # the evaluations of one iteration
             _write_checkpoint(ckpt, st, oracle, fingerprint, time.perf_counter() - oracle.t_start)
-            position.iteration, position.evaluations = st.nit, oracle.count
             if progress:
                 progress(dict(iteration=st.nit, f=st.f * oracle.scale, step=h.get("step", ""), t=st.t,
                               stationarity=st.stationarity, nfev=oracle.count,
@@ -453,16 +460,16 @@ def run_optimization(config, outdir=None, *, eps=None, max_iter=None, resume=Fal
             if res.status is not None and res.success:
                 log.info("finished: %s", res.message)
             _write_checkpoint(ckpt, res.state, oracle, fingerprint, time.perf_counter() - oracle.t_start, res)
-            position = _Position(res.state.nit, oracle.count, True)
         summary = _finish(out, problem, alpha0, res, oracle, t_start)
         summary["warnings"] = run_warnings
         atomic_write_json(out / "summary.json", summary)
     except WriteError as exc:
+        position = _Position.on_disk(ckpt)
         exc.args = (f"{exc.args[0]}; {position.describe()}" + position.hint(config, out),)
         log.error("run stopped: %s", exc)
         raise
     except KeyboardInterrupt as exc:
-        raise _interrupted(exc, config, out, cfg, position, oracle) from None
+        raise _interrupted(exc, config, out, cfg, _Position.on_disk(ckpt), oracle) from None
     finally:
         if handler is not None:
             root.removeHandler(handler)

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import logging
 import os
 import shutil
 import tempfile
@@ -9,6 +10,8 @@ from pathlib import Path
 
 from ..errors import ContactOptError
 from .lock import LOCK_NAME, DirLock, acquire, describe, live_holders
+
+log = logging.getLogger(__name__)
 
 
 class OutputDirError(ContactOptError):
@@ -61,6 +64,20 @@ def _make_writable(out: Path) -> None:
         raise OutputDirError(f"output directory {out} is not writable: {exc.strerror or exc}") from None
 
 
+def _remove_temporaries(out: Path) -> None:
+    """Remove what a killed writer left half-made: the hidden temporary files of atomic writes
+    (``.name.XXXX.tmp.ext``), export's temporary directories, a write probe. Safe once the lock
+    is held: no other process writes here."""
+    for child in out.iterdir():
+        name = child.name
+        if name != LOCK_NAME and name.startswith(".") and (".tmp" in name or name.startswith(".write-test-")):
+            if child.is_dir() and not child.is_symlink():
+                shutil.rmtree(child, ignore_errors=True)
+            else:
+                child.unlink(missing_ok=True)
+            log.info("%s: removed %s, left half-made by a writer that was stopped", out, name)
+
+
 def claim_output_dir(path, *, overwrite: bool = False, resume: bool = False, what: str = "run") -> DirLock:
     """:func:`prepare_output_dir` for a writer that must be alone: the directory's lock is taken
     before anything in it is written or removed, and returned (release it when done).
@@ -88,6 +105,7 @@ def claim_output_dir(path, *, overwrite: bool = False, resume: bool = False, wha
                 raise OutputDirError(f"--overwrite: {busy[0][0]} inside {out} is in use by another contactopt "
                                      f"process ({describe(busy[0][1])}); nothing was removed")
             _clear(out)
+        _remove_temporaries(out)
         _make_writable(out)
     except BaseException:
         lock.release()
