@@ -537,14 +537,24 @@ def interrupt_run(cmd, out, signum, rng, max_iter, env, first=1):
     return proc.returncode, "".join(seen) + rest, (when, delay)
 
 
-def interrupted_then_resumed(small, tmp_path, signum, seed, quick=True, moments=1):
+def subprocess_reference(small, tmp_path: Path, quick: bool) -> dict:
+    """The uninterrupted run in a process of its own, as the interrupted ones run."""
+    ref = tmp_path / "ref"
+    proc = subprocess.run(wrapped(tmp_path, quick) + ["run", str(small), "--out", str(ref), "--max-iter",
+                                                      str(MAX_ITER)], env=environment(), capture_output=True,
+                          text=True, timeout=600)
+    assert proc.returncode == 0, proc.stdout + proc.stderr
+    return result(ref)
+
+
+@pytest.fixture(scope="module")
+def quick_subprocess_reference(small, tmp_path_factory) -> dict:
+    return subprocess_reference(small, tmp_path_factory.mktemp("subref"), True)
+
+
+def interrupted_then_resumed(small, tmp_path, signum, seed, expected, quick=True, moments=1):
     env = environment()
     base = wrapped(tmp_path, quick)
-    ref = tmp_path / "ref"
-    proc = subprocess.run(base + ["run", str(small), "--out", str(ref), "--max-iter", str(MAX_ITER)], env=env,
-                          capture_output=True, text=True, timeout=600)
-    assert proc.returncode == 0, proc.stdout + proc.stderr
-    expected = result(ref)
     rng = random.Random(seed)
     for k in range(moments):
         out = tmp_path / f"run{k}"
@@ -579,14 +589,15 @@ def interrupted_then_resumed(small, tmp_path, signum, seed, quick=True, moments=
 
 
 @pytest.mark.parametrize("signum, seed", [(signal.SIGINT, "sigint"), (signal.SIGTERM, "sigterm")])
-def test_interrupted_run_says_so_and_resumes_bit_for_bit(small, tmp_path, signum, seed):
-    interrupted_then_resumed(small, tmp_path, signum, seed)
+def test_interrupted_run_says_so_and_resumes_bit_for_bit(small, quick_subprocess_reference, tmp_path, signum, seed):
+    interrupted_then_resumed(small, tmp_path, signum, seed, quick_subprocess_reference)
 
 
 @pytest.mark.slow
 @pytest.mark.parametrize("signum", [signal.SIGINT, signal.SIGTERM])
 def test_interrupted_runs_at_many_moments_with_their_figures(small, tmp_path, signum):
-    interrupted_then_resumed(small, tmp_path, signum, f"many-{signum}", quick=False, moments=6)
+    interrupted_then_resumed(small, tmp_path, signum, f"many-{signum}", subprocess_reference(small, tmp_path, False),
+                             quick=False, moments=6)
 
 
 def test_the_summary_of_an_interrupted_run_is_not_a_result(small, tmp_path):

@@ -77,10 +77,6 @@ class Interrupted(KeyboardInterrupt):
         self.resume = resume
         super().__init__(message)
 
-    @property
-    def signal_name(self) -> str:
-        return signal.Signals(self.signum).name
-
 
 def package_versions() -> dict:
     out = {}
