@@ -15,9 +15,17 @@ Layout of a run directory::
     contact_surface.step, contact_surface.iges   the optimal design for CAD and other FE tools
                                                  (:mod:`contactopt.io.export`; summary.json "export")
 
+    .contactopt.lock   the lock of the process writing the directory, while it runs
+                       (:mod:`contactopt.io.lock`: one writer per directory)
+
 A state solve that fails during the run (e.g. Newton does not converge) stops it with
 :class:`RunAborted`; the checkpoint of the last finished iteration stays and ``--resume``
-continues from it. Resuming (``resume=True``) restores the optimizer state and the warm start
+continues from it. So does a write that fails (:class:`~contactopt.io.atomic.WriteError`: a full
+disk, a read-only file system) and an interruption (:class:`Interrupted`, SIGINT or SIGTERM),
+after which summary.json says ``"status": "interrupted"`` and the command that continues the run;
+both messages say where the run stands, read from the checkpoint itself. A checkpoint written
+once the optimization has stopped carries its result, and resuming from it writes the outputs
+again without another iteration. Resuming (``resume=True``) restores the optimizer state and the warm start
 of the state solver saved with the last checkpoint, truncates history.csv to the evaluations before it, and goes on:
 the iterates that follow are those of an uninterrupted run.
 """
