@@ -318,7 +318,9 @@ def _main(argv=None) -> int:
     console = logging.StreamHandler(sys.stderr)
     # progress of long solves (contactopt.progress, INFO on large meshes) shows at every verbosity
     console.setLevel(min(level, logging.INFO))
-    console.addFilter(lambda r: r.levelno >= level or r.name == "contactopt.progress")
+    # (a record the raised exception repeats is printed once, as the error)
+    console.addFilter(lambda r: (r.levelno >= level or r.name == "contactopt.progress")
+                      and not getattr(r, "raised", False))
     console.setFormatter(logging.Formatter("%(levelname)s %(name)s: %(message)s"))
     logging.getLogger().addHandler(console)
     logging.getLogger("contactopt").setLevel(min(level, logging.INFO))

@@ -106,6 +106,10 @@ class RunResult:
     summary: dict
 
 
+# a log record whose text the exception raised next carries too: the command line prints that
+# one and leaves the record to run.log
+RAISED = {"raised": True}
+
 LONG_EVALUATION = 5.0    # seconds: evaluations longer than this are logged at INFO (else DEBUG)
 
 
@@ -470,7 +474,7 @@ def run_optimization(config, outdir=None, *, eps=None, max_iter=None, resume=Fal
     except WriteError as exc:
         position = _Position.on_disk(ckpt)
         exc.args = (f"{exc.args[0]}; {position.describe()}" + position.hint(config, out),)
-        log.error("run stopped: %s", exc)
+        log.error("run stopped: %s", exc, extra=RAISED)
         raise
     except KeyboardInterrupt as exc:
         raise _interrupted(exc, config, out, cfg, _Position.on_disk(ckpt), oracle) from None
@@ -501,7 +505,7 @@ def _interrupted(exc, config, out: Path, cfg, position: _Position, oracle) -> In
         atomic_write_json(out / "summary.json", summary)
     except (WriteError, KeyboardInterrupt) as err:     # a full disk or a second signal: said, not fatal
         log.error("summary.json of the interrupted run not written: %s", err)
-    log.error("run %s", message)
+    log.error("run %s", message, extra=RAISED)
     return Interrupted(signum, message + position.hint(config, out), resume)
 
 

@@ -354,7 +354,7 @@ def _run_tasks(client, tasks, out: Path, keys, budget, max_iter, eps, progress, 
         exc.args = (f"{exc.args[0]}; {len(rows)} of {len(specs)} tasks had finished; continue with: {again}",)
         raise
     except KeyboardInterrupt as exc:
-        from ..runner import Interrupted
+        from ..runner import RAISED, Interrupted
         finished = {r["task"] for r in rows}
         for spec in specs:
             if spec.task.index not in finished:
@@ -367,7 +367,7 @@ def _run_tasks(client, tasks, out: Path, keys, budget, max_iter, eps, progress, 
             write_tables(out, keys, rows)
         except (WriteError, KeyboardInterrupt) as err:
             log.error("the tables of the interrupted sweep were not written: %s", err)
-        log.error("%s", message)
+        log.error("%s", message, extra=RAISED)
         raise Interrupted(signum, f"{message}; continue with: {again}", again) from None
 
 
