@@ -643,22 +643,27 @@ def same_sweep_results(out: Path, expected: dict):
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("signum, seed", [(signal.SIGINT, 1), (signal.SIGTERM, 2)])
-def test_interrupted_sweep_marks_its_tasks_and_resumes_them(small, sweep_reference, tmp_path, signum, seed):
+@pytest.mark.parametrize("signum, seed, after", [(signal.SIGINT, 1, "the cluster started"),
+                                                 (signal.SIGTERM, 2, "the first task finished")])
+def test_interrupted_sweep_marks_its_tasks_and_resumes_them(small, sweep_reference, tmp_path, signum, seed, after):
     env = environment()
     out = tmp_path / "sw"
     rng = random.Random(seed)
-    delay = rng.uniform(0.5, 8.0)         # after the cluster has started: during the first or second task
+    delay = rng.uniform(0.5, 8.0) if after == "the cluster started" else rng.uniform(0.0, 1.0)
     cmd = contactopt_cmd("sweep", small, *SWEEP, *ONE_WORKER, "--out", out)
     # to the whole process group, as a terminal's Ctrl-C or a batch system's time limit: the
     # local cluster's processes get it too
     proc = subprocess.Popen(cmd, env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
                             start_new_session=True)
     first = proc.stdout.readline()           # "sweep on tcp://…": the cluster is up
+    while after == "the first task finished" and not first.splitlines()[-1].startswith("[1/2]"):
+        line = proc.stdout.readline()        # "[1/2] friction.coefficient=0.0: J/J0 = …"
+        assert line, first
+        first += line
     time.sleep(delay)
     os.killpg(proc.pid, signum)
     text = first + proc.communicate(timeout=300)[0]
-    print(f"\n{signal.Signals(signum).name} {delay:.1f} s after the cluster started")
+    print(f"\n{signal.Signals(signum).name} {delay:.2f} s after {after}")
     if proc.returncode == 0:
         pytest.skip("the sweep ended before the signal")
     assert proc.returncode == 128 + signum, text
