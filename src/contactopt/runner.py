@@ -48,7 +48,7 @@ import numpy as np
 from .config import Config, load_config
 from .errors import CheckpointError, ConfigError, ContactOptError, SolverError
 from .io.atomic import WriteError, atomic_savez, atomic_write_json, atomic_write_text, write_error
-from .io.lock import LockedError, held_by
+from .io.lock import LockedError, describe, held_by
 from .io.rundir import claim_output_dir
 
 log = logging.getLogger(__name__)
@@ -404,7 +404,6 @@ def run_optimization(config, outdir=None, *, eps=None, max_iter=None, resume=Fal
         if root.getEffectiveLevel() > logging.INFO:
             root.setLevel(logging.INFO)
         if lock.previous:
-            from .io.lock import describe
             log.warning("took over the lock of %s from a writer that no longer runs (%s)", out,
                         describe(lock.previous))
         _log_setup(problem, t_setup)

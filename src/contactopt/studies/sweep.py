@@ -50,7 +50,7 @@ from pathlib import Path
 from ..config import load_config, validate
 from ..errors import ConfigError
 from ..io.atomic import WriteError, atomic_write_json, atomic_write_text, write_error
-from ..io.lock import DirLock, LockedError, held_by
+from ..io.lock import DirLock, LockedError, describe, held_by
 from ..io.rundir import claim_output_dir
 from .settings import SweepTask, build_tasks, format_value
 
@@ -256,7 +256,6 @@ def _prepare(outdir: Path, *, resume: bool, overwrite: bool, settings, base, max
     lock = claim_output_dir(outdir, overwrite=overwrite, resume=resume, what="sweep")
     try:
         if lock.previous:
-            from ..io.lock import describe
             log.warning("took over the lock of %s from a sweep that no longer runs (%s)", outdir,
                         describe(lock.previous))
         try:
@@ -272,7 +271,8 @@ def _prepare(outdir: Path, *, resume: bool, overwrite: bool, settings, base, max
 
 def resume_command(config, settings, outdir, max_iter=None, eps=None) -> str:
     """The command that continues the sweep in ``outdir``."""
-    cfg = str(config) if isinstance(config, (str, os.PathLike)) else str(Path(outdir) / "sweep.toml")
+    cfg = str(config) if isinstance(config, (str, os.PathLike)) else str(getattr(config, "source", ""))
+    cfg = cfg if cfg and not cfg.startswith("<") else "CONFIG"      # a configuration built in Python
     parts = ["contactopt", "sweep", cfg]
     for key, values in settings:
         parts += ["--set", f"{key}=" + ",".join(format_value(v) for v in values)]
