@@ -63,6 +63,8 @@ def test_problem_subgradient_matches_finite_differences(name):
     x = prob.x0 + 0.01 * rng.normal(size=prob.n)
     if name == "EQUIL":
         x = np.abs(x) / np.abs(x).sum()
+    if prob.lb is not None:                      # inside the domain (MAD4: log x2, x2 >= 0.01)
+        x = np.maximum(x, prob.lb)
     f, g = prob(x)
     h = 1e-7
     fd = np.array([(prob(x + h * e)[0] - prob(x - h * e)[0]) / (2 * h) for e in np.eye(prob.n)])
@@ -70,17 +72,34 @@ def test_problem_subgradient_matches_finite_differences(name):
 
 
 # ------------------------------------------------------------------ acceptance: Lukšan–Vlček
-@pytest.mark.parametrize("name", list(PROBLEMS))
-def test_reaches_f_star_at_eps_1e4_with_feasible_iterates(name):
-    """The certified test alone (ftol = 0: the practical stop is off)."""
+# not solved to 1e-6 with a success verdict by the defaults (docs/stopping.md has the figures):
+# Shell Dual, FILTER-124, HS114 and Dembo7 end above f*; HS78 and Dembo3 reach f* to 1e-8 but
+# end "stalled" (no certificate at eps = 1e-7 before f stops decreasing)
+UNSOLVED = {"Shell Dual", "FILTER-124", "HS114", "Dembo7", "HS78", "Dembo3"}
+# runs of more than about two seconds here
+LONG = {"Steiner2", "GOFFIN", "L1HILB", "Wong3", "Gill", "MAXABS-38"}
+
+
+def _collection():
+    for name in PROBLEMS:
+        marks = []
+        if name in UNSOLVED:
+            marks = [pytest.mark.slow, pytest.mark.xfail(strict=True, reason="issue 34: open")]
+        elif name in LONG:
+            marks = [pytest.mark.slow]
+        yield pytest.param(name, marks=marks)
+
+
+@pytest.mark.parametrize("name", list(_collection()))
+def test_reaches_f_star_with_feasible_iterates(name):
+    """The defaults (certified test at eps = 1e-7 relative, practical stop off): f* to 1e-6."""
     prob = PROBLEMS[name]
     oracle = CheckedOracle(prob)
-    res = minimize_bundle(oracle, prob.x0, eps=1e-4, max_iter=3000, ftol=0.0,
-                          **prob.constraints())
+    res = minimize_bundle(oracle, prob.x0, max_iter=3000, **prob.constraints())
     assert res.success, res.message
-    assert res.message.startswith("converged: stationarity")
+    assert res.status in (0, 5)       # certified, or no decrease above round-off after a restart
     err = rel_error(res.fun, prob.f_star)
-    assert err <= 1e-4, f"{name}: f = {res.fun!r}, f* = {prob.f_star}, error {err:.2e}"
+    assert err <= 1e-6, f"{name}: f = {res.fun!r}, f* = {prob.f_star}, error {err:.2e}"
     assert prob.max_violation(res.x) <= FEAS_TOL
     assert res.nfev == oracle.calls
     assert res.nit == res.n_serious + res.n_null == len(res.history)
@@ -415,16 +434,15 @@ def test_direction_qp_survives_degenerate_bundles():
 
 
 # ------------------------------------------------------------------ defaults: both stopping tests
-@pytest.mark.parametrize("name", list(PROBLEMS))
+@pytest.mark.parametrize("name", list(_collection()))
 def test_default_stopping_reaches_f_star(name):
-    """With the built-in defaults (certified test and practical stop) every run ends in a
-    success at f* to 1e-4, whichever test fired first."""
+    """With the built-in defaults every run ends in a success at f* to 1e-6, and the result
+    names the test that fired."""
     prob = PROBLEMS[name]
-    res = minimize_bundle(CheckedOracle(prob), prob.x0, eps=1e-4, max_iter=3000,
-                          **prob.constraints())
-    assert res.success and res.status in (0, 4), res.message
-    assert res.criterion == {0: "stationarity", 4: "relative_decrease"}[res.status]
-    assert rel_error(res.fun, prob.f_star) <= 1e-4, (res.fun, prob.f_star)
+    res = minimize_bundle(CheckedOracle(prob), prob.x0, max_iter=3000, **prob.constraints())
+    assert res.success and res.status in (0, 4, 5), res.message
+    assert res.criterion == {0: "stationarity", 4: "predicted_decrease", 5: "roundoff"}[res.status]
+    assert rel_error(res.fun, prob.f_star) <= 1e-6, (res.fun, prob.f_star)
 
 
 def test_converged_run_stops_before_max_iter_naming_criterion_and_value():
@@ -527,10 +545,10 @@ def test_the_run_sets_gamma_from_what_the_cuts_show():
     res = minimize_bundle(prob, prob.x0, eps=1e-6, max_iter=2000)
     assert res.status == 0 and res.fun <= 1e-6 and res.state.affine is not None
     prob = PROBLEMS["Crescent"]
-    t0 = max(1.0, np.abs(prob.x0).max()) / np.linalg.norm(prob(prob.x0)[1])
     res = minimize_bundle(prob, prob.x0, eps=1e-6, max_iter=2000)
-    assert res.status == 0 and rel_error(res.fun, prob.f_star) <= 1e-6
-    assert res.gamma > 0.0125 / t0
+    # certified, or (status 5) no decrease above round-off from a bundle rebuilt at x
+    assert res.status in (0, 5) and res.success and rel_error(res.fun, prob.f_star) <= 1e-6
+    assert res.state.nonconvex == 1 and res.gamma > 0.0       # the cuts showed nonconvexity
     with pytest.raises(OptimizerError) as info:
         minimize_bundle(prob, prob.x0, gamma=-1.0, gamma_t0=float("nan"), gamma_factor=0.5)
     for key in ("gamma >= 0", "gamma_t0", "gamma_factor"):
@@ -546,3 +564,30 @@ def test_version_1_state_resumes():
     assert st.i_t == 0 and st.eps_v == np.inf
     res = minimize_bundle(prob, None, state=st, eps=1e-4)
     assert res.success and rel_error(res.fun, prob.f_star) <= 1e-4
+
+
+# ------------------------------------------------------------------ verdicts independent of the run
+def _verdicts(names, threads):
+    """(status, reached f* to 1e-6 relative) of each problem with the defaults (eps = 1e-6)."""
+    from threadpoolctl import threadpool_limits
+
+    out = {}
+    with threadpool_limits(limits=threads, user_api="blas"):
+        for name in names:
+            prob = PROBLEMS[name]
+            res = minimize_bundle(prob, prob.x0, eps=1e-6, max_iter=1500, **prob.constraints())
+            out[name] = (res.status, rel_error(res.fun, prob.f_star) <= 1e-6)
+    return out
+
+
+@pytest.mark.slow
+def test_collection_verdicts_do_not_depend_on_order_or_threads():
+    """The whole collection in the table's order with one BLAS thread, then shuffled with two:
+    every problem gets the same verdict (the problems are pure functions and the method keeps
+    no state between runs; a verdict that moved would mean a tie broken by round-off)."""
+    names = list(PROBLEMS)
+    first = _verdicts(names, 1)
+    shuffled = list(np.random.default_rng(34).permutation(names))
+    assert shuffled != names
+    second = _verdicts(shuffled, 2)
+    assert second == first

@@ -288,7 +288,7 @@ SCHEMA = {
         "metric": ("bfgs", _oneof("bfgs", "diagonal", "none"),
                    "'bfgs', 'diagonal' or 'none' (the variable metric of the bundle QP's proximal "
                    "term: damped BFGS from the last `metric_memory` serious steps, for a piecewise "
-                   "smooth Θ; a diagonal secant estimate, the default of "
+                   "smooth Θ; a diagonal secant estimate; or the identity, the default of "
                    "contactopt.optimize.minimize_bundle, for polyhedral functions; docs/stopping.md)"),
         "metric_memory": (20, _posint, "an integer ≥ 1 (serious steps the metric is estimated "
                           "from)"),
