@@ -728,7 +728,7 @@ def minimize_bundle(oracle, x0, *, lb=None, ub=None, A_ub=None, b_ub=None, A_eq=
         Start; when infeasible it is replaced by its Euclidean projection onto U (logged).
     eps : float
         Certified stop (status 0) when ``stationarity = max(‖p‖, α_p + σ)/max(1, |f|) ≤ eps``:
-        the aggregate subgradient of f + indicator(U) is an eps·max(1, |f|)-subgradient at x
+        the aggregate subgradient of f + indicator(U) is an ``eps·max(1, |f|)``-subgradient at x
         of that length, so that (for convex f) ``f(x) − f(z) ≤ eps·max(1, |f|)·(1 + ‖z − x‖)``
         for all z ∈ U.  Default 1e-7: the 35 problems of Lukšan & Vlček's collection that the
         method solves end within 1e-6 (relative) of f* (docs/stopping.md).
