@@ -21,6 +21,12 @@ differentiating S_eff w − ℓ_eff at fixed w gives S_eff S⁻¹(∂S u_c − �
 z = S⁻¹ S_eff v_u in place of v_u: ṽ is the A-harmonic extension of z. S_eff and both
 transfers come from the Woodbury identity (:class:`contactopt.fem.foundation.Coupling`), with no
 inverse of S. Without a foundation (C = 0) nothing of this is formed.
+
+On a rigid obstacle other than the plane (``[obstacle]``, :mod:`contactopt.mesh.obstacle`) each
+contact node m has a frame R_m with columns (t1, t2, n): the contact DOFs are the local
+components u_loc = R_mᵀ u_c, so the system is S_loc = Qᵀ S Q, ℓ_loc = Qᵀ ℓ with Q = diag(R_m),
+the state's ``u_c`` and forces are per node (t1, t2, n) in the node's frame, the interior is
+recovered from Q u_loc, and the adjoint's design terms extend Q v_u. On the plane nothing is rotated.
 """
 
 from __future__ import annotations
@@ -97,7 +103,10 @@ class CondensationPath(ZonePath):
             fac.refactor(asm.A, trusted=True)     # symmetric, positive diagonal: assembled
         else:
             fac = self._factor = condense(asm.A, self.model.contact_dofs, backend=self.library)
-        system = CondensedSystem(asm, fac, fac.S, fac.condense_load(asm.L), asm.gap, {})
+        S, ell = fac.S, fac.condense_load(asm.L)
+        if self.frames is not None:
+            S, ell = to_frames_matrix(S, self.frames), to_frames(ell, self.frames)
+        system = CondensedSystem(asm, fac, S, ell, asm.gap, {})
         if self.foundation is not None:
             from ..fem.foundation import Coupling
             system.coupling = Coupling(system.S, self.foundation)
@@ -109,9 +118,16 @@ class CondensationPath(ZonePath):
     def foundation(self):
         return getattr(self.model, "foundation", None)
 
+    @property
+    def frames(self):
+        """(p, 3, 3) contact frames on an obstacle other than the plane, else None (module docstring)."""
+        return getattr(self.model, "frames", None)
+
     def for_load(self, system, asm) -> CondensedSystem:
         t1 = time.perf_counter()
         ell = system.factor.condense_load(asm.L)
+        if self.frames is not None:
+            ell = to_frames(ell, self.frames)
         out = replace(system, assembled=asm, ell=ell, timings={})
         if out.coupling is not None:
             out.ell_eff = out.coupling.ell_eff(ell)
@@ -130,7 +146,10 @@ class CondensationPath(ZonePath):
         return system.factor.recover(system.assembled.L, u_body)
 
     def body_contact_displacement(self, system, u_c, r):
-        """On a foundation u_c is the relative displacement w; the body's own is w + Π u_f."""
+        """On a foundation u_c is the relative displacement w; the body's own is w + Π u_f. On an
+        obstacle u_c is in the nodes' frames: the body's is Q u_c."""
+        if self.frames is not None:
+            return from_frames(np.ravel(u_c), self.frames)
         if system.coupling is None:
             return np.ravel(u_c)
         return system.coupling.body_displacement(u_c, r)
@@ -156,6 +175,8 @@ class CondensationPath(ZonePath):
         from ..sensitivity.adjoint import solve_adjoint
         v_u, v_lam = solve_adjoint(system.contact_S, state, y_u, y_lam, choices)
         z = v_u if system.coupling is None else system.coupling.adjoint_z(v_u)
+        if self.frames is not None:
+            z = from_frames(z, self.frames)
         return v_u, v_lam, self.model.assembler.to_full(system.factor.extend(z))
 
     def uniqueness_bound(self, system):
@@ -171,3 +192,21 @@ class CondensationPath(ZonePath):
         lmax = eigsh(S, k=1, which="LA", return_eigenvectors=False, tol=1e-6)[0]
         wmax = eigsh(spd_inverse(S), k=1, which="LA", return_eigenvectors=False, tol=1e-6)[0]
         return float((1.0 / wmax) / lmax), None
+
+
+def to_frames(v: np.ndarray, R: np.ndarray) -> np.ndarray:
+    """Qᵀ v: a (3p,) vector of global components per contact node into the nodes' frames R (p, 3, 3)."""
+    return np.einsum("mij,mi->mj", R, v.reshape(-1, 3)).ravel()
+
+
+def from_frames(v: np.ndarray, R: np.ndarray) -> np.ndarray:
+    """Q v: a (3p,) vector in the nodes' frames back to global components."""
+    return np.einsum("mij,mj->mi", R, v.reshape(-1, 3)).ravel()
+
+
+def to_frames_matrix(S: np.ndarray, R: np.ndarray) -> np.ndarray:
+    """Qᵀ S Q of a (3p, 3p) matrix on the contact DOFs, symmetric as S is."""
+    p = R.shape[0]
+    S4 = S.reshape(p, 3, p, 3)
+    out = np.einsum("mai,makb,kbj->mikj", R, S4, R, optimize=True).reshape(3 * p, 3 * p)
+    return np.ascontiguousarray(0.5 * (out + out.T))
