@@ -592,9 +592,6 @@ def _check_obstacle(given, data, problems) -> dict:
         problems.append(f"obstacle.radius = {out['radius']!r}: must be > 0")
     if shape == "surface" and out["mesh"] and isinstance(out["mesh"], str) and not Path(out["mesh"]).is_file():
         problems.append(f"obstacle.mesh = {out['mesh']!r}: no such file")
-    for k, ctrl in (("displacement", "displacement"), ("force", "force")):
-        if k in given and out["control"] != ctrl:
-            problems.append(f"obstacle.{k}: is read with control = {ctrl!r} only (control = {out['control']!r})")
     if out["control"] == "force":
         problems.append("obstacle.control = 'force': a force-controlled obstacle is not implemented yet; "
                         "use control = 'displacement' (the resultant is then the sum of the contact forces)")

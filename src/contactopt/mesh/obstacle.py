@@ -293,9 +293,10 @@ def contact_frames(obstacle: Obstacle, points: np.ndarray, face_nodes: np.ndarra
     problems = []
     d = obstacle.signed_distance(points)
     inside = np.flatnonzero(d < -tol)
+    inside = inside[np.argsort(d[inside], kind="stable")]
     if inside.size:
         problems.append(f"{pre}obstacle: {inside.size} node(s) of the body lie inside the {obstacle.shape} "
-                        f"deeper than the tolerance {tol:.3g}, first: "
+                        f"deeper than the tolerance {tol:.3g}, deepest first: "
                         + ", ".join(f"node {n} at {_fmt(points[n])} (depth {-d[n]:.3g})" for n in inside[:5]))
     if isinstance(obstacle, Surface):
         amb = obstacle.ambiguous(points[face_nodes], tol)

@@ -1,0 +1,229 @@
+"""Rigid obstacles of any shape ([obstacle], contactopt.mesh.obstacle): frames, gaps, states and
+subgradients; bad input refused with exit 2 and nothing written.
+
+A block 2 × 2 × 1 clamped at its top, its contact face on x3 = 0, pushed onto the obstacle by a
+prescribed rigid translation of the obstacle (control = "displacement").
+"""
+
+import meshio
+import numpy as np
+import pytest
+import tomli_w
+
+from contactopt.cli import main
+from contactopt.config import load_config, validate
+from contactopt.errors import ConfigError
+from contactopt.mesh.block import block_mesh
+from contactopt.mesh.obstacle import Cylinder, Sphere, closest_on_triangles, read_surface, tangent_frames
+from contactopt.mesh.tetsplit import hex_to_tets
+from contactopt.paths import select_path
+from contactopt.problem import ShapeProblem
+from contactopt.sensitivity.check import check_gradient
+
+R = 5.0
+SPHERE = {"shape": "sphere", "center": [1.0, 1.0, -R], "radius": R, "control": "displacement",
+          "displacement": [0.0, 0.0, 0.05]}
+CYLINDER = {"shape": "cylinder", "point": [1.0, 0.0, -R], "axis": [0.0, 1.0, 0.0], "radius": R,
+            "control": "displacement", "displacement": [0.0, 0.0, 0.02]}
+
+
+def block(obstacle=None, friction=0.3, n=4, path="condensation", **updates):
+    """The block (mesh 2n × 2n × 3) with ``obstacle`` ([obstacle] table, or None for none)."""
+    common = {"friction": {"coefficient": friction}, "linear_solver": {"path": path},
+              "material": {"nu": 0.3}, "state": {"method": "newton", "tol": 1e-12},
+              "loads": {"top_traction": [0.0, 0.0, 0.0], "right_traction": [0.0, 0.0, 0.0]},
+              "design": {"degree": [3, 2], "initial": 0.0, "C2": 0.0},
+              "geometry": {"a": 2.0, "b": 2.0, "c": 1.0}, "mesh": {"nx": 2 * n, "ny": 2 * n, "nz": 3},
+              "body": {"clamped": "top"}}
+    if obstacle is not None:
+        common["obstacle"] = obstacle
+    common.update(updates)
+    return load_config("example1").with_updates(common)
+
+
+def prism(path, polygon, y0, y1):
+    """A closed STL: the star-shaped ``polygon`` [(x1, x3), …] (counter-clockwise about its
+    centroid) extruded along x2 from y0 to y1, its caps fanned from the centroid."""
+    poly = np.asarray(polygon, float)
+    k = len(poly)
+    c = poly.mean(axis=0)
+    pts = [(u, y0, v) for u, v in poly] + [(u, y1, v) for u, v in poly] + [(c[0], y0, c[1]), (c[0], y1, c[1])]
+    tri = []
+    for i in range(k):
+        j = (i + 1) % k
+        tri += [(i, j, k + j), (i, k + j, k + i), (2 * k, j, i), (2 * k + 1, k + i, k + j)]
+    meshio.write(path, meshio.Mesh(np.asarray(pts), [("triangle", np.asarray(tri))]), file_format="stl", binary=True)
+    return str(path)
+
+
+def polygonal_cylinder(path, sides=48):
+    """A closed STL of the cylinder CYLINDER (its axis along x2), a prism of ``sides`` sides with a
+    vertex at the top, longer than the block."""
+    t = 0.5 * np.pi + 2 * np.pi * np.arange(sides) / sides
+    return prism(path, np.c_[1.0 + R * np.cos(t), -R + R * np.sin(t)], -1.0, 3.0)
+
+
+# ------------------------------------------------------------------ geometry
+def test_closest_points_on_triangles_against_a_dense_sampling():
+    rng = np.random.default_rng(3)
+    P = rng.standard_normal((5, 3, 3))
+    x = 2 * rng.standard_normal((40, 3))
+    got = closest_on_triangles(x, P)
+    s, t = np.meshgrid(np.linspace(0, 1, 401), np.linspace(0, 1, 401))
+    keep = s + t <= 1
+    bary = np.c_[1 - s[keep] - t[keep], s[keep], t[keep]]
+    for k in range(5):
+        samples = bary @ P[k]
+        d = np.linalg.norm(samples[None] - x[:, None], axis=2).min(axis=1)
+        dist = np.linalg.norm(got[:, k] - x, axis=1)
+        assert np.all(dist <= d + 1e-12) and np.all(dist >= d - 5e-3)
+
+
+def test_frames_are_right_handed_and_the_plane_gets_the_axes():
+    n = np.array([[0.0, 0.0, 1.0], [0.6, 0.0, 0.8], [1.0, 0.0, 0.0], [0.0, -0.6, 0.8]])
+    R_ = tangent_frames(n)
+    assert np.array_equal(R_[0], np.eye(3))
+    assert np.allclose(np.einsum("kij,kil->kjl", R_, R_), np.eye(3), atol=1e-15)
+    assert np.allclose(np.linalg.det(R_), 1.0)
+    x = np.array([[1.0, 1.0, 0.0], [3.0, 1.0, 0.0]])
+    fr = Sphere([1.0, 1.0, -R], R).frames(x)
+    assert np.allclose(fr.distance, [0.0, np.hypot(2.0, R) - R])
+    fc = Cylinder([1.0, 0.0, -R], [0.0, 3.0, 0.0], R).frames(x)
+    assert np.allclose(fc.distance, fr.distance) and np.allclose(fc.normal, fr.normal)
+
+
+def test_a_polygonal_cylinder_from_stl_gives_distances_of_its_facets(tmp_path):
+    surf = read_surface(polygonal_cylinder(tmp_path / "c.stl"))
+    x = np.array([[1.0, 0.5, 0.1], [1.4, 1.5, 0.3], [1.0, 1.0, -R]])
+    d = surf.frames(x).distance
+    exact = Cylinder([1.0, 0.0, -R], [0, 1, 0], R).frames(x).distance
+    inscribed = R * (1 - np.cos(np.pi / 48))            # the facets lie inside the circle
+    assert np.allclose(d[:2], exact[:2], atol=inscribed + 1e-12) and d[0] == pytest.approx(0.1)
+    assert d[2] == pytest.approx(-2.0)          # on the axis, inside: nearest the end cap at x2 = 3
+
+
+# ------------------------------------------------------------------ the plane is the default
+def test_the_plane_obstacle_is_the_default_bit_for_bit():
+    alpha = 0.002 + 0.003 * np.sin(np.arange(12))
+    cfg = block(friction=0.3, loads={"top_traction": [0.0, 0.0, -0.05], "right_traction": [0.02, 0.0, 0.0]})
+    a = ShapeProblem(cfg)
+    b = ShapeProblem(cfg.with_updates({"obstacle": {"shape": "plane"}}))
+    assert b.model.frames is None
+    va, ga = a.evaluate(alpha)
+    vb, gb = b.evaluate(alpha)
+    sa, sb = a.solve_state(alpha), b.solve_state(alpha)
+    assert va == vb and np.array_equal(ga, gb)
+    assert np.array_equal(sa.u, sb.u) and np.array_equal(sa.lam, sb.lam) and np.array_equal(sa.tau, sb.tau)
+
+
+def test_a_closed_box_from_stl_under_the_face_is_the_plane(tmp_path):
+    # frames (e1, e2, e3) and distance x3 from the facets of a box: the plane's state to round-off
+    box = prism(tmp_path / "box.stl", [(-1.0, -1.0), (3.0, -1.0), (3.0, 0.0), (-1.0, 0.0)], -1.0, 3.0)
+    d = {"control": "displacement", "displacement": [0.0, 0.0, 0.01]}
+    plane = ShapeProblem(block({"shape": "plane", **d}, loads={"right_traction": [0.01, 0.0, 0.0]}))
+    stl = ShapeProblem(block({"shape": "surface", "mesh": box, **d}, loads={"right_traction": [0.01, 0.0, 0.0]}))
+    assert stl.model.frames is not None and np.allclose(stl.model.frames, np.eye(3), atol=0)
+    alpha = 0.004 * np.cos(np.arange(12))
+    sp, ss = plane.solve_state(alpha), stl.solve_state(alpha)
+    assert np.array_equal(sp.classes, ss.classes) and sp.counts["M1"] > 0 and sp.counts["M3+"] > 0
+    assert np.abs(sp.lam - ss.lam).max() <= 1e-10 * sp.lam.max()
+    assert np.abs(sp.u - ss.u).max() <= 1e-10 * np.abs(sp.u).max()
+
+
+# ------------------------------------------------------------------ subgradients
+def tet_block(tmp_path, obstacle, friction=0.3):
+    """The block as a file of linear tetrahedra (each hexahedron split into six), mesh 8 × 8 × 3."""
+    hexes = block_mesh(2.0, 2.0, 1.0, 8, 8, 3)
+    path = tmp_path / "tets.vtu"
+    meshio.write(path, meshio.Mesh(hexes.points, [("tetra", hex_to_tets(hexes.cells))]))
+    cfg = block(obstacle, friction)
+    data = {k: v for k, v in cfg.data.items() if k not in ("geometry", "mesh")}
+    data["body"] = {**data["body"], "mesh": str(path), "clamped": {"x3": 1.0}, "contact": {"x3": 0.0}}
+    data["loads"] = {"body_force": [0.0, 0.0, 0.0]}
+    return validate(data, "tets")
+
+
+@pytest.mark.parametrize("shape", ["sphere", "cylinder", "surface"])
+@pytest.mark.parametrize("cells", ["hexahedron", "tetra"])
+def test_subgradient_on_an_obstacle_matches_central_differences(tmp_path, shape, cells):
+    obstacle = {"sphere": SPHERE, "cylinder": CYLINDER,
+                "surface": {**CYLINDER, "shape": "surface", "mesh": polygonal_cylinder(tmp_path / "c.stl")}}[shape]
+    cfg = block(obstacle) if cells == "hexahedron" else tet_block(tmp_path, obstacle)
+    problem = ShapeProblem(cfg)
+    assert problem.model.frames is not None and problem.model.body.reference.cell_type == cells
+    alpha = 0.002 * np.sin(np.arange(problem.model.n_design)) + 0.001
+    st = problem.solve_state(alpha)
+    assert st.counts["M1"] > 0 and st.counts["M3+"] > 0          # slip and stick: friction acts in the frames
+    rep = check_gradient(problem, alpha, seed=1, n_directions=3)
+    assert rep.n_degenerate == 0
+    assert np.max(rep.rel_errors) <= 1e-6, rep.rel_errors
+    assert rep.taylor_rate >= 1.9
+
+
+def test_the_obstacle_gap_and_its_design_derivative():
+    # g_m = d_m + n3 ϑ_α − d·n_m at the contact nodes (mesh.obstacle)
+    problem = ShapeProblem(block(SPHERE))
+    m = problem.model
+    x = m.body.reference.points[m.contact_nodes]
+    fr = Sphere(SPHERE["center"], R).frames(x)
+    alpha = 0.01 * np.cos(np.arange(m.n_design))
+    theta = m.surface.basis_matrix(x[:, 0], x[:, 1]) @ alpha
+    expect = fr.distance + fr.normal[:, 2] * theta - fr.normal @ SPHERE["displacement"]
+    assert np.allclose(m.assemble(alpha).gap, expect, atol=1e-15)
+
+
+# ------------------------------------------------------------------ bad input
+def write(tmp_path, cfg, name="c.toml"):
+    path = tmp_path / name
+    path.write_text(tomli_w.dumps(cfg.data if hasattr(cfg, "data") else cfg))
+    return path
+
+
+def _refused(tmp_path, capsys, toml, *needles):
+    out = tmp_path / "out"
+    assert main(["state", str(toml), "--out", str(out)]) == 2
+    err = capsys.readouterr().err
+    for needle in needles:
+        assert needle in err, err
+    assert not out.exists()
+
+
+def test_a_body_node_inside_the_obstacle_exits_2_and_writes_nothing(tmp_path, capsys):
+    deep = {**SPHERE, "center": [1.0, 1.0, -R + 0.05]}
+    _refused(tmp_path, capsys, write(tmp_path, block(deep)), "node(s) of the body lie inside the sphere",
+             "depth 0.05")
+
+
+def test_unknown_obstacle_keys_and_missing_radius_exit_2(tmp_path, capsys):
+    data = block().data
+    data["obstacle"] = {"shape": "sphere", "center": [1.0, 1.0, -5.0], "raduis": 5.0}
+    _refused(tmp_path, capsys, write(tmp_path, data), "obstacle.raduis: unknown key", "obstacle.radius: required")
+
+
+def test_an_stl_that_is_not_closed_exits_2(tmp_path, capsys):
+    good = polygonal_cylinder(tmp_path / "c.stl", sides=12)
+    m = meshio.read(good)
+    meshio.write(tmp_path / "open.stl", meshio.Mesh(m.points, [("triangle", m.cells[0].data[1:])]), file_format="stl", binary=True)
+    obstacle = {**CYLINDER, "shape": "surface", "mesh": str(tmp_path / "open.stl")}
+    _refused(tmp_path, capsys, write(tmp_path, block(obstacle)), "is not closed", "not shared by exactly two")
+
+
+def test_a_contact_node_whose_closest_point_is_not_unique_exits_2(tmp_path, capsys):
+    # a V groove along x2 under x1 = 1: the nodes above its bottom line are as close to both flanks
+    groove = prism(tmp_path / "v.stl", [(-1.0, -1.0), (3.0, -1.0), (3.0, -0.1), (1.0, -0.3), (-1.0, -0.1)],
+                   -1.0, 3.0)
+    _refused(tmp_path, capsys, write(tmp_path, block({"shape": "surface", "mesh": groove})),
+             "closest point on the surface is not unique for 9 node(s)", "node 4 at (1, 0, 0)")
+
+
+def test_force_control_a_foundation_and_the_other_paths_are_refused(tmp_path, capsys):
+    with pytest.raises(ConfigError, match="force-controlled obstacle is not implemented"):
+        block({**SPHERE, "control": "force", "force": [0.0, 0.0, 0.1]})
+    with pytest.raises(ConfigError, match=r"\[obstacle\] and \[foundation\] exclude each other"):
+        block(SPHERE, foundation={"block": {"size": [3.0, 3.0, 1.0], "cells": [3, 3, 1]}})
+    for path in ("delassus", "fullspace", "petsc"):
+        with pytest.raises(ConfigError, match="solved on the 'condensation' path only"):
+            select_path(block(SPHERE, path=path), 1000)
+    assert select_path(block(SPHERE, path="auto"), 10 ** 7)[0] == "condensation"
+    # the plane takes every path, with a translation too
+    assert select_path(block({"shape": "plane", "control": "displacement"}, path="fullspace"), 10)[0] == "fullspace"
