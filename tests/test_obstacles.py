@@ -227,3 +227,22 @@ def test_force_control_a_foundation_and_the_other_paths_are_refused(tmp_path, ca
     assert select_path(block(SPHERE, path="auto"), 10 ** 7)[0] == "condensation"
     # the plane takes every path, with a translation too
     assert select_path(block({"shape": "plane", "control": "displacement"}, path="fullspace"), 10)[0] == "fullspace"
+
+
+# ------------------------------------------------------------------ Hertz (coarse; benchmarks/hertz.py refines)
+def test_hertz_contact_of_a_sphere_and_a_cylinder_on_coarse_meshes():
+    import sys
+    from pathlib import Path
+    sys.path.insert(0, str(Path(__file__).parents[1] / "benchmarks"))
+    try:
+        from hertz import A_TARGET, measure_cylinder, measure_sphere
+    finally:
+        sys.path.pop(0)
+    s = measure_sphere(A_TARGET / 3)
+    assert s["counts"]["M1"] > 10 and s["counts"]["M2"] == 0
+    assert abs(s["a"] / s["a_H"] - 1) < 0.01 and abs(s["p0"] / s["p0_H"] - 1) < 0.01
+    assert abs(s["delta_corr"] / s["delta_H"] - 1) < 0.01
+    c = [measure_cylinder(A_TARGET / k) for k in (3, 6)]
+    err = [abs(q["p0"] / q["p0_H"] - 1) for q in c]
+    assert err[1] < err[0] < 0.01
+    assert abs(c[1]["a"] / c[1]["a_H"] - 1) < 0.005
