@@ -160,6 +160,36 @@ def test_subgradient_on_an_obstacle_matches_central_differences(tmp_path, shape,
     assert rep.taylor_rate >= 1.9
 
 
+FORCED = {"sphere": {**SPHERE, "control": "force", "force": [0.0, 0.0, 1.2]},
+          "cylinder": {**CYLINDER, "control": "force", "force": [0.3, 0.0, 1.0]}}
+
+
+@pytest.mark.parametrize("shape,cells", [("sphere", "hexahedron"), ("sphere", "tetra"),
+                                         pytest.param("cylinder", "hexahedron", marks=pytest.mark.slow),
+                                         pytest.param("surface", "hexahedron", marks=pytest.mark.slow),
+                                         pytest.param("surface", "tetra", marks=pytest.mark.slow)])
+def test_force_control_balances_the_force_and_its_subgradient_matches_central_differences(tmp_path, shape, cells):
+    obstacle = FORCED.get(shape) or {**FORCED["cylinder"], "shape": "surface",
+                                     "mesh": polygonal_cylinder(tmp_path / "c.stl")}
+    cfg = block(obstacle) if cells == "hexahedron" else tet_block(tmp_path, obstacle)
+    problem = ShapeProblem(cfg)
+    alpha = 0.002 * np.sin(np.arange(problem.model.n_design)) + 0.001
+    st = problem.solve_state(alpha)
+    f = np.asarray(obstacle["force"])
+    assert st.info["obstacle_resultant"] == pytest.approx(np.linalg.norm(f), rel=1e-12)
+    assert st.counts["M1"] > 0 and st.counts["M3+"] > 0
+    # the same obstacle moved by the translation found gives the same state (displacement control)
+    s = st.info["obstacle_translation"]
+    moved = {**obstacle, "control": "displacement", "displacement": (s * f / np.linalg.norm(f)).tolist()}
+    cfg2 = block(moved) if cells == "hexahedron" else tet_block(tmp_path, moved)
+    st2 = ShapeProblem(cfg2).solve_state(alpha)
+    assert np.abs(st2.lam - st.lam).max() <= 1e-10 * st.lam.max()
+    rep = check_gradient(problem, alpha, seed=2, n_directions=3)
+    assert rep.n_degenerate == 0
+    assert np.max(rep.rel_errors) <= 1e-6, rep.rel_errors
+    assert rep.taylor_rate >= 1.9
+
+
 def test_the_obstacle_gap_and_its_design_derivative():
     # g_m = d_m + n3 ϑ_α − d·n_m at the contact nodes (mesh.obstacle)
     problem = ShapeProblem(block(SPHERE))
@@ -216,9 +246,14 @@ def test_a_contact_node_whose_closest_point_is_not_unique_exits_2(tmp_path, caps
              "closest point on the surface is not unique for 9 node(s)", "node 4 at (1, 0, 0)")
 
 
-def test_force_control_a_foundation_and_the_other_paths_are_refused(tmp_path, capsys):
-    with pytest.raises(ConfigError, match="force-controlled obstacle is not implemented"):
-        block({**SPHERE, "control": "force", "force": [0.0, 0.0, 0.1]})
+def test_a_zero_force_a_foundation_and_the_other_paths_are_refused(tmp_path, capsys):
+    _refused(tmp_path, capsys, write(tmp_path, {**block().data, "obstacle": {**SPHERE, "control": "force"}}),
+             "obstacle.force = [0, 0, 0]", "no component along any free direction")
+    with pytest.raises(ConfigError, match="no contact node's normal has a component along the force"):
+        ShapeProblem(block({**SPHERE, "control": "force", "force": [0.0, 0.0, -1.0]}))
+    for path in ("delassus", "fullspace"):
+        with pytest.raises(ConfigError, match="force-controlled plane"):
+            select_path(block({"shape": "plane", "control": "force", "force": [0.0, 0.0, 1.0]}, path=path), 10)
     with pytest.raises(ConfigError, match=r"\[obstacle\] and \[foundation\] exclude each other"):
         block(SPHERE, foundation={"block": {"size": [3.0, 3.0, 1.0], "cells": [3, 3, 1]}})
     for path in ("delassus", "fullspace", "petsc"):

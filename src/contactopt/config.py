@@ -323,7 +323,8 @@ OBSTACLE = {
              "to this file; the solid it bounds is the obstacle"),
     "control": ("fixed", _oneof("fixed", "displacement", "force"),
                 "'fixed', 'displacement' (the obstacle moved by the rigid translation `displacement`) or "
-                "'force' (pressed by the resultant `force`; not implemented yet)"),
+                "'force' (pressed by the resultant `force`: it translates along the force, its translation an "
+                "unknown of the state; condensation path)"),
     "displacement": ([0.0, 0.0, 0.0], _vec3,
                      "control = 'displacement': the obstacle's rigid translation [d1, d2, d3] (it enters the "
                      "gap of contact node m as −d·n_m)"),
@@ -592,9 +593,9 @@ def _check_obstacle(given, data, problems) -> dict:
         problems.append(f"obstacle.radius = {out['radius']!r}: must be > 0")
     if shape == "surface" and out["mesh"] and isinstance(out["mesh"], str) and not Path(out["mesh"]).is_file():
         problems.append(f"obstacle.mesh = {out['mesh']!r}: no such file")
-    if out["control"] == "force":
-        problems.append("obstacle.control = 'force': a force-controlled obstacle is not implemented yet; "
-                        "use control = 'displacement' (the resultant is then the sum of the contact forces)")
+    if out["control"] == "force" and _vec3(out["force"]) and not any(v != 0 for v in out["force"]):
+        problems.append("obstacle.force = [0, 0, 0]: with control = 'force' the obstacle translates along the "
+                        "force, which has no direction (a force with no component along any free direction)")
     if "foundation" in data:
         problems.append("[obstacle] and [foundation] exclude each other: the body touches either a rigid "
                         "obstacle or an elastic foundation")

@@ -99,6 +99,7 @@ class ElasticModel:
                                 weight=self.weight, contact_nodes=body.contact_nodes,
                                 fixed_shape=tuple(body.fixed_shape))
         self.obstacle, self.frames = None, None     # [obstacle] (absent: the plane x3 = 0, fixed)
+        self.force = None       # control = "force": |f|, and per contact node force_b, force_gap (_obstacle_gap)
         face_frames = self._obstacle(cfg, ref, body)
         self.admissible = self._admissible_set(ref, body, face_frames)
         self.mesh.ratio = self._jacobian_ratio(ref, body)
@@ -170,6 +171,19 @@ class ElasticModel:
         where = np.searchsorted(self.body.contact_face.nodes, self.contact_nodes)
         n = fr.normal[where]
         shift = np.asarray(spec["displacement"], float) if spec["control"] == "displacement" else np.zeros(3)
+        if spec["control"] == "force":
+            f = np.asarray(spec["force"], float)
+            fhat = f / np.linalg.norm(f)
+            R = self.frames if self.frames is not None else np.broadcast_to(np.eye(3), (n.shape[0], 3, 3))
+            # the obstacle translates by s·f̂: the gap falls by s (f̂·n_m); the resultant along f̂ is
+            # Σ_m b_m·r_m with b_m = R_mᵀ f̂ (r_m per node (t1, t2, n) in its frame)
+            self.force = float(np.linalg.norm(f))
+            self.force_b = np.einsum("mij,i->mj", R, fhat)
+            self.force_gap = n @ fhat
+            if not np.any(self.force_gap > 0):
+                raise ConfigError([f"{self.config.source}: obstacle.force = {spec['force']}: no contact node's "
+                                   "normal has a component along the force: the obstacle cannot press the body "
+                                   "(a force with no component along any free direction)"])
         if spec["shape"] == "plane":
             if shift[2] != 0.0:
                 self.gap0 = self.gap0 - shift[2]

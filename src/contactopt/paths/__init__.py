@@ -78,6 +78,8 @@ def select_path(config, n_free: int, pinned: int = 0) -> tuple[str, str]:
                            "symmetry plane through the contact face), which an elastic [foundation] does not "
                            "take (its compliance would add to the clamped direction); the rigid foundation does"])
     obstacle = config.data.get("obstacle", {}).get("shape", "plane")
+    if config.data.get("obstacle", {}).get("control") == "force":
+        obstacle = f"force-controlled {obstacle}"
     if obstacle != "plane":
         # the contact frames rotate the condensed system (paths/condensation.py)
         if name not in ("auto", "condensation") or ranks > 1:

@@ -114,6 +114,11 @@ class SolverPath:
         """(v_u (3p), v_λ (p), ṽ on all DOFs) of the adjoint system (4.15) of ``state``."""
         raise NotImplementedError
 
+    def controlled_subgradient(self, system, ctx, state, v_lam, xi, loads=None) -> np.ndarray:
+        """ξ of a state with a force-controlled obstacle, whose translation depends on α
+        (:mod:`.condensation`); ``xi`` itself on the paths without one."""
+        return xi
+
     def design_contraction(self, system, u_full, v_full, loads=None) -> np.ndarray:
         """vᵀ(∂A/∂α_k u − ∂L/∂α_k) at the system's design (full-length u, v; DESIGN.md §2)."""
         return self.model.design_contraction(system.assembled.coords, u_full, v_full, loads)

@@ -27,6 +27,14 @@ contact node m has a frame R_m with columns (t1, t2, n): the contact DOFs are th
 components u_loc = R_mᵀ u_c, so the system is S_loc = Qᵀ S Q, ℓ_loc = Qᵀ ℓ with Q = diag(R_m),
 the state's ``u_c`` and forces are per node (t1, t2, n) in the node's frame, the interior is
 recovered from Q u_loc, and the adjoint's design terms extend Q v_u. On the plane nothing is rotated.
+
+A force-controlled obstacle (``control = "force"``) translates by s f̂ along its force f: the gap
+is g − s c, c_m = f̂·n_m, and s solves F(s) = Σ_m b_m·r_m − |f| = 0 (b_m = R_mᵀ f̂, the resultant
+along f̂ the obstacle exerts on the body), by Brent's method on a bracket from the first touch,
+one zone solve per step. The subgradient adds the dependence of s on α:
+ξ = ξ_s − (∂Θ/∂s)(∂F/∂s)⁻¹ ∂F/∂α, with ∂Θ/∂s = −v_λᵀc from the objective's adjoint, and
+F = bᵀ(S u_c − ℓ) taken as an objective of its own (y*_u = S b, its design term
+b̃ᵀ(∂A u − ∂L), b̃ the A-harmonic extension of Q b): ∂F/∂s = −w_λᵀc, ∂F/∂α its subgradient.
 """
 
 from __future__ import annotations
@@ -134,6 +142,69 @@ class CondensationPath(ZonePath):
         out.timings["schur"] = time.perf_counter() - t1
         return out
 
+    def solve_state(self, system, ctx, alpha, **kw):
+        """The state (:class:`ZonePath`); with a force-controlled obstacle the translation s that
+        balances the force, found by Brent's method (module docstring)."""
+        m = self.model
+        if getattr(m, "force", None) is None:
+            return super().solve_state(system, ctx, alpha, **kw)
+        from scipy.optimize import brentq
+
+        from ..errors import SolverError
+        c, b, f = m.force_gap, m.force_b, m.force
+        states = {}
+
+        def excess(s):
+            st = states[s] = super(CondensationPath, self).solve_state(replace(system, gap=system.gap - s * c),
+                                                                       ctx, alpha, **kw)
+            return excess_of(st, b, f)
+
+        touch = float(np.min(system.gap[c > 0] / c[c > 0]))
+        S = system.contact_S
+        step = f / float(np.max(np.diag(S)[2::3][c > 0] * c[c > 0] ** 2))
+        lo, hi = touch, touch + step
+        f_lo, f_hi = excess(lo), excess(hi)
+        for _ in range(200):
+            if f_lo <= 0 < f_hi:
+                break
+            if f_lo > 0:
+                lo, hi, f_hi = lo - step, lo, f_lo
+                f_lo = excess(lo)
+            else:
+                lo, f_lo, hi = hi, f_hi, hi + step
+                f_hi = excess(hi)
+            step *= 2.0
+        else:
+            raise SolverError(f"obstacle.force = {f:g}: no translation of the obstacle balances it")
+        if f_lo == 0:
+            s = lo
+        else:
+            s = brentq(excess, lo, hi, xtol=1e-15 * (abs(lo) + abs(hi)), rtol=4 * np.finfo(float).eps, maxiter=200)
+        if s not in states:
+            excess(s)
+        st = states[s]
+        st.info["obstacle_translation"] = s
+        st.info["obstacle_resultant"] = f + excess_of(st, b, f)
+        st.info["obstacle_solves"] = len(states)
+        return st
+
+    def controlled_subgradient(self, system, ctx, state, v_lam, xi, loads=None):
+        """ξ with the translation of a force-controlled obstacle following α (module docstring)."""
+        m = self.model
+        if getattr(m, "force", None) is None:
+            return xi
+        c, b = m.force_gap, m.force_b.ravel()
+        s = state.info["obstacle_translation"]
+        sys_s = replace(system, gap=system.gap - s * c)
+        _, w_lam, w_full = self.adjoint(sys_s, ctx, state, system.contact_S @ b, np.zeros(c.size))
+        bg = b if self.frames is None else from_frames(b, self.frames)
+        b_full = m.assembler.to_full(system.factor.extend(bg))
+        dF_da = (self.design_contraction(system, state.u, b_full + w_full, loads) + m.gap_matrix.T @ w_lam)
+        dF_ds = -float(w_lam @ c)
+        if dF_ds == 0:
+            return xi
+        return xi - (-float(v_lam @ c)) * dF_da / dF_ds
+
     def zone_problem(self, system, zone, warm, reuse, shared):
         if reuse and "zone" in shared:
             return on_factor(shared["zone"], system.contact_ell, zone), zone
@@ -210,3 +281,8 @@ def to_frames_matrix(S: np.ndarray, R: np.ndarray) -> np.ndarray:
     S4 = S.reshape(p, 3, p, 3)
     out = np.einsum("mai,makb,kbj->mikj", R, S4, R, optimize=True).reshape(3 * p, 3 * p)
     return np.ascontiguousarray(0.5 * (out + out.T))
+
+
+def excess_of(state, b: np.ndarray, force: float) -> float:
+    """Σ_m b_m·r_m − |f| of a state (r_m = (−τ, λ) per node in its frame)."""
+    return float(np.sum(b[:, :2] * -state.tau) + b[:, 2] @ state.lam) - force
