@@ -63,14 +63,32 @@ def common(friction=0.0):
             "design": {"degree": [2, 2], "initial": 0.0, "C0": 0.1, "C1": 1.0, "C2": 0.0}}
 
 
-def sphere_problem(h: float, friction=0.0, size=20.0, delta=A_TARGET ** 2 / R) -> ShapeProblem:
+P_SPHERE = 4 * E_STAR * A_TARGET ** 3 / (3 * R)     # the force of contact radius A_TARGET
+
+
+def sphere_problem(h: float, friction=0.0, size=20.0, force=P_SPHERE) -> ShapeProblem:
+    """The quarter model pressed by the force P (the quarter carries P/4; control = "force")."""
     L = size * A_TARGET
     x = graded_axis(h, 1.6 * A_TARGET, L)
     cfg = configure({
         **common(friction), "geometry": {"a": L, "b": L, "c": L}, "mesh": {"x1": x, "x2": x, "x3": x},
         "body": {"clamped": ["top", {"on": {"x1": 0.0}, "components": [1]}, {"on": {"x2": 0.0}, "components": [2]}]},
-        "obstacle": {"shape": "sphere", "center": [0.0, 0.0, -R], "radius": R, "control": "displacement",
-                     "displacement": [0.0, 0.0, delta]}})
+        "obstacle": {"shape": "sphere", "center": [0.0, 0.0, -R], "radius": R, "control": "force",
+                     "force": [0.0, 0.0, force / 4]}})
+    return ShapeProblem(cfg)
+
+
+def pushed_sphere(h: float, friction: float, d1: float, size=20.0, delta=A_TARGET ** 2 / R) -> ShapeProblem:
+    """A half model (u2 = 0 on x2 = 0) of the sphere pressed δ and moved d1 along x1 (displacement
+    control): the centre at x1 = L of a block 2L × L × L."""
+    L = size * A_TARGET
+    x = graded_axis(h, 1.6 * A_TARGET, L)
+    x1 = [L - v for v in reversed(x)] + [L + v for v in x[1:]]
+    cfg = configure({
+        **common(friction), "geometry": {"a": 2 * L, "b": L, "c": L}, "mesh": {"x1": x1, "x2": x, "x3": x},
+        "body": {"clamped": ["top", {"on": {"x2": 0.0}, "components": [2]}]},
+        "obstacle": {"shape": "sphere", "center": [L, 0.0, -R], "radius": R, "control": "displacement",
+                     "displacement": [d1, 0.0, delta]}})
     return ShapeProblem(cfg)
 
 
@@ -112,11 +130,11 @@ def measure_sphere(h: float, friction=0.0) -> dict:
     pr = sphere_problem(h, friction)
     st = pr.solve_state(np.zeros(pr.model.n_design))
     r, p, n3, _ = pressure(pr, st)
-    P = 4.0 * float(st.lam @ n3)
+    P = 4.0 * float(resultant(pr, st)[2])
     a_fit, p0_fit = fit(r, p)
     a = (3 * P * R / (4 * E_STAR)) ** (1 / 3)
     p0 = 3 * P / (2 * math.pi * a ** 2)
-    delta = pr.config["obstacle"]["displacement"][2]
+    delta = st.info["obstacle_translation"]
     # the approach is prescribed against the clamped far face at depth H, Hertz's against points far
     # away: add the half-space's displacement on the axis at depth H (Boussinesq, point load P)
     H = pr.config["geometry"]["c"]
@@ -124,6 +142,35 @@ def measure_sphere(h: float, friction=0.0) -> dict:
     return {"delta_corr": delta + w_H, "h": h, "p": pr.model.n_contact, "P": P, "a": a_fit, "a_H": a, "p0": p0_fit, "p0_H": p0,
             "p0_node": float(p[np.argmin(r)]), "delta": delta, "delta_H": a ** 2 / R,
             "time": time.perf_counter() - t0, "state": st, "problem": pr, "counts": st.counts}
+
+
+def resultant(problem, state) -> np.ndarray:
+    """Σ_m R_m r_m: the force the obstacle exerts on the (part) model, global components."""
+    r = np.c_[-state.tau, state.lam]
+    return np.einsum("mij,mj->i", problem.model.frames, r)
+
+
+def measure_mindlin(h: float, friction=0.3, d1=0.0035) -> dict:
+    """The sphere pressed δ and moved d1 sideways: Q, P, the stick radius against Mindlin's
+    c = a (1 − Q/FP)^(1/3) (a the contact radius of the same model, fitted)."""
+    t0 = time.perf_counter()
+    pr = pushed_sphere(h, friction, d1)
+    st = pr.solve_state(np.zeros(pr.model.n_design))
+    Q, _, P = 2.0 * resultant(pr, st)
+    m = pr.model
+    x = m.body.reference.points[m.contact_nodes]
+    L = pr.config["geometry"]["a"] / 2
+    r = np.hypot(x[:, 0] - L, x[:, 1])
+    names = st.class_names
+    stick = (names == "M3+") & (st.lam > 0)
+    slip = (names == "M1") & (st.lam > 0)
+    A = m.contact_areas()
+    a = fit(r, st.lam / A)[0]
+    # radii of the half discs of the areas in contact and sticking (tributary areas of their nodes)
+    return {"h": h, "P": P, "Q": Q, "ratio": Q / (friction * P), "a": a, "stick": float(r[stick].max()),
+            "slip": float(r[slip].min()), "c_mindlin": a * (1 - Q / (friction * P)) ** (1 / 3),
+            "c_area": math.sqrt(2 * A[stick].sum() / math.pi), "a_area": math.sqrt(2 * A[st.lam > 0].sum() / math.pi),
+            "state": st, "problem": pr, "x": x, "time": time.perf_counter() - t0}
 
 
 def measure_cylinder(h: float, friction=0.0) -> dict:
@@ -188,6 +235,46 @@ def main():
     print("sphere (point contact)\n" + table(sph, "sphere"))
     if args.figure:
         figure(args.figure, sph[-1], cyl[-1])
+    h = hs[min(1, len(hs) - 1)]
+    goodman = measure_sphere(h, friction=0.3)
+    base = sph[min(1, len(hs) - 1)]
+    print(f"Goodman, F = 0.3 against F = 0 at h = a/{A_TARGET / h:.0f}, the same P: "
+          f"p0 {goodman['p0_node'] / base['p0_node'] - 1:+.3%} (centre node), "
+          f"a {goodman['a'] / base['a'] - 1:+.3%}, δ {goodman['delta'] / base['delta'] - 1:+.3%}; classes "
+          f"{goodman['counts']}, {goodman['time']:.1f} s")
+    mind = measure_mindlin(h)
+    print(f"Mindlin, F = 0.3, h = a/{A_TARGET / h:.0f}: P = {mind['P']:.5g}, Q = {mind['Q']:.5g} "
+          f"(Q/FP = {mind['ratio']:.3f}), a = {mind['a']:.4g} (fit; {mind['a_area']:.4g} from the area in "
+          f"contact); stick out to r = {mind['stick']:.4g}, slip from r = {mind['slip']:.4g}, stick radius "
+          f"from its area {mind['c_area']:.4g}; Mindlin c = a(1 − Q/FP)^(1/3) = {mind['c_mindlin']:.4g}; "
+          f"{mind['time']:.1f} s")
+    if args.figure:
+        stick_figure(args.figure.replace(".png", "_stick.png"), mind)
+
+
+def stick_figure(path: str, q: dict) -> None:
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    st, x = q["state"], q["x"]
+    L = q["problem"].config["geometry"]["a"] / 2
+    names = st.class_names
+    fig, ax = plt.subplots(figsize=(6, 3.6), layout="constrained")
+    for cls, mk, lab in (("M3+", "s", "stick (M3+)"), ("M1", "o", "slip (M1)"), ("L", ".", "open (L)")):
+        on = names == cls
+        ax.plot(x[on, 0] - L, x[on, 1], mk, ms=4, label=lab)
+    t = np.linspace(0, np.pi, 100)
+    ax.plot(q["a"] * np.cos(t), q["a"] * np.sin(t), "k-", lw=1, label="contact radius a (fit)")
+    ax.plot(q["c_mindlin"] * np.cos(t), q["c_mindlin"] * np.sin(t), "k--", lw=1,
+            label="Mindlin stick radius a(1 − Q/FP)^(1/3)")
+    ax.set_xlim(-1.5 * q["a"], 1.5 * q["a"])
+    ax.set_ylim(0, 1.2 * q["a"])
+    ax.set_aspect("equal")
+    ax.set_xlabel("x1 − centre")
+    ax.set_ylabel("x2")
+    ax.set_title(f"sphere pushed sideways, F = 0.3, Q/FP = {q['ratio']:.2f}", fontsize=10)
+    ax.legend(fontsize=7, loc="upper right")
+    fig.savefig(path, dpi=120)
 
 
 if __name__ == "__main__":

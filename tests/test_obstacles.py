@@ -190,6 +190,26 @@ def test_force_control_balances_the_force_and_its_subgradient_matches_central_di
     assert rep.taylor_rate >= 1.9
 
 
+def test_a_tangential_translation_drags_the_face_and_its_subgradient_matches_central_differences():
+    # the contact law sees the slip relative to the moved obstacle: the friction force follows
+    # the translation's tangential part; the state's u_c is that relative displacement
+    moved = {**SPHERE, "displacement": [0.004, 0.002, 0.05]}
+    problem = ShapeProblem(block(moved))
+    alpha = 0.002 * np.sin(np.arange(problem.model.n_design)) + 0.001
+    st, st0 = problem.solve_state(alpha), ShapeProblem(block(SPHERE)).solve_state(alpha)
+    m = problem.model
+    force = np.einsum("mij,mj->i", m.frames, np.c_[-st.tau, st.lam])
+    force0 = np.einsum("mij,mj->i", m.frames, np.c_[-st0.tau, st0.lam])
+    drag = force - force0
+    assert drag[0] > 100 * abs(force0[0]) and drag[1] > 100 * abs(force0[1])
+    slid = st.class_names == "M1"
+    u_body = st.u.reshape(-1, 3)[m.contact_nodes]
+    w = np.einsum("mij,mi->mj", m.frames, u_body) - m.slip_shift          # relative, per node frame
+    assert np.abs(w - st.u_c).max() <= 1e-12 * np.abs(u_body).max() and slid.any()
+    rep = check_gradient(problem, alpha, seed=3, n_directions=3)
+    assert rep.n_degenerate == 0 and np.max(rep.rel_errors) <= 1e-6, rep.rel_errors
+
+
 def test_the_obstacle_gap_and_its_design_derivative():
     # g_m = d_m + n3 ϑ_α − d·n_m at the contact nodes (mesh.obstacle)
     problem = ShapeProblem(block(SPHERE))

@@ -100,6 +100,7 @@ class ElasticModel:
                                 fixed_shape=tuple(body.fixed_shape))
         self.obstacle, self.frames = None, None     # [obstacle] (absent: the plane x3 = 0, fixed)
         self.force = None       # control = "force": |f|, and per contact node force_b, force_gap (_obstacle_gap)
+        self.slip_shift = None  # (p, 3) the tangential part of a prescribed translation, per node frame
         face_frames = self._obstacle(cfg, ref, body)
         self.admissible = self._admissible_set(ref, body, face_frames)
         self.mesh.ratio = self._jacobian_ratio(ref, body)
@@ -171,10 +172,14 @@ class ElasticModel:
         where = np.searchsorted(self.body.contact_face.nodes, self.contact_nodes)
         n = fr.normal[where]
         shift = np.asarray(spec["displacement"], float) if spec["control"] == "displacement" else np.zeros(3)
+        R = self.frames if self.frames is not None else np.broadcast_to(np.eye(3), (n.shape[0], 3, 3))
+        if np.any(shift[:2] != 0) or (self.frames is not None and np.any(shift != 0)):
+            # a translation's tangential part moves the obstacle under the node: the contact law sees
+            # the slip relative to it (per node (t1, t2, 0) in its frame; paths/condensation.py)
+            self.slip_shift = np.einsum("mij,i->mj", R, shift) * [1.0, 1.0, 0.0]
         if spec["control"] == "force":
             f = np.asarray(spec["force"], float)
             fhat = f / np.linalg.norm(f)
-            R = self.frames if self.frames is not None else np.broadcast_to(np.eye(3), (n.shape[0], 3, 3))
             # the obstacle translates by s·f̂: the gap falls by s (f̂·n_m); the resultant along f̂ is
             # Σ_m b_m·r_m with b_m = R_mᵀ f̂ (r_m per node (t1, t2, n) in its frame)
             self.force = float(np.linalg.norm(f))

@@ -77,9 +77,12 @@ def select_path(config, n_free: int, pinned: int = 0) -> tuple[str, str]:
         raise ConfigError([f"body.clamped: {pinned} tangential component(s) of contact nodes are clamped (a "
                            "symmetry plane through the contact face), which an elastic [foundation] does not "
                            "take (its compliance would add to the clamped direction); the rigid foundation does"])
-    obstacle = config.data.get("obstacle", {}).get("shape", "plane")
-    if config.data.get("obstacle", {}).get("control") == "force":
+    obst = config.data.get("obstacle", {})
+    obstacle = obst.get("shape", "plane")
+    if obst.get("control") == "force":
         obstacle = f"force-controlled {obstacle}"
+    elif obst.get("control") == "displacement" and any(obst["displacement"][:2]):
+        obstacle = f"{obstacle} moved tangentially"
     if obstacle != "plane":
         # the contact frames rotate the condensed system (paths/condensation.py)
         if name not in ("auto", "condensation") or ranks > 1:

@@ -114,7 +114,7 @@ class SolverPath:
         """(v_u (3p), v_λ (p), ṽ on all DOFs) of the adjoint system (4.15) of ``state``."""
         raise NotImplementedError
 
-    def controlled_subgradient(self, system, ctx, state, v_lam, xi, loads=None) -> np.ndarray:
+    def controlled_subgradient(self, system, ctx, state, v_u, v_lam, xi, loads=None) -> np.ndarray:
         """ξ of a state with a force-controlled obstacle, whose translation depends on α
         (:mod:`.condensation`); ``xi`` itself on the paths without one."""
         return xi

@@ -63,6 +63,7 @@ class CondensedSystem:
     timings: dict
     coupling: object = None            # on an elastic foundation: fem.foundation.Coupling, S_eff ...
     ell_eff: np.ndarray | None = None  # ... and ℓ_eff = S_eff (S⁻¹ℓ − Π q_f) (module docstring)
+    shift: np.ndarray | None = None    # an obstacle's tangential translation (3p,) per node frame: ℓ_eff = ℓ − S shift
 
     @property
     def S_eff(self):
@@ -115,6 +116,8 @@ class CondensationPath(ZonePath):
         if self.frames is not None:
             S, ell = to_frames_matrix(S, self.frames), to_frames(ell, self.frames)
         system = CondensedSystem(asm, fac, S, ell, asm.gap, {})
+        if self.model.slip_shift is not None:
+            system = shifted(system, self.model.slip_shift.ravel())
         if self.foundation is not None:
             from ..fem.foundation import Coupling
             system.coupling = Coupling(system.S, self.foundation)
@@ -139,6 +142,8 @@ class CondensationPath(ZonePath):
         out = replace(system, assembled=asm, ell=ell, timings={})
         if out.coupling is not None:
             out.ell_eff = out.coupling.ell_eff(ell)
+        if out.shift is not None:
+            out = shifted(out, out.shift)
         out.timings["schur"] = time.perf_counter() - t1
         return out
 
@@ -152,17 +157,22 @@ class CondensationPath(ZonePath):
 
         from ..errors import SolverError
         c, b, f = m.force_gap, m.force_b, m.force
+        e = (b * [1.0, 1.0, 0.0]).ravel()          # f̂'s tangential part per node frame
         states = {}
 
         def excess(s):
-            st = states[s] = super(CondensationPath, self).solve_state(replace(system, gap=system.gap - s * c),
-                                                                       ctx, alpha, **kw)
+            moved = replace(system, gap=system.gap - s * c)
+            if np.any(e):
+                moved = shifted(moved, s * e)
+            st = states[s] = super(CondensationPath, self).solve_state(moved, ctx, alpha, **kw)
             return excess_of(st, b, f)
 
         touch = float(np.min(system.gap[c > 0] / c[c > 0]))
         S = system.contact_S
         step = f / float(np.max(np.diag(S)[2::3][c > 0] * c[c > 0] ** 2))
-        lo, hi = touch, touch + step
+        # lo just past the first touch: with every gap open and no load the frictionless local
+        # solver does not converge on r = 0 (it does not on the plane either)
+        lo, hi = touch + 1e-3 * step, touch + step
         f_lo, f_hi = excess(lo), excess(hi)
         for _ in range(200):
             if f_lo <= 0 < f_hi:
@@ -188,22 +198,23 @@ class CondensationPath(ZonePath):
         st.info["obstacle_solves"] = len(states)
         return st
 
-    def controlled_subgradient(self, system, ctx, state, v_lam, xi, loads=None):
+    def controlled_subgradient(self, system, ctx, state, v_u, v_lam, xi, loads=None):
         """ξ with the translation of a force-controlled obstacle following α (module docstring)."""
         m = self.model
         if getattr(m, "force", None) is None:
             return xi
         c, b = m.force_gap, m.force_b.ravel()
-        s = state.info["obstacle_translation"]
-        sys_s = replace(system, gap=system.gap - s * c)
-        _, w_lam, w_full = self.adjoint(sys_s, ctx, state, system.contact_S @ b, np.zeros(c.size))
+        Se = system.contact_S @ (m.force_b * [1.0, 1.0, 0.0]).ravel()     # ∂(S w − ℓ_eff)/∂s
+        Sb = system.contact_S @ b
+        w_u, w_lam, w_full = self.adjoint(system, ctx, state, Sb, np.zeros(c.size))
         bg = b if self.frames is None else from_frames(b, self.frames)
         b_full = m.assembler.to_full(system.factor.extend(bg))
-        dF_da = (self.design_contraction(system, state.u, b_full + w_full, loads) + m.gap_matrix.T @ w_lam)
-        dF_ds = -float(w_lam @ c)
+        dF_da = self.design_contraction(system, state.u, b_full + w_full, loads) + m.gap_matrix.T @ w_lam
+        dF_ds = float(b @ Se + w_u @ Se - w_lam @ c)
+        dT_ds = float(v_u @ Se - v_lam @ c)
         if dF_ds == 0:
             return xi
-        return xi - (-float(v_lam @ c)) * dF_da / dF_ds
+        return xi - dT_ds * dF_da / dF_ds
 
     def zone_problem(self, system, zone, warm, reuse, shared):
         if reuse and "zone" in shared:
@@ -219,6 +230,8 @@ class CondensationPath(ZonePath):
     def body_contact_displacement(self, system, u_c, r):
         """On a foundation u_c is the relative displacement w; the body's own is w + Π u_f. On an
         obstacle u_c is in the nodes' frames: the body's is Q u_c."""
+        if system.shift is not None:
+            u_c = np.ravel(u_c) + system.shift
         if self.frames is not None:
             return from_frames(np.ravel(u_c), self.frames)
         if system.coupling is None:
@@ -286,3 +299,10 @@ def to_frames_matrix(S: np.ndarray, R: np.ndarray) -> np.ndarray:
 def excess_of(state, b: np.ndarray, force: float) -> float:
     """Σ_m b_m·r_m − |f| of a state (r_m = (−τ, λ) per node in its frame)."""
     return float(np.sum(b[:, :2] * -state.tau) + b[:, 2] @ state.lam) - force
+
+
+def shifted(system: CondensedSystem, shift: np.ndarray) -> CondensedSystem:
+    """The system whose contact law sees the displacement relative to an obstacle translated
+    tangentially by ``shift`` (3p, per node frame, normal parts 0): w = u_c − shift, so
+    S w − ℓ_eff = r with ℓ_eff = ℓ − S shift; the body's own u_c is w + shift."""
+    return replace(system, shift=shift, ell_eff=system.ell - system.S @ shift)
