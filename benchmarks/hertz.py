@@ -2,8 +2,8 @@
 
     PYTHONPATH=src python benchmarks/hertz.py [--levels 3] [--figure docs/figures/obstacles_hertz.png]
 
-- **Sphere**: a rigid sphere of radius R pressed δ (control = "displacement") into a block clamped
-  at its far face, frictionless; a quarter model (u1 = 0 on x1 = 0, u2 = 0 on x2 = 0), the mesh
+- **Sphere**: a rigid sphere of radius R pressed by the force P (control = "force") into a block
+  clamped at its far face, frictionless; a quarter model (u1 = 0 on x1 = 0, u2 = 0 on x2 = 0), the mesh
   uniform (h) out to 1.6 a and graded geometrically to L = H = 20 a. P = 4 Σ λ_m n3_m (the quarter's
   nodal forces); the contact radius a and the peak pressure p0 from a least-squares fit of
   p² = p0² (1 − r²/a²) to the nodal pressures p_m = λ_m / A_m (A_m the tributary area) inside the
@@ -15,7 +15,10 @@
   x1 = 0) one element long with u2 = 0 on both ends (plane strain: every section is the section
   far from a long block's ends); P′ = 2 Σ λ_m n3_m / b against a = √(4P′R/(πE*)), p0 = 2P′/(πa).
 
-Prints one table per shape over the refinements h = a/3, a/6, a/12 (``--levels``), errors relative.
+Prints one table per shape over the refinements h = a/3, a/6, a/12 (``--levels``), errors relative;
+then, at h = a/6, the sphere with F = 0.3 against F = 0 (Goodman's coupling) and a half model of
+the sphere pressed and moved sideways (d1 along x1, Q < FP): its stick core against Mindlin's
+radius (``--figure``: the pressure profiles, and the stick/slip map beside it, ``*_stick.png``).
 """
 
 from __future__ import annotations
