@@ -81,6 +81,45 @@ def sphere_problem(h: float, friction=0.0, size=20.0, force=P_SPHERE) -> ShapePr
     return ShapeProblem(cfg)
 
 
+def punch_stl(path: str, radius: float, sides: int = 96, depth: float = 5.0) -> str:
+    """A closed STL of a flat cylindrical punch: the ``sides``-gon of circumradius ``radius`` about
+    the x3 axis (a vertex on x1 and on x2), its top face on x3 = 0, extruded down to −depth."""
+    import meshio
+    t = 2 * np.pi * np.arange(sides) / sides
+    ring = np.c_[radius * np.cos(t), radius * np.sin(t)]
+    pts = np.r_[np.c_[ring, np.zeros(sides)], np.c_[ring, np.full(sides, -depth)], [[0, 0, 0], [0, 0, -depth]]]
+    tri = []
+    for i in range(sides):
+        j = (i + 1) % sides
+        tri += [(i, sides + i, sides + j), (i, sides + j, j), (2 * sides, i, j), (2 * sides + 1, sides + j, sides + i)]
+    meshio.write(path, meshio.Mesh(pts, [("triangle", np.asarray(tri))]), file_format="stl", binary=True)
+    return path
+
+
+def punch_problem(h: float, stl: str, radius: float, force: float, size=20.0) -> ShapeProblem:
+    """The quarter block pressed by the flat punch (a surface obstacle, control = "force")."""
+    L = size * A_TARGET
+    x = graded_axis(h, 1.6 * A_TARGET, L)
+    cfg = configure({
+        **common(), "geometry": {"a": L, "b": L, "c": L}, "mesh": {"x1": x, "x2": x, "x3": x},
+        "body": {"clamped": ["top", {"on": {"x1": 0.0}, "components": [1]}, {"on": {"x2": 0.0}, "components": [2]}]},
+        "obstacle": {"shape": "surface", "mesh": stl, "control": "force", "force": [0.0, 0.0, force / 4]}})
+    return ShapeProblem(cfg)
+
+
+def measure_punch(h: float, stl: str, radius: float, force: float) -> dict:
+    """The approach δ of the flat punch against δ = P/(2aE*) (+ the far face's w(H), as the sphere's)."""
+    t0 = time.perf_counter()
+    pr = punch_problem(h, stl, radius, force)
+    st = pr.solve_state(np.zeros(pr.model.n_design))
+    H = pr.config["geometry"]["c"]
+    delta = st.info["obstacle_translation"]
+    w_H = force * (1 + NU) * (3 - 2 * NU) / (2 * math.pi * E * H)
+    return {"h": h, "p": pr.model.n_contact, "P": force, "delta": delta, "delta_corr": delta + w_H,
+            "delta_H": force / (2 * radius * E_STAR), "in_contact": int(np.sum(st.lam > 0)),
+            "time": time.perf_counter() - t0}
+
+
 def pushed_sphere(h: float, friction: float, d1: float, size=20.0, delta=A_TARGET ** 2 / R) -> ShapeProblem:
     """A half model (u2 = 0 on x2 = 0) of the sphere pressed δ and moved d1 along x1 (displacement
     control): the centre at x1 = L of a block 2L × L × L."""
@@ -238,6 +277,17 @@ def main():
     print("sphere (point contact)\n" + table(sph, "sphere"))
     if args.figure:
         figure(args.figure, sph[-1], cyl[-1])
+    import tempfile
+    with tempfile.TemporaryDirectory() as tmp:
+        radius = A_TARGET * (1 + 1 / 24)        # the rim between nodes on every mesh (h = a/3 · 2⁻ᵏ)
+        stl = punch_stl(f"{tmp}/punch.stl", radius / math.cos(math.pi / 96) ** 0.5)
+        punch = [measure_punch(h, stl, radius, P_SPHERE) for h in hs]
+    print("flat punch (force control), radius a = %.5g\n" % radius
+          + "| h | contact nodes | nodes in contact | P | δ | P/(2aE*) | error | δ + w(H) | error | time |\n"
+          + "|---" * 10 + "|\n" + "\n".join(
+              f"| a/{A_TARGET / q['h']:.0f} | {q['p']} | {q['in_contact']} | {q['P']:.5g} | {q['delta']:.5g} | "
+              f"{q['delta_H']:.5g} | {q['delta'] / q['delta_H'] - 1:+.2%} | {q['delta_corr']:.5g} | "
+              f"{q['delta_corr'] / q['delta_H'] - 1:+.2%} | {q['time']:.1f} s |" for q in punch))
     h = hs[min(1, len(hs) - 1)]
     goodman = measure_sphere(h, friction=0.3)
     base = sph[min(1, len(hs) - 1)]

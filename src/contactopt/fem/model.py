@@ -153,9 +153,17 @@ class ElasticModel:
         where = np.searchsorted(body.contact_face.nodes, body.contact_nodes)
         R = fr.R[where]
         if body.pinned_dofs.size:
-            # a clamped tangential component must be one of the node's local tangents
+            # a clamped tangential component must be one of the node's local tangents: where e_k ⟂ n,
+            # take t_k = e_k (t1 = t2 × n, or t2 = n × t1), the plane's frames stay (e1, e2, e3)
             node, comp = np.divmod(body.pinned_dofs, 3)
             m = np.searchsorted(body.contact_nodes, node)
+            R = R.copy()
+            for mm, k in zip(m, comp):
+                n = R[mm, :, 2]
+                if abs(n[k]) < 1e-12 and np.abs(R[mm, :, k] - np.eye(3)[k]).max() > 1e-12:
+                    t = np.eye(3)[k]
+                    R[mm, :, k] = t
+                    R[mm, :, 1 - k] = np.cross(t, n) if k == 1 else np.cross(n, t)
             off = np.abs(R[m, :, comp] - np.eye(3)[comp]).max(axis=1) > 1e-12
             if np.any(off):
                 n = int(node[off][0])

@@ -150,7 +150,9 @@ class Surface(Obstacle):
 
     def ambiguous(self, x, tol, chunk=2_000_000):
         """Indices of the points whose closest point is not unique: another triangle's closest point
-        lies farther than ``tol`` from the best one at a distance within 1e-3·tol of the least."""
+        lies farther than ``tol`` from the best one at the same distance, to 1e-10 of max(distance,
+        tol) (a tie: on a finely faceted curved surface, neighbouring facets' closest points of a
+        far node differ in distance by far more)."""
         x = np.asarray(x, float)
         out = []
         step = max(1, chunk // max(self.tri.shape[0], 1))
@@ -160,7 +162,7 @@ class Surface(Obstacle):
             d = np.linalg.norm(p - q[:, None], axis=2)
             t = np.argmin(d, axis=1)
             k = np.arange(q.shape[0])
-            near = d <= d[k, t][:, None] + 1e-3 * tol
+            near = d <= d[k, t][:, None] + 1e-10 * np.maximum(d[k, t], tol)[:, None]
             apart = np.linalg.norm(p - p[k, t][:, None], axis=2) > tol
             out.extend((s + np.flatnonzero(np.any(near & apart, axis=1))).tolist())
         return np.asarray(out, np.int64)
