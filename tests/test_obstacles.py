@@ -301,3 +301,13 @@ def test_hertz_contact_of_a_sphere_and_a_cylinder_on_coarse_meshes():
     err = [abs(q["p0"] / q["p0_H"] - 1) for q in c]
     assert err[1] < err[0] < 0.01
     assert abs(c[1]["a"] / c[1]["a_H"] - 1) < 0.005
+
+
+def test_the_state_command_on_a_force_controlled_sphere_writes_the_frames(tmp_path):
+    out = tmp_path / "st"
+    assert main(["state", str(write(tmp_path, block(FORCED["sphere"]))), "--out", str(out)]) == 0
+    vtu = meshio.read(next(out.rglob("*.vtu")))
+    n, f = vtu.point_data["obstacle_normal"], vtu.point_data["contact_force"]
+    on = vtu.point_data["contact_node"] == 1
+    assert np.allclose(np.linalg.norm(n[on], axis=1), 1.0)
+    assert f[:, 2].sum() == pytest.approx(1.2, rel=1e-12)      # the force control's resultant
