@@ -311,3 +311,15 @@ def test_the_state_command_on_a_force_controlled_sphere_writes_the_frames(tmp_pa
     on = vtu.point_data["contact_node"] == 1
     assert np.allclose(np.linalg.norm(n[on], axis=1), 1.0)
     assert f[:, 2].sum() == pytest.approx(1.2, rel=1e-12)      # the force control's resultant
+
+
+def test_the_saddle_example_rests_on_its_pipe_with_the_pressure_peaking_in_the_middle():
+    from pathlib import Path
+    problem = ShapeProblem(str(Path(__file__).parents[1] / "examples" / "saddle.toml"))
+    m = problem.model
+    assert np.abs(m.gap0).max() < 1e-12            # the underside conforms to the pipe
+    st = problem.solve_state(m.initial_design())
+    p = st.lam / m.contact_areas()
+    x1 = m.body.reference.points[m.contact_nodes, 0]
+    assert st.info["obstacle_resultant"] == pytest.approx(0.2, rel=1e-12)
+    assert p[np.abs(x1 - 1.0) < 1e-9].min() > 2 * p[np.abs(x1 - 0.25) < 1e-9].max()
