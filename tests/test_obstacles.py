@@ -323,3 +323,46 @@ def test_the_saddle_example_rests_on_its_pipe_with_the_pressure_peaking_in_the_m
     x1 = m.body.reference.points[m.contact_nodes, 0]
     assert st.info["obstacle_resultant"] == pytest.approx(0.2, rel=1e-12)
     assert p[np.abs(x1 - 1.0) < 1e-9].min() > 2 * p[np.abs(x1 - 0.25) < 1e-9].max()
+
+
+# ------------------------------------------------------------------ symmetry planes through the contact face
+def punch_stl(path, radius, centre=(1.0, 1.0), sides=48):
+    """A closed STL of a flat punch: the ``sides``-gon of circumradius ``radius`` about the vertical
+    through ``centre`` (vertices on the x1 and x2 directions), its top on x3 = 0."""
+    t = 2 * np.pi * np.arange(sides) / sides
+    ring = np.c_[centre[0] + radius * np.cos(t), centre[1] + radius * np.sin(t)]
+    pts = np.r_[np.c_[ring, np.zeros(sides)], np.c_[ring, np.full(sides, -2.0)], [[*centre, 0.0], [*centre, -2.0]]]
+    tri = []
+    for i in range(sides):
+        j = (i + 1) % sides
+        tri += [(i, sides + i, sides + j), (i, sides + j, j), (2 * sides, i, j), (2 * sides + 1, sides + j, sides + i)]
+    meshio.write(path, meshio.Mesh(pts, [("triangle", np.asarray(tri))]), file_format="stl", binary=True)
+    return str(path)
+
+
+@pytest.mark.parametrize("shape", ["sphere", "punch"])
+def test_a_quarter_model_on_an_obstacle_equals_the_full_model(tmp_path, shape):
+    # the full block 2 × 2 × 1 (8 × 8 × 3) and its quarter [0, 1]² with u1 = 0 on x1 = 1 and u2 = 0
+    # on x2 = 1, pressed by the obstacle centred on (1, 1); on the punch the nodes of x2 = 1 outside
+    # its rim have the normal ±e1 and take t2 = e2 (the clamped direction) in the quarter
+    obstacle = SPHERE if shape == "sphere" else \
+        {"shape": "surface", "mesh": punch_stl(tmp_path / "p.stl", 0.6), "control": "displacement",
+         "displacement": [0.0, 0.0, 0.01]}
+    design = {"degree": [2, 2], "initial": 0.0, "C2": 0.0, "domain": [[0.0, 2.0], [0.0, 2.0]]}
+    full = ShapeProblem(block(obstacle, design=design))
+    quarter = ShapeProblem(block(obstacle, design=design, geometry={"a": 1.0, "b": 1.0, "c": 1.0},
+                                 mesh={"nx": 4, "ny": 4, "nz": 3},
+                                 body={"clamped": ["top", {"on": {"x1": 1.0}, "components": [1]},
+                                                   {"on": {"x2": 1.0}, "components": [2]}]}))
+    alpha = np.zeros(9)
+    sf, sq = full.solve_state(alpha), quarter.solve_state(alpha)
+    xf = full.model.body.reference.points[full.model.contact_nodes]
+    xq = quarter.model.body.reference.points[quarter.model.contact_nodes]
+    idx = np.array([np.flatnonzero(np.all(np.abs(xf - x) < 1e-12, axis=1))[0] for x in xq])
+    share = np.where(np.abs(xq[:, 0] - 1) < 1e-9, 0.5, 1.0) * np.where(np.abs(xq[:, 1] - 1) < 1e-9, 0.5, 1.0)
+    assert np.sum(sq.lam > 0) >= 4 and (sq.counts["M1"] > 0 or shape == "punch")
+    assert np.abs(sf.lam[idx] * share - sq.lam).max() <= 1e-9 * sf.lam.max()
+    uf = sf.u.reshape(-1, 3)[full.model.contact_nodes][idx]
+    uq = sq.u.reshape(-1, 3)[quarter.model.contact_nodes]
+    assert np.abs(uf - uq).max() <= 1e-9 * np.abs(uf).max()
+    assert np.array_equal(sf.classes[idx], sq.classes)
