@@ -366,3 +366,14 @@ def test_a_quarter_model_on_an_obstacle_equals_the_full_model(tmp_path, shape):
     uq = sq.u.reshape(-1, 3)[quarter.model.contact_nodes]
     assert np.abs(uf - uq).max() <= 1e-9 * np.abs(uf).max()
     assert np.array_equal(sf.classes[idx], sq.classes)
+
+
+@pytest.mark.slow
+def test_a_resumed_run_on_a_force_controlled_obstacle_is_bit_identical(tmp_path):
+    from pathlib import Path
+    saddle = str(Path(__file__).parents[1] / "examples" / "saddle.toml")
+    a, b = tmp_path / "a", tmp_path / "b"
+    assert main(["run", saddle, "--out", str(a), "--max-iter", "14"]) == 0
+    assert main(["run", saddle, "--out", str(b), "--max-iter", "7"]) == 0
+    assert main(["run", saddle, "--out", str(b), "--resume", "--max-iter", "14"]) == 0
+    assert (a / "alpha.json").read_bytes() == (b / "alpha.json").read_bytes()
