@@ -164,7 +164,8 @@ FORCED = {"sphere": {**SPHERE, "control": "force", "force": [0.0, 0.0, 1.2]},
           "cylinder": {**CYLINDER, "control": "force", "force": [0.3, 0.0, 1.0]}}
 
 
-@pytest.mark.parametrize("shape,cells", [("sphere", "hexahedron"), ("sphere", "tetra"),
+@pytest.mark.parametrize("shape,cells", [("sphere", "hexahedron"),
+                                         pytest.param("sphere", "tetra", marks=pytest.mark.slow),
                                          pytest.param("cylinder", "hexahedron", marks=pytest.mark.slow),
                                          pytest.param("surface", "hexahedron", marks=pytest.mark.slow),
                                          pytest.param("surface", "tetra", marks=pytest.mark.slow)])
