@@ -107,7 +107,7 @@ class Cholesky(Factorization):
 class DelassusOperator:
     """Products with the Delassus block of the DOFs ``dofs`` (e.g. a contact zone, per node
     (t1, t2, ν)): W_D r = B_D A⁻¹ B_Dᵀ r, one solve per product (``solve``: a factorization's
-    or a Krylov solver's), never forming W_D (DESIGN.md §3: W = S⁻¹ = B A⁻¹ Bᵀ).
+    or a Krylov solver's), never forming W_D (W = S⁻¹ = B A⁻¹ Bᵀ).
 
     ``last_full`` keeps A⁻¹ B_Dᵀ r of the last product: with it the displacement of a state is
     u = A⁻¹L + A⁻¹B_Dᵀ r (no further solve), and the A-harmonic extension of the adjoint,

@@ -1,4 +1,4 @@
-"""State-solve and subgradient benchmark on the paper's meshes (DESIGN.md §3–§5).
+"""State-solve and subgradient benchmark on the paper's meshes.
 
     python benchmarks/bench_state.py [--meshes example1 example2] [--repeat 5] [--bt-iter 40]
 

@@ -1,4 +1,4 @@
-"""Calibration of what the paper leaves open (DESIGN.md §6): the right-face traction direction
+"""Calibration of what the paper leaves open: the right-face traction direction
 and the step-function targets of Examples 1–3.
 
     python benchmarks/calibrate_examples.py

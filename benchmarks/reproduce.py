@@ -4,7 +4,7 @@
 
 Each case is one ``contactopt run`` under ``/usr/bin/time -v`` (wall time and peak memory of the
 whole command, outputs included), in its own run directory. From the run directory the script
-reads summary.json and iterations.csv and reports, beside the paper's figures (DESIGN.md §1):
+reads summary.json and iterations.csv and reports, beside the paper's figures:
 J0, Jopt, Jopt/J0, iterations and evaluations, the stopping test that ended the run (summary.json
 ``status`` and ``stopping``), the iterations after which the certified test would have held for
 ε = 1e-3 and 1e-4 (the test is made at the start of every iteration on the same deterministic

@@ -126,6 +126,7 @@ def test_corrupt_checkpoint_is_refused(tmp_path, capsys):
     assert "corrupt" in capsys.readouterr().err
 
 
+@pytest.mark.integration
 def test_kill_and_resume_gives_the_uninterrupted_result(tmp_path):
     cfg = small_toml(tmp_path)
     ref = tmp_path / "ref"

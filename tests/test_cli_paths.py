@@ -207,6 +207,7 @@ def test_check_gradient(tmp_path, path, cases):
 
 
 # ---------------------------------------------------------------------------------- sweep
+@pytest.mark.integration
 @pytest.mark.parametrize(("path", "cases"), COMBOS, ids=IDS)
 def test_sweep(tmp_path, path, cases):
     """A two-task sweep (F = 0 and 0.3) on one local worker: both runs finish, the tables are strict

@@ -16,6 +16,8 @@ from pathlib import Path
 
 import pytest
 
+pytestmark = pytest.mark.integration
+
 PROBE = Path(__file__).with_name("cpu_probe.py")
 # variant: (environment, the CPU flags its kernel executes)
 ALL_VARIANTS = {

@@ -74,6 +74,7 @@ def test_load_cases_agree_with_the_schur_path():
             assert np.abs(d.lam - s.lam).max() <= 1e-8 * np.abs(s.lam).max()
 
 
+@pytest.mark.integration
 def test_gradient_agrees_with_finite_differences():
     from contactopt.sensitivity.check import check_gradient
     _, pd = pair("example2")
@@ -156,6 +157,7 @@ def test_adjoint_that_does_not_converge_raises_with_its_history():
     assert len(exc.value.history) > 2 and exc.value.history[-1] < 1e-6
 
 
+@pytest.mark.integration
 @pytest.mark.parametrize("path", ["delassus", "amg"])
 def test_run_and_resume_are_exact(tmp_path, path):
     """The Delassus path rebuilds its kept block, the full-space path its AMG hierarchy (seeded,

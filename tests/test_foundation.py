@@ -207,6 +207,7 @@ def test_averaged_partners_gradient_and_partition_of_unity():
     assert gc.n_degenerate == 0 and gc.passed, gc.rel_errors
 
 
+@pytest.mark.integration
 def test_averaged_partners_converge_on_a_finer_foundation_point_partners_do_not():
     """The slab 1, 1.5, 2 times as fine as the body against one 3 times as fine: with averaged
     partners the error in λ (2-norm) falls; a point partner's compliance grows like 1/h_f (a point load)."""
@@ -265,6 +266,7 @@ def test_state_and_run_write_the_foundation(tmp_path, capsys):
     assert "elastic foundation: source foundation block 6×4×2" in (tmp_path / "run" / "run.log").read_text()
 
 
+@pytest.mark.integration
 def test_resumed_run_on_a_foundation_repeats_the_uninterrupted_one(tmp_path):
     """The checkpoint's contexts (warm start, zone, kept Delassus block of S_eff) are rebuilt."""
     import json

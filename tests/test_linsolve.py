@@ -68,7 +68,7 @@ def test_hex_stiffness_has_exactly_the_six_rigid_modes():
 
 def test_S_is_the_inverse_of_the_cc_block_of_A_inverse(fac, small):
     _, c, _, Ainv = small
-    W = Ainv[np.ix_(c, c)]                       # Delassus operator, DESIGN.md §3
+    W = Ainv[np.ix_(c, c)]                       # Delassus operator W = B A⁻¹ Bᵀ
     assert fac.S.shape == (len(c), len(c))
     assert rel(fac.S, np.linalg.inv(W)) < 1e-10
     assert rel(fac.S @ W, np.eye(len(c))) < 1e-10

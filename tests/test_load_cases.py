@@ -120,6 +120,7 @@ def test_each_case_is_the_single_case_problem_of_its_loads():
 @pytest.mark.parametrize("objective,active", [({"combine": "max"}, "pull"),
                                               ({"combine": "max", "weights": [1.0, 3.0]}, "push"),
                                               ({"combine": "sum", "weights": [0.7, 1.3]}, None)])
+@pytest.mark.integration
 def test_combined_subgradient_matches_central_differences(objective, active):
     pr = ShapeProblem(two_cases(**objective))
     alpha = wavy(pr)
@@ -153,6 +154,7 @@ class _Stop(BaseException):
     pass
 
 
+@pytest.mark.integration
 def test_run_outputs_every_case_and_resume_is_exact(tmp_path):
     cfg_path = tmp_path / "two.toml"
     cfg_path.write_text(tomli_w.dumps(two_cases().with_updates({"name": "two"}).data))

@@ -6,8 +6,8 @@ equilibrium ≤ 1e-10), so they agree to 1e-8 relative; Θ and the subgradient, 
 method amplifies, to 2e-10 (the adjoint (4.15) is solved to 1e-13; measured ≤ 2.8e-11 on 1 and 2
 ranks, docs/scaling.md "The same answer on any number of ranks").
 
-Skipped without petsc4py/mpi4py (``pip install .`` does not install them; README 'One optimization
-on many cores'); ``.ci/run`` installs them and runs this file.
+Skipped without petsc4py/mpi4py (``pip install .`` does not install them; docs/install.md,
+'PETSc and MPI'); ``.ci/run`` installs them and runs this file.
 """
 
 import contextlib

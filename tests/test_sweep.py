@@ -102,6 +102,7 @@ def check_sweep_dir(out, n=4):
     return rows
 
 
+@pytest.mark.integration
 def test_sweep_on_a_local_cluster_then_gather_and_resume(tmp_path, capsys):
     out = tmp_path / "sw"
     code = main(["sweep", str(small_toml(tmp_path)), "--set", SET_F, "--workers", "2", "--max-iter", "4",
@@ -130,6 +131,7 @@ def test_sweep_on_a_local_cluster_then_gather_and_resume(tmp_path, capsys):
     assert stamps == {p: p.stat().st_mtime_ns for p in out.glob("runs/*/summary.json")}
 
 
+@pytest.mark.integration
 def test_failed_task_is_recorded_and_the_others_go_on(tmp_path):
     # a contact solver allowed one iteration cannot converge: that task fails, the other runs
     out = tmp_path / "sw"
@@ -202,6 +204,7 @@ def cluster(tmp_path):
         c.close()
 
 
+@pytest.mark.integration
 def test_sweep_through_a_scheduler_and_two_worker_processes(tmp_path, cluster, capsys):
     out = tmp_path / "sw"
     code = main(["sweep", str(small_toml(tmp_path)), "--set", SET_F, "--scheduler", cluster.address,
@@ -214,6 +217,7 @@ def test_sweep_through_a_scheduler_and_two_worker_processes(tmp_path, cluster, c
     assert len(workers) == 2 and all(w.startswith("tcp://127.0.0.1:") for w in workers)
 
 
+@pytest.mark.integration
 def test_killed_worker_has_its_task_resumed_elsewhere(tmp_path, cluster):
     """Kill the worker of a task that has a checkpoint: all 4 results come, that task resumed."""
     cfg = small_toml(tmp_path, nx=12, ny=6, nz=4)
@@ -264,6 +268,7 @@ def test_killed_worker_has_its_task_resumed_elsewhere(tmp_path, cluster):
     check_sweep_dir(out)
 
 
+@pytest.mark.integration
 def test_task_in_a_directory_without_checkpoint_starts_afresh(tmp_path):
     """A worker that died before the first checkpoint leaves a run directory without one: the
     rerun starts the run anew there (run_optimization(resume=True) would refuse it)."""

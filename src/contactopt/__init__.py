@@ -1,6 +1,6 @@
 """contactopt: shape optimization of 3D elastic bodies in contact with Coulomb friction.
 
-Public interface (DESIGN.md §7): :func:`load_config`, :class:`ShapeProblem`, and the
+Public interface (docs/api.md): :func:`load_config`, :class:`ShapeProblem`, and the
 sub-packages ``contactopt.contact`` (``solve_local``) and ``contactopt.optimize``
 (``minimize_bundle``).
 """

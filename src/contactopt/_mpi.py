@@ -34,5 +34,5 @@ def petsc_missing() -> str | None:
         from petsc4py import PETSc  # noqa: F401
     except ImportError as exc:
         return (f"{exc}; install Debian's python3-petsc4py-real and python3-mpi4py, or PETSc and "
-                "petsc4py from source (README: 'One optimization on many cores')")
+                "petsc4py from source (docs/install.md, 'PETSc and MPI')")
     return None

@@ -66,6 +66,8 @@ def _cmd_state(args) -> int:
     try:
         states = problem.solve_states(alpha)           # every load case (one assembly)
         bound, reason = problem.uniqueness_estimate(alpha)
+        reports = [problem.objective_report(alpha, k if problem.has_load_cases else None)
+                   for k in range(len(states))]
     except Exception:
         if created and not any(out.iterdir()):
             out.rmdir()                  # a failed solve leaves no empty directory behind
@@ -77,8 +79,8 @@ def _cmd_state(args) -> int:
     print(f"state of {problem.config.name} ({problem.config.source}) — method {states[0].method}, "
           f"backend {states[0].summary().get('backend')}")
     if not problem.has_load_cases:
-        write_state(out, model, states[0], config=problem.config, warnings=warnings)
-        _print_state(states[0], bound, reason)
+        write_state(out, model, states[0], config=problem.config, warnings=warnings, objective=reports[0])
+        _print_state(states[0], bound, reason, reports[0])
         print(f"  wrote {out}/ ({', '.join(state_files(model))}) in {time.perf_counter() - t0:.1f}s")
         return 0
     # load cases: one directory per case, and cases.json listing them
@@ -86,10 +88,10 @@ def _cmd_state(args) -> int:
     dirs = [_case_dir(name, k) for k, name in enumerate(names)]
     if len(set(dirs)) < len(dirs):       # names that differ only in unsafe characters
         dirs = [f"case-{k}-{d[5:]}" for k, d in enumerate(dirs)]
-    for name, d, state in zip(names, dirs, states):
-        write_state(out / d, model, state, config=problem.config, warnings=warnings)
+    for name, d, state, report in zip(names, dirs, states, reports):
+        write_state(out / d, model, state, config=problem.config, warnings=warnings, objective=report)
         print(f"load case {name!r} → {out / d}/")
-        _print_state(state, bound, reason)
+        _print_state(state, bound, reason, report)
     atomic_write_json(out / "cases.json", {
         "name": problem.config.name, "combine": problem.combination.kind, "names": list(names), "warnings": warnings,
         "cases": [{"name": n, "directory": d, "summary": st.summary()} for n, d, st in zip(names, dirs, states)]})
@@ -118,8 +120,11 @@ def _case_dir(name: str, k: int) -> str:
     return f"case-{safe}" if safe else f"case-{k}"
 
 
-def _print_state(state, bound, reason) -> None:
+def _print_state(state, bound, reason, objective=None) -> None:
     s = state.summary()
+    if objective is not None:
+        terms = ", ".join(f"{k} {v['value']:.6e}" for k, v in objective["terms"].items())
+        print(f"  objective {objective['type']} = {objective['value']:.8e}" + (f" ({terms})" if terms else ""))
     print(f"  iterations {state.iterations}, residual {state.residual:.2e}, contact conditions {state.complementarity:.2e}")
     print("  nodes: " + ", ".join(f"{k} {v}" for k, v in s['node_classes'].items()))
     print(f"  total normal force {s['total_normal_force']:.6g}, max {s['max_normal_force']:.4g}")

@@ -73,6 +73,9 @@ def _part_spec(x):
     return True
 
 
+OBJECTIVE_TYPES = ("target_normal_force", "compliance", "pressure_uniformity", "max_pressure",
+                   "frictional_dissipation", "peak_stress")
+_PART_SHORT = "a part (a group name or a predicate table)"
 _PART = "a part: a group name such as \"bottom\", or a predicate table such as { x1 = 0.0 } or { box = [[x1lo, x1hi], [x2lo, x2hi], [x3lo, x3hi]] }"
 
 
@@ -144,6 +147,12 @@ SCHEMA = {
     "material": {
         "E": (21.19, _pos, "a number > 0 (Young's modulus)"),
         "nu": (0.277, lambda x: _finite(x) and -1.0 < x < 0.5, "a number in (−1, 0.5) (Poisson's ratio)"),
+        "formulation": ("auto", lambda x: x in ("auto", "standard", "bbar"),
+                        "'auto', 'standard' or 'bbar': the element formulation. 'bbar' (hexahedra only): the "
+                        "dilatation replaced by its element mean (Hughes' B-bar), free of volumetric locking as "
+                        "ν → 0.5; 'auto': 'bbar' on hexahedra from ν ≥ 0.45, else 'standard'. Tetrahedra take "
+                        "'standard' (or 'auto'); for nearly incompressible materials on tetrahedra use tetra10 "
+                        "(docs/materials.md)"),
     },
     "friction": {
         "coefficient": (0.3, _nonneg, "a number ≥ 0 (Coulomb coefficient F)"),
@@ -179,14 +188,45 @@ SCHEMA = {
             isinstance(iv, list) and len(iv) == 2 and all(_finite(t) for t in iv) and iv[0] < iv[1] for iv in x)),
                    "[[x1lo, x1hi], [x2lo, x2hi]] (the rectangle carrying the control net; "
                    "empty: the bounding rectangle of the contact face)"),
+        "symmetry": ([], lambda x: isinstance(x, list) and len(set(x)) == len(x) and all(v in ("x1", "x2") for v in x),
+                     "a list of 'x1' and/or 'x2' (mirror the control net about the mid-line of the design "
+                     "rectangle normal to that axis: 'x2' keeps α[i, j] = α[i, d2 − j]; the optimizer works "
+                     "on the reduced variables)"),
+        "fixed": ([], lambda x: isinstance(x, list) and all(
+            isinstance(p, list) and len(p) == 2 and all(isinstance(v, int) and not isinstance(v, bool) for v in p)
+            for p in x),
+                  "a list of [i, j] control points kept at their initial value"),
+        "direction": ("both", _oneof("both", "grow", "shrink"),
+                      "'both', 'grow' (α ≥ initial; the mean value becomes an upper bound Σα ≤ "
+                      "C2·(d1+1)(d2+1)) or 'shrink' (α ≤ initial; the mean value a lower bound)"),
+        "linear": ([], lambda x: isinstance(x, list) and all(
+            isinstance(r, dict) and "coefficients" in r and len(set(r) & {"upper", "equal"}) == 1
+            and not set(r) - {"coefficients", "upper", "equal"} and all(
+                _finite(r[k]) for k in ("upper", "equal") if k in r) for r in x),
+                   "a list of tables { coefficients = (d1+1)×(d2+1) nested list, upper = u } (Σ c·α ≤ u) or "
+                   "{ coefficients = …, equal = e } (Σ c·α = e)"),
     },
     "objective": {
         "type": ("target_normal_force",
-                 _oneof("target_normal_force", "compliance", "pressure_uniformity"),
-                 "'target_normal_force', 'compliance' or 'pressure_uniformity'"),
+                 _oneof(*OBJECTIVE_TYPES, "sum"),
+                 "'target_normal_force', 'compliance', 'pressure_uniformity' (the spread Σ a_m (p_m − p̄)² "
+                 "of the contact pressure p_m = λ_m/a_m), 'max_pressure', 'frictional_dissipation' "
+                 "(Σ τ_m·u_t,m), 'peak_stress' (the largest von Mises stress of `region`) or 'sum' (of "
+                 "[[objective.terms]]; implied by them)"),
         "target": ({"kind": "constant", "value": 0.0}, lambda x: isinstance(x, dict),
                    "a table with 'kind' = 'constant' | 'step' | 'values' | 'design'"),
         "scale": (1.0, _pos, "a number > 0 (multiplies the objective)"),
+        "region": ("", lambda x: x == "" or _part_spec(x),
+                   "empty (the whole body) or " + _PART_SHORT + " (peak_stress: the elements with every "
+                   "node in the part, or with a node in it for a boundary part)"),
+        "aggregate": ("max", _oneof("max", "ks", "pnorm"),
+                      "'max' (nonsmooth, exact), 'ks' (max + ln Σ exp(ρ(x − max))/ρ) or 'pnorm' "
+                      "((Σ x^p)^(1/p)): how peak_stress and max_pressure take the largest value"),
+        "rho": (50.0, _pos, "a number > 0 (aggregate 'ks': ρ, in 1/units of the stress or pressure)"),
+        "p": (8.0, _pos, "a number > 0 (aggregate 'pnorm': the exponent)"),
+        "terms": ([], lambda x: isinstance(x, list) and all(isinstance(t, dict) for t in x),
+                  "an array of tables [[objective.terms]], each with `type`, `weight` (≥ 0, default 1) "
+                  "and that type's keys (region, aggregate, rho, p, target): the objective is Σ weight·J_term"),
         "combine": ("max", _oneof("max", "sum"),
                     "'max' (the worst of the [[load_cases]]) or 'sum' (their weighted sum); "
                     "'sum' needs load cases"),
@@ -220,8 +260,8 @@ SCHEMA = {
                  "design and the contact zone's Delassus products by solves with it; 'fullspace' for "
                  "meshes no factorization fits, a semismooth Newton method on all DOFs with "
                  "AMG-preconditioned GMRES (pyamg) (docs/large_meshes.md); 'petsc' the same method on "
-                 "PETSc under MPI (`mpiexec -n N contactopt run`, petsc4py; README 'One optimization on "
-                 "many cores'); 'auto': 'petsc' under mpiexec with more than one rank, else 'fullspace' "
+                 "PETSc under MPI (`mpiexec -n N contactopt run`, petsc4py; docs/guide/large-meshes.md); "
+                 "'auto': 'petsc' under mpiexec with more than one rank, else 'fullspace' "
                  "from `crossover` free DOFs on, else 'condensation'"),
         "library": ("auto", _oneof("auto", "pardiso", "scipy"),
                     "'auto', 'pardiso' or 'scipy' (the sparse direct solver of the condensation and "
@@ -424,6 +464,28 @@ def _check_matrix(value, d1d2, key, problems):
         problems.append(f"{key}: must be a number or a {n1}×{n2} nested list of numbers")
 
 
+def _check_design_constraints(dsg, d1d2, problems):
+    """[design] fixed inside the control net, [[design.linear]] coefficients of its shape."""
+    if d1d2 is None:
+        return
+    n1, n2 = d1d2[0] + 1, d1d2[1] + 1
+    fixed = dsg.get("fixed")
+    if isinstance(fixed, list):
+        for p in fixed:
+            if isinstance(p, list) and len(p) == 2 and not (0 <= p[0] < n1 and 0 <= p[1] < n2):
+                problems.append(f"design.fixed: control point {p} is outside the {n1}×{n2} control net "
+                                f"(i in 0..{n1 - 1}, j in 0..{n2 - 1})")
+    rows = dsg.get("linear")
+    if isinstance(rows, list):
+        for k, r in enumerate(rows):
+            if isinstance(r, dict) and "coefficients" in r:
+                c = r["coefficients"]
+                if _finite(c) or not (isinstance(c, list) and len(c) == n1 and all(
+                        isinstance(v, list) and len(v) == n2 and all(_finite(t) for t in v) for v in c)):
+                    problems.append(f"design.linear[{k}].coefficients: must be a {n1}×{n2} nested list of numbers "
+                                    "(one per control point, like design.initial)")
+
+
 BLOCK_LOADS = ("top_traction", "right_traction")
 CASE_NAME = re.compile(r"[A-Za-z0-9_.+-]+")
 
@@ -483,9 +545,58 @@ def _check_combination(raw, data, problems):
     if cases and w and all(_nonneg(v) for v in w) and not any(v > 0 for v in w) and (
             isinstance(weights, list) or len(weights) == len(cases)):
         problems.append("objective.weights: at least one load case must weigh more than 0")
-    if any("target" in c for c in cases) and obj["type"] != "target_normal_force":
+    has_target = obj["type"] == "target_normal_force" or any(
+        isinstance(t, dict) and t.get("type") == "target_normal_force" for t in obj.get("terms") or [])
+    if any("target" in c for c in cases) and not has_target:
         problems.append(f"load_cases: a case's target is the target of objective.type = "
                         f"'target_normal_force', not {obj['type']!r}")
+
+
+TERM_KEYS = {"type", "weight", "region", "aggregate", "rho", "p", "target"}
+
+
+def _check_objective(raw, data, d1d2, problems):
+    """[[objective.terms]]: each a known type with its weight and keys (defaults filled in); with
+    terms the type is 'sum' (implied), and 'sum' needs terms."""
+    obj = data["objective"]
+    given = raw.get("objective", {}) if isinstance(raw.get("objective"), dict) else {}
+    terms = obj["terms"] if isinstance(obj["terms"], list) else []
+    if terms and "type" not in given:
+        obj["type"] = "sum"
+    if terms and obj["type"] != "sum":
+        problems.append(f"objective.type = {obj['type']!r}: with [[objective.terms]] the objective is their "
+                        "weighted sum (write type = 'sum' or leave it out)")
+    if obj["type"] == "sum" and not terms:
+        problems.append("objective.type = 'sum': needs [[objective.terms]]")
+    out = []
+    for n, t in enumerate(terms):
+        key = f"objective.terms[{n}]"
+        for k in t:
+            if k not in TERM_KEYS:
+                problems.append(f"{key}.{k}: unknown key (allowed: {', '.join(sorted(TERM_KEYS))})")
+        if t.get("type") not in OBJECTIVE_TYPES:
+            problems.append(f"{key}.type = {t.get('type')!r}: must be one of "
+                            f"{', '.join(repr(v) for v in OBJECTIVE_TYPES)}")
+        term = {"type": t.get("type")}
+        for k in ("weight", "region", "aggregate", "rho", "p"):
+            default, check, desc = (1.0, _nonneg, "a number ≥ 0") if k == "weight" else SCHEMA["objective"][k]
+            val = t.get(k, default)
+            _check_value(f"{key}.{k}", val, check, desc, problems)
+            term[k] = float(val) if isinstance(val, int) and not isinstance(val, bool) and k != "region" else val
+        if "target" in t:
+            if t.get("type") != "target_normal_force":
+                problems.append(f"{key}.target: only a target_normal_force term has a target")
+            elif isinstance(t["target"], dict):
+                _check_target(t["target"], d1d2, problems, key=f"{key}.target")
+            else:
+                problems.append(f"{key}.target: must be a table like objective.target")
+            term["target"] = t["target"]
+        elif t.get("type") == "target_normal_force":
+            term["target"] = {"kind": "constant", "value": 0.0}
+        out.append(term)
+    if terms and not any(_nonneg(t["weight"]) and t["weight"] > 0 for t in out):
+        problems.append("objective.terms: at least one term must weigh more than 0")
+    obj["terms"] = out if terms else obj["terms"]
 
 
 def _check_body(raw, data, problems):
@@ -631,6 +742,16 @@ def _legacy_backend(raw: dict, source: str, problems: list) -> dict:
     return {**raw, "linear_solver": new}
 
 
+def _check_value(key: str, val, check, desc: str, problems: list) -> None:
+    """Append ``"key = val: must be desc"`` to ``problems`` when ``check(val)`` fails or raises."""
+    try:
+        ok = check(val)
+    except Exception:
+        ok = False
+    if not ok:
+        problems.append(f"{key} = {val!r}: must be {desc}")
+
+
 def _check_table(given: dict, keys: dict, sec: str, problems: list) -> dict:
     """The keys of table ``sec`` with their defaults filled in; unknown keys and values that fail
     their check are appended to ``problems`` (an integer where a float is expected becomes one)."""
@@ -640,12 +761,7 @@ def _check_table(given: dict, keys: dict, sec: str, problems: list) -> dict:
     out = {}
     for k, (default, check, desc) in keys.items():
         val = given.get(k, copy.deepcopy(default))
-        try:
-            ok = check(val)
-        except Exception:
-            ok = False
-        if not ok:
-            problems.append(f"{sec}.{k} = {val!r}: must be {desc}")
+        _check_value(f"{sec}.{k}", val, check, desc, problems)
         out[k] = float(val) if isinstance(val, int) and isinstance(default, float) and not isinstance(val, bool) else val
     return out
 
@@ -672,13 +788,18 @@ def validate(raw: dict, source: str = "<dict>") -> Config:
             problems.append(f"[{sec}]: must be a table")
             given = {}
         data[sec] = _check_table(given, keys, sec, problems)
+    if not (isinstance(raw.get("material"), dict) and "formulation" in raw["material"]):
+        # absent means 'auto': a configuration that does not name it resolves as it did before the key
+        data["material"].pop("formulation", None)
     deg = data["design"]["degree"]
     d1d2 = deg if isinstance(deg, list) and len(deg) == 2 and all(_posint(v) for v in deg) else None
     _check_matrix(data["design"]["initial"], d1d2, "design.initial", problems)
+    _check_design_constraints(data["design"], d1d2, problems)
     if isinstance(data["objective"]["target"], dict):
         _check_target(data["objective"]["target"], d1d2, problems)
     if "load_cases" in raw:
         data["load_cases"] = _check_load_cases(raw["load_cases"], d1d2, problems)
+    _check_objective(raw, data, d1d2, problems)
     _check_combination(raw, data, problems)
     _check_body(raw, data, problems)
     if "foundation" in raw:

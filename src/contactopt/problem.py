@@ -239,10 +239,29 @@ class ShapeProblem:
             log.info("subgradient at a design where %d load cases are active (%s): the subgradient is "
                      "that of %s", len(active), ", ".join(active), names[comb.case])
         exact = nd == 0 and (self.combination.kind == "sum" or len(active) == 1)
+        terms = dict(getattr(self.cases[comb.case].objective, "last_terms", {}))
         return SubgradientResult(comb.value, g, states[comb.case], v_u, v_lam, nd, exact,
                                  {**DEFAULT_CHOICES, **(choices or {})},
                                  {"state": t1 - t0, "adjoint": t_adj, "design_terms": t_design},
-                                 comb.values, names, active, names[comb.case], states)
+                                 comb.values, names, active, names[comb.case], states, terms)
+
+    def term_names(self) -> list:
+        """The names of the [[objective.terms]] (their type, numbered from the second of a type on)."""
+        return [t[0] for t in getattr(self.objective, "terms", [])]
+
+    def objective_report(self, alpha, case: int | None = None, **kw) -> dict:
+        """{type, value, terms} of the objective at α, e.g. for state.json: the combined load
+        cases' value (``case`` None; the terms of the case the combination picks) or load case
+        ``case``'s own Θ_k and terms. ``terms`` maps each term's name to its value (unweighted)
+        and weight; empty without [[objective.terms]]. ``kw`` go to :meth:`solve_state`."""
+        comb = self.evaluate_cases(alpha, **kw)
+        k = comb.case if case is None else case
+        obj = self.cases[k].objective
+        value = comb.value if case is None else float(comb.values[case])
+        out = {"type": self.config["objective"]["type"], "value": float(value), "terms": {}}
+        for name, weight, _ in getattr(obj, "terms", []):
+            out["terms"][name] = {"value": obj.last_terms[name], "weight": weight}
+        return out
 
     def _of(self, k: int) -> str:
         return f" of load case {self.cases[k].name}" if len(self.cases) > 1 else ""

@@ -9,7 +9,8 @@ Layout of a run directory::
     checkpoint.npz     optimizer + oracle state after the last iteration (written atomically)
     summary.json       DESIGN.md §7 fields
     alpha.json         optimal control points;  surface.csv  ϑ_α on a grid
-    stress.png, pressure.png, surface.png, history.png, classes.png
+    stress.png, pressure.png, surface.png, history.png, classes.png, contact.png (pressure, ‖τ‖,
+                       slip, stick/slip), von_mises.png (the largest von Mises stresses)
     initial.vtu, optimal.vtu, bodies.pvd
     optimal_body.msh (the input's format) + optimal_body.toml, optimal_body.stl,
     contact_surface.step, contact_surface.iges   the optimal design for CAD and other FE tools
@@ -48,9 +49,10 @@ HISTORY_FIELDS = ["evaluation", "iteration", "f", "subgradient_norm", "degenerat
 def history_fields(problem) -> list[str]:
     """The columns of history.csv: with load cases also Θ_k per case (``f_<name>``, unweighted)
     and the names of the active cases (separated by ';')."""
+    terms = [f"term_{name}" for name in problem.term_names()]     # [[objective.terms]], unweighted
     if not problem.has_load_cases:
-        return HISTORY_FIELDS
-    return HISTORY_FIELDS + [f"f_{name}" for name in problem.case_names] + ["active_cases"]
+        return HISTORY_FIELDS + terms
+    return HISTORY_FIELDS + [f"f_{name}" for name in problem.case_names] + ["active_cases"] + terms
 
 
 class RunAborted(ContactOptError):
@@ -148,9 +150,18 @@ class _Oracle:
                f"{time.perf_counter() - self.t_start:.3f}"]
         if self.problem.has_load_cases:
             row += [repr(float(v)) for v in res.case_values] + [";".join(res.active_cases)]
+        row += [repr(float(v)) for v in res.terms.values()]
         with open(self.history_path, "a", newline="") as fh:
             csv.writer(fh).writerow(row)
         return res.value / self.scale, res.gradient / self.scale
+
+
+def _reduced(oracle, red):
+    """The oracle of β: Θ(P β + α_fixed) and its subgradient Pᵀ ξ."""
+    def f(beta):
+        value, xi = oracle(red.expand(beta))
+        return value, red.pullback(xi)
+    return f
 
 
 def _saved_stopping(path: Path) -> dict:
@@ -168,6 +179,8 @@ def _write_checkpoint(path: Path, bstate, oracle: _Oracle, fingerprint: str, ela
     arrays.update(meta_fingerprint=np.array(fingerprint), meta_evaluations=np.array(oracle.count),
                   meta_elapsed=np.array(elapsed), meta_scale=np.array(oracle.scale), meta_eps=np.array(opt["eps"]),
                   meta_max_iter=np.array(opt["max_iter"]))
+    if getattr(oracle, "reduction", None) is not None:     # the bundle works on β: the design in α
+        arrays["meta_alpha"] = oracle.reduction.expand(d["x"])
     arrays.update(oracle.problem.export_contexts())   # what each load case carries, per its path
     atomic_savez(path, **arrays)
 
@@ -248,6 +261,8 @@ def run_optimization(config, outdir=None, *, eps=None, max_iter=None, resume=Fal
     t_setup = time.perf_counter() - t_setup
     model = problem.model
     alpha0 = model.initial_design()
+    from .design.reduction import reduction_of
+    red = reduction_of(problem, alpha0)        # [design] symmetry / fixed: α = P β + α_fixed, else None
     model.admissible.require_feasible(alpha0, tol=1e-9)
     model.mesh.coordinates(alpha0)
     fingerprint = config_fingerprint(cfg.with_updates({"optimizer": {"max_iter": 1}}))
@@ -278,6 +293,7 @@ def run_optimization(config, outdir=None, *, eps=None, max_iter=None, resume=Fal
         t_start = time.perf_counter()
         hist = out / "history.csv"
         oracle = _Oracle(problem, hist, t_start)
+        oracle.reduction = red
         state_kw = {}
         if resume:
             _truncate_history(hist, n_eval, history_fields(problem))
@@ -298,6 +314,8 @@ def run_optimization(config, outdir=None, *, eps=None, max_iter=None, resume=Fal
         # at α0 (a resumed run asks a separate problem: its own must continue bit for bit)
         run_warnings = uniqueness_warnings(ShapeProblem(cfg) if resume and problem.friction > 0 else problem,
                                            alpha0)
+        if red is not None:
+            run_warnings += red.warnings
 
         def callback(inter):
             st = inter.state
@@ -313,7 +331,10 @@ def run_optimization(config, outdir=None, *, eps=None, max_iter=None, resume=Fal
 
         opt = cfg["optimizer"]
         try:
-            res = minimize_bundle(oracle, alpha0, **model.admissible.constraints(), eps=opt["eps"],
+            f, x0, cons = oracle, alpha0, model.admissible.constraints()
+            if red is not None:       # the optimizer works on β; Pᵀ ξ its subgradient
+                f, x0, cons = _reduced(oracle, red), red.beta0, red.bounds
+            res = minimize_bundle(f, x0, **cons, eps=opt["eps"],
                                   max_iter=opt["max_iter"], callback=callback,
                                   **{k: opt[k] for k in ("ftol", "ftol_window", "metric", "metric_memory")
                                      if k in opt},
@@ -325,11 +346,15 @@ def run_optimization(config, outdir=None, *, eps=None, max_iter=None, resume=Fal
                         "no iteration had finished, so there is no checkpoint"),)
             log.error("run stopped: %s", exc)
             raise
+        if red is not None:
+            res.x = red.expand(res.x)
         if res.status is not None and res.success:
             log.info("finished: %s", res.message)
         _write_checkpoint(ckpt, res.state, oracle, fingerprint, time.perf_counter() - oracle.t_start)
         summary = _finish(out, problem, alpha0, res, oracle, t_start)
         summary["warnings"] = run_warnings
+        if red is not None:
+            summary["design_variables"] = {"alpha": red.n_alpha, "optimized": red.n_beta}
         atomic_write_json(out / "summary.json", summary)
     finally:
         logging.getLogger("contactopt").removeHandler(handler)
@@ -385,6 +410,10 @@ def _finish(out: Path, problem, alpha0, res, oracle, t_start) -> dict:
     plot_stress_comparison(out / "pressure.png", model, p_target, p0, p1, zlabel="contact pressure $p = \\lambda/a$")
     plot_surface(out / "surface.png", model, x)
     plot_node_classes(out / "classes.png", model, s1.classes)
+    from .io.plots import plot_contact_response, plot_peak_stress
+    plot_contact_response(out / "contact.png", model, p1, s1.tau, s1.u_c[:, :2], s1.classes,
+                          title="optimal design")
+    plot_peak_stress(out / "von_mises.png", model, s1.coords, s1.u, title="optimal design")
     plot_history(out / "history.png", [{**r, "kind": r.get("step")} for r in res.history])
     atomic_write_text(out / "iterations.csv", "iteration,J,step,t,stationarity,evaluations\n" + "".join(
         f"{r['iteration']},{r['f'] * oracle.scale!r},{r['step']},{r['t']:.6e},{r['stationarity']:.6e},"
@@ -409,6 +438,9 @@ def _finish(out: Path, problem, alpha0, res, oracle, t_start) -> dict:
     }
     if model.foundation is not None:
         summary["foundation"] = model.foundation.summary()
+    if problem.term_names():            # each term's value at α0 and at the optimum
+        summary["objective"] = {"J0": problem.objective_report(alpha0, warm_start=False),
+                                "J": problem.objective_report(x, warm_start=False)}
     if problem.has_load_cases:
         summary["load_cases"] = _load_case_outputs(out, problem, (c0, states0), (c1, states1))
     summary["export"] = _export(out, model, x)

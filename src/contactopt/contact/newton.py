@@ -16,7 +16,7 @@ in contact only; *sticking* contacts give ``Phi = rho u``, i.e. plain rows of ``
 nonsmooth ``||u_T||`` at the solution, unlike the natural map, whose sticking rows carry the
 kink of ``mu ||u_T||`` exactly where the solution sits); *sliding* contacts give rows that mix
 one normal and two tangential rows of ``W`` with a rank-one correction. It is also the map of
-the NSN_AC solver used as reference in DESIGN.md §4.
+Siconos' NSN_AC solver.
 
 Newton step. With ``dPhi = A dr + B du`` (3x3 blocks per contact) and ``du = W dr``, the step
 solves ``(A + B W) d = -Phi``. Separated contacts are eliminated (``d_i = -r_i``); on a sliding

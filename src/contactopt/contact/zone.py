@@ -219,7 +219,7 @@ class DelassusZoneProblem(ZoneProblem):
     """The zone's local problem without the condensed stiffness S (large meshes, issue #16).
 
     The same problem as :class:`ZoneProblem`, with every solve by S replaced by one with the
-    sparse factorization of A(α): S⁻¹ b = W b = B A⁻¹ Bᵀ b (DESIGN.md §3; B selects the contact
+    sparse factorization of A(α): S⁻¹ b = W b = B A⁻¹ Bᵀ b (B selects the contact
     DOFs ``contact`` of the free DOFs, per node (t1, t2, ν)), q0 = (A⁻¹L)_c on the zone, and the
     full displacement u = A⁻¹L + A⁻¹Bᵀ r is the by-product of the last solve
     (:meth:`free_displacement`). W_Z itself, when asked for, is the inverse of the Schur complement

@@ -57,6 +57,9 @@ class AdmissibleSet:
     gap_offset: np.ndarray | None = None
     gap_nodes: np.ndarray | None = None
     gap_points: np.ndarray | None = None
+    direction: str = "both"
+    initial: np.ndarray | None = None
+    linear: tuple = ()
     lb: np.ndarray = field(init=False)
     ub: np.ndarray = field(init=False)
     A_ub: np.ndarray = field(init=False)
@@ -101,9 +104,70 @@ class AdmissibleSet:
         self.A_eq = np.ones((1, n))
         self.b_eq = np.array([self.C2 * n])
         self.row_names = names
+        self.n_slope = len(rows)
+        self.volume = "equal"
         self.gap_rows = np.zeros(0, np.int64)
+        self.linear_rows = np.zeros(0, np.int64)     # rows of A_ub from `linear`, after the gap rows
+        self.linear_eq = np.zeros(0, np.int64)       # rows of A_eq from `linear`
+        if self.direction != "both":
+            self._apply_direction()
         if self.gap_basis is not None:
             self._add_gap_rows()
+        if self.linear:
+            self._add_linear_rows()
+
+    # ------------------------------------------------------------------ grow / shrink, user rows
+    def _apply_direction(self) -> None:
+        """``grow``: α ≥ initial, the mean value an upper bound Σα ≤ C2·n (the material that may be
+        added); ``shrink``: α ≤ initial, Σα ≥ C2·n. The equality would leave only the initial design."""
+        if self.direction not in ("grow", "shrink"):
+            raise ValueError("direction must be 'both', 'grow' or 'shrink'")
+        a0 = np.asarray(self.initial, float).reshape(-1)
+        if self.direction == "grow":
+            self.lb = np.maximum(self.lb, a0)
+            row, rhs, self.volume = self.A_eq, self.b_eq, "at_most"
+        else:
+            self.ub = np.minimum(self.ub, a0)
+            row, rhs, self.volume = -self.A_eq, -self.b_eq, "at_least"
+        self.A_ub = np.vstack([self.A_ub, row])
+        self.b_ub = np.concatenate([self.b_ub, rhs])
+        self.row_names = self.row_names + [f"volume: Σα {'≤' if self.volume == 'at_most' else '≥'} "
+                                           f"C2·(d1+1)(d2+1) = {self.b_eq[0]:.8g}"]
+        self.n_slope += 1
+        self.A_eq, self.b_eq = np.zeros((0, self.size)), np.zeros(0)
+
+    def _add_linear_rows(self) -> None:
+        """The rows of ``linear``: (coefficients (d1+1)×(d2+1), "upper" | "equal", value)."""
+        ub, eq = [], []
+        for k, (coef, kind, value) in enumerate(self.linear):
+            c = np.asarray(coef, float).reshape(-1)
+            (ub if kind == "upper" else eq).append((k, c, float(value)))
+        if ub:
+            self.linear_rows = self.A_ub.shape[0] + np.arange(len(ub))
+            self.A_ub = np.vstack([self.A_ub] + [c[None] for _, c, _ in ub])
+            self.b_ub = np.concatenate([self.b_ub, [v for _, _, v in ub]])
+            self.row_names = self.row_names + [f"design.linear[{k}]: Σ c·α ≤ {v:.6g}" for k, _, v in ub]
+        if eq:
+            self.linear_eq = self.A_eq.shape[0] + np.arange(len(eq))
+            self.A_eq = np.vstack([self.A_eq] + [c[None] for _, c, _ in eq])
+            self.b_eq = np.concatenate([self.b_eq, [v for _, _, v in eq]])
+            self.eq_names = [f"design.linear[{k}]: Σ c·α = {v:.6g}" for k, _, v in eq]
+
+    def nonempty(self, A_ub=None, b_ub=None, A_eq=None, b_eq=None, lb=None, ub=None) -> bool:
+        """Whether U (or the given linear set, default U's own rows) holds a point: one LP."""
+        from scipy.optimize import linprog
+        A_ub = self.A_ub if A_ub is None else A_ub
+        b_ub = self.b_ub if b_ub is None else b_ub
+        A_eq = self.A_eq if A_eq is None else A_eq
+        b_eq = self.b_eq if b_eq is None else b_eq
+        lb = self.lb if lb is None else lb
+        ub = self.ub if ub is None else ub
+        if np.any(lb > ub):
+            return False
+        res = linprog(np.zeros(lb.size), A_ub=A_ub if A_ub.size else None, b_ub=b_ub if A_ub.size else None,
+                      A_eq=A_eq if A_eq.size else None, b_eq=b_eq if A_eq.size else None,
+                      bounds=list(zip(lb, ub)), method="highs")
+        return res.status == 0
 
     # ------------------------------------------------------------------ ϑ_α ≥ 0 on the face
     def _gap(self):
@@ -142,7 +206,8 @@ class AdmissibleSet:
         for k in range(n):
             c = np.zeros(n)
             c[k] = 1.0
-            res = linprog(c, A_ub=A, b_ub=b, A_eq=self.A_eq, b_eq=self.b_eq,
+            res = linprog(c, A_ub=A, b_ub=b, A_eq=self.A_eq if self.A_eq.size else None,
+                          b_eq=self.b_eq if self.A_eq.size else None,
                           bounds=list(zip(self.lb, self.ub)), method="highs")
             if res.status != 0:
                 return None
@@ -188,17 +253,31 @@ class AdmissibleSet:
         out = []
         n2 = self.d2 + 1
         low = "0" if self.lower == 0 else f"lower = {self.lower:.6g}"
+        if self.direction == "grow":
+            low += " or its initial value (design.direction = 'grow')"
+        for k in np.flatnonzero((x > self.ub + tol) & (self.ub < self.C0)):
+            out.append(f"bound: α[{k // n2},{k % n2}] = {x[k]:.6g} > its initial value {self.ub[k]:.6g} "
+                       "(design.direction = 'shrink')")
         for k in np.flatnonzero(x < self.lb - tol):
             out.append(f"bound: α[{k // n2},{k % n2}] = {x[k]:.6g} < {low}")
-        for k in np.flatnonzero(x > self.ub + tol):
+        for k in np.flatnonzero((x > self.ub + tol) & ~(self.ub < self.C0)):
             out.append(f"bound: α[{k // n2},{k % n2}] = {x[k]:.6g} > C0 = {self.C0:.6g}")
-        n_slope = self.A_ub.shape[0] - self.gap_rows.size
+        n_slope = self.n_slope        # slope rows (and the volume row of grow / shrink)
         res = self.A_ub[:n_slope] @ x - self.b_ub[:n_slope]
         for r in np.flatnonzero(res > tol):
             out.append(f"{self.row_names[r]} violated by {res[r]:.3g}")
-        eq = float(self.A_eq[0] @ x - self.b_eq[0])
-        if abs(eq) > tol * max(1.0, abs(self.b_eq[0])):
-            out.append(f"volume: Σα = {x.sum():.8g} ≠ C2·(d1+1)(d2+1) = {self.b_eq[0]:.8g}")
+        if self.volume == "equal":
+            eq = float(self.A_eq[0] @ x - self.b_eq[0])
+            if abs(eq) > tol * max(1.0, abs(self.b_eq[0])):
+                out.append(f"volume: Σα = {x.sum():.8g} ≠ C2·(d1+1)(d2+1) = {self.b_eq[0]:.8g}")
+        for r in self.linear_rows:
+            v = float(self.A_ub[r] @ x - self.b_ub[r])
+            if v > tol * max(1.0, abs(self.b_ub[r])):
+                out.append(f"{self.row_names[r]} violated by {v:.3g}")
+        for k, r in enumerate(self.linear_eq):
+            v = float(self.A_eq[r] @ x - self.b_eq[r])
+            if abs(v) > tol * max(1.0, abs(self.b_eq[r])):
+                out.append(f"{self.eq_names[k]} violated by {v:.3g}")
         return out + self.gap_violations(x, tol)
 
     def is_feasible(self, alpha, tol: float = 1e-9) -> bool:

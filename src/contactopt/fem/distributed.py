@@ -104,6 +104,7 @@ class DistributedBody:
         new_cells = self.new_of[cells]
         lo, hi = self.node_range
         E, nu = model.config["material"]["E"], model.config["material"]["nu"]
+        self._formulation = asm.formulation           # B-bar is per element: the sub-meshes take it as they are
         # the stiffness of the owned rows: every element at an owned node (a layer of elements of
         # the neighbouring ranks computed here too, so assembly needs no communication)
         touch = np.flatnonzero(((new_cells >= lo) & (new_cells < hi)).any(axis=1))
@@ -123,7 +124,7 @@ class DistributedBody:
         PETSc DOFs)."""
         nodes, local = np.unique(new_cells, return_inverse=True)
         sub = ElasticityAssembler(local.reshape(new_cells.shape), nodes.size, np.zeros(0, np.int64), E, nu,
-                                  element=element)
+                                  element=element, formulation=self._formulation)
         return sub, nodes, (3 * nodes[:, None] + np.arange(3)).ravel()
 
     # ------------------------------------------------------------------ the matrix

@@ -14,6 +14,14 @@ applied once per block; the CSR values are one gather from the blocks. The patte
 gather, CSR indices) is built once; a new design only recomputes values, in work arrays kept
 between designs. Element matrices (:meth:`ElasticityAssembler.element_matrices`) remain for
 tests and for :meth:`ElasticityAssembler.full_stiffness`.
+
+B-bar (``formulation="bbar"``, hexahedra): the dilatation div u is replaced by its element mean
+θ̄ = (1/|e|) ∫_e div u (Hughes' B-bar, the mean-dilatation form), so that
+a(u, v) = Σ_e [ ∫_e 2μ dev ε(u):dev ε(v) dx + κ |e| θ̄(u) θ̄(v) ], κ = λ + 2μ/3 the bulk modulus.
+Written as ∫ λ' div u div v + 2μ ε(u):ε(v) with λ' = −2μ/3 plus the element term κ m mᵀ/|e|
+(m_(i,a) = ∫_e ∂N_a/∂x_i), it keeps the pair assembly (Hooke's law with λ' per block) and adds
+one rank-one matrix per element. The near-incompressibility is then one constraint per element
+instead of one at each of its eight Gauss points, so the element does not lock as ν → 1/2.
 """
 
 from __future__ import annotations
@@ -51,6 +59,24 @@ def _assembly_pool() -> ThreadPoolExecutor:
 def lame(E: float, nu: float) -> tuple[float, float]:
     """Lamé constants (λ, μ) from Young's modulus and Poisson's ratio."""
     return E * nu / ((1 + nu) * (1 - 2 * nu)), E / (2 * (1 + nu))
+
+
+FORMULATIONS = ("standard", "bbar")
+BBAR_AUTO_NU = 0.45      # from this ν on, "auto" takes B-bar on hexahedra
+
+
+def resolve_formulation(formulation: str, element, nu: float) -> str:
+    """The element formulation of ``[material] formulation`` for an element type and ν: ``auto``
+    is B-bar on hexahedra from ν ≥ 0.45 and standard otherwise; B-bar is for hexahedra only
+    (ValueError otherwise: tetrahedra keep their formulation)."""
+    el = element_type(element)
+    if formulation == "auto":
+        return "bbar" if el is HEX8 and nu >= BBAR_AUTO_NU else "standard"
+    if formulation not in FORMULATIONS:
+        raise ValueError(f"formulation {formulation!r}: must be 'auto' or one of {', '.join(FORMULATIONS)}")
+    if formulation == "bbar" and el is not HEX8:
+        raise ValueError(f"formulation 'bbar' is for hexahedra, not {el.name}")
+    return formulation
 
 
 def hex_reference():
@@ -120,8 +146,15 @@ class ElasticityAssembler:
     """Assembly of A on the free DOFs for a fixed topology (elements, Dirichlet set)."""
 
     def __init__(self, elements: np.ndarray, n_nodes: int, fixed_dofs: np.ndarray, E: float, nu: float,
-                 element: ElementType | str = HEX8):
+                 element: ElementType | str = HEX8, formulation: str = "standard"):
+        """``formulation``: ``"standard"`` or ``"bbar"`` (hexahedra, module docstring); ``"auto"``
+        is resolved by :func:`resolve_formulation`."""
         self.element = element = element_type(element)
+        try:
+            self.formulation = resolve_formulation(formulation, element, nu)
+        except ValueError as exc:
+            raise MeshError(str(exc)) from None
+        self.bbar = self.formulation == "bbar"
         self.elements = np.asarray(elements)
         k = element.n_nodes
         if self.elements.ndim != 2 or self.elements.shape[1] != k:
@@ -131,6 +164,10 @@ class ElasticityAssembler:
         self.n_nodes = int(n_nodes)
         self.n_full = 3 * self.n_nodes
         self.lam, self.mu = lame(E, nu)
+        # the λ of the pointwise Hooke's law: λ itself, or −2μ/3 with B-bar (its volumetric part,
+        # κ = λ + 2μ/3, acts on the element mean of div u alone)
+        self.lam_point = -2.0 * self.mu / 3.0 if self.bbar else self.lam
+        self.kappa = self.lam + 2.0 * self.mu / 3.0
         self.N, self.dN, self.w = element.N, element.dN, element.w
         fixed = np.zeros(self.n_full, bool)
         fixed[np.asarray(fixed_dofs, int)] = True
@@ -142,6 +179,7 @@ class ElasticityAssembler:
         edofs = (3 * self.elements[:, :, None] + np.arange(3)).reshape(len(self.elements), d)
         self.edofs = edofs
         self._buffers = None       # work arrays of _element_blocks, reused: no page faults
+        self._means = None         # B-bar: (m, |e|) of the last _element_blocks
         # dN by reference point: [a, (q, n)] for the Jacobians, [q, n, a] for the gradients
         self._dN_a = np.ascontiguousarray(self.dN.transpose(1, 0, 2).reshape(k, -1))
         self._dN_q = np.ascontiguousarray(self.dN.transpose(0, 2, 1))
@@ -165,13 +203,18 @@ class ElasticityAssembler:
         elements per core (NumPy and BLAS release the GIL: the chunks run in parallel, and each
         element's matrix is computed by the same operations, so K does not depend on the split).
         With ``hooke=False`` the array returned is T (E, 3k, 3k), rows (i, a), columns (j, b).
+        With B-bar, λ' = −2μ/3 takes the place of λ and K gains κ m mᵀ/|e|; ``self._means`` then
+        holds (m (E, 3k), rows (i, a), |e| (E,)) of the last call (module docstring).
         """
         E, k = X.shape[0], self.k
         if self._buffers is None or self._buffers[0].shape[0] != E:
             self._buffers = (np.empty((E, 3 * k, 3 * k)), np.empty((E, 3, k, 3, k)), np.empty((E, k, k)))
+            self._means = (np.empty((E, 3 * k)), np.empty(E)) if self.bbar else None
         T, K, lap = self._buffers
         cuts = np.linspace(0, E, _assembly_chunks(E) + 1).astype(int)
-        parts = [(X[i:j], T[i:j], K[i:j], lap[i:j], hooke) for i, j in zip(cuts[:-1], cuts[1:])]
+        means = self._means if self.bbar else None
+        parts = [(X[i:j], T[i:j], K[i:j], lap[i:j], hooke, None if means is None else (means[0][i:j], means[1][i:j]))
+                 for i, j in zip(cuts[:-1], cuts[1:])]
         if len(parts) == 1:
             dets = [self._blocks_into(*parts[0])]
         else:
@@ -180,7 +223,7 @@ class ElasticityAssembler:
             require_positive_det(np.concatenate(dets, axis=1), element_axis=1)
         return K if hooke else T
 
-    def _blocks_into(self, X, T, K, lap, hooke=True) -> np.ndarray:
+    def _blocks_into(self, X, T, K, lap, hooke=True, means=None) -> np.ndarray:
         """Element matrices of the elements X into the work arrays T, K, lap (see
         :meth:`_element_blocks`); returns det J (q, e), early (K unset) if one is ≤ 0."""
         E, Q, k = X.shape[0], self.w.size, self.k
@@ -196,6 +239,10 @@ class ElasticityAssembler:
         G = np.matmul(Jq, self._dN_q).reshape(Q, 3, E, k)
         G = np.ascontiguousarray(G.transpose(2, 1, 3, 0)).reshape(E, 3 * k, Q)
         np.matmul(G, G.transpose(0, 2, 1), out=T)
+        if means is not None:                       # m = Σ_q w det J ∇N, |e| = Σ_q w det J
+            wd = np.sqrt(det * self.w[:, None])                   # (Q, E)
+            np.einsum("erq,qe->er", G, wd, out=means[0])
+            np.einsum("qe,qe->e", wd, wd, out=means[1])
         if not hooke:
             return det
         T5 = T.reshape(E, 3, k, 3, k)
@@ -203,10 +250,13 @@ class ElasticityAssembler:
         lap += T5[:, 2, :, 2]
         lap *= self.mu
         np.multiply(T5.transpose(0, 3, 2, 1, 4), self.mu, out=K)
-        T5 *= self.lam
+        T5 *= self.lam_point
         K += T5
         for k in range(3):
             K[:, k, :, k] += lap
+        if means is not None:
+            m = means[0] * np.sqrt(self.kappa / means[1])[:, None]
+            K += (m[:, :, None] * m[:, None, :]).reshape(K.shape)
         return det
 
     def stiffness(self, coords: np.ndarray) -> sp.csr_matrix:
@@ -237,7 +287,8 @@ class ElasticityAssembler:
     def cell_stresses(self, coords: np.ndarray, u_full: np.ndarray) -> np.ndarray:
         """Cauchy stress σ = λ tr(ε) I + 2μ ε of the displacement ``u_full`` (3·n_nodes), averaged
         over each cell's quadrature points (weights w det J): (E, 6) in Voigt order
-        (xx, yy, zz, yz, xz, xy). Exact for a displacement linear in x on every element type."""
+        (xx, yy, zz, yz, xz, xy). Exact for a displacement linear in x on every element type. With
+        B-bar too: its stress σ̄ has the same cell average (the mean of θ̄ − div u is zero)."""
         X = coords[self.elements]
         G, det = element_geometry(X, self.dN)
         ue = np.asarray(u_full, float).reshape(-1, 3)[self.elements]          # (E, k, 3)
@@ -251,7 +302,7 @@ class ElasticityAssembler:
 
     def scalar_laplacian(self, coords: np.ndarray) -> sp.csr_matrix:
         """Matrix of ∫∇φ_a·∇φ_b dx (n_nodes × n_nodes, CSR) with the element's shape functions
-        and stiffness rule: the operator of the harmonic morph weight (DESIGN.md §9)."""
+        and stiffness rule: the operator of the harmonic morph weight (docs/theory.md)."""
         G, det = element_geometry(coords[self.elements], self.dN)
         Ke = np.einsum("eqam,eqbm,eq->eab", G, G, det * self.w)
         rows = np.broadcast_to(self.elements[:, :, None], Ke.shape).ravel()
@@ -273,7 +324,7 @@ class ElasticityAssembler:
         Shape derivative of a(u, v) = ∫ C∇u:∇v for the nodal mesh velocity V = N_c e_m:
             ∫ [ (σ(u):∇v) div V − σ(u):(∇v ∇V) − σ(v):(∇u ∇V) ] dx,
         evaluated element by element with the element's stiffness rule, so it is the exact
-        derivative of the assembled matrix (DESIGN.md §2). Every product runs component by
+        derivative of the assembled matrix. Every product runs component by
         component on arrays over (quadrature point, element).
         """
         # element chunks whose temporaries (some 20 arrays over (quadrature point, element)) stay
@@ -311,12 +362,29 @@ class ElasticityAssembler:
             for kk in range(3):
                 R[m] -= Hv[kk, m] * su[kk] + Hu[kk, m] * sv[kk]
             R[m, m] += energy
+        if self.bbar:
+            self._bbar_contraction(Hu, Hv, wd, R)
         R *= wd
         de = np.zeros((3, self.k, E))                                    # [m, a, e]
         for m in range(3):
             for n in range(3):
                 de[m] += (G[n] * R[m, n]).sum(axis=1)
         return de
+
+    def _bbar_contraction(self, Hu, Hv, wd, R) -> None:
+        """Adds to R[m, n] (before its factor w det J) the shape derivative of the B-bar term
+        κ I_u I_v/|e|, I_u = ∫_e div u: with V = N_c e_m, δI_u = ∫ (div u div V − tr(∇u ∇V)) and
+        δ|e| = ∫ div V, so δ(I_u I_v/|e|) = ∫ ∇N_c · r_m with
+        r_m,n = (I_v (div u δ_mn − ∂u_n/∂x_m) + I_u (div v δ_mn − ∂v_n/∂x_m) − I_u I_v/|e| δ_mn)/|e|."""
+        du, dv = Hu[0, 0] + Hu[1, 1] + Hu[2, 2], Hv[0, 0] + Hv[1, 1] + Hv[2, 2]       # (Q, E)
+        vol = wd.sum(axis=0)
+        Iu, Iv = (du * wd).sum(axis=0), (dv * wd).sum(axis=0)
+        cu, cv = self.kappa * Iv / vol, self.kappa * Iu / vol
+        diag = cu * du + cv * dv - self.kappa * Iu * Iv / vol ** 2
+        for m in range(3):
+            for n in range(3):
+                R[m, n] -= cu * Hu[n, m] + cv * Hv[n, m]
+            R[m, m] += diag
 
     def _gradients(self, X: np.ndarray, first: int = 0):
         """∂N_a/∂x_m as G[m, a, q, e] and det J (Q, E) for element coordinates X (E, k, 3);
@@ -337,7 +405,7 @@ class ElasticityAssembler:
     def _stress_cm(self, H: np.ndarray) -> np.ndarray:
         """σ = λ tr(H) I + μ (H + Hᵀ) for H[i, j, ...] (component-major)."""
         s = self.mu * (H + H.swapaxes(0, 1))
-        tr = self.lam * (H[0, 0] + H[1, 1] + H[2, 2])
+        tr = self.lam_point * (H[0, 0] + H[1, 1] + H[2, 2])
         for i in range(3):
             s[i, i] += tr
         return s
@@ -380,10 +448,11 @@ class _PairPattern:
         self.indptr = np.concatenate([[0], np.cumsum(counts)]).astype(np.int32)
         self._vals = np.empty((9, N))
 
-    def _csr(self, T: np.ndarray) -> sp.csr_matrix:
-        """A from the summed T of the slots, T[i, j, s] (3, 3, n + n_edges)."""
+    def _csr(self, T: np.ndarray, M: np.ndarray | None = None) -> sp.csr_matrix:
+        """A from the summed T of the slots, T[i, j, s] (3, 3, n + n_edges), plus the summed B-bar
+        terms κ m mᵀ/|e| of the slots, M[i, j, s], if given."""
         asm = self.asm
-        lam, mu = asm.lam, asm.mu
+        lam, mu = asm.lam_point, asm.mu
         vals = self._vals
         tr = mu * (T[0, 0] + T[1, 1] + T[2, 2])
         for i in range(3):
@@ -391,6 +460,8 @@ class _PairPattern:
                 v = vals[3 * i + j]
                 np.multiply(T[i, j], lam, out=v)
                 v += mu * T[j, i]
+                if M is not None:
+                    v += M[i, j]
             vals[4 * i] += tr
         data = vals.ravel().take(self.src)
         return sp.csr_matrix((data, self.indices, self.indptr), shape=(asm.n_free, asm.n_free))
@@ -428,7 +499,14 @@ class _BlockPairs(_PairPattern):
         T = asm._element_blocks(coords[asm.elements], hooke=False)
         s = np.bincount(self.slot, weights=T.reshape(-1), minlength=9 * self.n_slots).reshape(3, 3, -1)
         s[:, :, asm.n_nodes:] *= 0.5
-        return self._csr(s)
+        if not asm.bbar:
+            return self._csr(s)
+        m, vol = asm._means
+        m = m * np.sqrt(asm.kappa / vol)[:, None]
+        np.multiply(m[:, :, None], m[:, None, :], out=T)       # T's buffer: κ m mᵀ/|e|, same layout
+        M = np.bincount(self.slot, weights=T.reshape(-1), minlength=9 * self.n_slots).reshape(3, 3, -1)
+        M[:, :, asm.n_nodes:] *= 0.5
+        return self._csr(s, M)
 
 
 class _LinearTetPairs(_PairPattern):

@@ -1,4 +1,4 @@
-"""Sparse direct solvers and condensation of the FEM system onto the contact DOFs (DESIGN.md §3).
+"""Sparse direct solvers and condensation of the FEM system onto the contact DOFs.
 
 With the DOFs split into interior (i) and Schur/contact (c) DOFs, :func:`condense` computes
 

@@ -38,7 +38,7 @@ from ..errors import ConfigError
 from ..mesh.body import build_body
 from ..mesh.hexmesh import HexMesh
 from ..mesh.morph import JacobianRatio, MorphedMesh
-from .elasticity import ElasticityAssembler, element_geometry
+from .elasticity import BBAR_AUTO_NU, ElasticityAssembler, element_geometry, resolve_formulation
 from .elements import element_type
 from .loads import face_areas_nodal
 from .loadset import load_set
@@ -70,6 +70,7 @@ class ElasticModel:
         cfg = load_config(config) if not isinstance(config, Config) else config
         self.config = cfg
         self.body = body = build_body(cfg) if body is None else body
+        formulation = _formulation(cfg, body.reference.cell_type)
         check = None
         if cfg["linear_solver"]["memory_check"]:   # refuse a mesh too large before building on it
             from .memory import check_memory
@@ -85,7 +86,8 @@ class ElasticModel:
         self.surface = BezierSurface(d1, d2, a, b, x1lo, x2lo)
         mat = cfg["material"]
         self.assembler = ElasticityAssembler(ref.cells, ref.n_nodes, body.fixed_dofs, mat["E"], mat["nu"],
-                                             element=element_type(ref.cell_type))
+                                             element=element_type(ref.cell_type),
+                                             formulation=formulation)
         self._check_reference(ref)
         zero = np.concatenate([np.asarray(v, np.int64) for v in body.fixed_shape.values()] or [np.zeros(0, np.int64)])
         self.weight = harmonic_weight(self.assembler, ref.points, body.contact_face.nodes, zero)
@@ -224,8 +226,18 @@ class ElasticModel:
             log.warning("%s: design.lower = %g < 0 with design.nonnegative_gap = false: admissible designs may "
                         "put the contact face below the foundation plane (an initial penetration)",
                         self.config.source, d["lower"])
-        return AdmissibleSet(s.d1, s.d2, s.a, s.b, d["C0"], d["C1"], d["C2"], d["slope_divisor"],
-                             lower=d.get("lower", 0.0), **gap)
+        extra = {}             # [design] direction and [[design.linear]] (absent: the paper's U)
+        if d.get("direction", "both") != "both":
+            extra.update(direction=d["direction"], initial=self.initial_design())
+        if d.get("linear"):
+            extra["linear"] = tuple((r["coefficients"], "upper" if "upper" in r else "equal",
+                                     r.get("upper", r.get("equal"))) for r in d["linear"])
+        U = AdmissibleSet(s.d1, s.d2, s.a, s.b, d["C0"], d["C1"], d["C2"], d["slope_divisor"],
+                          lower=d.get("lower", 0.0), **gap, **extra)
+        if extra and not U.nonempty():
+            raise ConfigError([f"{self.config.source}: design.direction / design.linear leave no admissible "
+                               "design: the bounds, slopes, mean value and these rows have no common point"])
+        return U
 
     def _jacobian_ratio(self, ref, body) -> JacobianRatio:
         """det J(α)/det J_ref = 1 + Rα (mesh.morph); C0 must keep it above the threshold on U."""
@@ -336,6 +348,28 @@ class ElasticModel:
         d = self.assembler.stiffness_shape_contraction(coords, u_full, v_full)
         d -= (loads or self.loads).shape_contraction(coords, v_full, self.assembler)
         return self.mesh.contract_dx3(d[:, 2])
+
+
+def _formulation(cfg, cell_type) -> str:
+    """The element formulation of ``[material] formulation`` on the mesh's cells; ConfigError if
+    the mesh's element type does not take it."""
+    mat = cfg["material"]
+    form = mat.get("formulation", "auto")
+    try:
+        resolved = resolve_formulation(form, cell_type, mat["nu"])
+    except ValueError:
+        raise ConfigError([f"{cfg.source}: material.formulation = {form!r}: B-bar is a formulation of hexahedra; "
+                           f"the mesh has {cell_type} cells, which take 'standard' (or 'auto'). For a nearly "
+                           "incompressible material on tetrahedra use quadratic ones (tetra10), which lock far "
+                           "less than linear ones; from ν ≈ 0.49 on, hexahedra with 'bbar' "
+                           "(docs/materials.md)"]) from None
+    if cell_type == "tetra" and mat["nu"] >= BBAR_AUTO_NU:
+        log.warning("%s: linear tetrahedra lock at ν = %g (too stiff, contact pressures too high); use "
+                    "quadratic tetrahedra (tetra10) or hexahedra with material.formulation = 'auto'",
+                    cfg.source, mat["nu"])
+    elif resolved != "standard" or mat["nu"] >= BBAR_AUTO_NU:
+        log.info("element formulation: %s (%s cells, ν = %g)", resolved, cell_type, mat["nu"])
+    return resolved
 
 
 def _fmt(x) -> str:

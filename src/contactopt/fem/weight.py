@@ -1,4 +1,4 @@
-"""The morph weight w of DESIGN.md §9: a discrete harmonic extension on the reference mesh.
+"""The morph weight w (docs/theory.md): a discrete harmonic extension on the reference mesh.
 
     −Δw = 0 in Ω_ref,   w = 1 on the contact face,   w = 0 on the parts fixed in shape,
     ∂w/∂n = 0 elsewhere,

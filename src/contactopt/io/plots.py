@@ -36,7 +36,7 @@ from .atomic import atomic_output
 log = logging.getLogger(__name__)
 
 __all__ = ["contact_grid", "face_triangulation", "plot_contact_field", "plot_force_and_pressure", "plot_node_classes",
-           "plot_stress_comparison",
+           "plot_stress_comparison", "plot_contact_response", "plot_peak_stress",
            "plot_surface", "plot_history", "CLASS_LABELS", "CLASS_COLORS"]
 
 # display names (typographic minus) and colours of Table 4.1's classes, in CLASS_NAMES order
@@ -83,6 +83,17 @@ def contact_grid(model, values=None):
         raise ValueError(f"expected one value per contact node ({pts.shape[0]},), got shape {v.shape}")
     return X1, X2, v.reshape(ny + 1, nx)
 
+
+
+def _categories(ax, model, codes, cmap, norm) -> None:
+    """A per-node category (node class, stick/slip) on the contact face: cells on a grid face,
+    coloured nodes on the triangulation of any other face."""
+    if _has_grid(model):
+        _pcolor(ax, model, contact_grid(model, codes)[2], cmap=cmap, norm=norm, edgecolors="white", linewidth=0.3)
+    else:
+        tri = face_triangulation(model)
+        ax.triplot(tri, color="0.8", linewidth=0.4)
+        ax.scatter(tri.x, tri.y, c=codes, cmap=cmap, norm=norm, s=14, edgecolors="0.3", linewidths=0.3)
 
 def _has_grid(model) -> bool:
     if not hasattr(model.mesh, "nx"):
@@ -201,12 +212,7 @@ def plot_node_classes(path, model, classes, title="Contact node classes (Table 4
     norm = BoundaryNorm(np.arange(-0.5, len(CLASS_NAMES) + 0.5), cmap.N)
     fig = _new_figure(_figsize_map(model, extra_width=2.6))
     ax = _map_axes(fig, model)
-    if _has_grid(model):
-        _pcolor(ax, model, contact_grid(model, codes)[2], cmap=cmap, norm=norm, edgecolors="white", linewidth=0.3)
-    else:
-        tri = face_triangulation(model)
-        ax.triplot(tri, color="0.8", linewidth=0.4)
-        ax.scatter(tri.x, tri.y, c=codes, cmap=cmap, norm=norm, s=14, edgecolors="0.3", linewidths=0.3)
+    _categories(ax, model, codes, cmap, norm)
     handles = [Patch(facecolor=CLASS_COLORS[k], edgecolor="0.4",
                      label=f"{CLASS_LABELS[k]} ({int(np.sum(codes == k))}): {CLASS_DESCRIPTIONS[k]}")
                for k in range(len(CLASS_NAMES))]
@@ -428,4 +434,79 @@ def plot_history(path, history_rows, *, title="Convergence history") -> Path:
         handles, labels = handles + h2, labels + l2
     ax.legend(handles, labels, loc="upper right", fontsize=8)
     ax.grid(True, which="major", alpha=0.3)
+    return _save(fig, path)
+
+
+# stick/slip status of a contact node, from its Table 4.1 class: 0 no contact (L), 1 sticking
+# (M3+, M3−, M4: u_t = 0), 2 sliding (M1, M2: u_t ≠ 0)
+SLIP_STATUS = np.array([0, 2, 2, 1, 1, 1])
+SLIP_LABELS = ("no contact", "stick", "slip")
+SLIP_COLORS = ("#d9d9d9", "#d62728", "#1f77b4")
+
+
+def plot_contact_response(path, model, pressure, tau, u_t, classes, *, title=None) -> Path:
+    """Four maps of the contact face: the pressure p = λ/a, the tangential force ‖τ_m‖ (the
+    friction force on the body is −τ_m), the slip ‖u_t,m‖ and the stick/slip status (from the
+    node classes: L no contact; M3+, M3−, M4 stick; M1, M2 slip). ``tau``, ``u_t``: (p, 2) per
+    contact node (t1, t2) = (x1, x2)."""
+    tau_n = np.linalg.norm(np.asarray(tau, float).reshape(-1, 2), axis=1)
+    slip = np.linalg.norm(np.asarray(u_t, float).reshape(-1, 2), axis=1)
+    fields = [np.asarray(_contact_values(model, v), float) for v in (pressure, tau_n, slip)]
+    if not all(np.all(np.isfinite(g)) for g in fields):
+        raise ValueError("plot_contact_response: a field has non-finite values")
+    status = SLIP_STATUS[np.asarray(_contact_values(model, classes), int)]
+    w, h = _figsize_map(model, extra_width=0.0)
+    fig = _new_figure((2 * w * 0.8 + 2.8, 2 * (h * 0.8 + 0.6)))
+    names = ("contact pressure $p = \\lambda / a$", "tangential force $\\|\\tau\\|$", "slip $\\|u_t\\|$")
+    for n, (g, what) in enumerate(zip(fields, names)):
+        ax = _map_axes(fig, model, (2, 2, n + 1))
+        mesh = _field(ax, model, g, cmap="viridis")
+        fig.colorbar(mesh, ax=ax, shrink=0.85)
+        ax.set_title(f"{what}\nmax {g.max():.4g}, sum {g.sum():.4g}", fontsize=9)
+    ax = _map_axes(fig, model, (2, 2, 4))
+    cmap = ListedColormap(SLIP_COLORS, name="stick_slip")
+    norm = BoundaryNorm(np.arange(-0.5, 3.5), cmap.N)
+    _categories(ax, model, status, cmap, norm)
+    ax.legend(handles=[Patch(facecolor=SLIP_COLORS[k], edgecolor="0.4",
+                             label=f"{SLIP_LABELS[k]} ({int(np.sum(status == k))})") for k in range(3)],
+              loc="upper left", bbox_to_anchor=(1.02, 1.0), fontsize=8, frameon=False)
+    ax.set_title("stick / slip", fontsize=9)
+    if title:
+        fig.suptitle(title)
+    return _save(fig, path)
+
+
+def plot_peak_stress(path, model, coords, u_full, *, cells=None, fraction: float = 0.5, title=None) -> Path:
+    """Where the von Mises stress is largest: the quadrature points (of the stiffness rule) of the
+    elements ``cells`` (all by default) whose σ_vM is at least ``fraction`` of the peak, seen from
+    below (x1, x2) and from the side (x1, x3), coloured by σ_vM; the peak is marked ★ with its
+    value and position (:mod:`contactopt.fem.stress`; the value peak_stress's 'max' takes)."""
+    from ..fem.stress import quadrature_points, von_mises_points
+    asm = model.assembler
+    vm = von_mises_points(asm, coords, u_full, cells)
+    x = quadrature_points(asm, coords, cells)
+    if not np.all(np.isfinite(vm)):
+        raise ValueError("plot_peak_stress: the stress has non-finite values")
+    vm, x = vm.ravel(), x.reshape(-1, 3)
+    top = int(np.argmax(vm))
+    keep = vm >= fraction * vm[top]
+    order = np.argsort(vm[keep])
+    pts, vals = x[keep][order], vm[keep][order]
+    lo, hi = coords.min(axis=0), coords.max(axis=0)
+    span = hi - lo
+    fig = _new_figure((12.5, 4.6))
+    for n, (i, j, name) in enumerate(((0, 1, "from below: $x_1$, $x_2$"), (0, 2, "from the side: $x_1$, $x_3$"))):
+        ax = fig.add_subplot(1, 2, n + 1)
+        sc = ax.scatter(pts[:, i], pts[:, j], c=vals, cmap="inferno_r", s=10, vmin=fraction * vm[top], vmax=vm[top])
+        ax.plot(x[top, i], x[top, j], marker="*", markersize=16, color="cyan", markeredgecolor="k")
+        ax.set_xlim(lo[i] - 0.02 * span[i], hi[i] + 0.02 * span[i])
+        ax.set_ylim(lo[j] - 0.02 * span[j], hi[j] + 0.02 * span[j])
+        ax.set_aspect("equal")
+        ax.set_xlabel(f"$x_{i + 1}$")
+        ax.set_ylabel(f"$x_{j + 1}$")
+        ax.set_title(name, fontsize=9)
+    fig.colorbar(sc, ax=fig.axes, label="von Mises stress $\\sigma_{vM}$", shrink=0.85)
+    p = ", ".join(f"{v:.4g}" for v in x[top])
+    fig.suptitle((title + "\n" if title else "") + f"quadrature points with $\\sigma_{{vM}}$ ≥ {fraction:g}·peak; "
+                 f"peak ★ {vm[top]:.4g} at ({p})", fontsize=10)
     return _save(fig, path)

@@ -1,4 +1,6 @@
-"""The files of one state solve: state.json, state.npz, body.vtu, lambda.png, pressure.png, classes.png.
+"""The files of one state solve: state.json, state.npz, body.vtu, lambda.png, pressure.png, classes.png,
+contact.png (pressure, ‖τ‖, slip ‖u_t‖, stick/slip) and von_mises.png (where the von Mises stress
+is largest, the peak marked).
 
 :func:`write_state` is all-or-nothing: every file is first built in a temporary sibling directory
 of ``outdir``; only when all of them succeeded are they moved into ``outdir`` (each by an atomic
@@ -45,7 +47,8 @@ log = logging.getLogger(__name__)
 
 __all__ = ["STATE_FILES", "FOUNDATION_FILES", "state_files", "write_state", "read_state_npz", "state_json"]
 
-STATE_FILES = ("state.json", "state.npz", "body.vtu", "lambda.png", "pressure.png", "classes.png")
+STATE_FILES = ("state.json", "state.npz", "body.vtu", "lambda.png", "pressure.png", "classes.png", "contact.png",
+               "von_mises.png")
 FOUNDATION_FILES = ("foundation.vtu", "foundation.png")      # with an elastic [foundation]
 FORMAT_VERSION = 1
 
@@ -64,9 +67,10 @@ CONVENTIONS = {
 }
 
 
-def state_json(model, state: State, config=None, warnings=None) -> dict:
+def state_json(model, state: State, config=None, warnings=None, objective=None) -> dict:
     """The content of state.json: summary, design, contact arrays as lists, conventions, and
-    ``warnings`` when given (e.g. the constraints of U the design breaks)."""
+    ``warnings`` (e.g. the constraints of U the design breaks) and ``objective`` ({type, value,
+    terms}) when given."""
     doc = {
         "format_version": FORMAT_VERSION,
         "summary": state.summary(),
@@ -95,6 +99,8 @@ def state_json(model, state: State, config=None, warnings=None) -> dict:
         doc["foundation"] = model.foundation.summary()
     if warnings is not None:
         doc["warnings"] = list(warnings)
+    if objective is not None:
+        doc["objective"] = objective
     if config is not None:
         doc["config"] = getattr(config, "data", config)
     return doc
@@ -160,12 +166,14 @@ def _move_into(tmpdir: Path, outdir: Path, names=STATE_FILES) -> None:
     fsync_dir(outdir)
 
 
-def write_state(outdir, model, state: State, *, config=None, warnings=None) -> dict:
+def write_state(outdir, model, state: State, *, config=None, warnings=None, objective=None) -> dict:
     """Write the files of :data:`STATE_FILES` into ``outdir``, all or nothing.
 
     ``config`` (a :class:`~contactopt.config.Config` or a plain dict), when given, is stored
     resolved in state.json under ``"config"``; ``warnings`` (a list of strings) under
-    ``"warnings"``. Existing files of the same names are replaced;
+    ``"warnings"``; ``objective`` ({type, value, terms}: the objective at the state's design,
+    :meth:`contactopt.problem.ShapeProblem.objective_report`) under ``"objective"``. Existing
+    files of the same names are replaced;
     other files in ``outdir`` are left alone. Returns ``{file name: Path}`` of the written files.
     Raises ``ValueError`` for a state with non-finite arrays (nothing is written).
     """
@@ -175,7 +183,7 @@ def write_state(outdir, model, state: State, *, config=None, warnings=None) -> d
     parent.mkdir(parents=True, exist_ok=True)
     tmpdir = Path(tempfile.mkdtemp(prefix=f".{outdir.name}.", suffix=".tmp", dir=parent))
     try:
-        atomic_write_json(tmpdir / "state.json", state_json(model, state, config, warnings))
+        atomic_write_json(tmpdir / "state.json", state_json(model, state, config, warnings, objective))
         atomic_savez(tmpdir / "state.npz", **_state_arrays(model, state))
         vtk.write_body_vtu(tmpdir / "body.vtu", model, state)
         plots.plot_contact_field(tmpdir / "lambda.png", model, state.lam,
@@ -183,6 +191,10 @@ def write_state(outdir, model, state: State, *, config=None, warnings=None) -> d
         plots.plot_contact_field(tmpdir / "pressure.png", model, contact_pressure(model, state.lam, state.coords),
                                  "Contact pressure $p = \\lambda / a$", cmap="viridis", label="$p$")
         plots.plot_node_classes(tmpdir / "classes.png", model, state.classes)
+        plots.plot_contact_response(tmpdir / "contact.png", model, contact_pressure(model, state.lam, state.coords),
+                                    state.tau, np.asarray(state.u_c)[:, :2], state.classes)
+        plots.plot_peak_stress(tmpdir / "von_mises.png", model, np.asarray(state.coords, float),
+                               np.asarray(state.u, float))
         if getattr(model, "foundation", None) is not None:
             vtk.write_foundation_vtu(tmpdir / "foundation.vtu", model.foundation, state)
             plots.plot_contact_field(tmpdir / "foundation.png", model, -np.asarray(state.info["u_partner"])[:, 2],

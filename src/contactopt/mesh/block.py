@@ -1,6 +1,6 @@
 """The paper's block [0,a]×[0,b]×[0,c] on a structured grid of Q1 hexahedra: one mesh source.
 
-Reference mesh of the block with its contact face on x3 = 0 (DESIGN.md §1, §9):
+Reference mesh of the block with its contact face on x3 = 0 (docs/theory.md):
 
     node n = i + (nx+1)·(j + (ny+1)·k)  at  (a·i/nx, b·j/ny, c·k/nz),
 

@@ -4,7 +4,7 @@
 paper's block of ``[geometry]`` and ``[mesh]`` (:mod:`contactopt.mesh.block`): two sources of
 one :class:`~contactopt.mesh.reference.ReferenceMesh`, after which everything is the same.
 
-Conventions (DESIGN.md §1, §9): the foundation is the half-space x3 ≤ 0 with outward normal e3;
+Conventions (docs/theory.md): the foundation is the half-space x3 ≤ 0 with outward normal e3;
 the contact face lies on x3 = 0 in the reference mesh with the body above it (the outward normal
 of the body on the face is −e3) and is a graph over (x1, x2). With ``[body] initial_gap = "mesh"``
 the face may lie above the plane (an exported optimal body, :mod:`contactopt.io.export`): its

@@ -4,7 +4,7 @@ Reference block [0,a]×[0,b]×[0,c] (:func:`contactopt.mesh.block.block_mesh`; g
 :func:`~contactopt.mesh.block.graded_block_mesh`, for which read x1[i], x2[j], x3[k] below) moved by the one
 morph of :mod:`contactopt.mesh.morph`, x3 = c·s + ϑ_α(x1, x2)·w. The harmonic weight of the
 block (w = 1 on the contact face x3 = 0, 0 on the top x3 = c, natural on the sides) is
-w = 1 − s, so this is the vertical map of DESIGN.md §1,
+w = 1 − s, so this is the paper's vertical map (docs/theory.md),
 
     x1 = a·i/nx,  x2 = b·j/ny,  x3 = ϑ_α(x1, x2) + (c − ϑ_α(x1, x2))·s,   s = k/nz,
 

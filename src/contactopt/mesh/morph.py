@@ -1,10 +1,10 @@
-"""The morph of a reference mesh by the design surface, affine in α (DESIGN.md §9).
+"""The morph of a reference mesh by the design surface, affine in α (docs/theory.md).
 
     x(α) = x_ref + ϑ_α(x1, x2)·w(x_ref)·e3,
 
 with a weight w fixed on the reference mesh (1 on the contact face, 0 on the parts fixed in
 shape; :func:`contactopt.fem.weight.harmonic_weight`). Node coordinates are affine in α, so
-∂x3/∂α_k = β_k(x1, x2)·w and the design-derivative contractions of DESIGN.md §2 hold unchanged.
+∂x3/∂α_k = β_k(x1, x2)·w and the element-wise design-derivative contractions (docs/theory.md) hold unchanged.
 On the contact face w = 1: a contact node at (x1, x2, 0) moves to (x1, x2, ϑ_α(x1, x2)), its gap
 to the foundation x3 ≤ 0 (outward normal e3 of the foundation) is g = ϑ_α(x1, x2).
 
@@ -12,7 +12,7 @@ to the foundation x3 ≤ 0 (outward normal e3 of the foundation) is g = ϑ_α(x1
 lie beyond the rectangle (they have w < 1) move like its nearest point, so the Bernstein
 polynomials are never extrapolated and the lift stays within [lower, C0]·w on U.
 
-Element quality (DESIGN.md §9): with h = ϑ_α w the lift, the Jacobian of a morphed element is
+Element quality (docs/theory.md): with h = ϑ_α w the lift, the Jacobian of a morphed element is
 J = J_ref + e3 ⊗ ∇_ξ h, so det J / det J_ref = 1 + ∂h/∂x3 (the derivative on the reference
 element) — exactly, for every element type, and affine in α: ratio = 1 + R α with R fixed.
 :class:`JacobianRatio` checks it per design before assembly and bounds it over U: on U every
@@ -101,7 +101,7 @@ class MorphedMesh:
         return out
 
     def contract_dx3(self, d3: np.ndarray) -> np.ndarray:
-        """Σ_n (∂x3_n/∂α) d3_n for a per-node array d3: the chain rule of DESIGN.md §2."""
+        """Σ_n (∂x3_n/∂α) d3_n for a per-node array d3: the chain rule of the design derivatives."""
         return self._dx3.T @ d3[self.moving]
 
     def contact_points(self) -> np.ndarray:

@@ -2,7 +2,7 @@
 
 Every mesh source (the structured block of :mod:`contactopt.mesh.block`, a mesh file read by
 :mod:`contactopt.mesh.reader`) produces a :class:`ReferenceMesh`; the morph of
-:mod:`contactopt.mesh.morph` lifts it by the design surface (DESIGN.md §9).
+:mod:`contactopt.mesh.morph` lifts it by the design surface (docs/theory.md).
 
 Cell types and node order are meshio's (= VTK's): ``hexahedron`` (Q1, 8 nodes), ``tetra``
 (P1, 4 nodes), ``tetra10`` (P2, 10 nodes: 4 vertices, then the midpoints of the edges

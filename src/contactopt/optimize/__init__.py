@@ -1,4 +1,4 @@
-"""Nonsmooth optimization: the bundle-trust method over a polyhedron (DESIGN.md §7)."""
+"""Nonsmooth optimization: the bundle-trust method over a polyhedron."""
 
 from .bundle import BTOptions, BundleResult, BundleState, minimize_bundle
 

@@ -70,8 +70,16 @@ def select_path(config, n_free: int, pinned: int = 0) -> tuple[str, str]:
     ``[foundation]`` refuses them. A rigid ``[obstacle]`` other than the plane runs on the
     condensation path, which "auto" takes; the other paths refuse it."""
     from .._mpi import petsc_missing, world_size
+    from ..sensitivity.objectives import FULL_SPACE, objective_types
     ls = config["linear_solver"]
-    name, objective = ls["path"], config["objective"]["type"]
+    types = objective_types(config)
+    name, objective = ls["path"], "compliance" if "compliance" in types else config["objective"]["type"]
+    full = sorted(types & FULL_SPACE)
+    if full and ("foundation" in config.data or name == "petsc" or ranks_of() > 1):
+        where = "an elastic [foundation]" if "foundation" in config.data else "the 'petsc' path"
+        raise ConfigError([f"objective: {', '.join(full)} needs ∂J/∂u on every DOF, which the adjoint on "
+                           f"{where} does not take; use path 'condensation', 'delassus' or 'fullspace' "
+                           "without a foundation"])
     ranks = world_size()
     if pinned and "foundation" in config.data:
         raise ConfigError([f"body.clamped: {pinned} tangential component(s) of contact nodes are clamped (a "
@@ -136,6 +144,11 @@ def select_path(config, n_free: int, pinned: int = 0) -> tuple[str, str]:
 def make_path(config, model, name: str, library: str) -> SolverPath:
     """The path ``name`` for a model, with the configuration's [state] settings."""
     return PATHS[name](model, Settings.from_config(config, library))
+
+
+def ranks_of() -> int:
+    from .._mpi import world_size
+    return world_size()
 
 
 def _have_pyamg() -> bool:

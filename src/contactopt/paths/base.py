@@ -111,13 +111,27 @@ class SolverPath:
         raise NotImplementedError
 
     def adjoint(self, system, ctx, state, y_u, y_lam, choices=None):
-        """(v_u (3p), v_λ (p), ṽ on all DOFs) of the adjoint system (4.15) of ``state``."""
+        """(v_u (3p), v_λ (p), ṽ on all DOFs) of the adjoint system (4.15) of ``state``.
+
+        ``y_u`` is ∂J/∂u_c (3p, per node (t1, t2, ν)), or ∂J/∂u on every DOF (3·n_nodes) for an
+        objective of the whole displacement. Then J depends on u_c also through the interior
+        displacement u_i = A_ii⁻¹(L_i − A_ic u_c): (4.15) holds with y*_u = g_c − A_ci A_ii⁻¹ g_i
+        (g = ∂J/∂u on the free DOFs), and ṽ = (v_u, −A_ii⁻¹(A_ic v_u + g_i)) — the extension
+        satisfies (A ṽ)_i = −g_i — so the design term ṽᵀ(∂A u − ∂L) needs no other change."""
         raise NotImplementedError
 
     def controlled_subgradient(self, system, ctx, state, v_u, v_lam, xi, loads=None) -> np.ndarray:
         """ξ of a state with a force-controlled obstacle, whose translation depends on α
         (:mod:`.condensation`); ``xi`` itself on the paths without one."""
         return xi
+
+    def is_full(self, y_u) -> bool:
+        """Whether ``y_u`` is ∂J/∂u on every DOF (:meth:`adjoint`), not on the contact DOFs."""
+        size = np.asarray(y_u).size
+        if size not in (3 * self.model.n_contact, self.model.assembler.n_full):
+            raise ValueError(f"∂J/∂u has {size} entries: expected 3p = {3 * self.model.n_contact} or "
+                             f"3·n_nodes = {self.model.assembler.n_full}")
+        return size != 3 * self.model.n_contact
 
     def design_contraction(self, system, u_full, v_full, loads=None) -> np.ndarray:
         """vᵀ(∂A/∂α_k u − ∂L/∂α_k) at the system's design (full-length u, v; DESIGN.md §2)."""

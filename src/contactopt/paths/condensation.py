@@ -45,6 +45,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from ..contact import zone as zone_rules
+from ..errors import SolverError
 from ..fem import memory
 from ..fem.model import Assembled
 from .zone_paths import ZonePath
@@ -257,11 +258,25 @@ class CondensationPath(ZonePath):
         """(v_u, v_λ, ṽ) of (4.15); on a foundation (4.15) is solved with S_eff and ṽ extends
         z = S⁻¹ S_eff v_u (module docstring)."""
         from ..sensitivity.adjoint import solve_adjoint
+        zhat = None
+        if self.is_full(y_u):          # ∂J/∂u on every DOF (SolverPath.adjoint): ẑ = (0, A_ii⁻¹g_i)
+            if system.coupling is not None:
+                raise SolverError("an objective of the whole displacement is not available on an elastic foundation")
+            fac, asm = system.factor, self.model.assembler
+            g = np.asarray(y_u, float)[asm.free]
+            zhat = np.zeros(g.size)
+            zhat[fac.interior] = fac.solve_interior(g[fac.interior])
+            y_u = g[fac.c] - (system.assembled.A @ zhat)[fac.c]
+            if self.frames is not None:     # global components at the contact nodes: into their frames
+                y_u = to_frames(y_u, self.frames)
         v_u, v_lam = solve_adjoint(system.contact_S, state, y_u, y_lam, choices)
         z = v_u if system.coupling is None else system.coupling.adjoint_z(v_u)
         if self.frames is not None:
             z = from_frames(z, self.frames)
-        return v_u, v_lam, self.model.assembler.to_full(system.factor.extend(z))
+        v = system.factor.extend(z)
+        if zhat is not None:
+            v = v - zhat
+        return v_u, v_lam, self.model.assembler.to_full(v)
 
     def uniqueness_bound(self, system):
         """F0 = λ_min(S)/λ_max(S) of the bound (3.16) applied to the condensed system: with A := S,

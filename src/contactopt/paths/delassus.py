@@ -176,7 +176,14 @@ class DelassusPath(ZonePath):
         perm = (3 * np.arange(K.size)[:, None] + FROM_FCLIB).ravel()   # FCLIB -> (t1, t2, ν)
         W = W[np.ix_(perm, perm)]
         t0 = time.perf_counter()
-        v_u, v_lam, v_free, res = solve_adjoint_delassus(apply, W, state, y_u, y_lam, choices)
+        shift = None
+        if self.is_full(y_u):          # ∂J/∂u on every DOF: ṽ = A⁻¹(Bᵀs − g₀), v_u = W s + d
+            g = np.asarray(y_u, float)[self.model.assembler.free]
+            g0 = g.copy()
+            g0[contact] = 0.0
+            d_full = -system.factor.solve(g0)
+            shift, y_u = (d_full[contact], d_full), g[contact]
+        v_u, v_lam, v_free, res = solve_adjoint_delassus(apply, W, state, y_u, y_lam, choices, shift=shift)
         if res is not None:
             log.debug("adjoint (4.15) in W-form on %d nodes: %d GMRES iterations, %.2f s",
                       K.size, res.iterations, time.perf_counter() - t0)

@@ -135,6 +135,8 @@ class FullSpacePath(SolverPath):
 
     def adjoint(self, system, ctx, state, y_u, y_lam, choices=None):
         from ..sensitivity.adjoint_fullspace import solve_adjoint_fullspace
+        if self.is_full(y_u):          # ∂J/∂u on every DOF: the free DOFs' part
+            y_u = np.asarray(y_u, float)[self.model.assembler.free]
         adj = solve_adjoint_fullspace(system.assembled.A, self.model.contact_dofs, state.classes, state.u_c,
                                       state.lam, y_u, y_lam, self.settings.friction, hierarchy=self._hierarchy,
                                       choices=choices)

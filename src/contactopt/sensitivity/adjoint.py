@@ -69,6 +69,7 @@ class SubgradientResult:
     active_cases: tuple = ()          # names of the cases active within [objective] active_tol
     case: str = ""                    # the case of ``state`` (max: whose subgradient is used)
     states: list = field(default_factory=list)   # the state of every case
+    terms: dict = field(default_factory=dict)    # [[objective.terms]]: each term's value (of ``case``)
 
     @property
     def n_active(self) -> int:
@@ -172,7 +173,7 @@ def check_choices(choices):
 
 
 def solve_adjoint_delassus(apply, W_approx, state: State, y_u: np.ndarray, y_lam: np.ndarray,
-                           choices=None, *, rtol: float | None = None):
+                           choices=None, *, rtol: float | None = None, shift=None):
     """The adjoint system (4.15) in W-form, for the Delassus path (no S on all contact DOFs).
 
     The unknown is the contact force s = S v_u (per node (t1, t2, ν)), so v_u = W s. The rows of
@@ -190,6 +191,10 @@ def solve_adjoint_delassus(apply, W_approx, state: State, y_u: np.ndarray, y_lam
     block of an earlier design, per node (t1, t2, ν)); then v_λ = −(s + y*_u)_ν on K, and the
     A-harmonic extension of v_u is ṽ = A⁻¹Bᵀs, the by-product of the last product. Returns
     (v_u (3p), v_λ (p), ṽ on the free DOFs, GMRES result).
+
+    ``shift`` = (d (3p), d_full (free DOFs)) for an objective of the whole displacement: then
+    v_u = W s + d and ṽ = A⁻¹Bᵀs + d_full with d_full = −A⁻¹g₀ (g₀ = ∂J/∂u off the contact
+    DOFs), and ``y_u`` is ∂J/∂u on the contact DOFs; the equations above hold with this v.
     """
     from ..fem.krylov import gmres
     rtol = ADJOINT_RTOL if rtol is None else rtol
@@ -202,6 +207,12 @@ def solve_adjoint_delassus(apply, W_approx, state: State, y_u: np.ndarray, y_lam
     s = -np.asarray(y_u, dtype=np.float64).copy()
     s.reshape(p, 3)[K] = 0.0
     k = K.size
+    if shift is not None:
+        plain = apply
+
+        def apply(f):                     # noqa: F811 - the affine map s -> (W s + d, ṽ)
+            v, vf = plain(f)
+            return v + shift[0], vf + shift[1]
     if k == 0:
         v_u, v_full = apply(s)
         return v_u, np.zeros(p), v_full, None
@@ -248,13 +259,14 @@ def solve_adjoint_delassus(apply, W_approx, state: State, y_u: np.ndarray, y_lam
     Eb = sp.block_diag(list(E), format="csr")
     Db = sp.block_diag(list(D), format="csr")
     rhs = h.ravel()
-    if np.any(s):                     # y*_u = 0 (objectives of λ alone): no known part
+    if np.any(s) or shift is not None:   # y*_u = 0 (objectives of λ alone): no known part
         rhs = rhs - Eb @ apply(s)[0][dofK]
+    linear = apply if shift is None else plain
 
     def Q(sK):
         f = np.zeros(3 * p)
         f[dofK] = sK
-        return Eb @ apply(f)[0][dofK] + Db @ sK
+        return Eb @ linear(f)[0][dofK] + Db @ sK
 
     # the preconditioner only: single precision, as the Newton matrices of the kept block
     from ..fem.dense import LUFactor
@@ -273,7 +285,10 @@ def solve_adjoint_delassus(apply, W_approx, state: State, y_u: np.ndarray, y_lam
     if not (np.all(np.isfinite(v_u)) and np.all(np.isfinite(v_full))):
         raise SolverError("adjoint system (4.15) has a non-finite solution")
     # GMRES's estimate checked by the true residual, from the product at the solution
-    true = np.linalg.norm(Eb @ v_u[dofK] + Db @ res.x - h.ravel()) / max(np.linalg.norm(h), 1e-300)
+    # (relative to the larger of h and the right-hand side with the known part: h may be 0 when
+    # the objective's gradient lies off the contact DOFs, e.g. a peak stress away from them)
+    true = np.linalg.norm(Eb @ v_u[dofK] + Db @ res.x - h.ravel()) / max(np.linalg.norm(h), np.linalg.norm(rhs),
+                                                                          1e-300)
     if not true <= 100 * rtol:
         from ..fem.krylov import KrylovNotConverged
         raise KrylovNotConverged(f"adjoint system (4.15): GMRES estimate {res.history[-1]:.2e}, true "

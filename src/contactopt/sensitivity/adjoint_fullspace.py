@@ -72,7 +72,8 @@ def solve_adjoint_fullspace(A, contact_dofs, classes, u_c, lam, y_u, y_lam, fric
                             max_iter: int = 400, choices=None, v0=None) -> FullSpaceAdjoint:
     """Solve (4.15) in full space (module docstring) for a state with Table 4.1 ``classes``
     (codes of :data:`contactopt.contact.state.CLASS_CODES`), ``u_c`` (p, 3), ``lam`` (p,),
-    and the objective's partial gradients ``y_u`` (3p,) and ``y_lam`` (p,). GMRES stops at
+    and the objective's partial gradients ``y_u`` (3p,, or on every free DOF for an objective of
+    the whole displacement: the interior rows then read (A ṽ)_i = −g_i) and ``y_lam`` (p,). GMRES stops at
     ‖residual‖ ≤ rtol·‖right-hand side‖; it raises KrylovNotConverged (a SolverError) with its
     history otherwise. ``v0``: a warm start for ṽ (free DOFs), e.g. the adjoint of the previous
     design (its values on the fixed DOFs are ignored)."""
@@ -117,8 +118,13 @@ def _solve_adjoint(A, contact_dofs, classes, u_c, lam, y_u, y_lam, friction, hie
     v0 = np.zeros(n)
     v0[cd[stick, 2]] = y_lam[stick]
     v0[Nsl] = y_lam[slide]
-    f = np.zeros(n)
-    f[cd.ravel()] = -np.asarray(y_u, dtype=np.float64)
+    y_u = np.asarray(y_u, dtype=np.float64)
+    if y_u.size == n:                  # ∂J/∂u on every free DOF: the interior rows get −g_i
+        f = -y_u.copy()
+        y_u = y_u[cd.ravel()]
+    else:
+        f = np.zeros(n)
+        f[cd.ravel()] = -y_u
     rhs = f - A @ v0 - kt @ v0
     rhs[D] = 0.0
 
@@ -161,6 +167,8 @@ def subgradient_fullspace(model, objective, alpha, asm, result, friction, *, loa
                   iterations=result.newton_steps, residual=result.error, complementarity=float("nan"),
                   converged=result.converged)
     value, y_u, y_lam, dJ = objective.evaluate(state, None)
+    if np.asarray(y_u).size == model.assembler.n_full:      # ∂J/∂u on every DOF: its free part
+        y_u = np.asarray(y_u)[model.assembler.free]
     t1 = time.perf_counter()
     adj = solve_adjoint_fullspace(asm.A, model.contact_dofs, classes, u_c, lam, y_u, y_lam, friction,
                                   hierarchy=result.hierarchy, rtol=rtol, **kw)

@@ -95,7 +95,7 @@ def build_cases(config, model, solve=None) -> tuple[list[LoadCase], Combination]
         for k, table in enumerate(tables):
             loads = model.loads + load_set(model.body, table, where=f"load_cases[{k}]")
             # a case's own objective: a 'design' target is λ(α*) of the case's loads
-            objective = make_objective(config, model, target=table.get("target"), case=k, solve=solve)
+            objective = make_objective(config, model, target=table.get("target"), case=k, solve=solve, loads=loads)
             cases.append(LoadCase(table["name"], loads, objective))
     names = tuple(c.name for c in cases)
     w = obj["weights"]

@@ -5,6 +5,10 @@ condensed system of the design, and returns
 
     value,  ∂J/∂u_c (3p, per node (t1, t2, ν)),  ∂J/∂λ (p,),  ∂J/∂α at fixed (u_c, λ) (n_design,).
 
+An objective of the whole displacement (``full_space``: the peak stress, the friction work)
+returns ∂J/∂u on every DOF (3·n_nodes, DOF 3n + m) in place of ∂J/∂u_c, and ∂J/∂α at fixed u;
+each solver path's adjoint takes it (:meth:`contactopt.paths.base.SolverPath.adjoint`).
+
 The adjoint (:mod:`contactopt.sensitivity.adjoint`) turns these into a Clarke subgradient of
 Θ(α) = J(α, S(α)). To add an objective, subclass :class:`Objective` and register it in
 ``OBJECTIVES``; nothing in the solver changes. An objective holds the model (for the geometry
@@ -23,6 +27,8 @@ class Objective:
     """Base class: ``evaluate(state, cond) -> (value, dJ_du (3p,), dJ_dlam (p,), dJ_dalpha (n_design,))``."""
 
     name = "objective"
+    full_space = False       # True: ∂J/∂u is on every DOF (3·n_nodes), not on the contact DOFs only
+    loads = None             # the load set of the objective's load case (None: the configuration's)
 
     def __init__(self, model, scale: float = 1.0):
         self.model = model
@@ -58,15 +64,165 @@ class TargetNormalForce(Objective):
 
 
 class PressureUniformity(Objective):
-    """J = Σ_i (λ_i − mean λ)²: the spread of the normal contact forces (zero for uniform pressure)."""
+    """J = Σ_m a_m (p_m − p̄)² with p_m = λ_m/a_m and p̄ = Σλ/Σa: the spread of the contact pressure.
+
+    a_m is the node's tributary area ∫N_m dS on the flat reference contact face (as for targets
+    with ``per_area``; it does not change with α), so a uniform pressure p (λ_m = p a_m) gives
+    J = 0 on any mesh. J = Σ λ_m²/a_m − (Σλ)²/Σa. Nodes of zero area (the corners of six-node
+    triangles, whose consistent force is zero under any uniform pressure) are left out.
+    """
 
     name = "pressure_uniformity"
 
+    def __init__(self, model, scale: float = 1.0):
+        super().__init__(model, scale)
+        self.areas, self.used = node_areas(model)
+
     def evaluate(self, state, cond):
-        d = state.lam - state.lam.mean()
+        a, m = self.areas[self.used], self.used
+        lam = state.lam[m]
+        pbar = lam.sum() / a.sum()
+        d = lam / a - pbar
+        grad = np.zeros(state.lam.size)
+        grad[m] = 2.0 * self.scale * d           # Σ a_m d_m = 0: p̄'s derivative drops out
+        return (self.scale * float(a @ (d * d)), np.zeros(3 * state.lam.size), grad,
+                np.zeros(state.alpha.size))
+
+
+def node_areas(model):
+    """(a (p,), the contact nodes of positive area): :meth:`ElasticModel.contact_areas`."""
+    a = np.asarray(model.contact_areas(), float)
+    used = np.flatnonzero(a > 1e-12 * a.max())
+    return a, used
+
+
+def aggregate(x: np.ndarray, kind: str, rho: float, p: float):
+    """(value, weights ∂value/∂x) of the largest entry of x ≥ 0: ``max`` (the first index where
+    the largest value is attained: a Clarke subgradient), ``ks`` the Kreisselmeier–Steinhauser
+    function max + ln Σ exp(ρ(x − max))/ρ (≥ max, at most ln(n)/ρ above it; ρ in 1/units of x),
+    ``pnorm`` (Σ x^p)^(1/p) (≥ max, at most n^(1/p) times it)."""
+    x = np.asarray(x, float)
+    w = np.zeros_like(x)
+    top = float(x.max())
+    if kind == "max":
+        w[int(np.argmax(x))] = 1.0
+        return top, w
+    if kind == "ks":
+        e = np.exp(rho * (x - top))
+        total = e.sum()
+        return top + float(np.log(total)) / rho, e / total
+    if kind == "pnorm":
+        if top <= 0:
+            return 0.0, w
+        r = x / top
+        norm = float(np.sum(r ** p) ** (1.0 / p))
+        return top * norm, (r / norm) ** (p - 1.0)
+    raise ValueError(f"unknown aggregate {kind!r}")
+
+
+class MaxPressure(Objective):
+    """The largest contact pressure p_m = λ_m/a_m (a_m as in :class:`PressureUniformity`),
+    aggregated as ``aggregate`` says (:func:`aggregate`): the max is nonsmooth where two nodes
+    share it; its subgradient comes from the first such node."""
+
+    name = "max_pressure"
+
+    def __init__(self, model, scale: float = 1.0, kind: str = "max", rho: float = 50.0, p: float = 8.0):
+        super().__init__(model, scale)
+        self.areas, self.used = node_areas(model)
+        self.kind, self.rho, self.p = kind, float(rho), float(p)
+
+    def evaluate(self, state, cond):
+        a, m = self.areas[self.used], self.used
+        value, w = aggregate(state.lam[m] / a, self.kind, self.rho, self.p)
+        grad = np.zeros(state.lam.size)
+        grad[m] = self.scale * w / a
+        return self.scale * value, np.zeros(3 * state.lam.size), grad, np.zeros(state.alpha.size)
+
+
+class FrictionalDissipation(Objective):
+    """J = Σ_m τ_m·u_t,m, the friction work of the state (τ the paper's tangential force, u_t the
+    slip), a proxy for fretting wear.
+
+    τ is not a variable of its own: τ = −(A u − L)_t on the contact DOFs (τ = −r_t), so
+    J = −ũᵀ(A u − L) with ũ the vector of the tangential contact displacements (zero elsewhere).
+    Its gradient is on the whole displacement, ∂J/∂u = τ̂ − A ũ (τ̂: τ on the tangential contact
+    DOFs), and at fixed u ∂J/∂α = −ũᵀ(∂A/∂α u − ∂L/∂α).
+    """
+
+    name = "frictional_dissipation"
+    full_space = True            # ∂J/∂u is on every DOF (the paths' adjoints take it)
+
+    def evaluate(self, state, cond):
+        model = self.model
+        asm = model.assembler
         p = state.lam.size
-        # Σ d_i = 0, so the derivative of the mean drops out
-        return self.scale * float(d @ d), np.zeros(3 * p), 2.0 * self.scale * d, np.zeros(state.alpha.size)
+        ut = np.asarray(state.u_c)[:, :2]
+        full = (3 * model.contact_nodes[:, None] + np.arange(2)).ravel()
+        u_t = np.zeros(asm.n_full)
+        u_t[full] = ut.ravel()
+        tau = np.zeros(asm.n_full)
+        tau[full] = np.asarray(state.tau).ravel()
+        A = cond.assembled.A if cond is not None and hasattr(cond, "assembled") else asm.stiffness(state.coords)
+        dJ_du = tau - asm.to_full(A @ u_t[asm.free])
+        dalpha = -model.design_contraction(state.coords, state.u, u_t, getattr(self, "loads", None))
+        value = float(np.sum(np.asarray(state.tau) * ut))
+        return self.scale * value, self.scale * dJ_du, np.zeros(p), self.scale * dalpha
+
+
+class PeakStress(Objective):
+    """The largest von Mises stress over a region, at the quadrature points of the stiffness rule
+    (:mod:`contactopt.fem.stress`), aggregated as ``aggregate`` says (:func:`aggregate`).
+
+    ``region``: a part of the body (a name or a predicate table); its elements are those with
+    every node in the part, or, for a part no element lies in (a boundary face), those with a
+    node in it. None: the whole body. ∂J/∂u is on every DOF; ∂J/∂α at fixed u moves the
+    quadrature points with the mesh (x3 of every node moves with α by the morph).
+    """
+
+    name = "peak_stress"
+    full_space = True
+
+    def __init__(self, model, scale: float = 1.0, kind: str = "max", rho: float = 50.0, p: float = 8.0,
+                 region=None, key: str = "objective.region"):
+        super().__init__(model, scale)
+        self.kind, self.rho, self.p = kind, float(rho), float(p)
+        self.cells = region_cells(model, region, key)
+
+    def values(self, state) -> np.ndarray:
+        """σ_vM (len(cells), Q) of the state."""
+        from ..fem.stress import von_mises_points
+        return von_mises_points(self.model.assembler, state.coords, state.u, self.cells)
+
+    def evaluate(self, state, cond):
+        from ..fem.stress import von_mises_gradients
+        model = self.model
+        vm = self.values(state)
+        value, w = aggregate(vm.ravel(), self.kind, self.rho, self.p)
+        w = w.reshape(vm.shape)
+        rows = np.flatnonzero(np.any(w != 0, axis=1))     # the max: one element only
+        g_u, g_x = von_mises_gradients(model.assembler, state.coords, state.u, self.cells[rows], w[rows])
+        dalpha = model.mesh.contract_dx3(g_x[:, 2])
+        return self.scale * value, self.scale * g_u, np.zeros(state.lam.size), self.scale * dalpha
+
+
+def region_cells(model, region, key: str) -> np.ndarray:
+    """The elements of a region (:class:`PeakStress`); ConfigError naming ``key`` if it has none."""
+    cells = model.assembler.elements
+    if region in (None, "", {}):
+        return np.arange(cells.shape[0])
+    try:
+        part = model.body.part(region)
+    except ConfigError as exc:
+        raise ConfigError([f"{key}: {p}" for p in exc.problems]) from None
+    inside = np.zeros(model.assembler.n_nodes, bool)
+    inside[part.nodes] = True
+    found = np.flatnonzero(inside[cells].all(axis=1))
+    if found.size == 0:
+        found = np.flatnonzero(inside[cells].any(axis=1))
+    if found.size == 0:
+        raise ConfigError([f"{key}: the part has no element of the body"])
+    return found
 
 
 class Compliance(Objective):
@@ -99,19 +255,108 @@ class Compliance(Objective):
         return (self.scale * value, self.scale * dw, np.zeros(state.lam.size), self.scale * dalpha)
 
 
+class WeightedSum(Objective):
+    """J = Σ_k w_k J_k over the ``[[objective.terms]]`` (each an objective of its own keys).
+
+    A term whose ∂J/∂u is on the contact DOFs only is put on every DOF (zero off the contact
+    DOFs) when another term's is on every DOF; the adjoint is then solved once for the sum.
+    ``last_terms``: the terms' own values (unweighted, without ``scale``) at the last evaluation.
+    """
+
+    name = "sum"
+
+    def __init__(self, model, terms, scale: float = 1.0):
+        super().__init__(model, scale)
+        self.terms = terms                      # [(name, weight, objective)]
+        self.full_space = any(getattr(o, "full_space", False) for _, _, o in terms)
+        self.last_terms = {}
+
+    @property
+    def target(self):
+        """The target of the first target_normal_force term, else None. Reading it computes every
+        term's target: a 'design' target solves a state, which must not come between a state and
+        its adjoint (:meth:`contactopt.problem.ShapeProblem.prepare_objectives`)."""
+        out = None
+        for _, _, o in self.terms:
+            t = getattr(o, "target", None)
+            out = t if out is None else out
+        return out
+
+    @property
+    def loads(self):
+        return self.terms[0][2].loads if self.terms else None
+
+    @loads.setter
+    def loads(self, value):
+        for _, _, o in self.terms:
+            o.loads = value
+
+    def evaluate(self, state, cond):
+        p = state.lam.size
+        n = self.model.assembler.n_full
+        value, dlam, dalpha = 0.0, np.zeros(p), np.zeros(state.alpha.size)
+        du = np.zeros(n if self.full_space else 3 * p)
+        contact = (3 * self.model.contact_nodes[:, None] + np.arange(3)).ravel()
+        self.last_terms = {}
+        for name, w, obj in self.terms:
+            v, y_u, y_lam, y_a = obj.evaluate(state, cond)
+            self.last_terms[name] = float(v)
+            value += w * v
+            if y_u.size == du.size:
+                du += w * y_u
+            else:                               # a contact-only gradient in a full-space sum
+                du[contact] += w * y_u
+            dlam += w * y_lam
+            dalpha += w * y_a
+        return self.scale * value, self.scale * du, self.scale * dlam, self.scale * dalpha
+
+
 OBJECTIVES = {"target_normal_force": TargetNormalForce, "pressure_uniformity": PressureUniformity,
-              "compliance": Compliance}
+              "compliance": Compliance, "max_pressure": MaxPressure,
+              "frictional_dissipation": FrictionalDissipation, "peak_stress": PeakStress}
 
 
-def make_objective(config, model, *, target=None, case: int = 0, solve=None) -> Objective:
+def make_objective(config, model, *, target=None, case: int = 0, solve=None, loads=None) -> Objective:
     """The objective of ``[objective]``; ``target`` (a load case's own) replaces objective.target,
     ``case`` is the load case it belongs to (:mod:`contactopt.sensitivity.cases`), ``solve(alpha,
-    case)`` returns λ of a design's state (for a 'design' target)."""
+    case)`` returns λ of a design's state (for a 'design' target), ``loads`` the case's load set
+    (None: the configuration's [loads]) for objectives whose design term has the load's derivative."""
     obj = config["objective"]
-    cls = OBJECTIVES[obj["type"]]
+    if obj.get("terms"):
+        names, terms = {}, []
+        for k, table in enumerate(obj["terms"]):
+            kind = table["type"]
+            names[kind] = names.get(kind, 0) + 1
+            name = kind if names[kind] == 1 else f"{kind}_{names[kind]}"
+            one = _one_objective(model, table, 1.0, f"objective.terms[{k}]", target, case, solve)
+            terms.append((name, float(table.get("weight", 1.0)), one))
+        out = WeightedSum(model, terms, obj["scale"])
+    else:
+        out = _one_objective(model, obj, obj["scale"], "objective", target, case, solve)
+    out.loads = loads
+    return out
+
+
+def _one_objective(model, table, scale, key, target, case, solve) -> Objective:
+    cls = OBJECTIVES[table["type"]]
     if cls is TargetNormalForce:
-        return cls(model, obj["target"] if target is None else target, obj["scale"], case, solve)
-    return cls(model, obj["scale"])
+        spec = table.get("target", {"kind": "constant", "value": 0.0}) if target is None else target
+        return cls(model, spec, scale, case, solve)
+    agg = (table.get("aggregate", "max"), table.get("rho", 50.0), table.get("p", 8.0))
+    if cls is MaxPressure:
+        return cls(model, scale, *agg)
+    if cls is PeakStress:
+        return cls(model, scale, *agg, region=table.get("region") or None, key=f"{key}.region")
+    return cls(model, scale)
+
+
+def objective_types(config) -> set:
+    """The objective types a configuration uses (its type, or those of its terms)."""
+    obj = config["objective"]
+    return {t["type"] for t in obj.get("terms") or []} or {obj["type"]}
+
+
+FULL_SPACE = frozenset({"peak_stress", "frictional_dissipation"})   # ∂J/∂u on every DOF
 
 
 def target_values(spec: dict, model, case: int = 0, solve=None) -> np.ndarray:

@@ -1,4 +1,4 @@
-"""Design studies: sweeps of independent optimization runs on dask.distributed (DESIGN.md §10).
+"""Design studies: sweeps of independent optimization runs on dask.distributed.
 
 ``run_sweep(config, [(key, values), ...], outdir)`` runs the cartesian product of the settings,
 one run directory per task, on a LocalCluster or an existing cluster (``scheduler=``), and
