@@ -707,6 +707,14 @@ def _check_obstacle(given, data, problems) -> dict:
     if out["control"] == "force" and _vec3(out["force"]) and not any(v != 0 for v in out["force"]):
         problems.append("obstacle.force = [0, 0, 0]: with control = 'force' the obstacle translates along the "
                         "force, which has no direction (a force with no component along any free direction)")
+    obj = data.get("objective", {})
+    types = [obj.get("type")] + [t.get("type") for t in obj.get("terms") or [] if isinstance(t, dict)]
+    moves = out["control"] == "force" or (out["control"] == "displacement" and _vec3(out["displacement"])
+                                          and any(out["displacement"][:2]))
+    if "frictional_dissipation" in types and (shape != "plane" or moves):
+        problems.append(f"objective 'frictional_dissipation' with obstacle.shape = {shape!r}, control = "
+                        f"{out['control']!r}: the objective takes the slip as the body's own (x1, x2) "
+                        "displacement, which holds on the fixed plane only")
     if "foundation" in data:
         problems.append("[obstacle] and [foundation] exclude each other: the body touches either a rigid "
                         "obstacle or an elastic foundation")
