@@ -1,15 +1,22 @@
 """Command-line interface: ``contactopt run | sweep | state | export | check-gradient | solve-fclib``.
 
-Only this module prints. Errors of the library (``ContactOptError``) end with a one-paragraph
-message on stderr and exit code 2; nothing is written for input that is rejected.
+Only this module prints. Exit codes: 0 done; 1 a check failed or a sweep task failed; 2 an
+error of the library (``ContactOptError``: bad input, a directory in use by another process, a
+failed solve), said in one paragraph on stderr, nothing written for input that is rejected;
+74 a file could not be written (no space, read-only, permission denied; the message names the
+file and how the run continues); 128 + the signal's number when interrupted (130 SIGINT,
+143 SIGTERM), after the run's summary.json or the sweep's tables say so.
 """
 
 from __future__ import annotations
 
 import argparse
+import contextlib
 import json
 import logging
+import signal
 import sys
+import threading
 import time
 from pathlib import Path
 
@@ -18,6 +25,8 @@ import numpy as np
 from .errors import ConfigError, ContactOptError, MeshError
 
 log = logging.getLogger("contactopt")
+
+EXIT_WRITE = 74        # sysexits.h EX_IOERR: a file could not be written
 
 
 def _read_alpha(path: str, model) -> np.ndarray:
@@ -138,7 +147,7 @@ def _print_state(state, bound, reason, objective=None) -> None:
 def _cmd_export(args) -> int:
     from .config import load_config
     from .fem.model import ElasticModel
-    from .io.export import export_design, normalize_formats
+    from .io.export import normalize_formats
     run = Path(args.run_dir)
     if not (run / "config.toml").is_file():
         raise ConfigError([f"{run}: not a run directory (no config.toml; 'contactopt run' writes one)"])
@@ -149,7 +158,7 @@ def _cmd_export(args) -> int:
     model = ElasticModel(load_config(run / "config.toml"))
     alpha = _read_alpha(args.alpha or str(run / "alpha.json"), model)
     out = Path(args.out) if args.out else run
-    res = export_design(model, alpha, out, formats, unit=args.unit, strict=args.format is not None)
+    res = _export_locked(model, alpha, out, formats, args)
     print(f"exported the design of {run / 'alpha.json' if not args.alpha else args.alpha} into {out}/:")
     for fmt, names in res["files"].items():
         print(f"  {fmt:5s} " + ", ".join(names))
@@ -159,6 +168,28 @@ def _cmd_export(args) -> int:
         print(f"  STEP/IGES in millimetres (model coordinates in {res['unit']}); mesh and STL in the model's units"
               + (", surface trimmed to the contact face" if res.get("surface_trimmed") else ""))
     return 0
+
+
+def _export_locked(model, alpha, out: Path, formats, args) -> dict:
+    """export_design into ``out`` as its only writer (refused while a run or export holds it)."""
+    from .io.atomic import write_error
+    from .io.export import export_design
+    from .io.lock import acquire
+    created = not out.exists()
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+        lock = acquire(out, what="output directory")
+    except OSError as exc:
+        raise write_error(out, exc) from exc
+    try:
+        return export_design(model, alpha, out, formats, unit=args.unit, strict=args.format is not None)
+    except BaseException:
+        lock.release()
+        if created and not any(out.iterdir()):
+            out.rmdir()                    # a failed export leaves no empty directory behind
+        raise
+    finally:
+        lock.release()
 
 
 def _cmd_check_gradient(args) -> int:
@@ -310,20 +341,48 @@ def _main(argv=None) -> int:
     console = logging.StreamHandler(sys.stderr)
     # progress of long solves (contactopt.progress, INFO on large meshes) shows at every verbosity
     console.setLevel(min(level, logging.INFO))
-    console.addFilter(lambda r: r.levelno >= level or r.name == "contactopt.progress")
+    # (a record the raised exception repeats is printed once, as the error)
+    console.addFilter(lambda r: (r.levelno >= level or r.name == "contactopt.progress")
+                      and not getattr(r, "raised", False))
     console.setFormatter(logging.Formatter("%(levelname)s %(name)s: %(message)s"))
     logging.getLogger().addHandler(console)
     logging.getLogger("contactopt").setLevel(min(level, logging.INFO))
+    from .io.atomic import WriteError
     try:
-        return args.func(args)
+        with _signals_interrupt():
+            return args.func(args)
+    except WriteError as exc:
+        print(f"contactopt: error: {exc}", file=sys.stderr)
+        return EXIT_WRITE
     except ContactOptError as exc:
         print(f"contactopt: error: {exc}", file=sys.stderr)
         return 2
-    except KeyboardInterrupt:
-        print("contactopt: interrupted", file=sys.stderr)
-        return 130
+    except KeyboardInterrupt as exc:
+        print(f"contactopt: {getattr(exc, 'message', '') or 'interrupted'}", file=sys.stderr)
+        return 128 + getattr(exc, "signum", signal.SIGINT)
     finally:      # the next command in this process (tests, a notebook) has its own
         logging.getLogger().removeHandler(console)
+
+
+@contextlib.contextmanager
+def _signals_interrupt():
+    """SIGINT and SIGTERM (a cluster's time limit) raise :class:`contactopt.runner.Interrupted`
+    in the main thread, so that a run stops as after Ctrl-C: the evaluation in progress is
+    abandoned, the last checkpoint stands and summary.json says how to continue."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    from .runner import Interrupted
+
+    def interrupt(signum, frame):
+        raise Interrupted(signum)
+
+    saved = {sig: signal.signal(sig, interrupt) for sig in (signal.SIGINT, signal.SIGTERM)}
+    try:
+        yield
+    finally:
+        for sig, handler in saved.items():
+            signal.signal(sig, handler if handler is not None else signal.SIG_DFL)
 
 
 if __name__ == "__main__":

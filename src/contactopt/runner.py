@@ -16,9 +16,17 @@ Layout of a run directory::
     contact_surface.step, contact_surface.iges   the optimal design for CAD and other FE tools
                                                  (:mod:`contactopt.io.export`; summary.json "export")
 
+    .contactopt.lock   the lock of the process writing the directory, while it runs
+                       (:mod:`contactopt.io.lock`: one writer per directory)
+
 A state solve that fails during the run (e.g. Newton does not converge) stops it with
 :class:`RunAborted`; the checkpoint of the last finished iteration stays and ``--resume``
-continues from it. Resuming (``resume=True``) restores the optimizer state and the warm start
+continues from it. So does a write that fails (:class:`~contactopt.io.atomic.WriteError`: a full
+disk, a read-only file system) and an interruption (:class:`Interrupted`, SIGINT or SIGTERM),
+after which summary.json says ``"status": "interrupted"`` and the command that continues the run;
+both messages say where the run stands, read from the checkpoint itself. A checkpoint written
+once the optimization has stopped carries its result, and resuming from it writes the outputs
+again without another iteration. Resuming (``resume=True``) restores the optimizer state and the warm start
 of the state solver saved with the last checkpoint, truncates history.csv to the evaluations before it, and goes on:
 the iterates that follow are those of an uninterrupted run.
 """
@@ -28,6 +36,9 @@ from __future__ import annotations
 import csv
 import hashlib
 import logging
+import os
+import shlex
+import signal
 import time
 from dataclasses import dataclass
 from importlib.metadata import PackageNotFoundError, version
@@ -37,8 +48,9 @@ import numpy as np
 
 from .config import Config, load_config
 from .errors import CheckpointError, ConfigError, ContactOptError, SolverError
-from .io.atomic import atomic_savez, atomic_write_json, atomic_write_text
-from .io.rundir import prepare_output_dir
+from .io.atomic import WriteError, atomic_savez, atomic_write_json, atomic_write_text, write_error
+from .io.lock import LockedError, describe, held_by
+from .io.rundir import claim_output_dir
 
 log = logging.getLogger(__name__)
 
@@ -63,6 +75,19 @@ class RunAborted(ContactOptError):
     checkpoint = None
 
 
+class Interrupted(KeyboardInterrupt):
+    """The process was asked to stop (SIGINT, SIGTERM): the evaluation in progress is abandoned.
+
+    ``signum`` is the signal; a run's summary.json then says ``"status": "interrupted"``, and
+    ``message``/``resume`` say where the run stands and the command that continues it."""
+
+    def __init__(self, signum=signal.SIGINT, message: str = "", resume: str | None = None):
+        self.signum = int(signum)
+        self.message = message
+        self.resume = resume
+        super().__init__(message)
+
+
 def package_versions() -> dict:
     out = {}
     for name in ("contactopt", "numpy", "scipy", "daqp", "mkl", "meshio", "matplotlib", "h5py"):
@@ -82,6 +107,10 @@ class RunResult:
     outdir: Path
     summary: dict
 
+
+# a log record whose text the exception raised next carries too: the command line prints that
+# one and leaves the record to run.log
+RAISED = {"raised": True}
 
 LONG_EVALUATION = 5.0    # seconds: evaluations longer than this are logged at INFO (else DEBUG)
 
@@ -151,8 +180,11 @@ class _Oracle:
         if self.problem.has_load_cases:
             row += [repr(float(v)) for v in res.case_values] + [";".join(res.active_cases)]
         row += [repr(float(v)) for v in res.terms.values()]
-        with open(self.history_path, "a", newline="") as fh:
-            csv.writer(fh).writerow(row)
+        try:     # appended: rows after the checkpoint's evaluations are dropped on --resume
+            with open(self.history_path, "a", newline="") as fh:
+                csv.writer(fh).writerow(row)
+        except OSError as exc:
+            raise write_error(self.history_path, exc) from exc
         return res.value / self.scale, res.gradient / self.scale
 
 
@@ -172,7 +204,18 @@ def _saved_stopping(path: Path) -> dict:
         return {}       # a missing or corrupt checkpoint is reported by _read_checkpoint
 
 
-def _write_checkpoint(path: Path, bstate, oracle: _Oracle, fingerprint: str, elapsed: float):
+def _write_checkpoint(path: Path, bstate, oracle: _Oracle, fingerprint: str, elapsed: float, result=None):
+    """The optimizer's and the oracle's state (atomically, after history.csv is on disk).
+
+    ``result``: the optimizer's result once it has stopped, so that a resumed finished run
+    writes its outputs again without another iteration."""
+    try:
+        with open(oracle.history_path, "rb+") as fh:
+            os.fsync(fh.fileno())
+    except FileNotFoundError:
+        pass
+    except OSError as exc:
+        raise write_error(oracle.history_path, exc) from exc
     d = bstate.to_dict()
     opt = oracle.problem.config["optimizer"]
     arrays = {f"bundle_{k}": np.asarray(v) for k, v in d.items()}
@@ -181,8 +224,29 @@ def _write_checkpoint(path: Path, bstate, oracle: _Oracle, fingerprint: str, ela
                   meta_max_iter=np.array(opt["max_iter"]))
     if getattr(oracle, "reduction", None) is not None:     # the bundle works on β: the design in α
         arrays["meta_alpha"] = oracle.reduction.expand(d["x"])
+    if result is not None:
+        arrays.update(meta_result_status=np.array(int(result.status)), meta_result_message=np.array(result.message),
+                      meta_result_criterion=np.array(result.criterion or ""),
+                      meta_result_relative_decrease=np.array(float(result.relative_decrease)))
     arrays.update(oracle.problem.export_contexts())   # what each load case carries, per its path
     atomic_savez(path, **arrays)
+
+
+def _saved_result(path: Path, bstate, max_iter: int):
+    """The optimizer's result stored with a finished run's checkpoint (None: the run had not
+    stopped, or it is resumed with another ``max_iter`` and so goes on)."""
+    from .optimize import BundleResult
+    with np.load(path, allow_pickle=False) as z:
+        if "meta_result_status" not in z.files or int(z["meta_max_iter"]) != max_iter:
+            return None
+        status, message = int(z["meta_result_status"]), str(z["meta_result_message"])
+        criterion, rel = str(z["meta_result_criterion"]) or None, float(z["meta_result_relative_decrease"])
+    st = bstate.copy()
+    return BundleResult(x=st.x.copy(), fun=st.f, jac=st.xi.copy(), nit=st.nit, nfev=st.nfev,
+                        n_serious=st.n_serious, n_null=st.n_null, success=status in (0, 4), status=status,
+                        message=message, criterion=criterion, stationarity=st.stationarity,
+                        relative_decrease=rel, predicted_decrease=st.predicted, gamma=st.gamma, t=st.t,
+                        history=[dict(r) for r in st.history], state=st)
 
 
 def _read_checkpoint(path: Path, fingerprint: str):
@@ -210,9 +274,9 @@ def _read_checkpoint(path: Path, fingerprint: str):
 
 def _truncate_history(path: Path, n_rows: int, fields=HISTORY_FIELDS):
     rows = []
-    if path.exists():
-        with open(path, newline="") as fh:
-            rows = list(csv.reader(fh))
+    if path.exists():     # the rows after the checkpoint may be cut short (a full disk): harmless
+        text = path.read_bytes().decode("utf-8", errors="replace").replace("\0", "")
+        rows = list(csv.reader(text.splitlines()))
     body = rows[1:1 + n_rows] if rows else []
     atomic_write_text(path, ",".join(fields) + "\n" + "".join(",".join(r) + "\n" for r in body))
 
@@ -245,14 +309,75 @@ def uniqueness_warnings(problem, alpha0) -> list[str]:
     return [msg]
 
 
+class _RunLog(logging.FileHandler):
+    """run.log; a write that fails (a full disk) silences it instead of printing a traceback:
+    the write of a file that matters fails soon after and says why."""
+
+    def handleError(self, record):
+        self.setLevel(logging.CRITICAL + 1)
+
+
+def _config_arg(config, out: Path) -> str:
+    """The configuration as the user gave it, else the run's resolved config.toml."""
+    return shlex.quote(str(config) if isinstance(config, (str, os.PathLike)) else str(out / "config.toml"))
+
+
+def resume_command(config, out: Path) -> str:
+    """The command that continues the run in ``out``."""
+    return f"contactopt run {_config_arg(config, out)} --out {shlex.quote(str(out))} --resume"
+
+
+class _Position:
+    """Where the run stands on disk: the iteration and evaluations of its last checkpoint, and
+    whether that checkpoint is of the finished optimization (only the outputs were missing)."""
+
+    def __init__(self, iteration=None, evaluations=None, finished=False):
+        self.iteration, self.evaluations, self.finished = iteration, evaluations, finished
+
+    @classmethod
+    def on_disk(cls, ckpt: Path) -> "_Position":
+        """Read from the checkpoint itself: a signal may come between its write and any record
+        of it kept here, the file (written atomically) is the truth."""
+        try:
+            with np.load(ckpt, allow_pickle=False) as z:
+                return cls(int(z["bundle_nit"]), int(z["meta_evaluations"]), "meta_result_status" in z.files)
+        except Exception:         # none, or not readable: --resume would say so
+            return cls()
+
+    def describe(self) -> str:
+        if self.iteration is None:
+            return "no iteration had finished, so there is no checkpoint"
+        if self.finished:
+            return (f"the checkpoint of the finished optimization (iteration {self.iteration}, "
+                    f"{self.evaluations} evaluations) stands")
+        return f"the checkpoint of iteration {self.iteration} ({self.evaluations} evaluations) stands"
+
+    def hint(self, config, out: Path) -> str:
+        if self.iteration is None:
+            return (f"; start it again with: contactopt run {_config_arg(config, out)} "
+                    f"--out {shlex.quote(str(out))} --overwrite")
+        return f"; continue with: {resume_command(config, out)}"
+
+
 def run_optimization(config, outdir=None, *, eps=None, max_iter=None, resume=False, overwrite=False,
                      progress=None) -> RunResult:
-    """Optimize the contact surface of a configuration; see the module docstring for the outputs."""
+    """Optimize the contact surface of a configuration; see the module docstring for the outputs.
+
+    One writer per run directory: its lock is taken before anything is written
+    (:class:`~contactopt.io.lock.LockedError` if another live process holds it). A failed write
+    raises :class:`~contactopt.io.atomic.WriteError`, an interruption (KeyboardInterrupt,
+    :class:`Interrupted`) :class:`Interrupted` after summary.json says ``"status": "interrupted"``;
+    both say where the run stands and how it continues."""
     from .optimize import minimize_bundle
     from .problem import ShapeProblem
+    out = Path(outdir) if outdir else Path("runs") / load_config(config).name
+    if out.is_dir():
+        holder = held_by(out)          # refused before the set-up, not only once it is done
+        if holder is not None:
+            raise LockedError(out, holder, "run directory")
     if resume and (eps is None or max_iter is None):
         # a resumed run keeps the stopping parameters it was started with unless told otherwise
-        saved = _saved_stopping(Path(outdir or Path("runs") / load_config(config).name) / "checkpoint.npz")
+        saved = _saved_stopping(out / "checkpoint.npz")
         eps = saved.get("eps") if eps is None else eps
         max_iter = saved.get("max_iter") if max_iter is None else max_iter
     cfg = resolve_config(config, eps=eps, max_iter=max_iter)
@@ -268,6 +393,7 @@ def run_optimization(config, outdir=None, *, eps=None, max_iter=None, resume=Fal
     fingerprint = config_fingerprint(cfg.with_updates({"optimizer": {"max_iter": 1}}))
     out = Path(outdir or Path("runs") / cfg.name)
     ckpt = out / "checkpoint.npz"
+    finished = None
     if resume:
         bstate, n_eval, elapsed0, scale, contexts = _read_checkpoint(ckpt, fingerprint)
         n_cases = 1 + sum(1 for k in contexts if k.startswith("case") and k.endswith("_warm"))
@@ -276,16 +402,25 @@ def run_optimization(config, outdir=None, *, eps=None, max_iter=None, resume=Fal
                                   f"case(s), the configuration has {len(problem.cases)}")
         # before the run directory is touched: a kept Delassus block or AMG hierarchy is rebuilt
         problem.import_contexts(contexts, f"checkpoint {ckpt}")
-    out = prepare_output_dir(out, overwrite=overwrite, resume=resume)
-    handler = logging.FileHandler(out / "run.log")
-    handler.setFormatter(logging.Formatter("%(asctime)s %(levelname)s %(name)s: %(message)s"))
-    logging.getLogger("contactopt").addHandler(handler)
-    handler.setLevel(logging.INFO)
+        finished = _saved_result(ckpt, bstate, cfg["optimizer"]["max_iter"])
+    lock = claim_output_dir(out, overwrite=overwrite, resume=resume)
     root = logging.getLogger("contactopt")
     old_level = root.level
-    if root.getEffectiveLevel() > logging.INFO:
-        root.setLevel(logging.INFO)
+    handler = None
+    oracle = None
     try:
+        try:
+            handler = _RunLog(out / "run.log")
+        except OSError as exc:
+            raise write_error(out / "run.log", exc) from exc
+        handler.setFormatter(logging.Formatter("%(asctime)s %(levelname)s %(name)s: %(message)s"))
+        root.addHandler(handler)
+        handler.setLevel(logging.INFO)
+        if root.getEffectiveLevel() > logging.INFO:
+            root.setLevel(logging.INFO)
+        if lock.previous:
+            log.warning("took over the lock of %s from a writer that no longer runs (%s)", out,
+                        describe(lock.previous))
         _log_setup(problem, t_setup)
         vers = package_versions()
         atomic_write_text(out / "config.toml", "# resolved configuration of this run\n# versions: "
@@ -302,7 +437,8 @@ def run_optimization(config, outdir=None, *, eps=None, max_iter=None, resume=Fal
             oracle.t_start -= elapsed0
             oracle.scale = scale
             state_kw["state"] = bstate
-            log.info("resuming %s at iteration %d (%d evaluations)", out, bstate.nit, n_eval)
+            log.info("resuming %s at iteration %d (%d evaluations)%s", out, bstate.nit, n_eval,
+                     "; the optimization had finished, its results are written again" if finished else "")
         else:
             atomic_write_text(hist, ",".join(history_fields(problem)) + "\n")
             log.info("run %s in %s", cfg.name, out)
@@ -330,37 +466,71 @@ def run_optimization(config, outdir=None, *, eps=None, max_iter=None, resume=Fal
                               elapsed=time.perf_counter() - oracle.t_start))
 
         opt = cfg["optimizer"]
-        try:
-            f, x0, cons = oracle, alpha0, model.admissible.constraints()
-            if red is not None:       # the optimizer works on β; Pᵀ ξ its subgradient
-                f, x0, cons = _reduced(oracle, red), red.beta0, red.bounds
-            res = minimize_bundle(f, x0, **cons, eps=opt["eps"],
-                                  max_iter=opt["max_iter"], callback=callback,
-                                  **{k: opt[k] for k in ("ftol", "ftol_window", "metric", "metric_memory")
-                                     if k in opt},
-                                  **state_kw)
-        except RunAborted as exc:
-            exc.checkpoint = ckpt if ckpt.exists() else None
-            exc.args = (f"{exc.args[0]}; " + (f"the checkpoint of iteration {oracle.iteration} is kept "
-                        f"(continue with --resume)" if exc.checkpoint else
-                        "no iteration had finished, so there is no checkpoint"),)
-            log.error("run stopped: %s", exc)
-            raise
+        if finished is not None:
+            res = finished
+        else:
+            try:
+                f, x0, cons = oracle, alpha0, model.admissible.constraints()
+                if red is not None:       # the optimizer works on β; Pᵀ ξ its subgradient
+                    f, x0, cons = _reduced(oracle, red), red.beta0, red.bounds
+                res = minimize_bundle(f, x0, **cons, eps=opt["eps"],
+                                      max_iter=opt["max_iter"], callback=callback,
+                                      **{k: opt[k] for k in ("ftol", "ftol_window", "metric", "metric_memory")
+                                         if k in opt},
+                                      **state_kw)
+            except RunAborted as exc:
+                exc.checkpoint = ckpt if ckpt.exists() else None
+                exc.args = (f"{exc.args[0]}; " + (f"the checkpoint of iteration {oracle.iteration} is kept "
+                            f"(continue with --resume)" if exc.checkpoint else
+                            "no iteration had finished, so there is no checkpoint"),)
+                log.error("run stopped: %s", exc)
+                raise
+            if res.status is not None and res.success:
+                log.info("finished: %s", res.message)
+            _write_checkpoint(ckpt, res.state, oracle, fingerprint, time.perf_counter() - oracle.t_start, res)
         if red is not None:
             res.x = red.expand(res.x)
-        if res.status is not None and res.success:
-            log.info("finished: %s", res.message)
-        _write_checkpoint(ckpt, res.state, oracle, fingerprint, time.perf_counter() - oracle.t_start)
         summary = _finish(out, problem, alpha0, res, oracle, t_start)
         summary["warnings"] = run_warnings
         if red is not None:
             summary["design_variables"] = {"alpha": red.n_alpha, "optimized": red.n_beta}
         atomic_write_json(out / "summary.json", summary)
+    except WriteError as exc:
+        position = _Position.on_disk(ckpt)
+        exc.args = (f"{exc.args[0]}; {position.describe()}" + position.hint(config, out),)
+        log.error("run stopped: %s", exc, extra=RAISED)
+        raise
+    except KeyboardInterrupt as exc:
+        raise _interrupted(exc, config, out, cfg, _Position.on_disk(ckpt), oracle) from None
     finally:
-        logging.getLogger("contactopt").removeHandler(handler)
-        handler.close()
+        if handler is not None:
+            root.removeHandler(handler)
+            handler.close()
         root.setLevel(old_level)
+        lock.release()
     return RunResult(out, summary)
+
+
+def _interrupted(exc, config, out: Path, cfg, position: _Position, oracle) -> Interrupted:
+    """summary.json of an interrupted run (where it stands, how to continue) and the exception
+    that carries the same to the caller."""
+    signum = getattr(exc, "signum", signal.SIGINT)
+    name = signal.Signals(signum).name
+    doing = ("while writing the results" if position.finished else
+             f"during iteration {(position.iteration or 0) + 1}" if oracle is not None else "during the set-up")
+    message = f"interrupted by {name} {doing}; {position.describe()}"
+    resume = resume_command(config, out) if position.iteration is not None else None
+    summary = {"name": cfg.name, "status": "interrupted", "signal": name, "message": message,
+               "checkpoint": ({"iteration": position.iteration, "evaluations": position.evaluations}
+                              if position.iteration is not None else None),
+               "resume": resume,
+               "evaluations": int(oracle.count) if oracle is not None else 0}
+    try:
+        atomic_write_json(out / "summary.json", summary)
+    except (WriteError, KeyboardInterrupt) as err:     # a full disk or a second signal: said, not fatal
+        log.error("summary.json of the interrupted run not written: %s", err)
+    log.error("run %s", message, extra=RAISED)
+    return Interrupted(signum, message + position.hint(config, out), resume)
 
 
 def _stopping(res, opt) -> dict:
@@ -455,6 +625,8 @@ def _export(out: Path, model, x) -> dict:
     from .io.export import export_design
     try:
         return export_design(model, x, out, strict=False)
+    except WriteError:          # a full disk is not an export problem: the run stops and says so
+        raise
     except ContactOptError as exc:
         log.warning("export of the optimal design failed: %s", exc)
         return {"files": {}, "error": str(exc)}

@@ -10,11 +10,16 @@ crash between creation and rename leaves only an obviously stale hidden file beh
 
 For writers that insist on a file name of their own (meshio, matplotlib), use
 :func:`atomic_output`, a context manager yielding the temporary path to write to.
+
+A write that fails in the operating system (no space, a read-only file system, permission
+denied, a directory in the way) raises :class:`WriteError`, which names the target file and the
+cause; the target keeps its previous content.
 """
 
 from __future__ import annotations
 
 import contextlib
+import errno
 import json
 import logging
 import math
@@ -24,10 +29,52 @@ from pathlib import Path
 
 import numpy as np
 
+from ..errors import ContactOptError
+
 log = logging.getLogger(__name__)
 
-__all__ = ["atomic_output", "atomic_write_bytes", "atomic_write_text", "atomic_write_json",
+__all__ = ["WriteError", "write_error", "atomic_output", "atomic_write_bytes", "atomic_write_text", "atomic_write_json",
            "atomic_savez", "atomic_savez_compressed", "to_jsonable", "fsync_dir"]
+
+
+class WriteError(ContactOptError):
+    """A file could not be written: ``path`` is the file, ``cause`` the OSError (``errno``).
+
+    Raised by the writers of this module (the file then keeps its previous content, or stays
+    absent) and by the other writers of a run through :func:`write_error`."""
+
+    def __init__(self, path, cause: OSError):
+        self.path = Path(path)
+        self.cause = cause
+        self.errno = getattr(cause, "errno", None)
+        super().__init__(f"cannot write {self.path}: {describe_os_error(cause)}")
+
+
+_CAUSES = {
+    errno.ENOSPC: "no space left on the device",
+    errno.EDQUOT: "the disk quota is exhausted",
+    errno.EROFS: "the file system is read-only",
+    errno.EACCES: "permission denied",
+    errno.EPERM: "operation not permitted",
+    errno.EISDIR: "a directory is in the way",
+    errno.ENOTDIR: "a file is in the way of a directory on the path",
+    errno.ENOENT: "the directory does not exist (any more)",
+    errno.EIO: "input/output error of the device",
+}
+
+
+def describe_os_error(exc: OSError) -> str:
+    """The cause of a failed write in words, with the system's own message."""
+    code = getattr(exc, "errno", None)
+    system = exc.strerror or str(exc)
+    words = _CAUSES.get(code)
+    return f"{words} ({system})" if words else system
+
+
+def write_error(path, exc: OSError) -> WriteError:
+    """``exc`` as a :class:`WriteError` of ``path`` (itself if it is one already)."""
+    return exc if isinstance(exc, WriteError) else WriteError(path, exc)
+
 
 # mode of a newly created file (mkstemp makes 0o600, which is wrong for result files)
 _NEW_FILE_MODE = 0o644
@@ -78,15 +125,22 @@ def atomic_output(path):
     ...     meshio.write(tmp, mesh, file_format="vtu")
     """
     path = Path(path)
-    fd, tmp = _mkstemp(path)
+    try:
+        fd, tmp = _mkstemp(path)
+    except OSError as exc:
+        raise WriteError(path, exc) from exc
     os.close(fd)
     try:
         yield tmp
         if not tmp.exists():
             raise FileNotFoundError(f"the writer did not create the temporary file {tmp}")
         _finish(tmp, path)
+    except OSError as exc:
+        with contextlib.suppress(OSError):
+            tmp.unlink()
+        raise write_error(path, exc) from exc
     except BaseException:
-        with contextlib.suppress(FileNotFoundError):
+        with contextlib.suppress(OSError):
             tmp.unlink()
         raise
     log.debug("wrote %s", path)
@@ -96,13 +150,20 @@ def _write_atomically(path, write) -> Path:
     """Call ``write(fh)`` on a temporary file beside ``path``, then move it into place; on any
     failure the temporary file is removed and ``path`` keeps its old content."""
     path = Path(path)
-    fd, tmp = _mkstemp(path)
+    try:
+        fd, tmp = _mkstemp(path)
+    except OSError as exc:
+        raise WriteError(path, exc) from exc
     try:
         with os.fdopen(fd, "wb") as fh:
             write(fh)
         _finish(tmp, path)
+    except OSError as exc:
+        with contextlib.suppress(OSError):
+            tmp.unlink()
+        raise write_error(path, exc) from exc
     except BaseException:
-        with contextlib.suppress(FileNotFoundError):
+        with contextlib.suppress(OSError):
             tmp.unlink()
         raise
     return path

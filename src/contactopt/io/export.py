@@ -43,7 +43,7 @@ import numpy as np
 
 from ..errors import ContactOptError
 from ..mesh.reference import CELL_FACES, FACE_CORNERS
-from .atomic import atomic_output, atomic_write_text, fsync_dir
+from .atomic import WriteError, atomic_output, atomic_write_text, fsync_dir, write_error
 
 log = logging.getLogger(__name__)
 
@@ -530,8 +530,11 @@ def export_design(model, alpha, outdir, formats=None, *, unit: str = "mm", stric
     coords = model.mesh.coordinates(alpha)        # MeshError for an invalid design, before any file
     outdir = Path(outdir)
     created = not outdir.exists()
-    outdir.mkdir(parents=True, exist_ok=True)
-    tmpdir = Path(tempfile.mkdtemp(prefix=".export.", suffix=".tmp", dir=outdir))
+    try:
+        outdir.mkdir(parents=True, exist_ok=True)
+        tmpdir = Path(tempfile.mkdtemp(prefix=".export.", suffix=".tmp", dir=outdir))
+    except OSError as exc:
+        raise write_error(outdir, exc) from exc
     files: dict[str, list[str]] = {}
     info = {}
     try:
@@ -559,8 +562,18 @@ def export_design(model, alpha, outdir, formats=None, *, unit: str = "mm", stric
                 info["surface_trimmed"] = res["trimmed"]
         for names in files.values():
             for name in names:
-                os.replace(tmpdir / name, outdir / name)
+                try:
+                    os.replace(tmpdir / name, outdir / name)
+                except OSError as exc:
+                    raise write_error(outdir / name, exc) from exc
         fsync_dir(outdir)
+    except WriteError as exc:              # named by the file it was to be, not the temporary one
+        shutil.rmtree(tmpdir, ignore_errors=True)
+        if created and not any(outdir.iterdir()):
+            outdir.rmdir()
+        if exc.path.parent == tmpdir:
+            raise WriteError(outdir / exc.path.name, exc.cause) from exc.cause
+        raise
     except BaseException:
         shutil.rmtree(tmpdir, ignore_errors=True)
         if created and not any(outdir.iterdir()):

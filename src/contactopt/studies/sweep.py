@@ -25,6 +25,11 @@ directory and return a row. Nothing is lost:
   :func:`gather` rebuilds them from the run directories alone;
 - ``resume=True`` (CLI ``--resume``) runs the sweep again in its directory: finished runs are
   reused, unfinished ones resumed.
+
+One sweep per directory: the driver holds the sweep directory's lock (:mod:`contactopt.io.lock`)
+and every task its run directory's. Interrupted (SIGINT, SIGTERM), the driver marks the tasks
+that had not finished ``interrupted`` in sweep.csv (``error``) and sweep.json (``status``) and
+stops its local cluster; their runs keep their checkpoints and ``--resume`` continues them.
 """
 
 from __future__ import annotations
@@ -35,6 +40,8 @@ import io
 import json
 import logging
 import os
+import shlex
+import signal
 import time
 import tomllib
 from dataclasses import dataclass, field
@@ -42,8 +49,9 @@ from pathlib import Path
 
 from ..config import load_config, validate
 from ..errors import ConfigError
-from ..io.atomic import atomic_write_json, atomic_write_text
-from ..io.rundir import OutputDirError, prepare_output_dir
+from ..io.atomic import WriteError, atomic_write_json, atomic_write_text, write_error
+from ..io.lock import DirLock, LockedError, describe, held_by
+from ..io.rundir import claim_output_dir
 from .settings import SweepTask, build_tasks, format_value
 
 log = logging.getLogger(__name__)
@@ -135,8 +143,8 @@ def run_task(spec: TaskSpec) -> dict:
     status = "new"
     try:
         cfg = resolve_config(task.config, eps=spec.eps, max_iter=spec.max_iter)
-        if (out / "summary.json").exists() and _same_config(out, cfg):
-            summary = json.loads((out / "summary.json").read_text())
+        summary = _finished_summary(out) if _same_config(out, cfg) else None
+        if summary is not None:
             log.info("task %s: reusing the finished run in %s", task.label, out)
             return dict(_summary_row(task, rel, summary, "reused"), worker=worker)
         resume = overwrite = False
@@ -152,6 +160,15 @@ def run_task(spec: TaskSpec) -> dict:
         log.warning("task %s failed: %s", task.label, exc)
         return _row(task, rel, error=f"{type(exc).__name__}: {exc}", status="failed", worker=worker,
                     wall_time_s=time.perf_counter() - t0, success=False)
+
+
+def _finished_summary(run_dir: Path) -> dict | None:
+    """summary.json of a finished run (None: absent, unreadable, or of an interrupted run)."""
+    try:
+        summary = json.loads((run_dir / "summary.json").read_text())
+    except (OSError, ValueError):
+        return None
+    return None if summary.get("status") == "interrupted" else summary
 
 
 def task_key(spec: TaskSpec) -> str:
@@ -218,8 +235,11 @@ def gather(outdir, *, write: bool = True) -> SweepResult:
     for task in tasks:
         run_dir = outdir / RUNS / task.name
         rel = os.path.relpath(run_dir, outdir)
-        if (run_dir / "summary.json").exists():
-            rows.append(_summary_row(task, rel, json.loads((run_dir / "summary.json").read_text()), "finished"))
+        summary = _finished_summary(run_dir)
+        if summary is not None:
+            rows.append(_summary_row(task, rel, summary, "finished"))
+        elif (run_dir / "summary.json").exists():     # an interrupted run: its summary says so
+            rows.append(_row(task, rel, error="interrupted", status="interrupted", success=False))
         elif run_dir.exists():
             rows.append(_row(task, rel, error="unfinished", status="unfinished", success=False))
     if write:
@@ -228,18 +248,39 @@ def gather(outdir, *, write: bool = True) -> SweepResult:
 
 
 # ---------------------------------------------------------------------------------------- driver
-def _prepare(outdir: Path, *, resume: bool, overwrite: bool, settings, base, max_iter, eps) -> Path:
+def _prepare(outdir: Path, *, resume: bool, overwrite: bool, settings, base, max_iter, eps) -> DirLock:
     if resume and (outdir / "sweep.toml").exists():
         old_base, old_settings, _, _ = read_definition(outdir)
         if old_base.data != base.data:
             raise ConfigError([f"--resume: {outdir} holds a sweep of another base configuration"])
+    lock = claim_output_dir(outdir, overwrite=overwrite, resume=resume, what="sweep")
     try:
-        out = prepare_output_dir(outdir, overwrite=overwrite, resume=resume)
-    except OutputDirError as exc:
-        raise OutputDirError(str(exc).replace("the run in it", "the sweep in it")) from None
-    (out / RUNS).mkdir(exist_ok=True)
-    _write_definition(out, base, settings, max_iter, eps)
-    return out
+        if lock.previous:
+            log.warning("took over the lock of %s from a sweep that no longer runs (%s)", outdir,
+                        describe(lock.previous))
+        try:
+            (outdir / RUNS).mkdir(exist_ok=True)
+        except OSError as exc:
+            raise write_error(outdir / RUNS, exc) from exc
+        _write_definition(outdir, base, settings, max_iter, eps)
+    except BaseException:
+        lock.release()
+        raise
+    return lock
+
+
+def resume_command(config, settings, outdir, max_iter=None, eps=None) -> str:
+    """The command that continues the sweep in ``outdir``."""
+    cfg = str(config) if isinstance(config, (str, os.PathLike)) else str(getattr(config, "source", ""))
+    cfg = cfg if cfg and not cfg.startswith("<") else "CONFIG"      # a configuration built in Python
+    parts = ["contactopt", "sweep", cfg]
+    for key, values in settings:
+        parts += ["--set", f"{key}=" + ",".join(format_value(v) for v in values)]
+    if max_iter is not None:
+        parts += ["--max-iter", str(max_iter)]
+    if eps is not None:
+        parts += ["--eps", repr(eps)]
+    return " ".join(shlex.quote(p) for p in parts + ["--out", str(outdir), "--resume"])
 
 
 def run_sweep(config, settings, outdir, *, workers: int | None = None, scheduler: str | None = None,
@@ -267,35 +308,73 @@ def run_sweep(config, settings, outdir, *, workers: int | None = None, scheduler
     tasks = build_tasks(base, settings)          # every problem listed before anything is written
     keys = [k for k, _ in settings]
     outdir = Path(outdir)
+    if outdir.is_dir() and held_by(outdir) is not None:     # before a cluster is started for nothing
+        raise LockedError(outdir, held_by(outdir) or {}, "sweep directory")
+    again = resume_command(config, settings, outdir, max_iter, eps)
     t0 = time.perf_counter()
-    with connect(workers=workers, scheduler=scheduler, threads=threads,
-                 dashboard_address=dashboard_address) as client:
-        out = _prepare(outdir, resume=resume, overwrite=overwrite, settings=settings, base=base,
-                       max_iter=max_iter, eps=eps)
-        dash = dashboard_link(client)
-        log.info("sweep of %d tasks in %s on %s; dashboard %s", len(tasks), out,
-                 client.scheduler.address, dash or "unavailable (install bokeh)")
-        if on_client:
-            on_client(client, dash)
-        budget = thread_budget(client, threads)
-        log.info("threads per task by host: %s", budget)
-        rows = _run_tasks(client, tasks, out, keys, budget, max_iter, eps, progress)
-    result = SweepResult(out, keys, rows, time.perf_counter() - t0, dash)
-    if plots:
-        from .plots import plot_sweep
-        try:
-            result.plots = plot_sweep(out, keys, rows)
-        except Exception as exc:   # a figure is never worth losing the results for
-            log.warning("comparison plots failed: %s", exc)
+    lock = None
+    try:
+        with connect(workers=workers, scheduler=scheduler, threads=threads,
+                     dashboard_address=dashboard_address) as client:
+            lock = _prepare(outdir, resume=resume, overwrite=overwrite, settings=settings, base=base,
+                            max_iter=max_iter, eps=eps)
+            out = outdir
+            dash = dashboard_link(client)
+            log.info("sweep of %d tasks in %s on %s; dashboard %s", len(tasks), out,
+                     client.scheduler.address, dash or "unavailable (install bokeh)")
+            if on_client:
+                on_client(client, dash)
+            budget = thread_budget(client, threads)
+            log.info("threads per task by host: %s", budget)
+            rows = _run_tasks(client, tasks, out, keys, budget, max_iter, eps, progress, again)
+        result = SweepResult(out, keys, rows, time.perf_counter() - t0, dash)
+        if plots:
+            from .plots import plot_sweep
+            try:
+                result.plots = plot_sweep(out, keys, rows)
+            except WriteError as exc:   # a full disk is said, not hidden among the warnings
+                exc.args = (f"{exc.args[0]}; sweep.csv and sweep.json are complete, and '{again}' "
+                            f"writes the figures again (every run is reused)",)
+                raise
+            except Exception as exc:   # a figure is never worth losing the results for
+                log.warning("comparison plots failed: %s", exc)
+    finally:
+        if lock is not None:
+            lock.release()
     return result
 
 
-def _run_tasks(client, tasks, out: Path, keys, budget, max_iter, eps, progress) -> list:
-    from distributed import as_completed
+def _run_tasks(client, tasks, out: Path, keys, budget, max_iter, eps, progress, again: str) -> list:
     specs = [TaskSpec(t, str((out / RUNS / t.name).resolve()), str(out.resolve()), max_iter, eps, budget)
              for t in tasks]
-    futures = {client.submit(run_task, s, key=task_key(s), retries=1): s for s in specs}
     rows = []
+    try:
+        return _collect(client, specs, out, keys, rows, progress)
+    except WriteError as exc:
+        exc.args = (f"{exc.args[0]}; {len(rows)} of {len(specs)} tasks had finished; continue with: {again}",)
+        raise
+    except KeyboardInterrupt as exc:
+        from ..runner import RAISED, Interrupted
+        finished = {r["task"] for r in rows}
+        for spec in specs:
+            if spec.task.index not in finished:
+                rows.append(_row(spec.task, os.path.relpath(spec.run_dir, spec.sweep_dir), error="interrupted",
+                                 status="interrupted", success=False))
+        signum = getattr(exc, "signum", signal.SIGINT)
+        message = (f"sweep interrupted by {signal.Signals(signum).name}: {len(finished)} of {len(specs)} tasks "
+                   f"had finished, the others are marked interrupted in sweep.csv")
+        try:
+            write_tables(out, keys, rows)
+        except (WriteError, KeyboardInterrupt) as err:
+            log.error("the tables of the interrupted sweep were not written: %s", err)
+        log.error("%s", message, extra=RAISED)
+        raise Interrupted(signum, f"{message}; continue with: {again}", again) from None
+
+
+def _collect(client, specs, out: Path, keys, rows: list, progress) -> list:
+    """Gather the tasks' rows as they finish into ``rows``, rewriting the tables each time."""
+    from distributed import as_completed
+    futures = {client.submit(run_task, s, key=task_key(s), retries=1): s for s in specs}
     done = 0
     for fut in as_completed(futures):
         spec = futures[fut]
