@@ -167,6 +167,7 @@ FORCED = {"sphere": {**SPHERE, "control": "force", "force": [0.0, 0.0, 1.2]},
 @pytest.mark.parametrize("shape,cells", [("sphere", "hexahedron"),
                                          pytest.param("sphere", "tetra", marks=pytest.mark.slow),
                                          pytest.param("cylinder", "hexahedron", marks=pytest.mark.slow),
+                                         pytest.param("cylinder", "tetra", marks=pytest.mark.slow),
                                          pytest.param("surface", "hexahedron", marks=pytest.mark.slow),
                                          pytest.param("surface", "tetra", marks=pytest.mark.slow)])
 def test_force_control_balances_the_force_and_its_subgradient_matches_central_differences(tmp_path, shape, cells):
