@@ -348,6 +348,30 @@ FOUNDATION = {
                   "relative to its median boundary edge length)"),
 }
 
+# [obstacle]: optional — absent, the rigid counterpart is the plane x3 = 0, fixed (docs/obstacles.md)
+OBSTACLE = {
+    "shape": ("plane", _oneof("plane", "sphere", "cylinder", "surface"),
+              "'plane' (x3 = 0), 'sphere' (center, radius), 'cylinder' (point, axis, radius) or 'surface' "
+              "(mesh): the rigid obstacle the contact face touches"),
+    "center": ([0.0, 0.0, 0.0], _vec3, "[x1, x2, x3]: the sphere's center"),
+    "radius": (0.0, _nonneg, "a number > 0: the sphere's or cylinder's radius"),
+    "point": ([0.0, 0.0, 0.0], _vec3, "[x1, x2, x3]: a point on the cylinder's axis"),
+    "axis": ([1.0, 0.0, 0.0], lambda x: _vec3(x) and any(v != 0 for v in x),
+             "[a1, a2, a3] ≠ 0: the direction of the cylinder's axis"),
+    "mesh": ("", lambda x: isinstance(x, str),
+             "shape = 'surface': a closed triangulated surface (STL, or any surface meshio reads), relative "
+             "to this file; the solid it bounds is the obstacle"),
+    "control": ("fixed", _oneof("fixed", "displacement", "force"),
+                "'fixed', 'displacement' (the obstacle moved by the rigid translation `displacement`) or "
+                "'force' (pressed by the resultant `force`: it translates along the force, its translation an "
+                "unknown of the state; condensation path)"),
+    "displacement": ([0.0, 0.0, 0.0], _vec3,
+                     "control = 'displacement': the obstacle's rigid translation [d1, d2, d3] (it enters the "
+                     "gap of contact node m as −d·n_m)"),
+    "force": ([0.0, 0.0, 0.0], _vec3, "control = 'force': the resultant [f1, f2, f3] the obstacle exerts on the "
+              "body"),
+}
+
 TOP_LEVEL = {"name": ("custom", lambda x: isinstance(x, str) and x != "", "a non-empty string"),
              "description": ("", lambda x: isinstance(x, str), "a string")}
 
@@ -665,6 +689,41 @@ def _check_foundation(given, data, problems) -> dict:
     return out
 
 
+def _check_obstacle(given, data, problems) -> dict:
+    """[obstacle]: the keys its shape needs; excludes [foundation]."""
+    if not isinstance(given, dict):
+        problems.append("[obstacle]: must be a table")
+        return {}
+    out = _check_table(given, OBSTACLE, "obstacle", problems)
+    shape = out["shape"]
+    need = {"sphere": ("center", "radius"), "cylinder": ("point", "axis", "radius"), "surface": ("mesh",)}
+    for k in need.get(shape, ()):
+        if k not in given:
+            problems.append(f"obstacle.{k}: required with shape = {shape!r}")
+    if shape in ("sphere", "cylinder") and "radius" in given and _nonneg(out["radius"]) and not out["radius"] > 0:
+        problems.append(f"obstacle.radius = {out['radius']!r}: must be > 0")
+    if shape == "surface" and out["mesh"] and isinstance(out["mesh"], str) and not Path(out["mesh"]).is_file():
+        problems.append(f"obstacle.mesh = {out['mesh']!r}: no such file")
+    if out["control"] == "force" and _vec3(out["force"]) and not any(v != 0 for v in out["force"]):
+        problems.append("obstacle.force = [0, 0, 0]: with control = 'force' the obstacle translates along the "
+                        "force, which has no direction (a force with no component along any free direction)")
+    obj = data.get("objective", {})
+    types = [obj.get("type")] + [t.get("type") for t in obj.get("terms") or [] if isinstance(t, dict)]
+    moves = out["control"] == "force" or (out["control"] == "displacement" and _vec3(out["displacement"])
+                                          and any(out["displacement"][:2]))
+    if "frictional_dissipation" in types and (shape != "plane" or moves):
+        problems.append(f"objective 'frictional_dissipation' with obstacle.shape = {shape!r}, control = "
+                        f"{out['control']!r}: the objective takes the slip as the body's own (x1, x2) "
+                        "displacement, which holds on the fixed plane only")
+    if "foundation" in data:
+        problems.append("[obstacle] and [foundation] exclude each other: the body touches either a rigid "
+                        "obstacle or an elastic foundation")
+    for k in ("center", "point", "axis", "displacement", "force"):
+        if _vec3(out[k]):
+            out[k] = [float(v) for v in out[k]]
+    return out
+
+
 # the former [linear_solver] backend: its value as (path, library); None keeps the key's own value
 LEGACY_BACKEND = {"auto": (None, None), "pardiso": ("condensation", "pardiso"),
                   "scipy": ("condensation", "scipy"), "delassus": ("delassus", None),
@@ -722,9 +781,9 @@ def validate(raw: dict, source: str = "<dict>") -> Config:
     problems = []
     data = {}
     for key in raw:
-        if key not in SCHEMA and key not in TOP_LEVEL and key not in ("load_cases", "foundation"):
+        if key not in SCHEMA and key not in TOP_LEVEL and key not in ("load_cases", "foundation", "obstacle"):
             problems.append(f"{key}: unknown section (allowed: "
-                            f"{', '.join(list(TOP_LEVEL) + list(SCHEMA) + ['foundation', 'load_cases'])})")
+                            f"{', '.join(list(TOP_LEVEL) + list(SCHEMA) + ['foundation', 'obstacle', 'load_cases'])})")
     for key, (default, check, desc) in TOP_LEVEL.items():
         val = raw.get(key, default)
         if not check(val):
@@ -753,6 +812,8 @@ def validate(raw: dict, source: str = "<dict>") -> Config:
     _check_body(raw, data, problems)
     if "foundation" in raw:
         data["foundation"] = _check_foundation(raw["foundation"], data, problems)
+    if "obstacle" in raw:
+        data["obstacle"] = _check_obstacle(raw["obstacle"], data, problems)
     if "mesh" in data:
         _check_graded_block(raw, data, problems)
     dsg = data["design"]
@@ -815,6 +876,16 @@ def reference_markdown() -> str:
         shown = tomli_w.dumps({"v": default}).split("=", 1)[1].strip() if default not in ([], {}) else repr(default)
         text = desc.replace("|", "\\|")
         lines.append(f"| `{k}` | `{shown}` | {text} |")
+    lines += ["", "## [obstacle]", "",
+              "Optional: a rigid obstacle of any shape (docs/obstacles.md). Absent, it is the plane x3 = 0, "
+              "fixed. Each contact node gets a frame (t1, t2, n) from the obstacle at its closest point; the "
+              "gap and the Coulomb law act in that frame. A shape other than the plane runs on the "
+              "condensation path; excludes [foundation].",
+              "", "| key | default | meaning |", "|---|---|---|"]
+    for k, (default, _, desc) in OBSTACLE.items():
+        shown = tomli_w.dumps({"v": default}).split("=", 1)[1].strip()
+        text = desc.replace("|", "\\|")
+        lines.append(f"| `{k}` | `{shown}` | {text} |")
     lines += ["", "## [[load_cases]]", "",
               "Optional named load cases (an array of tables). Each has a `name` (letters, digits, `_ . + -`), "
               "any of the keys of [loads] (none required) and optionally a `target` in the form of "
@@ -850,6 +921,9 @@ def load_config(path_or_name) -> Config:
     if name not in EXAMPLES and isinstance(body, dict) and isinstance(body.get("mesh"), str) and body["mesh"]:
         # a mesh path is relative to the TOML file; the resolved configuration keeps it absolute
         body["mesh"] = str((Path(name).parent / body["mesh"]).resolve())
+    obst = raw.get("obstacle")
+    if name not in EXAMPLES and isinstance(obst, dict) and isinstance(obst.get("mesh"), str) and obst["mesh"]:
+        obst["mesh"] = str((Path(name).parent / obst["mesh"]).resolve())
     found = raw.get("foundation")
     if name not in EXAMPLES and isinstance(found, dict) and isinstance(found.get("mesh"), str) and found["mesh"]:
         found["mesh"] = str((Path(name).parent / found["mesh"]).resolve())

@@ -100,7 +100,11 @@ class ElasticModel:
             self.mesh = HexMesh(nx, ny, nz, self.surface, cfg["geometry"]["c"], reference=ref,
                                 weight=self.weight, contact_nodes=body.contact_nodes,
                                 fixed_shape=tuple(body.fixed_shape))
-        self.admissible = self._admissible_set(ref, body)
+        self.obstacle, self.frames = None, None     # [obstacle] (absent: the plane x3 = 0, fixed)
+        self.force = None       # control = "force": |f|, and per contact node force_b, force_gap (_obstacle_gap)
+        self.slip_shift = None  # (p, 3) the tangential part of a prescribed translation, per node frame
+        face_frames = self._obstacle(cfg, ref, body)
+        self.admissible = self._admissible_set(ref, body, face_frames)
         self.mesh.ratio = self._jacobian_ratio(ref, body)
         self.contact_nodes = body.contact_nodes
         full = (3 * self.contact_nodes[:, None] + np.arange(3)).ravel()
@@ -115,6 +119,8 @@ class ElasticModel:
         # initial gap of a contact face above x3 = 0 (body.initial_gap = "mesh"); 0 on the plane
         self.gap0 = (ref.points[self.contact_nodes, 2].copy() if cfg["body"].get("initial_gap") == "mesh"
                      else np.zeros(self.contact_nodes.size))
+        if face_frames is not None:
+            self._obstacle_gap(cfg["obstacle"], face_frames)
         self.loads = load_set(body, cfg["loads"])
         self.body_force = self.loads.body_force
         self.foundation = None      # [foundation]: the elastic foundation under the contact face
@@ -134,9 +140,76 @@ class ElasticModel:
                                " (node order of the cells: meshio/VTK)"])
         self._det_ref = det
 
-    def _admissible_set(self, ref, body) -> AdmissibleSet:
+    def _obstacle(self, cfg, ref, body):
+        """The frames of the contact face's nodes on an ``[obstacle]`` (None without one, and on the
+        plane x3 = 0, whose frames are (e1, e2, e3): that path stays the one without an obstacle).
+        Sets ``obstacle`` and, off the plane, ``frames`` (p, 3, 3) per contact node, columns (t1, t2, n)."""
+        spec = cfg.data.get("obstacle")
+        if not spec:
+            return None
+        from ..mesh.obstacle import contact_frames, make_obstacle
+        self.obstacle = make_obstacle(spec)
+        fr = contact_frames(self.obstacle, ref.points, body.contact_face.nodes, body.tol, cfg.source)
+        if spec["shape"] == "plane":
+            return fr
+        where = np.searchsorted(body.contact_face.nodes, body.contact_nodes)
+        R = fr.R[where]
+        if body.pinned_dofs.size:
+            # a clamped tangential component must be one of the node's local tangents: where e_k ⟂ n,
+            # take t_k = e_k (t1 = t2 × n, or t2 = n × t1), the plane's frames stay (e1, e2, e3)
+            node, comp = np.divmod(body.pinned_dofs, 3)
+            m = np.searchsorted(body.contact_nodes, node)
+            R = R.copy()
+            for mm, k in zip(m, comp):
+                n = R[mm, :, 2]
+                if abs(n[k]) < 1e-12 and np.abs(R[mm, :, k] - np.eye(3)[k]).max() > 1e-12:
+                    t = np.eye(3)[k]
+                    R[mm, :, k] = t
+                    R[mm, :, 1 - k] = np.cross(t, n) if k == 1 else np.cross(n, t)
+            off = np.abs(R[m, :, comp] - np.eye(3)[comp]).max(axis=1) > 1e-12
+            if np.any(off):
+                n = int(node[off][0])
+                raise ConfigError([f"{cfg.source}: body.clamped: contact node {n} at {_fmt(ref.points[n])} has its "
+                                   f"component u{int(comp[off][0]) + 1} clamped, which is not a tangent of its "
+                                   f"frame on the {spec['shape']} obstacle (the symmetry plane must contain the "
+                                   "obstacle's normal there)"])
+        self.frames = R
+        return fr
+
+    def _obstacle_gap(self, spec, fr) -> None:
+        """Gap on an obstacle: g_m = d_m + (n_m·e3) ϑ_α(x'_m) − d·n_m (mesh.obstacle); the plane
+        without a translation keeps the gap as it is, bit for bit."""
+        where = np.searchsorted(self.body.contact_face.nodes, self.contact_nodes)
+        n = fr.normal[where]
+        shift = np.asarray(spec["displacement"], float) if spec["control"] == "displacement" else np.zeros(3)
+        R = self.frames if self.frames is not None else np.broadcast_to(np.eye(3), (n.shape[0], 3, 3))
+        if np.any(shift[:2] != 0) or (self.frames is not None and np.any(shift != 0)):
+            # a translation's tangential part moves the obstacle under the node: the contact law sees
+            # the slip relative to it (per node (t1, t2, 0) in its frame; paths/condensation.py)
+            self.slip_shift = np.einsum("mij,i->mj", R, shift) * [1.0, 1.0, 0.0]
+        if spec["control"] == "force":
+            f = np.asarray(spec["force"], float)
+            fhat = f / np.linalg.norm(f)
+            # the obstacle translates by s·f̂: the gap falls by s (f̂·n_m); the resultant along f̂ is
+            # Σ_m b_m·r_m with b_m = R_mᵀ f̂ (r_m per node (t1, t2, n) in its frame)
+            self.force = float(np.linalg.norm(f))
+            self.force_b = np.einsum("mij,i->mj", R, fhat)
+            self.force_gap = n @ fhat
+            if not np.any(self.force_gap > 0):
+                raise ConfigError([f"{self.config.source}: obstacle.force = {spec['force']}: no contact node's "
+                                   "normal has a component along the force: the obstacle cannot press the body "
+                                   "(a force with no component along any free direction)"])
+        if spec["shape"] == "plane":
+            if shift[2] != 0.0:
+                self.gap0 = self.gap0 - shift[2]
+            return
+        self.gap_matrix = n[:, 2:3] * self.gap_matrix
+        self.gap0 = fr.distance[where] - n @ shift
+
+    def _admissible_set(self, ref, body, frames=None) -> AdmissibleSet:
         """U of ``[design]``; with ``nonnegative_gap`` ϑ_α + g0 ≥ 0 at the nodes of the contact face
-        (g0 the face's height in the mesh with ``initial_gap = "mesh"``, else 0)."""
+        (g0 the face's height in the mesh with ``initial_gap = "mesh"``, else 0); on an obstacle
+        other than the plane (n_m·e3) ϑ_α + d_m ≥ 0, d_m the node's distance to it (mesh.obstacle)."""
         d, s = self.config["design"], self.surface
         gap = {}
         if d.get("nonnegative_gap", True):
@@ -144,7 +217,10 @@ class ElasticModel:
             xy = self.mesh._in_domain(ref.points[nodes, :2])
             g0 = (ref.points[nodes, 2].copy() if self.config["body"].get("initial_gap") == "mesh"
                   else np.zeros(nodes.size))
-            gap = dict(gap_basis=s.basis_matrix(xy[:, 0], xy[:, 1]), gap_offset=g0, gap_nodes=nodes,
+            B = s.basis_matrix(xy[:, 0], xy[:, 1])
+            if frames is not None and self.frames is not None:
+                B, g0 = frames.normal[:, 2:3] * B, frames.distance.copy()
+            gap = dict(gap_basis=B, gap_offset=g0, gap_nodes=nodes,
                        gap_points=ref.points[nodes, :2])
         elif d.get("lower", 0.0) < 0:
             log.warning("%s: design.lower = %g < 0 with design.nonnegative_gap = false: admissible designs may "

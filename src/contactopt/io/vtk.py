@@ -20,6 +20,10 @@ contact surface the contact fields are 0 (``node_class`` −1), never NaN:
 * ``part:<name>``: 1 on the nodes of each named part of the body (the groups of the mesh file, or
   the block's clamped, top, right, front, back, contact), 0 elsewhere.
 
+On a rigid obstacle other than the plane ([obstacle], docs/obstacles.md) ``tangential_force`` is in
+each node's tangents (t1, t2) and the file also has ``obstacle_normal`` n_m and ``contact_force``
+R_m (−τ, λ), the force the obstacle exerts on the body in global components.
+
 On an elastic foundation ([foundation], docs/foundation.md) the body's file also has, per contact
 node, ``foundation_displacement`` Π u_f (the displacement of the partner point on the foundation's
 top face) and ``relative_displacement`` w = u_c − Π u_f, on which the contact law acts (the gap
@@ -110,6 +114,11 @@ def body_point_data(model, state, extra_point_data=None) -> dict:
     if "u_partner" in state.info:               # an elastic foundation (module docstring)
         data["foundation_displacement"] = _on_nodes("foundation_displacement", state.info["u_partner"], n, cn)
         data["relative_displacement"] = _on_nodes("relative_displacement", np.asarray(state.u_c, float), n, cn)
+    frames = getattr(model, "frames", None)
+    if frames is not None:                      # a rigid obstacle: tangential_force is in (t1, t2) of each node
+        r = np.c_[-np.asarray(state.tau, float), np.asarray(state.lam, float)]
+        data["obstacle_normal"] = _on_nodes("obstacle_normal", frames[:, :, 2], n, cn)
+        data["contact_force"] = _on_nodes("contact_force", np.einsum("mij,mj->mi", frames, r), n, cn)
     for name, part in getattr(model.mesh, "parts", {}).items():
         tag = np.zeros(n, np.int8)
         tag[part.nodes] = 1

@@ -67,7 +67,8 @@ def select_path(config, n_free: int, pinned: int = 0) -> tuple[str, str]:
 
     ``pinned``: the number of clamped tangential components of contact nodes (a symmetry plane
     through the contact face, :mod:`contactopt.mesh.body`). Every path takes them; an elastic
-    ``[foundation]`` refuses them."""
+    ``[foundation]`` refuses them. A rigid ``[obstacle]`` other than the plane runs on the
+    condensation path, which "auto" takes; the other paths refuse it."""
     from .._mpi import petsc_missing, world_size
     from ..sensitivity.objectives import FULL_SPACE, objective_types
     ls = config["linear_solver"]
@@ -84,6 +85,20 @@ def select_path(config, n_free: int, pinned: int = 0) -> tuple[str, str]:
         raise ConfigError([f"body.clamped: {pinned} tangential component(s) of contact nodes are clamped (a "
                            "symmetry plane through the contact face), which an elastic [foundation] does not "
                            "take (its compliance would add to the clamped direction); the rigid foundation does"])
+    obst = config.data.get("obstacle", {})
+    obstacle = obst.get("shape", "plane")
+    if obst.get("control") == "force":
+        obstacle = f"force-controlled {obstacle}"
+    elif obst.get("control") == "displacement" and any(obst["displacement"][:2]):
+        obstacle = f"{obstacle} moved tangentially"
+    if obstacle != "plane":
+        # the contact frames rotate the condensed system (paths/condensation.py)
+        if name not in ("auto", "condensation") or ranks > 1:
+            raise ConfigError([f"linear_solver.path = '{name}'" + (f" on {ranks} MPI ranks" if ranks > 1 else "")
+                               + f": a {obstacle} [obstacle] is solved on the 'condensation' path only (one "
+                               "process); use path 'condensation' or 'auto'"])
+        log.info("linear solver: condensation path (%s obstacle)", obstacle)
+        return "condensation", library_for("condensation", ls["library"])
     if ranks > 1 and name not in ("auto", "petsc"):
         raise ConfigError([f"linear_solver.path = '{name}' runs on one process, and this run has {ranks} MPI "
                            "ranks: use path 'petsc' (or 'auto'), or run without mpiexec"])

@@ -21,6 +21,20 @@ differentiating S_eff w − ℓ_eff at fixed w gives S_eff S⁻¹(∂S u_c − �
 z = S⁻¹ S_eff v_u in place of v_u: ṽ is the A-harmonic extension of z. S_eff and both
 transfers come from the Woodbury identity (:class:`contactopt.fem.foundation.Coupling`), with no
 inverse of S. Without a foundation (C = 0) nothing of this is formed.
+
+On a rigid obstacle other than the plane (``[obstacle]``, :mod:`contactopt.mesh.obstacle`) each
+contact node m has a frame R_m with columns (t1, t2, n): the contact DOFs are the local
+components u_loc = R_mᵀ u_c, so the system is S_loc = Qᵀ S Q, ℓ_loc = Qᵀ ℓ with Q = diag(R_m),
+the state's ``u_c`` and forces are per node (t1, t2, n) in the node's frame, the interior is
+recovered from Q u_loc, and the adjoint's design terms extend Q v_u. On the plane nothing is rotated.
+
+A force-controlled obstacle (``control = "force"``) translates by s f̂ along its force f: the gap
+is g − s c, c_m = f̂·n_m, and s solves F(s) = Σ_m b_m·r_m − |f| = 0 (b_m = R_mᵀ f̂, the resultant
+along f̂ the obstacle exerts on the body), by Brent's method on a bracket from the first touch,
+one zone solve per step. The subgradient adds the dependence of s on α:
+ξ = ξ_s − (∂Θ/∂s)(∂F/∂s)⁻¹ ∂F/∂α, with ∂Θ/∂s = −v_λᵀc from the objective's adjoint, and
+F = bᵀ(S u_c − ℓ) taken as an objective of its own (y*_u = S b, its design term
+b̃ᵀ(∂A u − ∂L), b̃ the A-harmonic extension of Q b): ∂F/∂s = −w_λᵀc, ∂F/∂α its subgradient.
 """
 
 from __future__ import annotations
@@ -50,6 +64,7 @@ class CondensedSystem:
     timings: dict
     coupling: object = None            # on an elastic foundation: fem.foundation.Coupling, S_eff ...
     ell_eff: np.ndarray | None = None  # ... and ℓ_eff = S_eff (S⁻¹ℓ − Π q_f) (module docstring)
+    shift: np.ndarray | None = None    # an obstacle's tangential translation (3p,) per node frame: ℓ_eff = ℓ − S shift
 
     @property
     def S_eff(self):
@@ -98,7 +113,12 @@ class CondensationPath(ZonePath):
             fac.refactor(asm.A, trusted=True)     # symmetric, positive diagonal: assembled
         else:
             fac = self._factor = condense(asm.A, self.model.contact_dofs, backend=self.library)
-        system = CondensedSystem(asm, fac, fac.S, fac.condense_load(asm.L), asm.gap, {})
+        S, ell = fac.S, fac.condense_load(asm.L)
+        if self.frames is not None:
+            S, ell = to_frames_matrix(S, self.frames), to_frames(ell, self.frames)
+        system = CondensedSystem(asm, fac, S, ell, asm.gap, {})
+        if self.model.slip_shift is not None:
+            system = shifted(system, self.model.slip_shift.ravel())
         if self.foundation is not None:
             from ..fem.foundation import Coupling
             system.coupling = Coupling(system.S, self.foundation)
@@ -110,14 +130,92 @@ class CondensationPath(ZonePath):
     def foundation(self):
         return getattr(self.model, "foundation", None)
 
+    @property
+    def frames(self):
+        """(p, 3, 3) contact frames on an obstacle other than the plane, else None (module docstring)."""
+        return getattr(self.model, "frames", None)
+
     def for_load(self, system, asm) -> CondensedSystem:
         t1 = time.perf_counter()
         ell = system.factor.condense_load(asm.L)
+        if self.frames is not None:
+            ell = to_frames(ell, self.frames)
         out = replace(system, assembled=asm, ell=ell, timings={})
         if out.coupling is not None:
             out.ell_eff = out.coupling.ell_eff(ell)
+        if out.shift is not None:
+            out = shifted(out, out.shift)
         out.timings["schur"] = time.perf_counter() - t1
         return out
+
+    def solve_state(self, system, ctx, alpha, **kw):
+        """The state (:class:`ZonePath`); with a force-controlled obstacle the translation s that
+        balances the force, found by Brent's method (module docstring)."""
+        m = self.model
+        if getattr(m, "force", None) is None:
+            return super().solve_state(system, ctx, alpha, **kw)
+        from scipy.optimize import brentq
+
+        from ..errors import SolverError
+        c, b, f = m.force_gap, m.force_b, m.force
+        e = (b * [1.0, 1.0, 0.0]).ravel()          # f̂'s tangential part per node frame
+        states = {}
+
+        def excess(s):
+            moved = replace(system, gap=system.gap - s * c)
+            if np.any(e):
+                moved = shifted(moved, s * e)
+            st = states[s] = super(CondensationPath, self).solve_state(moved, ctx, alpha, **kw)
+            return excess_of(st, b, f)
+
+        touch = float(np.min(system.gap[c > 0] / c[c > 0]))
+        S = system.contact_S
+        step = f / float(np.max(np.diag(S)[2::3][c > 0] * c[c > 0] ** 2))
+        # lo just past the first touch: with every gap open and no load the frictionless local
+        # solver does not converge on r = 0 (it does not on the plane either)
+        lo, hi = touch + 1e-3 * step, touch + step
+        f_lo, f_hi = excess(lo), excess(hi)
+        for _ in range(200):
+            if f_lo <= 0 < f_hi:
+                break
+            if f_lo > 0:
+                lo, hi, f_hi = lo - step, lo, f_lo
+                f_lo = excess(lo)
+            else:
+                lo, f_lo, hi = hi, f_hi, hi + step
+                f_hi = excess(hi)
+            step *= 2.0
+        else:
+            raise SolverError(f"obstacle.force = {f:g}: no translation of the obstacle balances it")
+        if f_lo == 0:
+            s = lo
+        else:
+            s = brentq(excess, lo, hi, xtol=1e-15 * (abs(lo) + abs(hi)), rtol=4 * np.finfo(float).eps, maxiter=200)
+        if s not in states:
+            excess(s)
+        st = states[s]
+        st.info["obstacle_translation"] = s
+        st.info["obstacle_resultant"] = f + excess_of(st, b, f)
+        st.info["obstacle_solves"] = len(states)
+        return st
+
+    def controlled_subgradient(self, system, ctx, state, v_u, v_lam, xi, loads=None):
+        """ξ with the translation of a force-controlled obstacle following α (module docstring)."""
+        m = self.model
+        if getattr(m, "force", None) is None:
+            return xi
+        c, b = m.force_gap, m.force_b.ravel()
+        Se = system.contact_S @ (m.force_b * [1.0, 1.0, 0.0]).ravel()     # ∂(S w − ℓ_eff)/∂s
+        Sb = system.contact_S @ b
+        w_u, w_lam, w_full = self.adjoint(system, ctx, state, Sb, np.zeros(c.size))
+        bg = b if self.frames is None else from_frames(b, self.frames)
+        b_full = m.assembler.to_full(system.factor.extend(bg))
+        dF_da = self.design_contraction(system, state.u, b_full + w_full, loads) + m.gap_matrix.T @ w_lam
+        dF_ds = float(b @ Se + w_u @ Se - w_lam @ c)
+        dT_ds = float(v_u @ Se - v_lam @ c)
+        if dF_ds == 0:
+            return xi
+        return xi - dT_ds * dF_da / dF_ds
 
     def zone_problem(self, system, zone, warm, reuse, shared):
         if reuse and "zone" in shared:
@@ -131,7 +229,12 @@ class CondensationPath(ZonePath):
         return system.factor.recover(system.assembled.L, u_body)
 
     def body_contact_displacement(self, system, u_c, r):
-        """On a foundation u_c is the relative displacement w; the body's own is w + Π u_f."""
+        """On a foundation u_c is the relative displacement w; the body's own is w + Π u_f. On an
+        obstacle u_c is in the nodes' frames: the body's is Q u_c."""
+        if system.shift is not None:
+            u_c = np.ravel(u_c) + system.shift
+        if self.frames is not None:
+            return from_frames(np.ravel(u_c), self.frames)
         if system.coupling is None:
             return np.ravel(u_c)
         return system.coupling.body_displacement(u_c, r)
@@ -164,8 +267,12 @@ class CondensationPath(ZonePath):
             zhat = np.zeros(g.size)
             zhat[fac.interior] = fac.solve_interior(g[fac.interior])
             y_u = g[fac.c] - (system.assembled.A @ zhat)[fac.c]
+            if self.frames is not None:     # global components at the contact nodes: into their frames
+                y_u = to_frames(y_u, self.frames)
         v_u, v_lam = solve_adjoint(system.contact_S, state, y_u, y_lam, choices)
         z = v_u if system.coupling is None else system.coupling.adjoint_z(v_u)
+        if self.frames is not None:
+            z = from_frames(z, self.frames)
         v = system.factor.extend(z)
         if zhat is not None:
             v = v - zhat
@@ -184,3 +291,33 @@ class CondensationPath(ZonePath):
         lmax = eigsh(S, k=1, which="LA", return_eigenvectors=False, tol=1e-6)[0]
         wmax = eigsh(spd_inverse(S), k=1, which="LA", return_eigenvectors=False, tol=1e-6)[0]
         return float((1.0 / wmax) / lmax), None
+
+
+def to_frames(v: np.ndarray, R: np.ndarray) -> np.ndarray:
+    """Qᵀ v: a (3p,) vector of global components per contact node into the nodes' frames R (p, 3, 3)."""
+    return np.einsum("mij,mi->mj", R, v.reshape(-1, 3)).ravel()
+
+
+def from_frames(v: np.ndarray, R: np.ndarray) -> np.ndarray:
+    """Q v: a (3p,) vector in the nodes' frames back to global components."""
+    return np.einsum("mij,mj->mi", R, v.reshape(-1, 3)).ravel()
+
+
+def to_frames_matrix(S: np.ndarray, R: np.ndarray) -> np.ndarray:
+    """Qᵀ S Q of a (3p, 3p) matrix on the contact DOFs, symmetric as S is."""
+    p = R.shape[0]
+    S4 = S.reshape(p, 3, p, 3)
+    out = np.einsum("mai,makb,kbj->mikj", R, S4, R, optimize=True).reshape(3 * p, 3 * p)
+    return np.ascontiguousarray(0.5 * (out + out.T))
+
+
+def excess_of(state, b: np.ndarray, force: float) -> float:
+    """Σ_m b_m·r_m − |f| of a state (r_m = (−τ, λ) per node in its frame)."""
+    return float(np.sum(b[:, :2] * -state.tau) + b[:, 2] @ state.lam) - force
+
+
+def shifted(system: CondensedSystem, shift: np.ndarray) -> CondensedSystem:
+    """The system whose contact law sees the displacement relative to an obstacle translated
+    tangentially by ``shift`` (3p, per node frame, normal parts 0): w = u_c − shift, so
+    S w − ℓ_eff = r with ℓ_eff = ℓ − S shift; the body's own u_c is w + shift."""
+    return replace(system, shift=shift, ell_eff=system.ell - system.S @ shift)
