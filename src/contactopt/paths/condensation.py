@@ -158,6 +158,9 @@ class CondensationPath(ZonePath):
         z = v_u if system.coupling is None else system.coupling.adjoint_z(v_u)
         return v_u, v_lam, self.model.assembler.to_full(system.factor.extend(z))
 
+    def adjoint_force(self, system, ctx, v_u):
+        return system.contact_S @ v_u
+
     def uniqueness_bound(self, system):
         """F0 = λ_min(S)/λ_max(S) of the bound (3.16) applied to the condensed system: with A := S,
         N and T select components so β = ‖T‖ = 1. Known to be very pessimistic."""

@@ -95,7 +95,7 @@ def solve_adjoint(S: np.ndarray, state: State, y_u: np.ndarray, y_lam: np.ndarra
     F = state.friction
     eff = effective_classes(state.classes, choices)
     c = CLASS_CODES
-    ut = state.u_c[:, :2]
+    ut = state.slip_increment      # u_t, or its increment in a load step (sensitivity/steps.py)
     nut = np.linalg.norm(ut, axis=1)
     v0 = np.zeros(3 * p)
     Zr, Zc, Zv = [], [], []        # v_u = Z z + v0
@@ -172,7 +172,7 @@ def check_choices(choices):
 
 
 def solve_adjoint_delassus(apply, W_approx, state: State, y_u: np.ndarray, y_lam: np.ndarray,
-                           choices=None, *, rtol: float | None = None):
+                           choices=None, *, rtol: float | None = None, out: dict | None = None):
     """The adjoint system (4.15) in W-form, for the Delassus path (no S on all contact DOFs).
 
     The unknown is the contact force s = S v_u (per node (t1, t2, ν)), so v_u = W s. The rows of
@@ -189,7 +189,7 @@ def solve_adjoint_delassus(apply, W_approx, state: State, y_u: np.ndarray, y_lam
     preconditioned by the LU of the same matrix with ``W_approx`` (≈ W_KK, e.g. the kept Delassus
     block of an earlier design, per node (t1, t2, ν)); then v_λ = −(s + y*_u)_ν on K, and the
     A-harmonic extension of v_u is ṽ = A⁻¹Bᵀs, the by-product of the last product. Returns
-    (v_u (3p), v_λ (p), ṽ on the free DOFs, GMRES result).
+    (v_u (3p), v_λ (p), ṽ on the free DOFs, GMRES result); ``out["force"]`` = s when ``out`` is given.
     """
     from ..fem.krylov import gmres
     rtol = ADJOINT_RTOL if rtol is None else rtol
@@ -202,6 +202,8 @@ def solve_adjoint_delassus(apply, W_approx, state: State, y_u: np.ndarray, y_lam
     s = -np.asarray(y_u, dtype=np.float64).copy()
     s.reshape(p, 3)[K] = 0.0
     k = K.size
+    if out is not None:
+        out["force"] = s                  # filled in place below
     if k == 0:
         v_u, v_full = apply(s)
         return v_u, np.zeros(p), v_full, None
@@ -216,7 +218,7 @@ def solve_adjoint_delassus(apply, W_approx, state: State, y_u: np.ndarray, y_lam
     h[m3, 2] = yl[m3]
     m1 = (ek == c["M1"]) | (ek == -1)
     if np.any(m1):
-        ut = state.u_c[K[m1], :2]
+        ut = state.slip_increment[K[m1]]
         nut = np.linalg.norm(ut, axis=1)
         ahat = np.where(nut[:, None] > 0, ut / np.where(nut > 0, nut, 1.0)[:, None], 0.0)
         C = np.where((ek[m1] == c["M1"])[:, None, None],
