@@ -1,0 +1,180 @@
+"""Load paths ([[load_steps]]): Coulomb's law on each step's slip increment, one step as the static
+problem bit for bit, the adjoint backward through the steps against central differences, and the
+configuration's bad input."""
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from contactopt.cli import main
+from contactopt.config import load_config
+from contactopt.contact.state import CLASS_CODES
+from contactopt.errors import ConfigError
+from contactopt.problem import ShapeProblem
+
+DATA = Path(__file__).parent / "data"
+SMALL = {"mesh": {"nx": 8, "ny": 4, "nz": 3}}
+TOP, SIDE = [0.0, 0.0, -8e-2], [5e-2, 0.0, 0.0]
+PATH3 = [{"name": "press", "top_traction": TOP},
+         {"name": "shear", "top_traction": TOP, "right_traction": SIDE},
+         {"name": "back", "top_traction": TOP, "right_traction": [2e-2, 0.0, 0.0], "substeps": 2}]
+
+
+def block(steps, **sections):
+    """Example 1 on a small mesh with the load path ``steps`` (the block's loads written in the steps)."""
+    base = load_config("example1").with_updates(SMALL).data
+    data = {**base, "loads": {**base["loads"], "top_traction": [0.0] * 3, "right_traction": [0.0] * 3},
+            "load_steps": steps}
+    for sec, values in sections.items():
+        data[sec] = {**data.get(sec, {}), **values}
+    return load_config(data)
+
+
+def tet_box(steps, tmp_path, objective=""):
+    toml = tmp_path / "box.toml"
+    text = (f'name = "box"\n[body]\nmesh = "{DATA / "two_groups.msh"}"\nclamped = "top"\ncontact = "bottom"\n'
+            '[design]\ndegree = [3, 2]\nC0 = 0.05\nC2 = 0.002\ninitial = 0.002\n'
+            '[objective]\ntarget = { kind = "constant", value = 0.001 }\n' + objective)
+    for s in steps:
+        text += f'[[load_steps]]\nname = "{s["name"]}"\nbody_force = {s["body_force"]}\n'
+        if "side" in s:
+            text += f'pressure = [{{ on = {{ x1 = 1.0 }}, value = {s["side"]} }}]\n'
+    toml.write_text(text)
+    return load_config(toml)
+
+
+def wavy(problem, amp=0.003):
+    return problem.model.initial_design() + amp * np.sin(np.arange(problem.model.n_design))
+
+
+def central_differences(problem, alpha, directions, h=1e-6):
+    return np.array([(problem.evaluate_value(alpha + h * d) - problem.evaluate_value(alpha - h * d)) / (2 * h)
+                     for d in directions])
+
+
+# ---------------------------------------------------------------- the mechanics
+def test_one_step_is_the_static_problem_bit_for_bit():
+    static = load_config("example1").with_updates(SMALL)
+    one = load_config({**static.data, "load_steps": [{"name": "all"}]})
+    a, b = ShapeProblem(static), ShapeProblem(one)
+    alpha = wavy(a)
+    (ja, ga), (jb, gb) = a.evaluate(alpha), b.evaluate(alpha)
+    assert ja == jb and np.array_equal(ga, gb)
+    sa, sb = a.solve_state(alpha), b.solve_state(alpha)
+    assert np.array_equal(sa.u, sb.u) and np.array_equal(sa.lam, sb.lam) and np.array_equal(sa.classes, sb.classes)
+
+
+def test_a_step_that_changes_no_load_sticks_everywhere_and_moves_nothing():
+    pr = ShapeProblem(block([{"name": "a", "top_traction": TOP, "right_traction": SIDE},
+                             {"name": "again", "top_traction": TOP, "right_traction": SIDE}]))
+    (_, _, first), (_, _, second) = pr.step_results() or pr.solve_states(wavy(pr)) and pr.step_results()
+    assert first.counts["M1"] > 0                        # the first step slides
+    touching = second.lam > 0
+    assert touching.any() and np.all(np.isin(second.classes[touching], [CLASS_CODES["M3+"], CLASS_CODES["M3-"]]))
+    scale = np.abs(first.u).max()
+    assert np.abs(second.u - first.u).max() <= 1e-9 * scale
+    assert np.abs(second.slip_increment).max() <= 1e-9 * scale
+
+
+def test_preload_then_shear_differs_from_shear_at_once():
+    steps = [{"name": "press", "top_traction": TOP}, {"name": "shear", "top_traction": TOP, "right_traction": SIDE}]
+    path, once = ShapeProblem(block(steps)), ShapeProblem(block(steps[1:]))
+    alpha = wavy(path)
+    sp, so = path.solve_state(alpha), once.solve_state(alpha)
+    # the same final loads, another state: the slip of the shear step is measured from the pressed body
+    assert np.abs(sp.u_c[:, :2] - so.u_c[:, :2]).max() > 1e-3 * np.abs(so.u_c).max()
+    assert sp.info["step"] == "shear" and sp.slip_ref is not None
+    # the sliding nodes' friction force follows the slip increment, not the total slip
+    m1 = sp.classes == CLASS_CODES["M1"]
+    du = sp.slip_increment[m1]
+    law = 0.3 * sp.lam[m1, None] * du / np.linalg.norm(du, axis=1)[:, None]
+    assert m1.sum() >= 5 and np.abs(sp.tau[m1] - law).max() <= 1e-8 * sp.lam.max()
+    total = sp.u_c[m1, :2] / np.linalg.norm(sp.u_c[m1, :2], axis=1)[:, None]
+    assert np.abs(sp.tau[m1] - 0.3 * sp.lam[m1, None] * total).max() > 1e-3 * sp.lam.max()
+
+
+# ---------------------------------------------------------------- subgradients
+@pytest.mark.parametrize("steps, objective, path", [
+    (PATH3[:2], "last", "condensation"),
+    (PATH3, "last", "condensation"),
+    (PATH3, "sum", "condensation"),
+    (PATH3, ["shear", "back"], "condensation"),
+    (PATH3, "sum", "delassus"),
+])
+def test_subgradient_through_the_steps_matches_central_differences(steps, objective, path):
+    pr = ShapeProblem(block(steps, objective={"steps": objective}, linear_solver={"path": path}))
+    alpha = wavy(pr)
+    res = pr.subgradient(alpha)
+    assert res.n_degenerate == 0
+    classes = [st.counts for _, _, st in pr.step_results()]
+    assert any(c["M1"] for c in classes)
+    assert len(steps) == 2 or any(c["M3+"] for c in classes[2:])      # the unloading step sticks
+    rng = np.random.default_rng(3)
+    directions = [np.eye(alpha.size)[i] for i in range(0, alpha.size, 3)] + [rng.standard_normal(alpha.size)]
+    fd = central_differences(pr, alpha, directions)
+    g = np.array([res.gradient @ d for d in directions])
+    assert np.abs(g - fd).max() <= 1e-6 * np.abs(fd).max()
+
+
+@pytest.mark.parametrize("objective", ["last", "sum"])
+def test_subgradient_through_the_steps_on_tetrahedra(tmp_path, objective):
+    steps = [{"name": "press", "body_force": [0.0, 0.0, -1.0]},
+             {"name": "shear", "body_force": [0.0, 0.0, -1.0], "side": 0.05},
+             {"name": "ease", "body_force": [0.0, 0.0, -1.0], "side": 0.02}]
+    pr = ShapeProblem(tet_box(steps, tmp_path, f'steps = "{objective}"\n'))
+    assert pr.model.mesh.cell_type == "tetra"
+    alpha = pr.model.initial_design() + 0.002 * np.cos(np.arange(pr.model.n_design))
+    res = pr.subgradient(alpha)
+    assert res.n_degenerate == 0
+    assert any(st.counts["M1"] for _, _, st in pr.step_results())
+    rng = np.random.default_rng(4)
+    directions = [rng.standard_normal(alpha.size) for _ in range(3)]
+    fd = central_differences(pr, alpha, directions)
+    g = np.array([res.gradient @ d for d in directions])
+    assert np.abs(g - fd).max() <= 1e-6 * np.abs(fd).max()
+
+
+# ---------------------------------------------------------------- configuration
+def bad(tmp_path, text):
+    cfg = tmp_path / "bad.toml"
+    cfg.write_text('name = "bad"\n[mesh]\nnx = 4\nny = 2\nnz = 2\n' + text)
+    return cfg
+
+
+BAD = {
+    "unknown part": ('[[load_steps]]\nname = "a"\npressure = [{ on = "lid", value = 0.1 }]\n', "load_steps[0].pressure[0]"),
+    "one name twice": ('[[load_steps]]\nname = "a"\n[[load_steps]]\nname = "a"\n',
+                       "load_steps[1].name = 'a': another step has this name"),
+    "substeps < 1": ('[[load_steps]]\nname = "a"\nsubsteps = 0\n', "load_steps[0].substeps = 0: must be an integer ≥ 1"),
+    "unknown objective step": ('[objective]\nsteps = ["a", "b"]\n[[load_steps]]\nname = "a"\n',
+                               "objective.steps: 'b' is no step of load_steps"),
+    "steps twice": ('[[load_steps]]\nname = "a"\n[[load_cases]]\nname = "c"\n[[load_cases.steps]]\nname = "a"\n',
+                    "the configuration has [[load_steps]] and [[load_cases.steps]]"),
+    "steps on the full-space path": ('[linear_solver]\npath = "fullspace"\n[[load_steps]]\nname = "a"\n',
+                                     "the 'fullspace' solver path does not take load steps; use linear_solver.path "
+                                     "= 'condensation' or 'delassus'"),
+}
+
+
+@pytest.mark.parametrize("case", sorted(BAD))
+def test_bad_load_steps_exit_2_and_write_nothing(tmp_path, capsys, case):
+    text, message = BAD[case]
+    out = tmp_path / "out"
+    code = main(["state", str(bad(tmp_path, text)), "--out", str(out)])
+    err = capsys.readouterr().err
+    assert code == 2, err
+    assert message in err, err
+    assert not out.exists()
+
+
+def test_substeps_interpolate_the_loads_linearly():
+    pr = ShapeProblem(block([{"name": "a", "top_traction": TOP, "substeps": 2},
+                             {"name": "b", "top_traction": TOP, "right_traction": SIDE, "substeps": 4}]))
+    assert [(s.name, s.substep, s.end) for s in pr.steps[0]][:3] == [("a", 1, False), ("a", 2, True), ("b", 1, False)]
+    coords = pr.model.mesh.coordinates(pr.model.initial_design())
+    L = [pr.model.load_vector(coords, s.loads) for s in pr.steps[0]]
+    assert np.allclose(L[0], 0.5 * L[1], rtol=0, atol=1e-15)
+    assert np.allclose(L[2], 0.75 * L[1] + 0.25 * L[5], rtol=0, atol=1e-15)
+    with pytest.raises(ConfigError, match="objective.steps = \\['x'\\]: names load steps"):
+        load_config({**load_config("example1").data, "objective": {"steps": ["x"]}})
