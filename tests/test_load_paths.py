@@ -193,3 +193,29 @@ def test_contexts_of_every_step_round_trip_bit_for_bit():
     resumed.import_contexts(arrays, "test")
     (j1, g1), (j2, g2) = first.evaluate(a2), resumed.evaluate(a2)
     assert j1 == j2 and np.array_equal(g1, g2)
+
+
+def test_state_writes_every_step_with_its_slip(tmp_path, capsys):
+    import json
+    cfg = tmp_path / "pre.toml"
+    cfg.write_text('name = "pre"\n[mesh]\nnx = 8\nny = 4\nnz = 3\n[loads]\ntop_traction = [0.0, 0.0, 0.0]\n'
+                   'right_traction = [0.0, 0.0, 0.0]\n[[load_steps]]\nname = "press"\ntop_traction = [0.0, 0.0, -8e-2]\n'
+                   '[[load_steps]]\nname = "shear"\ntop_traction = [0.0, 0.0, -8e-2]\nright_traction = [5e-2, 0.0, 0.0]\n'
+                   'substeps = 2\n')
+    out = tmp_path / "out"
+    assert main(["state", str(cfg), "--out", str(out)]) == 0
+    listing = json.loads((out / "steps.json").read_text())
+    assert [s["directory"] for s in listing["steps"]] == ["step-press", "step-shear"]
+    assert "step-shear/body.vtu" in (out / "body.pvd").read_text()
+    press, shear = (np.load(out / d / "state.npz") for d in ("step-press", "step-shear"))
+    # the first step slides from the unloaded body: its increment is its u_t
+    assert np.array_equal(press["slip_increment"], press["u_c"][:, :2])
+    sliding = np.isin(press["classes"], [CLASS_CODES["M1"], CLASS_CODES["M2"]])
+    assert np.array_equal(press["slip"], np.where(sliding[:, None], press["u_c"][:, :2], 0.0))
+    # the slip accumulates over the solves where a node slides
+    assert np.abs(shear["slip"]).sum() > np.abs(press["slip"]).sum()
+    pr = ShapeProblem(load_config(cfg))
+    (_, _, s1), (_, _, s2), (_, _, s3) = pr.step_results() or pr.solve_states(pr.model.initial_design()) and pr.step_results()
+    expect = s1.info["slip"] + sum(np.where(np.isin(s.classes, [1, 2])[:, None], s.slip_increment, 0.0) for s in (s2, s3))
+    assert np.allclose(shear["slip"], expect, rtol=0, atol=1e-15)
+    assert np.array_equal(shear["slip_increment"], s3.slip_increment)

@@ -23,7 +23,7 @@ import numpy as np
 
 from ._threads import sequential_openblas
 from .config import Config, load_config
-from .contact.state import State
+from .contact.state import CLASS_CODES, State
 from .errors import SolverError
 from .fem import memory
 from .fem.model import ElasticModel
@@ -163,13 +163,18 @@ class ShapeProblem:
                     continue
                 # a load path: each solve from the end of the one before (sensitivity/steps.py)
                 step_systems[k] = self._step_systems(system, systems[k].assembled, k)
-                step_states[k], slip = [], None
+                step_states[k], slip, slid = [], None, np.zeros((self.model.n_contact, 2))
                 for step, sys_j, ctx_j in zip(self.steps[k], step_systems[k], self.step_contexts[k]):
                     st = self.path.solve_state(sys_j, ctx_j, alpha, method=method, warm_start=warm_start,
                                                tol=tol or self.tol, shared=shared,
                                                label=f"{self._of(k)}, step {step.name} ({step.substep})",
                                                slip_ref=slip)
                     st.info["step"], st.info["substep"] = step.name, step.substep
+                    if st.slip_ref is None:              # the first step: slip from the unloaded body
+                        st.slip_ref = np.zeros((self.model.n_contact, 2))
+                    sliding = np.isin(st.classes, [CLASS_CODES["M1"], CLASS_CODES["M2"]])
+                    slid = slid + np.where(sliding[:, None], st.slip_increment, 0.0)
+                    st.info["slip"] = slid               # the accumulated slip along the path
                     step_states[k].append(st)
                     slip = st.u_c[:, :2].copy()
                 systems[k], states = step_systems[k][-1], states + [step_states[k][-1]]
