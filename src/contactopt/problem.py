@@ -273,6 +273,24 @@ class ShapeProblem:
             return None
         return [(st.name, st.substep, state) for st, state in zip(self.steps[case], self._cache[5][case])]
 
+    def step_columns(self) -> list[str]:
+        """The names of the steps' objective values (:meth:`step_values`): ``<step>``, with load
+        cases ``<case>.<step>``; empty without load steps."""
+        out = []
+        for k, steps in enumerate(self.steps):
+            pre = f"{self.cases[k].name}." if self.has_load_cases else ""
+            out += [pre + s.name for s in steps or [] if s.end]
+        return out
+
+    def step_values(self) -> list[float]:
+        """J at the end of every step of every path, at the last design evaluated (the order of
+        :meth:`step_columns`)."""
+        out = []
+        for k, steps in enumerate(self.steps):
+            out += [float(st.info.get("objective", np.nan)) for s, st in zip(steps or [], self._cache[5][k] or [])
+                    if s.end]
+        return out
+
     def _path_adjoint(self, k: int, terms, choices):
         """(ξ_k, v_u, v_λ of the last solve with a term, degenerate nodes) backward through case
         k's load path (sensitivity/steps.py): each solve's adjoint (4.15) with the objective's
