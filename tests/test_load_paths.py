@@ -219,3 +219,34 @@ def test_state_writes_every_step_with_its_slip(tmp_path, capsys):
     expect = s1.info["slip"] + sum(np.where(np.isin(s.classes, [1, 2])[:, None], s.slip_increment, 0.0) for s in (s2, s3))
     assert np.allclose(shear["slip"], expect, rtol=0, atol=1e-15)
     assert np.array_equal(shear["slip_increment"], s3.slip_increment)
+
+
+@pytest.mark.slow
+def test_kill_and_resume_a_load_path_run_repeats_it_bit_for_bit(tmp_path):
+    import json
+    import signal
+    import subprocess
+    import sys
+    import time
+    cfg = tmp_path / "ps.toml"
+    text = (Path(__file__).parent.parent / "examples" / "preload_shear.toml").read_text()
+    cfg.write_text(text.replace("nx = 16\nny = 8\nnz = 5", "nx = 8\nny = 4\nnz = 3")
+                   .replace('right_traction = [5.0e-2, 0.0, 0.0]\n', 'right_traction = [5.0e-2, 0.0, 0.0]\nsubsteps = 2\n'))
+    ref, out = tmp_path / "ref", tmp_path / "killed"
+    assert main(["run", str(cfg), "--out", str(ref), "--max-iter", "12"]) == 0
+    proc = subprocess.Popen([sys.executable, "-m", "contactopt.cli", "run", str(cfg), "--out", str(out),
+                             "--max-iter", "12"], stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+    deadline, seen = time.time() + 120, 0
+    for line in proc.stdout:
+        seen += line.startswith("it ") and "serious" in line
+        if seen >= 3 or time.time() > deadline:
+            break
+    proc.send_signal(signal.SIGKILL)
+    proc.wait()
+    assert seen >= 3
+    assert main(["run", str(cfg), "--out", str(out), "--resume"]) == 0
+    a, b = (json.loads((d / "summary.json").read_text()) for d in (ref, out))
+    assert b["alpha"] == a["alpha"] and b["J"] == a["J"] and b["evaluations"] == a["evaluations"]
+    assert b["load_steps"] == a["load_steps"]
+    ha, hb = ((d / "history.csv").read_text().splitlines() for d in (ref, out))
+    assert [r.split(",")[:3] + r.split(",")[-2:] for r in ha] == [r.split(",")[:3] + r.split(",")[-2:] for r in hb]
