@@ -250,3 +250,36 @@ def test_kill_and_resume_a_load_path_run_repeats_it_bit_for_bit(tmp_path):
     assert b["load_steps"] == a["load_steps"]
     ha, hb = ((d / "history.csv").read_text().splitlines() for d in (ref, out))
     assert [r.split(",")[:3] + r.split(",")[-2:] for r in ha] == [r.split(",")[:3] + r.split(",")[-2:] for r in hb]
+
+
+def paraboloid_on_foundation(n, steps):
+    """A paraboloidal pad (gap r²/2R, R = 2) clamped on its top, on a foundation of its own
+    material (benchmarks/cattaneo_mindlin.py)."""
+    b = np.array([0.25, -0.25, 0.25])
+    block = {"size": [2.0, 2.0, 1.0], "cells": [n, n, max(4, n // 2)]}
+    return load_config({"name": "cm", "geometry": {"a": 2.0, "b": 2.0, "c": 1.0},
+                        "mesh": {"nx": n, "ny": n, "nz": max(4, n // 2)}, "body": {"clamped": "top"},
+                        "material": {"E": 1.0, "nu": 0.3}, "friction": {"coefficient": 0.3},
+                        "loads": {"top_traction": [0.0] * 3, "right_traction": [0.0] * 3},
+                        "design": {"degree": [2, 2], "C0": 0.6, "lower": -0.6,
+                                   "initial": (b[:, None] + b[None, :]).tolist()},
+                        "foundation": {"block": block, "top": "top", "clamped": "bottom",
+                                       "material": {"E": 1.0, "nu": 0.3}},
+                        "load_steps": steps})
+
+
+@pytest.mark.slow
+def test_mindlin_deresiewicz_proportional_loading_slips_nowhere_one_step_has_an_annulus():
+    """Pressed and sheared together (Q/P < μ): in 8 proportional substeps no node slides and
+    ‖τ‖ < Fλ everywhere; the one-step static problem has a slip annulus."""
+    out = {}
+    for m in (1, 8):
+        pr = ShapeProblem(paraboloid_on_foundation(16, [{"name": "all", "body_force": [0.00384, 0.0, -0.08],
+                                                         "substeps": m}]))
+        st = pr.solve_state(pr.model.initial_design())
+        touching = st.lam > 1e-6 * st.lam.max()
+        out[m] = (np.sum(st.classes == CLASS_CODES["M3+"]), touching.sum(),
+                  (np.linalg.norm(st.tau[touching], axis=1) / (0.3 * st.lam[touching])).max())
+        assert st.tau[:, 0].sum() < 0.3 * st.lam.sum()
+    assert out[8][0] == out[8][1] and out[8][2] < 0.6
+    assert out[1][0] < 0.6 * out[1][1] and out[1][2] == pytest.approx(1.0, abs=1e-8)
