@@ -283,3 +283,21 @@ def test_mindlin_deresiewicz_proportional_loading_slips_nowhere_one_step_has_an_
         assert st.tau[:, 0].sum() < 0.3 * st.lam.sum()
     assert out[8][0] == out[8][1] and out[8][2] < 0.6
     assert out[1][0] < 0.6 * out[1][1] and out[1][2] == pytest.approx(1.0, abs=1e-8)
+
+
+def test_subgradient_through_the_steps_on_an_elastic_foundation():
+    steps = [{"name": "press", "body_force": [0.0, 0.0, -0.08]},
+             {"name": "shear", "body_force": [0.006, 0.0, -0.08]},
+             {"name": "back", "body_force": [0.002, 0.0, -0.08]}]
+    pr = ShapeProblem(paraboloid_on_foundation(8, steps).with_updates(
+        {"objective": {"steps": "sum", "target": {"kind": "constant", "value": 0.002}}}))
+    alpha = pr.model.initial_design() + 0.01 * np.cos(np.arange(pr.model.n_design))
+    res = pr.subgradient(alpha)
+    assert res.n_degenerate == 0
+    counts = [st.counts for _, _, st in pr.step_results()]
+    assert counts[1]["M1"] and counts[2]["M3+"]
+    rng = np.random.default_rng(5)
+    directions = [rng.standard_normal(alpha.size) for _ in range(3)]
+    fd = central_differences(pr, alpha, directions)
+    g = np.array([res.gradient @ d for d in directions])
+    assert np.abs(g - fd).max() <= 1e-6 * np.abs(fd).max()
