@@ -301,3 +301,32 @@ def test_subgradient_through_the_steps_on_an_elastic_foundation():
     fd = central_differences(pr, alpha, directions)
     g = np.array([res.gradient @ d for d in directions])
     assert np.abs(g - fd).max() <= 1e-6 * np.abs(fd).max()
+
+
+def test_load_cases_with_their_own_paths(tmp_path):
+    """[[load_cases.steps]]: a case with a path and a case without (one step), combined; the
+    subgradient against central differences and the state directories case-<case>/step-<name>/."""
+    base = load_config("example1").with_updates(SMALL).data
+    data = {**base, "loads": {**base["loads"], "top_traction": TOP, "right_traction": [0.0] * 3},
+            "load_cases": [{"name": "path", "steps": [{"name": "press"}, {"name": "shear", "right_traction": SIDE}]},
+                           {"name": "once", "right_traction": [3e-2, 0.0, 0.0]}],
+            "objective": {**base["objective"], "combine": "sum"}}
+    pr = ShapeProblem(load_config(data))
+    assert pr.steps[1] is None and [s.name for s in pr.steps[0]] == ["press", "shear"]
+    assert pr.step_columns() == ["path.press", "path.shear"]
+    alpha = wavy(pr)
+    res = pr.subgradient(alpha)
+    d = np.random.default_rng(6).standard_normal(alpha.size)
+    fd = central_differences(pr, alpha, [d])[0]
+    assert abs(res.gradient @ d - fd) <= 1e-6 * abs(fd)
+    # the case with a path is the path of the same loads without cases
+    alone = ShapeProblem(block([{"name": "press", "top_traction": TOP},
+                                {"name": "shear", "top_traction": TOP, "right_traction": SIDE}]))
+    u1, u2 = alone.solve_state(alpha).u, pr.solve_states(alpha)[0].u
+    assert np.abs(u1 - u2).max() <= 1e-10 * np.abs(u1).max()      # up to the warm starts' round-off
+    cfg = tmp_path / "c.toml"
+    cfg.write_text(load_config(data).to_toml())
+    out = tmp_path / "out"
+    assert main(["state", str(cfg), "--out", str(out)]) == 0
+    assert (out / "case-path" / "step-shear" / "state.npz").is_file()
+    assert (out / "case-once" / "step-static" / "state.npz").is_file()
