@@ -101,6 +101,7 @@ def test_preload_then_shear_differs_from_shear_at_once():
     (PATH3, "sum", "condensation"),
     (PATH3, ["shear", "back"], "condensation"),
     (PATH3, "sum", "delassus"),
+    (PATH3, "sum", "fullspace"),
 ])
 def test_subgradient_through_the_steps_matches_central_differences(steps, objective, path):
     pr = ShapeProblem(block(steps, objective={"steps": objective}, linear_solver={"path": path}))
@@ -151,9 +152,6 @@ BAD = {
                                "objective.steps: 'b' is no step of load_steps"),
     "steps twice": ('[[load_steps]]\nname = "a"\n[[load_cases]]\nname = "c"\n[[load_cases.steps]]\nname = "a"\n',
                     "the configuration has [[load_steps]] and [[load_cases.steps]]"),
-    "steps on the full-space path": ('[linear_solver]\npath = "fullspace"\n[[load_steps]]\nname = "a"\n',
-                                     "the 'fullspace' solver path does not take load steps; use linear_solver.path "
-                                     "= 'condensation' or 'delassus'"),
 }
 
 
@@ -166,6 +164,22 @@ def test_bad_load_steps_exit_2_and_write_nothing(tmp_path, capsys, case):
     assert code == 2, err
     assert message in err, err
     assert not out.exists()
+
+
+def test_a_path_without_load_steps_refuses_them_naming_those_that_take_them(tmp_path, capsys, monkeypatch):
+    """The PETSc path (not installed here) does not take load steps; the refusal, shown on the
+    full-space path with its load steps switched off."""
+    from contactopt.paths import PATHS
+    assert not PATHS["petsc"].takes_steps
+    assert [n for n, c in PATHS.items() if c.takes_steps] == ["condensation", "delassus", "fullspace"]
+    monkeypatch.setattr(PATHS["fullspace"], "takes_steps", False)
+    out = tmp_path / "out"
+    code = main(["state", str(bad(tmp_path, '[linear_solver]\npath = "fullspace"\n[[load_steps]]\nname = "a"\n')),
+                 "--out", str(out)])
+    err = capsys.readouterr().err
+    assert code == 2 and not out.exists()
+    assert ("the 'fullspace' solver path does not take load steps; use linear_solver.path = 'condensation' "
+            "or 'delassus'") in err, err
 
 
 def test_substeps_interpolate_the_loads_linearly():
