@@ -1,7 +1,7 @@
 """Cost of a load path: one evaluation (Θ, ξ) of Example 1 (mesh 32×15×9, condensation path) as
 the static problem, as a 2-step path (press, then the side traction) and as 8 solves (the same
-two steps in 4 substeps each). Each configuration evaluates the same sequence of designs (the
-first one a warm-up); the ratios are of the mean time per evaluation, measured in one run.
+two steps in 4 substeps each). The configurations evaluate the same designs, interleaved (the
+first one a warm-up), forwards and backwards; the ratios are of the mean time per evaluation.
 
     PYTHONPATH=src python benchmarks/bench_load_paths.py
 """
@@ -27,12 +27,20 @@ def problem(steps):
     return ShapeProblem(load_config(data))
 
 
-def timed(pr, designs):
-    pr.evaluate(designs[0])
-    t0 = time.perf_counter()
-    for a in designs[1:]:
-        pr.evaluate(a)
-    return (time.perf_counter() - t0) / (len(designs) - 1)
+def timed(problems, designs, rounds=2):
+    """Mean seconds per evaluation of each problem, the problems interleaved design by design (and
+    the sequence run ``rounds`` times) so that the machine's load drifts alike over all of them."""
+    for pr in problems.values():
+        pr.evaluate(designs[0])
+    spent = dict.fromkeys(problems, 0.0)
+    for _ in range(rounds):
+        for a in designs[1:]:
+            for k, pr in problems.items():
+                t0 = time.perf_counter()
+                pr.evaluate(a)
+                spent[k] += time.perf_counter() - t0
+        designs = designs[::-1]
+    return {k: t / (rounds * (len(designs) - 1)) for k, t in spent.items()}
 
 
 def main():
@@ -45,7 +53,7 @@ def main():
     a0 = problems["static"].model.initial_design()
     rng = np.random.default_rng(0)
     designs = [a0 + 0.002 * k * rng.random(a0.size) for k in range(6)]
-    times = {k: timed(pr, designs) for k, pr in problems.items()}
+    times = timed(problems, designs)
     print("| evaluation | s per evaluation | ratio to static |")
     print("|---|---|---|")
     for k, t in times.items():
