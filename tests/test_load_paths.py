@@ -100,6 +100,7 @@ def test_preload_then_shear_differs_from_shear_at_once():
     (PATH3, "last", "condensation"),
     (PATH3, "sum", "condensation"),
     (PATH3, ["shear", "back"], "condensation"),
+    (PATH3, "max", "condensation"),
     (PATH3, "sum", "delassus"),
     (PATH3, "sum", "fullspace"),
 ])
