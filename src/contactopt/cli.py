@@ -87,6 +87,8 @@ def _cmd_state(args) -> int:
             state.info["uniqueness_bound_F0_reason"] = reason
     print(f"state of {problem.config.name} ({problem.config.source}) — method {states[0].method}, "
           f"backend {states[0].summary().get('backend')}")
+    if problem.has_load_steps:
+        return _write_step_states(out, problem, states, warnings, bound, reason, t0)
     if not problem.has_load_cases:
         write_state(out, model, states[0], config=problem.config, warnings=warnings, objective=reports[0])
         _print_state(states[0], bound, reason, reports[0])
@@ -120,6 +122,29 @@ def _design_warnings(model, alpha, what: str) -> list[str]:
     for line in [head, *broken]:
         print(f"contactopt: warning: {line}", file=sys.stderr)
     return [head, *broken]
+
+
+def _write_step_states(out, problem, states, warnings, bound, reason, t0) -> int:
+    """`contactopt state` on load paths: step-<name>/ per step (case-<case>/step-<name>/ with
+    load cases), steps.json and body.pvd."""
+    from .io.statefiles import write_steps
+    for k, name in enumerate(problem.case_names):
+        where = out / _case_dir(name, k) if problem.has_load_cases else out
+        ends = [(step, state) for step, _, state in problem.step_results(k) or []
+                if state.info.get("substep") == _substeps(problem, k, step)]
+        if not ends:                     # a case without steps: its one state as step "static"
+            ends = [("static", states[k])]
+        write_steps(where, problem.model, ends, config=problem.config, warnings=warnings)
+        for step, state in ends:
+            print(f"{'load case ' + repr(name) + ', ' if problem.has_load_cases else ''}step {step!r} → "
+                  f"{where}/step-{step}/")
+            _print_state(state, bound, reason)
+    print(f"  wrote {out}/ in {time.perf_counter() - t0:.1f}s")
+    return 0
+
+
+def _substeps(problem, k: int, name: str) -> int:
+    return max(s.substep for s in problem.steps[k] if s.name == name)
 
 
 def _case_dir(name: str, k: int) -> str:

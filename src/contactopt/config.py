@@ -235,6 +235,11 @@ SCHEMA = {
                     "a list of numbers ≥ 0, one per load case in order, or a table case name = weight "
                     "(cases not named weigh 1); empty: every case weighs 1. Θ_k is multiplied by its "
                     "weight before the max or the sum"),
+        "steps": ("last", lambda x: x in ("last", "max", "sum") or (
+            isinstance(x, list) and x and all(isinstance(v, str) for v in x)),
+                  "'last' (the objective at the end of the last [[load_steps]]), 'max' (the worst step), "
+                  "'sum' (the sum over the steps) or a list of step names (the worst of those steps); "
+                  "without load steps the one step is the last"),
         "active_tol": (1e-6, lambda x: _nonneg(x) and x < 1,
                        "a number in [0, 1) (with combine = 'max', the cases within this fraction of the "
                        "largest value are reported as active)"),
@@ -497,7 +502,7 @@ def _check_load_cases(cases, d1d2, problems) -> list:
         problems.append("load_cases: must be a non-empty array of tables [[load_cases]] with a name, "
                         "loads as in [loads] and an optional target")
         return []
-    allowed = ["name", *SCHEMA["loads"], "target"]
+    allowed = ["name", *SCHEMA["loads"], "target", "steps"]
     seen = set()
     for n, case in enumerate(cases):
         name = case.get("name")
@@ -514,12 +519,77 @@ def _check_load_cases(cases, d1d2, problems) -> list:
                 _, check, desc = SCHEMA["loads"][k]
                 if not check(val):
                     problems.append(f"load_cases[{n}].{k} = {val!r}: must be {desc}")
+        if "steps" in case:
+            case["steps"] = _check_load_steps(case["steps"], f"load_cases[{n}].steps", problems)
         if "target" in case:
             if isinstance(case["target"], dict):
                 _check_target(case["target"], d1d2, problems, f"load_cases[{n}].target")
             else:
                 problems.append(f"load_cases[{n}].target: must be a table like objective.target")
     return cases
+
+
+def _check_load_steps(steps, where, problems) -> list:
+    """[[load_steps]] (or a case's [[load_cases.steps]]): in order, each a name, the TOTAL loads at
+    its end in the form of [loads] and an optional ``substeps`` ≥ 1. Returns them with substeps."""
+    if not (isinstance(steps, list) and steps and all(isinstance(c, dict) for c in steps)):
+        problems.append(f"{where}: must be a non-empty array of tables with a name, loads as in [loads] "
+                        "and an optional substeps")
+        return []
+    allowed = ["name", *SCHEMA["loads"], "substeps"]
+    seen = set()
+    for n, step in enumerate(steps):
+        name = step.get("name")
+        if not (isinstance(name, str) and CASE_NAME.fullmatch(name)):
+            problems.append(f"{where}[{n}].name = {name!r}: must be a name of letters, digits and _ . + - "
+                            "(it names the step's output directory)")
+        elif name in seen:
+            problems.append(f"{where}[{n}].name = {name!r}: another step has this name")
+        seen.add(name)
+        for k, val in step.items():
+            if k not in allowed:
+                problems.append(f"{where}[{n}].{k}: unknown key (allowed: {', '.join(allowed)})")
+            elif k in SCHEMA["loads"]:
+                _, check, desc = SCHEMA["loads"][k]
+                if not check(val):
+                    problems.append(f"{where}[{n}].{k} = {val!r}: must be {desc}")
+        sub = step.setdefault("substeps", 1)
+        if not _posint(sub):
+            problems.append(f"{where}[{n}].substeps = {sub!r}: must be an integer ≥ 1 (equal increments of "
+                            "the loads from the previous step's)")
+    return steps
+
+
+def _check_step_names(data, problems, raw_sections=()) -> None:
+    """objective.steps names steps of every path; steps at the top level and in cases exclude each other."""
+    cases = data.get("load_cases", [])
+    if "load_steps" in data and any("steps" in c for c in cases):
+        problems.append("load_steps: the configuration has [[load_steps]] and [[load_cases.steps]]; give each "
+                        "load case its own steps, or the top-level steps without steps in the cases")
+    if "load_steps" in data or any("steps" in c for c in cases):
+        obj = data["objective"]
+        types = [obj.get("type")] + [t.get("type") for t in obj.get("terms") or [] if isinstance(t, dict)]
+        for whole in ("peak_stress", "frictional_dissipation"):
+            if whole in types:
+                problems.append(f"load_steps: the objective {whole!r} is not yet taken on a load path (its "
+                                "adjoint of the whole displacement is not carried back through the steps)")
+        if "obstacle" in raw_sections:
+            problems.append("load_steps: a load path is not yet taken with an [obstacle] (load steps act on the "
+                            "plane x3 = 0 or an elastic [foundation])")
+    chosen = data["objective"]["steps"]
+    if not isinstance(chosen, list):
+        return
+    paths = [("load_steps", data.get("load_steps"))] if "load_steps" in data else []
+    paths += [(f"load_cases[{n}].steps", c.get("steps")) for n, c in enumerate(cases) if "steps" in c]
+    if not paths:
+        problems.append(f"objective.steps = {chosen!r}: names load steps, but the configuration has no "
+                        "[[load_steps]]")
+    for where, steps in paths:
+        names = [s.get("name") for s in steps or []]
+        for v in chosen:
+            if v not in names:
+                problems.append(f"objective.steps: {v!r} is no step of {where} (steps: "
+                                f"{', '.join(map(str, names))})")
 
 
 def _check_combination(raw, data, problems):
@@ -621,7 +691,12 @@ def _check_body(raw, data, problems):
                 if k in case:
                     problems.append(f"load_cases[{n}].{k}: is a load on a part of the built-in block; on a "
                                     "body from a file use traction = [{ on = \"<part>\", value = [...] }]")
-    elif "traction" in loads_raw or "pressure" in loads_raw or data.get("load_cases"):
+            for n, step in enumerate(data.get("load_steps", [])):
+                if k in step:
+                    problems.append(f"load_steps[{n}].{k}: is a load on a part of the built-in block; on a "
+                                    "body from a file use traction = [{ on = \"<part>\", value = [...] }]")
+    elif ("traction" in loads_raw or "pressure" in loads_raw or data.get("load_cases")
+          or data.get("load_steps")):
         # with load cases a case's loads are exactly [loads] as written plus the case's own
         for k in BLOCK_LOADS:
             if k not in loads_raw:
@@ -781,9 +856,10 @@ def validate(raw: dict, source: str = "<dict>") -> Config:
     problems = []
     data = {}
     for key in raw:
-        if key not in SCHEMA and key not in TOP_LEVEL and key not in ("load_cases", "foundation", "obstacle"):
+        if key not in SCHEMA and key not in TOP_LEVEL and key not in ("load_cases", "foundation", "obstacle",
+                                                                   "load_steps"):
             problems.append(f"{key}: unknown section (allowed: "
-                            f"{', '.join(list(TOP_LEVEL) + list(SCHEMA) + ['foundation', 'obstacle', 'load_cases'])})")
+                            f"{', '.join(list(TOP_LEVEL) + list(SCHEMA) + ['foundation', 'obstacle', 'load_cases', 'load_steps'])})")
     for key, (default, check, desc) in TOP_LEVEL.items():
         val = raw.get(key, default)
         if not check(val):
@@ -808,6 +884,9 @@ def validate(raw: dict, source: str = "<dict>") -> Config:
     if "load_cases" in raw:
         data["load_cases"] = _check_load_cases(raw["load_cases"], d1d2, problems)
     _check_objective(raw, data, d1d2, problems)
+    if "load_steps" in raw:
+        data["load_steps"] = _check_load_steps(raw["load_steps"], "load_steps", problems)
+    _check_step_names(data, problems, raw_sections=tuple(raw))
     _check_combination(raw, data, problems)
     _check_body(raw, data, problems)
     if "foundation" in raw:
@@ -891,7 +970,14 @@ def reference_markdown() -> str:
               "any of the keys of [loads] (none required) and optionally a `target` in the form of "
               "`objective.target`. A case's loads are its own plus those written in [loads] (with cases, "
               "the block's default `top_traction`/`right_traction` are off unless [loads] writes them). "
-              "`objective.combine` joins the cases' objectives: the max (worst case) or the weighted sum."]
+              "`objective.combine` joins the cases' objectives: the max (worst case) or the weighted sum. "
+              "A case may have its own load path, `[[load_cases.steps]]` in the form of [[load_steps]].",
+              "", "## [[load_steps]]", "",
+              "Optional load path (an array of tables, in order; docs/load_paths.md): quasi-static steps, each "
+              "with a `name`, the TOTAL loads at its end in the keys of [loads] ([loads] adds to every step) and "
+              "`substeps` (default 1: equal increments, linear in the loads, from the previous step's loads). "
+              "Coulomb's law acts on the slip of each step. `objective.steps` says which steps Θ is taken on. "
+              "Without steps the problem is one step, the static problem."]
     return "\n".join(lines) + "\n"
 
 

@@ -23,7 +23,7 @@ import numpy as np
 
 from ._threads import sequential_openblas
 from .config import Config, load_config
-from .contact.state import State
+from .contact.state import CLASS_CODES, State
 from .errors import SolverError
 from .fem import memory
 from .fem.model import ElasticModel
@@ -57,6 +57,30 @@ class ShapeProblem:
         self.cases, self.combination = build_cases(self.config, self.model, self._design_lambda)
         self.path.first_loads = self.cases[0].loads
         self.contexts = [self.path.new_context() for _ in self.cases]
+        self._init_steps()
+
+    def _init_steps(self) -> None:
+        """The load path of every case (None: one step, the static problem; sensitivity/steps.py)
+        and a context per solve of a path (the first is the case's own)."""
+        from .errors import ConfigError
+        from .sensitivity.steps import build_path, step_choice, step_tables
+        self.steps = []
+        for k, case in enumerate(self.cases):
+            own = self.has_load_cases and self.config.data["load_cases"][k].get("steps") is not None
+            where = f"load_cases[{k}].steps" if own else "load_steps"
+            self.steps.append(build_path(self.model, case.loads,
+                                         step_tables(self.config, k if self.has_load_cases else None), where))
+        if any(self.steps) and not self.path.takes_steps:
+            taking = [n for n, cls in PATHS.items() if cls.takes_steps]
+            raise ConfigError([f"load_steps: the {self.path.name!r} solver path does not take load steps; "
+                               f"use linear_solver.path = {' or '.join(map(repr, taking))}"])
+        self.step_choice = step_choice(self.config)
+        self.step_contexts = [[ctx] + [self.path.new_context() for _ in (steps or [None])[1:]]
+                              for ctx, steps in zip(self.contexts, self.steps)]
+
+    @property
+    def has_load_steps(self) -> bool:
+        return any(self.steps)
 
     def _design_lambda(self, alpha, case: int) -> np.ndarray:
         """λ of load case ``case`` at α, solved without warm start (a 'design' target)."""
@@ -82,6 +106,19 @@ class ShapeProblem:
                          lambda self, v: setattr(self.contexts[0], "next_zone", v))
 
     # ------------------------------------------------------------------ systems and states
+    def _step_systems(self, system, asm, k: int) -> list:
+        """The system of every solve of case k's load path (sharing the case's prepared system)."""
+        out = []
+        for step in self.steps[k]:
+            t0 = time.perf_counter()
+            L_full = self.model.load_vector(asm.coords, step.loads)
+            asm_j = replace(asm, L_full=L_full, L=self.model.free_load(L_full))
+            t1 = time.perf_counter()
+            system_j = self.path.for_load(system, asm_j)
+            system_j.timings = {"assembly": t1 - t0, **system_j.timings}
+            out.append(system_j)
+        return out
+
     def _systems(self, alpha) -> list:
         """The system of every load case at α: assembled once, prepared by the path once."""
         t0 = time.perf_counter()
@@ -114,13 +151,34 @@ class ShapeProblem:
         key, method = alpha.tobytes(), method or self.method
         if self._cache is not None and self._cache[:2] == (key, method):
             return list(self._cache[3])
+        step_systems, step_states = [None] * len(self.cases), [None] * len(self.cases)
         with sequential_openblas():
             systems = self._systems(alpha)
             shared = {}                # what the cases of one design share (e.g. a factor of S)
-            states = [self.path.solve_state(system, ctx, alpha, method=method, warm_start=warm_start,
-                                            tol=tol or self.tol, shared=shared, label=self._of(k))
-                      for k, (system, ctx) in enumerate(zip(systems, self.contexts))]
-        self._cache = (key, method, systems, states)
+            states = []
+            for k, (system, ctx) in enumerate(zip(systems, self.contexts)):
+                if not self.steps[k]:
+                    states.append(self.path.solve_state(system, ctx, alpha, method=method, warm_start=warm_start,
+                                                        tol=tol or self.tol, shared=shared, label=self._of(k)))
+                    continue
+                # a load path: each solve from the end of the one before (sensitivity/steps.py)
+                step_systems[k] = self._step_systems(system, systems[k].assembled, k)
+                step_states[k], slip, slid = [], None, np.zeros((self.model.n_contact, 2))
+                for step, sys_j, ctx_j in zip(self.steps[k], step_systems[k], self.step_contexts[k]):
+                    st = self.path.solve_state(sys_j, ctx_j, alpha, method=method, warm_start=warm_start,
+                                               tol=tol or self.tol, shared=shared,
+                                               label=f"{self._of(k)}, step {step.name} ({step.substep})",
+                                               slip_ref=slip)
+                    st.info["step"], st.info["substep"] = step.name, step.substep
+                    if st.slip_ref is None:              # the first step: slip from the unloaded body
+                        st.slip_ref = np.zeros((self.model.n_contact, 2))
+                    sliding = np.isin(st.classes, [CLASS_CODES["M1"], CLASS_CODES["M2"]])
+                    slid = slid + np.where(sliding[:, None], st.slip_increment, 0.0)
+                    st.info["slip"] = slid               # the accumulated slip along the path
+                    step_states[k].append(st)
+                    slip = st.u_c[:, :2].copy()
+                systems[k], states = step_systems[k][-1], states + [step_states[k][-1]]
+        self._cache = (key, method, systems, states, step_systems, step_states)
         self.n_state_solves += 1
         return list(states)
 
@@ -154,6 +212,9 @@ class ShapeProblem:
         out = {}
         for k, ctx in enumerate(self.contexts):
             out.update({(f"case{k}_" if k else "") + name: v for name, v in self.path.export_context(ctx).items()})
+            for j, ctx_j in enumerate(self.step_contexts[k][1:], 1):    # a load path's later solves
+                out.update({f"step{j}_" + (f"case{k}_" if k else "") + name: v
+                            for name, v in self.path.export_context(ctx_j).items()})
         return out
 
     def import_contexts(self, arrays: dict, where: str) -> None:
@@ -163,6 +224,12 @@ class ShapeProblem:
             own = {name[len(prefix):]: v for name, v in arrays.items()
                    if name.startswith(prefix) and (k or not name.startswith("case"))}
             self.path.import_context(ctx, own, where, others=self.contexts[:k])
+            for j, ctx_j in enumerate(self.step_contexts[k][1:], 1):
+                pj = f"step{j}_" + prefix
+                own = {name[len(pj):]: v for name, v in arrays.items()
+                       if name.startswith(pj) and (k or not name[len(pj):].startswith("case"))}
+                self.path.import_context(ctx_j, own, where, others=self.contexts + [
+                    c for row in self.step_contexts for c in row[1:] if c is not ctx_j])
 
     # ------------------------------------------------------------------ oracle
     def evaluate_value(self, alpha) -> float:
@@ -181,8 +248,78 @@ class ShapeProblem:
         self.prepare_objectives()
         states = self.solve_states(alpha, **kw)
         systems = self._cache[2]
-        values = [float(c.objective.evaluate(st, sy)[0]) for c, st, sy in zip(self.cases, states, systems)]
+        values = [float(self._case_terms(k, states, systems)[0]) for k in range(len(self.cases))]
         return self.combination.combine(values)
+
+    def _case_terms(self, k: int, states, systems):
+        """(Θ_k, [(solve index or None, coefficient, objective part)]) of case k: its objective, or
+        on a load path the steps' objectives combined as ``[objective] steps`` says."""
+        case = self.cases[k]
+        if not self.steps[k]:
+            part = case.objective.evaluate(states[k], systems[k])
+            return part[0], [(None, 1.0, part)]
+        step_systems, step_states = self._cache[4][k], self._cache[5][k]
+        parts = {j: case.objective.evaluate(step_states[j], step_systems[j])
+                 for j, step in enumerate(self.steps[k]) if step.end}
+        for j, part in parts.items():
+            step_states[j].info["objective"] = float(part[0])
+        value, coef = self.step_choice.combine({j: (self.steps[k][j].name, parts[j][0]) for j in parts})
+        return value, [(j, c, parts[j]) for j, c in coef.items()]
+
+    def step_results(self, case: int = 0):
+        """[(step name, substep, state)] of case ``case``'s load path at the last design solved
+        (None without steps); a state's ``info["objective"]`` is J at the step's end."""
+        if not self.steps[case] or self._cache is None:
+            return None
+        return [(st.name, st.substep, state) for st, state in zip(self.steps[case], self._cache[5][case])]
+
+    def step_columns(self) -> list[str]:
+        """The names of the steps' objective values (:meth:`step_values`): ``<step>``, with load
+        cases ``<case>.<step>``; empty without load steps."""
+        out = []
+        for k, steps in enumerate(self.steps):
+            pre = f"{self.cases[k].name}." if self.has_load_cases else ""
+            out += [pre + s.name for s in steps or [] if s.end]
+        return out
+
+    def step_values(self) -> list[float]:
+        """J at the end of every step of every path, at the last design evaluated (the order of
+        :meth:`step_columns`)."""
+        out = []
+        for k, steps in enumerate(self.steps):
+            out += [float(st.info.get("objective", np.nan)) for s, st in zip(steps or [], self._cache[5][k] or [])
+                    if s.end]
+        return out
+
+    def _path_adjoint(self, k: int, terms, choices):
+        """(ξ_k, v_u, v_λ of the last solve with a term, degenerate nodes) backward through case
+        k's load path (sensitivity/steps.py): each solve's adjoint (4.15) with the objective's
+        right-hand side at the steps it is taken on plus P_t(S v + y*_u) of the solve after it."""
+        from .sensitivity.steps import tangential
+        step_systems, step_states, ctxs = self._cache[4][k], self._cache[5][k], self.step_contexts[k]
+        coef = {j: (c, part) for j, c, part in terms}
+        last = max(coef)
+        pinned = self.model.contact_pinned.ravel()
+        xi, carry, nd, out = 0.0, None, 0, None
+        for j in range(last, -1, -1):
+            state, system = step_states[j], step_systems[j]
+            p = state.lam.size
+            y_u, y_lam = np.zeros(3 * p), np.zeros(p)
+            if j in coef:
+                c, (_, yu, yl, dJ_da) = coef[j]
+                y_u, y_lam, xi = c * yu, c * yl, xi + c * dJ_da
+            if carry is not None:
+                y_u = y_u + carry
+            v_u, v_lam, v_full = self.path.adjoint(system, ctxs[j], state, y_u, y_lam, choices)
+            xi = xi + self.path.design_contraction(system, state.u, v_full, self.steps[k][j].loads) \
+                + self.model.gap_matrix.T @ v_lam
+            nd += state.n_degenerate
+            if out is None:
+                out = (v_u, v_lam)
+            if j:
+                carry = tangential(self.path.adjoint_force(system, ctxs[j], v_u) + y_u)
+                carry[pinned] = 0.0          # u_t = 0 there in every step
+        return xi, out[0], out[1], nd
 
     def evaluate(self, alpha):
         """(Θ(α), ξ) with ξ a Clarke subgradient from the adjoint system (4.15)."""
@@ -205,8 +342,8 @@ class ShapeProblem:
         systems = self._cache[2]
         t1 = time.perf_counter()
         parts = []
-        for case, state, system in zip(self.cases, states, systems):
-            part = case.objective.evaluate(state, system)
+        for k in range(len(self.cases)):
+            part = self._case_terms(k, states, systems)
             if not np.isfinite(part[0]):
                 raise SolverError(f"objective{self._of(len(parts))} is not finite at this design ({part[0]})")
             parts.append(part)
@@ -216,7 +353,18 @@ class ShapeProblem:
         for k in np.flatnonzero(comb.coefficients):
             t2 = time.perf_counter()
             state, system = states[k], systems[k]
-            _, y_u, y_lam, dJ_da = parts[k]
+            if self.steps[k]:
+                xi, v_u_k, v_lam_k, nd_k = self._path_adjoint(k, parts[k][1], choices)
+                g = comb.coefficients[k] * xi if g is None else g + comb.coefficients[k] * xi
+                t_adj += time.perf_counter() - t2
+                nd += nd_k
+                if nd_k:
+                    log.info("subgradient at a design with %d degenerate node(s) along the load path%s",
+                             nd_k, self._of(k))
+                if k == comb.case:
+                    v_u, v_lam = v_u_k, v_lam_k
+                continue
+            _, y_u, y_lam, dJ_da = parts[k][1][0][2]
             v_u_k, v_lam_k, v_full = self.path.adjoint(system, self.contexts[k], state, y_u, y_lam, choices)
             t3 = time.perf_counter()
             xi = dJ_da + self.path.design_contraction(system, state.u, v_full, self.cases[k].loads) \

@@ -62,9 +62,10 @@ def history_fields(problem) -> list[str]:
     """The columns of history.csv: with load cases also Θ_k per case (``f_<name>``, unweighted)
     and the names of the active cases (separated by ';')."""
     terms = [f"term_{name}" for name in problem.term_names()]     # [[objective.terms]], unweighted
+    steps = [f"f_step_{name}" for name in problem.step_columns()]     # load paths: J at each step's end
     if not problem.has_load_cases:
-        return HISTORY_FIELDS + terms
-    return HISTORY_FIELDS + [f"f_{name}" for name in problem.case_names] + ["active_cases"] + terms
+        return HISTORY_FIELDS + terms + steps
+    return HISTORY_FIELDS + [f"f_{name}" for name in problem.case_names] + ["active_cases"] + terms + steps
 
 
 class RunAborted(ContactOptError):
@@ -180,6 +181,7 @@ class _Oracle:
         if self.problem.has_load_cases:
             row += [repr(float(v)) for v in res.case_values] + [";".join(res.active_cases)]
         row += [repr(float(v)) for v in res.terms.values()]
+        row += [repr(v) for v in self.problem.step_values()]
         try:     # appended: rows after the checkpoint's evaluations are dropped on --resume
             with open(self.history_path, "a", newline="") as fh:
                 csv.writer(fh).writerow(row)
@@ -558,9 +560,9 @@ def _finish(out: Path, problem, alpha0, res, oracle, t_start) -> dict:
     x = np.asarray(res.x)
     t0 = time.perf_counter()
     c0 = problem.evaluate_cases(alpha0, warm_start=False)      # Θ of the combined load cases
-    states0, J0 = problem.solve_states(alpha0), c0.value
+    states0, J0, steps0 = problem.solve_states(alpha0), c0.value, _step_outputs(out, problem, "initial")
     c1 = problem.evaluate_cases(x, warm_start=False)
-    states1, J = problem.solve_states(x), c1.value
+    states1, J, steps1 = problem.solve_states(x), c1.value, _step_outputs(out, problem, "optimal")
     s0, s1 = states0[c1.case], states1[c1.case]      # the load case active at the optimum
     target = getattr(problem.cases[c1.case].objective, "target", None)
     write_body_vtu(out / "initial.vtu", model, s0)
@@ -613,10 +615,28 @@ def _finish(out: Path, problem, alpha0, res, oracle, t_start) -> dict:
                                 "J": problem.objective_report(x, warm_start=False)}
     if problem.has_load_cases:
         summary["load_cases"] = _load_case_outputs(out, problem, (c0, states0), (c1, states1))
+    if steps1:
+        summary["load_steps"] = {"names": list(steps1), "J0": steps0, "J": steps1, "objective_steps":
+                                 problem.config["objective"]["steps"]}
     summary["export"] = _export(out, model, x)
     summary["time_breakdown_s"]["outputs"] = time.perf_counter() - t0
     atomic_write_json(out / "summary.json", summary)
     return summary
+
+
+def _step_outputs(out: Path, problem, which: str) -> dict:
+    """Load paths: J at each step's end at the design just evaluated, and (at the optimum) a
+    stick/slip map per step, classes-<step>.png."""
+    if not problem.has_load_steps:
+        return {}
+    if which == "optimal":
+        from .io.plots import plot_node_classes
+        for k in range(len(problem.cases)):
+            pre = f"{problem.cases[k].name}." if problem.has_load_cases else ""
+            for name, sub, state in problem.step_results(k) or []:
+                if sub == max(s.substep for s in problem.steps[k] if s.name == name):
+                    plot_node_classes(out / f"classes-{pre}{name}.png", problem.model, state.classes)
+    return dict(zip(problem.step_columns(), problem.step_values()))
 
 
 def _export(out: Path, model, x) -> dict:

@@ -284,7 +284,7 @@ class NewtonOutcome:
 
 
 def newton_loop(backend: NewtonBackend, u, zone, *, gap, mu_all, rho_all, tol, max_steps, krylov_rtol,
-                eta_max, eta_factor, zone_margin, timings, t_start) -> NewtonOutcome:
+                eta_max, eta_factor, zone_margin, timings, t_start, shift=None) -> NewtonOutcome:
     """The full-space semismooth Newton iteration from ``u`` on the contact ``zone`` (node
     indices), the same for the pyamg and the PETSc path: only the linear algebra is the
     ``backend``'s (:class:`NewtonBackend`). Per contact node ``gap`` (p,) the initial gap,
@@ -299,7 +299,8 @@ def newton_loop(backend: NewtonBackend, u, zone, *, gap, mu_all, rho_all, tol, m
     krylov_rtol, eta_max), krylov_rtol once the classes have settled below _TIGHT_BELOW·√tol;
     the nonmonotone Armijo search on ½‖Φ‖² + ½‖e_other‖² (reference the largest of the last four
     merits, 30 halvings). Adds its seconds to ``timings`` ("newton" and the backend's phases) and
-    logs progress against ``t_start``."""
+    logs progress against ``t_start``. ``shift`` (p, 2): in a load step, u_t at the end of the
+    previous step; the tangential law acts on U_T = u_t − shift."""
     p = gap.size
     history, steps, recent = [], [], []
     growths = rescales = last_rescale = 0
@@ -314,6 +315,8 @@ def newton_loop(backend: NewtonBackend, u, zone, *, gap, mu_all, rho_all, tol, m
         R = rphys[z][:, TO_FCLIB]
         U = uc[z][:, TO_FCLIB]
         U[:, 0] += gap[z]
+        if shift is not None:
+            U[:, 1:] -= shift[z]
         Phi, piece = alart_curnier(R.ravel(), U.ravel(), mu, rho)
         theta_phi = 0.5 * float(Phi @ Phi)
         err = siconos_error(R.ravel(), U.ravel(), U.ravel(), mu)
@@ -402,8 +405,9 @@ class _PyamgBackend:
     label = "full-space Newton"
 
     def __init__(self, A, L, cd, gap, hierarchy, H, Lnorm, restart, max_krylov, krylov_its, krylov_hist,
-                 krylov_eta):
+                 krylov_eta, shift=None):
         self.A, self.L, self.cd, self.gap, self.hierarchy, self.H = A, L, cd, gap, hierarchy, H
+        self.shift = shift        # (p, 2) a load step's reference u_t: sticking u_t = shift, Robin on u_t − shift
         self.n, p = A.shape[0], cd.shape[0]
         self.Lnorm, self.restart, self.max_krylov = Lnorm, restart, max_krylov
         self.krylov_its, self.krylov_hist, self.krylov_eta = krylov_its, krylov_hist, krylov_eta
@@ -443,11 +447,16 @@ class _PyamgBackend:
         pos = self.tt_pos[slide].ravel()
         H.data[pos] += system.blk
         self.touched = pos
-        b = system.couple(L.copy())
+        if self.shift is None:
+            b = system.couple(L.copy())
+        else:                     # the Robin rows of sliding nodes: K_t (u − shift)
+            s_full = np.zeros(A.shape[0])
+            s_full[cd[:, :2].ravel()] = self.shift.ravel()
+            b = system.couple(L + system.kt @ s_full)
         b[D] = 0.0
         x0 = u.copy()
-        x0[cd[stick, 0]] = 0.0
-        x0[cd[stick, 1]] = 0.0
+        x0[cd[stick, 0]] = 0.0 if self.shift is None else self.shift[stick, 0]
+        x0[cd[stick, 1]] = 0.0 if self.shift is None else self.shift[stick, 1]
         x0[cd[stick, 2]] = -gap[stick]
         x0[Nsl] = -gap[slide]
         y0 = system.couple(A @ x0 + kt @ x0)    # b − G x0 on the rows I
@@ -487,7 +496,7 @@ def solve_fullspace(A, L, contact_dofs, gap, friction, *, coords, free, r0=None,
                     rho_scale: float = 0.5, max_steps: int = 50, krylov_rtol: float | None = None,
                     eta_max: float = 1e-2, eta_factor: float = 0.1, restart: int = 60,
                     max_krylov: int = 400, zone_margin: float = 0.1, amg: dict | None = None,
-                    raise_on_failure: bool = True) -> FullSpaceResult:
+                    raise_on_failure: bool = True, slip_ref=None) -> FullSpaceResult:
     """Solve the discrete Coulomb problem A u = L + Bᵀ r with the contact law on the contact nodes
     (module docstring) by a full-space semismooth Newton method with AMG-preconditioned GMRES.
 
@@ -511,6 +520,8 @@ def solve_fullspace(A, L, contact_dofs, gap, friction, *, coords, free, r0=None,
     restart, max_krylov : GMRES restart length and iteration limit per Newton step.
     amg : keyword arguments of pyamg's smoothed_aggregation_solver when a hierarchy is built.
     raise_on_failure : raise ContactNotConverged on a Newton failure (else return converged=False).
+    slip_ref : (p, 2) in a load step, u_t at the end of the previous step (the tangential law on
+        u_t − slip_ref, :mod:`contactopt.sensitivity.steps`); None: the static problem.
 
     OpenBLAS runs sequentially inside (:func:`contactopt._threads.sequential_openblas`): the dense
     work here is the GMRES basis products, memory-bound, and its threads competed with the sparse
@@ -519,12 +530,12 @@ def solve_fullspace(A, L, contact_dofs, gap, friction, *, coords, free, r0=None,
     with sequential_openblas():
         return _solve_fullspace(A, L, contact_dofs, gap, friction, coords, free, r0, u0, tol, hierarchy,
                                 zone, rho_scale, max_steps, krylov_rtol, eta_max, eta_factor, restart,
-                                max_krylov, zone_margin, amg, raise_on_failure)
+                                max_krylov, zone_margin, amg, raise_on_failure, slip_ref)
 
 
 def _solve_fullspace(A, L, contact_dofs, gap, friction, coords, free, r0, u0, tol, hierarchy, zone,
                      rho_scale, max_steps, krylov_rtol, eta_max, eta_factor, restart, max_krylov,
-                     zone_margin, amg, raise_on_failure):
+                     zone_margin, amg, raise_on_failure, slip_ref=None):
     t_start = time.perf_counter()
     timings = dict.fromkeys(("amg_setup", "preconditioner", "krylov", "newton", "start"), 0.0)
     A = sp.csr_matrix(A)
@@ -586,11 +597,12 @@ def _solve_fullspace(A, L, contact_dofs, gap, friction, coords, free, r0, u0, to
             raise ProblemDataError(f"u0 of shape {u.shape}, expected ({n},)")
     timings["start"] = time.perf_counter() - t0
 
+    shift = None if slip_ref is None else np.asarray(slip_ref, dtype=np.float64).reshape(p, 2)
     backend = _PyamgBackend(A, L, cd, gap, hierarchy, H, Lnorm, restart, max_krylov, krylov_its, krylov_hist,
-                            krylov_eta)
+                            krylov_eta, shift)
     out = newton_loop(backend, u, zone, gap=gap, mu_all=mu_all, rho_all=rho_all, tol=tol, max_steps=max_steps,
                       krylov_rtol=krylov_rtol, eta_max=eta_max, eta_factor=eta_factor, zone_margin=zone_margin,
-                      timings=timings, t_start=t_start)
+                      timings=timings, t_start=t_start, shift=shift)
     u, zone, classes, converged, err, eq = out.u, out.zone, out.classes, out.converged, out.error, out.equilibrium
 
     rphys = backend.contact_force(u)

@@ -101,6 +101,14 @@ class State:
     converged: bool
     timings: dict = field(default_factory=dict)
     info: dict = field(default_factory=dict)
+    slip_ref: np.ndarray | None = None   # (p, 2) u_t at the end of the previous load step, or None
+
+    @property
+    def slip_increment(self) -> np.ndarray:
+        """(p, 2) the tangential displacement the friction law acts on: u_t − u_t^(k−1) in a load
+        step, u_t itself in the static problem (sensitivity/steps.py)."""
+        ut = self.u_c[:, :2]
+        return ut if self.slip_ref is None else ut - self.slip_ref
 
     @property
     def class_names(self) -> np.ndarray:

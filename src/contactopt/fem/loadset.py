@@ -37,6 +37,11 @@ class LoadSet:
         return LoadSet(self.tractions + other.tractions, self.pressures + other.pressures,
                        self.body_force + other.body_force)
 
+    def scaled(self, t: float) -> "LoadSet":
+        """Every load times ``t`` (a substep of a load step interpolates linearly between two sets)."""
+        return LoadSet([(n, f, t * v) for n, f, v in self.tractions], [(n, f, t * v) for n, f, v in self.pressures],
+                       t * self.body_force)
+
     def vector(self, coords: np.ndarray, assembler) -> np.ndarray:
         """Full-length L(α) for the node coordinates ``coords``."""
         out = np.zeros(coords.size)

@@ -194,6 +194,10 @@ def roundtrip_config(model, mesh_name: str, alpha) -> dict:
         moved(cfg["loads"])
         for case in cfg.get("load_cases", []):
             moved(case)
+            for step in case.get("steps", []):
+                moved(step)
+        for step in cfg.get("load_steps", []):
+            moved(step)
     return cfg
 
 

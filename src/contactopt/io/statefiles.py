@@ -95,6 +95,9 @@ def state_json(model, state: State, config=None, warnings=None, objective=None) 
     if "u_partner" in state.info:             # an elastic foundation: u_c is w = u_body − u_partner
         doc["contact"]["u_body"] = np.asarray(state.info["u_body_c"], float).tolist()
         doc["contact"]["u_partner"] = np.asarray(state.info["u_partner"], float).tolist()
+    if state.slip_ref is not None:            # a load step: the law's slip increment, the accumulated slip
+        doc["contact"]["slip_increment"] = np.asarray(state.slip_increment, float).tolist()
+        doc["contact"]["slip"] = np.asarray(state.info.get("slip", state.slip_increment), float).tolist()
     if getattr(model, "foundation", None) is not None:
         doc["foundation"] = model.foundation.summary()
     if warnings is not None:
@@ -133,6 +136,9 @@ def _state_arrays(model, state: State) -> dict:
         **({"u_body_c": np.asarray(state.info["u_body_c"], float),
             "u_partner": np.asarray(state.info["u_partner"], float),
             "foundation_u": np.asarray(state.info["foundation_u"], float)} if "u_partner" in state.info else {}),
+        **({"slip_increment": np.asarray(state.slip_increment, float),
+            "slip": np.asarray(state.info.get("slip", state.slip_increment), float)}
+           if state.slip_ref is not None else {}),
     }
 
 
@@ -232,3 +238,19 @@ def read_state_npz(path) -> State:
             method=str(z["method"]), iterations=int(z["iterations"]), residual=float(z["residual"]),
             complementarity=float(z["complementarity"]), converged=bool(z["converged"]),
             timings=json.loads(str(z["timings_json"])), info=json.loads(str(z["info_json"])))
+
+
+def write_steps(outdir, model, steps, *, config=None, warnings=None) -> list[dict]:
+    """The states of a load path's steps ``steps`` [(name, state)], each into ``step-<name>/``
+    (:func:`write_state`), with ``steps.json`` listing them and ``body.pvd``, the bodies as a
+    time series (time = the step's position). Returns the listing."""
+    from .atomic import atomic_write_json
+    outdir = Path(outdir)
+    listing = []
+    for k, (name, state) in enumerate(steps):
+        d = f"step-{name}"
+        write_state(outdir / d, model, state, config=config, warnings=warnings)
+        listing.append({"name": name, "index": k + 1, "directory": d, "summary": state.summary()})
+    atomic_write_json(outdir / "steps.json", {"steps": listing, "warnings": warnings})
+    vtk.write_pvd(outdir / "body.pvd", [(k + 1, f"step-{name}/body.vtu") for k, (name, _) in enumerate(steps)])
+    return listing

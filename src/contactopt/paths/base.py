@@ -70,6 +70,7 @@ class SolverPath:
     :meth:`new_context`, :meth:`export_context` and :meth:`import_context`."""
 
     name = ""
+    takes_steps = False      # whether solve_state takes ``slip_ref`` (load paths, sensitivity/steps.py)
     first_loads = None       # the loads of the first case: a checkpoint's design is assembled with them
 
     def __init__(self, model, settings: Settings):
@@ -133,6 +134,11 @@ class SolverPath:
                              f"3·n_nodes = {self.model.assembler.n_full}")
         return size != 3 * self.model.n_contact
 
+    def adjoint_force(self, system, ctx, v_u) -> np.ndarray:
+        """S v_u (3p, per node (t1, t2, ν)) of the last :meth:`adjoint` of ``ctx``: what a load
+        step passes to the previous one (sensitivity/steps.py)."""
+        raise NotImplementedError
+
     def design_contraction(self, system, u_full, v_full, loads=None) -> np.ndarray:
         """vᵀ(∂A/∂α_k u − ∂L/∂α_k) at the system's design (full-length u, v; DESIGN.md §2)."""
         return self.model.design_contraction(system.assembled.coords, u_full, v_full, loads)
@@ -162,10 +168,11 @@ class SolverPath:
 
     # ------------------------------------------------------------------ shared by the paths
     def finish_state(self, ctx, *, alpha, coords, u, u_c, r, gap, load, method, outcome, timings,
-                     info) -> State:
+                     info, slip_ref=None) -> State:
         """The :class:`State` of contact forces ``r`` ((p, 3) per node (t1, t2, ν)) and
         displacements, with the node classes of Table 4.1; ``outcome`` the solver's (iterations,
-        error, converged). The case's next zone is set from it."""
+        error, converged). The case's next zone is set from it. ``slip_ref`` (p, 2): in a load
+        step, u_t at the end of the previous step; the classes see the slip increment."""
         pinned = self.model.contact_pinned
         if np.any(pinned):         # u = 0 and no contact force there, exactly (fem.model)
             r, u_c = np.where(pinned, 0.0, r), np.where(pinned, 0.0, u_c)
@@ -173,14 +180,18 @@ class SolverPath:
         lam, tau = r[:, 2].copy(), -r[:, :2]
         # with nothing in contact, forces count as zero against the load scale
         fscale = max(np.abs(lam).max(initial=0.0), np.abs(load).max(initial=0.0))
-        classes = classify_nodes(u_c, lam, tau, gap, self.settings.friction,
+        law_u = u_c
+        if slip_ref is not None:        # the friction law's displacement: the slip increment
+            law_u = u_c.copy()
+            law_u[:, :2] -= slip_ref
+        classes = classify_nodes(law_u, lam, tau, gap, self.settings.friction,
                                  force_scale=fscale if lam.max(initial=0) <= 0 else None, u=u)
         timings["total"] = sum(timings.values())
         state = State(alpha=alpha, coords=coords, u=u, u_c=u_c, lam=lam, tau=tau, gap=gap, classes=classes,
                       friction=self.settings.friction, method=method, iterations=outcome[0],
                       residual=outcome[1],
-                      complementarity=contact_conditions_violation(u_c, lam, tau, gap, self.settings.friction),
-                      converged=outcome[2], timings=timings, info={"path": self.name, **info})
+                      complementarity=contact_conditions_violation(law_u, lam, tau, gap, self.settings.friction),
+                      converged=outcome[2], timings=timings, info={"path": self.name, **info}, slip_ref=slip_ref)
         if self.settings.use_zone:
             ctx.next_zone = zone_rules.near_nodes(lam, u_c[:, 2] + gap, displacement_scale(u_c, gap),
                                                   self.settings.zone_margin)

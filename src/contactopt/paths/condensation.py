@@ -278,6 +278,9 @@ class CondensationPath(ZonePath):
             v = v - zhat
         return v_u, v_lam, self.model.assembler.to_full(v)
 
+    def adjoint_force(self, system, ctx, v_u):
+        return system.contact_S @ v_u
+
     def uniqueness_bound(self, system):
         """F0 = λ_min(S)/λ_max(S) of the bound (3.16) applied to the condensed system: with A := S,
         N and T select components so β = ‖T‖ = 1. Known to be very pessimistic."""

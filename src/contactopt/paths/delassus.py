@@ -150,6 +150,10 @@ class DelassusPath(ZonePath):
     def own_block(self, system, zone):
         return self._problem(system, zone).W
 
+    def adjoint_force(self, system, ctx, v_u):
+        """S v_u: the unknown s of the last W-form adjoint of ``ctx`` (v_u = W s)."""
+        return ctx.adjoint_s
+
     def adjoint(self, system, ctx, state, y_u, y_lam, choices=None):
         """(4.15) in W-form (:func:`contactopt.sensitivity.adjoint.solve_adjoint_delassus`): products
         W s by sparse solves, preconditioned by the case's kept Delassus block on the nodes in
@@ -176,14 +180,16 @@ class DelassusPath(ZonePath):
         perm = (3 * np.arange(K.size)[:, None] + FROM_FCLIB).ravel()   # FCLIB -> (t1, t2, ν)
         W = W[np.ix_(perm, perm)]
         t0 = time.perf_counter()
-        shift = None
+        shift, out = None, {}
         if self.is_full(y_u):          # ∂J/∂u on every DOF: ṽ = A⁻¹(Bᵀs − g₀), v_u = W s + d
             g = np.asarray(y_u, float)[self.model.assembler.free]
             g0 = g.copy()
             g0[contact] = 0.0
             d_full = -system.factor.solve(g0)
             shift, y_u = (d_full[contact], d_full), g[contact]
-        v_u, v_lam, v_free, res = solve_adjoint_delassus(apply, W, state, y_u, y_lam, choices, shift=shift)
+        v_u, v_lam, v_free, res = solve_adjoint_delassus(apply, W, state, y_u, y_lam, choices, shift=shift,
+                                                     out=out)
+        ctx.adjoint_s = out["force"]       # S v_u, for the previous load step (adjoint_force)
         if res is not None:
             log.debug("adjoint (4.15) in W-form on %d nodes: %d GMRES iterations, %.2f s",
                       K.size, res.iterations, time.perf_counter() - t0)

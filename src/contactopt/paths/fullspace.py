@@ -97,7 +97,9 @@ class FullSpacePath(SolverPath):
             np.random.set_state(saved)
 
 
-    def solve_state(self, system, ctx, alpha, *, method, warm_start, tol, shared, label=""):
+    takes_steps = True
+
+    def solve_state(self, system, ctx, alpha, *, method, warm_start, tol, shared, label="", slip_ref=None):
         """Warm-started from the case's last forces, displacement and contact zone, on the AMG
         hierarchy of an earlier design; without ``warm_start`` from nothing the case carries (on
         all contact nodes), so that two such solves of one design agree bit for bit."""
@@ -115,7 +117,7 @@ class FullSpacePath(SolverPath):
         res = solve_fullspace(asm.A, asm.L, self.model.contact_dofs, system.gap, s.friction, coords=asm.coords,
                               free=self.model.assembler.free, r0=warm, u0=u0, hierarchy=self._hierarchy,
                               tol=max(tol or s.tol, FULLSPACE_TOL), zone=ctx.next_zone if s.use_zone and warm_start else None,
-                              zone_margin=s.zone_margin)
+                              zone_margin=s.zone_margin, slip_ref=slip_ref)
         self._hierarchy = res.hierarchy
         timings = dict(system.timings, **{f"fullspace_{k}": v for k, v in res.timings.items() if k != "total"})
         timings["fullspace_amg_setup"] += t_setup
@@ -127,7 +129,8 @@ class FullSpacePath(SolverPath):
                                   timings=timings,
                                   info={"backend": "pyamg", "zone_nodes": int(res.zone.size),
                                         "zone_misses": int(res.zone_growths), "delassus": "none",
-                                        "krylov_iterations": int(sum(res.krylov_iterations))})
+                                        "krylov_iterations": int(sum(res.krylov_iterations))},
+                                  slip_ref=slip_ref)
         ctx.warm, ctx.u_free = res.r.copy(), res.u
         log.debug("state%s: full-space Newton %d steps, %d GMRES iterations, error %.2e, %.2f s", label,
                   res.newton_steps, sum(res.krylov_iterations), res.error, timings["total"])
@@ -137,11 +140,20 @@ class FullSpacePath(SolverPath):
         from ..sensitivity.adjoint_fullspace import solve_adjoint_fullspace
         if self.is_full(y_u):          # ∂J/∂u on every DOF: the free DOFs' part
             y_u = np.asarray(y_u, float)[self.model.assembler.free]
-        adj = solve_adjoint_fullspace(system.assembled.A, self.model.contact_dofs, state.classes, state.u_c,
+        u_law = state.u_c                # the friction law's: the slip increment in a load step
+        if state.slip_ref is not None:
+            u_law = state.u_c.copy()
+            u_law[:, :2] = state.slip_increment
+        adj = solve_adjoint_fullspace(system.assembled.A, self.model.contact_dofs, state.classes, u_law,
                                       state.lam, y_u, y_lam, self.settings.friction, hierarchy=self._hierarchy,
                                       choices=choices)
         state.info["adjoint_krylov"] = int(adj.iterations)
+        ctx.adjoint_v = adj.v
         return adj.v_u, adj.v_lam, self.model.assembler.to_full(adj.v)
+
+    def adjoint_force(self, system, ctx, v_u):
+        """S v_u = (A ṽ)_c: ṽ, the last adjoint's A-harmonic extension of v_u, has A ṽ = Bᵀ S v_u."""
+        return (system.assembled.A @ ctx.adjoint_v)[self.model.contact_dofs]
 
     # ------------------------------------------------------------------ checkpoints
     def export_context(self, ctx) -> dict:

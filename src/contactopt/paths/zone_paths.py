@@ -52,6 +52,7 @@ class ZonePath(SolverPath):
     """A path whose state is the zone's local problem (module docstring)."""
 
     reuse_tol_factor = REUSE_TOL_FACTOR
+    takes_steps = True
     accept_at_tol = False     # accept a reused-block solve that reached tol (not the factor)
     probe_warm = False        # measure a kept block's distance on the warm start
     new_fraction = 0.25       # a kept block takes exact columns for at most this fraction of new nodes
@@ -86,7 +87,9 @@ class ZonePath(SolverPath):
         return {"max_new": fraction}
 
     # ------------------------------------------------------------------ state
-    def solve_state(self, system, ctx, alpha, *, method, warm_start, tol, shared, label=""):
+    def solve_state(self, system, ctx, alpha, *, method, warm_start, tol, shared, label="", slip_ref=None):
+        """The zone's Coulomb state; ``slip_ref`` (p, 2): in a load step, u_t at the end of the
+        previous step (q shifted by −slip_ref, sensitivity/steps.py)."""
         s = self.settings
         timings = dict(system.timings, delassus=0.0, contact=0.0)
         zone = ctx.next_zone if s.use_zone else self.all_nodes
@@ -99,7 +102,7 @@ class ZonePath(SolverPath):
         t1 = time.perf_counter()
         timings["recovery"] = 0.0
         while True:
-            res, t_inv, how = self.solve_local(zp, system, warm, method, tol, alpha, ctx)
+            res, t_inv, how = self.solve_local(zp, system, warm, method, tol, alpha, ctx, slip_ref)
             reused.append(how)
             u3 = zp.displacements(res.r)
             timings["delassus"] += t1 - t0 + t_inv
@@ -135,7 +138,7 @@ class ZonePath(SolverPath):
         state = self.finish_state(ctx, alpha=alpha, coords=system.assembled.coords, u=u, u_c=u3, r=r,
                                   gap=system.gap, load=self.load_scale(system), method=method,
                                   outcome=(res.iterations, res.error, res.converged),
-                                  timings=timings, info=info)
+                                  timings=timings, info=info, slip_ref=slip_ref)
         ctx.warm = self._zone_warm(res.r, zone)
         self.n_zone_misses += misses
         log.debug("state%s: %s %d it, residual %.2e, zone %d/%d nodes, %.3f s", label, method,
@@ -152,7 +155,7 @@ class ZonePath(SolverPath):
         """More of the state for its ``info`` (the condensation path's elastic foundation)."""
         return {}
 
-    def solve_local(self, zp, system, warm, method, tol, alpha, ctx):
+    def solve_local(self, zp, system, warm, method, tol, alpha, ctx, slip_ref=None):
         """The zone's local problem u = W r + q, q = (S⁻¹ℓ)_Z + (g, 0, 0), in the FCLIB convention.
 
         Returns (result, time spent forming W_Z, how W_Z entered: "formed" or "reused"). With
@@ -165,6 +168,9 @@ class ZonePath(SolverPath):
         s = self.settings
         q = zp.q0.copy()
         q[0::3] += system.gap[zp.zone]
+        if slip_ref is not None:          # a load step: the law acts on u_t − u_t^(k−1)
+            q[1::3] -= slip_ref[zp.zone, 0]
+            q[2::3] -= slip_ref[zp.zone, 1]
         r0 = warm[zp.zone].ravel() if warm is not None else None
         tol = tol or s.tol
         if method == "newton" and s.reuse_delassus and not zp.has_W:

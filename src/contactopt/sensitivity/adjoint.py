@@ -96,7 +96,7 @@ def solve_adjoint(S: np.ndarray, state: State, y_u: np.ndarray, y_lam: np.ndarra
     F = state.friction
     eff = effective_classes(state.classes, choices)
     c = CLASS_CODES
-    ut = state.u_c[:, :2]
+    ut = state.slip_increment      # u_t, or its increment in a load step (sensitivity/steps.py)
     nut = np.linalg.norm(ut, axis=1)
     v0 = np.zeros(3 * p)
     Zr, Zc, Zv = [], [], []        # v_u = Z z + v0
@@ -173,7 +173,7 @@ def check_choices(choices):
 
 
 def solve_adjoint_delassus(apply, W_approx, state: State, y_u: np.ndarray, y_lam: np.ndarray,
-                           choices=None, *, rtol: float | None = None, shift=None):
+                           choices=None, *, rtol: float | None = None, shift=None, out: dict | None = None):
     """The adjoint system (4.15) in W-form, for the Delassus path (no S on all contact DOFs).
 
     The unknown is the contact force s = S v_u (per node (t1, t2, ν)), so v_u = W s. The rows of
@@ -190,7 +190,7 @@ def solve_adjoint_delassus(apply, W_approx, state: State, y_u: np.ndarray, y_lam
     preconditioned by the LU of the same matrix with ``W_approx`` (≈ W_KK, e.g. the kept Delassus
     block of an earlier design, per node (t1, t2, ν)); then v_λ = −(s + y*_u)_ν on K, and the
     A-harmonic extension of v_u is ṽ = A⁻¹Bᵀs, the by-product of the last product. Returns
-    (v_u (3p), v_λ (p), ṽ on the free DOFs, GMRES result).
+    (v_u (3p), v_λ (p), ṽ on the free DOFs, GMRES result); ``out["force"]`` = s when ``out`` is given.
 
     ``shift`` = (d (3p), d_full (free DOFs)) for an objective of the whole displacement: then
     v_u = W s + d and ṽ = A⁻¹Bᵀs + d_full with d_full = −A⁻¹g₀ (g₀ = ∂J/∂u off the contact
@@ -213,6 +213,8 @@ def solve_adjoint_delassus(apply, W_approx, state: State, y_u: np.ndarray, y_lam
         def apply(f):                     # noqa: F811 - the affine map s -> (W s + d, ṽ)
             v, vf = plain(f)
             return v + shift[0], vf + shift[1]
+    if out is not None:
+        out["force"] = s                  # filled in place below
     if k == 0:
         v_u, v_full = apply(s)
         return v_u, np.zeros(p), v_full, None
@@ -227,7 +229,7 @@ def solve_adjoint_delassus(apply, W_approx, state: State, y_u: np.ndarray, y_lam
     h[m3, 2] = yl[m3]
     m1 = (ek == c["M1"]) | (ek == -1)
     if np.any(m1):
-        ut = state.u_c[K[m1], :2]
+        ut = state.slip_increment[K[m1]]
         nut = np.linalg.norm(ut, axis=1)
         ahat = np.where(nut[:, None] > 0, ut / np.where(nut > 0, nut, 1.0)[:, None], 0.0)
         C = np.where((ek[m1] == c["M1"])[:, None, None],

@@ -1,0 +1,347 @@
+"""Load paths ([[load_steps]]): Coulomb's law on each step's slip increment, one step as the static
+problem bit for bit, the adjoint backward through the steps against central differences, and the
+configuration's bad input."""
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from contactopt.cli import main
+from contactopt.config import load_config
+from contactopt.contact.state import CLASS_CODES
+from contactopt.errors import ConfigError
+from contactopt.problem import ShapeProblem
+
+DATA = Path(__file__).parent / "data"
+SMALL = {"mesh": {"nx": 8, "ny": 4, "nz": 3}}
+TOP, SIDE = [0.0, 0.0, -8e-2], [5e-2, 0.0, 0.0]
+PATH3 = [{"name": "press", "top_traction": TOP},
+         {"name": "shear", "top_traction": TOP, "right_traction": SIDE},
+         {"name": "back", "top_traction": TOP, "right_traction": [2e-2, 0.0, 0.0], "substeps": 2}]
+
+
+def block(steps, **sections):
+    """Example 1 on a small mesh with the load path ``steps`` (the block's loads written in the steps)."""
+    base = load_config("example1").with_updates(SMALL).data
+    data = {**base, "loads": {**base["loads"], "top_traction": [0.0] * 3, "right_traction": [0.0] * 3},
+            "load_steps": steps}
+    for sec, values in sections.items():
+        data[sec] = {**data.get(sec, {}), **values}
+    return load_config(data)
+
+
+def tet_box(steps, tmp_path, objective=""):
+    toml = tmp_path / "box.toml"
+    text = (f'name = "box"\n[body]\nmesh = "{DATA / "two_groups.msh"}"\nclamped = "top"\ncontact = "bottom"\n'
+            '[design]\ndegree = [3, 2]\nC0 = 0.05\nC2 = 0.002\ninitial = 0.002\n'
+            '[objective]\ntarget = { kind = "constant", value = 0.001 }\n' + objective)
+    for s in steps:
+        text += f'[[load_steps]]\nname = "{s["name"]}"\nbody_force = {s["body_force"]}\n'
+        if "side" in s:
+            text += f'pressure = [{{ on = {{ x1 = 1.0 }}, value = {s["side"]} }}]\n'
+    toml.write_text(text)
+    return load_config(toml)
+
+
+def wavy(problem, amp=0.003):
+    return problem.model.initial_design() + amp * np.sin(np.arange(problem.model.n_design))
+
+
+def central_differences(problem, alpha, directions, h=1e-6):
+    return np.array([(problem.evaluate_value(alpha + h * d) - problem.evaluate_value(alpha - h * d)) / (2 * h)
+                     for d in directions])
+
+
+# ---------------------------------------------------------------- the mechanics
+def test_one_step_is_the_static_problem_bit_for_bit():
+    static = load_config("example1").with_updates(SMALL)
+    one = load_config({**static.data, "load_steps": [{"name": "all"}]})
+    a, b = ShapeProblem(static), ShapeProblem(one)
+    alpha = wavy(a)
+    (ja, ga), (jb, gb) = a.evaluate(alpha), b.evaluate(alpha)
+    assert ja == jb and np.array_equal(ga, gb)
+    sa, sb = a.solve_state(alpha), b.solve_state(alpha)
+    assert np.array_equal(sa.u, sb.u) and np.array_equal(sa.lam, sb.lam) and np.array_equal(sa.classes, sb.classes)
+
+
+def test_a_step_that_changes_no_load_sticks_everywhere_and_moves_nothing():
+    pr = ShapeProblem(block([{"name": "a", "top_traction": TOP, "right_traction": SIDE},
+                             {"name": "again", "top_traction": TOP, "right_traction": SIDE}]))
+    (_, _, first), (_, _, second) = pr.step_results() or pr.solve_states(wavy(pr)) and pr.step_results()
+    assert first.counts["M1"] > 0                        # the first step slides
+    touching = second.lam > 0
+    assert touching.any() and np.all(np.isin(second.classes[touching], [CLASS_CODES["M3+"], CLASS_CODES["M3-"]]))
+    scale = np.abs(first.u).max()
+    assert np.abs(second.u - first.u).max() <= 1e-9 * scale
+    assert np.abs(second.slip_increment).max() <= 1e-9 * scale
+
+
+def test_preload_then_shear_differs_from_shear_at_once():
+    steps = [{"name": "press", "top_traction": TOP}, {"name": "shear", "top_traction": TOP, "right_traction": SIDE}]
+    path, once = ShapeProblem(block(steps)), ShapeProblem(block(steps[1:]))
+    alpha = wavy(path)
+    sp, so = path.solve_state(alpha), once.solve_state(alpha)
+    # the same final loads, another state: the slip of the shear step is measured from the pressed body
+    assert np.abs(sp.u_c[:, :2] - so.u_c[:, :2]).max() > 1e-3 * np.abs(so.u_c).max()
+    assert sp.info["step"] == "shear" and sp.slip_ref is not None
+    # the sliding nodes' friction force follows the slip increment, not the total slip
+    m1 = sp.classes == CLASS_CODES["M1"]
+    du = sp.slip_increment[m1]
+    law = 0.3 * sp.lam[m1, None] * du / np.linalg.norm(du, axis=1)[:, None]
+    assert m1.sum() >= 5 and np.abs(sp.tau[m1] - law).max() <= 1e-8 * sp.lam.max()
+    total = sp.u_c[m1, :2] / np.linalg.norm(sp.u_c[m1, :2], axis=1)[:, None]
+    assert np.abs(sp.tau[m1] - 0.3 * sp.lam[m1, None] * total).max() > 1e-3 * sp.lam.max()
+
+
+# ---------------------------------------------------------------- subgradients
+@pytest.mark.parametrize("steps, objective, path", [
+    (PATH3[:2], "last", "condensation"),
+    (PATH3, "last", "condensation"),
+    (PATH3, "sum", "condensation"),
+    (PATH3, ["shear", "back"], "condensation"),
+    (PATH3, "max", "condensation"),
+    (PATH3, "sum", "delassus"),
+    (PATH3, "sum", "fullspace"),
+])
+def test_subgradient_through_the_steps_matches_central_differences(steps, objective, path):
+    pr = ShapeProblem(block(steps, objective={"steps": objective}, linear_solver={"path": path}))
+    alpha = wavy(pr)
+    res = pr.subgradient(alpha)
+    assert res.n_degenerate == 0
+    classes = [st.counts for _, _, st in pr.step_results()]
+    assert any(c["M1"] for c in classes)
+    assert len(steps) == 2 or any(c["M3+"] for c in classes[2:])      # the unloading step sticks
+    rng = np.random.default_rng(3)
+    directions = [np.eye(alpha.size)[i] for i in range(0, alpha.size, 3)] + [rng.standard_normal(alpha.size)]
+    fd = central_differences(pr, alpha, directions)
+    g = np.array([res.gradient @ d for d in directions])
+    assert np.abs(g - fd).max() <= 1e-6 * np.abs(fd).max()
+
+
+@pytest.mark.parametrize("objective", ["last", "sum"])
+def test_subgradient_through_the_steps_on_tetrahedra(tmp_path, objective):
+    steps = [{"name": "press", "body_force": [0.0, 0.0, -1.0]},
+             {"name": "shear", "body_force": [0.0, 0.0, -1.0], "side": 0.05},
+             {"name": "ease", "body_force": [0.0, 0.0, -1.0], "side": 0.02}]
+    pr = ShapeProblem(tet_box(steps, tmp_path, f'steps = "{objective}"\n'))
+    assert pr.model.mesh.cell_type == "tetra"
+    alpha = pr.model.initial_design() + 0.002 * np.cos(np.arange(pr.model.n_design))
+    res = pr.subgradient(alpha)
+    assert res.n_degenerate == 0
+    assert any(st.counts["M1"] for _, _, st in pr.step_results())
+    rng = np.random.default_rng(4)
+    directions = [rng.standard_normal(alpha.size) for _ in range(3)]
+    fd = central_differences(pr, alpha, directions)
+    g = np.array([res.gradient @ d for d in directions])
+    assert np.abs(g - fd).max() <= 1e-6 * np.abs(fd).max()
+
+
+# ---------------------------------------------------------------- configuration
+def bad(tmp_path, text):
+    cfg = tmp_path / "bad.toml"
+    cfg.write_text('name = "bad"\n[mesh]\nnx = 4\nny = 2\nnz = 2\n' + text)
+    return cfg
+
+
+BAD = {
+    "unknown part": ('[[load_steps]]\nname = "a"\npressure = [{ on = "lid", value = 0.1 }]\n', "load_steps[0].pressure[0]"),
+    "one name twice": ('[[load_steps]]\nname = "a"\n[[load_steps]]\nname = "a"\n',
+                       "load_steps[1].name = 'a': another step has this name"),
+    "substeps < 1": ('[[load_steps]]\nname = "a"\nsubsteps = 0\n', "load_steps[0].substeps = 0: must be an integer ≥ 1"),
+    "unknown objective step": ('[objective]\nsteps = ["a", "b"]\n[[load_steps]]\nname = "a"\n',
+                               "objective.steps: 'b' is no step of load_steps"),
+    "steps twice": ('[[load_steps]]\nname = "a"\n[[load_cases]]\nname = "c"\n[[load_cases.steps]]\nname = "a"\n',
+                    "the configuration has [[load_steps]] and [[load_cases.steps]]"),
+}
+
+
+@pytest.mark.parametrize("case", sorted(BAD))
+def test_bad_load_steps_exit_2_and_write_nothing(tmp_path, capsys, case):
+    text, message = BAD[case]
+    out = tmp_path / "out"
+    code = main(["state", str(bad(tmp_path, text)), "--out", str(out)])
+    err = capsys.readouterr().err
+    assert code == 2, err
+    assert message in err, err
+    assert not out.exists()
+
+
+def test_a_path_without_load_steps_refuses_them_naming_those_that_take_them(tmp_path, capsys, monkeypatch):
+    """The PETSc path (not installed here) does not take load steps; the refusal, shown on the
+    full-space path with its load steps switched off."""
+    from contactopt.paths import PATHS
+    assert not PATHS["petsc"].takes_steps
+    assert [n for n, c in PATHS.items() if c.takes_steps] == ["condensation", "delassus", "fullspace"]
+    monkeypatch.setattr(PATHS["fullspace"], "takes_steps", False)
+    out = tmp_path / "out"
+    code = main(["state", str(bad(tmp_path, '[linear_solver]\npath = "fullspace"\n[[load_steps]]\nname = "a"\n')),
+                 "--out", str(out)])
+    err = capsys.readouterr().err
+    assert code == 2 and not out.exists()
+    assert ("the 'fullspace' solver path does not take load steps; use linear_solver.path = 'condensation' "
+            "or 'delassus'") in err, err
+
+
+def test_substeps_interpolate_the_loads_linearly():
+    pr = ShapeProblem(block([{"name": "a", "top_traction": TOP, "substeps": 2},
+                             {"name": "b", "top_traction": TOP, "right_traction": SIDE, "substeps": 4}]))
+    assert [(s.name, s.substep, s.end) for s in pr.steps[0]][:3] == [("a", 1, False), ("a", 2, True), ("b", 1, False)]
+    coords = pr.model.mesh.coordinates(pr.model.initial_design())
+    L = [pr.model.load_vector(coords, s.loads) for s in pr.steps[0]]
+    assert np.allclose(L[0], 0.5 * L[1], rtol=0, atol=1e-15)
+    assert np.allclose(L[2], 0.75 * L[1] + 0.25 * L[5], rtol=0, atol=1e-15)
+    with pytest.raises(ConfigError, match="objective.steps = \\['x'\\]: names load steps"):
+        load_config({**load_config("example1").data, "objective": {"steps": ["x"]}})
+
+
+def test_contexts_of_every_step_round_trip_bit_for_bit():
+    """What a checkpoint holds of a load path (every solve's warm start, zone and kept Delassus
+    design) makes a fresh problem repeat the next evaluation bit for bit."""
+    cfg = block(PATH3)
+    first, resumed = ShapeProblem(cfg), ShapeProblem(cfg)
+    a1 = wavy(first)
+    a2 = a1 + 0.001 * np.cos(np.arange(a1.size))
+    first.evaluate(a1)
+    arrays = first.export_contexts()
+    assert {"step1_warm", "step3_zone", "step2_jacobian_alpha"} <= set(arrays)
+    resumed.import_contexts(arrays, "test")
+    (j1, g1), (j2, g2) = first.evaluate(a2), resumed.evaluate(a2)
+    assert j1 == j2 and np.array_equal(g1, g2)
+
+
+def test_state_writes_every_step_with_its_slip(tmp_path, capsys):
+    import json
+    cfg = tmp_path / "pre.toml"
+    cfg.write_text('name = "pre"\n[mesh]\nnx = 8\nny = 4\nnz = 3\n[loads]\ntop_traction = [0.0, 0.0, 0.0]\n'
+                   'right_traction = [0.0, 0.0, 0.0]\n[[load_steps]]\nname = "press"\ntop_traction = [0.0, 0.0, -8e-2]\n'
+                   '[[load_steps]]\nname = "shear"\ntop_traction = [0.0, 0.0, -8e-2]\nright_traction = [5e-2, 0.0, 0.0]\n'
+                   'substeps = 2\n')
+    out = tmp_path / "out"
+    assert main(["state", str(cfg), "--out", str(out)]) == 0
+    listing = json.loads((out / "steps.json").read_text())
+    assert [s["directory"] for s in listing["steps"]] == ["step-press", "step-shear"]
+    assert "step-shear/body.vtu" in (out / "body.pvd").read_text()
+    press, shear = (np.load(out / d / "state.npz") for d in ("step-press", "step-shear"))
+    # the first step slides from the unloaded body: its increment is its u_t
+    assert np.array_equal(press["slip_increment"], press["u_c"][:, :2])
+    sliding = np.isin(press["classes"], [CLASS_CODES["M1"], CLASS_CODES["M2"]])
+    assert np.array_equal(press["slip"], np.where(sliding[:, None], press["u_c"][:, :2], 0.0))
+    # the slip accumulates over the solves where a node slides
+    assert np.abs(shear["slip"]).sum() > np.abs(press["slip"]).sum()
+    pr = ShapeProblem(load_config(cfg))
+    (_, _, s1), (_, _, s2), (_, _, s3) = pr.step_results() or pr.solve_states(pr.model.initial_design()) and pr.step_results()
+    expect = s1.info["slip"] + sum(np.where(np.isin(s.classes, [1, 2])[:, None], s.slip_increment, 0.0) for s in (s2, s3))
+    assert np.allclose(shear["slip"], expect, rtol=0, atol=1e-15)
+    assert np.array_equal(shear["slip_increment"], s3.slip_increment)
+
+
+@pytest.mark.slow
+def test_kill_and_resume_a_load_path_run_repeats_it_bit_for_bit(tmp_path):
+    import json
+    import signal
+    import subprocess
+    import sys
+    import time
+    cfg = tmp_path / "ps.toml"
+    text = (Path(__file__).parent.parent / "examples" / "preload_shear.toml").read_text()
+    cfg.write_text(text.replace("nx = 16\nny = 8\nnz = 5", "nx = 8\nny = 4\nnz = 3")
+                   .replace('right_traction = [5.0e-2, 0.0, 0.0]\n', 'right_traction = [5.0e-2, 0.0, 0.0]\nsubsteps = 2\n'))
+    ref, out = tmp_path / "ref", tmp_path / "killed"
+    assert main(["run", str(cfg), "--out", str(ref), "--max-iter", "12"]) == 0
+    proc = subprocess.Popen([sys.executable, "-m", "contactopt.cli", "run", str(cfg), "--out", str(out),
+                             "--max-iter", "12"], stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+    deadline, seen = time.time() + 120, 0
+    for line in proc.stdout:
+        seen += line.startswith("it ") and "serious" in line
+        if seen >= 3 or time.time() > deadline:
+            break
+    proc.send_signal(signal.SIGKILL)
+    proc.wait()
+    assert seen >= 3
+    assert main(["run", str(cfg), "--out", str(out), "--resume"]) == 0
+    a, b = (json.loads((d / "summary.json").read_text()) for d in (ref, out))
+    assert b["alpha"] == a["alpha"] and b["J"] == a["J"] and b["evaluations"] == a["evaluations"]
+    assert b["load_steps"] == a["load_steps"]
+    ha, hb = ((d / "history.csv").read_text().splitlines() for d in (ref, out))
+    assert [r.split(",")[:3] + r.split(",")[-2:] for r in ha] == [r.split(",")[:3] + r.split(",")[-2:] for r in hb]
+
+
+def paraboloid_on_foundation(n, steps):
+    """A paraboloidal pad (gap r²/2R, R = 2) clamped on its top, on a foundation of its own
+    material (benchmarks/cattaneo_mindlin.py)."""
+    b = np.array([0.25, -0.25, 0.25])
+    block = {"size": [2.0, 2.0, 1.0], "cells": [n, n, max(4, n // 2)]}
+    return load_config({"name": "cm", "geometry": {"a": 2.0, "b": 2.0, "c": 1.0},
+                        "mesh": {"nx": n, "ny": n, "nz": max(4, n // 2)}, "body": {"clamped": "top"},
+                        "material": {"E": 1.0, "nu": 0.3}, "friction": {"coefficient": 0.3},
+                        "loads": {"top_traction": [0.0] * 3, "right_traction": [0.0] * 3},
+                        "design": {"degree": [2, 2], "C0": 0.6, "lower": -0.6,
+                                   "initial": (b[:, None] + b[None, :]).tolist()},
+                        "foundation": {"block": block, "top": "top", "clamped": "bottom",
+                                       "material": {"E": 1.0, "nu": 0.3}},
+                        "load_steps": steps})
+
+
+@pytest.mark.slow
+def test_mindlin_deresiewicz_proportional_loading_slips_nowhere_one_step_has_an_annulus():
+    """Pressed and sheared together (Q/P < μ): in 8 proportional substeps no node slides and
+    ‖τ‖ < Fλ everywhere; the one-step static problem has a slip annulus."""
+    out = {}
+    for m in (1, 8):
+        pr = ShapeProblem(paraboloid_on_foundation(16, [{"name": "all", "body_force": [0.00384, 0.0, -0.08],
+                                                         "substeps": m}]))
+        st = pr.solve_state(pr.model.initial_design())
+        touching = st.lam > 1e-6 * st.lam.max()
+        out[m] = (np.sum(st.classes == CLASS_CODES["M3+"]), touching.sum(),
+                  (np.linalg.norm(st.tau[touching], axis=1) / (0.3 * st.lam[touching])).max())
+        assert st.tau[:, 0].sum() < 0.3 * st.lam.sum()
+    assert out[8][0] == out[8][1] and out[8][2] < 0.6
+    assert out[1][0] < 0.6 * out[1][1] and out[1][2] == pytest.approx(1.0, abs=1e-8)
+
+
+def test_subgradient_through_the_steps_on_an_elastic_foundation():
+    steps = [{"name": "press", "body_force": [0.0, 0.0, -0.08]},
+             {"name": "shear", "body_force": [0.006, 0.0, -0.08]},
+             {"name": "back", "body_force": [0.002, 0.0, -0.08]}]
+    pr = ShapeProblem(paraboloid_on_foundation(8, steps).with_updates(
+        {"objective": {"steps": "sum", "target": {"kind": "constant", "value": 0.002}}}))
+    alpha = pr.model.initial_design() + 0.01 * np.cos(np.arange(pr.model.n_design))
+    res = pr.subgradient(alpha)
+    assert res.n_degenerate == 0
+    counts = [st.counts for _, _, st in pr.step_results()]
+    assert counts[1]["M1"] and counts[2]["M3+"]
+    rng = np.random.default_rng(5)
+    directions = [rng.standard_normal(alpha.size) for _ in range(3)]
+    fd = central_differences(pr, alpha, directions)
+    g = np.array([res.gradient @ d for d in directions])
+    assert np.abs(g - fd).max() <= 1e-6 * np.abs(fd).max()
+
+
+def test_load_cases_with_their_own_paths(tmp_path):
+    """[[load_cases.steps]]: a case with a path and a case without (one step), combined; the
+    subgradient against central differences and the state directories case-<case>/step-<name>/."""
+    base = load_config("example1").with_updates(SMALL).data
+    data = {**base, "loads": {**base["loads"], "top_traction": TOP, "right_traction": [0.0] * 3},
+            "load_cases": [{"name": "path", "steps": [{"name": "press"}, {"name": "shear", "right_traction": SIDE}]},
+                           {"name": "once", "right_traction": [3e-2, 0.0, 0.0]}],
+            "objective": {**base["objective"], "combine": "sum"}}
+    pr = ShapeProblem(load_config(data))
+    assert pr.steps[1] is None and [s.name for s in pr.steps[0]] == ["press", "shear"]
+    assert pr.step_columns() == ["path.press", "path.shear"]
+    alpha = wavy(pr)
+    res = pr.subgradient(alpha)
+    d = np.random.default_rng(6).standard_normal(alpha.size)
+    fd = central_differences(pr, alpha, [d])[0]
+    assert abs(res.gradient @ d - fd) <= 1e-6 * abs(fd)
+    # the case with a path is the path of the same loads without cases
+    alone = ShapeProblem(block([{"name": "press", "top_traction": TOP},
+                                {"name": "shear", "top_traction": TOP, "right_traction": SIDE}]))
+    u1, u2 = alone.solve_state(alpha).u, pr.solve_states(alpha)[0].u
+    assert np.abs(u1 - u2).max() <= 1e-10 * np.abs(u1).max()      # up to the warm starts' round-off
+    cfg = tmp_path / "c.toml"
+    cfg.write_text(load_config(data).to_toml())
+    out = tmp_path / "out"
+    assert main(["state", str(cfg), "--out", str(out)]) == 0
+    assert (out / "case-path" / "step-shear" / "state.npz").is_file()
+    assert (out / "case-once" / "step-static" / "state.npz").is_file()
