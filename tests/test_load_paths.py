@@ -345,3 +345,13 @@ def test_load_cases_with_their_own_paths(tmp_path):
     assert main(["state", str(cfg), "--out", str(out)]) == 0
     assert (out / "case-path" / "step-shear" / "state.npz").is_file()
     assert (out / "case-once" / "step-static" / "state.npz").is_file()
+
+
+def test_load_paths_refuse_what_they_do_not_take_yet():
+    """Objectives of the whole displacement and rigid obstacles are not carried through the steps:
+    refused with a message naming the combination, not solved wrongly."""
+    steps = [{"name": "press", "top_traction": TOP}, {"name": "shear", "top_traction": TOP, "right_traction": SIDE}]
+    with pytest.raises(ConfigError, match="'peak_stress' is not yet taken on a load path"):
+        block(steps, objective={"type": "peak_stress"})
+    with pytest.raises(ConfigError, match="not yet taken with an \\[obstacle\\]"):
+        block(steps, obstacle={"shape": "plane", "control": "displacement", "displacement": [0.0, 0.0, 0.001]})
