@@ -79,3 +79,11 @@ def _commands():
 def test_command_lines_parse(line):
     argv = shlex.split(line.replace("\\", ""))[1:]
     build_parser().parse_args(argv)     # SystemExit on an unknown command or option
+
+
+def test_sources_cite_only_the_repository():
+    """Docstrings and comments point to the project's own docs, never to a file outside it."""
+    offenders = [f"{p.relative_to(ROOT)}:{n}" for base in ("src", "tests", "benchmarks", "docs")
+                 for p in sorted((ROOT / base).rglob("*")) if p.suffix in (".py", ".md") and p.name != Path(__file__).name
+                 for n, line in enumerate(p.read_text(errors="replace").splitlines(), 1) if "DESIGN.md" in line]
+    assert not offenders, offenders

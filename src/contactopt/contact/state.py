@@ -138,7 +138,7 @@ class State:
 
 
 def contact_conditions_violation(u_c, lam, tau, gap, friction) -> float:
-    """Largest violation of the conditions of DESIGN.md §4, relative to the force/displacement scales.
+    """Largest violation of the contact conditions (3.17), relative to the force/displacement scales.
 
     λ ≥ 0, u_ν + g ≥ 0, λ(u_ν + g) = 0, ‖τ‖ ≤ Fλ, and ‖τ‖·‖u_t‖ = Fλ·‖u_t‖ with τ ∥ u_t
     (i.e. τ‖u_t‖ − Fλ u_t = 0).

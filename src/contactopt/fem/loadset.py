@@ -10,7 +10,7 @@ One load set is what ``[loads]`` of a configuration describes (and, with load ca
 - a body force f per unit volume in Ω(α).
 
 Every term is integrated on the current geometry x(α) (paper (2.9)) and differentiated exactly
-with respect to the node coordinates (DESIGN.md §2). Vectors are full length, DOF 3n + m.
+with respect to the node coordinates. Vectors are full length, DOF 3n + m.
 """
 
 from __future__ import annotations

@@ -3,9 +3,9 @@
 ``ElasticModel`` owns everything that does not change with α (the body and its parts, surface,
 admissible set, the reference mesh and its morph, the CSR pattern, the contact DOFs) and
 produces, for a design α, the stiffness A(α) and load L(α) on the free DOFs, plus the
-design-derivative contraction vᵀ(∂A/∂α u − ∂L/∂α) (DESIGN.md §2) without ever forming ∂A/∂α_k.
+design-derivative contraction vᵀ(∂A/∂α u − ∂L/∂α) without ever forming ∂A/∂α_k.
 
-One geometry path (DESIGN.md §9): a reference mesh (the block, or a mesh file) with its contact
+One geometry path: a reference mesh (the block, or a mesh file) with its contact
 face on x3 = 0, moved by x(α) = x_ref + ϑ_α(x1, x2)·w·e3 with a harmonic weight w
 (:mod:`contactopt.mesh.morph`, :mod:`contactopt.fem.weight`).
 
@@ -339,7 +339,7 @@ class ElasticModel:
         return u_full
 
     def design_contraction(self, coords: np.ndarray, u_full: np.ndarray, v_full: np.ndarray, loads=None) -> np.ndarray:
-        """vᵀ(∂A/∂α_k u − ∂L/∂α_k) for every design variable k (full-length u, v; DESIGN.md §2).
+        """vᵀ(∂A/∂α_k u − ∂L/∂α_k) for every design variable k (full-length u, v).
 
         Only the x3 coordinates move with α: ∂x3/∂α_k = β_k(x1, x2)·w (mesh.morph). The pinned
         DOFs are clamped: u and v are zero there (module docstring).

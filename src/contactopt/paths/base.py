@@ -140,7 +140,7 @@ class SolverPath:
         raise NotImplementedError
 
     def design_contraction(self, system, u_full, v_full, loads=None) -> np.ndarray:
-        """vᵀ(∂A/∂α_k u − ∂L/∂α_k) at the system's design (full-length u, v; DESIGN.md §2)."""
+        """vᵀ(∂A/∂α_k u − ∂L/∂α_k) at the system's design (full-length u, v)."""
         return self.model.design_contraction(system.assembled.coords, u_full, v_full, loads)
 
     def uniqueness_bound(self, system):

@@ -26,7 +26,7 @@ Then v_λ = −(S v_u + y*_u)_ν where v_λ is free, and
 
     ξ_k = ∂J/∂α_k + ṽᵀ(∂A/∂α_k ũ − ∂L/∂α_k) + v_λᵀ ∂g/∂α_k,   ṽ = (v_u, −A_ii⁻¹A_ic v_u),
 
-which needs no derivative of S (DESIGN.md §5).
+which needs no derivative of S (docs/theory.md).
 
 With load cases (:mod:`contactopt.sensitivity.cases`), Θ = max_k w_k Θ_k or Σ_k w_k Θ_k and
 ξ = Σ_k c_k ξ_k over the cases of nonzero coefficient c_k: for the max only the chosen active

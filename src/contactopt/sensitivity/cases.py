@@ -1,4 +1,4 @@
-"""Load cases and their combination into one objective Θ(α) (DESIGN.md §10).
+"""Load cases and their combination into one objective Θ(α).
 
 A configuration without ``[[load_cases]]`` has one case: the loads of ``[loads]`` and the
 objective of ``[objective]``. With cases, case k acts with its own loads plus those written in
