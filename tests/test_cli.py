@@ -155,6 +155,7 @@ def test_kill_and_resume_gives_the_uninterrupted_result(tmp_path):
     assert [r.split(",")[:3] for r in ha] == [r.split(",")[:3] for r in hb]
 
 
+@pytest.mark.integration
 def test_state_failure_stops_the_run_and_keeps_the_checkpoint(tmp_path, capsys, monkeypatch):
     """A state solve that does not converge mid-run: exit 2, a message naming it, the last good
     checkpoint kept (and loadable: --resume finishes the run), no summary of an unfinished run."""

@@ -236,6 +236,7 @@ def test_sweep(tmp_path, path, cases):
 
 
 # ---------------------------------------------------------------------------------- console log
+@pytest.mark.integration
 def test_commands_in_one_process_print_each_warning_once(tmp_path):
     """The console log of a command is its own: a later command in the same process (these tests,
     a notebook) prints its warnings once, not once more per earlier command."""

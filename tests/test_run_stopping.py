@@ -14,6 +14,7 @@ def small_config(**optimizer):
         {"mesh": {"nx": 8, "ny": 4, "nz": 3}, "name": "small", "optimizer": optimizer})
 
 
+@pytest.mark.integration
 def test_run_stops_when_the_model_predicts_no_decrease(tmp_path):
     cfg = small_config(max_iter=200, ftol=1e-2)     # the coarse mesh's Θ is rough: ftol 1e-2
     rr = run_optimization(cfg, tmp_path / "run")

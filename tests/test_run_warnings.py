@@ -14,6 +14,7 @@ def small(F):
                                                  "friction": {"coefficient": F}})
 
 
+@pytest.mark.integration
 def test_friction_above_the_uniqueness_estimate_is_warned_in_summary_and_log(tmp_path):
     cfg = small(0.3)
     problem = ShapeProblem(cfg)
