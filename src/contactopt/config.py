@@ -503,22 +503,8 @@ def _check_load_cases(cases, d1d2, problems) -> list:
                         "loads as in [loads] and an optional target")
         return []
     allowed = ["name", *SCHEMA["loads"], "target", "steps"]
-    seen = set()
+    _check_named_loads(cases, "load_cases", allowed, "case", "the case's history column and plots", problems)
     for n, case in enumerate(cases):
-        name = case.get("name")
-        if not (isinstance(name, str) and CASE_NAME.fullmatch(name)):
-            problems.append(f"load_cases[{n}].name = {name!r}: must be a name of letters, digits and _ . + - "
-                            "(it names the case's history column and plots)")
-        elif name in seen:
-            problems.append(f"load_cases[{n}].name = {name!r}: another case has this name")
-        seen.add(name)
-        for k, val in case.items():
-            if k not in allowed:
-                problems.append(f"load_cases[{n}].{k}: unknown key (allowed: {', '.join(allowed)})")
-            elif k in SCHEMA["loads"]:
-                _, check, desc = SCHEMA["loads"][k]
-                if not check(val):
-                    problems.append(f"load_cases[{n}].{k} = {val!r}: must be {desc}")
         if "steps" in case:
             case["steps"] = _check_load_steps(case["steps"], f"load_cases[{n}].steps", problems)
         if "target" in case:
@@ -529,6 +515,27 @@ def _check_load_cases(cases, d1d2, problems) -> list:
     return cases
 
 
+def _check_named_loads(items, where, allowed, what, names_what, problems) -> None:
+    """Load cases or load steps: each a unique name and loads in the form of [loads] (plus the
+    keys ``allowed``); every problem appended to ``problems``."""
+    seen = set()
+    for n, item in enumerate(items):
+        name = item.get("name")
+        if not (isinstance(name, str) and CASE_NAME.fullmatch(name)):
+            problems.append(f"{where}[{n}].name = {name!r}: must be a name of letters, digits and _ . + - "
+                            f"(it names {names_what})")
+        elif name in seen:
+            problems.append(f"{where}[{n}].name = {name!r}: another {what} has this name")
+        seen.add(name)
+        for k, val in item.items():
+            if k not in allowed:
+                problems.append(f"{where}[{n}].{k}: unknown key (allowed: {', '.join(allowed)})")
+            elif k in SCHEMA["loads"]:
+                _, check, desc = SCHEMA["loads"][k]
+                if not check(val):
+                    problems.append(f"{where}[{n}].{k} = {val!r}: must be {desc}")
+
+
 def _check_load_steps(steps, where, problems) -> list:
     """[[load_steps]] (or a case's [[load_cases.steps]]): in order, each a name, the TOTAL loads at
     its end in the form of [loads] and an optional ``substeps`` ≥ 1. Returns them with substeps."""
@@ -537,22 +544,8 @@ def _check_load_steps(steps, where, problems) -> list:
                         "and an optional substeps")
         return []
     allowed = ["name", *SCHEMA["loads"], "substeps"]
-    seen = set()
+    _check_named_loads(steps, where, allowed, "step", "the step's output directory", problems)
     for n, step in enumerate(steps):
-        name = step.get("name")
-        if not (isinstance(name, str) and CASE_NAME.fullmatch(name)):
-            problems.append(f"{where}[{n}].name = {name!r}: must be a name of letters, digits and _ . + - "
-                            "(it names the step's output directory)")
-        elif name in seen:
-            problems.append(f"{where}[{n}].name = {name!r}: another step has this name")
-        seen.add(name)
-        for k, val in step.items():
-            if k not in allowed:
-                problems.append(f"{where}[{n}].{k}: unknown key (allowed: {', '.join(allowed)})")
-            elif k in SCHEMA["loads"]:
-                _, check, desc = SCHEMA["loads"][k]
-                if not check(val):
-                    problems.append(f"{where}[{n}].{k} = {val!r}: must be {desc}")
         sub = step.setdefault("substeps", 1)
         if not _posint(sub):
             problems.append(f"{where}[{n}].substeps = {sub!r}: must be an integer ≥ 1 (equal increments of "

@@ -110,14 +110,18 @@ class ShapeProblem:
         """The system of every solve of case k's load path (sharing the case's prepared system)."""
         out = []
         for step in self.steps[k]:
-            t0 = time.perf_counter()
-            L_full = self.model.load_vector(asm.coords, step.loads)
-            asm_j = replace(asm, L_full=L_full, L=self.model.free_load(L_full))
-            t1 = time.perf_counter()
-            system_j = self.path.for_load(system, asm_j)
-            system_j.timings = {"assembly": t1 - t0, **system_j.timings}
-            out.append(system_j)
+            out.append(self._for_loads(system, asm, step.loads))
         return out
+
+    def _for_loads(self, system, asm, loads):
+        """The prepared ``system`` with the load vector of ``loads`` on the design of ``asm``."""
+        t0 = time.perf_counter()
+        L_full = self.model.load_vector(asm.coords, loads)
+        asm_k = replace(asm, L_full=L_full, L=self.model.free_load(L_full))
+        t1 = time.perf_counter()
+        system_k = self.path.for_load(system, asm_k)
+        system_k.timings = {"assembly": t1 - t0, **system_k.timings}
+        return system_k
 
     def _systems(self, alpha) -> list:
         """The system of every load case at α: assembled once, prepared by the path once."""
@@ -128,13 +132,7 @@ class ShapeProblem:
         system.timings = {"assembly": t1 - t0, **system.timings}
         out = [system]
         for case in self.cases[1:]:
-            t0 = time.perf_counter()
-            L_full = self.model.load_vector(asm.coords, case.loads)
-            asm_k = replace(asm, L_full=L_full, L=self.model.free_load(L_full))
-            t1 = time.perf_counter()
-            system_k = self.path.for_load(system, asm_k)
-            system_k.timings = {"assembly": t1 - t0, **system_k.timings}
-            out.append(system_k)
+            out.append(self._for_loads(system, asm, case.loads))
         return out
 
     def solve_state(self, alpha, *, method: str | None = None, warm_start: bool = True,
