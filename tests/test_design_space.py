@@ -1,4 +1,4 @@
-"""The design space beyond the paper's U, and the graded block (issue 33).
+"""The design space beyond the paper's U, and the graded block.
 
 A crowned contact face (the paraboloid r²/2R, whose Bézier net of degree 2 has a negative control
 point) solved through ``contactopt state --alpha`` must equal the same paraboloid built into a mesh
@@ -253,7 +253,7 @@ def test_example1_with_negative_lower_bound_to_its_stop():
 
 
 def test_a_design_outside_U_is_solved_with_a_warning_naming_the_constraint(tmp_path, capsys):
-    """α = 0.02 everywhere breaks only the mean value C2 = 0.01 (refused before issue 33)."""
+    """α = 0.02 everywhere breaks only the mean value C2 = 0.01 (refused before lower bounds and designs outside U were taken)."""
     cfg = write_toml(tmp_path / "small.toml", load_config("example1").with_updates(
         {"mesh": {"nx": 8, "ny": 4, "nz": 3}, "name": "small"}).data)
     alpha = tmp_path / "a.json"

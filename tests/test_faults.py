@@ -1,4 +1,4 @@
-"""Faults a user meets (issue 39): two writers in one directory, a full disk, an interruption.
+"""Faults a user meets: two writers in one directory, a full disk, an interruption.
 
 Every fault must end with a clear message and its exit code (2 refused, 74 a failed write, 130
 SIGINT, 143 SIGTERM), leave no file that a later reader (``--resume``, ``export``,

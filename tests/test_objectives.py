@@ -1,4 +1,4 @@
-"""Objectives of issue 37: peak stress, pressure uniformity, max pressure, friction work, sums.
+"""The objectives beyond target forces: peak stress, pressure uniformity, max pressure, friction work, sums.
 
 Von Mises stress and its derivatives against a patch test and finite differences; the corrected
 pressure uniformity against a uniform pressure on hexahedral and tetrahedral faces;
