@@ -36,7 +36,8 @@ log = logging.getLogger(__name__)
 PATHS = {cls.name: cls for cls in (CondensationPath, DelassusPath, FullSpacePath, PetscPath)}
 NAMES = tuple(PATHS)
 
-__all__ = ["PATHS", "NAMES", "SolverPath", "Settings", "Context", "select_path", "make_path", "library_for"]
+__all__ = ["PATHS", "NAMES", "SolverPath", "Settings", "Context", "select_path", "make_path", "library_for",
+           "rigid_path"]
 
 
 def library_for(name: str, library: str) -> str:
@@ -139,6 +140,24 @@ def select_path(config, n_free: int, pinned: int = 0) -> tuple[str, str]:
         raise ConfigError([f"linear_solver.path = '{name}': the compliance objective needs the condensed "
                            "load on every contact DOF; use path 'condensation' or 'auto'"])
     return name, library_for(name, ls["library"])
+
+
+def rigid_path(config, name: str, library: str, rigid) -> tuple[str, str]:
+    """(path, library) of a body held only by contact (clamps that leave ``rigid`` motions free,
+    :mod:`.rigid`): the condensation path, which "auto" takes; the other paths and an elastic
+    [foundation] refuse it."""
+    motions = ", ".join(rigid.names())
+    if "foundation" in config.data:
+        raise ConfigError([f"body.clamped leaves rigid motions free ({motions}): a body held only by contact "
+                           "rests on the rigid foundation or an [obstacle], not on an elastic [foundation]"])
+    if name == "condensation":
+        return name, library
+    if config["linear_solver"]["path"] != "auto":
+        raise ConfigError([f"linear_solver.path = '{name}': body.clamped leaves rigid motions free ({motions}); "
+                           "a body held only by contact is solved on the 'condensation' path only; use path "
+                           "'condensation' or 'auto'"])
+    log.info("linear solver: condensation path (a body held only by contact)")
+    return "condensation", library_for("condensation", config["linear_solver"]["library"])
 
 
 def make_path(config, model, name: str, library: str) -> SolverPath:
