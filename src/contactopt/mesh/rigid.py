@@ -80,6 +80,9 @@ def mode_name(c: np.ndarray, centroid: np.ndarray) -> str:
     """'the translation along x1', 'the rotation about x3', or for another motion
     'the rotation about the axis (…) through (…)' / 'the translation along (…)'."""
     c = np.asarray(c, float)
+    lead = c[3:] if np.linalg.norm(c[3:]) > 1e-12 * max(np.linalg.norm(c[:3]), 1e-300) else c[:3]
+    if lead[np.argmax(np.abs(lead))] < 0:          # a motion and its opposite are one name
+        c = -c
     t, w = c[:3], c[3:]
     if np.linalg.norm(w) <= 1e-12 * max(np.linalg.norm(t), 1e-300):
         return f"the translation along {_direction(t)}"
@@ -104,4 +107,6 @@ def _direction(v: np.ndarray) -> str:
 
 
 def _fmt(x) -> str:
-    return "(" + ", ".join(f"{v:.4g}" for v in np.asarray(x)) + ")"
+    x = np.asarray(x, float)
+    x = np.where(np.abs(x) <= 1e-12 * max(np.abs(x).max(), 1.0), 0.0, x)
+    return "(" + ", ".join(f"{v:.4g}" for v in x) + ")"
