@@ -187,3 +187,21 @@ def test_the_other_paths_and_an_elastic_foundation_refuse_a_body_held_only_by_co
     with pytest.raises(ConfigError, match="not on an elastic"):
         ShapeProblem(free_block(foundation={"block": {"size": [3.0, 2.0, 1.0], "cells": [3, 2, 1],
                                                       "origin": [-0.5, -0.5]}}))
+
+
+@pytest.mark.slow
+def test_a_force_controlled_sphere_presses_a_body_free_in_x1_x2_and_the_subgradient_matches_central_differences():
+    # clamped in u3 on its top only: friction under the punch holds u1, u2 and the turn about x3;
+    # the punch's force has a tangential part 0.005 < F × 0.05
+    sphere = {"shape": "sphere", "center": [1.0, 0.5, -5.0], "radius": 5.0, "control": "force",
+              "force": [0.005, 0.0, 0.05]}
+    problem = ShapeProblem(free_block(side=0.0, top=0.0, clamped=[{"on": {"x3": 1.0}, "components": [3]}],
+                                      obstacle=sphere))
+    assert problem.model.body.rigid.count == 3
+    alpha = design(problem)
+    st = problem.solve_state(alpha)
+    assert st.info["obstacle_resultant"] == pytest.approx(np.linalg.norm(sphere["force"]), rel=1e-12)
+    assert st.info["rigid_residual"] <= 1e-12 and st.counts["M3+"] > 0
+    rep = check_gradient(problem, alpha, seed=1, n_directions=3, state_method="newton", state_tol=1e-13)
+    assert rep.n_degenerate == 0
+    assert np.max(rep.rel_errors) <= 1e-6, rep.rel_errors

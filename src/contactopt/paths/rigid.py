@@ -106,7 +106,7 @@ def held_state(solve, system, tol: float):
     ell = system.contact_ell
     beta = np.zeros(an.Q.shape[1])
     history = []
-    for it in range(1, MAX_ANCHOR_STEPS + 1):
+    for _ in range(MAX_ANCHOR_STEPS):
         st = solve(replace(system, beta=beta))
         r = np.c_[-st.tau, st.lam].ravel()
         unbalanced = an.Q.T @ (ell + r)                       # = γ(Qᵀu − β), the anchor's force
@@ -121,7 +121,7 @@ def held_state(solve, system, tol: float):
         raise SolverError(f"{an.names[k]} is not held: after {MAX_ANCHOR_STEPS} anchor steps the contact forces "
                           f"still leave {history[-1]:.3g} of the load unbalanced on the free rigid motions "
                           "(a load near the limit of what friction holds?)")
-    st.info["rigid_iterations"] = it
+    st.info["rigid_iterations"] = len(history)
     st.info["rigid_residual"] = history[-1]
-    log.debug("body held only by contact: %d anchor step(s), unbalanced %.2e", it, history[-1])
+    log.debug("body held only by contact: %d anchor step(s), unbalanced %.2e", len(history), history[-1])
     return st
