@@ -93,11 +93,17 @@ def select_path(config, n_free: int, pinned: int = 0) -> tuple[str, str]:
     elif obst.get("control") == "displacement" and any(obst["displacement"][:2]):
         obstacle = f"{obstacle} moved tangentially"
     if obstacle != "plane":
-        # the contact frames rotate the condensed system (paths/condensation.py)
+        # the contact frames rotate the condensed system (paths/condensation.py) or the Delassus
+        # operator (contact.zone.FramedDelassusZoneProblem); a force control only the condensation's
+        framed = obst.get("control") != "force"
+        if name == "delassus" and framed and ranks == 1:
+            log.info("linear solver: delassus path (%s obstacle)", obstacle)
+            return "delassus", library_for("delassus", ls["library"])
         if name not in ("auto", "condensation") or ranks > 1:
+            takes = "the 'condensation' and 'delassus' paths" if framed else "the 'condensation' path only"
             raise ConfigError([f"linear_solver.path = '{name}'" + (f" on {ranks} MPI ranks" if ranks > 1 else "")
-                               + f": a {obstacle} [obstacle] is solved on the 'condensation' path only (one "
-                               "process); use path 'condensation' or 'auto'"])
+                               + f": a {obstacle} [obstacle] is solved on {takes} (one process); use path "
+                               "'condensation' or 'auto'"])
         log.info("linear solver: condensation path (%s obstacle)", obstacle)
         return "condensation", library_for("condensation", ls["library"])
     if ranks > 1 and name not in ("auto", "petsc"):
