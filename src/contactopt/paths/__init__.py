@@ -69,7 +69,8 @@ def select_path(config, n_free: int, pinned: int = 0) -> tuple[str, str]:
     ``pinned``: the number of clamped tangential components of contact nodes (a symmetry plane
     through the contact face, :mod:`contactopt.mesh.body`). Every path takes them; an elastic
     ``[foundation]`` refuses them. A rigid ``[obstacle]`` other than the plane runs on the
-    condensation path, which "auto" takes; the other paths refuse it."""
+    condensation path, which "auto" takes, and, fixed or moved by a prescribed translation, on the
+    Delassus path; the other paths refuse it."""
     from .._mpi import petsc_missing, world_size
     from ..sensitivity.objectives import FULL_SPACE, objective_types
     ls = config["linear_solver"]

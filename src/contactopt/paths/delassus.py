@@ -10,6 +10,12 @@ Where the Cholesky factor and a zone's Schur-mode factorization would not fit in
 (:func:`contactopt.fem.memory.keeps_cholesky`), the Cholesky is released while the zone block is
 formed; the condensation then serves the design's remaining solves
 (:class:`~contactopt.fem.linsolve.SolverSlot`), and the next design factorizes anew.
+
+On a rigid obstacle other than the plane the contact DOFs are the local components of each node's
+frame R_m = (t1, t2, n): W = Qᵀ B A⁻¹ Bᵀ Q, Q = diag(R_m), by rotating the forces before each
+sparse solve and the displacements after it (:class:`~contactopt.contact.zone.FramedDelassusZoneProblem`);
+the W-form adjoint's products rotate the same way, and an obstacle's tangential translation shifts q
+as on the condensation path (:mod:`.condensation`).
 """
 
 from __future__ import annotations
