@@ -70,7 +70,7 @@ def select_path(config, n_free: int, pinned: int = 0) -> tuple[str, str]:
     through the contact face, :mod:`contactopt.mesh.body`). Every path takes them; an elastic
     ``[foundation]`` refuses them. A rigid ``[obstacle]`` other than the plane runs on the
     condensation path, which "auto" takes, and, fixed or moved by a prescribed translation, on the
-    Delassus path; the other paths refuse it."""
+    Delassus and full-space paths; the PETSc path refuses it."""
     from .._mpi import petsc_missing, world_size
     from ..sensitivity.objectives import FULL_SPACE, objective_types
     ls = config["linear_solver"]
@@ -95,13 +95,15 @@ def select_path(config, n_free: int, pinned: int = 0) -> tuple[str, str]:
         obstacle = f"{obstacle} moved tangentially"
     if obstacle != "plane":
         # the contact frames rotate the condensed system (paths/condensation.py) or the Delassus
-        # operator (contact.zone.FramedDelassusZoneProblem); a force control only the condensation's
+        # operator (contact.zone.FramedDelassusZoneProblem) or the full-space Newton system
+        # (paths/fullspace.py); a force control only the condensation's
         framed = obst.get("control") != "force"
-        if name == "delassus" and framed and ranks == 1:
-            log.info("linear solver: delassus path (%s obstacle)", obstacle)
-            return "delassus", library_for("delassus", ls["library"])
+        if name in ("delassus", "fullspace") and framed and ranks == 1:
+            log.info("linear solver: %s path (%s obstacle)", name, obstacle)
+            return name, library_for(name, ls["library"])
         if name not in ("auto", "condensation") or ranks > 1:
-            takes = "the 'condensation' and 'delassus' paths" if framed else "the 'condensation' path only"
+            takes = ("the 'condensation', 'delassus' and 'fullspace' paths" if framed
+                     else "the 'condensation' path only")
             raise ConfigError([f"linear_solver.path = '{name}'" + (f" on {ranks} MPI ranks" if ranks > 1 else "")
                                + f": a {obstacle} [obstacle] is solved on {takes} (one process); use path "
                                "'condensation' or 'auto'"])
