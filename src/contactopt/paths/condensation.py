@@ -35,6 +35,10 @@ one zone solve per step. The subgradient adds the dependence of s on α:
 ξ = ξ_s − (∂Θ/∂s)(∂F/∂s)⁻¹ ∂F/∂α, with ∂Θ/∂s = −v_λᵀc from the objective's adjoint, and
 F = bᵀ(S u_c − ℓ) taken as an objective of its own (y*_u = S b, its design term
 b̃ᵀ(∂A u − ∂L), b̃ the A-harmonic extension of Q b): ∂F/∂s = −w_λᵀc, ∂F/∂α its subgradient.
+
+A body held only by contact (clamps that leave rigid motions free) keeps this condensation exact
+with a singular S; its state comes from an anchored problem iterated until the anchor carries no
+force, and its adjoint is solved with the singular S (:mod:`.rigid`).
 """
 
 from __future__ import annotations
