@@ -123,6 +123,15 @@ def test_clamps_that_fix_some_components_leave_the_others_to_contact():
     assert part.model.body.rigid.count == 3
     st = part.solve_state(design(part))
     assert st.info["rigid_residual"] <= 1e-12 and st.counts["M3+"] > 0
+    # u1, u2 = 0 on the top, no friction: the normal contact holds u3 and the two tilts
+    tilt = ShapeProblem(free_block(side=0.0, friction=0.0, clamped=[{"on": {"x3": 1.0}, "components": [1, 2]}]))
+    assert tilt.model.body.rigid.names() == ["the translation along x3", "the rotation about x1 through (1, 0.5, 1)",
+                                             "the rotation about x2 through (1, 0.5, 1)"]
+    alpha = design(tilt)
+    st = tilt.solve_state(alpha)
+    assert st.info["rigid_residual"] <= 1e-12 and st.counts["M1"] == st.lam.size
+    rep = check_gradient(tilt, alpha, seed=1, n_directions=3, state_method="newton", state_tol=1e-13)
+    assert rep.n_degenerate == 0 and np.max(rep.rel_errors) <= 1e-6, rep.rel_errors
 
 
 # ------------------------------------------------------------------ subgradients

@@ -66,9 +66,20 @@ def free_modes(points: np.ndarray, fixed: np.ndarray, rtol: float = 1e-9) -> Rig
     null = Vt[rank:].T * scale[:, None]                           # back to unit coefficients
     if null.shape[1] == 0:
         return RigidModes(np.zeros((6, 0)), centroid)
-    canonical = [k for k in range(6) if not Ms.shape[0] or np.abs(Ms[:, k]).max() <= rtol * max(np.abs(Ms).max(), 1e-300)]
-    cols = [np.eye(6)[k] for k in canonical]
-    if len(cols) < null.shape[1]:       # complete the canonical motions by orthonormal others
+    cols = []
+    # named motions first: the translations e_k, then the rotations about an axis along e_k (through
+    # whatever point the clamps leave), each where the free motions hold one independent of the others
+    for k in range(6):
+        if k < 3:
+            c = np.eye(6)[k]
+            ok = np.linalg.norm(null @ np.linalg.lstsq(null, c, rcond=None)[0] - c) <= 1e-9
+        else:
+            y = np.linalg.lstsq(null[3:], np.eye(3)[k - 3], rcond=None)[0]
+            c = null @ y
+            ok = np.linalg.norm(c[3:] - np.eye(3)[k - 3]) <= 1e-9
+        if ok and np.linalg.matrix_rank(np.array(cols + [c]) * np.r_[np.ones(3), scale[3:]], tol=1e-9) == len(cols) + 1:
+            cols.append(np.where(np.abs(c) <= 1e-12 * np.abs(c).max(), 0.0, c))
+    if len(cols) < null.shape[1]:       # complete by orthonormal others
         E = np.array(cols).T.reshape(6, -1)
         P = null - E @ np.linalg.lstsq(E, null, rcond=None)[0] if E.size else null
         U, s, _ = np.linalg.svd(P, full_matrices=False)
