@@ -237,7 +237,7 @@ class CondensationPath(ZonePath):
             return ZonePath.solve_state(self, system, ctx, alpha, **kw)
         from .rigid import held_state
         return held_state(lambda sys: ZonePath.solve_state(self, sys, ctx, alpha, **kw), system,
-                          kw.get("tol") or self.settings.tol)
+                          kw.get("tol") or self.settings.tol, kw.get("method", self.settings.method))
 
     def controlled_subgradient(self, system, ctx, state, v_u, v_lam, xi, loads=None):
         """ξ with the translation of a force-controlled obstacle following α (module docstring)."""

@@ -18,7 +18,7 @@ and nothing else (ℓ, A_ii⁻¹, the recovery and the extension do not involve 
 S' − γ_A I: an identity, not a spring.
 
 The state: the local solvers need a Delassus operator W = S⁻¹. With Q an orthonormal basis of
-R_c and γ = 10⁻³ · mean diag S, the *anchored* problem S_γ u − (ℓ + γQβ) = r, S_γ = S + γQQᵀ (positive
+R_c and γ = 10⁻³ · mean diag S (10⁻¹ for the projected fixed-point solver), the *anchored* problem S_γ u − (ℓ + γQβ) = r, S_γ = S + γQQᵀ (positive
 definite), is an ordinary contact problem for any anchor position β ∈ Rᵏ, and since QᵀS = 0 its
 rows along Q read γ(Qᵀu − β) = Qᵀ(ℓ + r): the anchor's force. At the fixed point β = Qᵀu(β) that
 force vanishes, the anchored state satisfies S u − ℓ = r exactly, and so it is the state of the
@@ -50,19 +50,29 @@ log = logging.getLogger(__name__)
 MAX_ANCHOR_STEPS = 200
 KERNEL_RTOL = 1e-9
 GAMMA_FACTOR = 1e-3   # γ = GAMMA_FACTOR · mean diag S: a soft anchor, the iteration contracts by about γ/(γ + k)
+GAMMA_FACTOR_FIXED_POINT = 1e-1   # the projected fixed-point solver slows down with W's eigenvalues 1/γ:
+                                  # a stiffer anchor, more anchor steps (docs/obstacles.md)
 
 
 @dataclass
 class Anchor:
     """The kernel of S and the anchored stiffness of one design: ``R`` (3p, k) the free rigid
     motions on the contact DOFs per node frame (t1, t2, n), ``Q`` its orthonormal basis,
-    ``gamma`` γ and ``S`` = S + γQQᵀ; ``names`` of the motions."""
+    ``gamma`` γ and ``S`` = S + γQQᵀ; ``names`` of the motions; ``factor`` = γ / mean diag S."""
 
     R: np.ndarray
     Q: np.ndarray
     gamma: float
     S: np.ndarray
     names: list
+    factor: float = GAMMA_FACTOR
+
+
+def anchored(S: np.ndarray, Rc: np.ndarray, Q: np.ndarray, names: list, factor: float) -> Anchor:
+    """The :class:`Anchor` of the singular S with the anchor stiffness γ = factor · mean diag S."""
+    gamma = factor * float(np.mean(np.diag(S)))
+    Sg = S + gamma * (Q @ Q.T)
+    return Anchor(Rc, Q, gamma, np.ascontiguousarray(0.5 * (Sg + Sg.T)), names, factor)
 
 
 def with_contact_diagonal(A: sp.csr_matrix, contact: np.ndarray):
@@ -94,15 +104,18 @@ def anchor(model, modes, asm, S: np.ndarray, frames) -> Anchor:
     if frames is not None:
         Rc = np.einsum("mij,mik->mjk", frames, Rc.reshape(-1, 3, modes.count)).reshape(-1, modes.count)
     Q, _ = np.linalg.qr(Rc)
-    gamma = GAMMA_FACTOR * float(np.mean(np.diag(S)))
-    Sg = S + gamma * (Q @ Q.T)
-    return Anchor(Rc, Q, gamma, np.ascontiguousarray(0.5 * (Sg + Sg.T)), modes.names())
+    return anchored(S, Rc, Q, modes.names(), GAMMA_FACTOR)
 
 
-def held_state(solve, system, tol: float):
+def held_state(solve, system, tol: float, method: str = "newton"):
     """The state of a body held only by contact: ``solve(system)`` the zone state of an anchored
-    system, iterated on the anchor β ← Qᵀu_c (module docstring)."""
+    system, iterated on the anchor β ← Qᵀu_c (module docstring); the projected fixed-point solver
+    takes a stiffer anchor."""
     an = system.rigid
+    factor = GAMMA_FACTOR_FIXED_POINT if method == "fixed-point" else GAMMA_FACTOR
+    if factor != an.factor:
+        an = anchored(system.contact_S, an.R, an.Q, an.names, factor)
+        system = replace(system, rigid=an)
     ell = system.contact_ell
     beta = np.zeros(an.Q.shape[1])
     history = []
