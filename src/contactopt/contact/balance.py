@@ -48,10 +48,13 @@ def check_held(rigid, points, contact_nodes, frames, friction: float, loads: lis
         _, s, Vt = np.linalg.svd(normal, full_matrices=True)
         rank = int(np.sum(s > 1e-9 * max(s.max(initial=0.0), 1e-300)))
         if rank < k:
-            y = Vt[rank:][0] / scale
-            raise ConfigError([f"{source}: body.clamped: {_named(rigid, y, points)} is not held: without friction "
-                               "the contact forces (along the obstacle's normals) have no component along it; "
-                               "clamp it, or give friction.coefficient > 0"])
+            names = " and ".join(sorted((_named(rigid, y / scale, points) for y in Vt[rank:]),
+                                        key=lambda n: ("rotation" in n, n)))
+            one = k - rank == 1
+            raise ConfigError([f"{source}: body.clamped: {names} {'is' if one else 'are'} not held: without "
+                               f"friction the contact forces (along the obstacle's normals) have no component "
+                               f"along {'it' if one else 'them'}; clamp {'it' if one else 'them'}, or give "
+                               "friction.coefficient > 0"])
     for name, f in loads:
         b = V.reshape(-1, k).T @ np.asarray(f, float) / scale                  # the load's work on y
         if not np.any(b):
