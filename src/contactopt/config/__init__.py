@@ -9,7 +9,7 @@ Schema of ``contactopt schema``).
 """
 
 from ..errors import ConfigError
-from .configuration import Config
+from .configuration import Config, validate
 from .json_schema import json_schema
 from .loading import load_config
 from .migration import LEGACY_BACKEND
@@ -51,7 +51,6 @@ from .sections import (
                      State,
                      Target,
 )
-from .validation import validate
 
 __all__ = ["BLOCK_LOADS", "CASE_NAME", "EXAMPLES", "FOUNDATION", "FOUNDATION_LOADS", "LEGACY_BACKEND",
            "OBJECTIVE_TYPES", "OBSTACLE", "SCHEMA", "SECTION_DOCS", "TERM_KEYS", "TOP_LEVEL", "Body", "Config",

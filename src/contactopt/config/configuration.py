@@ -29,6 +29,7 @@ from .sections import (
     Optimizer,
     State,
 )
+from .validation import resolve
 
 
 @dataclass(frozen=True)
@@ -93,7 +94,6 @@ class Config:
 
     def with_updates(self, updates: dict) -> "Config":
         """A new validated Config with nested keys of ``updates`` replaced."""
-        from .validation import validate
         merged = self.to_dict()
         for sec, vals in updates.items():
             if isinstance(vals, dict) and isinstance(merged.get(sec), dict):
@@ -105,3 +105,8 @@ class Config:
     def to_toml(self) -> str:
         import tomli_w
         return tomli_w.dumps(self._data)
+
+
+def validate(raw: dict, source: str = "<dict>") -> Config:
+    """Fill defaults and check every key; raise ConfigError listing all problems at once."""
+    return Config.from_data(resolve(raw, source), source)

@@ -7,9 +7,8 @@ from importlib import resources
 from pathlib import Path
 
 from ..errors import ConfigError
-from .configuration import Config
+from .configuration import Config, validate
 from .schema import EXAMPLES
-from .validation import validate
 
 
 def load_config(path_or_name) -> Config:

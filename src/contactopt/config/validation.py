@@ -9,7 +9,6 @@ from pathlib import Path
 
 from ..errors import ConfigError
 from .checks import _NUM, _axis, _block_spec, _finite, _material_spec, _nonneg, _pos, _posint, _vec3
-from .configuration import Config
 from .migration import _legacy_backend
 from .schema import (
     BLOCK_LOADS,
@@ -427,8 +426,9 @@ def _check_table(given: dict, keys: dict, sec: str, problems: list) -> dict:
     return out
 
 
-def validate(raw: dict, source: str = "<dict>") -> Config:
-    """Fill defaults and check every key; raise ConfigError listing all problems at once."""
+def resolve(raw: dict, source: str = "<dict>") -> dict:
+    """The resolved nested dict of ``raw``: defaults filled in and every key checked; raise
+    ConfigError listing all problems at once."""
     if not isinstance(raw, dict):
         raise ConfigError([f"{source}: the configuration must be a table"])
     problems = []
@@ -484,5 +484,5 @@ def validate(raw: dict, source: str = "<dict>") -> Config:
                             "(a surface reaching the top face inverts the mesh)")
     if problems:
         raise ConfigError([f"{source}: {p}" for p in problems])
-    return Config.from_data(data, source)
+    return data
 
