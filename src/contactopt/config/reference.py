@@ -11,8 +11,15 @@ def reference_markdown() -> str:
     lines = ["# Configuration reference", "",
              "A configuration is a TOML file (or a built-in example: `example1`, `example2`, `example3`).",
              "Every key is optional; the whole file is validated up front and every problem is listed at",
-             "once. This page is generated from the schema in `src/contactopt/config.py`",
+             "once. This page is generated from the schema in `src/contactopt/config/schema.py`",
              "(`python -m contactopt.config > docs/configuration.md`).", "",
+             "The same schema is published as a JSON Schema (draft 2020-12) for TOML editors:", "",
+             "```", "contactopt schema -o contactopt.schema.json", "```", "",
+             "An editor that reads it completes every key, shows its default and meaning, and marks a",
+             "misspelt key or a value of the wrong type. With Taplo (VS Code's Even Better TOML), write",
+             "`#:schema ./contactopt.schema.json` as the first line of a configuration file. The JSON",
+             "Schema checks the form of each key; contactopt itself still checks what depends on other",
+             "keys (the size of a control net, the names of load cases).", "",
              "| key | default | meaning |", "|---|---|---|"]
     for key, (default, _, desc) in TOP_LEVEL.items():
         lines.append(f"| `{key}` | `{default!r}` | {desc} |")
