@@ -9,7 +9,17 @@ authority on what depends on other keys (a control net's size, the names of load
 from __future__ import annotations
 
 from .checks import _nonneg, _pos, _posint
-from .schema import FOUNDATION, FOUNDATION_LOADS, OBSTACLE, SCHEMA, SECTION_DOCS, TERM_KEYS, TOP_LEVEL
+from .schema import (
+    FOUNDATION,
+    FOUNDATION_LOADS,
+    OBSTACLE,
+    SCHEMA,
+    SECTION_DOCS,
+    SUBSTEPS,
+    TERM_KEYS,
+    TERM_WEIGHT,
+    TOP_LEVEL,
+)
 
 DRAFT = "https://json-schema.org/draft/2020-12/schema"
 
@@ -122,13 +132,14 @@ def json_schema() -> dict:
     term = {k: v for k, v in _table("objective", SCHEMA["objective"])["properties"].items()
             if k in TERM_KEYS}
     term["type"] = {"enum": list(SCHEMA["objective"]["type"][1].options[:-1])}
-    term["weight"] = {"type": "number", "minimum": 0, "default": 1.0, "description": "a number ≥ 0"}
+    term["weight"] = {"type": "number", "minimum": 0, "default": TERM_WEIGHT[0], "description": TERM_WEIGHT[2]}
     props["objective"]["properties"]["terms"] = {
         "type": "array", "description": SCHEMA["objective"]["terms"][2], "default": [],
         "items": {"type": "object", "required": ["type"], "additionalProperties": False, "properties": term}}
     name = {"type": "string", "pattern": "^[A-Za-z0-9_.+-]+$"}
     step = {"type": "object", "required": ["name"], "additionalProperties": False,
-            "properties": _loads_keys({"name": name, "substeps": {"type": "integer", "minimum": 1, "default": 1}})}
+            "properties": _loads_keys({"name": name, "substeps": {"type": "integer", "minimum": 1, "default": SUBSTEPS[0],
+                                                                "description": SUBSTEPS[2]}})}
     steps = {"type": "array", "minItems": 1, "items": step}
     props["load_steps"] = {**steps, "description": "the load path: steps in order, each the TOTAL loads at its end"}
     props["load_cases"] = {"type": "array", "minItems": 1, "description": "named load cases", "items": {

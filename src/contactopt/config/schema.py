@@ -290,6 +290,9 @@ TOP_LEVEL = {"name": ("custom", lambda x: isinstance(x, str) and x != "", "a non
 BLOCK_LOADS = ("top_traction", "right_traction")
 CASE_NAME = re.compile(r"[A-Za-z0-9_.+-]+")
 TERM_KEYS = {"type", "weight", "region", "aggregate", "rho", "p", "target"}
+# keys of the arrays of tables: a term's weight (its other keys as in [objective]), a step's substeps
+TERM_WEIGHT = (1.0, _nonneg, "a number ≥ 0")
+SUBSTEPS = (1, _posint, "an integer ≥ 1 (equal increments of the loads from the previous step's)")
 
 SECTION_DOCS = {
     "body": "The body: a mesh file with named parts, or (no `mesh`) the paper's block of [geometry] and [mesh]. "

@@ -18,7 +18,9 @@ from .schema import (
     OBJECTIVE_TYPES,
     OBSTACLE,
     SCHEMA,
+    SUBSTEPS,
     TERM_KEYS,
+    TERM_WEIGHT,
     TOP_LEVEL,
 )
 
@@ -156,7 +158,7 @@ def _check_load_steps(steps, where, problems) -> list:
     allowed = ["name", *SCHEMA["loads"], "substeps"]
     _check_named_loads(steps, where, allowed, "step", "the step's output directory", problems)
     for n, step in enumerate(steps):
-        sub = step.setdefault("substeps", 1)
+        sub = step.setdefault("substeps", SUBSTEPS[0])
         if not _posint(sub):
             problems.append(f"{where}[{n}].substeps = {sub!r}: must be an integer ≥ 1 (equal increments of "
                             "the loads from the previous step's)")
@@ -251,7 +253,7 @@ def _check_objective(raw, data, d1d2, problems):
                             f"{', '.join(repr(v) for v in OBJECTIVE_TYPES)}")
         term = {"type": t.get("type")}
         for k in ("weight", "region", "aggregate", "rho", "p"):
-            default, check, desc = (1.0, _nonneg, "a number ≥ 0") if k == "weight" else SCHEMA["objective"][k]
+            default, check, desc = TERM_WEIGHT if k == "weight" else SCHEMA["objective"][k]
             val = t.get(k, default)
             _check_value(f"{key}.{k}", val, check, desc, problems)
             term[k] = float(val) if isinstance(val, int) and not isinstance(val, bool) and k != "region" else val
