@@ -64,7 +64,10 @@ def test_optional_sections_have_every_key_of_the_schema():
 def test_typed_sections_hold_the_resolved_values(name):
     cfg = load_config(name)
     for sec in ("body", "geometry", "mesh", "friction", "state", "linear_solver", "optimizer"):
-        assert dataclasses.asdict(getattr(cfg, sec)) == {k: cfg[sec].get(k) for k in SCHEMA[sec]}
+        typed = dataclasses.asdict(getattr(cfg, sec))
+        assert typed == {k: cfg[sec].get(k) for k in SCHEMA[sec]} | ({"clamped": typed["clamped"]} if sec == "body"
+                                                                     else {})
+    assert cfg.body.clamped == (S.Clamp(cfg["body"]["clamped"], [1, 2, 3]),)
     assert cfg.design.degree == cfg["design"]["degree"] and cfg.state.tol == cfg["state"]["tol"]
     assert cfg.loads.top_traction == cfg["loads"]["top_traction"]
     assert cfg.objective.target.kind == cfg["objective"]["target"]["kind"]
@@ -83,6 +86,11 @@ def test_a_config_is_frozen_and_writes_back_what_it_read(tmp_path):
     copy = cfg.to_dict()
     copy["state"]["tol"] = 0.5
     assert cfg.state.tol == 1e-12 and cfg["state"]["tol"] == 1e-12
+
+
+def test_clamps_read_as_records():
+    assert S.Clamp.all_of([{"on": {"x1": 0.0}, "components": [1]}, "bottom"]) == (
+        S.Clamp({"x1": 0.0}, [1]), S.Clamp("bottom", [1, 2, 3]))
 
 
 def test_records_of_arrays_of_tables(tmp_path):

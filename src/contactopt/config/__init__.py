@@ -29,6 +29,7 @@ from .schema import (
 )
 from .sections import (
                      Body,
+    Clamp,
                      Design,
                      Foundation,
                      FoundationBlock,
@@ -53,7 +54,7 @@ from .sections import (
 )
 
 __all__ = ["BLOCK_LOADS", "CASE_NAME", "EXAMPLES", "FOUNDATION", "FOUNDATION_LOADS", "LEGACY_BACKEND",
-           "OBJECTIVE_TYPES", "OBSTACLE", "SCHEMA", "SECTION_DOCS", "TERM_KEYS", "TOP_LEVEL", "Body", "Config",
+           "OBJECTIVE_TYPES", "OBSTACLE", "SCHEMA", "SECTION_DOCS", "TERM_KEYS", "TOP_LEVEL", "Body", "Clamp", "Config",
            "ConfigError", "Design", "Foundation", "FoundationBlock", "FoundationMaterial", "Friction", "Geometry",
            "LinearConstraint", "LinearSolver", "LoadCase", "LoadStep", "Loads", "Material", "Mesh", "Objective",
            "ObjectiveTerm", "Obstacle", "Optimizer", "PartLoad", "Region", "State", "Target", "json_schema",

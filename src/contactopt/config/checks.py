@@ -57,13 +57,16 @@ def _part_spec(x):
 
 
 
+ALL_COMPONENTS = [1, 2, 3]      # a clamp that names no components fixes every one
+
+
 def _clamp_spec(x):
     items = x if isinstance(x, list) else [x]
     if not items:
         return False
     for it in items:
         if isinstance(it, dict) and "on" in it:
-            comps = it.get("components", [1, 2, 3])
+            comps = it.get("components", ALL_COMPONENTS)
             if set(it) - {"on", "components"} or not _part_spec(it["on"]):
                 return False
             if not (isinstance(comps, list) and comps and all(c in (1, 2, 3, "x1", "x2", "x3") for c in comps)):

@@ -16,6 +16,7 @@ import dataclasses
 from dataclasses import dataclass
 from typing import Any
 
+from .checks import ALL_COMPONENTS
 from .schema import FOUNDATION, OBSTACLE, SCHEMA
 
 
@@ -40,11 +41,28 @@ def _defaults(section: str) -> dict:
 
 
 @dataclass(frozen=True)
+class Clamp:
+    """One clamp of ``clamped``: a part and the displacement components it fixes (1, 2, 3 or
+    'x1', 'x2', 'x3'; all three where the table names none)."""
+
+    on: Any
+    components: list
+
+    @classmethod
+    def all_of(cls, value) -> tuple["Clamp", ...]:
+        """The clamps of a ``clamped`` value: a part, a table { on, components } or a list of these."""
+        items = value if isinstance(value, list) else [value]
+        return tuple(cls(copy.deepcopy(it["on"]), list(it.get("components", ALL_COMPONENTS)))
+                     if isinstance(it, dict) and "on" in it else cls(copy.deepcopy(it), list(ALL_COMPONENTS))
+                     for it in items)
+
+
+@dataclass(frozen=True)
 class Body:
     """``[body]``: the mesh file (empty: the block) and its named parts."""
 
     mesh: str
-    clamped: Any
+    clamped: tuple[Clamp, ...]
     contact: Any
     fixed_shape: Any
     tolerance: float
@@ -53,7 +71,7 @@ class Body:
 
     @classmethod
     def from_dict(cls, d: dict) -> "Body":
-        return _build(cls, d, _defaults("body"))
+        return _build(cls, d, _defaults("body"), clamped=Clamp.all_of(d["clamped"]))
 
 
 @dataclass(frozen=True)
@@ -346,7 +364,7 @@ class Foundation:
     mesh: str
     block: FoundationBlock | None
     top: Any
-    clamped: Any
+    clamped: tuple[Clamp, ...]
     material: FoundationMaterial
     loads: Loads
     partner: str
@@ -354,7 +372,7 @@ class Foundation:
 
     @classmethod
     def from_dict(cls, d: dict) -> "Foundation":
-        return _build(cls, d, FOUNDATION, block=FoundationBlock.from_dict(d["block"]) if d["block"] else None,
+        return _build(cls, d, FOUNDATION, clamped=Clamp.all_of(d["clamped"]), block=FoundationBlock.from_dict(d["block"]) if d["block"] else None,
                       material=FoundationMaterial(d["material"]["E"], d["material"]["nu"]),
                       loads=Loads.from_dict(d["loads"]))
 

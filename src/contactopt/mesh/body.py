@@ -88,11 +88,10 @@ def build_body(cfg) -> Body:
     part = part_selector(ref, tol, "body", problems)
 
     clamped = []
-    for entry in _as_list(spec.clamped):
-        on, comps = (entry["on"], entry.get("components", [1, 2, 3])) if _is_on_table(entry) else (entry, [1, 2, 3])
-        p = part("clamped", on)
+    for clamp in spec.clamped:
+        p = part("clamped", clamp.on)
         if p is not None:
-            clamped.append((p, sorted({COMPONENTS[c] for c in comps})))
+            clamped.append((p, sorted({COMPONENTS[c] for c in clamp.components})))
     face = part("contact", spec.contact)
     if problems:
         raise ConfigError([f"{cfg.source}: {p}" for p in problems])
@@ -146,10 +145,6 @@ def _contact_nodes(face: Part, fixed: np.ndarray, contact, source: str):
 
 def _as_list(x):
     return x if isinstance(x, list) else [x]
-
-
-def _is_on_table(x):
-    return isinstance(x, dict) and "on" in x
 
 
 def _check_contact_face(ref: ReferenceMesh, face: Part, tol: float, on_plane: bool = True) -> Part:

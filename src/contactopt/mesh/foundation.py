@@ -21,7 +21,7 @@ import numpy as np
 
 from ..errors import ConfigError, MeshError
 from .block import block_mesh
-from .body import COMPONENTS, _as_list, _check_rigid_modes, _is_on_table
+from .body import COMPONENTS, _check_rigid_modes
 from .reference import FACE_CORNERS, HasParts, Part, ReferenceMesh, describe_part, part_selector
 
 
@@ -84,11 +84,10 @@ def build_foundation_mesh(spec, contact_xy: np.ndarray, source: str) -> Foundati
 
     top = part("top", spec.top)
     fixed = np.zeros((ref.n_nodes, 3), bool)
-    for entry in _as_list(spec.clamped):
-        on, comps = (entry["on"], entry.get("components", [1, 2, 3])) if _is_on_table(entry) else (entry, [1, 2, 3])
-        p = part("clamped", on)
+    for clamp in spec.clamped:
+        p = part("clamped", clamp.on)
         if p is not None:
-            fixed[np.ix_(p.nodes, sorted({COMPONENTS[c] for c in comps}))] = True
+            fixed[np.ix_(p.nodes, sorted({COMPONENTS[c] for c in clamp.components}))] = True
     if problems:
         raise ConfigError(problems)
     top = _check_top(ref, top, tol, describe_part(spec.top), where)
