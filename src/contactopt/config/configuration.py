@@ -80,6 +80,8 @@ class Config:
         return self._data
 
     def __getitem__(self, key):
+        """A section of the resolved dict, as before the typed sections (for scripts and tests;
+        the package reads attributes, tests/test_architecture.py)."""
         return self._data[key]
 
     def __eq__(self, other):
