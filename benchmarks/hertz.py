@@ -121,7 +121,7 @@ def stick_figure(path: str, q: dict) -> None:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
     st, x = q["state"], q["x"]
-    L = q["problem"].config["geometry"]["a"] / 2
+    L = q["problem"].config.geometry.a / 2
     names = st.class_names
     fig, ax = plt.subplots(figsize=(6, 3.6), layout="constrained")
     for cls, mk, lab in (("M3+", "s", "stick (M3+)"), ("M1", "o", "slip (M1)"), ("L", ".", "open (L)")):

@@ -23,7 +23,6 @@ figures of docs/obstacles.md).
 
 from __future__ import annotations
 
-import copy
 import math
 import time
 
@@ -55,7 +54,7 @@ def graded_axis(h: float, fine: float, length: float, growth: float = 1.25) -> l
 
 def configure(updates: dict):
     """Example 1's configuration with ``updates`` (its [mesh] replaced, the other sections updated)."""
-    data = copy.deepcopy(load_config("example1").data)
+    data = load_config("example1").to_dict()
     for sec, vals in updates.items():
         data[sec] = dict(vals) if sec == "mesh" else {**data.get(sec, {}), **vals}
     return validate(data, "hertz")
@@ -115,7 +114,7 @@ def measure_punch(h: float, stl: str, radius: float, force: float) -> dict:
     t0 = time.perf_counter()
     pr = punch_problem(h, stl, radius, force)
     st = pr.solve_state(np.zeros(pr.model.n_design))
-    H = pr.config["geometry"]["c"]
+    H = pr.config.geometry.c
     delta = st.info["obstacle_translation"]
     w_H = force * (1 + NU) * (3 - 2 * NU) / (2 * math.pi * E * H)
     return {"h": h, "p": pr.model.n_contact, "P": force, "delta": delta, "delta_corr": delta + w_H,
@@ -182,7 +181,7 @@ def measure_sphere(h: float, friction=0.0) -> dict:
     delta = st.info["obstacle_translation"]
     # the approach is prescribed against the clamped far face at depth H, Hertz's against points far
     # away: add the half-space's displacement on the axis at depth H (Boussinesq, point load P)
-    H = pr.config["geometry"]["c"]
+    H = pr.config.geometry.c
     w_H = P * (1 + NU) * (3 - 2 * NU) / (2 * math.pi * E * H)
     return {"delta_corr": delta + w_H, "h": h, "p": pr.model.n_contact, "P": P, "a": a_fit, "a_H": a, "p0": p0_fit, "p0_H": p0,
             "p0_node": float(p[np.argmin(r)]), "delta": delta, "delta_H": a ** 2 / R,
@@ -204,7 +203,7 @@ def measure_mindlin(h: float, friction=0.3, d1=0.0035) -> dict:
     Q, _, P = 2.0 * resultant(pr, st)
     m = pr.model
     x = m.body.reference.points[m.contact_nodes]
-    L = pr.config["geometry"]["a"] / 2
+    L = pr.config.geometry.a / 2
     r = np.hypot(x[:, 0] - L, x[:, 1])
     names = st.class_names
     stick = (names == "M3+") & (st.lam > 0)
@@ -223,7 +222,7 @@ def measure_cylinder(h: float, friction=0.0) -> dict:
     pr = cylinder_problem(h, friction)
     st = pr.solve_state(np.zeros(pr.model.n_design))
     r, p, n3, x = pressure(pr, st)
-    b = pr.config["geometry"]["b"]
+    b = pr.config.geometry.b
     P1 = 2.0 * float(st.lam @ n3) / b
     a_fit, p0_fit = fit(r, p)
     a = math.sqrt(4 * P1 * R / (math.pi * E_STAR))
