@@ -19,7 +19,7 @@ import time
 import numpy as np
 
 from contactopt.problem import ShapeProblem
-from hertz import A_TARGET, R, configure, fit, graded_axis, pressure
+from contactopt.verification.hertz import A_TARGET, R, configure, fit, graded_axis, pressure
 
 
 def sphere(h: float, nu: float, friction: float, size=20.0) -> dict:
