@@ -662,6 +662,57 @@ def _check_objective(raw, data, d1d2, problems):
     obj["terms"] = out if terms else obj["terms"]
 
 
+# ---- [[constraints]]: limits on responses of the state (read by sensitivity/objectives.py) ----
+CONSTRAINT_TYPES = ("peak_stress", "max_pressure", "compliance", "frictional_dissipation")
+CONSTRAINT_KEYS = {"peak_stress": {"region", "aggregate", "rho", "p"}, "max_pressure": {"aggregate", "rho", "p"},
+                   "compliance": set(), "frictional_dissipation": set()}
+CONSTRAINT_TOL = (1e-4, lambda x: _pos(x) and x < 1,
+                  "a number in (0, 1): the largest violation (value − max)/max a result may keep")
+
+
+def _check_constraints(given, data, problems) -> list:
+    """[[constraints]]: each {type, max, tol} and the keys of an objective of that type (defaults
+    filled in). A limit max ≤ 0 on a quantity that is ≥ 0 and positive under load leaves no
+    admissible design."""
+    if not (isinstance(given, list) and all(isinstance(t, dict) for t in given)):
+        problems.append("constraints: must be an array of tables [[constraints]] with `type` and `max`")
+        return []
+    out = []
+    for n, t in enumerate(given):
+        key = f"constraints[{n}]"
+        kind = t.get("type")
+        if kind not in CONSTRAINT_TYPES:
+            problems.append(f"{key}.type = {kind!r}: must be one of {', '.join(map(repr, CONSTRAINT_TYPES))}")
+        allowed = {"type", "max", "tol"} | CONSTRAINT_KEYS.get(kind, {"region", "aggregate", "rho", "p"})
+        for k in t:
+            if k not in allowed:
+                problems.append(f"{key}.{k}: unknown key for type {kind!r} (allowed: {', '.join(sorted(allowed))})")
+        row = {"type": kind}
+        if "max" not in t:
+            problems.append(f"{key}.max: missing (the limit of the {kind} of the design)")
+        elif not (_finite(t["max"]) and t["max"] > 0):
+            problems.append(f"{key}.max = {t['max']!r}: must be a number > 0 (the {kind} is ≥ 0 and positive under "
+                            "load: a limit ≤ 0 leaves no admissible design)")
+        else:
+            row["max"] = float(t["max"])
+        tol = t.get("tol", CONSTRAINT_TOL[0])
+        _check_value(f"{key}.tol", tol, *CONSTRAINT_TOL[1:], problems)
+        row["tol"] = float(tol) if _finite(tol) else tol
+        for k in ("region", "aggregate", "rho", "p"):
+            if k in CONSTRAINT_KEYS.get(kind, ()):
+                default, check, desc = SCHEMA["objective"][k]
+                val = t.get(k, default)
+                _check_value(f"{key}.{k}", val, check, desc, problems)
+                row[k] = float(val) if k in ("rho", "p") and _finite(val) else val
+        out.append(row)
+    steps = "load_steps" in data or any("steps" in c for c in data.get("load_cases", []))
+    for kind in sorted({r["type"] for r in out} & {"peak_stress", "frictional_dissipation"}):
+        if steps:
+            problems.append(f"constraints: {kind!r} is not yet taken on a load path (its adjoint of the whole "
+                            "displacement is not carried back through the steps)")
+    return out
+
+
 def _check_body(raw, data, problems):
     """A body from a file has no [geometry]/[mesh] and no block loads; on the block, a configuration
     that lists its own tractions or pressures gets no default block loads."""
@@ -850,9 +901,9 @@ def validate(raw: dict, source: str = "<dict>") -> Config:
     data = {}
     for key in raw:
         if key not in SCHEMA and key not in TOP_LEVEL and key not in ("load_cases", "foundation", "obstacle",
-                                                                   "load_steps"):
+                                                                   "load_steps", "constraints"):
             problems.append(f"{key}: unknown section (allowed: "
-                            f"{', '.join(list(TOP_LEVEL) + list(SCHEMA) + ['foundation', 'obstacle', 'load_cases', 'load_steps'])})")
+                            f"{', '.join(list(TOP_LEVEL) + list(SCHEMA) + ['foundation', 'obstacle', 'load_cases', 'load_steps', 'constraints'])})")
     for key, (default, check, desc) in TOP_LEVEL.items():
         val = raw.get(key, default)
         if not check(val):
@@ -880,6 +931,8 @@ def validate(raw: dict, source: str = "<dict>") -> Config:
     if "load_steps" in raw:
         data["load_steps"] = _check_load_steps(raw["load_steps"], "load_steps", problems)
     _check_step_names(data, problems, raw_sections=tuple(raw))
+    if "constraints" in raw:
+        data["constraints"] = _check_constraints(raw["constraints"], data, problems)
     _check_combination(raw, data, problems)
     _check_body(raw, data, problems)
     if "foundation" in raw:
@@ -970,7 +1023,14 @@ def reference_markdown() -> str:
               "with a `name`, the TOTAL loads at its end in the keys of [loads] ([loads] adds to every step) and "
               "`substeps` (default 1: equal increments, linear in the loads, from the previous step's loads). "
               "Coulomb's law acts on the slip of each step. `objective.steps` says which steps Θ is taken on. "
-              "Without steps the problem is one step, the static problem."]
+              "Without steps the problem is one step, the static problem.",
+              "", "## [[constraints]]", "",
+              "Optional limits on responses of the state (an array of tables; docs/objectives.md): each has a "
+              f"`type` ({', '.join(f'`{t}`' for t in CONSTRAINT_TYPES)}), the limit `max` (> 0; the response must "
+              "stay ≤ max), `tol` (default 1e-4: the relative violation (value − max)/max a result may keep) and "
+              "the keys of an objective of that type (`region`, `aggregate`, `rho`, `p`, with the defaults of "
+              "[objective]). The bundle method takes them by an exact penalty whose weight it adapts; an "
+              "infeasible initial design is allowed. With load cases a constraint holds in every case."]
     return "\n".join(lines) + "\n"
 
 

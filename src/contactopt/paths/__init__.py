@@ -70,9 +70,9 @@ def select_path(config, n_free: int, pinned: int = 0) -> tuple[str, str]:
     ``[foundation]`` refuses them. A rigid ``[obstacle]`` other than the plane runs on the
     condensation path, which "auto" takes; the other paths refuse it."""
     from .._mpi import petsc_missing, world_size
-    from ..sensitivity.objectives import FULL_SPACE, objective_types
+    from ..sensitivity.objectives import FULL_SPACE, constraint_types, objective_types
     ls = config["linear_solver"]
-    types = objective_types(config)
+    types = objective_types(config) | constraint_types(config)     # [[constraints]] are objectives too
     name, objective = ls["path"], "compliance" if "compliance" in types else config["objective"]["type"]
     full = sorted(types & FULL_SPACE)
     if full and ("foundation" in config.data or name == "petsc" or ranks_of() > 1):

@@ -18,6 +18,8 @@ and the design terms) and, for a 'design' target, a function that solves the sta
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 
 from ..errors import ConfigError
@@ -354,6 +356,42 @@ def objective_types(config) -> set:
     """The objective types a configuration uses (its type, or those of its terms)."""
     obj = config["objective"]
     return {t["type"] for t in obj.get("terms") or []} or {obj["type"]}
+
+
+def constraint_types(config) -> set:
+    """The types of the configuration's [[constraints]] (empty without)."""
+    return {t["type"] for t in config.data.get("constraints", [])}
+
+
+@dataclass
+class Constraint:
+    """One of the ``[[constraints]]``: the response ``objectives[k]`` (an :class:`Objective` of
+    load case k, built as the objective of that type is) must stay ≤ ``limit``; ``tol`` the
+    relative violation (value − limit)/limit a result may keep. A constraint is an objective
+    with a limit: its value and subgradient come from the same code (adjoint included)."""
+
+    name: str
+    type: str
+    limit: float
+    tol: float
+    objectives: list
+
+
+def make_constraints(config, model, cases, solve=None) -> list:
+    """The :class:`Constraint` list of ``[[constraints]]``, one objective per load case in
+    ``cases`` (each with the case's loads)."""
+    out, names = [], {}
+    for n, table in enumerate(config.data.get("constraints", [])):
+        kind = table["type"]
+        names[kind] = names.get(kind, 0) + 1
+        objs = []
+        for k, case in enumerate(cases):
+            one = _one_objective(model, table, 1.0, f"constraints[{n}]", None, k, solve)
+            one.loads = case.loads
+            objs.append(one)
+        out.append(Constraint(kind if names[kind] == 1 else f"{kind}_{names[kind]}", kind, float(table["max"]),
+                              float(table["tol"]), objs))
+    return out
 
 
 FULL_SPACE = frozenset({"peak_stress", "frictional_dissipation"})   # ∂J/∂u on every DOF
