@@ -230,9 +230,21 @@ def _cmd_check_gradient(args) -> int:
     model = problem.model
     alpha = _read_alpha(args.alpha, model) if args.alpha else model.initial_design()
     model.admissible.require_feasible(alpha, tol=1e-8)
-    rep = check_gradient(problem, alpha, seed=args.seed, n_directions=args.directions, h=args.h)
-    print(f"gradient check of {problem.config.name}: Θ = {rep.value:.8e}, degenerate nodes {rep.n_degenerate} "
-          f"{rep.counts}")
+    passed = True
+    for j in [None] + list(range(len(problem.constraints))):     # Θ, then each constraint's response
+        if j is None:
+            rep = check_gradient(problem, alpha, seed=args.seed, n_directions=args.directions, h=args.h)
+            print(f"gradient check of {problem.config.name}: Θ = {rep.value:.8e}, degenerate nodes "
+                  f"{rep.n_degenerate} {rep.counts}")
+        else:
+            with problem._as_objective(j) as con:
+                rep = check_gradient(problem, alpha, seed=args.seed, n_directions=args.directions, h=args.h)
+            print(f"\nconstraint {con.name} (max {con.limit:g}): value = {rep.value:.8e}")
+        passed = _print_check(rep) and passed
+    return 0 if passed else 1
+
+
+def _print_check(rep) -> bool:
     print(f"{'dir':>4} {'finite difference':>18} {'predicted':>18} {'rel. diff':>10}")
     for k, (fd, pr, rel) in enumerate(zip(rep.fd, rep.predicted, rep.rel_errors)):
         print(f"{k:4d} {fd:18.10e} {pr:18.10e} {rel:10.2e}")
@@ -242,7 +254,7 @@ def _cmd_check_gradient(args) -> int:
     print(f"  observed order {rep.taylor_rate:.2f} (2 expected where Θ is smooth)")
     print(("PASSED" if rep.passed else "FAILED") + f": max relative difference {max(rep.rel_errors):.2e} "
           f"(tolerance {rep.tol:.0e})")
-    return 0 if rep.passed else 1
+    return rep.passed
 
 
 def _cmd_solve_fclib(args) -> int:
