@@ -169,10 +169,13 @@ class _Oracle:
         from .sensitivity.adjoint import subgradient
         try:
             res = subgradient(self.problem, x)
+            # [[constraints]]: each response and its subgradient from the same state
+            cons = self.problem.constraint_subgradients(x) if self.problem.constraints else []
         except SolverError as exc:
             raise RunAborted(f"state/subgradient failed at evaluation {self.count + 1}: {exc}") from exc
-        for k in self.time:
-            self.time[k] += res.timings.get(k, 0.0)
+        for r in [res] + cons:
+            for k in self.time:
+                self.time[k] += r.timings.get(k, 0.0)
         self.count += 1
         st = res.state
         _log_evaluation(self.count, res)
@@ -183,7 +186,6 @@ class _Oracle:
             row += [repr(float(v)) for v in res.case_values] + [";".join(res.active_cases)]
         row += [repr(float(v)) for v in res.terms.values()]
         row += [repr(v) for v in self.problem.step_values()]
-        cons = self.problem.constraint_subgradients(x) if self.problem.constraints else []
         row += [repr(float(c.value)) for c in cons]
         try:     # appended: rows after the checkpoint's evaluations are dropped on --resume
             with open(self.history_path, "a", newline="") as fh:
