@@ -206,7 +206,7 @@ def minimize_constrained(oracle, x0, *, ctol=1e-6, sigma0=None, sigma_factor=10.
     while True:
         fin = pen.finished
         if fin is not None and not (fin[0] == 1 and max_iter > pen.nit + bstate.nit):
-            res = _bundle_result(bstate, *fin)     # resumed where a bundle run had ended
+            res = _bundle_result(bstate, *fin, kwargs.get("ftol_window", 5))   # resumed at a run's end
         else:
             res = minimize_bundle(phi, start, eps=eps, max_iter=max(max_iter - pen.nit, 0),
                                   callback=inner_callback, state=bstate, **kwargs)
@@ -247,11 +247,14 @@ def _absorb(pen: PenaltyState, res) -> None:
     pen.n_null += int(res.n_null)
 
 
-def _bundle_result(st, status, message, criterion) -> BundleResult:
+def _bundle_result(st, status, message, criterion, ftol_window) -> BundleResult:
+    """The result of a bundle run that had ended in state ``st`` (as minimize_bundle returned it)."""
+    from ._bundle_control import relative_decrease
     s = st.copy()
     return BundleResult(x=s.x.copy(), fun=s.f, jac=s.xi.copy(), nit=s.nit, nfev=s.nfev, n_serious=s.n_serious,
                         n_null=s.n_null, success=status in (0, 4, 5), status=status, message=message,
-                        criterion=criterion, stationarity=s.stationarity, relative_decrease=math.inf,
+                        criterion=criterion, stationarity=s.stationarity,
+                        relative_decrease=relative_decrease(s.history, ftol_window),
                         predicted_decrease=s.predicted, gamma=s.gamma, t=s.t,
                         history=[dict(r) for r in s.history], state=s)
 
