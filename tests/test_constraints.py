@@ -186,6 +186,38 @@ def test_a_constraint_is_the_objective_of_its_type_with_a_limit():
     assert rep == {"type": "peak_stress", "value": ref.value, "limit": 1.0, "margin": 1.0 - ref.value}
 
 
+def test_with_load_cases_a_constraint_holds_in_the_worst_case():
+    """The response of a constraint is the largest of the cases' (each with its own loads)."""
+    upd = {"mesh": {"nx": 8, "ny": 4, "nz": 3}, "constraints": [{"type": "max_pressure", "max": 1.0}]}
+    cfg = load_config(ROOT / "examples" / "example1_two_cases.toml").with_updates(upd)
+    problem = ShapeProblem(cfg)
+    alpha = wavy(problem)
+    value = problem.constraint_values(alpha)[0]
+    per_case = ShapeProblem(cfg.with_updates({"objective": {"type": "max_pressure"}, "constraints": []}))
+    comb = per_case.evaluate_cases(alpha)
+    assert len(comb.values) == 2 and comb.values[0] != comb.values[1]
+    assert value == max(comb.values)
+    res = problem.constraint_subgradients(alpha)[0]
+    ref = per_case.subgradient(alpha)
+    assert res.value == ref.value and np.array_equal(res.gradient, ref.gradient)
+
+
+def test_a_symmetric_design_takes_constraints_on_its_reduced_variables(tmp_path):
+    """[design] symmetry: the bundle works on β, the constraints' subgradients pulled back too."""
+    from contactopt.runner import run_optimization
+    cfg = load_config("example1").with_updates({
+        "mesh": {"nx": 8, "ny": 4, "nz": 3}, "design": {"symmetry": ["x2"]}, "name": "sym",
+        "constraints": [{"type": "max_pressure", "max": 0.02}]})
+    s = run_optimization(cfg, tmp_path / "run", max_iter=4).summary
+    assert s["design_variables"]["optimized"] < s["design_variables"]["alpha"]
+    alpha = np.asarray(s["alpha"])
+    assert np.array_equal(alpha, alpha[:, ::-1])
+    resp = s["constraints"]["responses"]["max_pressure"]
+    assert resp["limit"] == 0.02 and resp["margin"] == pytest.approx(0.02 - resp["value"], abs=1e-15)
+    rows = (tmp_path / "run" / "history.csv").read_text().splitlines()
+    assert rows[0].split(",")[-1] == "constraint_max_pressure" and len(rows) == s["evaluations"] + 1
+
+
 def _toml(tmp_path, text: str, **design) -> Path:
     import tomli_w
     data = load_config("example1").with_updates({"mesh": {"nx": 8, "ny": 4, "nz": 3}, "design": design}).data
