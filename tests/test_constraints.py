@@ -110,6 +110,19 @@ def test_resuming_from_any_iteration_repeats_the_run_bit_for_bit():
         assert again.history == whole.history
 
 
+def test_a_run_stopped_by_max_iter_goes_on_when_resumed_with_more():
+    """The state of a run's end (what the runner's last checkpoint holds) resumes with a larger
+    max_iter, across a raise of σ, to the uninterrupted run's end."""
+    prob = CONSTRAINED["C-Rosen-Suzuki"]
+    whole = minimize_constrained(prob, prob.x0, ctol=CTOL, sigma0=0.01, max_iter=400)
+    assert whole.outer >= 2
+    for stop in (5, whole.nit - 3):
+        part = minimize_constrained(prob, prob.x0, ctol=CTOL, sigma0=0.01, max_iter=stop)
+        assert part.status == 1 and part.nit == stop and "max_iter reached" in part.message
+        again = minimize_constrained(prob, None, ctol=CTOL, max_iter=400, state=part.penalty, bundle_state=part.state)
+        assert np.array_equal(again.x, whole.x) and again.history == whole.history and again.nfev == whole.nfev
+
+
 # ------------------------------------------------------------------ [[constraints]] of a configuration
 def hex_problem(constraints, path="condensation", objective=None):
     upd = {"mesh": {"nx": 8, "ny": 4, "nz": 3}, "state": {"method": "newton", "tol": 1e-12},
