@@ -77,6 +77,7 @@ def _cmd_state(args) -> int:
         bound, reason = problem.uniqueness_estimate(alpha)
         reports = [problem.objective_report(alpha, k if problem.has_load_cases else None)
                    for k in range(len(states))]
+        cons = problem.constraint_report(alpha) if problem.constraints else None    # the worst load case
     except Exception:
         if created and not any(out.iterdir()):
             out.rmdir()                  # a failed solve leaves no empty directory behind
@@ -90,8 +91,9 @@ def _cmd_state(args) -> int:
     if problem.has_load_steps:
         return _write_step_states(out, problem, states, warnings, bound, reason, t0)
     if not problem.has_load_cases:
-        write_state(out, model, states[0], config=problem.config, warnings=warnings, objective=reports[0])
-        _print_state(states[0], bound, reason, reports[0])
+        write_state(out, model, states[0], config=problem.config, warnings=warnings, objective=reports[0],
+                    constraints=cons)
+        _print_state(states[0], bound, reason, reports[0], cons)
         print(f"  wrote {out}/ ({', '.join(state_files(model))}) in {time.perf_counter() - t0:.1f}s")
         return 0
     # load cases: one directory per case, and cases.json listing them
@@ -100,9 +102,10 @@ def _cmd_state(args) -> int:
     if len(set(dirs)) < len(dirs):       # names that differ only in unsafe characters
         dirs = [f"case-{k}-{d[5:]}" for k, d in enumerate(dirs)]
     for name, d, state, report in zip(names, dirs, states, reports):
-        write_state(out / d, model, state, config=problem.config, warnings=warnings, objective=report)
+        write_state(out / d, model, state, config=problem.config, warnings=warnings, objective=report,
+                    constraints=cons)
         print(f"load case {name!r} → {out / d}/")
-        _print_state(state, bound, reason, report)
+        _print_state(state, bound, reason, report, cons)
     atomic_write_json(out / "cases.json", {
         "name": problem.config.name, "combine": problem.combination.kind, "names": list(names), "warnings": warnings,
         "cases": [{"name": n, "directory": d, "summary": st.summary()} for n, d, st in zip(names, dirs, states)]})
@@ -154,11 +157,14 @@ def _case_dir(name: str, k: int) -> str:
     return f"case-{safe}" if safe else f"case-{k}"
 
 
-def _print_state(state, bound, reason, objective=None) -> None:
+def _print_state(state, bound, reason, objective=None, constraints=None) -> None:
     s = state.summary()
     if objective is not None:
         terms = ", ".join(f"{k} {v['value']:.6e}" for k, v in objective["terms"].items())
         print(f"  objective {objective['type']} = {objective['value']:.8e}" + (f" ({terms})" if terms else ""))
+    for name, c in (constraints or {}).items():
+        print(f"  constraint {name} = {c['value']:.6e} ≤ {c['limit']:.6e}: margin {c['margin']:.3e}"
+              + ("" if c["margin"] >= 0 else " (violated)"))
     print(f"  iterations {state.iterations}, residual {state.residual:.2e}, contact conditions {state.complementarity:.2e}")
     print("  nodes: " + ", ".join(f"{k} {v}" for k, v in s['node_classes'].items()))
     print(f"  total normal force {s['total_normal_force']:.6g}, max {s['max_normal_force']:.4g}")
@@ -224,9 +230,21 @@ def _cmd_check_gradient(args) -> int:
     model = problem.model
     alpha = _read_alpha(args.alpha, model) if args.alpha else model.initial_design()
     model.admissible.require_feasible(alpha, tol=1e-8)
-    rep = check_gradient(problem, alpha, seed=args.seed, n_directions=args.directions, h=args.h)
-    print(f"gradient check of {problem.config.name}: Θ = {rep.value:.8e}, degenerate nodes {rep.n_degenerate} "
-          f"{rep.counts}")
+    passed = True
+    for j in [None] + list(range(len(problem.constraints))):     # Θ, then each constraint's response
+        if j is None:
+            rep = check_gradient(problem, alpha, seed=args.seed, n_directions=args.directions, h=args.h)
+            print(f"gradient check of {problem.config.name}: Θ = {rep.value:.8e}, degenerate nodes "
+                  f"{rep.n_degenerate} {rep.counts}")
+        else:
+            with problem._as_objective(j) as con:
+                rep = check_gradient(problem, alpha, seed=args.seed, n_directions=args.directions, h=args.h)
+            print(f"\nconstraint {con.name} (max {con.limit:g}): value = {rep.value:.8e}")
+        passed = _print_check(rep) and passed
+    return 0 if passed else 1
+
+
+def _print_check(rep) -> bool:
     print(f"{'dir':>4} {'finite difference':>18} {'predicted':>18} {'rel. diff':>10}")
     for k, (fd, pr, rel) in enumerate(zip(rep.fd, rep.predicted, rep.rel_errors)):
         print(f"{k:4d} {fd:18.10e} {pr:18.10e} {rel:10.2e}")
@@ -236,7 +254,7 @@ def _cmd_check_gradient(args) -> int:
     print(f"  observed order {rep.taylor_rate:.2f} (2 expected where Θ is smooth)")
     print(("PASSED" if rep.passed else "FAILED") + f": max relative difference {max(rep.rel_errors):.2e} "
           f"(tolerance {rep.tol:.0e})")
-    return 0 if rep.passed else 1
+    return rep.passed
 
 
 def _cmd_solve_fclib(args) -> int:

@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import logging
 import time
+from contextlib import contextmanager
 from dataclasses import replace
 
 import numpy as np
@@ -60,6 +61,8 @@ class ShapeProblem:
         self.cases, self.combination = build_cases(self.config, self.model, self._design_lambda)
         if body.rigid is not None:
             self._check_held()
+        from .sensitivity.objectives import make_constraints
+        self.constraints = make_constraints(self.config, self.model, self.cases, self._design_lambda)
         self.path.first_loads = self.cases[0].loads
         self.contexts = [self.path.new_context() for _ in self.cases]
         self._init_steps()
@@ -405,6 +408,48 @@ class ShapeProblem:
                                  {**DEFAULT_CHOICES, **(choices or {})},
                                  {"state": t1 - t0, "adjoint": t_adj, "design_terms": t_design},
                                  comb.values, names, active, names[comb.case], states, terms)
+
+    # ------------------------------------------------------------------ [[constraints]]
+    @contextmanager
+    def _as_objective(self, j: int):
+        """Constraint j's response in place of the objective of every case, the cases joined by the
+        max (the limit holds in each): the oracle's code then evaluates and differentiates it."""
+        con = self.constraints[j]
+        saved = [c.objective for c in self.cases], self.combination
+        from .sensitivity.cases import Combination
+        for case, obj in zip(self.cases, con.objectives):
+            case.objective = obj
+        self.combination = Combination("max", np.ones(len(self.cases)), saved[1].active_tol, saved[1].names)
+        try:
+            yield con
+        finally:
+            for case, obj in zip(self.cases, saved[0]):
+                case.objective = obj
+            self.combination = saved[1]
+
+    def constraint_subgradients(self, alpha, *, choices=None) -> list:
+        """One :class:`~contactopt.sensitivity.adjoint.SubgradientResult` per constraint at α:
+        the response's value (the worst load case) and one Clarke subgradient, by the adjoint of
+        the state solved for Θ (no other state solve)."""
+        out = []
+        for j in range(len(self.constraints)):
+            with self._as_objective(j):
+                out.append(self.subgradient(alpha, choices=choices))
+        return out
+
+    def constraint_values(self, alpha, **kw) -> list[float]:
+        """The responses of the constraints at α (``kw`` go to :meth:`solve_state`)."""
+        out = []
+        for j in range(len(self.constraints)):
+            with self._as_objective(j):
+                out.append(float(self.evaluate_cases(alpha, **kw).value))
+        return out
+
+    def constraint_report(self, alpha, **kw) -> dict:
+        """{name: {type, value, limit, margin}} at α (margin = limit − value ≥ 0 where the
+        constraint holds), e.g. for state.json and summary.json; empty without [[constraints]]."""
+        return {con.name: {"type": con.type, "value": v, "limit": con.limit, "margin": con.limit - v}
+                for con, v in zip(self.constraints, self.constraint_values(alpha, **kw))}
 
     def term_names(self) -> list:
         """The names of the [[objective.terms]] (their type, numbered from the second of a type on)."""

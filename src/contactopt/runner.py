@@ -63,6 +63,7 @@ def history_fields(problem) -> list[str]:
     and the names of the active cases (separated by ';')."""
     terms = [f"term_{name}" for name in problem.term_names()]     # [[objective.terms]], unweighted
     steps = [f"f_step_{name}" for name in problem.step_columns()]     # load paths: J at each step's end
+    steps += [f"constraint_{c.name}" for c in problem.constraints]    # each constraint's response
     if not problem.has_load_cases:
         return HISTORY_FIELDS + terms + steps
     return HISTORY_FIELDS + [f"f_{name}" for name in problem.case_names] + ["active_cases"] + terms + steps
@@ -168,10 +169,13 @@ class _Oracle:
         from .sensitivity.adjoint import subgradient
         try:
             res = subgradient(self.problem, x)
+            # [[constraints]]: each response and its subgradient from the same state
+            cons = self.problem.constraint_subgradients(x) if self.problem.constraints else []
         except SolverError as exc:
             raise RunAborted(f"state/subgradient failed at evaluation {self.count + 1}: {exc}") from exc
-        for k in self.time:
-            self.time[k] += res.timings.get(k, 0.0)
+        for r in [res] + cons:
+            for k in self.time:
+                self.time[k] += r.timings.get(k, 0.0)
         self.count += 1
         st = res.state
         _log_evaluation(self.count, res)
@@ -182,19 +186,27 @@ class _Oracle:
             row += [repr(float(v)) for v in res.case_values] + [";".join(res.active_cases)]
         row += [repr(float(v)) for v in res.terms.values()]
         row += [repr(v) for v in self.problem.step_values()]
+        row += [repr(float(c.value)) for c in cons]
         try:     # appended: rows after the checkpoint's evaluations are dropped on --resume
             with open(self.history_path, "a", newline="") as fh:
                 csv.writer(fh).writerow(row)
         except OSError as exc:
             raise write_error(self.history_path, exc) from exc
+        if self.problem.constraints:     # c_i = (value − max)/max ≤ 0 (optimize/constrained.py)
+            lim = np.array([c.limit for c in self.problem.constraints])
+            c = (np.array([r.value for r in cons]) - lim) / lim
+            J = np.array([r.gradient for r in cons]) / lim[:, None]
+            return res.value / self.scale, res.gradient / self.scale, c, J
         return res.value / self.scale, res.gradient / self.scale
 
 
 def _reduced(oracle, red):
-    """The oracle of β: Θ(P β + α_fixed) and its subgradient Pᵀ ξ."""
+    """The oracle of β: Θ(P β + α_fixed) and its subgradient Pᵀ ξ (and the constraints' rows Pᵀ)."""
     def f(beta):
-        value, xi = oracle(red.expand(beta))
-        return value, red.pullback(xi)
+        out = oracle(red.expand(beta))
+        if len(out) == 4:
+            return out[0], red.pullback(out[1]), out[2], np.array([red.pullback(row) for row in out[3]])
+        return out[0], red.pullback(out[1])
     return f
 
 
@@ -206,11 +218,14 @@ def _saved_stopping(path: Path) -> dict:
         return {}       # a missing or corrupt checkpoint is reported by _read_checkpoint
 
 
-def _write_checkpoint(path: Path, bstate, oracle: _Oracle, fingerprint: str, elapsed: float, result=None):
+def _write_checkpoint(path: Path, bstate, oracle: _Oracle, fingerprint: str, elapsed: float, result=None,
+                      penalty=None):
     """The optimizer's and the oracle's state (atomically, after history.csv is on disk).
 
     ``result``: the optimizer's result once it has stopped, so that a resumed finished run
-    writes its outputs again without another iteration."""
+    writes its outputs again without another iteration; ``penalty``: the
+    :class:`~contactopt.optimize.constrained.PenaltyState` of a run with [[constraints]] (σ, the
+    outer iteration, the finished bundle runs), saved as ``penalty_*``."""
     try:
         with open(oracle.history_path, "rb+") as fh:
             os.fsync(fh.fileno())
@@ -230,6 +245,8 @@ def _write_checkpoint(path: Path, bstate, oracle: _Oracle, fingerprint: str, ela
         arrays.update(meta_result_status=np.array(int(result.status)), meta_result_message=np.array(result.message),
                       meta_result_criterion=np.array(result.criterion or ""),
                       meta_result_relative_decrease=np.array(float(result.relative_decrease)))
+    if penalty is not None:
+        arrays.update({f"penalty_{k}": np.asarray(v) for k, v in penalty.to_dict().items()})
     arrays.update(oracle.problem.export_contexts())   # what each load case carries, per its path
     atomic_savez(path, **arrays)
 
@@ -269,9 +286,23 @@ def _read_checkpoint(path: Path, fingerprint: str):
         bstate = BundleState.from_dict(bundle)
     except ContactOptError as exc:
         raise CheckpointError(f"checkpoint {path}: {exc}") from None
-    contexts = {k: v for k, v in data.items() if not k.startswith(("bundle_", "meta_"))}
+    contexts = {k: v for k, v in data.items() if not k.startswith(("bundle_", "meta_", "penalty_"))}
     return (bstate, int(data["meta_evaluations"]), float(data["meta_elapsed"]), float(data["meta_scale"]),
             contexts)
+
+
+def _read_penalty(path: Path):
+    """The :class:`~contactopt.optimize.constrained.PenaltyState` of a checkpoint (None: a run
+    without [[constraints]])."""
+    from .optimize.constrained import PenaltyState
+    with np.load(path, allow_pickle=False) as z:
+        d = {k[len("penalty_"):]: z[k] for k in z.files if k.startswith("penalty_")}
+    if not d:
+        return None
+    try:
+        return PenaltyState.from_dict(d)
+    except ContactOptError as exc:
+        raise CheckpointError(f"checkpoint {path}: {exc}") from None
 
 
 def _truncate_history(path: Path, n_rows: int, fields=HISTORY_FIELDS):
@@ -342,7 +373,8 @@ class _Position:
         of it kept here, the file (written atomically) is the truth."""
         try:
             with np.load(ckpt, allow_pickle=False) as z:
-                return cls(int(z["bundle_nit"]), int(z["meta_evaluations"]), "meta_result_status" in z.files)
+                before = int(z["penalty_counts"][1]) if "penalty_counts" in z.files else 0   # earlier σ
+                return cls(before + int(z["bundle_nit"]), int(z["meta_evaluations"]), "meta_result_status" in z.files)
         except Exception:         # none, or not readable: --resume would say so
             return cls()
 
@@ -404,7 +436,12 @@ def run_optimization(config, outdir=None, *, eps=None, max_iter=None, resume=Fal
                                   f"case(s), the configuration has {len(problem.cases)}")
         # before the run directory is touched: a kept Delassus block or AMG hierarchy is rebuilt
         problem.import_contexts(contexts, f"checkpoint {ckpt}")
-        finished = _saved_result(ckpt, bstate, cfg.optimizer.max_iter)
+        pstate = _read_penalty(ckpt)
+        if bool(problem.constraints) != (pstate is not None):
+            raise CheckpointError(f"checkpoint {ckpt}: {'no' if pstate is None else 'a'} penalty state for a "
+                                  f"configuration {'with' if problem.constraints else 'without'} [[constraints]]")
+        # a constrained run's end is its penalty state's: minimize_constrained returns it without evaluating
+        finished = None if pstate is not None else _saved_result(ckpt, bstate, cfg.optimizer.max_iter)
     lock = claim_output_dir(out, overwrite=overwrite, resume=resume)
     root = logging.getLogger("contactopt")
     old_level = root.level
@@ -435,10 +472,12 @@ def run_optimization(config, outdir=None, *, eps=None, max_iter=None, resume=Fal
         if resume:
             _truncate_history(hist, n_eval, history_fields(problem))
             oracle.count = n_eval
-            oracle.iteration = bstate.nit     # history rows before the first callback
+            oracle.iteration = bstate.nit + (pstate.nit if pstate is not None else 0)   # rows before a callback
             oracle.t_start -= elapsed0
             oracle.scale = scale
             state_kw["state"] = bstate
+            if pstate is not None:
+                state_kw = {"state": pstate, "bundle_state": bstate}
             log.info("resuming %s at iteration %d (%d evaluations)%s", out, bstate.nit, n_eval,
                      "; the optimization had finished, its results are written again" if finished else "")
         else:
@@ -457,13 +496,15 @@ def run_optimization(config, outdir=None, *, eps=None, max_iter=None, resume=Fal
 
         def callback(inter):
             st = inter.state
-            oracle.iteration = st.nit
+            pen = getattr(inter, "penalty", None)       # [[constraints]]: σ and the earlier bundle runs
+            nit = st.nit + (pen.nit if pen is not None else 0)
+            oracle.iteration = nit
             h = st.history[-1] if st.history else {}
             # after every iteration (a few kB, atomic): a killed or aborted run loses at most
             # the evaluations of one iteration
-            _write_checkpoint(ckpt, st, oracle, fingerprint, time.perf_counter() - oracle.t_start)
+            _write_checkpoint(ckpt, st, oracle, fingerprint, time.perf_counter() - oracle.t_start, penalty=pen)
             if progress:
-                progress(dict(iteration=st.nit, f=st.f * oracle.scale, step=h.get("step", ""), t=st.t,
+                progress(dict(iteration=nit, f=st.f * oracle.scale, step=h.get("step", ""), t=st.t,
                               stationarity=st.stationarity, nfev=oracle.count,
                               elapsed=time.perf_counter() - oracle.t_start))
 
@@ -475,9 +516,15 @@ def run_optimization(config, outdir=None, *, eps=None, max_iter=None, resume=Fal
                 f, x0, cons = oracle, alpha0, model.admissible.constraints()
                 if red is not None:       # the optimizer works on β; Pᵀ ξ its subgradient
                     f, x0, cons = _reduced(oracle, red), red.beta0, red.bounds
-                res = minimize_bundle(f, x0, **cons, eps=opt.eps, max_iter=opt.max_iter, callback=callback,
-                                      ftol=opt.ftol, ftol_window=opt.ftol_window, metric=opt.metric,
-                                      metric_memory=opt.metric_memory, **state_kw)
+                minimize = minimize_bundle
+                if problem.constraints:        # the exact penalty with an adapted weight
+                    from functools import partial
+
+                    from .optimize.constrained import minimize_constrained
+                    minimize = partial(minimize_constrained, ctol=[c.tol for c in problem.constraints])
+                res = minimize(f, x0, **cons, eps=opt.eps, max_iter=opt.max_iter, callback=callback,
+                               ftol=opt.ftol, ftol_window=opt.ftol_window, metric=opt.metric,
+                               metric_memory=opt.metric_memory, **state_kw)
             except RunAborted as exc:
                 exc.checkpoint = ckpt if ckpt.exists() else None
                 exc.args = (f"{exc.args[0]}; " + (f"the checkpoint of iteration {oracle.iteration} is kept "
@@ -487,7 +534,8 @@ def run_optimization(config, outdir=None, *, eps=None, max_iter=None, resume=Fal
                 raise
             if res.status is not None and res.success:
                 log.info("finished: %s", res.message)
-            _write_checkpoint(ckpt, res.state, oracle, fingerprint, time.perf_counter() - oracle.t_start, res)
+            _write_checkpoint(ckpt, res.state, oracle, fingerprint, time.perf_counter() - oracle.t_start, res,
+                              penalty=res.get("penalty"))
         if red is not None:
             res.x = red.expand(res.x)
         summary = _finish(out, problem, alpha0, res, oracle, t_start)
@@ -612,6 +660,8 @@ def _finish(out: Path, problem, alpha0, res, oracle, t_start) -> dict:
     if problem.term_names():            # each term's value at α0 and at the optimum
         summary["objective"] = {"J0": problem.objective_report(alpha0, warm_start=False),
                                 "J": problem.objective_report(x, warm_start=False)}
+    if problem.constraints:             # each response at the optimum: value, limit, margin (≥ 0: met)
+        summary["constraints"] = _constraint_outputs(problem, alpha0, x, res)
     if problem.has_load_cases:
         summary["load_cases"] = _load_case_outputs(out, problem, (c0, states0), (c1, states1))
     if steps1:
@@ -621,6 +671,18 @@ def _finish(out: Path, problem, alpha0, res, oracle, t_start) -> dict:
     summary["time_breakdown_s"]["outputs"] = time.perf_counter() - t0
     atomic_write_json(out / "summary.json", summary)
     return summary
+
+
+def _constraint_outputs(problem, alpha0, x, res) -> dict:
+    """summary.json's ``constraints``: per constraint its value, limit, margin (limit − value),
+    relative violation tolerance and whether it holds, at the optimum and at α0, and the penalty
+    weight σ the run ended with (optimize/constrained.py)."""
+    out = {}
+    initial = problem.constraint_report(alpha0, warm_start=False)
+    for con, (name, rep) in zip(problem.constraints, problem.constraint_report(x, warm_start=False).items()):
+        out[name] = {**rep, "tol": con.tol, "satisfied": bool(rep["value"] <= con.limit * (1 + con.tol)),
+                     "initial": {k: initial[name][k] for k in ("value", "margin")}}
+    return {"responses": out, "sigma": float(res.get("sigma", float("nan"))), "sigma_raised": int(res.get("outer", 0))}
 
 
 def _step_outputs(out: Path, problem, which: str) -> dict:
@@ -686,6 +748,9 @@ def run_from_cli(args) -> int:
     print(f"J0 = {s['J0']:.8e}  J = {s['J']:.8e}  J/J0 = {s['ratio']:.4g}  iterations {s['iterations']} "
           f"(serious {s['serious_steps']}, null {s['null_steps']}), evaluations {s['evaluations']}, "
           f"{s['wall_time_s']:.1f}s")
+    for name, c in s.get("constraints", {}).get("responses", {}).items():
+        print(f"constraint {name}: {c['initial']['value']:.6e} → {c['value']:.6e} (max {c['limit']:.6e}, "
+              f"margin {c['margin']:.3e}{'' if c['satisfied'] else ', violated'})")
     if "load_cases" in s:
         lc = s["load_cases"]
         print(f"load cases ({lc['combine']}), active at the optimum: {', '.join(lc['active'])}")

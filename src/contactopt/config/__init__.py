@@ -10,6 +10,7 @@ Schema of ``contactopt schema``).
 
 from ..errors import ConfigError
 from .configuration import Config, validate
+from .constraints import CONSTRAINT_TYPES, ResponseConstraint
 from .json_schema import json_schema
 from .loading import load_config
 from .migration import LEGACY_BACKEND
@@ -53,7 +54,7 @@ from .sections import (
                      Target,
 )
 
-__all__ = ["BLOCK_LOADS", "CASE_NAME", "EXAMPLES", "FOUNDATION", "FOUNDATION_LOADS", "LEGACY_BACKEND",
+__all__ = ["CONSTRAINT_TYPES", "ResponseConstraint", "BLOCK_LOADS", "CASE_NAME", "EXAMPLES", "FOUNDATION", "FOUNDATION_LOADS", "LEGACY_BACKEND",
            "OBJECTIVE_TYPES", "OBSTACLE", "SCHEMA", "SECTION_DOCS", "TERM_KEYS", "TOP_LEVEL", "Body", "Clamp", "Config",
            "ConfigError", "Design", "Foundation", "FoundationBlock", "FoundationMaterial", "Friction", "Geometry",
            "LinearConstraint", "LinearSolver", "LoadCase", "LoadStep", "Loads", "Material", "Mesh", "Objective",

@@ -12,6 +12,7 @@ from __future__ import annotations
 import copy
 from dataclasses import dataclass, field
 
+from .constraints import ResponseConstraint
 from .sections import (
     Body,
     Design,
@@ -53,6 +54,7 @@ class Config:
     obstacle: Obstacle | None
     load_cases: tuple[LoadCase, ...]
     load_steps: tuple[LoadStep, ...]
+    constraints: tuple[ResponseConstraint, ...] = ()     # [[constraints]] (config/constraints.py)
     source: str = "<dict>"
     _data: dict = field(default_factory=dict, repr=False, compare=False)
 
@@ -72,6 +74,7 @@ class Config:
             foundation=opt("foundation", Foundation), obstacle=opt("obstacle", Obstacle),
             load_cases=tuple(LoadCase.from_dict(c) for c in data.get("load_cases", [])),
             load_steps=tuple(LoadStep.from_dict(s) for s in data.get("load_steps", [])),
+            constraints=tuple(ResponseConstraint.from_dict(c) for c in data.get("constraints", [])),
             source=source, _data=data)
 
     @property

@@ -9,6 +9,7 @@ authority on what depends on other keys (a control net's size, the names of load
 from __future__ import annotations
 
 from .checks import _nonneg, _pos, _posint
+from .constraints import json_schema as constraints_schema
 from .schema import (
     FOUNDATION,
     FOUNDATION_LOADS,
@@ -150,6 +151,7 @@ def json_schema() -> dict:
                                     "properties": {k: _key("loads", k, *FOUNDATION_LOADS[k]) for k in FOUNDATION_LOADS}}
     props["foundation"] = found
     props["obstacle"] = _table("obstacle", OBSTACLE, "a rigid obstacle of any shape (docs/obstacles.md)")
+    props["constraints"] = constraints_schema(props["objective"]["properties"])
     return {"$schema": DRAFT,
             "title": "contactopt configuration", "type": "object", "additionalProperties": False,
             "properties": props}

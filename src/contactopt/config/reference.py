@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from .constraints import REFERENCE as CONSTRAINTS_REFERENCE
 from .schema import FOUNDATION, OBSTACLE, SCHEMA, SECTION_DOCS, TOP_LEVEL
 
 
@@ -61,5 +62,6 @@ def reference_markdown() -> str:
               "`substeps` (default 1: equal increments, linear in the loads, from the previous step's loads). "
               "Coulomb's law acts on the slip of each step. `objective.steps` says which steps Θ is taken on. "
               "Without steps the problem is one step, the static problem."]
+    lines += CONSTRAINTS_REFERENCE
     return "\n".join(lines) + "\n"
 

@@ -9,6 +9,7 @@ from pathlib import Path
 
 from ..errors import ConfigError
 from .checks import _NUM, _axis, _block_spec, _finite, _material_spec, _nonneg, _pos, _posint, _vec3
+from .constraints import check_constraints
 from .migration import _legacy_backend
 from .schema import (
     BLOCK_LOADS,
@@ -437,9 +438,9 @@ def resolve(raw: dict, source: str = "<dict>") -> dict:
     data = {}
     for key in raw:
         if key not in SCHEMA and key not in TOP_LEVEL and key not in ("load_cases", "foundation", "obstacle",
-                                                                   "load_steps"):
+                                                                   "load_steps", "constraints"):
             problems.append(f"{key}: unknown section (allowed: "
-                            f"{', '.join(list(TOP_LEVEL) + list(SCHEMA) + ['foundation', 'obstacle', 'load_cases', 'load_steps'])})")
+                            f"{', '.join(list(TOP_LEVEL) + list(SCHEMA) + ['foundation', 'obstacle', 'load_cases', 'load_steps', 'constraints'])})")
     for key, (default, check, desc) in TOP_LEVEL.items():
         val = raw.get(key, default)
         if not check(val):
@@ -467,6 +468,8 @@ def resolve(raw: dict, source: str = "<dict>") -> dict:
     if "load_steps" in raw:
         data["load_steps"] = _check_load_steps(raw["load_steps"], "load_steps", problems)
     _check_step_names(data, problems, raw_sections=tuple(raw))
+    if "constraints" in raw:                      # [[constraints]]: config/constraints.py
+        data["constraints"] = check_constraints(raw["constraints"], data, problems)
     _check_combination(raw, data, problems)
     _check_body(raw, data, problems)
     if "foundation" in raw:

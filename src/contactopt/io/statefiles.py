@@ -67,10 +67,10 @@ CONVENTIONS = {
 }
 
 
-def state_json(model, state: State, config=None, warnings=None, objective=None) -> dict:
+def state_json(model, state: State, config=None, warnings=None, objective=None, constraints=None) -> dict:
     """The content of state.json: summary, design, contact arrays as lists, conventions, and
-    ``warnings`` (e.g. the constraints of U the design breaks) and ``objective`` ({type, value,
-    terms}) when given."""
+    ``warnings`` (e.g. the constraints of U the design breaks), ``objective`` ({type, value,
+    terms}) and ``constraints`` ({name: {type, value, limit, margin}}) when given."""
     doc = {
         "format_version": FORMAT_VERSION,
         "summary": state.summary(),
@@ -104,6 +104,8 @@ def state_json(model, state: State, config=None, warnings=None, objective=None) 
         doc["warnings"] = list(warnings)
     if objective is not None:
         doc["objective"] = objective
+    if constraints is not None:
+        doc["constraints"] = constraints
     if config is not None:
         doc["config"] = config.to_dict() if hasattr(config, "to_dict") else config
     return doc
@@ -172,13 +174,15 @@ def _move_into(tmpdir: Path, outdir: Path, names=STATE_FILES) -> None:
     fsync_dir(outdir)
 
 
-def write_state(outdir, model, state: State, *, config=None, warnings=None, objective=None) -> dict:
+def write_state(outdir, model, state: State, *, config=None, warnings=None, objective=None,
+                constraints=None) -> dict:
     """Write the files of :data:`STATE_FILES` into ``outdir``, all or nothing.
 
     ``config`` (a :class:`~contactopt.config.Config` or a plain dict), when given, is stored
     resolved in state.json under ``"config"``; ``warnings`` (a list of strings) under
     ``"warnings"``; ``objective`` ({type, value, terms}: the objective at the state's design,
-    :meth:`contactopt.problem.ShapeProblem.objective_report`) under ``"objective"``. Existing
+    :meth:`contactopt.problem.ShapeProblem.objective_report`) under ``"objective"``, ``constraints``
+    (:meth:`~contactopt.problem.ShapeProblem.constraint_report`) under ``"constraints"``. Existing
     files of the same names are replaced;
     other files in ``outdir`` are left alone. Returns ``{file name: Path}`` of the written files.
     Raises ``ValueError`` for a state with non-finite arrays (nothing is written).
@@ -189,7 +193,8 @@ def write_state(outdir, model, state: State, *, config=None, warnings=None, obje
     parent.mkdir(parents=True, exist_ok=True)
     tmpdir = Path(tempfile.mkdtemp(prefix=f".{outdir.name}.", suffix=".tmp", dir=parent))
     try:
-        atomic_write_json(tmpdir / "state.json", state_json(model, state, config, warnings, objective))
+        atomic_write_json(tmpdir / "state.json", state_json(model, state, config, warnings, objective,
+                                                                  constraints))
         atomic_savez(tmpdir / "state.npz", **_state_arrays(model, state))
         vtk.write_body_vtu(tmpdir / "body.vtu", model, state)
         plots.plot_contact_field(tmpdir / "lambda.png", model, state.lam,

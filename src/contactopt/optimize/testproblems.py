@@ -833,3 +833,121 @@ def max_quadratics_reference(prob):
         raise RuntimeError(f"Clarabel did not solve the reference SOCP: {sol.status}")
     x = np.array(sol.x[:n])
     return x, prob(x)[0]
+
+
+# ---------------------------------------------------------------- nonlinear constraints c(x) ≤ 0
+@dataclass(frozen=True)
+class ConstrainedProblem:
+    """min f(x) over U ∩ {c(x) ≤ 0}: ``oracle(x) -> (f, g, c, J)`` (the form of
+    :func:`contactopt.optimize.constrained.minimize_constrained`; J one subgradient of each c_i
+    per row), start ``x0`` (it may violate c ≤ 0), optimal value ``f_star``, ``source`` where
+    the data and the optimum come from; U as in :class:`NonsmoothProblem`."""
+
+    name: str
+    oracle: Callable = field(repr=False)
+    x0: np.ndarray = field(repr=False)
+    f_star: float
+    source: str = ""
+    A_ub: np.ndarray | None = field(default=None, repr=False)
+    b_ub: np.ndarray | None = field(default=None, repr=False)
+
+    @property
+    def n(self) -> int:
+        return self.x0.size
+
+    def __call__(self, x):
+        return self.oracle(np.asarray(x, dtype=float))
+
+    def constraints(self) -> dict:
+        """Keyword arguments of the linear part U for ``minimize_bundle``."""
+        return {k: getattr(self, k) for k in ("A_ub", "b_ub") if getattr(self, k) is not None}
+
+
+def _constrained(f_pieces, c_pieces, max_of_c=False, f_abs=False):
+    """(f, g, c, J): f the max of ``f_pieces`` (|·| with ``f_abs``), c each of ``c_pieces`` (or
+    their max, one constraint); subgradients of the first maximiser, by the complex step."""
+    fo = _minimax(f_pieces, absolute=f_abs)
+
+    def oracle(x):
+        f, g = fo(x)
+        z = x[None, :] + 1j * _H * np.eye(x.size)
+        c = np.real(c_pieces(x))
+        J = (np.asarray(c_pieces(z)).imag / _H).T
+        if max_of_c:
+            k = _first_max(c)
+            c, J = c[k:k + 1], J[k:k + 1]
+        return f, g, c, J
+    return oracle
+
+
+def _stack(*funcs):
+    return lambda z: np.stack([fn(z) for fn in funcs], -1)
+
+
+def _l1_pieces(z):
+    return np.sum(z * np.sign(np.real(z) + (np.real(z) == 0)), axis=-1)[..., None]
+
+
+def _linf_pieces(z):
+    return z
+
+
+def _build_constrained() -> dict[str, ConstrainedProblem]:
+    """The nonlinearly constrained problems (:class:`ConstrainedProblem`)."""
+    C = ConstrainedProblem
+    arr = np.asarray
+
+    def rs_f(z):
+        return _rosen_suzuki_pieces(z)[..., :1]
+
+    def rs_c(z):
+        f1 = _rosen_suzuki_pieces(z)[..., 0]
+        return np.stack([(_rosen_suzuki_pieces(z)[..., i] - f1) / 10 for i in (1, 2, 3)], -1)
+
+    def wong2_f(z):
+        return (_wong_base(z) + 45)[..., None]
+
+    def wong2_c(z):
+        return np.stack(_wong_penalties(z)[1:], -1)
+
+    def wong3_f(z):
+        return _wong3_pieces(z)[..., :1]
+
+    def wong3_c(z):
+        p = _wong3_pieces(z)
+        return (p[..., 1:] - p[..., :1]) / 10
+
+    w = np.array([1.0, 2.0, 3.0])
+    lin2 = dict(A_ub=PROBLEMS["Wong2"].A_ub, b_ub=PROBLEMS["Wong2"].b_ub)
+    lin3 = dict(A_ub=PROBLEMS["Wong3"].A_ub, b_ub=PROBLEMS["Wong3"].b_ub)
+    lv = "Lukšan & Vlček, TR 798 (2000)"
+    probs = [
+        C("C-Mifflin1", _constrained(lambda z: -z[..., :1], lambda z: (z[..., 0]**2 + z[..., 1]**2 - 1)[..., None]),
+          arr([0.8, 0.6]), -1.0,
+          f"min −x1 s.t. x1² + x2² ≤ 1: {lv} unconstrained problem 8 (Mifflin 1) is its exact penalty "
+          "−x1 + 20 max(0, c); x* = (1, 0), f* = −1"),
+        C("C-Rosen-Suzuki", _constrained(rs_f, rs_c, max_of_c=True), np.zeros(4), -44.0,
+          "Hock & Schittkowski problem 43 (Rosen–Suzuki) with the one constraint max(g1, g2, g3) ≤ 0, "
+          f"nonsmooth at x* = (0, 1, 2, −1) where g1 and g3 are active; f* = −44 ({lv} problem 11 is "
+          "its exact penalty)"),
+        C("C-Wong2", _constrained(wong2_f, wong2_c), arr([2.0, 3, 5, 5, 1, 2, 7, 3, 6, 10]), 24.306209,
+          f"Hock & Schittkowski problem 113 (Wong 2): five quadratic constraints and three linear rows; "
+          f"f* = 24.306209 ({lv} linearly constrained problem 8 is its exact penalty)", **lin2),
+        C("C-Wong3", _constrained(wong3_f, wong3_c),
+          arr([2.0, 3, 5, 5, 1, 2, 7, 3, 6, 10, 2, 2, 6, 15, 1, 2, 1, 2, 1, 3]), 133.72828,
+          f"Wong 3: thirteen nonlinear constraints and four linear rows; f* = 133.72828 ({lv} linearly "
+          "constrained problem 9 is its exact penalty)", **lin3),
+        C("C-L1-halfspace", _constrained(lambda z: _l1_pieces(z), lambda z: (1 - z @ w)[..., None]),
+          np.zeros(3), 1.0 / 3.0,
+          "min ‖x‖₁ s.t. x1 + 2x2 + 3x3 ≥ 1, from the infeasible x0 = 0: by LP duality f* = 1/‖w‖∞ = 1/3 "
+          "at x* = (0, 0, 1/3), where f is not differentiable (x1 = x2 = 0)"),
+        C("C-Linf-L1ball", _constrained(_linf_pieces, lambda z: (np.sum(
+            (z - 2) * np.sign(np.real(z) - 2 + (np.real(z) == 2)), axis=-1) - 1)[..., None], f_abs=True),
+          np.zeros(10), 1.9,
+          "min ‖x‖∞ s.t. ‖x − 2·1‖₁ ≤ 1 in R¹⁰, from the infeasible x0 = 0: max x_i < 2 − 1/10 would give "
+          "Σ(2 − x_i) > 1, so f* = 1.9 at x* = 1.9·1, where f and c are both nonsmooth"),
+    ]
+    return {p.name: p for p in probs}
+
+
+CONSTRAINED: dict[str, ConstrainedProblem] = _build_constrained()

@@ -72,9 +72,9 @@ def select_path(config, n_free: int, pinned: int = 0) -> tuple[str, str]:
     condensation path, which "auto" takes, and, fixed or moved by a prescribed translation, on the
     Delassus and full-space paths; the PETSc path refuses it."""
     from .._mpi import petsc_missing, world_size
-    from ..sensitivity.objectives import FULL_SPACE, objective_types
+    from ..sensitivity.objectives import FULL_SPACE, constraint_types, objective_types
     ls, foundation = config.linear_solver, config.foundation is not None
-    types = objective_types(config)
+    types = objective_types(config) | constraint_types(config)     # [[constraints]] are objectives too
     name, objective = ls.path, "compliance" if "compliance" in types else config.objective.type
     full = sorted(types & FULL_SPACE)
     if full and (foundation or name == "petsc" or ranks_of() > 1):

@@ -18,6 +18,8 @@ and the design terms) and, for a 'design' target, a function that solves the sta
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 
 from ..errors import ConfigError
@@ -353,6 +355,41 @@ def _one_objective(model, table, scale, key, target, case, solve) -> Objective:
 def objective_types(config) -> set:
     """The objective types a configuration uses (its type, or those of its terms)."""
     return config.objective.types
+
+
+def constraint_types(config) -> set:
+    """The types of the configuration's [[constraints]] (empty without)."""
+    return {t.type for t in config.constraints}
+
+
+@dataclass
+class Constraint:
+    """One of the ``[[constraints]]``: the response ``objectives[k]`` (an :class:`Objective` of
+    load case k, built as the objective of that type is) must stay ≤ ``limit``; ``tol`` the
+    relative violation (value − limit)/limit a result may keep. A constraint is an objective
+    with a limit: its value and subgradient come from the same code (adjoint included)."""
+
+    name: str
+    type: str
+    limit: float
+    tol: float
+    objectives: list
+
+
+def make_constraints(config, model, cases, solve=None) -> list:
+    """The :class:`Constraint` list of ``[[constraints]]`` (:class:`~contactopt.config.ResponseConstraint`
+    records), one objective per load case in ``cases`` (each with the case's loads)."""
+    out, names = [], {}
+    for n, table in enumerate(config.constraints):
+        names[table.type] = names.get(table.type, 0) + 1
+        objs = []
+        for k, case in enumerate(cases):
+            one = _one_objective(model, table, 1.0, f"constraints[{n}]", None, k, solve)
+            one.loads = case.loads
+            objs.append(one)
+        name = table.type if names[table.type] == 1 else f"{table.type}_{names[table.type]}"
+        out.append(Constraint(name, table.type, float(table.max), float(table.tol), objs))
+    return out
 
 
 FULL_SPACE = frozenset({"peak_stress", "frictional_dissipation"})   # ∂J/∂u on every DOF
