@@ -28,7 +28,7 @@ from .errors import SolverError
 from .fem import memory
 from .fem.model import ElasticModel
 from .mesh.body import build_body
-from .paths import PATHS, make_path, select_path
+from .paths import PATHS, Start, make_path, select_path
 
 log = logging.getLogger(__name__)
 
@@ -45,24 +45,22 @@ class ShapeProblem:
         self.config = config if isinstance(config, Config) else load_config(config)
         body = build_body(self.config)
         name, library = select_path(self.config, memory.free_dofs(body), pinned=int(body.pinned_dofs.size))
-        PATHS[name].starting(self.config)
         self.model = ElasticModel(self.config, body=body, memory_estimate=PATHS[name].memory_estimate)
-        self.path = make_path(self.config, self.model, name, library)
-        self.friction = self.path.settings.friction
-        self.method = method or self.path.settings.method
-        self.tol = self.path.settings.tol
         self.n_state_solves = 0    # designs solved (all cases at once)
         self._cache = None         # (alpha bytes, method, systems per case, states per case)
         from .sensitivity.cases import build_cases
         self.cases, self.combination = build_cases(self.config, self.model, self._design_lambda)
-        self.path.first_loads = self.cases[0].loads
+        self.path = make_path(self.config, self.model, name, library,
+                              Start(first_loads=self.cases[0].loads, config=self.config))
+        self.friction = self.path.settings.friction
+        self.method = method or self.path.settings.method
+        self.tol = self.path.settings.tol
         self.contexts = [self.path.new_context() for _ in self.cases]
         self._init_steps()
 
     def _init_steps(self) -> None:
         """The load path of every case (None: one step, the static problem; sensitivity/steps.py)
         and a context per solve of a path (the first is the case's own)."""
-        from .errors import ConfigError
         from .sensitivity.steps import build_path, step_choice, step_tables
         self.steps = []
         for k, case in enumerate(self.cases):
@@ -70,10 +68,6 @@ class ShapeProblem:
             where = f"load_cases[{k}].steps" if own else "load_steps"
             self.steps.append(build_path(self.model, case.loads,
                                          step_tables(self.config, k if self.has_load_cases else None), where))
-        if any(self.steps) and not self.path.takes_steps:
-            taking = [n for n, cls in PATHS.items() if cls.takes_steps]
-            raise ConfigError([f"load_steps: the {self.path.name!r} solver path does not take load steps; "
-                               f"use linear_solver.path = {' or '.join(map(repr, taking))}"])
         self.step_choice = step_choice(self.config)
         self.step_contexts = [[ctx] + [self.path.new_context() for _ in (steps or [None])[1:]]
                               for ctx, steps in zip(self.contexts, self.steps)]

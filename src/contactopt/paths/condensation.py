@@ -48,6 +48,7 @@ from ..contact import zone as zone_rules
 from ..errors import SolverError
 from ..fem import memory
 from ..fem.model import Assembled
+from .base import Capabilities
 from .zone_paths import ZonePath
 
 
@@ -94,9 +95,11 @@ class CondensationPath(ZonePath):
     """``[linear_solver] path = "condensation"`` (module docstring)."""
 
     name = "condensation"
+    capabilities = Capabilities(foundation=True, obstacle=True, pinned=True, compliance=True,
+                                whole_displacement=True, load_steps=True, auto="small")
 
-    def __init__(self, model, settings):
-        super().__init__(model, settings)
+    def __init__(self, model, settings, start=None):
+        super().__init__(model, settings, start)
         self._factor = None      # the condensation, refactored in place for each new design
 
     @classmethod
@@ -148,9 +151,10 @@ class CondensationPath(ZonePath):
         out.timings["schur"] = time.perf_counter() - t1
         return out
 
-    def solve_state(self, system, ctx, alpha, **kw):
+    def solve_state(self, system, ctx, alpha, *, method, warm_start, tol, shared, label="", slip_ref=None):
         """The state (:class:`ZonePath`); with a force-controlled obstacle the translation s that
         balances the force, found by Brent's method (module docstring)."""
+        kw = dict(method=method, warm_start=warm_start, tol=tol, shared=shared, label=label, slip_ref=slip_ref)
         m = self.model
         if getattr(m, "force", None) is None:
             return super().solve_state(system, ctx, alpha, **kw)

@@ -24,6 +24,7 @@ from ..contact import zone as zone_rules
 from ..contact.state import CLASS_CODES, FROM_FCLIB, displacement_scale
 from ..fem import memory
 from ..fem.model import Assembled
+from .base import Capabilities
 from .zone_paths import ZonePath
 
 log = logging.getLogger(__name__)
@@ -52,12 +53,14 @@ class DelassusPath(ZonePath):
     """``[linear_solver] path = "delassus"`` (module docstring)."""
 
     name = "delassus"
+    capabilities = Capabilities(pinned=True, whole_displacement=True, load_steps=True, auto="large", auto_order=1,
+                                auto_libraries=("pardiso",))
     reuse_tol_factor = 1.0    # each Newton step costs a sparse solve here: to tol itself
     accept_at_tol = True      # forming W_Z costs more than a factorization
     probe_warm = True         # the warm start's product Newton needs first anyway
 
-    def __init__(self, model, settings):
-        super().__init__(model, settings)
+    def __init__(self, model, settings, start=None):
+        super().__init__(model, settings, start)
         self._factor = None       # the Cholesky factorization of A(α), numerical only after the first
         self._slot = None         # the factorization a design's solves go through
         self._keep_cholesky = memory.keeps_cholesky(model)

@@ -23,7 +23,7 @@ import numpy as np
 from .._threads import sequential_openblas
 from ..fem import memory
 from ..fem.model import Assembled
-from .base import Context, SolverPath, check_design
+from .base import Capabilities, Context, SolverPath, check_design
 
 log = logging.getLogger(__name__)
 
@@ -52,9 +52,11 @@ class FullSpacePath(SolverPath):
     """``[linear_solver] path = "fullspace"`` (module docstring)."""
 
     name = "fullspace"
+    capabilities = Capabilities(pinned=True, whole_displacement=True, load_steps=True, libraries=("pyamg",),
+                                sparse="pyamg", auto="large", auto_order=0)
 
-    def __init__(self, model, settings):
-        super().__init__(model, settings)
+    def __init__(self, model, settings, start=None):
+        super().__init__(model, settings, start)
         self.library = "pyamg"
         self._hierarchy = None          # the AMG hierarchy of an earlier A(α) ...
         self._hierarchy_alpha = None    # ... built at this design (checkpoints rebuild it)
@@ -95,9 +97,6 @@ class FullSpacePath(SolverPath):
                                         contact_dofs=self.model.contact_dofs)
         finally:
             np.random.set_state(saved)
-
-
-    takes_steps = True
 
     def solve_state(self, system, ctx, alpha, *, method, warm_start, tol, shared, label="", slip_ref=None):
         """Warm-started from the case's last forces, displacement and contact zone, on the AMG
@@ -168,7 +167,7 @@ class FullSpacePath(SolverPath):
     def import_context(self, ctx, arrays: dict, where: str, others=()) -> None:
         """Also the case's last displacement, and the AMG hierarchy rebuilt at its design."""
         from ..errors import CheckpointError
-        super().import_context(ctx, arrays, where)
+        super().import_context(ctx, arrays, where, others)
         n_free = self.model.assembler.n_free
         u = arrays.get("u_free")
         if u is not None:

@@ -28,20 +28,18 @@ import itertools
 import logging
 import time
 from dataclasses import dataclass
+from types import MappingProxyType
 
 import numpy as np
 
 from ..errors import CheckpointError, ConfigError, SolverError
 from ..fem import memory
 from ..fem.model import Assembled
-from .base import Context, SolverPath, check_design
+from .base import Capabilities, Context, SolverPath, check_design
 from .fullspace import FULLSPACE_TOL
+from .protocol import Call, Command, Problem, new_path_id, send
 
 log = logging.getLogger(__name__)
-
-_ids = itertools.count(1)
-_pending = [None]          # the id the next PetscPath of a serving rank takes
-_served: dict = {}         # id -> PetscPath on a serving rank
 
 
 def _world():
@@ -75,29 +73,23 @@ class PetscPath(SolverPath):
     """``[linear_solver] path = "petsc"`` (module docstring)."""
 
     name = "petsc"
+    capabilities = Capabilities(pinned=True, many_ranks=True, libraries=("petsc4py",), sparse="petsc", auto="ranks")
 
-    @classmethod
-    def starting(cls, config) -> None:
-        """Before rank 0 builds its model: the other ranks build theirs from ``config`` (a serving
-        rank has its id from :func:`served_problem`)."""
-        from .._mpi import world_rank, world_size
-        if world_rank() == 0:
-            _pending[0] = next(_ids)
-            if world_size() > 1:
-                _send(("problem", _pending[0], config))
-
-    def __init__(self, model, settings):
-        super().__init__(model, settings)
+    def __init__(self, model, settings, start=None):
+        """On rank 0 under mpiexec the other ranks first build the problem of ``start.config``
+        (:class:`~contactopt.paths.protocol.Problem`): the PETSc objects are made by all ranks."""
+        super().__init__(model, settings, start)
         from petsc4py import PETSc
 
         from ..contact.fullspace_petsc import PetscNewton
         from ..fem.distributed import DistributedBody
         self.library = "petsc"
-        self.id = _pending[0] if _pending[0] is not None else next(_ids)
-        _pending[0] = None
+        self.id = new_path_id()
         comm = PETSc.COMM_WORLD
         self.size, self.rank = comm.getSize(), comm.getRank()
         self.leader = self.rank == 0 and self.size > 1
+        if self.leader:
+            send(Problem(self.id, self.start.config))
         _set_options(model.config["linear_solver"]["petsc_options"])
         t0 = time.perf_counter()
         self.dist = dist = DistributedBody(model, self.size, self.rank)
@@ -124,18 +116,16 @@ class PetscPath(SolverPath):
         log.info("PETSc path on %d rank(s): %d DOFs, %d owned here, %d elements (+%d at the "
                  "interfaces), %.2f s", self.size, dist.n, dist.n_local, dist.n_elements,
                  dist.n_ghost_elements, time.perf_counter() - t0)
-        if self.rank > 0:
-            _served[self.id] = self
 
     @classmethod
     def memory_estimate(cls, body, **kw):
         return memory.estimate_evaluation(body, memory.fullspace_parts)
 
-    def _call(self, name, *args):
+    def _call(self, command: Command, *args):
         """Rank 0: the other ranks make the same call (:func:`contactopt.ranks.serve`); then this rank's."""
         if self.leader:
-            _send(("call", self.id, name, args))
-        return getattr(self, "_" + name)(*args)
+            send(Call(self.id, command, args))
+        return self.handlers[command](self, *args)
 
     # ------------------------------------------------------------------ designs and loads
     def assemble(self, alpha, loads=None) -> Assembled:
@@ -148,11 +138,11 @@ class PetscPath(SolverPath):
 
     def prepare(self, asm) -> PetscSystem:
         key = next(self._keys)
-        return self._call("prepare", key, asm.alpha, asm.coords, asm.L_full, asm.gap)
+        return self._call(Command.PREPARE, key, asm.alpha, asm.coords, asm.L_full, asm.gap)
 
     def for_load(self, system, asm) -> PetscSystem:
         key = next(self._keys)
-        return self._call("for_load", system.key, key, asm.L_full)
+        return self._call(Command.FOR_LOAD, system.key, key, asm.L_full)
 
     def _prepare(self, key, alpha, coords, L_full, gap):
         t0 = time.perf_counter()
@@ -211,10 +201,11 @@ class PetscPath(SolverPath):
             self._contexts[key] = PetscContext(None, self.all_nodes, key=key)
         return self._contexts[key]
 
-    def solve_state(self, system, ctx, alpha, *, method, warm_start, tol, shared, label=""):
-        """As the full-space path's (:meth:`contactopt.paths.fullspace.FullSpacePath.solve_state`)."""
+    def solve_state(self, system, ctx, alpha, *, method, warm_start, tol, shared, label="", slip_ref=None):
+        """As the full-space path's (:meth:`contactopt.paths.fullspace.FullSpacePath.solve_state`);
+        no load steps (``slip_ref`` None: ``capabilities.load_steps`` is False)."""
         self._contexts.setdefault(ctx.key, ctx)
-        return self._call("solve", system.key, ctx.key, np.asarray(alpha, dtype=float), bool(warm_start),
+        return self._call(Command.SOLVE, system.key, ctx.key, np.asarray(alpha, dtype=float), bool(warm_start),
                           tol, label)
 
     def _solve(self, skey, ckey, alpha, warm_start, tol, label):
@@ -254,7 +245,7 @@ class PetscPath(SolverPath):
         if {**DEFAULT_CHOICES, **(choices or {})} != DEFAULT_CHOICES:
             raise SolverError(f"the full-space adjoint implements the default degenerate choices "
                               f"{DEFAULT_CHOICES} only, got {choices}")
-        v_u, v_lam, its = self._call("adjoint", system.key, np.asarray(state.classes), state.u_c, state.lam,
+        v_u, v_lam, its = self._call(Command.ADJOINT, system.key, np.asarray(state.classes), state.u_c, state.lam,
                                      np.asarray(y_u, dtype=float), np.asarray(y_lam, dtype=float))
         state.info["adjoint_krylov"] = int(its)
         v_free = self.dist.free_vector(system.v_all)
@@ -274,7 +265,7 @@ class PetscPath(SolverPath):
 
     def design_contraction(self, system, u_full, v_full, loads=None) -> np.ndarray:
         """vᵀ(∂A/∂α u − ∂L/∂α): the stiffness part per rank over its own elements, summed on rank 0."""
-        part = self._call("contraction", system.key)
+        part = self._call(Command.CONTRACTION, system.key)
         m = self.model
         coords = system.assembled.coords
         v_full = m.unpin(v_full)            # the pinned DOFs are clamped (fem.model)
@@ -313,7 +304,7 @@ class PetscPath(SolverPath):
         if a is not None and a.size:
             check_design(a, self.model.n_design, where, "AMG design")
         SolverPath.import_context(self, ctx, arrays, where)     # its checks, before any rank acts
-        self._call("import", ctx.key, {k: v for k, v in arrays.items() if k in ("warm", "zone", "u_free",
+        self._call(Command.IMPORT, ctx.key, {k: v for k, v in arrays.items() if k in ("warm", "zone", "u_free",
                                                                                  "jacobian_alpha")}, where)
 
     def _import(self, ckey, arrays, where):
@@ -330,42 +321,9 @@ class PetscPath(SolverPath):
                 self._design_key = None
                 self._hierarchy(alpha, coords)
 
-
-# ---------------------------------------------------------------------------- the other ranks
-def _send(msg) -> None:
-    """Rank 0: a message to every serving rank (a flag by a non-blocking broadcast, which the
-    waiting ranks poll without spinning a core, then the pickled message)."""
-    comm = _world()
-    flag = np.ones(1, dtype=np.int64)
-    comm.Ibcast(flag, root=0).Wait()
-    comm.bcast(msg, root=0)
-
-
-def receive():
-    """A rank > 0: the next message of rank 0 (waiting without spinning a core)."""
-    comm = _world()
-    flag = np.zeros(1, dtype=np.int64)
-    req = comm.Ibcast(flag, root=0)
-    while not req.Test():
-        time.sleep(0.002)
-    return comm.bcast(None, root=0)
-
-
-def make_call(msg) -> None:
-    """A rank > 0: make the call of rank 0 that ``msg`` ("call", path id, name, arguments) names."""
-    _, pid, name, args = msg
-    getattr(_served[pid], "_" + name)(*args)
-
-
-def served_problem(pid):
-    """The id the next PetscPath built on this rank takes (:func:`contactopt.ranks.serve`)."""
-    _pending[0] = pid
-
-
-def stop_serving() -> None:
-    """Rank 0: the serving ranks return from :func:`contactopt.ranks.serve`."""
-    if _world().Get_size() > 1 and _world().Get_rank() == 0:
-        _send(("stop",))
+    handlers = MappingProxyType({Command.PREPARE: _prepare, Command.FOR_LOAD: _for_load, Command.SOLVE: _solve,
+                                 Command.ADJOINT: _adjoint, Command.CONTRACTION: _contraction,
+                                 Command.IMPORT: _import})   # what each rank runs for a command
 
 
 def _set_options(text: str) -> None:

@@ -52,7 +52,6 @@ class ZonePath(SolverPath):
     """A path whose state is the zone's local problem (module docstring)."""
 
     reuse_tol_factor = REUSE_TOL_FACTOR
-    takes_steps = True
     accept_at_tol = False     # accept a reused-block solve that reached tol (not the factor)
     probe_warm = False        # measure a kept block's distance on the warm start
     new_fraction = 0.25       # a kept block takes exact columns for at most this fraction of new nodes
@@ -216,7 +215,7 @@ class ZonePath(SolverPath):
     def import_context(self, ctx, arrays: dict, where: str, others=()) -> None:
         """Also form the kept Delassus block W_Z at the checkpoint's design and zone (W_Z does
         not depend on the load; cases that kept the same block share it)."""
-        super().import_context(ctx, arrays, where)
+        super().import_context(ctx, arrays, where, others)
         a = arrays.get("jacobian_alpha")
         if a is None or not a.size:
             return
