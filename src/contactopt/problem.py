@@ -17,7 +17,7 @@ from __future__ import annotations
 
 import logging
 import time
-from dataclasses import replace
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -31,6 +31,20 @@ from .mesh.body import build_body
 from .paths import PATHS, Start, make_path, select_path
 
 log = logging.getLogger(__name__)
+
+
+@dataclass
+class DesignCache:
+    """The last design's solves: ``key`` α's bytes and ``method``; per load case its ``systems``
+    and ``states`` (the last step's on a load path), and on a load path every step's
+    (``step_systems``, ``step_states``: None for a case without steps)."""
+
+    key: bytes
+    method: str
+    systems: list
+    states: list
+    step_systems: list
+    step_states: list
 
 
 class ShapeProblem:
@@ -47,7 +61,7 @@ class ShapeProblem:
         name, library = select_path(self.config, memory.free_dofs(body), pinned=int(body.pinned_dofs.size))
         self.model = ElasticModel(self.config, body=body, memory_estimate=PATHS[name].memory_estimate)
         self.n_state_solves = 0    # designs solved (all cases at once)
-        self._cache = None         # (alpha bytes, method, systems per case, states per case)
+        self._cache = None         # DesignCache of the last design
         from .sensitivity.cases import build_cases
         self.cases, self.combination = build_cases(self.config, self.model, self._design_lambda)
         self.path = make_path(self.config, self.model, name, library,
@@ -141,8 +155,8 @@ class ShapeProblem:
         if not np.all(np.isfinite(alpha)):
             raise SolverError("design contains NaN or infinite entries")
         key, method = alpha.tobytes(), method or self.method
-        if self._cache is not None and self._cache[:2] == (key, method):
-            return list(self._cache[3])
+        if self._cache is not None and (self._cache.key, self._cache.method) == (key, method):
+            return list(self._cache.states)
         step_systems, step_states = [None] * len(self.cases), [None] * len(self.cases)
         with sequential_openblas():
             systems = self._systems(alpha)
@@ -170,7 +184,8 @@ class ShapeProblem:
                     step_states[k].append(st)
                     slip = st.u_c[:, :2].copy()
                 systems[k], states = step_systems[k][-1], states + [step_states[k][-1]]
-        self._cache = (key, method, systems, states, step_systems, step_states)
+        self._cache = DesignCache(key=key, method=method, systems=systems, states=states,
+                                  step_systems=step_systems, step_states=step_states)
         self.n_state_solves += 1
         return list(states)
 
@@ -181,7 +196,7 @@ class ShapeProblem:
     def cached_system(self, alpha, case: int = 0):
         """The path's system of load case ``case`` at α (solving the states if needed)."""
         self.solve_states(alpha)
-        return self._cache[2][case]
+        return self._cache.systems[case]
 
     cached_condensed = cached_system
 
@@ -239,7 +254,7 @@ class ShapeProblem:
         :class:`~contactopt.sensitivity.cases.Combined` (``kw`` go to :meth:`solve_state`)."""
         self.prepare_objectives()
         states = self.solve_states(alpha, **kw)
-        systems = self._cache[2]
+        systems = self._cache.systems
         values = [float(self._case_terms(k, states, systems)[0]) for k in range(len(self.cases))]
         return self.combination.combine(values)
 
@@ -250,7 +265,7 @@ class ShapeProblem:
         if not self.steps[k]:
             part = case.objective.evaluate(states[k], systems[k])
             return part[0], [(None, 1.0, part)]
-        step_systems, step_states = self._cache[4][k], self._cache[5][k]
+        step_systems, step_states = self._cache.step_systems[k], self._cache.step_states[k]
         parts = {j: case.objective.evaluate(step_states[j], step_systems[j])
                  for j, step in enumerate(self.steps[k]) if step.end}
         for j, part in parts.items():
@@ -263,7 +278,7 @@ class ShapeProblem:
         (None without steps); a state's ``info["objective"]`` is J at the step's end."""
         if not self.steps[case] or self._cache is None:
             return None
-        return [(st.name, st.substep, state) for st, state in zip(self.steps[case], self._cache[5][case])]
+        return [(st.name, st.substep, state) for st, state in zip(self.steps[case], self._cache.step_states[case])]
 
     def step_columns(self) -> list[str]:
         """The names of the steps' objective values (:meth:`step_values`): ``<step>``, with load
@@ -279,7 +294,7 @@ class ShapeProblem:
         :meth:`step_columns`)."""
         out = []
         for k, steps in enumerate(self.steps):
-            out += [float(st.info.get("objective", np.nan)) for s, st in zip(steps or [], self._cache[5][k] or [])
+            out += [float(st.info.get("objective", np.nan)) for s, st in zip(steps or [], self._cache.step_states[k] or [])
                     if s.end]
         return out
 
@@ -288,7 +303,7 @@ class ShapeProblem:
         k's load path (sensitivity/steps.py): each solve's adjoint (4.15) with the objective's
         right-hand side at the steps it is taken on plus P_t(S v + y*_u) of the solve after it."""
         from .sensitivity.steps import tangential
-        step_systems, step_states, ctxs = self._cache[4][k], self._cache[5][k], self.step_contexts[k]
+        step_systems, step_states, ctxs = self._cache.step_systems[k], self._cache.step_states[k], self.step_contexts[k]
         coef = {j: (c, part) for j, c, part in terms}
         last = max(coef)
         pinned = self.model.contact_pinned.ravel()
@@ -302,7 +317,9 @@ class ShapeProblem:
                 y_u, y_lam, xi = c * yu, c * yl, xi + c * dJ_da
             if carry is not None:
                 y_u = y_u + carry
-            v_u, v_lam, v_full = self.path.adjoint(system, ctxs[j], state, y_u, y_lam, choices)
+            v_u, v_lam, v_full, krylov = self.path.adjoint(system, ctxs[j], state, y_u, y_lam, choices)
+            if krylov is not None:
+                state.info["adjoint_krylov"] = krylov
             xi = xi + self.path.design_contraction(system, state.u, v_full, self.steps[k][j].loads) \
                 + self.model.gap_matrix.T @ v_lam
             nd += state.n_degenerate
@@ -331,7 +348,7 @@ class ShapeProblem:
         self.prepare_objectives()
         t0 = time.perf_counter()
         states = self.solve_states(alpha)
-        systems = self._cache[2]
+        systems = self._cache.systems
         t1 = time.perf_counter()
         parts = []
         for k in range(len(self.cases)):
@@ -357,7 +374,9 @@ class ShapeProblem:
                     v_u, v_lam = v_u_k, v_lam_k
                 continue
             _, y_u, y_lam, dJ_da = parts[k][1][0][2]
-            v_u_k, v_lam_k, v_full = self.path.adjoint(system, self.contexts[k], state, y_u, y_lam, choices)
+            v_u_k, v_lam_k, v_full, krylov = self.path.adjoint(system, self.contexts[k], state, y_u, y_lam, choices)
+            if krylov is not None:
+                state.info["adjoint_krylov"] = krylov
             t3 = time.perf_counter()
             xi = dJ_da + self.path.design_contraction(system, state.u, v_full, self.cases[k].loads) \
                 + self.model.gap_matrix.T @ v_lam_k

@@ -7,7 +7,7 @@ the adjoint (4.15) of a state. :class:`~contactopt.problem.ShapeProblem` calls, 
     system = path.prepare(assembled)                   # what every load case shares
     system_k = path.for_load(system, assembled_k)      # another load case: L_k
     state = path.solve_state(system_k, context, ...)   # the Coulomb state (paper (3.17))
-    v_u, v_λ, ṽ = path.adjoint(system_k, context, state, y*_u, y*_λ, choices)   # (4.15)
+    v_u, v_λ, ṽ, krylov = path.adjoint(system_k, context, state, y*_u, y*_λ, choices)   # (4.15)
 
 and a case's :class:`Context` carries what the path keeps from design to design (warm start,
 contact zone, a kept Delassus block or AMG hierarchy): ``export_context`` gives it as arrays
@@ -22,11 +22,12 @@ from __future__ import annotations
 
 import logging
 from dataclasses import dataclass, field, fields
+from typing import NamedTuple
 
 import numpy as np
 
 from ..contact import zone as zone_rules
-from ..contact.state import State, classify_nodes, contact_conditions_violation, displacement_scale
+from ..contact.state import FoundationState, State, classify_nodes, contact_conditions_violation, displacement_scale
 from ..errors import CheckpointError
 
 log = logging.getLogger(__name__)
@@ -127,6 +128,17 @@ class _Takes:
         return getattr(owner.capabilities, self.feature)
 
 
+class Adjoint(NamedTuple):
+    """What :meth:`SolverPath.adjoint` computes: ``v_u`` (3p, per node (t1, t2, ν)), ``v_lam``
+    (p,), ``v`` ṽ on all DOFs, and ``krylov`` the GMRES iterations it took (None where it was
+    solved directly)."""
+
+    v_u: np.ndarray
+    v_lam: np.ndarray
+    v: np.ndarray
+    krylov: int | None = None
+
+
 @dataclass(frozen=True)
 class Start:
     """What a path is built with besides the model and the settings: ``first_loads`` the loads of
@@ -220,8 +232,9 @@ class SolverPath:
         ``slip_ref`` (p, 2) u_t at the end of the previous load step (paths with load steps)."""
         raise NotImplementedError
 
-    def adjoint(self, system, ctx, state, y_u, y_lam, choices=None):
-        """(v_u (3p), v_λ (p), ṽ on all DOFs) of the adjoint system (4.15) of ``state``.
+    def adjoint(self, system, ctx, state, y_u, y_lam, choices=None) -> Adjoint:
+        """The :class:`Adjoint` (v_u (3p), v_λ (p), ṽ on all DOFs) of the adjoint system (4.15) of
+        ``state``; it changes neither ``state`` nor the arguments.
 
         ``y_u`` is ∂J/∂u_c (3p, per node (t1, t2, ν)), or ∂J/∂u on every DOF (3·n_nodes) for an
         objective of the whole displacement. Then J depends on u_c also through the interior
@@ -278,7 +291,7 @@ class SolverPath:
 
     # ------------------------------------------------------------------ shared by the paths
     def finish_state(self, ctx, *, alpha, coords, u, u_c, r, gap, load, method, outcome, timings,
-                     info, slip_ref=None) -> State:
+                     info, slip_ref=None, foundation: FoundationState | None = None) -> State:
         """The :class:`State` of contact forces ``r`` ((p, 3) per node (t1, t2, ν)) and
         displacements, with the node classes of Table 4.1; ``outcome`` the solver's (iterations,
         error, converged). The case's next zone is set from it. ``slip_ref`` (p, 2): in a load
@@ -301,7 +314,8 @@ class SolverPath:
                       friction=self.settings.friction, method=method, iterations=outcome[0],
                       residual=outcome[1],
                       complementarity=contact_conditions_violation(law_u, lam, tau, gap, self.settings.friction),
-                      converged=outcome[2], timings=timings, info={"path": self.name, **info}, slip_ref=slip_ref)
+                      converged=outcome[2], timings=timings, info={"path": self.name, **info}, slip_ref=slip_ref,
+                      foundation=foundation)
         if self.settings.use_zone:
             ctx.next_zone = zone_rules.near_nodes(lam, u_c[:, 2] + gap, displacement_scale(u_c, gap),
                                                   self.settings.zone_margin)

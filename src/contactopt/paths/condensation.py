@@ -48,7 +48,7 @@ from ..contact import zone as zone_rules
 from ..errors import SolverError
 from ..fem import memory
 from ..fem.model import Assembled
-from .base import Capabilities
+from .base import Adjoint, Capabilities
 from .zone_paths import ZonePath
 
 
@@ -211,7 +211,7 @@ class CondensationPath(ZonePath):
         c, b = m.force_gap, m.force_b.ravel()
         Se = system.contact_S @ (m.force_b * [1.0, 1.0, 0.0]).ravel()     # ∂(S w − ℓ_eff)/∂s
         Sb = system.contact_S @ b
-        w_u, w_lam, w_full = self.adjoint(system, ctx, state, Sb, np.zeros(c.size))
+        w_u, w_lam, w_full, _ = self.adjoint(system, ctx, state, Sb, np.zeros(c.size))
         bg = b if self.frames is None else from_frames(b, self.frames)
         b_full = m.assembler.to_full(system.factor.extend(bg))
         dF_da = self.design_contraction(system, state.u, b_full + w_full, loads) + m.gap_matrix.T @ w_lam
@@ -243,14 +243,14 @@ class CondensationPath(ZonePath):
             return np.ravel(u_c)
         return system.coupling.body_displacement(u_c, r)
 
-    def contact_info(self, system, u_c, r, u_body) -> dict:
+    def foundation_state(self, system, u_c, r, u_body):
         """On a foundation: the body's contact displacement and its partners' (p, 3) per node
-        (t1, t2, ν); w = u_c − partner is the state's ``u_c``."""
+        (t1, t2, ν) — w = u_c − partner is the state's ``u_c`` — and the foundation's own."""
         if system.coupling is None:
-            return {}
+            return None
+        from ..contact.state import FoundationState
         body = u_body.reshape(-1, 3)
-        return {"foundation": True, "u_body_c": body, "u_partner": body - u_c,
-                "foundation_u": self.foundation.displacement(r)}
+        return FoundationState(u_body_c=body, u_partner=body - u_c, displacement=self.foundation.displacement(r))
 
     def load_scale(self, system):
         return system.contact_ell
@@ -280,7 +280,7 @@ class CondensationPath(ZonePath):
         v = system.factor.extend(z)
         if zhat is not None:
             v = v - zhat
-        return v_u, v_lam, self.model.assembler.to_full(v)
+        return Adjoint(v_u, v_lam, self.model.assembler.to_full(v))
 
     def adjoint_force(self, system, ctx, v_u):
         return system.contact_S @ v_u

@@ -24,7 +24,7 @@ from ..contact import zone as zone_rules
 from ..contact.state import CLASS_CODES, FROM_FCLIB, displacement_scale
 from ..fem import memory
 from ..fem.model import Assembled
-from .base import Capabilities
+from .base import Adjoint, Capabilities
 from .zone_paths import ZonePath
 
 log = logging.getLogger(__name__)
@@ -177,7 +177,7 @@ class DelassusPath(ZonePath):
         jac = ctx.jacobian
         W = None
         if jac is not None and K.size:
-            W = zpK.block_from(jac[1], jac[2], **self.max_new(K, ADJOINT_MAX_NEW))
+            W = zpK.block_from(jac.zone, jac.W, **self.max_new(K, ADJOINT_MAX_NEW))
         if W is None:
             W = zpK.W if K.size else np.zeros((0, 0))
         perm = (3 * np.arange(K.size)[:, None] + FROM_FCLIB).ravel()   # FCLIB -> (t1, t2, ν)
@@ -196,5 +196,5 @@ class DelassusPath(ZonePath):
         if res is not None:
             log.debug("adjoint (4.15) in W-form on %d nodes: %d GMRES iterations, %.2f s",
                       K.size, res.iterations, time.perf_counter() - t0)
-            state.info["adjoint_krylov"] = int(res.iterations)
-        return v_u, v_lam, self.model.assembler.to_full(v_free)
+        return Adjoint(v_u, v_lam, self.model.assembler.to_full(v_free),
+                       None if res is None else int(res.iterations))

@@ -2,7 +2,7 @@
 
 ``[linear_solver] path = "petsc"`` (or "auto" under ``mpiexec`` with more than one rank). The
 method is the full-space path's (:mod:`contactopt.paths.fullspace`), its linear algebra PETSc's
-(:mod:`contactopt.contact.fullspace_petsc`): the mesh split over the ranks by recursive coordinate
+(:mod:`contactopt.contact.fullspace.petsc`, the PETSc backend of the one full-space method): the mesh split over the ranks by recursive coordinate
 bisection (:mod:`contactopt.fem.distributed`), each rank assembling the rows of its nodes into an
 MPIBAIJ matrix of block size 3 (and an MPIAIJ copy for GAMG), GMRES with GAMG (rigid-body
 near-null space) whose prolongations are kept from the design they were built at, the adjoint
@@ -32,11 +32,10 @@ from types import MappingProxyType
 
 import numpy as np
 
-from ..errors import CheckpointError, ConfigError, SolverError
-from ..fem import memory
+from ..errors import ConfigError
 from ..fem.model import Assembled
-from .base import Capabilities, Context, SolverPath, check_design
-from .fullspace import FULLSPACE_TOL
+from .base import Adjoint, Capabilities, Context, SolverPath
+from .fullspace import FullSpaceCommon
 from .protocol import Call, Command, Problem, new_path_id, send
 
 log = logging.getLogger(__name__)
@@ -69,10 +68,11 @@ class PetscContext(Context):
     u_all: np.ndarray | None = None
 
 
-class PetscPath(SolverPath):
+class PetscPath(FullSpaceCommon):
     """``[linear_solver] path = "petsc"`` (module docstring)."""
 
     name = "petsc"
+    newton_label = "PETSc full-space Newton"
     capabilities = Capabilities(pinned=True, many_ranks=True, libraries=("petsc4py",), sparse="petsc", auto="ranks")
 
     def __init__(self, model, settings, start=None):
@@ -81,7 +81,7 @@ class PetscPath(SolverPath):
         super().__init__(model, settings, start)
         from petsc4py import PETSc
 
-        from ..contact.fullspace_petsc import PetscNewton
+        from ..contact.fullspace.petsc import PetscNewton
         from ..fem.distributed import DistributedBody
         self.library = "petsc"
         self.id = new_path_id()
@@ -107,7 +107,7 @@ class PetscPath(SolverPath):
         self.newton = PetscNewton(dist, A, A_aij, G)
         self._assemble_matrix(coords, (indptr, cols, data))
         self._hier = None            # the GAMG hierarchy ...
-        self._hier_alpha = None      # ... built at this design (checkpoints rebuild it)
+        self.hierarchy_alpha = None  # ... built at this design (checkpoints rebuild it)
         self._systems: dict = {}
         self._contexts: dict = {}
         self._keys = itertools.count(1)
@@ -116,10 +116,6 @@ class PetscPath(SolverPath):
         log.info("PETSc path on %d rank(s): %d DOFs, %d owned here, %d elements (+%d at the "
                  "interfaces), %.2f s", self.size, dist.n, dist.n_local, dist.n_elements,
                  dist.n_ghost_elements, time.perf_counter() - t0)
-
-    @classmethod
-    def memory_estimate(cls, body, **kw):
-        return memory.estimate_evaluation(body, memory.fullspace_parts)
 
     def _call(self, command: Command, *args):
         """Rank 0: the other ranks make the same call (:func:`contactopt.ranks.serve`); then this rank's."""
@@ -184,12 +180,12 @@ class PetscPath(SolverPath):
 
     def _hierarchy(self, alpha, coords):
         """The GAMG hierarchy of the A(α) the matrix holds now."""
-        from ..contact.fullspace_petsc import PetscHierarchy
+        from ..contact.fullspace.petsc import PetscHierarchy
         if self._hier is not None:
             self._hier.destroy()
         self.newton.plain()
         self._hier = PetscHierarchy(self.newton.G, self.newton.H, self.dist.coordinates(coords), self.dist.contact)
-        self._hier_alpha = np.array(alpha, dtype=float)
+        self.hierarchy_alpha = np.array(alpha, dtype=float)
         return self._hier.setup_seconds
 
     # ------------------------------------------------------------------ states
@@ -209,7 +205,6 @@ class PetscPath(SolverPath):
                           tol, label)
 
     def _solve(self, skey, ckey, alpha, warm_start, tol, label):
-        s = self.settings
         system, ctx = self._systems[skey], self._context(ckey)
         t0 = time.perf_counter()
         t_setup = self._hierarchy(alpha, system.assembled.coords) if self._hier is None else 0.0
@@ -218,48 +213,26 @@ class PetscPath(SolverPath):
         if warm_start and warm is not None and ctx.u_all is not None:
             u0 = self.newton.A.createVecRight()
             u0.getArray()[:] = self.dist.owned(ctx.u_all)
-        res = self.newton.solve(self._hier, system.L, system.gap, s.friction, r0=warm, u0=u0,
-                                tol=max(tol or s.tol, FULLSPACE_TOL),
-                                zone=ctx.next_zone if s.use_zone and warm_start else None, zone_margin=s.zone_margin)
-        system.u_all = res.u_all
-        timings = dict(system.timings, **{f"fullspace_{k}": v for k, v in res.timings.items() if k != "total"})
-        timings["fullspace_amg_setup"] += t_setup
-        timings["contact"] = time.perf_counter() - t0
-        r = np.column_stack((res.r[:, 1:], res.r[:, 0]))           # per node (t1, t2, ν): (−τ, λ)
-        u_free = self.dist.free_vector(res.u_all)
-        state = self.finish_state(ctx, alpha=alpha, coords=system.assembled.coords,
-                                  u=self.model.assembler.to_full(u_free), u_c=res.u_c, r=r, gap=system.gap,
-                                  load=system.assembled.L, method="fullspace",
-                                  outcome=(res.newton_steps, res.error, res.converged), timings=timings,
-                                  info={"backend": "petsc", "ranks": self.size, "zone_nodes": int(res.zone.size),
-                                        "zone_misses": int(res.zone_growths), "delassus": "none",
-                                        "krylov_iterations": int(sum(res.krylov_iterations))})
-        ctx.warm, ctx.u_all = res.r.copy(), res.u_all
-        log.debug("state%s: PETSc full-space Newton %d steps, %d GMRES iterations, error %.2e, %.2f s", label,
-                  res.newton_steps, sum(res.krylov_iterations), res.error, timings["total"])
-        return state
+        res = self.newton.solve(self._hier, system.L, system.gap, self.settings.friction, r0=warm, u0=u0,
+                                **self.newton_options(ctx, tol, warm_start))
+        system.u_all = ctx.u_all = res.u_all
+        return self.state_of(ctx, system, alpha, res, u_free=self.dist.free_vector(res.u_all), t0=t0,
+                             t_setup=t_setup, info={"backend": "petsc", "ranks": self.size}, label=label)
 
     # ------------------------------------------------------------------ adjoint and design terms
     def adjoint(self, system, ctx, state, y_u, y_lam, choices=None):
-        from ..sensitivity.adjoint import DEFAULT_CHOICES
-        if {**DEFAULT_CHOICES, **(choices or {})} != DEFAULT_CHOICES:
-            raise SolverError(f"the full-space adjoint implements the default degenerate choices "
-                              f"{DEFAULT_CHOICES} only, got {choices}")
+        from ..sensitivity.adjoint_fullspace import check_default_choices
+        check_default_choices(choices)
         v_u, v_lam, its = self._call(Command.ADJOINT, system.key, np.asarray(state.classes), state.u_c, state.lam,
                                      np.asarray(y_u, dtype=float), np.asarray(y_lam, dtype=float))
-        state.info["adjoint_krylov"] = int(its)
         v_free = self.dist.free_vector(system.v_all)
-        return v_u, v_lam, self.model.assembler.to_full(v_free)
+        return Adjoint(v_u, v_lam, self.model.assembler.to_full(v_free), int(its))
 
     def _adjoint(self, skey, classes, u_c, lam, y_u, y_lam):
-        from ..contact.state import CLASS_CODES as cc
-        from ..sensitivity.adjoint import DEFAULT_CHOICES, effective_classes
-        from ..sensitivity.adjoint_fullspace import ADJOINT_RTOL
+        from ..sensitivity.adjoint_fullspace import ADJOINT_RTOL, adjoint_classes
         system = self._systems[skey]
-        eff = effective_classes(classes, DEFAULT_CHOICES)
-        v_all, v_u, v_lam, its = self.newton.adjoint(
-            self._hier, np.flatnonzero(eff == cc["M3+"]), np.flatnonzero(eff == cc["M1"]), eff != cc["L"],
-            u_c, lam, y_u, y_lam, self.settings.friction, rtol=ADJOINT_RTOL)
+        v_all, v_u, v_lam, its = self.newton.adjoint(self._hier, *adjoint_classes(classes), u_c, lam, y_u, y_lam,
+                                                     self.settings.friction, rtol=ADJOINT_RTOL)
         system.v_all = v_all
         return v_u, v_lam, its
 
@@ -282,28 +255,13 @@ class PetscPath(SolverPath):
         return total
 
     # ------------------------------------------------------------------ checkpoints
-    def export_context(self, ctx) -> dict:
-        out = super().export_context(ctx)
-        a = self._hier_alpha
-        out["jacobian_alpha"] = np.asarray(a if a is not None else np.zeros(0), dtype=float)
-        out["jacobian_zone"] = np.asarray(ctx.next_zone if a is not None else np.zeros(0), dtype=np.int64)
-        if ctx.u_all is not None:
-            out["u_free"] = self.dist.free_vector(ctx.u_all)
-        return out
+    def last_displacement(self, ctx):
+        return None if ctx.u_all is None else self.dist.free_vector(ctx.u_all)
 
-    def import_context(self, ctx, arrays: dict, where: str, others=()) -> None:
-        """Also the case's last displacement, and the GAMG hierarchy rebuilt at its design (the
-        same arrays as the full-space path's: a checkpoint of either resumes on any number of ranks)."""
+    def restore(self, ctx, arrays, u_free, alpha, where):
+        """Every rank puts back the case's displacement and rebuilds the GAMG hierarchy at its
+        design (the arrays checked on rank 0 before any rank acts)."""
         self._contexts.setdefault(ctx.key, ctx)
-        n_free = self.model.assembler.n_free
-        u = arrays.get("u_free")
-        if u is not None and (u.shape != (n_free,) or not np.all(np.isfinite(u))):
-            raise CheckpointError(f"{where}: its displacement does not fit the mesh ({u.shape[0] if u.ndim else 0} "
-                                  f"values for {n_free} free DOFs) or is not finite")
-        a = arrays.get("jacobian_alpha")
-        if a is not None and a.size:
-            check_design(a, self.model.n_design, where, "AMG design")
-        SolverPath.import_context(self, ctx, arrays, where)     # its checks, before any rank acts
         self._call(Command.IMPORT, ctx.key, {k: v for k, v in arrays.items() if k in ("warm", "zone", "u_free",
                                                                                  "jacobian_alpha")}, where)
 
@@ -315,7 +273,7 @@ class PetscPath(SolverPath):
         a = arrays.get("jacobian_alpha")
         if a is not None and a.size:
             alpha = np.asarray(a, dtype=float)
-            if self._hier_alpha is None or not np.array_equal(self._hier_alpha, alpha):
+            if self.hierarchy_alpha is None or not np.array_equal(self.hierarchy_alpha, alpha):
                 coords = self.model.mesh.coordinates(self.model.surface.as_vector(alpha))
                 self._assemble_matrix(coords)
                 self._design_key = None
