@@ -399,10 +399,11 @@ class ShapeProblem:
                      "that of %s", len(active), ", ".join(active), names[comb.case])
         exact = nd == 0 and (self.combination.kind == "sum" or len(active) == 1)
         terms = dict(getattr(self.cases[comb.case].objective, "last_terms", {}))
-        return SubgradientResult(comb.value, g, states[comb.case], v_u, v_lam, nd, exact,
-                                 {**DEFAULT_CHOICES, **(choices or {})},
-                                 {"state": t1 - t0, "adjoint": t_adj, "design_terms": t_design},
-                                 comb.values, names, active, names[comb.case], states, terms)
+        return SubgradientResult(value=comb.value, gradient=g, state=states[comb.case], v_u=v_u, v_lam=v_lam,
+                                 n_degenerate=nd, exact=exact, choices={**DEFAULT_CHOICES, **(choices or {})},
+                                 timings={"state": t1 - t0, "adjoint": t_adj, "design_terms": t_design},
+                                 case_values=comb.values, case_names=names, active_cases=active,
+                                 case=names[comb.case], states=states, terms=terms)
 
     def term_names(self) -> list:
         """The names of the [[objective.terms]] (their type, numbered from the second of a type on)."""

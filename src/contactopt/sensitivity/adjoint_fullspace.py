@@ -142,9 +142,9 @@ def _solve_adjoint(A, contact_dofs, classes, u_c, lam, y_u, y_lam, friction, hie
     v = system.lift(res.x) + v0             # ṽ − v0: the normal DOF of M1 nodes from v_t
     resid = (A @ v)[cd.ravel()] + y_u
     v_lam = np.where(free_lam, -resid[2::3], 0.0)
-    return FullSpaceAdjoint(v, v[cd.ravel()].copy(), v_lam, res.iterations, res.history,
-                            {"setup": t1 - t0, "preconditioner": t2 - t1, "krylov": t3 - t2,
-                             "total": time.perf_counter() - t0})
+    return FullSpaceAdjoint(v=v, v_u=v[cd.ravel()].copy(), v_lam=v_lam, iterations=res.iterations,
+                            history=res.history, timings={"setup": t1 - t0, "preconditioner": t2 - t1,
+                                                          "krylov": t3 - t2, "total": time.perf_counter() - t0})
 
 
 def subgradient_fullspace(model, objective, alpha, asm, result, friction, *, loads=None, rtol=ADJOINT_RTOL,
