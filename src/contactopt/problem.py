@@ -65,7 +65,7 @@ class ShapeProblem:
         from .sensitivity.cases import build_cases
         self.cases, self.combination = build_cases(self.config, self.model, self._design_lambda)
         self.path = make_path(self.config, self.model, name, library,
-                              Start(first_loads=self.cases[0].loads, config=self.config))
+                              Start(first_loads=self.cases[0].loads))
         self.friction = self.path.settings.friction
         self.method = method or self.path.settings.method
         self.tol = self.path.settings.tol

@@ -142,11 +142,9 @@ class Adjoint(NamedTuple):
 @dataclass(frozen=True)
 class Start:
     """What a path is built with besides the model and the settings: ``first_loads`` the loads of
-    the first load case (a checkpoint's design is assembled with them; None: the model's) and
-    ``config`` the configuration (the PETSc path sends it to the other MPI ranks)."""
+    the first load case (a checkpoint's design is assembled with them; None: the model's)."""
 
     first_loads: object = None
-    config: object = None
 
 
 @dataclass

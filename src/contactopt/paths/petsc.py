@@ -76,8 +76,9 @@ class PetscPath(FullSpaceCommon):
     capabilities = Capabilities(pinned=True, many_ranks=True, libraries=("petsc4py",), sparse="petsc", auto="ranks")
 
     def __init__(self, model, settings, start=None):
-        """On rank 0 under mpiexec the other ranks first build the problem of ``start.config``
-        (:class:`~contactopt.paths.protocol.Problem`): the PETSc objects are made by all ranks."""
+        """On rank 0 under mpiexec the other ranks first build the problem of the model's
+        configuration (:class:`~contactopt.paths.protocol.Problem`): the PETSc objects are made by
+        all ranks."""
         super().__init__(model, settings, start)
         from petsc4py import PETSc
 
@@ -89,7 +90,7 @@ class PetscPath(FullSpaceCommon):
         self.size, self.rank = comm.getSize(), comm.getRank()
         self.leader = self.rank == 0 and self.size > 1
         if self.leader:
-            send(Problem(self.id, self.start.config))
+            send(Problem(self.id, model.config))
         _set_options(model.config["linear_solver"]["petsc_options"])
         t0 = time.perf_counter()
         self.dist = dist = DistributedBody(model, self.size, self.rank)
