@@ -59,30 +59,30 @@ def needs(config, pinned: int = 0, ranks: int = 1) -> dict:
     ``pinned``: the number of clamped tangential components of contact nodes (a symmetry plane
     through the contact face, :mod:`contactopt.mesh.body`); ``ranks``: the MPI ranks of the run."""
     from ..sensitivity.objectives import FULL_SPACE, objective_types
-    data, out = config.data, {}
+    out, foundation = {}, config.foundation is not None
     types = objective_types(config)
-    if "foundation" in data:
+    if foundation:
         out["foundation"] = "an elastic [foundation]"
-    obst = data.get("obstacle", {})
-    obstacle = obst.get("shape", "plane")
-    if obst.get("control") == "force":
+    obst = config.obstacle
+    obstacle = "plane" if obst is None else obst.shape
+    if obst is not None and obst.control == "force":
         obstacle = f"force-controlled {obstacle}"
-    elif obst.get("control") == "displacement" and any(obst["displacement"][:2]):
+    elif obst is not None and obst.moves_tangentially:
         obstacle = f"{obstacle} moved tangentially"
     if obstacle != "plane":             # the contact frames rotate the condensed system (paths/condensation.py)
         out["obstacle"] = obstacle
     if pinned:
         out["pinned"] = str(pinned)
-        if "foundation" in data:
+        if foundation:
             out["pinned_on_foundation"] = str(pinned)
-    if "compliance" in types or config["objective"]["type"] == "compliance":
+    if "compliance" in types or config.objective.type == "compliance":
         out["compliance"] = "the compliance objective"
     full = sorted(types & FULL_SPACE)
     if full:
         out["whole_displacement"] = ", ".join(full)
-        if "foundation" in data:
+        if foundation:
             out["whole_displacement_on_foundation"] = ", ".join(full)
-    if data.get("load_steps") or any(case.get("steps") for case in data.get("load_cases") or []):
+    if config.load_steps or any(case.steps for case in config.load_cases):
         out["load_steps"] = "[[load_steps]]"
     if ranks > 1:
         out["many_ranks"] = str(ranks)
@@ -101,16 +101,16 @@ def select_path(config, n_free: int, pinned: int = 0) -> tuple[str, str]:
     other than the plane stay on the condensation. A path asked for that lacks a feature is
     refused with what it lacks and the paths that take it; so is one whose libraries are missing."""
     from .._mpi import world_size
-    ls = config["linear_solver"]
-    name, ranks = ls["path"], world_size()
+    ls = config.linear_solver
+    name, ranks = ls.path, world_size()
     need = needs(config, pinned, ranks)
     fit = [cls for cls in PATHS.values() if not cls.capabilities.lacks(need)]
     if name == "auto":
-        chosen = _auto(fit, n_free, ls["crossover"], ranks)
+        chosen = _auto(fit, n_free, ls.crossover, ranks)
         if chosen is None:
             raise ConfigError(_refusal(name, need))
         log.info("linear solver: %s path for %d DOFs (crossover %d, %d rank(s))", chosen.name, n_free,
-                 ls["crossover"], ranks)
+                 ls.crossover, ranks)
     else:
         chosen = PATHS[name]
         if chosen not in fit:
@@ -120,7 +120,7 @@ def select_path(config, n_free: int, pinned: int = 0) -> tuple[str, str]:
         raise ConfigError([f"linear_solver.path = '{name}'"
                            + (f" under mpiexec with {ranks} ranks" if "many_ranks" in need and name == "auto" else "")
                            + f" needs {why}" for why in missing])
-    return chosen.name, library_for(chosen.name, ls["library"])
+    return chosen.name, library_for(chosen.name, ls.library)
 
 
 def _auto(fit: list, n_free: int, crossover: int, ranks: int):
@@ -191,7 +191,7 @@ def missing_library(library: str) -> str | None:
 
 def make_path(config, model, name: str, library: str, start: Start | None = None) -> SolverPath:
     """The path ``name`` for a model, with the configuration's [state] settings."""
-    return PATHS[name](model, Settings.from_config(config, library), start)
+    return PATHS[name](model, Settings.from_config(config.state, config.friction, library), start)
 
 
 def _have_pyamg() -> bool:

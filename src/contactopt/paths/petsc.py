@@ -91,7 +91,7 @@ class PetscPath(FullSpaceCommon):
         self.leader = self.rank == 0 and self.size > 1
         if self.leader:
             send(Problem(self.id, model.config))
-        _set_options(model.config["linear_solver"]["petsc_options"])
+        _set_options(model.config.linear_solver.petsc_options)
         t0 = time.perf_counter()
         self.dist = dist = DistributedBody(model, self.size, self.rank)
         coords = model.body.reference.points
