@@ -106,6 +106,82 @@ def test_every_path_implements_the_interface(name):
         assert getattr(cls, method) is not getattr(paths.SolverPath, method), f"{name} lacks {method}"
 
 
+# ---------------------------------------------------------------------- the path interface
+PATHS_DIR = SRC / "paths"
+
+
+@pytest.mark.parametrize("name", sorted(paths.NAMES))
+def test_every_path_declares_its_capabilities(name):
+    """Each path class has its own Capabilities record (not the base class's), with a rule for
+    "auto" and every feature a boolean."""
+    cls = paths.PATHS[name]
+    assert "capabilities" in vars(cls), f"{name} does not declare its capabilities"
+    caps = cls.capabilities
+    assert isinstance(caps, paths.Capabilities)
+    assert caps.auto in ("", "small", "large", "ranks")
+    assert all(isinstance(getattr(caps, f), bool) for f in paths.Capabilities.features())
+
+
+def _path_name_tests(tree) -> list:
+    """Comparisons with a path's name and subscripts by one (``PATHS["petsc"]``) in ``tree``."""
+    found = []
+    for node in ast.walk(tree):
+        if isinstance(node, (ast.Compare, ast.Subscript, ast.Match)):
+            found += [n.lineno for n in ast.walk(node) if isinstance(n, ast.Constant) and n.value in PATH_NAMES]
+    return found
+
+
+def test_select_path_has_no_per_path_branches():
+    """select_path and its helpers (contactopt/paths/__init__.py) filter on the declared
+    capabilities and never compare with a path's name; the check sees such a branch."""
+    tree = ast.parse((PATHS_DIR / "__init__.py").read_text())
+    assert not _path_name_tests(tree), "paths/__init__.py tests path names at lines " + str(_path_name_tests(tree))
+    assert _path_name_tests(ast.parse("if name == 'petsc' or PATHS['fullspace']:\n    pass\n")) == [1, 1]
+
+
+def _mutable_module_state(tree) -> list:
+    """Module-level names bound to mutable containers or counters, names bound twice, and
+    ``global`` statements anywhere in ``tree``."""
+    found, bound = [], {}
+    mutable_calls = {"list", "dict", "set", "defaultdict", "OrderedDict", "count", "deque", "Counter"}
+    for node in tree.body:
+        targets = []
+        if isinstance(node, ast.Assign):
+            targets, value = node.targets, node.value
+        elif isinstance(node, ast.AnnAssign) and node.value is not None:
+            targets, value = [node.target], node.value
+        elif isinstance(node, ast.AugAssign):
+            found.append(f"{node.lineno}: augmented assignment at module level")
+            continue
+        else:
+            continue
+        for t in targets:
+            for n in ast.walk(t):
+                if isinstance(n, ast.Name):
+                    bound[n.id] = bound.get(n.id, 0) + 1
+                    if bound[n.id] > 1:
+                        found.append(f"{node.lineno}: {n.id} bound again")
+        if isinstance(value, (ast.List, ast.Dict, ast.Set, ast.ListComp, ast.DictComp, ast.SetComp)):
+            found.append(f"{node.lineno}: a mutable container")
+        if isinstance(value, ast.Call):
+            f = value.func
+            callee = f.id if isinstance(f, ast.Name) else f.attr if isinstance(f, ast.Attribute) else ""
+            if callee in mutable_calls:
+                found.append(f"{node.lineno}: {callee}()")
+    found += [f"{n.lineno}: global {', '.join(n.names)}" for n in ast.walk(tree) if isinstance(n, (ast.Global, ast.Nonlocal))]
+    return found
+
+
+def test_no_module_level_mutable_state_in_paths():
+    """No module of contactopt/paths/ keeps state between calls at module level: no list, dict,
+    set or counter bound there, no name bound twice, no ``global`` (the MPI ranks' bookkeeping is
+    an object, contactopt.paths.protocol.Follower); the check sees each kind."""
+    found = {f.name: _mutable_module_state(ast.parse(f.read_text())) for f in sorted(PATHS_DIR.glob("*.py"))}
+    assert not any(found.values()), {k: v for k, v in found.items() if v}
+    snippet = "import itertools\n_ids = itertools.count(1)\n_pending = [None]\n_served: dict = {}\ndef f():\n    global _x\n"
+    assert len(_mutable_module_state(ast.parse(snippet))) == 4
+
+
 # ------------------------------------------------------------------ typed configuration
 CONFIG_NAMES = {"cfg", "config", "conf", "configuration"}     # a name that holds a configuration
 SECTIONS = {"body", "geometry", "mesh", "material", "friction", "loads", "design", "objective", "state",

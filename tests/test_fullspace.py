@@ -1,4 +1,4 @@
-"""The full-space semismooth Newton with AMG-preconditioned GMRES (contact/fullspace.py) against
+"""The full-space semismooth Newton with AMG-preconditioned GMRES (contact/fullspace/) against
 today's condensed path (ShapeProblem.solve_state: S on the contact DOFs, the zone's local Newton).
 
 Both solve the same discrete Coulomb problem A u = L + Bᵀ r with the contact law (paper (3.17)):

@@ -173,7 +173,8 @@ def test_a_path_without_load_steps_refuses_them_naming_those_that_take_them(tmp_
     from contactopt.paths import PATHS
     assert not PATHS["petsc"].takes_steps
     assert [n for n, c in PATHS.items() if c.takes_steps] == ["condensation", "delassus", "fullspace"]
-    monkeypatch.setattr(PATHS["fullspace"], "takes_steps", False)
+    from dataclasses import replace
+    monkeypatch.setattr(PATHS["fullspace"], "capabilities", replace(PATHS["fullspace"].capabilities, load_steps=False))
     out = tmp_path / "out"
     code = main(["state", str(bad(tmp_path, '[linear_solver]\npath = "fullspace"\n[[load_steps]]\nname = "a"\n')),
                  "--out", str(out)])

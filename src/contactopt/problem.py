@@ -18,7 +18,7 @@ from __future__ import annotations
 import logging
 import time
 from contextlib import contextmanager
-from dataclasses import replace
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -29,9 +29,23 @@ from .errors import SolverError
 from .fem import memory
 from .fem.model import ElasticModel
 from .mesh.body import build_body
-from .paths import PATHS, make_path, select_path
+from .paths import PATHS, Start, make_path, select_path
 
 log = logging.getLogger(__name__)
+
+
+@dataclass
+class DesignCache:
+    """The last design's solves: ``key`` α's bytes and ``method``; per load case its ``systems``
+    and ``states`` (the last step's on a load path), and on a load path every step's
+    (``step_systems``, ``step_states``: None for a case without steps)."""
+
+    key: bytes
+    method: str
+    systems: list
+    states: list
+    step_systems: list
+    step_states: list
 
 
 class ShapeProblem:
@@ -45,25 +59,22 @@ class ShapeProblem:
     def __init__(self, config, *, method: str | None = None):
         self.config = config if isinstance(config, Config) else load_config(config)
         body = build_body(self.config)
-        name, library = select_path(self.config, memory.free_dofs(body), pinned=int(body.pinned_dofs.size))
-        if body.rigid is not None:
-            from .paths import rigid_path
-            name, library = rigid_path(self.config, name, library, body.rigid)
-        PATHS[name].starting(self.config)
+        name, library = select_path(self.config, memory.free_dofs(body), pinned=int(body.pinned_dofs.size),
+                                    rigid=body.rigid)
         self.model = ElasticModel(self.config, body=body, memory_estimate=PATHS[name].memory_estimate)
-        self.path = make_path(self.config, self.model, name, library)
+        self.n_state_solves = 0    # designs solved (all cases at once)
+        self._cache = None         # DesignCache of the last design
+        from .sensitivity.cases import build_cases
+        self.cases, self.combination = build_cases(self.config, self.model, self._design_lambda)
+        self.path = make_path(self.config, self.model, name, library,
+                              Start(first_loads=self.cases[0].loads))
         self.friction = self.path.settings.friction
         self.method = method or self.path.settings.method
         self.tol = self.path.settings.tol
-        self.n_state_solves = 0    # designs solved (all cases at once)
-        self._cache = None         # (alpha bytes, method, systems per case, states per case)
-        from .sensitivity.cases import build_cases
-        self.cases, self.combination = build_cases(self.config, self.model, self._design_lambda)
         if body.rigid is not None:
             self._check_held()
         from .sensitivity.objectives import make_constraints
         self.constraints = make_constraints(self.config, self.model, self.cases, self._design_lambda)
-        self.path.first_loads = self.cases[0].loads
         self.contexts = [self.path.new_context() for _ in self.cases]
         self._init_steps()
 
@@ -80,7 +91,6 @@ class ShapeProblem:
     def _init_steps(self) -> None:
         """The load path of every case (None: one step, the static problem; sensitivity/steps.py)
         and a context per solve of a path (the first is the case's own)."""
-        from .errors import ConfigError
         from .sensitivity.steps import build_path, step_choice, step_tables
         self.steps = []
         for k, case in enumerate(self.cases):
@@ -88,10 +98,6 @@ class ShapeProblem:
             where = f"load_cases[{k}].steps" if own else "load_steps"
             self.steps.append(build_path(self.model, case.loads,
                                          step_tables(self.config, k if self.has_load_cases else None), where))
-        if any(self.steps) and not self.path.takes_steps:
-            taking = [n for n, cls in PATHS.items() if cls.takes_steps]
-            raise ConfigError([f"load_steps: the {self.path.name!r} solver path does not take load steps; "
-                               f"use linear_solver.path = {' or '.join(map(repr, taking))}"])
         self.step_choice = step_choice(self.config)
         self.step_contexts = [[ctx] + [self.path.new_context() for _ in (steps or [None])[1:]]
                               for ctx, steps in zip(self.contexts, self.steps)]
@@ -165,8 +171,8 @@ class ShapeProblem:
         if not np.all(np.isfinite(alpha)):
             raise SolverError("design contains NaN or infinite entries")
         key, method = alpha.tobytes(), method or self.method
-        if self._cache is not None and self._cache[:2] == (key, method):
-            return list(self._cache[3])
+        if self._cache is not None and (self._cache.key, self._cache.method) == (key, method):
+            return list(self._cache.states)
         step_systems, step_states = [None] * len(self.cases), [None] * len(self.cases)
         with sequential_openblas():
             systems = self._systems(alpha)
@@ -194,7 +200,8 @@ class ShapeProblem:
                     step_states[k].append(st)
                     slip = st.u_c[:, :2].copy()
                 systems[k], states = step_systems[k][-1], states + [step_states[k][-1]]
-        self._cache = (key, method, systems, states, step_systems, step_states)
+        self._cache = DesignCache(key=key, method=method, systems=systems, states=states,
+                                  step_systems=step_systems, step_states=step_states)
         self.n_state_solves += 1
         return list(states)
 
@@ -205,7 +212,7 @@ class ShapeProblem:
     def cached_system(self, alpha, case: int = 0):
         """The path's system of load case ``case`` at α (solving the states if needed)."""
         self.solve_states(alpha)
-        return self._cache[2][case]
+        return self._cache.systems[case]
 
     cached_condensed = cached_system
 
@@ -263,7 +270,7 @@ class ShapeProblem:
         :class:`~contactopt.sensitivity.cases.Combined` (``kw`` go to :meth:`solve_state`)."""
         self.prepare_objectives()
         states = self.solve_states(alpha, **kw)
-        systems = self._cache[2]
+        systems = self._cache.systems
         values = [float(self._case_terms(k, states, systems)[0]) for k in range(len(self.cases))]
         return self.combination.combine(values)
 
@@ -274,7 +281,7 @@ class ShapeProblem:
         if not self.steps[k]:
             part = case.objective.evaluate(states[k], systems[k])
             return part[0], [(None, 1.0, part)]
-        step_systems, step_states = self._cache[4][k], self._cache[5][k]
+        step_systems, step_states = self._cache.step_systems[k], self._cache.step_states[k]
         parts = {j: case.objective.evaluate(step_states[j], step_systems[j])
                  for j, step in enumerate(self.steps[k]) if step.end}
         for j, part in parts.items():
@@ -287,7 +294,7 @@ class ShapeProblem:
         (None without steps); a state's ``info["objective"]`` is J at the step's end."""
         if not self.steps[case] or self._cache is None:
             return None
-        return [(st.name, st.substep, state) for st, state in zip(self.steps[case], self._cache[5][case])]
+        return [(st.name, st.substep, state) for st, state in zip(self.steps[case], self._cache.step_states[case])]
 
     def step_columns(self) -> list[str]:
         """The names of the steps' objective values (:meth:`step_values`): ``<step>``, with load
@@ -303,7 +310,7 @@ class ShapeProblem:
         :meth:`step_columns`)."""
         out = []
         for k, steps in enumerate(self.steps):
-            out += [float(st.info.get("objective", np.nan)) for s, st in zip(steps or [], self._cache[5][k] or [])
+            out += [float(st.info.get("objective", np.nan)) for s, st in zip(steps or [], self._cache.step_states[k] or [])
                     if s.end]
         return out
 
@@ -312,7 +319,7 @@ class ShapeProblem:
         k's load path (sensitivity/steps.py): each solve's adjoint (4.15) with the objective's
         right-hand side at the steps it is taken on plus P_t(S v + y*_u) of the solve after it."""
         from .sensitivity.steps import tangential
-        step_systems, step_states, ctxs = self._cache[4][k], self._cache[5][k], self.step_contexts[k]
+        step_systems, step_states, ctxs = self._cache.step_systems[k], self._cache.step_states[k], self.step_contexts[k]
         coef = {j: (c, part) for j, c, part in terms}
         last = max(coef)
         pinned = self.model.contact_pinned.ravel()
@@ -326,7 +333,9 @@ class ShapeProblem:
                 y_u, y_lam, xi = c * yu, c * yl, xi + c * dJ_da
             if carry is not None:
                 y_u = y_u + carry
-            v_u, v_lam, v_full = self.path.adjoint(system, ctxs[j], state, y_u, y_lam, choices)
+            v_u, v_lam, v_full, krylov = self.path.adjoint(system, ctxs[j], state, y_u, y_lam, choices)
+            if krylov is not None:
+                state.info["adjoint_krylov"] = krylov
             xi = xi + self.path.design_contraction(system, state.u, v_full, self.steps[k][j].loads) \
                 + self.model.gap_matrix.T @ v_lam
             nd += state.n_degenerate
@@ -355,7 +364,7 @@ class ShapeProblem:
         self.prepare_objectives()
         t0 = time.perf_counter()
         states = self.solve_states(alpha)
-        systems = self._cache[2]
+        systems = self._cache.systems
         t1 = time.perf_counter()
         parts = []
         for k in range(len(self.cases)):
@@ -381,7 +390,9 @@ class ShapeProblem:
                     v_u, v_lam = v_u_k, v_lam_k
                 continue
             _, y_u, y_lam, dJ_da = parts[k][1][0][2]
-            v_u_k, v_lam_k, v_full = self.path.adjoint(system, self.contexts[k], state, y_u, y_lam, choices)
+            v_u_k, v_lam_k, v_full, krylov = self.path.adjoint(system, self.contexts[k], state, y_u, y_lam, choices)
+            if krylov is not None:
+                state.info["adjoint_krylov"] = krylov
             t3 = time.perf_counter()
             xi = dJ_da + self.path.design_contraction(system, state.u, v_full, self.cases[k].loads) \
                 + self.model.gap_matrix.T @ v_lam_k
@@ -404,10 +415,11 @@ class ShapeProblem:
                      "that of %s", len(active), ", ".join(active), names[comb.case])
         exact = nd == 0 and (self.combination.kind == "sum" or len(active) == 1)
         terms = dict(getattr(self.cases[comb.case].objective, "last_terms", {}))
-        return SubgradientResult(comb.value, g, states[comb.case], v_u, v_lam, nd, exact,
-                                 {**DEFAULT_CHOICES, **(choices or {})},
-                                 {"state": t1 - t0, "adjoint": t_adj, "design_terms": t_design},
-                                 comb.values, names, active, names[comb.case], states, terms)
+        return SubgradientResult(value=comb.value, gradient=g, state=states[comb.case], v_u=v_u, v_lam=v_lam,
+                                 n_degenerate=nd, exact=exact, choices={**DEFAULT_CHOICES, **(choices or {})},
+                                 timings={"state": t1 - t0, "adjoint": t_adj, "design_terms": t_design},
+                                 case_values=comb.values, case_names=names, active_cases=active,
+                                 case=names[comb.case], states=states, terms=terms)
 
     # ------------------------------------------------------------------ [[constraints]]
     @contextmanager

@@ -26,12 +26,12 @@ def run_on_ranks(main, *args, **kw):
         return main(*args, **kw)      # every rank meets the configuration error of the missing PETSc
     from mpi4py import MPI
 
-    from .paths import petsc
+    from .paths import protocol
     if MPI.COMM_WORLD.Get_rank() == 0:
         try:
             out = main(*args, **kw)
         except (SystemExit, ContactOptError):
-            petsc.stop_serving()
+            protocol.stop_serving()
             raise
         except BaseException:
             # an error of rank 0 alone: the others may be inside a collective call and never
@@ -39,7 +39,7 @@ def run_on_ranks(main, *args, **kw):
             import traceback
             traceback.print_exc()
             MPI.COMM_WORLD.Abort(1)
-        petsc.stop_serving()
+        protocol.stop_serving()
         return out
     quiet = logging.getLogger("contactopt")      # the log and the progress are rank 0's
     quiet.handlers[:] = [logging.NullHandler()]
@@ -55,25 +55,21 @@ def serve() -> None:
     wait for this one forever)."""
     from mpi4py import MPI
 
-    from .paths import petsc
+    from .paths import protocol
     from .problem import ShapeProblem
-    problems = {}
+    follower = protocol.Follower()
     while True:
-        msg = petsc.receive()
+        msg = protocol.receive()
         try:
-            if msg[0] == "stop":
+            if isinstance(msg, protocol.Stop):
                 return
-            if msg[0] == "problem":
-                petsc.served_problem(msg[1])
+            if isinstance(msg, protocol.Problem):
                 # rank 0 checks the memory; a check here could fail where rank 0's passed, and rank 0
                 # would wait for this rank in PETSc's collective calls
-                config = msg[2].with_updates({"linear_solver": {"memory_check": False}})
-                try:
-                    problems[msg[1]] = ShapeProblem(config)
-                finally:
-                    petsc.served_problem(None)
+                config = msg.config.with_updates({"linear_solver": {"memory_check": False}})
+                follower.add(msg.path_id, ShapeProblem(config).path)
             else:
-                petsc.make_call(msg)
+                follower.make(msg)
         except ContactOptError as exc:
             log.debug("rank %d: %s", MPI.COMM_WORLD.Get_rank(), exc)
         except BaseException:

@@ -81,6 +81,18 @@ def class_counts(codes: np.ndarray) -> dict:
     return {name: int(np.sum(codes == k)) for k, name in enumerate(CLASS_NAMES)}
 
 
+@dataclass(frozen=True)
+class FoundationState:
+    """What a state on an elastic foundation adds (:mod:`contactopt.fem.foundation`): the state's
+    ``u_c`` is then the relative displacement w = u_body − u_partner, and here are the body's own
+    contact displacement ``u_body_c`` and its partners' ``u_partner`` ((p, 3) per node (t1, t2, ν))
+    and the foundation's displacement ``displacement`` (3 per node of its mesh)."""
+
+    u_body_c: np.ndarray
+    u_partner: np.ndarray
+    displacement: np.ndarray
+
+
 @dataclass
 class State:
     """Solution of the discrete Coulomb contact problem for one design (see module docstring)."""
@@ -102,6 +114,7 @@ class State:
     timings: dict = field(default_factory=dict)
     info: dict = field(default_factory=dict)
     slip_ref: np.ndarray | None = None   # (p, 2) u_t at the end of the previous load step, or None
+    foundation: FoundationState | None = None   # on an elastic foundation
 
     @property
     def slip_increment(self) -> np.ndarray:
@@ -133,8 +146,16 @@ class State:
             "nodes_in_contact": int(np.sum(self.lam > 0)),
             "max_displacement": float(np.abs(self.u).max(initial=0)),
             "timings_s": {k: float(v) for k, v in self.timings.items()},
-            **{k: v for k, v in self.info.items() if isinstance(v, (int, float, str, bool))},
+            **self.scalars(),
         }
+
+    def scalars(self) -> dict:
+        """The scalars of ``info`` (solver counts, the path), and whether the state is on an
+        elastic foundation."""
+        out = {k: v for k, v in self.info.items() if isinstance(v, (int, float, str, bool))}
+        if self.foundation is not None:
+            out["foundation"] = True
+        return out
 
 
 def contact_conditions_violation(u_c, lam, tau, gap, friction) -> float:

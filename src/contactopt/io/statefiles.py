@@ -38,7 +38,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..contact.state import CLASS_NAMES, State
+from ..contact.state import CLASS_NAMES, FoundationState, State
 from . import plots, vtk
 from .atomic import atomic_savez, atomic_write_json, fsync_dir, to_jsonable
 from .pressure import contact_pressure
@@ -92,9 +92,9 @@ def state_json(model, state: State, config=None, warnings=None, objective=None, 
             "class": [CLASS_NAMES[k] for k in np.asarray(state.classes, int)],
         },
     }
-    if "u_partner" in state.info:             # an elastic foundation: u_c is w = u_body − u_partner
-        doc["contact"]["u_body"] = np.asarray(state.info["u_body_c"], float).tolist()
-        doc["contact"]["u_partner"] = np.asarray(state.info["u_partner"], float).tolist()
+    if state.foundation is not None:          # an elastic foundation: u_c is w = u_body − u_partner
+        doc["contact"]["u_body"] = np.asarray(state.foundation.u_body_c, float).tolist()
+        doc["contact"]["u_partner"] = np.asarray(state.foundation.u_partner, float).tolist()
     if state.slip_ref is not None:            # a load step: the law's slip increment, the accumulated slip
         doc["contact"]["slip_increment"] = np.asarray(state.slip_increment, float).tolist()
         doc["contact"]["slip"] = np.asarray(state.info.get("slip", state.slip_increment), float).tolist()
@@ -112,7 +112,7 @@ def state_json(model, state: State, config=None, warnings=None, objective=None, 
 
 
 def _state_arrays(model, state: State) -> dict:
-    scalars = {k: v for k, v in state.info.items() if isinstance(v, (int, float, str, bool))}
+    scalars = state.scalars()
     return {
         "format_version": np.int64(FORMAT_VERSION),
         "alpha": np.asarray(state.alpha, float),
@@ -135,9 +135,9 @@ def _state_arrays(model, state: State) -> dict:
         "converged": np.bool_(state.converged),
         "timings_json": np.array(json.dumps(to_jsonable(state.timings))),
         "info_json": np.array(json.dumps(to_jsonable(scalars))),
-        **({"u_body_c": np.asarray(state.info["u_body_c"], float),
-            "u_partner": np.asarray(state.info["u_partner"], float),
-            "foundation_u": np.asarray(state.info["foundation_u"], float)} if "u_partner" in state.info else {}),
+        **({"u_body_c": np.asarray(state.foundation.u_body_c, float),
+            "u_partner": np.asarray(state.foundation.u_partner, float),
+            "foundation_u": np.asarray(state.foundation.displacement, float)} if state.foundation is not None else {}),
         **({"slip_increment": np.asarray(state.slip_increment, float),
             "slip": np.asarray(state.info.get("slip", state.slip_increment), float)}
            if state.slip_ref is not None else {}),
@@ -208,7 +208,7 @@ def write_state(outdir, model, state: State, *, config=None, warnings=None, obje
                                np.asarray(state.u, float))
         if getattr(model, "foundation", None) is not None:
             vtk.write_foundation_vtu(tmpdir / "foundation.vtu", model.foundation, state)
-            plots.plot_contact_field(tmpdir / "foundation.png", model, -np.asarray(state.info["u_partner"])[:, 2],
+            plots.plot_contact_field(tmpdir / "foundation.png", model, -np.asarray(state.foundation.u_partner)[:, 2],
                                      "Indentation of the foundation $-(\\Pi u_f)_3$ under the contact nodes",
                                      cmap="viridis", label="$-(\\Pi u_f)_3$")
         names = state_files(model)
@@ -237,12 +237,18 @@ def read_state_npz(path) -> State:
         missing = [k for k in _NPZ_KEYS if k not in z.files]
         if missing:
             raise ValueError(f"{path}: not a contactopt state file, missing arrays {missing}")
+        info = json.loads(str(z["info_json"]))
+        foundation = None
+        if "u_partner" in z.files:        # an elastic foundation
+            info.pop("foundation", None)
+            foundation = FoundationState(u_body_c=z["u_body_c"], u_partner=z["u_partner"],
+                                         displacement=z["foundation_u"])
         return State(
             alpha=z["alpha"], coords=z["coords"], u=z["u"], u_c=z["u_c"], lam=z["lam"], tau=z["tau"],
             gap=z["gap"], classes=z["classes"].astype(int), friction=float(z["friction"]),
             method=str(z["method"]), iterations=int(z["iterations"]), residual=float(z["residual"]),
             complementarity=float(z["complementarity"]), converged=bool(z["converged"]),
-            timings=json.loads(str(z["timings_json"])), info=json.loads(str(z["info_json"])))
+            timings=json.loads(str(z["timings_json"])), info=info, foundation=foundation)
 
 
 def write_steps(outdir, model, steps, *, config=None, warnings=None) -> list[dict]:

@@ -111,8 +111,8 @@ def body_point_data(model, state, extra_point_data=None) -> dict:
         "gap": _on_nodes("gap", np.asarray(state.gap, float), n, cn),
         "contact_node": _on_nodes("contact_node", np.ones(p, np.int8), n, cn, fill=np.int8(0)),
     }
-    if "u_partner" in state.info:               # an elastic foundation (module docstring)
-        data["foundation_displacement"] = _on_nodes("foundation_displacement", state.info["u_partner"], n, cn)
+    if state.foundation is not None:            # an elastic foundation (module docstring)
+        data["foundation_displacement"] = _on_nodes("foundation_displacement", state.foundation.u_partner, n, cn)
         data["relative_displacement"] = _on_nodes("relative_displacement", np.asarray(state.u_c, float), n, cn)
     frames = getattr(model, "frames", None)
     if frames is not None:                      # a rigid obstacle: tangential_force is in (t1, t2) of each node
@@ -178,7 +178,7 @@ def write_foundation_vtu(path, foundation, state) -> Path:
     path = Path(path)
     ref = foundation.mesh.reference
     n = ref.n_nodes
-    u = _finite("foundation displacement", np.asarray(state.info["foundation_u"], float).reshape(n, 3))
+    u = _finite("foundation displacement", np.asarray(state.foundation.displacement, float).reshape(n, 3))
     r = np.zeros(3 * state.lam.size)
     r[0::3], r[1::3], r[2::3] = -state.tau[:, 0], -state.tau[:, 1], state.lam
     f = np.zeros((n, 3))

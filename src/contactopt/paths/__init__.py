@@ -22,9 +22,10 @@ The PETSc path imports petsc4py and mpi4py only when it runs: ``pip install .`` 
 from __future__ import annotations
 
 import logging
+from types import MappingProxyType
 
 from ..errors import ConfigError
-from .base import Context, Settings, SolverPath
+from .base import Capabilities, Context, Settings, SolverPath, Start
 from .condensation import CondensationPath
 from .delassus import DelassusPath
 from .fullspace import FullSpacePath
@@ -33,150 +34,174 @@ from .petsc import PetscPath
 log = logging.getLogger(__name__)
 
 
-PATHS = {cls.name: cls for cls in (CondensationPath, DelassusPath, FullSpacePath, PetscPath)}
+PATHS = MappingProxyType({cls.name: cls for cls in (CondensationPath, DelassusPath, FullSpacePath, PetscPath)})
 NAMES = tuple(PATHS)
 
-__all__ = ["PATHS", "NAMES", "SolverPath", "Settings", "Context", "select_path", "make_path", "library_for",
-           "rigid_path"]
+__all__ = ("PATHS", "NAMES", "SolverPath", "Settings", "Context", "Capabilities", "Start", "needs",
+           "select_path", "make_path", "library_for")
 
 
 def library_for(name: str, library: str) -> str:
-    """The sparse direct solver of a path: ``library`` unless "auto" (then MKL PARDISO where the
-    mkl wheel is installed, else SciPy); "pyamg" on the full-space path."""
-    if name == "fullspace":
-        return "pyamg"
-    if name == "petsc":
-        return "petsc"
+    """The sparse solver of a path: its own (``Capabilities.sparse``: "pyamg", "petsc"), else
+    ``library`` unless "auto" (then MKL PARDISO where the mkl wheel is installed, else SciPy)."""
+    own = PATHS[name].capabilities.sparse
+    if own is not None:
+        return own
     if library != "auto":
         return library
     from ..fem.linsolve import pardiso_available
     return "pardiso" if pardiso_available() else "scipy"
 
 
-def select_path(config, n_free: int, pinned: int = 0) -> tuple[str, str]:
-    """(path, library) of a configuration for a body of ``n_free`` free DOFs.
-
-    ``path = "auto"``: the full-space path from ``crossover`` free DOFs on (the measured crossover,
-    docs/large_meshes.md), the condensation below — the Delassus path instead of the full-space one
-    where pyamg is missing. The compliance objective needs the condensed load ℓ on every contact
-    DOF, so it stays on the condensation under "auto" and is refused on the other paths; so does
-    an elastic ``[foundation]`` (:mod:`.condensation`).
-
-    Under ``mpiexec`` with more than one rank only the PETSc path shares one optimization among
-    the ranks: "auto" takes it, and another path is refused (every rank would run the whole
-    optimization); so is "petsc" without petsc4py.
+def needs(config, pinned: int = 0, ranks: int = 1, rigid=None) -> dict:
+    """What a configuration needs of a path: {feature of :class:`Capabilities`: what needs it}.
 
     ``pinned``: the number of clamped tangential components of contact nodes (a symmetry plane
-    through the contact face, :mod:`contactopt.mesh.body`). Every path takes them; an elastic
-    ``[foundation]`` refuses them. A rigid ``[obstacle]`` other than the plane runs on the
-    condensation path, which "auto" takes, and, fixed or moved by a prescribed translation, on the
-    Delassus and full-space paths; the PETSc path refuses it."""
-    from .._mpi import petsc_missing, world_size
+    through the contact face, :mod:`contactopt.mesh.body`); ``ranks``: the MPI ranks of the run;
+    ``rigid``: the rigid motions the clamps leave free (:mod:`contactopt.mesh.rigid`), or None."""
     from ..sensitivity.objectives import FULL_SPACE, constraint_types, objective_types
-    ls, foundation = config.linear_solver, config.foundation is not None
+    out, foundation = {}, config.foundation is not None
     types = objective_types(config) | constraint_types(config)     # [[constraints]] are objectives too
-    name, objective = ls.path, "compliance" if "compliance" in types else config.objective.type
-    full = sorted(types & FULL_SPACE)
-    if full and (foundation or name == "petsc" or ranks_of() > 1):
-        where = "an elastic [foundation]" if foundation else "the 'petsc' path"
-        raise ConfigError([f"objective: {', '.join(full)} needs ∂J/∂u on every DOF, which the adjoint on "
-                           f"{where} does not take; use path 'condensation', 'delassus' or 'fullspace' "
-                           "without a foundation"])
-    ranks = world_size()
-    if pinned and foundation:
-        raise ConfigError([f"body.clamped: {pinned} tangential component(s) of contact nodes are clamped (a "
-                           "symmetry plane through the contact face), which an elastic [foundation] does not "
-                           "take (its compliance would add to the clamped direction); the rigid foundation does"])
+    if foundation:
+        out["foundation"] = "an elastic [foundation]"
     obst = config.obstacle
     obstacle = "plane" if obst is None else obst.shape
     if obst is not None and obst.control == "force":
         obstacle = f"force-controlled {obstacle}"
     elif obst is not None and obst.moves_tangentially:
         obstacle = f"{obstacle} moved tangentially"
-    if obstacle != "plane":
-        # the contact frames rotate the condensed system (paths/condensation.py) or the Delassus
-        # operator (contact.zone.FramedDelassusZoneProblem) or the full-space Newton system
-        # (paths/fullspace.py); a force control only the condensation's
-        framed = obst.control != "force"
-        if name in ("delassus", "fullspace") and framed and ranks == 1:
-            log.info("linear solver: %s path (%s obstacle)", name, obstacle)
-            return name, library_for(name, ls.library)
-        if name not in ("auto", "condensation") or ranks > 1:
-            takes = ("the 'condensation', 'delassus' and 'fullspace' paths" if framed
-                     else "the 'condensation' path only")
-            raise ConfigError([f"linear_solver.path = '{name}'" + (f" on {ranks} MPI ranks" if ranks > 1 else "")
-                               + f": a {obstacle} [obstacle] is solved on {takes} (one process); use path "
-                               "'condensation' or 'auto'"])
-        log.info("linear solver: condensation path (%s obstacle)", obstacle)
-        return "condensation", library_for("condensation", ls.library)
-    if ranks > 1 and name not in ("auto", "petsc"):
-        raise ConfigError([f"linear_solver.path = '{name}' runs on one process, and this run has {ranks} MPI "
-                           "ranks: use path 'petsc' (or 'auto'), or run without mpiexec"])
-    if name == "petsc" or (name == "auto" and ranks > 1):
-        problems = []
+    if obstacle != "plane":             # the contact frames rotate the system (paths/condensation.py, ...)
+        out["obstacle"] = obstacle
+    if obst is not None and obst.control == "force":   # the translation balancing the force: condensation
+        out["force_obstacle"] = obstacle
+    if rigid is not None:               # clamps that leave rigid motions free (paths/rigid.py)
+        out["held_by_contact"] = ", ".join(rigid.names())
         if foundation:
-            problems.append("linear_solver.path = 'petsc': an elastic [foundation] is solved on the "
-                            "'condensation' path only (one process)")
-        if objective == "compliance":
-            problems.append("linear_solver.path = 'petsc': the compliance objective needs the condensed "
-                            "load on every contact DOF; use path 'condensation' on one process")
-        missing = petsc_missing()
-        if missing:
-            problems.append(f"linear_solver.path = '{name}'"
-                            + (f" under mpiexec with {ranks} ranks" if name == "auto" else "")
-                            + f" needs petsc4py and mpi4py: {missing}")
-        if problems:
-            raise ConfigError(problems)
-        log.info("linear solver: petsc path on %d rank(s)", ranks)
-        return "petsc", "petsc"
-    if foundation:
-        # the foundation's compliance C enters the condensed Delassus operator W = S⁻¹ + C
-        if name not in ("auto", "condensation"):
-            raise ConfigError([f"linear_solver.path = '{name}': an elastic [foundation] is solved on the "
-                               "'condensation' path only; use path 'condensation' or 'auto'"])
-        log.info("linear solver: condensation path (elastic foundation)")
-        return "condensation", library_for("condensation", ls.library)
-    if name == "auto":
-        name = "condensation"
-        if n_free >= ls.crossover and objective != "compliance":
-            from ..fem.linsolve import pardiso_available
-            if _have_pyamg():
-                name = "fullspace"
-            elif pardiso_available():
-                name = "delassus"
-        log.info("linear solver: %s path for %d DOFs (crossover %d)", name, n_free, ls.crossover)
-    elif name != "condensation" and objective == "compliance":
-        raise ConfigError([f"linear_solver.path = '{name}': the compliance objective needs the condensed "
-                           "load on every contact DOF; use path 'condensation' or 'auto'"])
-    return name, library_for(name, ls.library)
+            out["held_on_foundation"] = out["held_by_contact"]
+    if pinned:
+        out["pinned"] = str(pinned)
+        if foundation:
+            out["pinned_on_foundation"] = str(pinned)
+    if "compliance" in types or config.objective.type == "compliance":
+        out["compliance"] = "the compliance objective"
+    full = sorted(types & FULL_SPACE)
+    if full:
+        out["whole_displacement"] = ", ".join(full)
+        if foundation:
+            out["whole_displacement_on_foundation"] = ", ".join(full)
+    if config.load_steps or any(case.steps for case in config.load_cases):
+        out["load_steps"] = "[[load_steps]]"
+    if ranks > 1:
+        out["many_ranks"] = str(ranks)
+    return out
 
 
-def rigid_path(config, name: str, library: str, rigid) -> tuple[str, str]:
-    """(path, library) of a body held only by contact (clamps that leave ``rigid`` motions free,
-    :mod:`.rigid`): the condensation path, which "auto" takes; the other paths and an elastic
-    [foundation] refuse it."""
-    motions = ", ".join(rigid.names())
-    if config.foundation is not None:
-        raise ConfigError([f"body.clamped leaves rigid motions free ({motions}): a body held only by contact "
-                           "rests on the rigid foundation or an [obstacle], not on an elastic [foundation]"])
-    if name == "condensation":
-        return name, library
-    if config.linear_solver.path != "auto":
-        raise ConfigError([f"linear_solver.path = '{name}': body.clamped leaves rigid motions free ({motions}); "
-                           "a body held only by contact is solved on the 'condensation' path only; use path "
-                           "'condensation' or 'auto'"])
-    log.info("linear solver: condensation path (a body held only by contact)")
-    return "condensation", library_for("condensation", config.linear_solver.library)
+def select_path(config, n_free: int, pinned: int = 0, rigid=None) -> tuple[str, str]:
+    """(path, library) of a configuration for a body of ``n_free`` free DOFs.
 
-
-def make_path(config, model, name: str, library: str) -> SolverPath:
-    """The path ``name`` for a model, with the configuration's [state] settings."""
-    return PATHS[name](model, Settings.from_config(config.state, config.friction, library))
-
-
-def ranks_of() -> int:
+    The paths that take what the configuration needs (:func:`needs`, each path's
+    :class:`Capabilities`) qualify; ``path = "auto"`` takes among them the PETSc path under
+    ``mpiexec`` with more than one rank, else the full-space path from ``crossover`` free DOFs on
+    (the measured crossover, docs/large_meshes.md; the Delassus path where pyamg is missing and
+    PARDISO is installed), else the condensation. So the compliance objective (it needs the
+    condensed load ℓ on every contact DOF), an elastic ``[foundation]``, a force-controlled
+    ``[obstacle]`` and a body held only by contact stay on the condensation, and "auto" keeps any
+    other rigid obstacle there too (the Delassus and full-space paths take it when asked). A path asked for that lacks a feature is
+    refused with what it lacks and the paths that take it; so is one whose libraries are missing."""
     from .._mpi import world_size
-    return world_size()
+    ls = config.linear_solver
+    name, ranks = ls.path, world_size()
+    need = needs(config, pinned, ranks, rigid)
+    fit = [cls for cls in PATHS.values() if not cls.capabilities.lacks(need)]
+    if name == "auto":
+        chosen = _auto(fit, n_free, ls.crossover, ranks, need)
+        if chosen is None:
+            raise ConfigError(_refusal(name, need))
+        log.info("linear solver: %s path for %d DOFs (crossover %d, %d rank(s))", chosen.name, n_free,
+                 ls.crossover, ranks)
+    else:
+        chosen = PATHS[name]
+        if chosen not in fit:
+            raise ConfigError(_refusal(name, need))
+    missing = [why for why in map(missing_library, chosen.capabilities.libraries) if why]
+    if missing:
+        raise ConfigError([f"linear_solver.path = '{name}'"
+                           + (f" under mpiexec with {ranks} ranks" if "many_ranks" in need and name == "auto" else "")
+                           + f" needs {why}" for why in missing])
+    return chosen.name, library_for(chosen.name, ls.library)
+
+
+def _auto(fit: list, n_free: int, crossover: int, ranks: int, need=()):
+    """The path ``"auto"`` takes among those that ``fit`` (:func:`select_path`), or None: those
+    that avoid a feature needed (``Capabilities.auto_avoids``) only where no other fits."""
+    fit = [cls for cls in fit if not set(cls.capabilities.auto_avoids) & set(need)] or fit
+    def installed(cls):
+        c = cls.capabilities
+        return not any(map(missing_library, c.libraries + c.auto_libraries))
+
+    if ranks > 1:
+        return next((cls for cls in fit if cls.capabilities.auto == "ranks"), None)
+    large = sorted((cls for cls in fit if cls.capabilities.auto == "large" and installed(cls)),
+                   key=lambda cls: cls.capabilities.auto_order)
+    small = [cls for cls in fit if cls.capabilities.auto == "small"]
+    order = (large + small) if n_free >= crossover else (small + large)
+    return next(iter(order + [cls for cls in fit if cls.capabilities.auto != "ranks" and installed(cls)]), None)
+
+
+def _refusal(name: str, need: dict) -> list:
+    """The problems of path ``name`` with the features ``need``: each feature it lacks, with the
+    paths that take it ("auto": the features no path takes), and a summary of what is needed,
+    what the path lacks and which paths take it all."""
+    def takers(feature):
+        return [n for n, cls in PATHS.items() if getattr(cls.capabilities, feature)]
+
+    fit = [n for n, cls in PATHS.items() if not cls.capabilities.lacks(need)]
+    labels = ", ".join(Capabilities.label(f) for f in need)
+    if name == "auto":
+        shown = [f for f in need if not takers(f)]
+        lacks = "; ".join(f"'{n}' lacks {', '.join(Capabilities.label(f) for f in cls.capabilities.lacks(need))}"
+                          for n, cls in PATHS.items())
+        summary = f"no solver path takes this configuration, which needs {labels} ({lacks})"
+    else:
+        shown = PATHS[name].capabilities.lacks(need)
+        lacking = ", ".join(Capabilities.label(f) for f in shown)
+        summary = (f"this configuration needs {labels}; the '{name}' path lacks {lacking}; "
+                   + (f"{_names(fit, 'and')} take{'s' if len(fit) == 1 else ''} it all" if fit else "no path takes it all"))
+    problems = []
+    for f in shown:
+        names = [n for n in fit if n in takers(f)] or takers(f)
+        problems.append(Capabilities.refusal(f).format(path=name, detail=need[f], takers=_names(names),
+                                                       on=_on(names)))
+    return problems + [f"linear_solver.path = '{name}': {summary}"]
+
+
+def _names(names: list, conjunction: str = "or") -> str:
+    """'a', 'b' or 'c'."""
+    quoted = [f"'{n}'" for n in names] or ["none"]
+    return quoted[0] if len(quoted) == 1 else ", ".join(quoted[:-1]) + f" {conjunction} " + quoted[-1]
+
+
+def _on(names: list) -> str:
+    return f"the {_names(names, 'and')} path" + ("s" if len(names) > 1 else "")
+
+
+def missing_library(library: str) -> str | None:
+    """None where ``library`` (of ``Capabilities.libraries``) imports, else why not."""
+    if library == "petsc4py":
+        from .. import _mpi
+        missing = _mpi.petsc_missing()
+        return f"petsc4py and mpi4py: {missing}" if missing else None
+    if library == "pyamg":
+        return None if _have_pyamg() else "pyamg: it is not installed (pip install pyamg)"
+    if library == "pardiso":
+        from ..fem.linsolve import pardiso_available
+        return None if pardiso_available() else "MKL PARDISO: the mkl wheel is not installed"
+    raise ValueError(f"unknown library {library!r}")
+
+
+def make_path(config, model, name: str, library: str, start: Start | None = None) -> SolverPath:
+    """The path ``name`` for a model, with the configuration's [state] settings."""
+    return PATHS[name](model, Settings.from_config(config.state, config.friction, library), start)
 
 
 def _have_pyamg() -> bool:

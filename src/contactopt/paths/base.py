@@ -7,7 +7,7 @@ the adjoint (4.15) of a state. :class:`~contactopt.problem.ShapeProblem` calls, 
     system = path.prepare(assembled)                   # what every load case shares
     system_k = path.for_load(system, assembled_k)      # another load case: L_k
     state = path.solve_state(system_k, context, ...)   # the Coulomb state (paper (3.17))
-    v_u, v_λ, ṽ = path.adjoint(system_k, context, state, y*_u, y*_λ, choices)   # (4.15)
+    v_u, v_λ, ṽ, krylov = path.adjoint(system_k, context, state, y*_u, y*_λ, choices)   # (4.15)
 
 and a case's :class:`Context` carries what the path keeps from design to design (warm start,
 contact zone, a kept Delassus block or AMG hierarchy): ``export_context`` gives it as arrays
@@ -21,15 +21,144 @@ the normal force on the body, τ = −r_t; a warm start is per node in the FCLIB
 from __future__ import annotations
 
 import logging
-from dataclasses import dataclass
+from dataclasses import dataclass, field, fields
+from typing import NamedTuple
 
 import numpy as np
 
 from ..contact import zone as zone_rules
-from ..contact.state import State, classify_nodes, contact_conditions_violation, displacement_scale
+from ..contact.state import FoundationState, State, classify_nodes, contact_conditions_violation, displacement_scale
 from ..errors import CheckpointError
 
 log = logging.getLogger(__name__)
+
+
+def _feature(label: str, refusal: str, default: bool = False):
+    """A field of :class:`Capabilities`: ``label`` names the feature in a refusal's summary,
+    ``refusal`` is the sentence of a path that lacks it (``str.format`` keys ``path``, the path
+    asked for; ``detail``, what of the configuration needs it; ``takers``, ``on``, the paths that
+    take it, as "'a' or 'b'" and "the 'a' or 'b' paths")."""
+    return field(default=default, metadata={"label": label, "refusal": refusal})
+
+
+@dataclass(frozen=True)
+class Capabilities:
+    """What a path takes, declared on its class (``SolverPath.capabilities``).
+
+    Each boolean field is a feature a configuration may need (:func:`contactopt.paths.needs`):
+    :func:`~contactopt.paths.select_path` keeps the paths that take every feature needed, and a
+    refusal is the fields' ``refusal`` sentences. A new mechanic is one more field here (default
+    False: no path takes it until it says so), one line in ``needs`` and ``True`` on the paths
+    that take it. ``libraries``: what the path imports (checked when it is chosen); ``sparse``: its
+    own linear-algebra library, else ``[linear_solver] library``; ``auto``: the runs
+    ``path = "auto"`` gives it ("small": below ``crossover``, "large": from there, first the
+    lowest ``auto_order`` whose ``libraries`` and ``auto_libraries`` are installed, "ranks": under
+    mpiexec with more than one rank; "" never); ``auto_avoids``: features for which "auto" takes
+    another path that has them where one fits (a path that takes them, but not as the first choice)."""
+
+    foundation: bool = _feature(
+        "an elastic [foundation]",
+        "linear_solver.path = '{path}': {detail} is solved on {on} only; use path {takers} or 'auto'")
+    obstacle: bool = _feature(
+        "a rigid [obstacle] other than the fixed plane",
+        "linear_solver.path = '{path}': a {detail} [obstacle] is solved on {on} only (one process); "
+        "use path {takers} or 'auto'")
+    force_obstacle: bool = _feature(
+        "a force-controlled [obstacle]",
+        "linear_solver.path = '{path}': a {detail} [obstacle] is solved on {on} only (one process); "
+        "use path {takers} or 'auto'")
+    held_by_contact: bool = _feature(
+        "a body held only by contact",
+        "linear_solver.path = '{path}': body.clamped leaves rigid motions free ({detail}); a body held only "
+        "by contact is solved on {on} only; use path {takers} or 'auto'")
+    held_on_foundation: bool = _feature(
+        "a body held only by contact on an elastic [foundation]",
+        "body.clamped leaves rigid motions free ({detail}): a body held only by contact rests on the rigid "
+        "foundation or an [obstacle], not on an elastic [foundation]")
+    pinned: bool = _feature(
+        "clamped tangential components of contact nodes",
+        "linear_solver.path = '{path}': {detail} tangential component(s) of contact nodes are clamped (a "
+        "symmetry plane through the contact face), which it does not take; use path {takers}")
+    pinned_on_foundation: bool = _feature(
+        "clamped contact nodes on an elastic [foundation]",
+        "body.clamped: {detail} tangential component(s) of contact nodes are clamped (a symmetry plane "
+        "through the contact face), which an elastic [foundation] does not take (its compliance would add "
+        "to the clamped direction); the rigid foundation does")
+    compliance: bool = _feature(
+        "the compliance objective",
+        "linear_solver.path = '{path}': the compliance objective needs the condensed load on every contact "
+        "DOF; use path {takers} or 'auto'")
+    whole_displacement: bool = _feature(
+        "an objective of the whole displacement",
+        "objective: {detail} needs ∂J/∂u on every DOF, which the adjoint on the '{path}' path does not take; "
+        "use path {takers}")
+    whole_displacement_on_foundation: bool = _feature(
+        "an objective of the whole displacement on an elastic [foundation]",
+        "objective: {detail} needs ∂J/∂u on every DOF, which the adjoint on an elastic [foundation] does not "
+        "take; use the rigid foundation")
+    load_steps: bool = _feature(
+        "load steps",
+        "the '{path}' solver path does not take load steps; use linear_solver.path = {takers}")
+    many_ranks: bool = _feature(
+        "more than one MPI rank",
+        "linear_solver.path = '{path}' runs on one process, and this run has {detail} MPI ranks: use path "
+        "{takers} (or 'auto'), or run without mpiexec")
+    libraries: tuple = ()
+    sparse: str | None = None
+    auto: str = ""
+    auto_order: int = 0
+    auto_libraries: tuple = ()
+    auto_avoids: tuple = ()
+
+    @classmethod
+    def features(cls) -> tuple:
+        """The names of the boolean fields: what a configuration may need."""
+        return tuple(f.name for f in fields(cls) if "refusal" in f.metadata)
+
+    @classmethod
+    def label(cls, feature: str) -> str:
+        return _metadata(feature)["label"]
+
+    @classmethod
+    def refusal(cls, feature: str) -> str:
+        return _metadata(feature)["refusal"]
+
+    def lacks(self, needs) -> list:
+        """The features of ``needs`` (names) this path does not take, in the fields' order."""
+        return [f for f in self.features() if f in needs and not getattr(self, f)]
+
+
+def _metadata(feature: str):
+    return next(f.metadata for f in fields(Capabilities) if f.name == feature)
+
+
+class _Takes:
+    """A class attribute read from the class's :class:`Capabilities` (``takes_steps``)."""
+
+    def __init__(self, feature: str):
+        self.feature = feature
+
+    def __get__(self, obj, owner):
+        return getattr(owner.capabilities, self.feature)
+
+
+class Adjoint(NamedTuple):
+    """What :meth:`SolverPath.adjoint` computes: ``v_u`` (3p, per node (t1, t2, ν)), ``v_lam``
+    (p,), ``v`` ṽ on all DOFs, and ``krylov`` the GMRES iterations it took (None where it was
+    solved directly)."""
+
+    v_u: np.ndarray
+    v_lam: np.ndarray
+    v: np.ndarray
+    krylov: int | None = None
+
+
+@dataclass(frozen=True)
+class Start:
+    """What a path is built with besides the model and the settings: ``first_loads`` the loads of
+    the first load case (a checkpoint's design is assembled with them; None: the model's)."""
+
+    first_loads: object = None
 
 
 @dataclass
@@ -64,29 +193,31 @@ class Context:
 class SolverPath:
     """A way to solve a design's contact states and adjoints (module docstring).
 
-    Subclasses set ``name`` (the value of ``[linear_solver] path``) and implement
-    :meth:`prepare`, :meth:`for_load`, :meth:`solve_state`, :meth:`adjoint` and
-    :meth:`memory_estimate`; those that keep more than the warm start and the zone extend
-    :meth:`new_context`, :meth:`export_context` and :meth:`import_context`."""
+    Subclasses set ``name`` (the value of ``[linear_solver] path``) and ``capabilities`` (what
+    they take: :class:`Capabilities`), and implement :meth:`prepare`, :meth:`for_load`,
+    :meth:`solve_state`, :meth:`adjoint` and :meth:`memory_estimate`; those that keep more than
+    the warm start and the zone extend :meth:`new_context`, :meth:`export_context` and
+    :meth:`import_context`. Every method has the signature given here, on every path."""
 
     name = ""
-    takes_steps = False      # whether solve_state takes ``slip_ref`` (load paths, sensitivity/steps.py)
-    first_loads = None       # the loads of the first case: a checkpoint's design is assembled with them
+    capabilities = Capabilities()
+    takes_steps = _Takes("load_steps")    # whether solve_state takes ``slip_ref`` (sensitivity/steps.py)
 
-    def __init__(self, model, settings: Settings):
+    def __init__(self, model, settings: Settings, start: Start | None = None):
         self.model = model
         self.settings = settings
+        self.start = start if start is not None else Start()
         self.library = settings.library
         self.all_nodes = np.arange(model.n_contact)
         self.n_zone_misses = 0     # zone problems solved again on a grown zone
         self.n_delassus = 0        # Delassus blocks W_Z formed (the others were reused)
 
-    # ------------------------------------------------------------------ the interface
-    @classmethod
-    def starting(cls, config) -> None:
-        """Called with the configuration before the model is built (the PETSc path starts the
-        other MPI ranks' problem there)."""
+    @property
+    def first_loads(self):
+        """The loads of the first load case: a checkpoint's design is assembled with them."""
+        return self.start.first_loads
 
+    # ------------------------------------------------------------------ the interface
     @classmethod
     def memory_estimate(cls, body, **kw):
         """Estimated peak memory of one evaluation (:class:`~contactopt.fem.memory.MemoryEstimate`)."""
@@ -107,12 +238,15 @@ class SolverPath:
     def new_context(self) -> Context:
         return Context(None, self.all_nodes)
 
-    def solve_state(self, system, ctx, alpha, *, method, warm_start, tol, shared, label="") -> State:
-        """The contact state of one load case; ``shared`` is a dict the cases of one design share."""
+    def solve_state(self, system, ctx, alpha, *, method, warm_start, tol, shared, label="",
+                    slip_ref=None) -> State:
+        """The contact state of one load case; ``shared`` is a dict the cases of one design share;
+        ``slip_ref`` (p, 2) u_t at the end of the previous load step (paths with load steps)."""
         raise NotImplementedError
 
-    def adjoint(self, system, ctx, state, y_u, y_lam, choices=None):
-        """(v_u (3p), v_λ (p), ṽ on all DOFs) of the adjoint system (4.15) of ``state``.
+    def adjoint(self, system, ctx, state, y_u, y_lam, choices=None) -> Adjoint:
+        """The :class:`Adjoint` (v_u (3p), v_λ (p), ṽ on all DOFs) of the adjoint system (4.15) of
+        ``state``; it changes neither ``state`` nor the arguments.
 
         ``y_u`` is ∂J/∂u_c (3p, per node (t1, t2, ν)), or ∂J/∂u on every DOF (3·n_nodes) for an
         objective of the whole displacement. Then J depends on u_c also through the interior
@@ -153,9 +287,10 @@ class SolverPath:
         return {"warm": np.asarray(ctx.warm if ctx.warm is not None else np.zeros(0)),
                 "zone": np.asarray(ctx.next_zone)}
 
-    def import_context(self, ctx, arrays: dict, where: str) -> None:
+    def import_context(self, ctx, arrays: dict, where: str, others=()) -> None:
         """Put back what :meth:`export_context` gave, checked against the mesh (``where`` names
-        the checkpoint in errors)."""
+        the checkpoint in errors); ``others`` the contexts put back before, whose kept blocks
+        ``ctx`` may share."""
         p = self.model.n_contact
         warm = arrays.get("warm")
         if warm is not None and warm.size:
@@ -168,7 +303,7 @@ class SolverPath:
 
     # ------------------------------------------------------------------ shared by the paths
     def finish_state(self, ctx, *, alpha, coords, u, u_c, r, gap, load, method, outcome, timings,
-                     info, slip_ref=None) -> State:
+                     info, slip_ref=None, foundation: FoundationState | None = None) -> State:
         """The :class:`State` of contact forces ``r`` ((p, 3) per node (t1, t2, ν)) and
         displacements, with the node classes of Table 4.1; ``outcome`` the solver's (iterations,
         error, converged). The case's next zone is set from it. ``slip_ref`` (p, 2): in a load
@@ -191,7 +326,8 @@ class SolverPath:
                       friction=self.settings.friction, method=method, iterations=outcome[0],
                       residual=outcome[1],
                       complementarity=contact_conditions_violation(law_u, lam, tau, gap, self.settings.friction),
-                      converged=outcome[2], timings=timings, info={"path": self.name, **info}, slip_ref=slip_ref)
+                      converged=outcome[2], timings=timings, info={"path": self.name, **info}, slip_ref=slip_ref,
+                      foundation=foundation)
         if self.settings.use_zone:
             ctx.next_zone = zone_rules.near_nodes(lam, u_c[:, 2] + gap, displacement_scale(u_c, gap),
                                                   self.settings.zone_margin)

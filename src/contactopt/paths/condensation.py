@@ -52,6 +52,7 @@ from ..contact import zone as zone_rules
 from ..errors import SolverError
 from ..fem import memory
 from ..fem.model import Assembled
+from .base import Adjoint, Capabilities
 from .rigid import anchor, with_contact_diagonal
 from .zone_paths import ZonePath
 
@@ -114,9 +115,12 @@ class CondensationPath(ZonePath):
     """``[linear_solver] path = "condensation"`` (module docstring)."""
 
     name = "condensation"
+    capabilities = Capabilities(foundation=True, obstacle=True, force_obstacle=True, held_by_contact=True, pinned=True,
+                                compliance=True,
+                                whole_displacement=True, load_steps=True, auto="small")
 
-    def __init__(self, model, settings):
-        super().__init__(model, settings)
+    def __init__(self, model, settings, start=None):
+        super().__init__(model, settings, start)
         self._factor = None      # the condensation, refactored in place for each new design
 
     @classmethod
@@ -180,9 +184,10 @@ class CondensationPath(ZonePath):
         out.timings["schur"] = time.perf_counter() - t1
         return out
 
-    def solve_state(self, system, ctx, alpha, **kw):
+    def solve_state(self, system, ctx, alpha, *, method, warm_start, tol, shared, label="", slip_ref=None):
         """The state (:class:`ZonePath`); with a force-controlled obstacle the translation s that
         balances the force, found by Brent's method (module docstring)."""
+        kw = dict(method=method, warm_start=warm_start, tol=tol, shared=shared, label=label, slip_ref=slip_ref)
         m = self.model
         if getattr(m, "force", None) is None:
             return self.held_state(system, ctx, alpha, **kw)
@@ -247,7 +252,7 @@ class CondensationPath(ZonePath):
         c, b = m.force_gap, m.force_b.ravel()
         Se = system.contact_S @ (m.force_b * [1.0, 1.0, 0.0]).ravel()     # ∂(S w − ℓ_eff)/∂s
         Sb = system.contact_S @ b
-        w_u, w_lam, w_full = self.adjoint(system, ctx, state, Sb, np.zeros(c.size))
+        w_u, w_lam, w_full, _ = self.adjoint(system, ctx, state, Sb, np.zeros(c.size))
         bg = b if self.frames is None else from_frames(b, self.frames)
         b_full = m.assembler.to_full(system.factor.extend(bg))
         dF_da = self.design_contraction(system, state.u, b_full + w_full, loads) + m.gap_matrix.T @ w_lam
@@ -279,14 +284,14 @@ class CondensationPath(ZonePath):
             return np.ravel(u_c)
         return system.coupling.body_displacement(u_c, r)
 
-    def contact_info(self, system, u_c, r, u_body) -> dict:
+    def foundation_state(self, system, u_c, r, u_body):
         """On a foundation: the body's contact displacement and its partners' (p, 3) per node
-        (t1, t2, ν); w = u_c − partner is the state's ``u_c``."""
+        (t1, t2, ν) — w = u_c − partner is the state's ``u_c`` — and the foundation's own."""
         if system.coupling is None:
-            return {}
+            return None
+        from ..contact.state import FoundationState
         body = u_body.reshape(-1, 3)
-        return {"foundation": True, "u_body_c": body, "u_partner": body - u_c,
-                "foundation_u": self.foundation.displacement(r)}
+        return FoundationState(u_body_c=body, u_partner=body - u_c, displacement=self.foundation.displacement(r))
 
     def load_scale(self, system):
         return system.contact_ell
@@ -316,7 +321,7 @@ class CondensationPath(ZonePath):
         v = system.factor.extend(z)
         if zhat is not None:
             v = v - zhat
-        return v_u, v_lam, self.model.assembler.to_full(v)
+        return Adjoint(v_u, v_lam, self.model.assembler.to_full(v))
 
     def adjoint_force(self, system, ctx, v_u):
         return system.contact_S @ v_u

@@ -30,6 +30,7 @@ from ..contact import zone as zone_rules
 from ..contact.state import CLASS_CODES, FROM_FCLIB, displacement_scale
 from ..fem import memory
 from ..fem.model import Assembled
+from .base import Adjoint, Capabilities
 from .zone_paths import ZonePath
 
 log = logging.getLogger(__name__)
@@ -58,12 +59,14 @@ class DelassusPath(ZonePath):
     """``[linear_solver] path = "delassus"`` (module docstring)."""
 
     name = "delassus"
+    capabilities = Capabilities(obstacle=True, pinned=True, whole_displacement=True, load_steps=True, auto="large",
+                                auto_order=1, auto_libraries=("pardiso",), auto_avoids=("obstacle",))
     reuse_tol_factor = 1.0    # each Newton step costs a sparse solve here: to tol itself
     accept_at_tol = True      # forming W_Z costs more than a factorization
     probe_warm = True         # the warm start's product Newton needs first anyway
 
-    def __init__(self, model, settings):
-        super().__init__(model, settings)
+    def __init__(self, model, settings, start=None):
+        super().__init__(model, settings, start)
         self._factor = None       # the Cholesky factorization of A(α), numerical only after the first
         self._slot = None         # the factorization a design's solves go through
         self._keep_cholesky = memory.keeps_cholesky(model)
@@ -213,7 +216,7 @@ class DelassusPath(ZonePath):
         jac = ctx.jacobian
         W = None
         if jac is not None and K.size:
-            W = zpK.block_from(jac[1], jac[2], **self.max_new(K, ADJOINT_MAX_NEW))
+            W = zpK.block_from(jac.zone, jac.W, **self.max_new(K, ADJOINT_MAX_NEW))
         if W is None:
             W = zpK.W if K.size else np.zeros((0, 0))
         perm = (3 * np.arange(K.size)[:, None] + FROM_FCLIB).ravel()   # FCLIB -> (t1, t2, ν)
@@ -232,5 +235,5 @@ class DelassusPath(ZonePath):
         if res is not None:
             log.debug("adjoint (4.15) in W-form on %d nodes: %d GMRES iterations, %.2f s",
                       K.size, res.iterations, time.perf_counter() - t0)
-            state.info["adjoint_krylov"] = int(res.iterations)
-        return v_u, v_lam, self.model.assembler.to_full(v_free)
+        return Adjoint(v_u, v_lam, self.model.assembler.to_full(v_free),
+                       None if res is None else int(res.iterations))

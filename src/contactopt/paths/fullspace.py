@@ -17,6 +17,11 @@ orthogonal change of basis (the identity but the 3 × 3 blocks R_m at the contac
 Dirichlet and Robin rows act in the frames unchanged; u = T u_loc, the AMG near-null space is Tᵀ
 times the rigid-body modes, the adjoint is solved on TᵀA T and its extension returned as T ṽ_loc.
 An obstacle's tangential translation is the slip's reference (``slip_ref``), as a load step's is.
+
+:class:`FullSpaceCommon` is what this path and the PETSc path (:mod:`.petsc`), the two backends of
+one method, share: the options of a solve, the state of its result, and the arrays of a
+checkpoint (the last displacement on the free DOFs and the design of the hierarchy, the same on
+both, so that a checkpoint of either resumes on the other).
 """
 
 from __future__ import annotations
@@ -28,9 +33,10 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from .._threads import sequential_openblas
+from ..errors import CheckpointError
 from ..fem import memory
 from ..fem.model import Assembled
-from .base import Context, SolverPath, check_design
+from .base import Adjoint, Capabilities, Context, SolverPath, check_design
 
 log = logging.getLogger(__name__)
 
@@ -80,20 +86,93 @@ class FullContext(Context):
     u_free: np.ndarray | None = None
 
 
-class FullSpacePath(SolverPath):
-    """``[linear_solver] path = "fullspace"`` (module docstring)."""
+class FullSpaceCommon(SolverPath):
+    """What the full-space paths share (module docstring). A subclass keeps the design of its
+    hierarchy in ``hierarchy_alpha`` and implements :meth:`last_displacement` and
+    :meth:`restore`."""
 
-    name = "fullspace"
-
-    def __init__(self, model, settings):
-        super().__init__(model, settings)
-        self.library = "pyamg"
-        self._hierarchy = None          # the AMG hierarchy of an earlier A(α) ...
-        self._hierarchy_alpha = None    # ... built at this design (checkpoints rebuild it)
+    hierarchy_alpha = None        # the design of the hierarchy (an instance's, once built)
 
     @classmethod
     def memory_estimate(cls, body, **kw):
         return memory.estimate_evaluation(body, memory.fullspace_parts)
+
+    def newton_options(self, ctx, tol, warm_start) -> dict:
+        """The tolerance (at least :data:`FULLSPACE_TOL`), the case's zone when warm-started, and
+        the zone margin of a solve."""
+        s = self.settings
+        return {"tol": max(tol or s.tol, FULLSPACE_TOL), "zone": ctx.next_zone if s.use_zone and warm_start else None,
+                "zone_margin": s.zone_margin}
+
+    def state_of(self, ctx, system, alpha, res, *, u_free, t0, t_setup, info, label, slip_ref=None, u_c=None):
+        """The :class:`~contactopt.contact.state.State` of a full-space result ``res``
+        (:class:`~contactopt.contact.fullspace.FullSpaceResult`; ``u_free`` its displacement on
+        the model's free DOFs; ``u_c`` the contact nodes' displacement where it is not the
+        result's own, e.g. in the world frame on an obstacle), begun at ``t0`` with ``t_setup``
+        seconds of hierarchy set-up; the case's warm start is set from it."""
+        timings = dict(system.timings, **{f"fullspace_{k}": v for k, v in res.timings.items() if k != "total"})
+        timings["fullspace_amg_setup"] += t_setup
+        timings["contact"] = time.perf_counter() - t0
+        r = np.column_stack((res.r[:, 1:], res.r[:, 0]))           # per node (t1, t2, ν): (−τ, λ)
+        asm = system.assembled
+        state = self.finish_state(ctx, alpha=alpha, coords=asm.coords, u=self.model.assembler.to_full(u_free),
+                                  u_c=res.u_c if u_c is None else u_c, r=r, gap=system.gap, load=asm.L, method="fullspace",
+                                  outcome=(res.newton_steps, res.error, res.converged), timings=timings,
+                                  info={**info, "zone_nodes": int(res.zone.size), "zone_misses": int(res.zone_growths),
+                                        "delassus": "none", "krylov_iterations": int(sum(res.krylov_iterations))},
+                                  slip_ref=slip_ref)
+        ctx.warm = res.r.copy()
+        log.debug("state%s: %s %d steps, %d GMRES iterations, error %.2e, %.2f s", label, self.newton_label,
+                  res.newton_steps, sum(res.krylov_iterations), res.error, timings["total"])
+        return state
+
+    # ------------------------------------------------------------------ checkpoints
+    def last_displacement(self, ctx) -> np.ndarray | None:
+        """The case's last displacement on the free DOFs (None before its first state)."""
+        raise NotImplementedError
+
+    def restore(self, ctx, arrays: dict, u_free, alpha, where: str) -> None:
+        """Put back a checked displacement ``u_free`` and hierarchy design ``alpha`` (either None)."""
+        raise NotImplementedError
+
+    def export_context(self, ctx) -> dict:
+        out = super().export_context(ctx)
+        a = self.hierarchy_alpha       # the design of the hierarchy, shared by the cases
+        out["jacobian_alpha"] = np.asarray(a if a is not None else np.zeros(0), dtype=float)
+        out["jacobian_zone"] = np.asarray(ctx.next_zone if a is not None else np.zeros(0), dtype=np.int64)
+        u = self.last_displacement(ctx)
+        if u is not None:
+            out["u_free"] = np.asarray(u)
+        return out
+
+    def import_context(self, ctx, arrays: dict, where: str, others=()) -> None:
+        """Also the case's last displacement, and the hierarchy rebuilt at its design."""
+        super().import_context(ctx, arrays, where, others)
+        n_free = self.model.assembler.n_free
+        u = arrays.get("u_free")
+        if u is not None and (u.shape != (n_free,) or not np.all(np.isfinite(u))):
+            raise CheckpointError(f"{where}: its displacement does not fit the mesh ({u.shape[0] if u.ndim else 0} "
+                                  f"values for {n_free} free DOFs) or is not finite")
+        a = arrays.get("jacobian_alpha")
+        alpha = check_design(a, self.model.n_design, where, "AMG design") if a is not None and a.size else None
+        self.restore(ctx, arrays, u, alpha, where)
+
+
+class FullSpacePath(FullSpaceCommon):
+    """``[linear_solver] path = "fullspace"`` (module docstring)."""
+
+    name = "fullspace"
+    capabilities = Capabilities(obstacle=True, pinned=True, whole_displacement=True, load_steps=True,
+                                libraries=("pyamg",), sparse="pyamg", auto="large", auto_order=0,
+                                auto_avoids=("obstacle",))
+
+    def __init__(self, model, settings, start=None):
+        super().__init__(model, settings, start)
+        self.library = "pyamg"
+        self._hierarchy = None          # the AMG hierarchy of an earlier A(α) ...
+        self.hierarchy_alpha = None     # ... built at this design (checkpoints rebuild it)
+
+    newton_label = "full-space Newton"
 
     def new_context(self) -> FullContext:
         return FullContext(None, self.all_nodes)
@@ -128,16 +207,12 @@ class FullSpacePath(SolverPath):
         pyamg estimates spectral radii from random start vectors of NumPy's global generator: it
         is seeded here (and its state restored), and OpenBLAS runs on one thread, so that the same
         design gives the same hierarchy bit for bit."""
-        import scipy.sparse as sp
-
+        from ..contact.fullspace.pyamg import sorted_csr
         from ..fem.amg import ContactHierarchy, rigid_body_modes
         if asm is None:
             asm = self.model.assemble(alpha, self.first_loads)
         system = self.prepare(asm)
-        A = sp.csr_matrix(system.law_A)
-        if not A.has_sorted_indices:
-            A = A.copy()
-            A.sort_indices()
+        A = sorted_csr(system.law_A)
         saved = np.random.get_state()
         np.random.seed(HIERARCHY_SEED)
         try:
@@ -149,15 +224,11 @@ class FullSpacePath(SolverPath):
         finally:
             np.random.set_state(saved)
 
-
-    takes_steps = True
-
     def solve_state(self, system, ctx, alpha, *, method, warm_start, tol, shared, label="", slip_ref=None):
         """Warm-started from the case's last forces, displacement and contact zone, on the AMG
         hierarchy of an earlier design; without ``warm_start`` from nothing the case carries (on
         all contact nodes), so that two such solves of one design agree bit for bit."""
         from ..contact.fullspace import solve_fullspace
-        s = self.settings
         asm = system.assembled
         t0 = time.perf_counter()
         warm = ctx.warm if warm_start else None
@@ -165,39 +236,25 @@ class FullSpacePath(SolverPath):
         t_setup = 0.0
         if self._hierarchy is None:
             self._hierarchy = self.build_hierarchy(alpha, asm)
-            self._hierarchy_alpha = np.array(alpha, dtype=float)
+            self.hierarchy_alpha = np.array(alpha, dtype=float)
             t_setup = time.perf_counter() - t0
         # on an obstacle: the contact DOFs in the nodes' frames (A → TᵀAT), and a tangential translation
         # as the reference of the slip (the law's displacement is w = u_c − shift, as on the condensation path)
         law_ref = slip_ref if self.shift is None else (self.shift if slip_ref is None else slip_ref + self.shift)
-        res = solve_fullspace(system.law_A, system.law_L, self.model.contact_dofs, system.gap, s.friction,
+        res = solve_fullspace(system.law_A, system.law_L, self.model.contact_dofs, system.gap, self.settings.friction,
                               coords=asm.coords, free=self.model.assembler.free, r0=warm, u0=u0,
-                              hierarchy=self._hierarchy, tol=max(tol or s.tol, FULLSPACE_TOL),
-                              zone=ctx.next_zone if s.use_zone and warm_start else None,
-                              zone_margin=s.zone_margin, slip_ref=law_ref)
+                              hierarchy=self._hierarchy, slip_ref=law_ref,
+                              **self.newton_options(ctx, tol, warm_start))
         self._hierarchy = res.hierarchy
-        timings = dict(system.timings, **{f"fullspace_{k}": v for k, v in res.timings.items() if k != "total"})
-        timings["fullspace_amg_setup"] += t_setup
-        timings["contact"] = time.perf_counter() - t0
-        r = np.column_stack((-res.tau, res.lam))                # per node (t1, t2, ν)
-        u_free, u_c = res.u, res.u_c
+        ctx.u_free = res.u
+        u_free, u_c = res.u, None
         if system.T is not None:
             u_free = system.T @ res.u
             if self.shift is not None:
-                u_c = u_c.copy()
+                u_c = res.u_c.copy()
                 u_c[:, :2] -= self.shift
-        state = self.finish_state(ctx, alpha=alpha, coords=asm.coords, u=self.model.assembler.to_full(u_free),
-                                  u_c=u_c, r=r, gap=system.gap, load=asm.L, method="fullspace",
-                                  outcome=(res.newton_steps, res.error, res.converged),
-                                  timings=timings,
-                                  info={"backend": "pyamg", "zone_nodes": int(res.zone.size),
-                                        "zone_misses": int(res.zone_growths), "delassus": "none",
-                                        "krylov_iterations": int(sum(res.krylov_iterations))},
-                                  slip_ref=slip_ref)
-        ctx.warm, ctx.u_free = res.r.copy(), res.u
-        log.debug("state%s: full-space Newton %d steps, %d GMRES iterations, error %.2e, %.2f s", label,
-                  res.newton_steps, sum(res.krylov_iterations), res.error, timings["total"])
-        return state
+        return self.state_of(ctx, system, alpha, res, u_free=u_free, u_c=u_c, t0=t0, t_setup=t_setup,
+                             info={"backend": "pyamg"}, label=label, slip_ref=slip_ref)
 
     def adjoint(self, system, ctx, state, y_u, y_lam, choices=None):
         from ..sensitivity.adjoint_fullspace import solve_adjoint_fullspace
@@ -212,40 +269,21 @@ class FullSpacePath(SolverPath):
         adj = solve_adjoint_fullspace(system.law_A, self.model.contact_dofs, state.classes, u_law,
                                       state.lam, y_u, y_lam, self.settings.friction, hierarchy=self._hierarchy,
                                       choices=choices)
-        state.info["adjoint_krylov"] = int(adj.iterations)
         ctx.adjoint_v = adj.v
         v = adj.v if system.T is None else system.T @ adj.v
-        return adj.v_u, adj.v_lam, self.model.assembler.to_full(v)
+        return Adjoint(adj.v_u, adj.v_lam, self.model.assembler.to_full(v), int(adj.iterations))
 
     def adjoint_force(self, system, ctx, v_u):
         """S v_u = (A ṽ)_c: ṽ, the last adjoint's A-harmonic extension of v_u, has A ṽ = Bᵀ S v_u."""
         return (system.law_A @ ctx.adjoint_v)[self.model.contact_dofs]
 
     # ------------------------------------------------------------------ checkpoints
-    def export_context(self, ctx) -> dict:
-        out = super().export_context(ctx)
-        a = self._hierarchy_alpha       # the design of the AMG hierarchy, shared by the cases
-        out["jacobian_alpha"] = np.asarray(a if a is not None else np.zeros(0), dtype=float)
-        out["jacobian_zone"] = np.asarray(ctx.next_zone if a is not None else np.zeros(0), dtype=np.int64)
-        if ctx.u_free is not None:
-            out["u_free"] = np.asarray(ctx.u_free)
-        return out
+    def last_displacement(self, ctx):
+        return ctx.u_free
 
-    def import_context(self, ctx, arrays: dict, where: str, others=()) -> None:
-        """Also the case's last displacement, and the AMG hierarchy rebuilt at its design."""
-        from ..errors import CheckpointError
-        super().import_context(ctx, arrays, where)
-        n_free = self.model.assembler.n_free
-        u = arrays.get("u_free")
-        if u is not None:
-            if u.shape != (n_free,) or not np.all(np.isfinite(u)):
-                raise CheckpointError(f"{where}: its displacement does not fit the mesh ({u.shape[0] if u.ndim else 0} "
-                                      f"values for {n_free} free DOFs) or is not finite")
-            ctx.u_free = u
-        a = arrays.get("jacobian_alpha")
-        if a is not None and a.size:
-            alpha = check_design(a, self.model.n_design, where, "AMG design")
-            if self._hierarchy_alpha is None or not np.array_equal(self._hierarchy_alpha, alpha):
-                self._hierarchy = self.build_hierarchy(alpha)
-                self._hierarchy_alpha = alpha
-
+    def restore(self, ctx, arrays, u_free, alpha, where):
+        if u_free is not None:
+            ctx.u_free = u_free
+        if alpha is not None and (self.hierarchy_alpha is None or not np.array_equal(self.hierarchy_alpha, alpha)):
+            self._hierarchy = self.build_hierarchy(alpha)
+            self.hierarchy_alpha = alpha

@@ -2,7 +2,7 @@
 
 ``[linear_solver] path = "petsc"`` (or "auto" under ``mpiexec`` with more than one rank). The
 method is the full-space path's (:mod:`contactopt.paths.fullspace`), its linear algebra PETSc's
-(:mod:`contactopt.contact.fullspace_petsc`): the mesh split over the ranks by recursive coordinate
+(:mod:`contactopt.contact.fullspace.petsc`, the PETSc backend of the one full-space method): the mesh split over the ranks by recursive coordinate
 bisection (:mod:`contactopt.fem.distributed`), each rank assembling the rows of its nodes into an
 MPIBAIJ matrix of block size 3 (and an MPIAIJ copy for GAMG), GMRES with GAMG (rigid-body
 near-null space) whose prolongations are kept from the design they were built at, the adjoint
@@ -28,20 +28,17 @@ import itertools
 import logging
 import time
 from dataclasses import dataclass
+from types import MappingProxyType
 
 import numpy as np
 
-from ..errors import CheckpointError, ConfigError, SolverError
-from ..fem import memory
+from ..errors import ConfigError
 from ..fem.model import Assembled
-from .base import Context, SolverPath, check_design
-from .fullspace import FULLSPACE_TOL
+from .base import Adjoint, Capabilities, Context, SolverPath
+from .fullspace import FullSpaceCommon
+from .protocol import Call, Command, Problem, new_path_id, send
 
 log = logging.getLogger(__name__)
-
-_ids = itertools.count(1)
-_pending = [None]          # the id the next PetscPath of a serving rank takes
-_served: dict = {}         # id -> PetscPath on a serving rank
 
 
 def _world():
@@ -71,33 +68,29 @@ class PetscContext(Context):
     u_all: np.ndarray | None = None
 
 
-class PetscPath(SolverPath):
+class PetscPath(FullSpaceCommon):
     """``[linear_solver] path = "petsc"`` (module docstring)."""
 
     name = "petsc"
+    newton_label = "PETSc full-space Newton"
+    capabilities = Capabilities(pinned=True, many_ranks=True, libraries=("petsc4py",), sparse="petsc", auto="ranks")
 
-    @classmethod
-    def starting(cls, config) -> None:
-        """Before rank 0 builds its model: the other ranks build theirs from ``config`` (a serving
-        rank has its id from :func:`served_problem`)."""
-        from .._mpi import world_rank, world_size
-        if world_rank() == 0:
-            _pending[0] = next(_ids)
-            if world_size() > 1:
-                _send(("problem", _pending[0], config))
-
-    def __init__(self, model, settings):
-        super().__init__(model, settings)
+    def __init__(self, model, settings, start=None):
+        """On rank 0 under mpiexec the other ranks first build the problem of the model's
+        configuration (:class:`~contactopt.paths.protocol.Problem`): the PETSc objects are made by
+        all ranks."""
+        super().__init__(model, settings, start)
         from petsc4py import PETSc
 
-        from ..contact.fullspace_petsc import PetscNewton
+        from ..contact.fullspace.petsc import PetscNewton
         from ..fem.distributed import DistributedBody
         self.library = "petsc"
-        self.id = _pending[0] if _pending[0] is not None else next(_ids)
-        _pending[0] = None
+        self.id = new_path_id()
         comm = PETSc.COMM_WORLD
         self.size, self.rank = comm.getSize(), comm.getRank()
         self.leader = self.rank == 0 and self.size > 1
+        if self.leader:
+            send(Problem(self.id, model.config))
         _set_options(model.config.linear_solver.petsc_options)
         t0 = time.perf_counter()
         self.dist = dist = DistributedBody(model, self.size, self.rank)
@@ -115,7 +108,7 @@ class PetscPath(SolverPath):
         self.newton = PetscNewton(dist, A, A_aij, G)
         self._assemble_matrix(coords, (indptr, cols, data))
         self._hier = None            # the GAMG hierarchy ...
-        self._hier_alpha = None      # ... built at this design (checkpoints rebuild it)
+        self.hierarchy_alpha = None  # ... built at this design (checkpoints rebuild it)
         self._systems: dict = {}
         self._contexts: dict = {}
         self._keys = itertools.count(1)
@@ -124,18 +117,12 @@ class PetscPath(SolverPath):
         log.info("PETSc path on %d rank(s): %d DOFs, %d owned here, %d elements (+%d at the "
                  "interfaces), %.2f s", self.size, dist.n, dist.n_local, dist.n_elements,
                  dist.n_ghost_elements, time.perf_counter() - t0)
-        if self.rank > 0:
-            _served[self.id] = self
 
-    @classmethod
-    def memory_estimate(cls, body, **kw):
-        return memory.estimate_evaluation(body, memory.fullspace_parts)
-
-    def _call(self, name, *args):
+    def _call(self, command: Command, *args):
         """Rank 0: the other ranks make the same call (:func:`contactopt.ranks.serve`); then this rank's."""
         if self.leader:
-            _send(("call", self.id, name, args))
-        return getattr(self, "_" + name)(*args)
+            send(Call(self.id, command, args))
+        return self.handlers[command](self, *args)
 
     # ------------------------------------------------------------------ designs and loads
     def assemble(self, alpha, loads=None) -> Assembled:
@@ -148,11 +135,11 @@ class PetscPath(SolverPath):
 
     def prepare(self, asm) -> PetscSystem:
         key = next(self._keys)
-        return self._call("prepare", key, asm.alpha, asm.coords, asm.L_full, asm.gap)
+        return self._call(Command.PREPARE, key, asm.alpha, asm.coords, asm.L_full, asm.gap)
 
     def for_load(self, system, asm) -> PetscSystem:
         key = next(self._keys)
-        return self._call("for_load", system.key, key, asm.L_full)
+        return self._call(Command.FOR_LOAD, system.key, key, asm.L_full)
 
     def _prepare(self, key, alpha, coords, L_full, gap):
         t0 = time.perf_counter()
@@ -194,12 +181,12 @@ class PetscPath(SolverPath):
 
     def _hierarchy(self, alpha, coords):
         """The GAMG hierarchy of the A(α) the matrix holds now."""
-        from ..contact.fullspace_petsc import PetscHierarchy
+        from ..contact.fullspace.petsc import PetscHierarchy
         if self._hier is not None:
             self._hier.destroy()
         self.newton.plain()
         self._hier = PetscHierarchy(self.newton.G, self.newton.H, self.dist.coordinates(coords), self.dist.contact)
-        self._hier_alpha = np.array(alpha, dtype=float)
+        self.hierarchy_alpha = np.array(alpha, dtype=float)
         return self._hier.setup_seconds
 
     # ------------------------------------------------------------------ states
@@ -211,14 +198,14 @@ class PetscPath(SolverPath):
             self._contexts[key] = PetscContext(None, self.all_nodes, key=key)
         return self._contexts[key]
 
-    def solve_state(self, system, ctx, alpha, *, method, warm_start, tol, shared, label=""):
-        """As the full-space path's (:meth:`contactopt.paths.fullspace.FullSpacePath.solve_state`)."""
+    def solve_state(self, system, ctx, alpha, *, method, warm_start, tol, shared, label="", slip_ref=None):
+        """As the full-space path's (:meth:`contactopt.paths.fullspace.FullSpacePath.solve_state`);
+        no load steps (``slip_ref`` None: ``capabilities.load_steps`` is False)."""
         self._contexts.setdefault(ctx.key, ctx)
-        return self._call("solve", system.key, ctx.key, np.asarray(alpha, dtype=float), bool(warm_start),
+        return self._call(Command.SOLVE, system.key, ctx.key, np.asarray(alpha, dtype=float), bool(warm_start),
                           tol, label)
 
     def _solve(self, skey, ckey, alpha, warm_start, tol, label):
-        s = self.settings
         system, ctx = self._systems[skey], self._context(ckey)
         t0 = time.perf_counter()
         t_setup = self._hierarchy(alpha, system.assembled.coords) if self._hier is None else 0.0
@@ -227,54 +214,32 @@ class PetscPath(SolverPath):
         if warm_start and warm is not None and ctx.u_all is not None:
             u0 = self.newton.A.createVecRight()
             u0.getArray()[:] = self.dist.owned(ctx.u_all)
-        res = self.newton.solve(self._hier, system.L, system.gap, s.friction, r0=warm, u0=u0,
-                                tol=max(tol or s.tol, FULLSPACE_TOL),
-                                zone=ctx.next_zone if s.use_zone and warm_start else None, zone_margin=s.zone_margin)
-        system.u_all = res.u_all
-        timings = dict(system.timings, **{f"fullspace_{k}": v for k, v in res.timings.items() if k != "total"})
-        timings["fullspace_amg_setup"] += t_setup
-        timings["contact"] = time.perf_counter() - t0
-        r = np.column_stack((res.r[:, 1:], res.r[:, 0]))           # per node (t1, t2, ν): (−τ, λ)
-        u_free = self.dist.free_vector(res.u_all)
-        state = self.finish_state(ctx, alpha=alpha, coords=system.assembled.coords,
-                                  u=self.model.assembler.to_full(u_free), u_c=res.u_c, r=r, gap=system.gap,
-                                  load=system.assembled.L, method="fullspace",
-                                  outcome=(res.newton_steps, res.error, res.converged), timings=timings,
-                                  info={"backend": "petsc", "ranks": self.size, "zone_nodes": int(res.zone.size),
-                                        "zone_misses": int(res.zone_growths), "delassus": "none",
-                                        "krylov_iterations": int(sum(res.krylov_iterations))})
-        ctx.warm, ctx.u_all = res.r.copy(), res.u_all
-        log.debug("state%s: PETSc full-space Newton %d steps, %d GMRES iterations, error %.2e, %.2f s", label,
-                  res.newton_steps, sum(res.krylov_iterations), res.error, timings["total"])
-        return state
+        res = self.newton.solve(self._hier, system.L, system.gap, self.settings.friction, r0=warm, u0=u0,
+                                **self.newton_options(ctx, tol, warm_start))
+        system.u_all = ctx.u_all = res.u_all
+        return self.state_of(ctx, system, alpha, res, u_free=self.dist.free_vector(res.u_all), t0=t0,
+                             t_setup=t_setup, info={"backend": "petsc", "ranks": self.size}, label=label)
 
     # ------------------------------------------------------------------ adjoint and design terms
     def adjoint(self, system, ctx, state, y_u, y_lam, choices=None):
-        from ..sensitivity.adjoint import DEFAULT_CHOICES
-        if {**DEFAULT_CHOICES, **(choices or {})} != DEFAULT_CHOICES:
-            raise SolverError(f"the full-space adjoint implements the default degenerate choices "
-                              f"{DEFAULT_CHOICES} only, got {choices}")
-        v_u, v_lam, its = self._call("adjoint", system.key, np.asarray(state.classes), state.u_c, state.lam,
+        from ..sensitivity.adjoint_fullspace import check_default_choices
+        check_default_choices(choices)
+        v_u, v_lam, its = self._call(Command.ADJOINT, system.key, np.asarray(state.classes), state.u_c, state.lam,
                                      np.asarray(y_u, dtype=float), np.asarray(y_lam, dtype=float))
-        state.info["adjoint_krylov"] = int(its)
         v_free = self.dist.free_vector(system.v_all)
-        return v_u, v_lam, self.model.assembler.to_full(v_free)
+        return Adjoint(v_u, v_lam, self.model.assembler.to_full(v_free), int(its))
 
     def _adjoint(self, skey, classes, u_c, lam, y_u, y_lam):
-        from ..contact.state import CLASS_CODES as cc
-        from ..sensitivity.adjoint import DEFAULT_CHOICES, effective_classes
-        from ..sensitivity.adjoint_fullspace import ADJOINT_RTOL
+        from ..sensitivity.adjoint_fullspace import ADJOINT_RTOL, adjoint_classes
         system = self._systems[skey]
-        eff = effective_classes(classes, DEFAULT_CHOICES)
-        v_all, v_u, v_lam, its = self.newton.adjoint(
-            self._hier, np.flatnonzero(eff == cc["M3+"]), np.flatnonzero(eff == cc["M1"]), eff != cc["L"],
-            u_c, lam, y_u, y_lam, self.settings.friction, rtol=ADJOINT_RTOL)
+        v_all, v_u, v_lam, its = self.newton.adjoint(self._hier, *adjoint_classes(classes), u_c, lam, y_u, y_lam,
+                                                     self.settings.friction, rtol=ADJOINT_RTOL)
         system.v_all = v_all
         return v_u, v_lam, its
 
     def design_contraction(self, system, u_full, v_full, loads=None) -> np.ndarray:
         """vᵀ(∂A/∂α u − ∂L/∂α): the stiffness part per rank over its own elements, summed on rank 0."""
-        part = self._call("contraction", system.key)
+        part = self._call(Command.CONTRACTION, system.key)
         m = self.model
         coords = system.assembled.coords
         v_full = m.unpin(v_full)            # the pinned DOFs are clamped (fem.model)
@@ -291,29 +256,14 @@ class PetscPath(SolverPath):
         return total
 
     # ------------------------------------------------------------------ checkpoints
-    def export_context(self, ctx) -> dict:
-        out = super().export_context(ctx)
-        a = self._hier_alpha
-        out["jacobian_alpha"] = np.asarray(a if a is not None else np.zeros(0), dtype=float)
-        out["jacobian_zone"] = np.asarray(ctx.next_zone if a is not None else np.zeros(0), dtype=np.int64)
-        if ctx.u_all is not None:
-            out["u_free"] = self.dist.free_vector(ctx.u_all)
-        return out
+    def last_displacement(self, ctx):
+        return None if ctx.u_all is None else self.dist.free_vector(ctx.u_all)
 
-    def import_context(self, ctx, arrays: dict, where: str, others=()) -> None:
-        """Also the case's last displacement, and the GAMG hierarchy rebuilt at its design (the
-        same arrays as the full-space path's: a checkpoint of either resumes on any number of ranks)."""
+    def restore(self, ctx, arrays, u_free, alpha, where):
+        """Every rank puts back the case's displacement and rebuilds the GAMG hierarchy at its
+        design (the arrays checked on rank 0 before any rank acts)."""
         self._contexts.setdefault(ctx.key, ctx)
-        n_free = self.model.assembler.n_free
-        u = arrays.get("u_free")
-        if u is not None and (u.shape != (n_free,) or not np.all(np.isfinite(u))):
-            raise CheckpointError(f"{where}: its displacement does not fit the mesh ({u.shape[0] if u.ndim else 0} "
-                                  f"values for {n_free} free DOFs) or is not finite")
-        a = arrays.get("jacobian_alpha")
-        if a is not None and a.size:
-            check_design(a, self.model.n_design, where, "AMG design")
-        SolverPath.import_context(self, ctx, arrays, where)     # its checks, before any rank acts
-        self._call("import", ctx.key, {k: v for k, v in arrays.items() if k in ("warm", "zone", "u_free",
+        self._call(Command.IMPORT, ctx.key, {k: v for k, v in arrays.items() if k in ("warm", "zone", "u_free",
                                                                                  "jacobian_alpha")}, where)
 
     def _import(self, ckey, arrays, where):
@@ -324,48 +274,15 @@ class PetscPath(SolverPath):
         a = arrays.get("jacobian_alpha")
         if a is not None and a.size:
             alpha = np.asarray(a, dtype=float)
-            if self._hier_alpha is None or not np.array_equal(self._hier_alpha, alpha):
+            if self.hierarchy_alpha is None or not np.array_equal(self.hierarchy_alpha, alpha):
                 coords = self.model.mesh.coordinates(self.model.surface.as_vector(alpha))
                 self._assemble_matrix(coords)
                 self._design_key = None
                 self._hierarchy(alpha, coords)
 
-
-# ---------------------------------------------------------------------------- the other ranks
-def _send(msg) -> None:
-    """Rank 0: a message to every serving rank (a flag by a non-blocking broadcast, which the
-    waiting ranks poll without spinning a core, then the pickled message)."""
-    comm = _world()
-    flag = np.ones(1, dtype=np.int64)
-    comm.Ibcast(flag, root=0).Wait()
-    comm.bcast(msg, root=0)
-
-
-def receive():
-    """A rank > 0: the next message of rank 0 (waiting without spinning a core)."""
-    comm = _world()
-    flag = np.zeros(1, dtype=np.int64)
-    req = comm.Ibcast(flag, root=0)
-    while not req.Test():
-        time.sleep(0.002)
-    return comm.bcast(None, root=0)
-
-
-def make_call(msg) -> None:
-    """A rank > 0: make the call of rank 0 that ``msg`` ("call", path id, name, arguments) names."""
-    _, pid, name, args = msg
-    getattr(_served[pid], "_" + name)(*args)
-
-
-def served_problem(pid):
-    """The id the next PetscPath built on this rank takes (:func:`contactopt.ranks.serve`)."""
-    _pending[0] = pid
-
-
-def stop_serving() -> None:
-    """Rank 0: the serving ranks return from :func:`contactopt.ranks.serve`."""
-    if _world().Get_size() > 1 and _world().Get_rank() == 0:
-        _send(("stop",))
+    handlers = MappingProxyType({Command.PREPARE: _prepare, Command.FOR_LOAD: _for_load, Command.SOLVE: _solve,
+                                 Command.ADJOINT: _adjoint, Command.CONTRACTION: _contraction,
+                                 Command.IMPORT: _import})   # what each rank runs for a command
 
 
 def _set_options(text: str) -> None:

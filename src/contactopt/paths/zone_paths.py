@@ -19,6 +19,7 @@ from __future__ import annotations
 import logging
 import time
 from dataclasses import dataclass
+from typing import NamedTuple
 
 import numpy as np
 
@@ -40,19 +41,26 @@ REUSE_TOL_FACTOR = 0.1  # Newton on a kept block iterates to this times tol: exa
                         # converges linearly and would otherwise stop just below it
 
 
+class KeptBlock(NamedTuple):
+    """A Delassus block kept from an earlier design: the design ``alpha``, the ``zone`` (contact
+    nodes) and the block ``W`` = W_Z (single precision, per node in the FCLIB order)."""
+
+    alpha: np.ndarray
+    zone: np.ndarray
+    W: np.ndarray
+
+
 @dataclass
 class ZoneContext(Context):
-    """A load case's context on a zone path: also ``jacobian`` = (alpha, zone, W_Z) of its kept
-    Delassus block (single precision), or None."""
+    """A load case's context on a zone path: also ``jacobian``, its :class:`KeptBlock`, or None."""
 
-    jacobian: tuple | None = None
+    jacobian: KeptBlock | None = None
 
 
 class ZonePath(SolverPath):
     """A path whose state is the zone's local problem (module docstring)."""
 
     reuse_tol_factor = REUSE_TOL_FACTOR
-    takes_steps = True
     accept_at_tol = False     # accept a reused-block solve that reached tol (not the factor)
     probe_warm = False        # measure a kept block's distance on the warm start
     new_fraction = 0.25       # a kept block takes exact columns for at most this fraction of new nodes
@@ -134,11 +142,12 @@ class ZonePath(SolverPath):
             warm = self._zone_warm(res.r, zone)
             zone = zp.zone
         info = {"backend": self.library_of(system), "zone_nodes": int(zone.size), "zone_misses": misses,
-                "delassus": reused[-1], **self.solve_counts(zp), **self.contact_info(system, u3, r, u_body)}
+                "delassus": reused[-1], **self.solve_counts(zp)}
         state = self.finish_state(ctx, alpha=alpha, coords=system.assembled.coords, u=u, u_c=u3, r=r,
                                   gap=system.gap, load=self.load_scale(system), method=method,
                                   outcome=(res.iterations, res.error, res.converged),
-                                  timings=timings, info=info, slip_ref=slip_ref)
+                                  timings=timings, info=info, slip_ref=slip_ref,
+                                  foundation=self.foundation_state(system, u3, r, u_body))
         ctx.warm = self._zone_warm(res.r, zone)
         self.n_zone_misses += misses
         log.debug("state%s: %s %d it, residual %.2e, zone %d/%d nodes, %.3f s", label, method,
@@ -151,9 +160,10 @@ class ZonePath(SolverPath):
     def solve_counts(self, zp) -> dict:
         return {}
 
-    def contact_info(self, system, u_c, r, u_body) -> dict:
-        """More of the state for its ``info`` (the condensation path's elastic foundation)."""
-        return {}
+    def foundation_state(self, system, u_c, r, u_body):
+        """The :class:`~contactopt.contact.state.FoundationState` of a state on an elastic
+        foundation (the condensation path's), else None."""
+        return None
 
     def solve_local(self, zp, system, warm, method, tol, alpha, ctx, slip_ref=None):
         """The zone's local problem u = W r + q, q = (S⁻¹ℓ)_Z + (g, 0, 0), in the FCLIB convention.
@@ -175,7 +185,7 @@ class ZonePath(SolverPath):
         tol = tol or s.tol
         if method == "newton" and s.reuse_delassus and not zp.has_W:
             W_old = None if ctx.jacobian is None else zp.block_from(
-                *ctx.jacobian[1:], **self.max_new(zp.zone, self.new_fraction))
+                ctx.jacobian.zone, ctx.jacobian.W, **self.max_new(zp.zone, self.new_fraction))
             eta = np.inf if W_old is None else zp.relative_gap(W_old, r0 if self.probe_warm else None)
             if eta <= REUSE_MAX_GAP:
                 res = solve_newton(W_old, q, s.friction, tol=tol * self.reuse_tol_factor, max_iter=s.max_iter,
@@ -196,7 +206,7 @@ class ZonePath(SolverPath):
         t_inv = time.perf_counter() - t0
         self.n_delassus += 1
         if keep:
-            ctx.jacobian = (alpha, zp.zone, W.astype(JACOBIAN_DTYPE))
+            ctx.jacobian = KeptBlock(alpha, zp.zone, W.astype(JACOBIAN_DTYPE))
         res = solve_local(W, q, s.friction, method=method, tol=tol, max_iter=s.max_iter, r0=r0)
         return res, t_inv, "formed"
 
@@ -210,13 +220,13 @@ class ZonePath(SolverPath):
     def export_context(self, ctx) -> dict:
         jac = ctx.jacobian       # rebuilt at resume: the same Newton matrices
         return {**super().export_context(ctx),
-                "jacobian_alpha": np.asarray(jac[0] if jac else np.zeros(0), dtype=float),
-                "jacobian_zone": np.asarray(jac[1] if jac else np.zeros(0), dtype=np.int64)}
+                "jacobian_alpha": np.asarray(jac.alpha if jac else np.zeros(0), dtype=float),
+                "jacobian_zone": np.asarray(jac.zone if jac else np.zeros(0), dtype=np.int64)}
 
     def import_context(self, ctx, arrays: dict, where: str, others=()) -> None:
         """Also form the kept Delassus block W_Z at the checkpoint's design and zone (W_Z does
         not depend on the load; cases that kept the same block share it)."""
-        super().import_context(ctx, arrays, where)
+        super().import_context(ctx, arrays, where, others)
         a = arrays.get("jacobian_alpha")
         if a is None or not a.size:
             return
@@ -226,13 +236,13 @@ class ZonePath(SolverPath):
             return
         for other in others:
             j = getattr(other, "jacobian", None)
-            if j is not None and np.array_equal(j[0], alpha) and np.array_equal(j[1], zone):
+            if j is not None and np.array_equal(j.alpha, alpha) and np.array_equal(j.zone, zone):
                 ctx.jacobian = j
                 return
         try:
             with sequential_openblas():       # the same round-off as inside a state solve
                 system = self.prepare(self.model.assemble(alpha, self.first_loads))
-                ctx.jacobian = (alpha, zone, self.own_block(system, zone).astype(JACOBIAN_DTYPE))
+                ctx.jacobian = KeptBlock(alpha, zone, self.own_block(system, zone).astype(JACOBIAN_DTYPE))
         except ContactOptError as exc:
             raise CheckpointError(f"{where}: its Delassus design cannot be rebuilt: {exc}") from None
 

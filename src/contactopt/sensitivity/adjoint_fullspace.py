@@ -34,10 +34,11 @@ import time
 from dataclasses import dataclass, field
 
 import numpy as np
-import scipy.sparse as sp
 
 from .._threads import sequential_openblas
-from ..contact.fullspace import NewtonSystem
+from ..contact.fullspace import NewtonSystem, sliding_frame
+from ..contact.fullspace.core import known_adjoint_part
+from ..contact.fullspace.pyamg import sorted_csr
 from ..contact.state import CLASS_CODES, State, classify_nodes
 from ..errors import SolverError
 from ..fem.amg import ContactHierarchy
@@ -82,42 +83,38 @@ def solve_adjoint_fullspace(A, contact_dofs, classes, u_c, lam, y_u, y_lam, fric
                               restart, max_iter, choices, v0)
 
 
-def _solve_adjoint(A, contact_dofs, classes, u_c, lam, y_u, y_lam, friction, hierarchy, rtol, restart,
-                   max_iter, choices, warm):
+def check_default_choices(choices) -> None:
+    """The full-space adjoint (either backend) takes the default degenerate choices only."""
     ch = {**DEFAULT_CHOICES, **(choices or {})}
     if ch != DEFAULT_CHOICES:
         raise SolverError(f"the full-space adjoint implements the default degenerate choices "
                           f"{DEFAULT_CHOICES} only, got {ch}")
-    t0 = time.perf_counter()
-    A = sp.csr_matrix(A)
-    if not A.has_sorted_indices:
-        A = A.copy()
-        A.sort_indices()
-    n = A.shape[0]
-    cd = np.asarray(contact_dofs, dtype=np.int64).reshape(-1, 3)
+
+
+def adjoint_classes(classes):
+    """(M3+ nodes, M1 nodes, the nodes whose v_λ is free — not of class L) of a state's Table 4.1
+    ``classes`` after the default degenerate choices: what the full-space adjoint of either
+    backend is set up from."""
     cc = CLASS_CODES
     eff = effective_classes(np.asarray(classes), DEFAULT_CHOICES)
-    F = float(friction)
-    stick = np.flatnonzero(eff == cc["M3+"])
-    slide = np.flatnonzero(eff == cc["M1"])
-    ut = np.asarray(u_c)[slide, :2]
-    nut = np.linalg.norm(ut, axis=1)
-    if F > 0 and np.any(nut <= 0):
-        raise SolverError("a sliding node (M1) without slip")
-    # without friction a node in contact is M1 even where u_t = 0 (both tangential components
-    # pinned, or none moving): â and C = 0 there
-    safe = np.where(nut > 0, nut, 1.0)
-    ahat = np.where(nut[:, None] > 0, ut / safe[:, None], 0.0)
-    tvec = np.column_stack((-ahat[:, 1], ahat[:, 0]))     # C = k t tᵀ, t ⊥ â
-    k = F * np.asarray(lam)[slide] / safe
+    return np.flatnonzero(eff == cc["M3+"]), np.flatnonzero(eff == cc["M1"]), eff != cc["L"]
+
+
+def _solve_adjoint(A, contact_dofs, classes, u_c, lam, y_u, y_lam, friction, hierarchy, rtol, restart,
+                   max_iter, choices, warm):
+    check_default_choices(choices)
+    t0 = time.perf_counter()
+    A = sorted_csr(A)
+    n = A.shape[0]
+    cd = np.asarray(contact_dofs, dtype=np.int64).reshape(-1, 3)
+    stick, slide, free_lam = adjoint_classes(classes)
+    tvec, k, coupling = sliding_frame(u_c, lam, slide, friction)
     # the transpose of the state's Newton system at the solution: n = −â, μ = F, K_t = C
-    system = NewtonSystem(A, cd, stick, slide, tvec, k, -F * ahat)
-    dirichlet, kt, D, Nsl = system.dirichlet, system.kt, system.D, system.Nsl
+    system = NewtonSystem(A, cd, stick, slide, tvec, k, coupling)
+    dirichlet, kt, D = system.dirichlet, system.kt, system.D
     H = system.fine_matrix(hierarchy)            # A + C for the V-cycle
-    # the known part v0: (0, 0, y*_λ) on M3+ nodes, y*_λ in the normal DOF of M1 nodes
     v0 = np.zeros(n)
-    v0[cd[stick, 2]] = y_lam[stick]
-    v0[Nsl] = y_lam[slide]
+    v0[cd.ravel()] = known_adjoint_part(cd.shape[0], stick, slide, y_lam).ravel()
     y_u = np.asarray(y_u, dtype=np.float64)
     if y_u.size == n:                  # ∂J/∂u on every free DOF: the interior rows get −g_i
         f = -y_u.copy()
@@ -144,11 +141,10 @@ def _solve_adjoint(A, contact_dofs, classes, u_c, lam, y_u, y_lam, friction, hie
     t3 = time.perf_counter()
     v = system.lift(res.x) + v0             # ṽ − v0: the normal DOF of M1 nodes from v_t
     resid = (A @ v)[cd.ravel()] + y_u
-    free_lam = eff != cc["L"]
     v_lam = np.where(free_lam, -resid[2::3], 0.0)
-    return FullSpaceAdjoint(v, v[cd.ravel()].copy(), v_lam, res.iterations, res.history,
-                            {"setup": t1 - t0, "preconditioner": t2 - t1, "krylov": t3 - t2,
-                             "total": time.perf_counter() - t0})
+    return FullSpaceAdjoint(v=v, v_u=v[cd.ravel()].copy(), v_lam=v_lam, iterations=res.iterations,
+                            history=res.history, timings={"setup": t1 - t0, "preconditioner": t2 - t1,
+                                                          "krylov": t3 - t2, "total": time.perf_counter() - t0})
 
 
 def subgradient_fullspace(model, objective, alpha, asm, result, friction, *, loads=None, rtol=ADJOINT_RTOL,

@@ -97,5 +97,7 @@ def _check(problem, alpha, seed, n_directions, h, tol, directions) -> GradientCh
     rem = np.array([abs(problem.evaluate_value(alpha + t * dirs[0]) - res.value - t * pred[0]) for t in hs])
     ok = rem > 0
     rate = float(np.polyfit(np.log(hs[ok]), np.log(rem[ok]), 1)[0]) if ok.sum() >= 2 else float("nan")
-    return GradientCheck(res.value, res.gradient, dirs, fd, pred, rel, hs, rem, rate, res.n_degenerate,
-                         res.state.counts, tol, bool(np.all(rel <= tol)))
+    return GradientCheck(value=res.value, gradient=res.gradient, directions=dirs, fd=fd, predicted=pred,
+                         rel_errors=rel, taylor_h=hs, taylor_remainder=rem, taylor_rate=rate,
+                         n_degenerate=res.n_degenerate, counts=res.state.counts, tol=tol,
+                         passed=bool(np.all(rel <= tol)))

@@ -1,4 +1,4 @@
-"""The full-space semismooth Newton method and its adjoint on PETSc objects (MPI).
+"""The PETSc backend of the full-space method and its adjoint (MPI).
 
 The same method as :mod:`contactopt.contact.fullspace` — read its docstring for the problem, the
 Alart–Curnier function, the Newton system G = (I − C_N)(A + K_t) on the rows I outside the
@@ -26,25 +26,23 @@ systems and designs reuse its prolongations and its coarse operators, corrected 
 products of the rows a Newton system changes (D, the Robin blocks), as the pyamg path does.
 The per-node work of Newton (node classes, line search) is done on every rank on the contact
 forces and displacements gathered from their owners (3p numbers per product): every rank takes
-the same decisions, and the norms are global reductions. The iteration is the pyamg path's
-(:func:`contactopt.contact.fullspace.newton_loop`) on the PETSc backend :class:`_PetscBackend`.
+the same decisions, and the norms are global reductions. The iteration is the pyamg backend's
+(:func:`.core.newton_loop`) on :class:`PetscBackend`.
 """
 
 from __future__ import annotations
 
 import logging
 import time
-from dataclasses import dataclass, field
 
 import numpy as np
 import scipy.sparse as sp
 
-from ..errors import ContactNotConverged, SolverError
-from ..fem.krylov import KrylovNotConverged
-from .fullspace import W_DIAG_FACTOR, newton_loop
-from .state import FROM_FCLIB, TO_FCLIB
+from ...errors import SolverError
+from ...fem.krylov import KrylovNotConverged
+from .core import FullSpaceResult, finish, known_adjoint_part, newton_loop, rho_of, sliding_frame, start, start_forces
 
-__all__ = ["PetscHierarchy", "PetscNewton", "PetscSolve"]
+__all__ = ("PetscHierarchy", "PetscNewton", "PetscBackend")
 
 log = logging.getLogger(__name__)
 
@@ -222,29 +220,6 @@ def _reason(code: int) -> str:
     return names.get(code, str(code))
 
 
-@dataclass
-class PetscSolve:
-    """A state solved on PETSc: ``r`` (p, 3) FCLIB order (N, T1, T2); ``u_all`` on all PETSc DOFs
-    (every rank); ``u`` (its owned part, a PETSc Vec, the next warm start); the rest as
-    :class:`~contactopt.contact.fullspace.FullSpaceResult`."""
-
-    r: np.ndarray
-    u_all: np.ndarray
-    u: object
-    u_c: np.ndarray
-    classes: np.ndarray
-    converged: bool
-    error: float
-    equilibrium: float
-    newton_steps: int
-    krylov_iterations: list
-    history: list
-    zone: np.ndarray
-    zone_growths: int
-    timings: dict
-    info: dict = field(default_factory=dict)
-
-
 class PetscNewton:
     """The Newton systems of one design on the distributed body ``dist``: A(α) twice, ``A``
     (MPIBAIJ, block size 3) for every product and ``A_aij`` (MPIAIJ, the same values; the caller
@@ -370,24 +345,20 @@ class PetscNewton:
     # ------------------------------------------------------------------ the state
     def solve(self, hier: PetscHierarchy, L, gap, friction, *, r0=None, u0=None, tol=1e-10, zone=None,
               rho_scale=0.5, max_steps=50, krylov_rtol=None, eta_max=1e-2, eta_factor=0.1,
-              zone_margin=0.1, compliance=None) -> PetscSolve:
+              zone_margin=0.1, compliance=None) -> FullSpaceResult:
         """The contact state of load ``L`` (PETSc Vec) and gaps ``gap`` (p,) from the warm start
         ``r0`` (p, 3; FCLIB order) or ``u0`` (a PETSc Vec); the arguments and the stopping rule as
         :func:`contactopt.contact.fullspace.solve_fullspace`, whose Newton loop
-        (:func:`~contactopt.contact.fullspace.newton_loop`) runs here on :class:`_PetscBackend`.
+        (:func:`~contactopt.contact.fullspace.newton_loop`) runs here on :class:`PetscBackend`.
         ``compliance`` (p,): the part of the Delassus diagonal estimate beyond the local
         W_DIAG_FACTOR / mean(A_mm)."""
         t_start = time.perf_counter()
-        timings = dict.fromkeys(("amg_setup", "preconditioner", "krylov", "newton", "start"), 0.0)
         p, cd = self.p, self.cd
         A = self.A
-        mu_all = np.broadcast_to(np.asarray(friction, dtype=np.float64), (p,)).copy()
-        krylov_rtol = 0.1 * tol if krylov_rtol is None else krylov_rtol
-        zone = np.arange(p) if zone is None else np.unique(np.asarray(zone, dtype=np.int64))
+        st = start(friction, p, tol, krylov_rtol, zone)
+        timings = st.timings
         Lnorm = L.norm() or 1.0
-        diag_c = self._diag_at_contact()
-        w_est = W_DIAG_FACTOR / diag_c.mean(axis=1) + (0.0 if compliance is None else compliance)
-        rho_all = rho_scale / w_est
+        rho_all = rho_of(self._diag_at_contact(), 0.0 if compliance is None else compliance, rho_scale)
         u = A.createVecRight()
 
         t0 = time.perf_counter()
@@ -399,39 +370,25 @@ class PetscNewton:
         if u0 is None:
             f = L.copy()
             if r0 is not None:
-                rz = np.zeros((p, 3))
-                rz[zone] = np.asarray(r0, dtype=np.float64).reshape(p, 3)[zone][:, FROM_FCLIB]
+                rz = start_forces(r0, st.zone, p)
                 arr = f.getArray()
                 own = self.dist.owns_contact
                 arr[cd[own].ravel() - self.dist.rstart] += rz[own].ravel()
             self.plain()
-            eta0 = max(krylov_rtol, 1e-6)
+            eta0 = max(st.krylov_rtol, 1e-6)
             krylov_its.append(hier.solve(self.G, f, u, eta0 * f.norm(), "full-space start solve",
                                          coarse=self.coarse))
         else:
             u0.copy(u)
         timings["start"] = time.perf_counter() - t0
 
-        backend = _PetscBackend(self, hier, L, gap, Lnorm, krylov_its)
-        out = newton_loop(backend, u, zone, gap=gap, mu_all=mu_all, rho_all=rho_all, tol=tol, max_steps=max_steps,
-                          krylov_rtol=krylov_rtol, eta_max=eta_max, eta_factor=eta_factor, zone_margin=zone_margin,
+        backend = PetscBackend(self, hier, L, gap, Lnorm, krylov_its)
+        out = newton_loop(backend, u, st.zone, gap=gap, mu_all=st.mu, rho_all=rho_all, tol=tol, max_steps=max_steps,
+                          krylov_rtol=st.krylov_rtol, eta_max=eta_max, eta_factor=eta_factor, zone_margin=zone_margin,
                           timings=timings, t_start=t_start)
-        zone, err, eq = out.zone, out.error, out.equilibrium
-
-        rphys = backend.contact_force(u)
-        r = np.zeros((p, 3))
-        r[zone] = rphys[zone][:, TO_FCLIB]
         u_all = self.everywhere(u)
-        timings["total"] = time.perf_counter() - t_start
-        result = PetscSolve(r=r, u_all=u_all, u=u, u_c=u_all[cd], classes=out.classes, converged=out.converged,
-                            error=err, equilibrium=eq, newton_steps=len(out.steps), krylov_iterations=krylov_its,
-                            history=out.history, zone=zone, zone_growths=out.zone_growths, timings=timings,
-                            info={"reason": out.reason, "rho_rescales": out.rho_rescales})
-        if not out.converged:
-            raise ContactNotConverged(f"full-space Newton (PETSc) did not converge: Siconos error {err:.3e}, "
-                                      f"equilibrium {eq:.3e} (tol {tol:.1e}) after {len(out.steps)} steps "
-                                      f"({out.reason})", out.history)
-        return result
+        return finish(backend, out, u_c=u_all[cd], tol=tol, t_start=t_start, timings=timings,
+                      krylov_iterations=krylov_its, u_all=u_all)
 
     def _diag_at_contact(self) -> np.ndarray:
         d = self.A.getDiagonal()
@@ -447,22 +404,9 @@ class PetscNewton:
         it), solved with the transposed products of G and the same GAMG hierarchy (H is symmetric), to
         a residual ≤ ``rtol``·‖right-hand side‖."""
         cd, d = self.cd, self.dist
-        F = float(friction)
-        ut = np.asarray(u_c)[slide, :2]
-        nut = np.linalg.norm(ut, axis=1)
-        if F > 0 and np.any(nut <= 0):
-            raise SolverError("a sliding node (M1) without slip")
-        # without friction u_t = 0 may be M1 (sensitivity.adjoint_fullspace): â and C = 0 there
-        safe = np.where(nut > 0, nut, 1.0)
-        ahat = np.where(nut[:, None] > 0, ut / safe[:, None], 0.0)
-        tvec = np.column_stack((-ahat[:, 1], ahat[:, 0]))
-        k = F * np.asarray(lam)[slide] / safe
-        coupling = -F * ahat
+        tvec, k, coupling = sliding_frame(u_c, lam, slide, friction)
         D = self.system(stick, slide, tvec, k, coupling)
-        # v0: (0, 0, y*_λ) on M3+ nodes, y*_λ in the normal DOF of M1 nodes
-        v0c = np.zeros((self.p, 3))
-        v0c[stick, 2] = y_lam[stick]
-        v0c[slide, 2] = y_lam[slide]
+        v0c = known_adjoint_part(self.p, stick, slide, y_lam)
         v0, rhs, x, Av = (self.A.createVecRight() for _ in range(4))
         self.set_owned(v0, cd.ravel(), v0c.ravel())
         # rhs = −Bᵀy*_u − (A + K_t) v0 on I (K_t v0 = 0: v0 is zero on tangential DOFs)
@@ -491,8 +435,8 @@ class PetscNewton:
         return v_all, v_all[cd].ravel(), v_lam, its
 
 
-class _PetscBackend:
-    """:class:`~contactopt.contact.fullspace.NewtonBackend` on PETSc Vecs for one solve of
+class PetscBackend:
+    """:class:`~.core.NewtonBackend` on PETSc Vecs for one solve of
     ``newton`` (:class:`PetscNewton`): u and the directions are distributed Vecs, the Newton
     systems are assembled as G and H by :meth:`PetscNewton.system` and solved by ``hier``'s GMRES
     (appending their iterations to ``krylov_its``); per contact node the values are gathered on

@@ -1,0 +1,74 @@
+"""How a configuration finds its solver path: what it needs (paths.needs), what each path declares
+it takes (Capabilities), the refusal that names both, and the typed calls of the MPI ranks."""
+
+from dataclasses import replace
+
+import pytest
+
+import contactopt.paths as paths
+from contactopt.config import load_config
+from contactopt.errors import ConfigError
+from contactopt.paths import Capabilities, needs, select_path
+from contactopt.paths.protocol import Call, Command, Follower, Problem, Stop
+
+
+def example1(**updates):
+    return load_config("example1").with_updates(updates)
+
+
+def test_the_papers_examples_need_nothing_beyond_the_rigid_plane():
+    for name in ("example1", "example2", "example3"):
+        assert needs(load_config(name)) == {}
+    got = needs(example1(objective={"type": "peak_stress"}), pinned=4, ranks=3)
+    assert got == {"pinned": "4", "whole_displacement": "peak_stress", "many_ranks": "3"}
+
+
+def test_a_refusal_names_the_need_the_lack_and_the_paths_that_take_it():
+    with pytest.raises(ConfigError) as err:
+        select_path(example1(linear_solver={"path": "delassus"}, objective={"type": "compliance"}), 1000)
+    assert err.value.problems == [
+        "linear_solver.path = 'delassus': the compliance objective needs the condensed load on every contact "
+        "DOF; use path 'condensation' or 'auto'",
+        "linear_solver.path = 'delassus': this configuration needs the compliance objective; the 'delassus' "
+        "path lacks the compliance objective; 'condensation' takes it all"]
+
+
+def test_auto_refuses_what_no_path_takes_and_lists_every_path(monkeypatch):
+    """Two MPI ranks and an objective of the whole displacement: the PETSc path takes the ranks,
+    the others the objective, none both."""
+    monkeypatch.setenv("OMPI_COMM_WORLD_SIZE", "2")
+    with pytest.raises(ConfigError) as err:
+        select_path(example1(objective={"type": "peak_stress"}), 1000)
+    (msg,) = err.value.problems
+    assert msg.startswith("linear_solver.path = 'auto': no solver path takes this configuration")
+    for name in paths.NAMES:
+        assert f"'{name}' lacks" in msg
+
+
+def test_a_new_capability_is_one_field_and_the_paths_that_declare_it(monkeypatch):
+    """A path's declaration decides: with load steps taken away from every path but the
+    condensation, "auto" on a large mesh falls back to it and "fullspace" is refused."""
+    cfg = example1(load_steps=[{"name": "a"}], linear_solver={"crossover": 10})
+    assert select_path(cfg, 1000)[0] == "fullspace"
+    for name in ("delassus", "fullspace"):
+        cls = paths.PATHS[name]
+        monkeypatch.setattr(cls, "capabilities", replace(cls.capabilities, load_steps=False))
+    assert select_path(cfg, 1000)[0] == "condensation"
+    with pytest.raises(ConfigError, match="use linear_solver.path = 'condensation'"):
+        select_path(cfg.with_updates({"linear_solver": {"path": "fullspace"}}), 1000)
+    assert "load_steps" in Capabilities.features()
+
+
+def test_the_ranks_calls_are_typed_messages_and_every_command_has_its_handler():
+    from contactopt.paths.petsc import PetscPath
+    assert set(PetscPath.handlers) == set(Command)
+
+    class Served:
+        handlers = {Command.SOLVE: lambda self, key, tol: (self, key, tol)}
+
+    follower, path = Follower(), Served()
+    follower.add("a1", path)
+    assert follower.make(Call("a1", Command.SOLVE, (3, 1e-10))) == (path, 3, 1e-10)
+    with pytest.raises(KeyError):
+        follower.make(Call("other", Command.SOLVE, (3, 1e-10)))
+    assert Problem("a1", None).path_id == "a1" and Stop() == Stop()
