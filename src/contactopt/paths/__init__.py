@@ -59,7 +59,7 @@ def select_path(config, n_free: int, pinned: int = 0) -> tuple[str, str]:
     docs/large_meshes.md), the condensation below — the Delassus path instead of the full-space one
     where pyamg is missing. The compliance objective needs the condensed load ℓ on every contact
     DOF, so it stays on the condensation under "auto" and is refused on the other paths; so does
-    an elastic ``[foundation]`` (:mod:`.condensation`).
+    an elastic ``[foundation]`` (:mod:`.condensation`), whose adjoint takes every objective.
 
     Under ``mpiexec`` with more than one rank only the PETSc path shares one optimization among
     the ranks: "auto" takes it, and another path is refused (every rank would run the whole
@@ -75,11 +75,10 @@ def select_path(config, n_free: int, pinned: int = 0) -> tuple[str, str]:
     types = objective_types(config)
     name, objective = ls.path, "compliance" if "compliance" in types else config.objective.type
     full = sorted(types & FULL_SPACE)
-    if full and (foundation or name == "petsc" or ranks_of() > 1):
-        where = "an elastic [foundation]" if foundation else "the 'petsc' path"
+    if full and (name == "petsc" or ranks_of() > 1):
         raise ConfigError([f"objective: {', '.join(full)} needs ∂J/∂u on every DOF, which the adjoint on "
-                           f"{where} does not take; use path 'condensation', 'delassus' or 'fullspace' "
-                           "without a foundation"])
+                           "the 'petsc' path does not take; use path 'condensation', 'delassus' or 'fullspace' "
+                           "(or 'condensation' with an elastic [foundation])"])
     ranks = world_size()
     if pinned and foundation:
         raise ConfigError([f"body.clamped: {pinned} tangential component(s) of contact nodes are clamped (a "

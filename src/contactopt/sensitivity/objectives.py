@@ -148,6 +148,11 @@ class FrictionalDissipation(Objective):
     J = −ũᵀ(A u − L) with ũ the vector of the tangential contact displacements (zero elsewhere).
     Its gradient is on the whole displacement, ∂J/∂u = τ̂ − A ũ (τ̂: τ on the tangential contact
     DOFs), and at fixed u ∂J/∂α = −ũᵀ(∂A/∂α u − ∂L/∂α).
+
+    On an elastic foundation the slip is the relative one, w_t (the state's u_c is w), and
+    w = u_c − Π q_f + C r with r = (A u − L)_c the contact force on the body, so J = −w_tᵀr_t is
+    a function of the body's u through r in w as well: the same formulas hold with
+    ũ = (w_t, 0) − C (τ, 0) per contact node (t1, t2, ν), all three components (docs/foundation.md).
     """
 
     name = "frictional_dissipation"
@@ -161,6 +166,12 @@ class FrictionalDissipation(Objective):
         full = (3 * model.contact_nodes[:, None] + np.arange(2)).ravel()
         u_t = np.zeros(asm.n_full)
         u_t[full] = ut.ravel()
+        coupling = getattr(cond, "coupling", None)
+        if coupling is not None:                  # an elastic foundation (class docstring)
+            tau3 = np.zeros((p, 3))
+            tau3[:, :2] = state.tau
+            contact = (3 * model.contact_nodes[:, None] + np.arange(3)).ravel()
+            u_t[contact] -= coupling.foundation.C @ tau3.ravel()
         tau = np.zeros(asm.n_full)
         tau[full] = np.asarray(state.tau).ravel()
         A = cond.assembled.A if cond is not None and hasattr(cond, "assembled") else asm.stiffness(state.coords)
