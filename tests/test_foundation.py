@@ -443,7 +443,9 @@ def test_whole_displacement_objectives_match_central_differences(body, name, tmp
     if name == "peak_stress":                       # the max is attained at one point
         vm = np.sort(pb.objective.values(pb.solve_state(alpha)).ravel())
         assert vm[-1] - vm[-2] >= 1e-3 * vm[-1]
-    gc = check_gradient(pb, alpha, n_directions=3, seed=0)
+    # seed 1: seed 0's third direction is nearly orthogonal to ξ on the hex friction work
+    # (ξ·d 1e-3 of the others), where the relative error is the differences' round-off, 6e-7
+    gc = check_gradient(pb, alpha, n_directions=3, seed=1)
     assert gc.n_degenerate == 0
     assert gc.counts["M1"] > 0 and gc.counts["M3+"] > 0     # sliding and sticking nodes
     assert np.max(gc.rel_errors) <= 1e-6, gc.rel_errors
@@ -467,7 +469,7 @@ def test_peak_stress_on_a_foundation_is_that_of_a_monolithic_model():
 
 def test_peak_stress_tends_to_the_rigid_one_as_the_foundation_stiffens():
     """|J − J_rigid|/J_rigid of the peak stress falls about like E/E_f (slope ≤ −0.9 in log–log
-    over E_f/E = 10 … 1e4) and is ≤ 1e-3 at 1e4 (table in docs/foundation.md)."""
+    over E_f/E = 10 … 1e4; measured −1.0) and is ≤ 1e-5 at 1e4 (2.9e-6; table in docs/foundation.md)."""
     obj = {"objective": {"type": "peak_stress"}}
     rigid = ShapeProblem(load_config("example1").with_updates({**COARSE, **obj}))
     alpha = _design(rigid.model)
@@ -478,4 +480,4 @@ def test_peak_stress_tends_to_the_rigid_one_as_the_foundation_stiffens():
         pb = ShapeProblem(_config({"block": _block(), "material": {"E": E_BODY * ratio}}, **obj))
         errs.append(abs(pb.evaluate_value(alpha) - j0) / j0)
     slope = np.polyfit(np.log(ratios), np.log(errs), 1)[0]
-    assert slope <= -0.9 and errs[-1] <= 1e-3, errs
+    assert slope <= -0.9 and errs[-1] <= 1e-5, errs
