@@ -400,8 +400,10 @@ WHOLE = {"peak_stress": {"type": "peak_stress"},
          "frictional_dissipation": {"type": "frictional_dissipation"},
          "sum": {"type": "sum", "terms": [{"type": "frictional_dissipation", "weight": 1.0},
                                           {"type": "pressure_uniformity", "weight": 1.0},
-                                          {"type": "peak_stress", "aggregate": "ks", "rho": 20.0, "weight": 1e-3}]}}
-WHOLE_FAST = {("hex", "peak_stress"), ("tet", "frictional_dissipation")}
+                                          {"type": "peak_stress", "aggregate": "ks", "rho": 20.0, "weight": 1e-3}]},
+         "sum_compliance": {"type": "sum", "terms": [{"type": "compliance", "weight": 1.0},
+                                                     {"type": "peak_stress", "weight": 1e-3}]}}
+WHOLE_FAST = {("hex", "peak_stress"), ("tet", "frictional_dissipation"), ("hex", "sum_compliance")}
 
 
 def _whole_problem(body, objective, tmp_path):

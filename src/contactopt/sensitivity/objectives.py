@@ -265,6 +265,15 @@ class Compliance(Objective):
             dalpha += dc(asm.coords, state.u, model.assembler.to_full(cond.factor.extend(z)))
         return (self.scale * value, self.scale * dw, np.zeros(state.lam.size), self.scale * dalpha)
 
+    def evaluate_full(self, state, cond):
+        """The same J = L(α)ᵀu with ∂J/∂u = L on every DOF and ∂J/∂α = uᵀ∂L/∂α at fixed u: the form a
+        sum with an objective of the whole displacement takes on an elastic foundation, whose
+        adjoint maps ∂J/∂u of the body to the state's w itself (:class:`WeightedSum`)."""
+        asm = cond.assembled
+        dalpha = -self.model.design_contraction(asm.coords, np.zeros_like(state.u), state.u)
+        return (self.scale * float(asm.L_full @ state.u), self.scale * np.asarray(asm.L_full, float),
+                np.zeros(state.lam.size), self.scale * dalpha)
+
 
 class WeightedSum(Objective):
     """J = Σ_k w_k J_k over the ``[[objective.terms]]`` (each an objective of its own keys).
@@ -309,8 +318,12 @@ class WeightedSum(Objective):
         du = np.zeros(n if self.full_space else 3 * p)
         contact = (3 * self.model.contact_nodes[:, None] + np.arange(3)).ravel()
         self.last_terms = {}
+        # on an elastic foundation ∂J/∂u_c of a contact-only term is on the state's w, not on the
+        # body's u_c: compliance (the one such term with ∂J/∂u_c ≠ 0) joins in its whole-body form
+        coupled = self.full_space and getattr(cond, "coupling", None) is not None
         for name, w, obj in self.terms:
-            v, y_u, y_lam, y_a = obj.evaluate(state, cond)
+            full = coupled and hasattr(obj, "evaluate_full")
+            v, y_u, y_lam, y_a = obj.evaluate_full(state, cond) if full else obj.evaluate(state, cond)
             self.last_terms[name] = float(v)
             value += w * v
             if y_u.size == du.size:
