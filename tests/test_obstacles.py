@@ -160,6 +160,37 @@ def test_subgradient_on_an_obstacle_matches_central_differences(tmp_path, shape,
     assert rep.taylor_rate >= 1.9
 
 
+@pytest.mark.parametrize("shape", ["sphere", "cylinder", "surface"])
+@pytest.mark.parametrize("cells", ["hexahedron", "tetra"])
+@pytest.mark.parametrize("other", ["delassus", "fullspace"])
+def test_the_delassus_and_fullspace_paths_on_an_obstacle_equal_the_condensation_and_match_central_differences(
+        tmp_path, other, shape, cells):
+    # the Delassus operator and the full-space Newton system in the nodes' frames, against the
+    # rotated condensed system
+    obstacle = {"sphere": {**SPHERE, "displacement": [0.003, 0.0, 0.05]}, "cylinder": CYLINDER,
+                "surface": {**CYLINDER, "shape": "surface", "mesh": polygonal_cylinder(tmp_path / "c.stl")}}[shape]
+    problems = []
+    for path in ("condensation", other):
+        cfg = block(obstacle, path=path) if cells == "hexahedron" else tet_block(tmp_path, obstacle)
+        if cells != "hexahedron":
+            cfg = cfg.with_updates({"linear_solver": {"path": path}})
+        problems.append(ShapeProblem(cfg))
+    cond, dela = problems
+    assert dela.path.name == other
+    alpha = 0.002 * np.sin(np.arange(cond.model.n_design)) + 0.001
+    sc, sd = cond.solve_state(alpha), dela.solve_state(alpha)
+    assert np.array_equal(sc.classes, sd.classes) and sd.counts["M1"] > 0 and sd.counts["M3+"] > 0
+    assert np.abs(sc.lam - sd.lam).max() <= 1e-10 * sc.lam.max()
+    assert np.abs(sc.u - sd.u).max() <= 1e-10 * np.abs(sc.u).max()
+    xc, xd = cond.evaluate(alpha)[1], dela.evaluate(alpha)[1]
+    assert np.abs(xd - xc).max() <= 1e-8 * np.abs(xc).max()
+    rep = check_gradient(dela, alpha, seed=1, n_directions=3)
+    assert rep.n_degenerate == 0
+    assert np.max(rep.rel_errors) <= 1e-6, rep.rel_errors
+    # (the full-space Newton stops at 1e-10, the floor of its Taylor remainders at the smallest steps)
+    assert other == "fullspace" or rep.taylor_rate >= 1.9
+
+
 FORCED = {"sphere": {**SPHERE, "control": "force", "force": [0.0, 0.0, 1.2]},
           "cylinder": {**CYLINDER, "control": "force", "force": [0.3, 0.0, 1.0]}}
 
@@ -280,7 +311,11 @@ def test_a_zero_force_a_foundation_and_the_other_paths_are_refused(tmp_path, cap
         block(SPHERE, foundation={"block": {"size": [3.0, 3.0, 1.0], "cells": [3, 3, 1]}})
     for path in ("delassus", "fullspace", "petsc"):
         with pytest.raises(ConfigError, match="solved on the 'condensation' path only"):
-            select_path(block(SPHERE, path=path), 1000)
+            select_path(block(FORCED["sphere"], path=path), 1000)
+    with pytest.raises(ConfigError, match="solved on the 'condensation', 'delassus' and 'fullspace' paths"):
+        select_path(block(SPHERE, path="petsc"), 1000)
+    for path in ("delassus", "fullspace"):
+        assert select_path(block(SPHERE, path=path), 1000)[0] == path
     assert select_path(block(SPHERE, path="auto"), 10 ** 7)[0] == "condensation"
     # the plane takes every path, with a translation too
     assert select_path(block({"shape": "plane", "control": "displacement"}, path="fullspace"), 10)[0] == "fullspace"

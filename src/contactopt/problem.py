@@ -45,6 +45,9 @@ class ShapeProblem:
         self.config = config if isinstance(config, Config) else load_config(config)
         body = build_body(self.config)
         name, library = select_path(self.config, memory.free_dofs(body), pinned=int(body.pinned_dofs.size))
+        if body.rigid is not None:
+            from .paths import rigid_path
+            name, library = rigid_path(self.config, name, library, body.rigid)
         PATHS[name].starting(self.config)
         self.model = ElasticModel(self.config, body=body, memory_estimate=PATHS[name].memory_estimate)
         self.path = make_path(self.config, self.model, name, library)
@@ -55,9 +58,21 @@ class ShapeProblem:
         self._cache = None         # (alpha bytes, method, systems per case, states per case)
         from .sensitivity.cases import build_cases
         self.cases, self.combination = build_cases(self.config, self.model, self._design_lambda)
+        if body.rigid is not None:
+            self._check_held()
         self.path.first_loads = self.cases[0].loads
         self.contexts = [self.path.new_context() for _ in self.cases]
         self._init_steps()
+
+    def _check_held(self) -> None:
+        """A body held only by contact: ConfigError when no admissible contact force balances a
+        case's load at the initial design (:mod:`contactopt.contact.balance`)."""
+        from .contact.balance import check_held
+        m = self.model
+        coords = m.mesh.coordinates(m.initial_design())
+        loads = [("loads" if len(self.cases) == 1 else f"load case {c.name!r}", m.load_vector(coords, c.loads))
+                 for c in self.cases]
+        check_held(m.body.rigid, coords, m.contact_nodes, m.frames, self.friction, loads, self.config.source)
 
     def _init_steps(self) -> None:
         """The load path of every case (None: one step, the static problem; sensitivity/steps.py)

@@ -63,7 +63,7 @@ ALL_COMPONENTS = [1, 2, 3]      # a clamp that names no components fixes every o
 def _clamp_spec(x):
     items = x if isinstance(x, list) else [x]
     if not items:
-        return False
+        return isinstance(x, list)      # [] : no clamp (a body held only by contact)
     for it in items:
         if isinstance(it, dict) and "on" in it:
             comps = it.get("components", ALL_COMPONENTS)

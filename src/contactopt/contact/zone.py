@@ -290,3 +290,59 @@ def _local_dofs(nodes: np.ndarray) -> np.ndarray:
 def _node_dofs(k: np.ndarray) -> np.ndarray:
     """Positions 3k, 3k+1, 3k+2 of the nodes (or zone positions) ``k``, in their own order."""
     return (3 * np.asarray(k)[:, None] + np.arange(3)).ravel()
+
+
+class FramedDelassusZoneProblem(DelassusZoneProblem):
+    """:class:`DelassusZoneProblem` in the contact nodes' frames (a rigid obstacle other than the
+    plane, :mod:`contactopt.mesh.obstacle`): ``frames`` (p, 3, 3) with columns (t1, t2, n), so that
+    W = Qᵀ B A⁻¹ Bᵀ Q, Q = diag(R_m), and forces, displacements, q0 and W_Z are per node in its frame,
+    (t1, t2, n) on the contact vector and (n, t1, t2) in the FCLIB order of the zone. The full
+    displacement (:meth:`free_displacement`) stays global. ``shift`` (3p, per node frame, normal
+    parts 0): an obstacle's tangential translation; the law's displacement is then w = u − shift
+    (q0 and :meth:`displacements` are w's)."""
+
+    def __init__(self, factor, contact, x0, zone, zone_block, frames, shift=None):
+        self._R, self._shift = frames, shift
+        self.p = contact.size // 3
+        self._factor, self._contact, self._x0 = factor, np.asarray(contact), x0
+        self._zone_block = zone_block
+        self._order, self._start, self._parent = None, 0, None
+        self._last = None
+        self.n_solves = 0
+        z = self._to_local(x0[self._contact])
+        self._set_zone(np.asarray(zone), None, z if shift is None else z - shift)
+
+    def with_load(self, x0, zone):
+        return FramedDelassusZoneProblem(self._factor, self._contact, x0, zone, self._zone_block, self._R,
+                                         self._shift)
+
+    def _to_local(self, v):
+        v = np.asarray(v, dtype=np.float64)
+        return np.einsum("mji,mjk->mik", self._R, v.reshape(self.p, 3, -1)).reshape(v.shape)
+
+    def _to_global(self, v):
+        v = np.asarray(v, dtype=np.float64)
+        return np.einsum("mij,mjk->mik", self._R, v.reshape(self.p, 3, -1)).reshape(v.shape)
+
+    def _full_solve(self, b):
+        return super()._full_solve(self._to_global(b))
+
+    def solve(self, b):
+        b = np.asarray(b, dtype=np.float64)
+        last = self._last
+        if b.ndim == 1 and last is not None and np.array_equal(last[0], b):
+            return self._to_local(last[1][self._contact])
+        x = self._full_solve(b)
+        if b.ndim == 1:
+            self._last = (b.copy(), x)
+        return self._to_local(x[self._contact])
+
+    def _zone_inverse(self):
+        from ..fem.dense import spd_inverse
+        S = self._zone_block(self._contact[self._dof_z])       # global components in FCLIB order (x3, x1, x2)
+        perm = TO_FCLIB
+        T = self._R[self.zone][:, perm][:, :, perm]           # (z, 3, 3): FCLIB-local → FCLIB-global
+        z = self.zone.size
+        S4 = S.reshape(z, 3, z, 3)
+        S_loc = np.einsum("mai,makb,kbj->mikj", T, S4, T, optimize=True).reshape(3 * z, 3 * z)
+        return spd_inverse(np.ascontiguousarray(0.5 * (S_loc + S_loc.T)))

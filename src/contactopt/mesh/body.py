@@ -55,6 +55,7 @@ class Body(HasParts):
     pinned_dofs: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))
     # full DOF indices of the clamped tangential components of contact nodes: free DOFs of A
     # with u = 0 held by the contact law (module docstring)
+    rigid: object = None          # mesh.rigid.RigidModes the clamps leave free (held by contact), or None
 
 
 def reference_mesh(cfg):
@@ -100,13 +101,17 @@ def build_body(cfg) -> Body:
         fixed[np.ix_(p.nodes, comps)] = True
     face = _check_contact_face(ref, face, tol, on_plane=spec.initial_gap == "zero")
     contact_nodes, pinned, warnings = _contact_nodes(face, fixed, spec.contact, cfg.source)
-    _check_rigid_modes(ref, fixed, cfg.source)
+    from .rigid import free_modes
+    rigid = free_modes(ref.points, fixed)
+    if rigid.count:
+        log.info("body.clamped leaves %d rigid-body motion(s) free: %s; contact must hold them", rigid.count,
+                 ", ".join(rigid.names()))
     fixed_shape = _fixed_shape(ref, spec.fixed_shape, face, tol, cfg.source)
     domain = _domain(cfg.design.domain, ref, face, tol, cfg.source)
     eliminated = fixed.copy()
     eliminated.ravel()[pinned] = False
     body = Body(ref, tol, np.flatnonzero(eliminated.ravel()), clamped, face, contact_nodes, fixed_shape, domain,
-                pinned_dofs=pinned)
+                pinned_dofs=pinned, rigid=rigid if rigid.count else None)
     body.warnings += warnings + _thin_tetrahedra(ref) + _poor_cells(ref)
     for w in body.warnings:
         log.warning("%s", w)
@@ -185,7 +190,8 @@ def _check_contact_face(ref: ReferenceMesh, face: Part, tol: float, on_plane: bo
 
 
 def _check_rigid_modes(ref: ReferenceMesh, fixed: np.ndarray, source: str, key: str = "body.clamped") -> None:
-    """The clamped DOFs must remove the six rigid-body motions (else A is singular)."""
+    """The clamped DOFs must remove the six rigid-body motions (else A is singular): an elastic
+    foundation's clamps (the body's may leave motions for contact to hold, :mod:`.rigid`)."""
     x = ref.points - ref.points.mean(axis=0)
     nodes, comps = np.nonzero(fixed)
     # component m of the six rigid modes at node n: translations e_k, rotations e_k × x_n

@@ -36,7 +36,8 @@ log = logging.getLogger(__name__)
 PATHS = {cls.name: cls for cls in (CondensationPath, DelassusPath, FullSpacePath, PetscPath)}
 NAMES = tuple(PATHS)
 
-__all__ = ["PATHS", "NAMES", "SolverPath", "Settings", "Context", "select_path", "make_path", "library_for"]
+__all__ = ["PATHS", "NAMES", "SolverPath", "Settings", "Context", "select_path", "make_path", "library_for",
+           "rigid_path"]
 
 
 def library_for(name: str, library: str) -> str:
@@ -68,7 +69,8 @@ def select_path(config, n_free: int, pinned: int = 0) -> tuple[str, str]:
     ``pinned``: the number of clamped tangential components of contact nodes (a symmetry plane
     through the contact face, :mod:`contactopt.mesh.body`). Every path takes them; an elastic
     ``[foundation]`` refuses them. A rigid ``[obstacle]`` other than the plane runs on the
-    condensation path, which "auto" takes; the other paths refuse it."""
+    condensation path, which "auto" takes, and, fixed or moved by a prescribed translation, on the
+    Delassus and full-space paths; the PETSc path refuses it."""
     from .._mpi import petsc_missing, world_size
     from ..sensitivity.objectives import FULL_SPACE, objective_types
     ls, foundation = config.linear_solver, config.foundation is not None
@@ -91,11 +93,19 @@ def select_path(config, n_free: int, pinned: int = 0) -> tuple[str, str]:
     elif obst is not None and obst.moves_tangentially:
         obstacle = f"{obstacle} moved tangentially"
     if obstacle != "plane":
-        # the contact frames rotate the condensed system (paths/condensation.py)
+        # the contact frames rotate the condensed system (paths/condensation.py) or the Delassus
+        # operator (contact.zone.FramedDelassusZoneProblem) or the full-space Newton system
+        # (paths/fullspace.py); a force control only the condensation's
+        framed = obst.control != "force"
+        if name in ("delassus", "fullspace") and framed and ranks == 1:
+            log.info("linear solver: %s path (%s obstacle)", name, obstacle)
+            return name, library_for(name, ls.library)
         if name not in ("auto", "condensation") or ranks > 1:
+            takes = ("the 'condensation', 'delassus' and 'fullspace' paths" if framed
+                     else "the 'condensation' path only")
             raise ConfigError([f"linear_solver.path = '{name}'" + (f" on {ranks} MPI ranks" if ranks > 1 else "")
-                               + f": a {obstacle} [obstacle] is solved on the 'condensation' path only (one "
-                               "process); use path 'condensation' or 'auto'"])
+                               + f": a {obstacle} [obstacle] is solved on {takes} (one process); use path "
+                               "'condensation' or 'auto'"])
         log.info("linear solver: condensation path (%s obstacle)", obstacle)
         return "condensation", library_for("condensation", ls.library)
     if ranks > 1 and name not in ("auto", "petsc"):
@@ -138,6 +148,24 @@ def select_path(config, n_free: int, pinned: int = 0) -> tuple[str, str]:
         raise ConfigError([f"linear_solver.path = '{name}': the compliance objective needs the condensed "
                            "load on every contact DOF; use path 'condensation' or 'auto'"])
     return name, library_for(name, ls.library)
+
+
+def rigid_path(config, name: str, library: str, rigid) -> tuple[str, str]:
+    """(path, library) of a body held only by contact (clamps that leave ``rigid`` motions free,
+    :mod:`.rigid`): the condensation path, which "auto" takes; the other paths and an elastic
+    [foundation] refuse it."""
+    motions = ", ".join(rigid.names())
+    if config.foundation is not None:
+        raise ConfigError([f"body.clamped leaves rigid motions free ({motions}): a body held only by contact "
+                           "rests on the rigid foundation or an [obstacle], not on an elastic [foundation]"])
+    if name == "condensation":
+        return name, library
+    if config.linear_solver.path != "auto":
+        raise ConfigError([f"linear_solver.path = '{name}': body.clamped leaves rigid motions free ({motions}); "
+                           "a body held only by contact is solved on the 'condensation' path only; use path "
+                           "'condensation' or 'auto'"])
+    log.info("linear solver: condensation path (a body held only by contact)")
+    return "condensation", library_for("condensation", config.linear_solver.library)
 
 
 def make_path(config, model, name: str, library: str) -> SolverPath:

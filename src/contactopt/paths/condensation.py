@@ -35,6 +35,10 @@ one zone solve per step. The subgradient adds the dependence of s on α:
 ξ = ξ_s − (∂Θ/∂s)(∂F/∂s)⁻¹ ∂F/∂α, with ∂Θ/∂s = −v_λᵀc from the objective's adjoint, and
 F = bᵀ(S u_c − ℓ) taken as an objective of its own (y*_u = S b, its design term
 b̃ᵀ(∂A u − ∂L), b̃ the A-harmonic extension of Q b): ∂F/∂s = −w_λᵀc, ∂F/∂α its subgradient.
+
+A body held only by contact (clamps that leave rigid motions free) keeps this condensation exact
+with a singular S; its state comes from an anchored problem iterated until the anchor carries no
+force, and its adjoint is solved with the singular S (:mod:`.rigid`).
 """
 
 from __future__ import annotations
@@ -48,6 +52,7 @@ from ..contact import zone as zone_rules
 from ..errors import SolverError
 from ..fem import memory
 from ..fem.model import Assembled
+from .rigid import anchor, with_contact_diagonal
 from .zone_paths import ZonePath
 
 
@@ -65,6 +70,21 @@ class CondensedSystem:
     coupling: object = None            # on an elastic foundation: fem.foundation.Coupling, S_eff ...
     ell_eff: np.ndarray | None = None  # ... and ℓ_eff = S_eff (S⁻¹ℓ − Π q_f) (module docstring)
     shift: np.ndarray | None = None    # an obstacle's tangential translation (3p,) per node frame: ℓ_eff = ℓ − S shift
+    rigid: object = None               # a body held only by contact: its Anchor (the kernel of S, module docstring)
+    beta: np.ndarray | None = None     # ... and the anchor's position β of this solve
+
+    @property
+    def law_S(self) -> np.ndarray:
+        """The stiffness the zone's local problems are built on: S_γ = S + γQQᵀ of a body held only
+        by contact (S itself is singular there), else :attr:`contact_S`."""
+        return self.contact_S if self.rigid is None else self.rigid.S
+
+    @property
+    def law_ell(self) -> np.ndarray:
+        """ℓ_eff + γQβ of a body held only by contact, else :attr:`contact_ell`."""
+        if self.rigid is None:
+            return self.contact_ell
+        return self.contact_ell + self.rigid.gamma * (self.rigid.Q @ self.beta)
 
     @property
     def S_eff(self):
@@ -109,11 +129,16 @@ class CondensationPath(ZonePath):
         from ..fem.linsolve import condense
         t1 = time.perf_counter()
         fac = self._factor
+        A, shift_c = asm.A, 0.0
+        if self.rigid_modes is not None:          # A singular: condense A + γ_A I_c (rigid.py)
+            A, shift_c = with_contact_diagonal(A, self.model.contact_dofs)
         if fac is not None and hasattr(fac, "refactor"):
-            fac.refactor(asm.A, trusted=True)     # symmetric, positive diagonal: assembled
+            fac.refactor(A, trusted=True)     # symmetric, positive diagonal: assembled
         else:
-            fac = self._factor = condense(asm.A, self.model.contact_dofs, backend=self.library)
+            fac = self._factor = condense(A, self.model.contact_dofs, backend=self.library)
         S, ell = fac.S, fac.condense_load(asm.L)
+        if shift_c:
+            S = S - shift_c * np.eye(S.shape[0])
         if self.frames is not None:
             S, ell = to_frames_matrix(S, self.frames), to_frames(ell, self.frames)
         system = CondensedSystem(asm, fac, S, ell, asm.gap, {})
@@ -123,12 +148,19 @@ class CondensationPath(ZonePath):
             from ..fem.foundation import Coupling
             system.coupling = Coupling(system.S, self.foundation)
             system.ell_eff = system.coupling.ell_eff(system.ell)
+        if self.rigid_modes is not None:
+            system.rigid = anchor(self.model, self.rigid_modes, asm, system.S, self.frames)
         system.timings["schur"] = time.perf_counter() - t1
         return system
 
     @property
     def foundation(self):
         return getattr(self.model, "foundation", None)
+
+    @property
+    def rigid_modes(self):
+        """The rigid motions the clamps leave free (:class:`contactopt.mesh.rigid.RigidModes`), or None."""
+        return getattr(self.model.body, "rigid", None)
 
     @property
     def frames(self):
@@ -153,7 +185,7 @@ class CondensationPath(ZonePath):
         balances the force, found by Brent's method (module docstring)."""
         m = self.model
         if getattr(m, "force", None) is None:
-            return super().solve_state(system, ctx, alpha, **kw)
+            return self.held_state(system, ctx, alpha, **kw)
         from scipy.optimize import brentq
 
         c, b, f = m.force_gap, m.force_b, m.force
@@ -164,7 +196,7 @@ class CondensationPath(ZonePath):
             moved = replace(system, gap=system.gap - s * c)
             if np.any(e):
                 moved = shifted(moved, s * e)
-            st = states[s] = super(CondensationPath, self).solve_state(moved, ctx, alpha, **kw)
+            st = states[s] = self.held_state(moved, ctx, alpha, **kw)
             return excess_of(st, b, f)
 
         touch = float(np.min(system.gap[c > 0] / c[c > 0]))
@@ -198,6 +230,14 @@ class CondensationPath(ZonePath):
         st.info["obstacle_solves"] = len(states)
         return st
 
+    def held_state(self, system, ctx, alpha, **kw):
+        """The state; of a body held only by contact, by the anchor's iteration (:mod:`.rigid`)."""
+        if system.rigid is None:
+            return ZonePath.solve_state(self, system, ctx, alpha, **kw)
+        from .rigid import held_state
+        return held_state(lambda sys: ZonePath.solve_state(self, sys, ctx, alpha, **kw), system,
+                          kw.get("tol") or self.settings.tol, kw.get("method", self.settings.method))
+
     def controlled_subgradient(self, system, ctx, state, v_u, v_lam, xi, loads=None):
         """ξ with the translation of a force-controlled obstacle following α (module docstring)."""
         m = self.model
@@ -218,8 +258,8 @@ class CondensationPath(ZonePath):
 
     def zone_problem(self, system, zone, warm, reuse, shared):
         if reuse and "zone" in shared:
-            return on_factor(shared["zone"], system.contact_ell, zone), zone
-        zp = zone_rules.ZoneProblem(system.contact_S, system.contact_ell, zone, ordered=not reuse)
+            return on_factor(shared["zone"], system.law_ell, zone), zone
+        zp = zone_rules.ZoneProblem(system.law_S, system.law_ell, zone, ordered=not reuse)
         if reuse:
             shared["zone"] = zp
         return zp, zone
@@ -251,7 +291,7 @@ class CondensationPath(ZonePath):
         return system.contact_ell
 
     def own_block(self, system, zone):
-        return zone_rules.ZoneProblem(system.contact_S, system.contact_ell, zone).W
+        return zone_rules.ZoneProblem(system.law_S, system.law_ell, zone).W
 
     def adjoint(self, system, ctx, state, y_u, y_lam, choices=None):
         """(v_u, v_λ, ṽ) of (4.15); on a foundation (4.15) is solved with S_eff and ṽ extends
@@ -295,6 +335,9 @@ class CondensationPath(ZonePath):
         from scipy.sparse.linalg import eigsh
 
         from ..fem.dense import spd_inverse
+        if system.rigid is not None:
+            return None, ("the body is held only by contact: its condensed stiffness S is singular, and the "
+                          "bound (3.16) needs λ_min(S) > 0")
         S = system.contact_S
         keep = ~self.model.contact_pinned.ravel()
         if not np.all(keep):           # pinned DOFs: decoupled diagonal entries, no contact law

@@ -10,6 +10,12 @@ Where the Cholesky factor and a zone's Schur-mode factorization would not fit in
 (:func:`contactopt.fem.memory.keeps_cholesky`), the Cholesky is released while the zone block is
 formed; the condensation then serves the design's remaining solves
 (:class:`~contactopt.fem.linsolve.SolverSlot`), and the next design factorizes anew.
+
+On a rigid obstacle other than the plane the contact DOFs are the local components of each node's
+frame R_m = (t1, t2, n): W = Qᵀ B A⁻¹ Bᵀ Q, Q = diag(R_m), by rotating the forces before each
+sparse solve and the displacements after it (:class:`~contactopt.contact.zone.FramedDelassusZoneProblem`);
+the W-form adjoint's products rotate the same way, and an obstacle's tangential translation shifts q
+as on the condensation path (:mod:`.condensation`).
 """
 
 from __future__ import annotations
@@ -111,9 +117,35 @@ class DelassusPath(ZonePath):
             return S
         return block
 
+    @property
+    def frames(self):
+        """(p, 3, 3) contact frames on an obstacle other than the plane (columns (t1, t2, n)), else None:
+        W, forces and contact displacements are then per node in its frame (:class:`~contactopt.contact.
+        zone.FramedDelassusZoneProblem`)."""
+        return getattr(self.model, "frames", None)
+
     def _problem(self, system, zone):
+        if self.frames is not None:
+            return zone_rules.FramedDelassusZoneProblem(system.factor, self.model.contact_dofs, system.x0, zone,
+                                                        self._zone_block(system.assembled.A), self.frames,
+                                                        self.shift)
         return zone_rules.DelassusZoneProblem(system.factor, self.model.contact_dofs, system.x0, zone,
                                               self._zone_block(system.assembled.A))
+
+    @property
+    def shift(self):
+        """An obstacle's tangential translation (3p, per node frame), or None (paths/condensation.py)."""
+        s = getattr(self.model, "slip_shift", None)
+        return None if s is None else s.ravel()
+
+    def body_contact_displacement(self, system, u_c, r):
+        """On an obstacle u_c is per node in its frame, relative to a translated obstacle: the body's is
+        Q (u_c + shift)."""
+        if self.frames is None:
+            return np.ravel(u_c)
+        from .condensation import from_frames
+        u = np.ravel(u_c) if self.shift is None else np.ravel(u_c) + self.shift
+        return from_frames(u, self.frames)
 
     def zone_problem(self, system, zone, warm, reuse, shared):
         if warm is None and self.settings.use_zone and zone.size == self.all_nodes.size:
@@ -127,7 +159,11 @@ class DelassusPath(ZonePath):
         """A first contact zone without a warm start: the nodes whose displacement without contact
         forces, x0, closes the gap to within the margin — the zone grows by every node it misses,
         so the state does not depend on this guess, and W_Z is not formed on all contact DOFs."""
-        u0 = system.x0[self.model.contact_dofs].reshape(-1, 3)
+        u0 = system.x0[self.model.contact_dofs]
+        if self.frames is not None:
+            from .condensation import to_frames
+            u0 = to_frames(u0, self.frames) - (0.0 if self.shift is None else self.shift)
+        u0 = u0.reshape(-1, 3)
         clearance = u0[:, 2] + system.gap
         return zone_rules.near_nodes(np.zeros(system.gap.size), clearance, displacement_scale(u0, system.gap),
                                      self.settings.zone_margin)
@@ -161,12 +197,15 @@ class DelassusPath(ZonePath):
         from ..sensitivity.adjoint import check_choices, effective_classes, solve_adjoint_delassus
         contact = self.model.contact_dofs
         n = system.x0.size
+        R = self.frames
+        from .condensation import from_frames, to_frames
+        rot, back = (lambda v: v, lambda v: v) if R is None else (lambda v: to_frames(v, R), lambda v: from_frames(v, R))
 
         def apply(s):
             f = np.zeros(n)
-            f[contact] = s
+            f[contact] = back(s)
             x = system.factor.solve(f)
-            return x[contact], x
+            return rot(x[contact]), x
 
         eff = effective_classes(state.classes, check_choices(choices))
         K = np.flatnonzero(eff != CLASS_CODES["L"])
@@ -186,7 +225,7 @@ class DelassusPath(ZonePath):
             g0 = g.copy()
             g0[contact] = 0.0
             d_full = -system.factor.solve(g0)
-            shift, y_u = (d_full[contact], d_full), g[contact]
+            shift, y_u = (rot(d_full[contact]), d_full), rot(g[contact])
         v_u, v_lam, v_free, res = solve_adjoint_delassus(apply, W, state, y_u, y_lam, choices, shift=shift,
                                                      out=out)
         ctx.adjoint_s = out["force"]       # S v_u, for the previous load step (adjoint_force)

@@ -10,6 +10,13 @@ The AMG hierarchy of an earlier A(α) serves every later design and every load c
 rebuilt from its design at a resume (the checkpoint holds that design), with NumPy's global
 generator seeded and OpenBLAS on one thread, so the same design gives the same hierarchy bit for
 bit.
+
+On a rigid obstacle other than the plane the unknowns at the contact nodes are the components in
+each node's frame R_m = (t1, t2, n): the Newton method solves TᵀA T u_loc = TᵀL with T the
+orthogonal change of basis (the identity but the 3 × 3 blocks R_m at the contact DOFs), so its
+Dirichlet and Robin rows act in the frames unchanged; u = T u_loc, the AMG near-null space is Tᵀ
+times the rigid-body modes, the adjoint is solved on TᵀA T and its extension returned as T ṽ_loc.
+An obstacle's tangential translation is the slip's reference (``slip_ref``), as a load step's is.
 """
 
 from __future__ import annotations
@@ -34,11 +41,36 @@ HIERARCHY_SEED = 20090101  # NumPy's global generator while pyamg builds a hiera
 
 @dataclass
 class FullSystem:
-    """One design's system in full space: A(α), L(α) in ``assembled`` as they are, ``gap`` (p,)."""
+    """One design's system in full space: A(α), L(α) in ``assembled`` as they are, ``gap`` (p,);
+    on an obstacle other than the plane also ``T`` and the rotated ``A``, ``L`` (:class:`Frames`)."""
 
     assembled: Assembled
     gap: np.ndarray
     timings: dict
+    T: object = None
+    A: object = None
+    L: np.ndarray | None = None
+
+    @property
+    def law_A(self):
+        """The matrix the Newton method sees: Tᵀ A T on an obstacle, else A(α)."""
+        return self.assembled.A if self.T is None else self.A
+
+    @property
+    def law_L(self):
+        return self.assembled.L if self.T is None else self.L
+
+
+def frame_rotation(contact_dofs: np.ndarray, frames: np.ndarray, n_free: int):
+    """T (n_free × n_free, orthogonal, sparse): the identity but at each contact node, whose free DOFs
+    (x1, x2, x3) it maps from the node's frame (t1, t2, n): u = T u_loc (module docstring)."""
+    import scipy.sparse as sp
+    cd = np.asarray(contact_dofs).reshape(-1, 3)
+    other = np.setdiff1d(np.arange(n_free), cd.ravel())
+    rows = np.concatenate([other, np.repeat(cd, 3, axis=1).ravel()])
+    cols = np.concatenate([other, np.tile(cd, (1, 3)).ravel()])
+    vals = np.concatenate([np.ones(other.size), frames.reshape(-1)])
+    return sp.csr_matrix((vals, (rows, cols)), shape=(n_free, n_free))
 
 
 @dataclass
@@ -66,11 +98,29 @@ class FullSpacePath(SolverPath):
     def new_context(self) -> FullContext:
         return FullContext(None, self.all_nodes)
 
+    @property
+    def frames(self):
+        """(p, 3, 3) contact frames on an obstacle other than the plane, else None."""
+        return getattr(self.model, "frames", None)
+
+    @property
+    def shift(self):
+        """An obstacle's tangential translation (p, 2) per node frame, or None."""
+        s = getattr(self.model, "slip_shift", None)
+        return None if s is None else s[:, :2]
+
     def prepare(self, asm) -> FullSystem:
-        return FullSystem(asm, asm.gap, {})
+        if self.frames is None:
+            return FullSystem(asm, asm.gap, {})
+        import scipy.sparse as sp
+        T = frame_rotation(self.model.contact_dofs, self.frames, self.model.assembler.n_free)
+        A = sp.csr_matrix(T.T @ asm.A @ T)
+        A.sort_indices()
+        return FullSystem(asm, asm.gap, {}, T, A, T.T @ asm.L)
 
     def for_load(self, system, asm) -> FullSystem:
-        return replace(system, assembled=asm, timings={})
+        out = replace(system, assembled=asm, timings={})
+        return out if out.T is None else replace(out, L=out.T.T @ asm.L)
 
     def build_hierarchy(self, alpha, asm=None):
         """The AMG hierarchy of A(α) (:class:`~contactopt.fem.amg.ContactHierarchy`).
@@ -83,7 +133,8 @@ class FullSpacePath(SolverPath):
         from ..fem.amg import ContactHierarchy, rigid_body_modes
         if asm is None:
             asm = self.model.assemble(alpha, self.first_loads)
-        A = sp.csr_matrix(asm.A)
+        system = self.prepare(asm)
+        A = sp.csr_matrix(system.law_A)
         if not A.has_sorted_indices:
             A = A.copy()
             A.sort_indices()
@@ -91,8 +142,10 @@ class FullSpacePath(SolverPath):
         np.random.seed(HIERARCHY_SEED)
         try:
             with sequential_openblas():
-                return ContactHierarchy(A, rigid_body_modes(asm.coords, self.model.assembler.free),
-                                        contact_dofs=self.model.contact_dofs)
+                modes = rigid_body_modes(asm.coords, self.model.assembler.free)
+                if system.T is not None:
+                    modes = np.asarray(system.T.T @ modes)
+                return ContactHierarchy(A, modes, contact_dofs=self.model.contact_dofs)
         finally:
             np.random.set_state(saved)
 
@@ -114,17 +167,27 @@ class FullSpacePath(SolverPath):
             self._hierarchy = self.build_hierarchy(alpha, asm)
             self._hierarchy_alpha = np.array(alpha, dtype=float)
             t_setup = time.perf_counter() - t0
-        res = solve_fullspace(asm.A, asm.L, self.model.contact_dofs, system.gap, s.friction, coords=asm.coords,
-                              free=self.model.assembler.free, r0=warm, u0=u0, hierarchy=self._hierarchy,
-                              tol=max(tol or s.tol, FULLSPACE_TOL), zone=ctx.next_zone if s.use_zone and warm_start else None,
-                              zone_margin=s.zone_margin, slip_ref=slip_ref)
+        # on an obstacle: the contact DOFs in the nodes' frames (A → TᵀAT), and a tangential translation
+        # as the reference of the slip (the law's displacement is w = u_c − shift, as on the condensation path)
+        law_ref = slip_ref if self.shift is None else (self.shift if slip_ref is None else slip_ref + self.shift)
+        res = solve_fullspace(system.law_A, system.law_L, self.model.contact_dofs, system.gap, s.friction,
+                              coords=asm.coords, free=self.model.assembler.free, r0=warm, u0=u0,
+                              hierarchy=self._hierarchy, tol=max(tol or s.tol, FULLSPACE_TOL),
+                              zone=ctx.next_zone if s.use_zone and warm_start else None,
+                              zone_margin=s.zone_margin, slip_ref=law_ref)
         self._hierarchy = res.hierarchy
         timings = dict(system.timings, **{f"fullspace_{k}": v for k, v in res.timings.items() if k != "total"})
         timings["fullspace_amg_setup"] += t_setup
         timings["contact"] = time.perf_counter() - t0
         r = np.column_stack((-res.tau, res.lam))                # per node (t1, t2, ν)
-        state = self.finish_state(ctx, alpha=alpha, coords=asm.coords, u=self.model.assembler.to_full(res.u),
-                                  u_c=res.u_c, r=r, gap=system.gap, load=asm.L, method="fullspace",
+        u_free, u_c = res.u, res.u_c
+        if system.T is not None:
+            u_free = system.T @ res.u
+            if self.shift is not None:
+                u_c = u_c.copy()
+                u_c[:, :2] -= self.shift
+        state = self.finish_state(ctx, alpha=alpha, coords=asm.coords, u=self.model.assembler.to_full(u_free),
+                                  u_c=u_c, r=r, gap=system.gap, load=asm.L, method="fullspace",
                                   outcome=(res.newton_steps, res.error, res.converged),
                                   timings=timings,
                                   info={"backend": "pyamg", "zone_nodes": int(res.zone.size),
@@ -144,16 +207,19 @@ class FullSpacePath(SolverPath):
         if state.slip_ref is not None:
             u_law = state.u_c.copy()
             u_law[:, :2] = state.slip_increment
-        adj = solve_adjoint_fullspace(system.assembled.A, self.model.contact_dofs, state.classes, u_law,
+        if system.T is not None and np.asarray(y_u).size == system.T.shape[0]:
+            y_u = system.T.T @ y_u        # ∂J/∂u on the free DOFs into the nodes' frames
+        adj = solve_adjoint_fullspace(system.law_A, self.model.contact_dofs, state.classes, u_law,
                                       state.lam, y_u, y_lam, self.settings.friction, hierarchy=self._hierarchy,
                                       choices=choices)
         state.info["adjoint_krylov"] = int(adj.iterations)
         ctx.adjoint_v = adj.v
-        return adj.v_u, adj.v_lam, self.model.assembler.to_full(adj.v)
+        v = adj.v if system.T is None else system.T @ adj.v
+        return adj.v_u, adj.v_lam, self.model.assembler.to_full(v)
 
     def adjoint_force(self, system, ctx, v_u):
         """S v_u = (A ṽ)_c: ṽ, the last adjoint's A-harmonic extension of v_u, has A ṽ = Bᵀ S v_u."""
-        return (system.assembled.A @ ctx.adjoint_v)[self.model.contact_dofs]
+        return (system.law_A @ ctx.adjoint_v)[self.model.contact_dofs]
 
     # ------------------------------------------------------------------ checkpoints
     def export_context(self, ctx) -> dict:

@@ -1,0 +1,135 @@
+"""What one evaluation (state solve + subgradient) costs on the condensation path, part by part.
+
+    python benchmarks/bench_evaluation.py [--example example1] [--designs 8] [--step 2e-3]
+
+An optimization's evaluations are at nearby designs: the benchmark evaluates the oracle
+(``ShapeProblem.evaluate``, Θ and ξ) at α0 and then at ``--designs`` designs α0 + k·step·d along
+a fixed volume-preserving direction d, so PARDISO's analysis, the contact zone, the kept Delassus
+block and the Newton warm start carry over from design to design as they do in a run. The parts
+are the cumulative times of the functions that do them (cProfile over the evaluations after the
+first), printed per evaluation and as ratios to one clean factorization of A(α0) (MKL PARDISO
+Cholesky, mtype 2, analysis included), measured in the same process before and after the
+evaluations (the median of both sets), because absolute times drift on a shared machine:
+
+* assembly of A(α), L(α) and the gaps (the harmonic morph weight is computed once per model);
+* the condensation: PARDISO's numerical factorization of A(α) in Schur-complement mode, which
+  returns S (the analysis is reused), and its partial solves for ℓ and the interior recovery u_i;
+* the contact zone's dense Cholesky factor of S, the semismooth Newton iterations (the dense
+  LU of their 3z × 3z matrices included) and the Delassus block W_Z where it is formed;
+* the adjoint (4.15) (the dense LU of its reduced matrix), the A-harmonic extension ṽ, and the
+  design terms vᵀ(∂A/∂α u − ∂L/∂α) (element by element, chunked einsums);
+* the rest (objective, classification of the nodes, bookkeeping).
+
+The run keeps OpenBLAS sequential, as ShapeProblem does (contactopt._threads); set
+MKL_NUM_THREADS=1 for the single-threaded figures of docs/measurements.md.
+"""
+
+from __future__ import annotations
+
+import argparse
+import cProfile
+import pstats
+import statistics
+import time
+
+import numpy as np
+
+from contactopt._threads import sequential_openblas
+from contactopt.config import load_config
+from contactopt.fem.linsolve import factorize
+from contactopt.problem import ShapeProblem
+
+# (label, [(file suffix, function name)]): the functions whose cumulative time is the part
+PARTS = [
+    ("assembly of A(α), L(α), gaps", [("fem/model.py", "assemble")]),
+    ("Schur factorization (PARDISO phase 22)", [("fem/linsolve.py", "refactor")]),
+    ("ℓ and interior recovery (331/333)", [("fem/linsolve.py", "condense_load"), ("fem/linsolve.py", "recover")]),
+    ("Cholesky of S (contact zone)", [("contact/zone.py", "__init__")]),
+    ("Delassus block W_Z", [("contact/zone.py", "W"), ("paths/condensation.py", "own_block")]),
+    ("contact Newton iterations", [("contact/newton.py", "solve_newton"), ("contact/local.py", "solve_local")]),
+    ("adjoint (4.15)", [("sensitivity/adjoint.py", "solve_adjoint")]),
+    ("extension ṽ", [("fem/linsolve.py", "extend")]),
+    ("design terms ∂A/∂α u, ∂L/∂α", [("fem/model.py", "design_contraction")]),
+]
+
+
+def reference(A, repeat):
+    """Times of clean factorizations of A (analysis included), after one warm-up."""
+    factorize(A).close()
+    out = []
+    for _ in range(repeat):
+        t0 = time.perf_counter()
+        factorize(A).close()
+        out.append(time.perf_counter() - t0)
+    return out
+
+
+def designs(model, a0, n, step, seed=0):
+    d = np.random.default_rng(seed).standard_normal(model.n_design)
+    d -= d.mean()
+    d /= np.abs(d).max()
+    return [a0 + (k + 1) * step * d for k in range(n)]
+
+
+def part_times(stats: pstats.Stats) -> dict:
+    """Cumulative seconds per part; a function counted once even if it calls itself."""
+    out = {}
+    for label, funcs in PARTS:
+        total = 0.0
+        for (file, _line, name), (_cc, _nc, _tt, ct, _callers) in stats.stats.items():
+            if any(file.endswith(suffix) and name == fn for suffix, fn in funcs):
+                total += ct
+        out[label] = total
+    return out
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--example", default="example1")
+    ap.add_argument("--designs", type=int, default=8)
+    ap.add_argument("--step", type=float, default=2e-3, help="design step (of the largest coefficient)")
+    ap.add_argument("--repeat", type=int, default=3, help="reference factorizations before and after")
+    ap.add_argument("--path", default=None, help="[linear_solver] path instead of the example's (e.g. delassus)")
+    args = ap.parse_args()
+    with sequential_openblas():
+        cfg = load_config(args.example)
+        if args.path:
+            cfg = cfg.with_updates({"linear_solver": {"path": args.path}})
+        pr = ShapeProblem(cfg)
+        m = pr.model
+        a0 = m.initial_design()
+        pr.evaluate(a0)                                  # analysis, first zone, first Delassus block
+        A = pr.model.assemble(a0).A
+        ref = reference(A, args.repeat)
+        prof = cProfile.Profile()
+        walls, states = [], []
+        for a in designs(m, a0, args.designs, args.step):
+            t0 = time.perf_counter()
+            prof.enable()
+            pr.evaluate(a)
+            prof.disable()
+            walls.append(time.perf_counter() - t0)
+            st = pr.solve_state(a)
+            states.append((st.info.get("zone_nodes", 0), st.iterations, st.info.get("delassus")))
+        ref += reference(A, args.repeat)
+    t_ref = statistics.median(ref)
+    n = len(walls)
+    per_eval = sum(walls) / n
+    parts = part_times(pstats.Stats(prof))
+    print(f"{args.example}, {type(pr.path).__name__}: {A.shape[0]} free DOFs, {m.n_contact} contact nodes ({3 * m.n_contact} contact DOFs), "
+          f"{m.n_design} design variables; {n} evaluations at α0 + k·{args.step:g}·d")
+    print(f"reference: one clean PARDISO factorization of A(α0) (analysis included) {t_ref:.3f} s "
+          f"(median of {len(ref)}, {min(ref):.3f}–{max(ref):.3f} s)")
+    print(f"zone {min(s[0] for s in states)}–{max(s[0] for s in states)} nodes, "
+          f"{statistics.mean(s[1] for s in states):.1f} Newton steps on average, Delassus block "
+          f"{sum(s[2] == 'reused' for s in states)} of {n} times reused")
+    print(f"{'part':42s} {'s / eval':>9s} {'× ref':>7s} {'share':>6s}")
+    for label, t in parts.items():
+        print(f"{label:42s} {t / n:9.4f} {t / n / t_ref:7.2f} {t / n / per_eval:6.1%}")
+    rest = per_eval - sum(parts.values()) / n
+    print(f"{'rest (objective, classes, bookkeeping)':42s} {rest:9.4f} {rest / t_ref:7.2f} {rest / per_eval:6.1%}")
+    print(f"{'one evaluation (wall, profiled)':42s} {per_eval:9.4f} {per_eval / t_ref:7.2f}")
+
+
+if __name__ == "__main__":
+    main()

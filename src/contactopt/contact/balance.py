@@ -1,0 +1,120 @@
+"""Can contact hold a body? The loads on the free rigid motions against the admissible contact forces.
+
+A body held only by contact (:mod:`contactopt.mesh.rigid`) is in equilibrium only if contact forces
+admissible on the contact face (per node λ ≥ 0 along the obstacle's normal, |τ| ≤ Fλ) balance the
+load on every free rigid motion: −Rᵀf ∈ K = {Σ_m G_mᵀ r_m : r_m in node m's friction cone}, G_m the
+motions at node m. Otherwise there is a motion y with yᵀk ≥ 0 for every k ∈ K (no admissible
+contact force resists it) along which the load does positive work, fᵀR y > 0: the body would
+move off, or slide. That y is found by a linear program (scipy's HiGHS) over the friction cones
+replaced by circumscribed 64-gons, a superset: a refusal is never wrong, and a load closer to the
+friction limit than 0.12 % passes on to the solver. A motion that the contact cannot resist at
+all (frictionless contact and a motion with no normal component at any contact node) cannot be
+held by any load either.
+
+The message names the motion. On a flat contact face (every contact normal the same n) the
+translations are named by the resultants: the normal load N = −P·n (P the load's resultant), the
+tangential load T = |P − (P·n)n| against F·N.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..errors import ConfigError
+from ..mesh.rigid import AXES, mode_name
+
+SIDES = 64
+
+
+def check_held(rigid, points, contact_nodes, frames, friction: float, loads: list, source: str) -> None:
+    """ConfigError naming the first free rigid motion of ``rigid`` that no admissible contact
+    force holds, for the load vectors ``loads`` (full length 3n, named: [(name, f)])."""
+    from scipy.optimize import linprog
+    k = rigid.count
+    p = contact_nodes.size
+    R = np.broadcast_to(np.eye(3), (p, 3, 3)) if frames is None else frames        # columns (t1, t2, n)
+    V = rigid.vectors(points)                                                    # (n, 3, k)
+    G = np.einsum("mij,mik->mjk", R, V[contact_nodes])                          # (p, 3, k) per node frame
+    scale = np.linalg.norm(V.reshape(-1, k), axis=0)
+    if friction > 0:
+        th = 2 * np.pi * np.arange(SIDES) / SIDES
+        Fo = friction / np.cos(np.pi / SIDES)
+        gen = np.stack([Fo * np.cos(th), Fo * np.sin(th), np.ones(SIDES)], axis=1)
+    else:
+        gen = np.array([[0.0, 0.0, 1.0]])
+    work = np.einsum("jc,mck->mjk", gen, G).reshape(-1, k) / scale             # generator j at node m on y
+    normal = G[:, 2, :] / scale
+    if friction == 0:
+        _, s, Vt = np.linalg.svd(normal, full_matrices=True)
+        rank = int(np.sum(s > 1e-9 * max(s.max(initial=0.0), 1e-300)))
+        if rank < k:
+            names = " and ".join(sorted((_named(rigid, y / scale, points) for y in Vt[rank:]),
+                                        key=lambda n: ("rotation" in n, n)))
+            one = k - rank == 1
+            raise ConfigError([f"{source}: body.clamped: {names} {'is' if one else 'are'} not held: without "
+                               f"friction the contact forces (along the obstacle's normals) have no component "
+                               f"along {'it' if one else 'them'}; clamp {'it' if one else 'them'}, or give "
+                               "friction.coefficient > 0"])
+    for name, f in loads:
+        b = V.reshape(-1, k).T @ np.asarray(f, float) / scale                  # the load's work on y
+        if not np.any(b):
+            continue
+        res = linprog(-b, A_ub=-work, b_ub=np.zeros(work.shape[0]), bounds=[(-1.0, 1.0)] * k, method="highs")
+        if res.status != 0 or -res.fun <= 1e-9 * np.abs(b).sum():
+            continue
+        y = res.x / scale
+        raise ConfigError([f"{source}: {name}: " + _message(rigid, y, points, contact_nodes, R, f, friction)])
+
+
+def _named(rigid, y, points) -> str:
+    """The name of the canonical motion dominant in y (coefficients of ``rigid``), or of y itself."""
+    c = rigid.coefficients @ y
+    size = max(np.ptp(points, axis=0).max(), 1e-300)
+    w = np.abs(c) * np.r_[np.ones(3), size * np.ones(3)]
+    k = int(np.argmax(w))
+    if w[k] >= 0.999 * np.linalg.norm(w):
+        return mode_name(np.eye(6)[k] * np.sign(c[k]), rigid.centroid).replace("−", "")
+    return mode_name(c, rigid.centroid)
+
+
+def _message(rigid, y, points, contact_nodes, R, f, friction) -> str:
+    """Why the motion y is not held (module docstring)."""
+    n = R[:, :, 2]
+    P = np.asarray(f, float).reshape(-1, 3).sum(axis=0)
+    free_t = _free_translations(rigid)
+    if np.allclose(n, n[0], atol=1e-12) and free_t.size:
+        nn = n[0]
+        N = -float(P @ nn)
+        if np.linalg.norm(free_t.T @ nn) > 1e-9 and N <= 0:
+            return (f"the translation along {_axis(nn)} is not held: the load pulls the body away from the obstacle "
+                    f"(its resultant along {_axis(nn)} is {-N:.6g} ≥ 0, away from the contact face)")
+        Pt = P - (P @ nn) * nn
+        Pt_free = free_t @ (free_t.T @ Pt)
+        T = float(np.linalg.norm(Pt_free))
+        if T > friction * N and T > 1e-12 * np.linalg.norm(P):
+            return (f"the translation along {_axis(Pt_free)} is not held: the tangential load {T:.6g} exceeds "
+                    f"F × the normal load {friction:g} × {N:.6g} = {friction * N:.6g}")
+    name = _named(rigid, y, points)
+    return (f"{name} is not held: no contact force admissible on the contact face (λ ≥ 0, |τ| ≤ Fλ, "
+            f"F = {friction:g}) balances the load along it (the load's resultant {_fmt(P)} and its moment "
+            "cannot both be taken by the contact face)")
+
+
+def _free_translations(rigid) -> np.ndarray:
+    """(3, j): an orthonormal basis of the translations among the free motions."""
+    C = rigid.coefficients
+    T = [C[:3, i] for i in range(C.shape[1]) if np.allclose(C[3:, i], 0.0)]
+    if not T:
+        return np.zeros((3, 0))
+    Q, s, _ = np.linalg.svd(np.array(T).T, full_matrices=False)
+    return Q[:, s > 1e-9]
+
+
+def _axis(v) -> str:
+    v = np.asarray(v, float) / np.linalg.norm(v)
+    k = int(np.argmax(np.abs(v)))
+    return AXES[k] if abs(abs(v[k]) - 1) <= 1e-9 else "(" + ", ".join(f"{x:.4g}" for x in v) + ")"
+
+
+def _fmt(x) -> str:
+    return "(" + ", ".join(f"{v:.4g}" for v in np.asarray(x)) + ")"
