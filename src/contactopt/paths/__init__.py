@@ -87,8 +87,6 @@ def needs(config, pinned: int = 0, ranks: int = 1, rigid=None) -> dict:
     full = sorted(types & FULL_SPACE)
     if full:
         out["whole_displacement"] = ", ".join(full)
-        if foundation:
-            out["whole_displacement_on_foundation"] = ", ".join(full)
     if config.load_steps or any(case.steps for case in config.load_cases):
         out["load_steps"] = "[[load_steps]]"
     if ranks > 1:

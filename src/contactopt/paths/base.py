@@ -92,10 +92,6 @@ class Capabilities:
         "an objective of the whole displacement",
         "objective: {detail} needs ∂J/∂u on every DOF, which the adjoint on the '{path}' path does not take; "
         "use path {takers}")
-    whole_displacement_on_foundation: bool = _feature(
-        "an objective of the whole displacement on an elastic [foundation]",
-        "objective: {detail} needs ∂J/∂u on every DOF, which the adjoint on an elastic [foundation] does not "
-        "take; use the rigid foundation")
     load_steps: bool = _feature(
         "load steps",
         "the '{path}' solver path does not take load steps; use linear_solver.path = {takers}")

@@ -193,7 +193,6 @@ class CondensationPath(ZonePath):
             return self.held_state(system, ctx, alpha, **kw)
         from scipy.optimize import brentq
 
-        from ..errors import SolverError
         c, b, f = m.force_gap, m.force_b, m.force
         e = (b * [1.0, 1.0, 0.0]).ravel()          # f̂'s tangential part per node frame
         states = {}
@@ -301,12 +300,16 @@ class CondensationPath(ZonePath):
 
     def adjoint(self, system, ctx, state, y_u, y_lam, choices=None):
         """(v_u, v_λ, ṽ) of (4.15); on a foundation (4.15) is solved with S_eff and ṽ extends
-        z = S⁻¹ S_eff v_u (module docstring)."""
+        z = S⁻¹ S_eff v_u (module docstring).
+
+        ∂J/∂u on every DOF of the body (g) on a foundation: J depends on the state's w through
+        the body's u_c = w + Π q_f − C r, r = S_eff w − ℓ_eff, so u_c = S⁻¹S_eff w + … and with
+        y_c = g_c − A_ci A_ii⁻¹ g_i (4.15) takes y*_u = S_eff S⁻¹ y_c; at fixed w, r and with it
+        u_c move with α: g·δu gains −y_cᵀC δr = −(S⁻¹S_eff C y_c)ᵀ(∂A u − ∂L)… extended, so
+        z = S⁻¹S_eff (v_u − C y_c) (docs/foundation.md)."""
         from ..sensitivity.adjoint import solve_adjoint
-        zhat = None
+        zhat = y_c = None
         if self.is_full(y_u):          # ∂J/∂u on every DOF (SolverPath.adjoint): ẑ = (0, A_ii⁻¹g_i)
-            if system.coupling is not None:
-                raise SolverError("an objective of the whole displacement is not available on an elastic foundation")
             fac, asm = system.factor, self.model.assembler
             g = np.asarray(y_u, float)[asm.free]
             zhat = np.zeros(g.size)
@@ -314,8 +317,13 @@ class CondensationPath(ZonePath):
             y_u = g[fac.c] - (system.assembled.A @ zhat)[fac.c]
             if self.frames is not None:     # global components at the contact nodes: into their frames
                 y_u = to_frames(y_u, self.frames)
+            if system.coupling is not None:  # ∂J/∂w of the body's contact displacement
+                y_c, y_u = y_u, system.coupling.to_eff(y_u)
         v_u, v_lam = solve_adjoint(system.contact_S, state, y_u, y_lam, choices)
-        z = v_u if system.coupling is None else system.coupling.adjoint_z(v_u)
+        if system.coupling is None:
+            z = v_u
+        else:
+            z = system.coupling.adjoint_z(v_u if y_c is None else v_u - self.foundation.C @ y_c)
         if self.frames is not None:
             z = from_frames(z, self.frames)
         v = system.factor.extend(z)

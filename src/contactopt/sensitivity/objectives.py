@@ -150,6 +150,11 @@ class FrictionalDissipation(Objective):
     J = −ũᵀ(A u − L) with ũ the vector of the tangential contact displacements (zero elsewhere).
     Its gradient is on the whole displacement, ∂J/∂u = τ̂ − A ũ (τ̂: τ on the tangential contact
     DOFs), and at fixed u ∂J/∂α = −ũᵀ(∂A/∂α u − ∂L/∂α).
+
+    On an elastic foundation the slip is the relative one, w_t (the state's u_c is w), and
+    w = u_c − Π q_f + C r with r = (A u − L)_c the contact force on the body, so J = −w_tᵀr_t is
+    a function of the body's u through r in w as well: the same formulas hold with
+    ũ = (w_t, 0) − C (τ, 0) per contact node (t1, t2, ν), all three components (docs/foundation.md).
     """
 
     name = "frictional_dissipation"
@@ -163,6 +168,12 @@ class FrictionalDissipation(Objective):
         full = (3 * model.contact_nodes[:, None] + np.arange(2)).ravel()
         u_t = np.zeros(asm.n_full)
         u_t[full] = ut.ravel()
+        coupling = getattr(cond, "coupling", None)
+        if coupling is not None:                  # an elastic foundation (class docstring)
+            tau3 = np.zeros((p, 3))
+            tau3[:, :2] = state.tau
+            contact = (3 * model.contact_nodes[:, None] + np.arange(3)).ravel()
+            u_t[contact] -= coupling.foundation.C @ tau3.ravel()
         tau = np.zeros(asm.n_full)
         tau[full] = np.asarray(state.tau).ravel()
         A = cond.assembled.A if cond is not None and hasattr(cond, "assembled") else asm.stiffness(state.coords)
@@ -256,6 +267,15 @@ class Compliance(Objective):
             dalpha += dc(asm.coords, state.u, model.assembler.to_full(cond.factor.extend(z)))
         return (self.scale * value, self.scale * dw, np.zeros(state.lam.size), self.scale * dalpha)
 
+    def evaluate_full(self, state, cond):
+        """The same J = L(α)ᵀu with ∂J/∂u = L on every DOF and ∂J/∂α = uᵀ∂L/∂α at fixed u: the form a
+        sum with an objective of the whole displacement takes on an elastic foundation, whose
+        adjoint maps ∂J/∂u of the body to the state's w itself (:class:`WeightedSum`)."""
+        asm = cond.assembled
+        dalpha = -self.model.design_contraction(asm.coords, np.zeros_like(state.u), state.u)
+        return (self.scale * float(asm.L_full @ state.u), self.scale * np.asarray(asm.L_full, float),
+                np.zeros(state.lam.size), self.scale * dalpha)
+
 
 class WeightedSum(Objective):
     """J = Σ_k w_k J_k over the ``[[objective.terms]]`` (each an objective of its own keys).
@@ -300,8 +320,12 @@ class WeightedSum(Objective):
         du = np.zeros(n if self.full_space else 3 * p)
         contact = (3 * self.model.contact_nodes[:, None] + np.arange(3)).ravel()
         self.last_terms = {}
+        # on an elastic foundation ∂J/∂u_c of a contact-only term is on the state's w, not on the
+        # body's u_c: compliance (the one such term with ∂J/∂u_c ≠ 0) joins in its whole-body form
+        coupled = self.full_space and getattr(cond, "coupling", None) is not None
         for name, w, obj in self.terms:
-            v, y_u, y_lam, y_a = obj.evaluate(state, cond)
+            full = coupled and hasattr(obj, "evaluate_full")
+            v, y_u, y_lam, y_a = obj.evaluate_full(state, cond) if full else obj.evaluate(state, cond)
             self.last_terms[name] = float(v)
             value += w * v
             if y_u.size == du.size:
