@@ -560,12 +560,6 @@ def _check_step_names(data, problems, raw_sections=()) -> None:
         problems.append("load_steps: the configuration has [[load_steps]] and [[load_cases.steps]]; give each "
                         "load case its own steps, or the top-level steps without steps in the cases")
     if "load_steps" in data or any("steps" in c for c in cases):
-        obj = data["objective"]
-        types = [obj.get("type")] + [t.get("type") for t in obj.get("terms") or [] if isinstance(t, dict)]
-        for whole in ("peak_stress", "frictional_dissipation"):
-            if whole in types:
-                problems.append(f"load_steps: the objective {whole!r} is not yet taken on a load path (its "
-                                "adjoint of the whole displacement is not carried back through the steps)")
         if "obstacle" in raw_sections:
             problems.append("load_steps: a load path is not yet taken with an [obstacle] (load steps act on the "
                             "plane x3 = 0 or an elastic [foundation])")
