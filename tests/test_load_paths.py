@@ -415,8 +415,61 @@ def test_load_cases_with_their_own_paths(tmp_path):
 
 
 def test_load_paths_refuse_what_they_do_not_take_yet():
-    """Rigid obstacles are not carried through the steps: refused with a message naming the
-    combination, not solved wrongly."""
+    """A force-controlled obstacle is not carried through the steps (its translation would be an
+    unknown of every step): refused with a message naming the combination, not solved wrongly."""
     steps = [{"name": "press", "top_traction": TOP}, {"name": "shear", "top_traction": TOP, "right_traction": SIDE}]
-    with pytest.raises(ConfigError, match="not yet taken with an \\[obstacle\\]"):
-        block(steps, obstacle={"shape": "plane", "control": "displacement", "displacement": [0.0, 0.0, 0.001]})
+    with pytest.raises(ConfigError, match="not yet taken with a force-controlled \\[obstacle\\]"):
+        block(steps, obstacle={"shape": "sphere", "center": [1.0, 1.0, -5.0], "radius": 5.0,
+                               "control": "force", "force": [0.0, 0.0, 1.0]})
+
+
+# ---------------------------------------------------------------- rigid obstacles
+def sphere_block(steps, **updates):
+    """The 8×8×3 block 2 × 2 × 1 clamped at its top, pushed onto a sphere of radius 5 by the
+    sphere's prescribed translation (tests/test_obstacles.py), with the load path ``steps``."""
+    base = load_config("example1").data
+    data = {**base, "friction": {"coefficient": 0.3}, "linear_solver": {"path": "condensation"},
+            "material": {**base["material"], "nu": 0.3}, "state": {**base["state"], "method": "newton", "tol": 1e-12},
+            "loads": {**base["loads"], "top_traction": [0.0] * 3, "right_traction": [0.0] * 3},
+            "design": {**base["design"], "degree": [3, 2], "initial": 0.0, "C2": 0.0},
+            "geometry": {"a": 2.0, "b": 2.0, "c": 1.0}, "mesh": {"nx": 8, "ny": 8, "nz": 3},
+            "body": {**base["body"], "clamped": "top"},
+            "obstacle": {"shape": "sphere", "center": [1.0, 1.0, -5.0], "radius": 5.0, "control": "displacement",
+                         "displacement": [0.0, 0.0, 0.05]}}
+    if steps:
+        data["load_steps"] = steps
+    for sec, values in updates.items():
+        data[sec] = {**data.get(sec, {}), **values}
+    return load_config(data)
+
+
+SPHERE_PATH = [{"name": "press"}, {"name": "shear", "body_force": [0.01, 0.0, 0.0]}]
+
+
+@pytest.mark.parametrize("objective", [
+    {"steps": "sum", "target": {"kind": "constant", "value": 0.01}},
+    {"type": "peak_stress", "aggregate": "ks", "rho": 5.0, "steps": "sum"},
+])
+def test_a_load_path_on_a_sphere_matches_central_differences(objective):
+    """Pressed by the sphere, then sheared: the friction law in the nodes' frames on the slip
+    increment; the subgradient through both steps (a stress objective's right-hand side on every
+    DOF is rotated into the frames and back) against central differences."""
+    from contactopt.sensitivity.check import check_gradient
+    pr = ShapeProblem(sphere_block(SPHERE_PATH, objective=objective))
+    assert pr.model.frames is not None
+    alpha = 0.002 * np.sin(np.arange(pr.model.n_design)) + 0.001
+    rep = check_gradient(pr, alpha, seed=1, n_directions=3)
+    pr.solve_states(alpha)
+    counts = [st.counts for _, _, st in pr.step_results()]
+    assert counts[0]["M1"] and counts[1]["M1"] and counts[1]["M3+"]
+    assert rep.n_degenerate == 0 and np.max(rep.rel_errors) <= 1e-6, rep.rel_errors
+    assert rep.taylor_rate >= 1.9
+
+
+def test_one_step_on_a_sphere_is_the_static_problem_bit_for_bit():
+    a, b = ShapeProblem(sphere_block(None)), ShapeProblem(sphere_block([{"name": "all"}]))
+    alpha = 0.002 * np.sin(np.arange(a.model.n_design)) + 0.001
+    (ja, ga), (jb, gb) = a.evaluate(alpha), b.evaluate(alpha)
+    assert ja == jb and np.array_equal(ga, gb)
+    sa, sb = a.solve_state(alpha), b.solve_state(alpha)
+    assert np.array_equal(sa.u, sb.u) and np.array_equal(sa.lam, sb.lam) and np.array_equal(sa.classes, sb.classes)

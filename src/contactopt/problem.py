@@ -316,8 +316,9 @@ class ShapeProblem:
             if j in rhs:
                 y_u, y_lam, dJ_da = rhs[j]
                 xi = xi + dJ_da
-            if carry is not None:
-                y_u = add_at_contact(y_u, carry, contact)
+            if carry is not None:           # on every DOF: y_u's global components
+                y_u = add_at_contact(y_u, carry if carry.size == y_u.size else self.path.global_contact(carry),
+                                     contact)
             v_u, v_lam, v_full = self.path.adjoint(system, ctxs[j], state, y_u, y_lam, choices)
             xi = xi + self.path.design_contraction(system, state.u, v_full, self.steps[k][j].loads) \
                 + self.model.gap_matrix.T @ v_lam

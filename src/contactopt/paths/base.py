@@ -139,6 +139,11 @@ class SolverPath:
         step passes to the previous one (sensitivity/steps.py)."""
         raise NotImplementedError
 
+    def global_contact(self, v) -> np.ndarray:
+        """A (3p,) contact vector of the path's node frames in global components (the same on
+        the plane; :mod:`.condensation` rotates it on an obstacle)."""
+        return v
+
     def adjoint_carry(self, system, ctx, v_u, v_full, y_u) -> np.ndarray:
         """S v_u + ∂J/∂u_c (3p, per node (t1, t2, ν)) of the last :meth:`adjoint` of ``ctx``, with
         right-hand side ``y_u``: a load step's derivative passed to the previous step

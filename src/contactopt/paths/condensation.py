@@ -281,6 +281,17 @@ class CondensationPath(ZonePath):
     def adjoint_force(self, system, ctx, v_u):
         return system.contact_S @ v_u
 
+    def global_contact(self, v):
+        return v if self.frames is None else from_frames(np.asarray(v), self.frames)
+
+    def adjoint_carry(self, system, ctx, v_u, v_full, y_u):
+        """As :meth:`SolverPath.adjoint_carry`, in the nodes' frames on an obstacle (the load
+        steps' tangential reference is per node frame)."""
+        out = super().adjoint_carry(system, ctx, v_u, v_full, y_u)
+        if self.frames is not None and self.is_full(y_u):
+            out = to_frames(out, self.frames)
+        return out
+
     def uniqueness_bound(self, system):
         """F0 = λ_min(S)/λ_max(S) of the bound (3.16) applied to the condensed system: with A := S,
         N and T select components so β = ‖T‖ = 1. Known to be very pessimistic."""
