@@ -26,7 +26,7 @@ import sys
 
 import numpy as np
 
-from cattaneo_mindlin import ESTAR, F3, MU, NU, R, E, config
+from cattaneo_mindlin import ESTAR, F3, MU, NU, E, R, config
 from contactopt.config import load_config
 from contactopt.fem.loadset import LoadSet
 from contactopt.problem import ShapeProblem
@@ -119,7 +119,7 @@ def run(n: int, m: int, target: float = 0.7):
 def branches(r):
     """(Q, δ − Q/k0) of the FE and (Q, δ_MD − QK/8a) of the theory on the cycle's two branches."""
     m, Q, d = r["m"], r["Q"], r["delta"]
-    Qs, P, loading = r["Qs"], r["P"], r["loading"]
+    Qs, loading = r["Qs"], r["loading"]
     fe = d - Q / r["k0"]
     dstar = loading(Qs)
     q = np.linspace(-Qs, Qs, 201)
