@@ -49,9 +49,9 @@ from scipy.linalg import lapack  # noqa: E402
 HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE))
 
-import _brick  # noqa: E402  (shared benchmark helper: Q1 brick stiffness)
 from contactopt.contact import node_class, solve_local  # noqa: E402
 from contactopt.io.fclib import read_fclib  # noqa: E402
+from contactopt.verification import brick as _brick  # noqa: E402
 
 FCLIB_FILES = ["local_problem_test.hdf5", "LMGC_100_PR_PerioBox-i00361-60-03000.hdf5",
                "Capsules-i125-1213.hdf5"]

@@ -29,9 +29,9 @@ import numpy as np
 import scipy.sparse as sp
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from _brick import EXAMPLE1, EXAMPLE2, FINE, brick  # noqa: E402
 from contactopt.fem._pardiso import factorization_mflop  # noqa: E402
 from contactopt.fem.linsolve import condense, factorize, pardiso_available  # noqa: E402
+from contactopt.verification.brick import EXAMPLE1, EXAMPLE2, FINE, brick  # noqa: E402
 
 MESHES = {"ex1": ("Example 1", EXAMPLE1), "ex2": ("Example 2", EXAMPLE2), "fine": ("fine", FINE)}
 GOAL = 1.5

@@ -104,3 +104,92 @@ def test_every_path_implements_the_interface(name):
     cls = paths.PATHS[name]
     for method in ("prepare", "for_load", "solve_state", "adjoint", "memory_estimate"):
         assert getattr(cls, method) is not getattr(paths.SolverPath, method), f"{name} lacks {method}"
+
+
+# ------------------------------------------------------------------ typed configuration
+CONFIG_NAMES = {"cfg", "config", "conf", "configuration"}     # a name that holds a configuration
+SECTIONS = {"body", "geometry", "mesh", "material", "friction", "loads", "design", "objective", "state",
+            "linear_solver", "optimizer", "foundation", "obstacle", "load_cases", "load_steps"}
+
+
+def _is_config(node, locals_: set) -> bool:
+    """Whether ``node`` is a configuration or a part of one: cfg / config, anything.config
+    (self.config, model.config, problem.config), their .data, a subscript, attribute or ``.get``
+    of those, or a local that was assigned one (d = cfg["design"])."""
+    if isinstance(node, ast.Name):
+        return node.id in CONFIG_NAMES or node.id in locals_
+    if isinstance(node, ast.Attribute):
+        return node.attr == "config" or _is_config(node.value, locals_)
+    if isinstance(node, ast.Subscript):
+        return _is_config(node.value, locals_)
+    if isinstance(node, ast.Call) and isinstance(node.func, ast.Attribute) and node.func.attr == "get":
+        return _is_config(node.func.value, locals_)          # obst = cfg.data.get("obstacle", {})
+    return False
+
+
+def _string_lookups(tree) -> list:
+    """(line, text) of every lookup of a configuration by string key in ``tree``: ``x["key"]``,
+    ``x.get("key")``, ``"key" in x`` and any use of ``x.data``, for ``x`` as in :func:`_is_config`."""
+    found = []
+    scopes = [n for n in ast.walk(tree) if isinstance(n, (ast.FunctionDef, ast.AsyncFunctionDef, ast.Lambda))]
+    for scope in [tree, *scopes]:
+        locals_ = set()
+        nodes = list(ast.walk(scope))
+        for n in nodes:                     # section locals: d = cfg["design"]; d, s = cfg.design, x
+            if isinstance(n, ast.Assign):
+                pairs = [(t, n.value) for t in n.targets]
+                pairs += [(t, v) for t in n.targets if isinstance(t, ast.Tuple) and isinstance(n.value, ast.Tuple)
+                          for t, v in zip(t.elts, n.value.elts)]
+                locals_ |= {t.id for t, v in pairs if isinstance(t, ast.Name) and _is_config(v, locals_)
+                            and t.id not in CONFIG_NAMES}
+        for n in nodes:
+            if isinstance(n, ast.Subscript) and isinstance(n.slice, ast.Constant) and isinstance(n.slice.value, str) \
+                    and _is_config(n.value, locals_):
+                found.append((n.lineno, ast.unparse(n)))
+            elif isinstance(n, ast.Call) and isinstance(n.func, ast.Attribute) and n.func.attr == "get" \
+                    and n.args and isinstance(n.args[0], ast.Constant) and isinstance(n.args[0].value, str) \
+                    and _is_config(n.func.value, locals_):
+                found.append((n.lineno, ast.unparse(n)))
+            elif isinstance(n, ast.Compare) and isinstance(n.left, ast.Constant) and n.left.value in SECTIONS \
+                    and any(isinstance(op, (ast.In, ast.NotIn)) for op in n.ops) \
+                    and any(_is_config(c, locals_) for c in n.comparators):
+                found.append((n.lineno, ast.unparse(n)))
+            elif isinstance(n, ast.Attribute) and n.attr == "data" and _is_config(n.value, locals_):
+                found.append((n.lineno, ast.unparse(n)))
+    return sorted(set(found))
+
+
+def config_lookups(src: Path) -> list:
+    """Every lookup of a configuration by string key in the modules of ``src`` (the package
+    directory) outside its configuration package."""
+    out = []
+    for f in sorted(src.rglob("*.py")):
+        rel = f.relative_to(src).as_posix()
+        if rel.startswith("config/") or rel == "config.py":
+            continue
+        out += [f"{rel}:{line} {text}" for line, text in _string_lookups(ast.parse(f.read_text()))]
+    return out
+
+
+def test_no_module_outside_config_indexes_a_configuration_by_string():
+    """Code below the loader reads the typed sections (cfg.state.tol); only contactopt.config
+    knows the TOML's keys. A configuration is copied or written through cfg.to_dict()."""
+    found = config_lookups(SRC)
+    assert not found, "configuration read by string key: " + "; ".join(found)
+
+
+@pytest.mark.parametrize("snippet", [
+    'cfg["state"]["tol"]', 'self.config["design"].get("lower", 0.0)', 'model.config.data.get("foundation")',
+    '"foundation" in config.data', 'problem.config["objective"]',
+    'def f(cfg):\n    d = cfg["design"]\n    return d["lower"]',
+    'def f(self):\n    d, s = self.config.design, self.surface\n    return d["C0"]',
+    'def f(cfg):\n    return "obstacle" in cfg'])
+def test_the_lookup_detector_sees_a_string_lookup(snippet):
+    """The check above is not vacuous: each of these reads a configuration by string key."""
+    assert _string_lookups(ast.parse(snippet))
+
+
+def test_the_lookup_detector_passes_attribute_reads():
+    ok = ('def f(cfg, model):\n    d = cfg.design\n    t = cfg.objective.target\n    raw = cfg.to_dict()\n'
+          '    raw["name"] = "x"\n    return d.lower, model.config.state.tol, t.kind, arrays.get("u")')
+    assert not _string_lookups(ast.parse(ok))

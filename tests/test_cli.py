@@ -9,24 +9,13 @@ import time
 
 import numpy as np
 import pytest
-import tomli_w
 
 from contactopt.cli import main
 from contactopt.config import load_config
 
 
-def small_toml(tmp_path, name="small", **updates):
-    """A small configuration file; ``updates`` are written unvalidated (bad values allowed)."""
-    data = load_config("example1").with_updates({"mesh": {"nx": 8, "ny": 4, "nz": 3}, "name": name}).data
-    for sec, vals in updates.items():
-        data[sec].update(vals)
-    path = tmp_path / f"{name}.toml"
-    path.write_text(tomli_w.dumps(data))
-    return path
-
-
-def test_state_command_writes_every_output(tmp_path, capsys):
-    cfg = small_toml(tmp_path)
+def test_state_command_writes_every_output(tmp_path, capsys, config_file):
+    cfg = config_file()
     out = tmp_path / "st"
     assert main(["state", str(cfg), "--out", str(out)]) == 0
     text = capsys.readouterr().out
@@ -37,20 +26,20 @@ def test_state_command_writes_every_output(tmp_path, capsys):
     assert data["summary"]["converged"] if "summary" in data else data["converged"]
 
 
-def test_state_that_does_not_converge_exits_2_and_leaves_no_directory(tmp_path, capsys):
+def test_state_that_does_not_converge_exits_2_and_leaves_no_directory(tmp_path, capsys, config_file):
     out = tmp_path / "st"
-    code = main(["state", str(small_toml(tmp_path, state={"max_iter": 1})), "--out", str(out)])
+    code = main(["state", str(config_file(state={"max_iter": 1})), "--out", str(out)])
     assert code == 2
     assert "not converged" in capsys.readouterr().err
     assert not out.exists()
 
 
 @pytest.mark.parametrize("case", ["bad_value", "unknown_key", "inverting_design", "inverted", "missing"])
-def test_bad_input_exit_code_2_and_nothing_written(tmp_path, capsys, case):
+def test_bad_input_exit_code_2_and_nothing_written(tmp_path, capsys, case, config_file):
     out = tmp_path / "out"
     args = []
     if case == "bad_value":
-        args = [str(small_toml(tmp_path, material={"E": -1.0}))]
+        args = [str(config_file(material={"E": -1.0}))]
     elif case == "unknown_key":
         p = tmp_path / "u.toml"
         p.write_text("[mesh]\nnx = 4\nsize = 3\n")
@@ -59,10 +48,10 @@ def test_bad_input_exit_code_2_and_nothing_written(tmp_path, capsys, case):
         # a design outside U is solved with warnings (test_design_space); one above c = 1 inverts the mesh
         alpha = tmp_path / "a.json"
         alpha.write_text(json.dumps({"alpha": np.full((8, 4), 1.2).tolist()}))
-        args = [str(small_toml(tmp_path)), "--alpha", str(alpha)]
+        args = [str(config_file()), "--alpha", str(alpha)]
     elif case == "inverted":
         # C0 ≥ c would let the surface reach the top face and invert the mapped elements
-        args = [str(small_toml(tmp_path, geometry={"c": 0.5}))]
+        args = [str(config_file(geometry={"c": 0.5}))]
     elif case == "missing":
         args = [str(tmp_path / "nope.toml")]
     code = main(["state", *args, "--out", str(out)])
@@ -92,8 +81,8 @@ def test_solve_fclib_command(capsys):
     assert "error" in capsys.readouterr().out
 
 
-def test_run_small_example_end_to_end(tmp_path, capsys):
-    cfg = small_toml(tmp_path)
+def test_run_small_example_end_to_end(tmp_path, capsys, config_file):
+    cfg = config_file()
     out = tmp_path / "run"
     assert main(["run", str(cfg), "--out", str(out), "--max-iter", "4"]) == 0
     text = capsys.readouterr().out
@@ -117,8 +106,8 @@ def test_run_small_example_end_to_end(tmp_path, capsys):
     assert "not empty" in capsys.readouterr().err
 
 
-def test_corrupt_checkpoint_is_refused(tmp_path, capsys):
-    cfg = small_toml(tmp_path)
+def test_corrupt_checkpoint_is_refused(tmp_path, capsys, config_file):
+    cfg = config_file()
     out = tmp_path / "run"
     assert main(["run", str(cfg), "--out", str(out), "--max-iter", "2"]) == 0
     (out / "checkpoint.npz").write_bytes(b"not a zip file")
@@ -127,8 +116,8 @@ def test_corrupt_checkpoint_is_refused(tmp_path, capsys):
 
 
 @pytest.mark.integration
-def test_kill_and_resume_gives_the_uninterrupted_result(tmp_path):
-    cfg = small_toml(tmp_path)
+def test_kill_and_resume_gives_the_uninterrupted_result(tmp_path, config_file):
+    cfg = config_file()
     ref = tmp_path / "ref"
     assert main(["run", str(cfg), "--out", str(ref), "--max-iter", "16"]) == 0
     out = tmp_path / "killed"
@@ -156,12 +145,12 @@ def test_kill_and_resume_gives_the_uninterrupted_result(tmp_path):
 
 
 @pytest.mark.integration
-def test_state_failure_stops_the_run_and_keeps_the_checkpoint(tmp_path, capsys, monkeypatch):
+def test_state_failure_stops_the_run_and_keeps_the_checkpoint(tmp_path, capsys, monkeypatch, config_file):
     """A state solve that does not converge mid-run: exit 2, a message naming it, the last good
     checkpoint kept (and loadable: --resume finishes the run), no summary of an unfinished run."""
     import contactopt.sensitivity.adjoint as adjoint
     from contactopt.errors import ContactNotConverged
-    cfg = small_toml(tmp_path)
+    cfg = config_file()
     ref = tmp_path / "ref"
     assert main(["run", str(cfg), "--out", str(ref), "--max-iter", "8"]) == 0
     capsys.readouterr()
@@ -191,9 +180,9 @@ def test_state_failure_stops_the_run_and_keeps_the_checkpoint(tmp_path, capsys, 
     assert np.allclose(b["alpha"], a["alpha"], rtol=0, atol=1e-12)
 
 
-def test_unusable_output_directory_exit_2_and_nothing_written(tmp_path, capsys):
+def test_unusable_output_directory_exit_2_and_nothing_written(tmp_path, capsys, config_file):
     """An output path that cannot be a directory (its parent is a file): exit 2, a clear message."""
-    cfg = small_toml(tmp_path)
+    cfg = config_file()
     blocker = tmp_path / "afile"
     blocker.write_text("x")
     assert main(["run", str(cfg), "--out", str(blocker / "run"), "--max-iter", "1"]) == 2
@@ -204,8 +193,8 @@ def test_unusable_output_directory_exit_2_and_nothing_written(tmp_path, capsys):
     assert "is not a directory" in capsys.readouterr().err
 
 
-def test_resume_with_an_unusable_delassus_design_touches_nothing(tmp_path, capsys):
-    cfg = small_toml(tmp_path)
+def test_resume_with_an_unusable_delassus_design_touches_nothing(tmp_path, capsys, config_file):
+    cfg = config_file()
     out = tmp_path / "run"
     assert main(["run", str(cfg), "--out", str(out), "--max-iter", "3"]) == 0
     ckpt = out / "checkpoint.npz"

@@ -12,7 +12,6 @@ import json
 import meshio
 import numpy as np
 import pytest
-import tomli_w
 
 from contactopt.cli import main
 from contactopt.config import load_config
@@ -42,11 +41,6 @@ def paraboloid_net():
     return f[:, None] + g[None, :]
 
 
-def write_toml(path, data):
-    path.write_text(tomli_w.dumps(data))
-    return path
-
-
 def write_msh(path, points, ref, names=("clamped", "top", "right", "contact")):
     """The block's cells at ``points`` as a binary Gmsh 2.2 file with the block's face groups."""
     blocks = [("quad", ref.parts[n].faces) for n in names] + [("hexahedron", ref.cells)]
@@ -56,16 +50,16 @@ def write_msh(path, points, ref, names=("clamped", "top", "right", "contact")):
                                    field_data=fd), file_format="gmsh22", binary=True)
 
 
-def crowned_configs(tmp_path):
+def crowned_configs(tmp_path, config_file):
     """The block with the crown as a design, and the block with the crown in its mesh file."""
     base = {"name": "crown_design", "geometry": {"a": A, "b": B, "c": C}, "mesh": {"nx": NX, "ny": NY, "nz": NZ},
             "loads": {"traction": LOADS}, "design": {"degree": [2, 2], "C0": 0.5}}
-    design = write_toml(tmp_path / "design.toml", base)
+    design = config_file(name="design", config=base)
     ref = block_mesh(A, B, C, NX, NY, NZ)
     pts = ref.points.copy()
     pts[:, 2] += paraboloid(pts[:, 0], pts[:, 1]) * (1.0 - pts[:, 2] / C)     # the block's morph weight
     write_msh(tmp_path / "crowned.msh", pts, ref)
-    mesh = write_toml(tmp_path / "mesh.toml", {
+    mesh = config_file(name="mesh", config={
         "name": "crown_mesh", "body": {"mesh": "crowned.msh", "clamped": "clamped", "contact": "contact",
                                        "initial_gap": "mesh"},
         "loads": {"traction": LOADS}, "design": {"degree": [2, 2], "C0": 0.5, "C2": 0.0, "initial": 0.0}})
@@ -79,8 +73,8 @@ def test_degree_two_net_is_the_paraboloid_and_dips_below_zero():
     assert np.abs(BezierSurface(2, 2, A, B).evaluate(net, x1, x2) - paraboloid(x1, x2)).max() < 1e-15
 
 
-def test_crowned_design_through_state_equals_the_crown_in_the_mesh(tmp_path, capsys):
-    design, mesh = crowned_configs(tmp_path)
+def test_crowned_design_through_state_equals_the_crown_in_the_mesh(tmp_path, capsys, config_file):
+    design, mesh = crowned_configs(tmp_path, config_file)
     alpha = tmp_path / "crown.json"
     alpha.write_text(json.dumps({"alpha": paraboloid_net().tolist()}))
     assert main(["state", str(design), "--alpha", str(alpha), "--out", str(tmp_path / "a")]) == 0
@@ -104,8 +98,8 @@ def test_crowned_design_through_state_equals_the_crown_in_the_mesh(tmp_path, cap
     assert ca["class"] == cb["class"]
 
 
-def test_a_design_that_inverts_the_mesh_is_refused(tmp_path, capsys):
-    design, _ = crowned_configs(tmp_path)
+def test_a_design_that_inverts_the_mesh_is_refused(tmp_path, capsys, config_file):
+    design, _ = crowned_configs(tmp_path, config_file)
     alpha = tmp_path / "high.json"
     alpha.write_text(json.dumps({"alpha": np.full((3, 3), 1.2).tolist()}))    # above the top face c = 1
     out = tmp_path / "out"
@@ -114,8 +108,8 @@ def test_a_design_that_inverts_the_mesh_is_refused(tmp_path, capsys):
     assert f"--alpha {alpha}: the design would leave" in err and "inverted" in err and not out.exists()
 
 
-def test_a_face_below_the_plane_is_named(tmp_path, capsys):
-    design, _ = crowned_configs(tmp_path)
+def test_a_face_below_the_plane_is_named(tmp_path, capsys, config_file):
+    design, _ = crowned_configs(tmp_path, config_file)
     alpha = tmp_path / "low.json"
     alpha.write_text(json.dumps({"alpha": (paraboloid_net() - 0.01).tolist()}))
     assert main(["state", str(design), "--alpha", str(alpha), "--out", str(tmp_path / "s")]) == 0
@@ -156,7 +150,7 @@ def test_gap_rows_only_where_they_can_be_active():
     assert least + g0[m] < 0
 
 
-def test_lower_above_C0_and_graded_coordinates_not_increasing_exit_2(tmp_path, capsys):
+def test_lower_above_C0_and_graded_coordinates_not_increasing_exit_2(tmp_path, capsys, config_file):
     base = load_config("example1").with_updates({"mesh": {"nx": 4, "ny": 2, "nz": 2}}).data
     for name, upd, needle in (
             ("lower", {"design": {**base["design"], "lower": 0.8}}, "design.lower = 0.8: must be ≤ design.C0 = 0.75"),
@@ -166,7 +160,7 @@ def test_lower_above_C0_and_graded_coordinates_not_increasing_exit_2(tmp_path, c
              "mesh.x3 and mesh.nz: give the node coordinates or the number of elements in x3, not both"),
             ("start", {"mesh": {"x2": [0.1, 1.0], "nx": 4, "nz": 2}}, "mesh.x2 = [0.1, 1.0]: must start at 0"),
             ("end", {"mesh": {"x1": [0.0, 1.0, 3.0], "ny": 2, "nz": 2}}, "mesh.x1 ends at 3, geometry.a = 2")):
-        cfg = write_toml(tmp_path / f"{name}.toml", {**base, **upd})
+        cfg = config_file(name=name, config={**base, **upd})
         for cmd in (["state", str(cfg), "--out", str(tmp_path / "s")], ["run", str(cfg), "--out", str(tmp_path / "r")]):
             assert main(cmd) == 2
             err = capsys.readouterr().err
@@ -175,7 +169,7 @@ def test_lower_above_C0_and_graded_coordinates_not_increasing_exit_2(tmp_path, c
 
 
 # ---------------------------------------------------------------------- the graded block
-def test_graded_block_equals_the_same_grid_from_a_file(tmp_path):
+def test_graded_block_equals_the_same_grid_from_a_file(tmp_path, config_file):
     x1 = [0.0, 0.1, 0.3, 0.6, 1.0, 1.5, 2.0]
     x3 = [0.0, 0.05, 0.15, 0.4, 1.0]
     data = load_config("example1").data
@@ -188,7 +182,7 @@ def test_graded_block_equals_the_same_grid_from_a_file(tmp_path):
     # the weight is the block's 1 − x3/c also on a graded grid (linear functions are discretely harmonic)
     assert np.abs(m.weight - (1.0 - pts[:, 2])).max() < 1e-12
     # the resolved configuration reads back (a run directory's config.toml)
-    assert load_config(write_toml(tmp_path / "back.toml", graded.data))["mesh"] == graded["mesh"]
+    assert load_config(config_file(name="back", config=graded.data))["mesh"] == graded["mesh"]
     # the same grid as a mesh file: the same state
     ref = m.body.reference
     write_msh(tmp_path / "graded.msh", ref.points, ref)
@@ -252,9 +246,9 @@ def test_example1_with_negative_lower_bound_to_its_stop():
     assert J < 8.4e-8                                  # the paper's U: J = 8.36e-8 (docs)
 
 
-def test_a_design_outside_U_is_solved_with_a_warning_naming_the_constraint(tmp_path, capsys):
+def test_a_design_outside_U_is_solved_with_a_warning_naming_the_constraint(tmp_path, capsys, config_file):
     """α = 0.02 everywhere breaks only the mean value C2 = 0.01 (refused before lower bounds and designs outside U were taken)."""
-    cfg = write_toml(tmp_path / "small.toml", load_config("example1").with_updates(
+    cfg = config_file(name="small", config=load_config("example1").with_updates(
         {"mesh": {"nx": 8, "ny": 4, "nz": 3}, "name": "small"}).data)
     alpha = tmp_path / "a.json"
     alpha.write_text(json.dumps({"alpha": np.full((8, 4), 0.02).tolist()}))
@@ -267,9 +261,9 @@ def test_a_design_outside_U_is_solved_with_a_warning_naming_the_constraint(tmp_p
     assert json.loads((tmp_path / "t" / "state.json").read_text())["warnings"] == []
 
 
-def test_with_initial_gap_mesh_the_rows_hold_the_total_gap(tmp_path):
+def test_with_initial_gap_mesh_the_rows_hold_the_total_gap(tmp_path, config_file):
     """initial_gap = "mesh": the constraint is height + ϑ_α ≥ 0; rows only where lower + height < 0."""
-    _, mesh = crowned_configs(tmp_path)
+    _, mesh = crowned_configs(tmp_path, config_file)
     cfg = load_config(mesh).with_updates({"design": {"lower": -0.1}})
     model = ElasticModel(cfg)
     U = model.admissible

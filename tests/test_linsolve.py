@@ -4,8 +4,6 @@ from __future__ import annotations
 
 import gc
 import logging
-import sys
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -14,9 +12,7 @@ import scipy.sparse as sp
 from contactopt.errors import SolverError
 from contactopt.fem import _pardiso, linsolve
 from contactopt.fem.linsolve import condense, factorize
-
-sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
-from _brick import EXAMPLE1, brick, hex_stiffness  # noqa: E402
+from contactopt.verification.brick import EXAMPLE1, brick, hex_stiffness
 
 HAVE_PARDISO = _pardiso.available()
 BACKENDS = [pytest.param("pardiso", marks=pytest.mark.skipif(not HAVE_PARDISO,

@@ -288,13 +288,7 @@ def test_a_zero_force_a_foundation_and_the_other_paths_are_refused(tmp_path, cap
 
 # ------------------------------------------------------------------ Hertz (coarse; benchmarks/hertz.py refines)
 def test_hertz_contact_of_a_sphere_and_a_cylinder_on_coarse_meshes():
-    import sys
-    from pathlib import Path
-    sys.path.insert(0, str(Path(__file__).parents[1] / "benchmarks"))
-    try:
-        from hertz import A_TARGET, measure_cylinder, measure_sphere
-    finally:
-        sys.path.pop(0)
+    from contactopt.verification.hertz import A_TARGET, measure_cylinder, measure_sphere
     s = measure_sphere(A_TARGET / 3)
     assert s["counts"]["M1"] > 10 and s["counts"]["M2"] == 0
     assert abs(s["a"] / s["a_H"] - 1) < 0.01 and abs(s["p0"] / s["p0_H"] - 1) < 0.01

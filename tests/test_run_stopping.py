@@ -5,18 +5,12 @@ import re
 
 import pytest
 
-from contactopt.config import load_config
 from contactopt.runner import run_optimization
 
 
-def small_config(**optimizer):
-    return load_config("example1").with_updates(
-        {"mesh": {"nx": 8, "ny": 4, "nz": 3}, "name": "small", "optimizer": optimizer})
-
-
 @pytest.mark.integration
-def test_run_stops_when_the_model_predicts_no_decrease(tmp_path):
-    cfg = small_config(max_iter=200, ftol=1e-2)     # the coarse mesh's Θ is rough: ftol 1e-2
+def test_run_stops_when_the_model_predicts_no_decrease(tmp_path, small_config):
+    cfg = small_config(optimizer={"max_iter": 200, "ftol": 1e-2})     # the coarse mesh's Θ is rough: ftol 1e-2
     rr = run_optimization(cfg, tmp_path / "run")
     s = json.loads((tmp_path / "run" / "summary.json").read_text())
     assert s["message"] == rr.summary["message"]
@@ -36,8 +30,8 @@ def test_run_stops_when_the_model_predicts_no_decrease(tmp_path):
     assert steps[-1] == "serious" and steps.count("serious") >= 5
 
 
-def test_run_with_the_practical_stop_off_reports_max_iter(tmp_path):
-    cfg = small_config(max_iter=6, ftol=0.0)
+def test_run_with_the_practical_stop_off_reports_max_iter(tmp_path, small_config):
+    cfg = small_config(optimizer={"max_iter": 6, "ftol": 0.0})
     s = run_optimization(cfg, tmp_path / "run").summary
     assert s["success"] is False and s["status"] == 1 and s["iterations"] == 6
     assert s["stopping"]["criterion"] == "max_iter" and s["message"] == "max_iter reached (6 iterations)"

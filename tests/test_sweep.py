@@ -11,10 +11,8 @@ import threading
 import time
 
 import pytest
-import tomli_w
 
 from contactopt.cli import main
-from contactopt.config import load_config
 from contactopt.errors import ConfigError
 from contactopt.studies import build_tasks, gather, parse_settings, run_sweep
 from contactopt.studies.sweep import RESULT_COLUMNS
@@ -23,13 +21,6 @@ pytest.importorskip("distributed")
 
 FRICTIONS = [0.0, 0.1, 0.2, 0.3]
 SET_F = "friction.coefficient=0,0.1,0.2,0.3"
-
-
-def small_toml(tmp_path, nx=8, ny=4, nz=3, name="small"):
-    data = load_config("example1").with_updates({"mesh": {"nx": nx, "ny": ny, "nz": nz}, "name": name}).data
-    path = tmp_path / f"{name}.toml"
-    path.write_text(tomli_w.dumps(data))
-    return path
 
 
 def read_csv(path):
@@ -103,9 +94,9 @@ def check_sweep_dir(out, n=4):
 
 
 @pytest.mark.integration
-def test_sweep_on_a_local_cluster_then_gather_and_resume(tmp_path, capsys):
+def test_sweep_on_a_local_cluster_then_gather_and_resume(tmp_path, capsys, config_file):
     out = tmp_path / "sw"
-    code = main(["sweep", str(small_toml(tmp_path)), "--set", SET_F, "--workers", "2", "--max-iter", "4",
+    code = main(["sweep", str(config_file()), "--set", SET_F, "--workers", "2", "--max-iter", "4",
                  "--out", str(out)])
     printed = capsys.readouterr().out
     assert code == 0, printed
@@ -122,9 +113,9 @@ def test_sweep_on_a_local_cluster_then_gather_and_resume(tmp_path, capsys):
     assert [r["J"] for r in gather(out).rows] == [float(r["J"]) for r in rows]
     assert read_csv(out / "sweep.csv") == rows
     # a non-empty sweep directory is refused without --resume; --resume reuses the finished runs
-    assert main(["sweep", str(small_toml(tmp_path)), "--set", SET_F, "--max-iter", "4", "--out", str(out)]) == 2
+    assert main(["sweep", str(config_file()), "--set", SET_F, "--max-iter", "4", "--out", str(out)]) == 2
     stamps = {p: p.stat().st_mtime_ns for p in out.glob("runs/*/summary.json")}
-    res = run_sweep(small_toml(tmp_path), [("friction.coefficient", FRICTIONS)], out, workers=1, max_iter=4,
+    res = run_sweep(config_file(), [("friction.coefficient", FRICTIONS)], out, workers=1, max_iter=4,
                     resume=True, plots=False)
     assert [r["status"] for r in res.rows] == ["reused"] * 4
     assert [r["J"] for r in res.rows] == [float(r["J"]) for r in rows]
@@ -132,10 +123,10 @@ def test_sweep_on_a_local_cluster_then_gather_and_resume(tmp_path, capsys):
 
 
 @pytest.mark.integration
-def test_failed_task_is_recorded_and_the_others_go_on(tmp_path):
+def test_failed_task_is_recorded_and_the_others_go_on(tmp_path, config_file):
     # a contact solver allowed one iteration cannot converge: that task fails, the other runs
     out = tmp_path / "sw"
-    res = run_sweep(small_toml(tmp_path), [("state.max_iter", [1, 200])], out, workers=2, max_iter=2,
+    res = run_sweep(config_file(), [("state.max_iter", [1, 200])], out, workers=2, max_iter=2,
                     plots=False)
     bad, good = res.rows
     assert res.n_failed == 1
@@ -205,9 +196,9 @@ def cluster(tmp_path):
 
 
 @pytest.mark.integration
-def test_sweep_through_a_scheduler_and_two_worker_processes(tmp_path, cluster, capsys):
+def test_sweep_through_a_scheduler_and_two_worker_processes(tmp_path, cluster, capsys, config_file):
     out = tmp_path / "sw"
-    code = main(["sweep", str(small_toml(tmp_path)), "--set", SET_F, "--scheduler", cluster.address,
+    code = main(["sweep", str(config_file()), "--set", SET_F, "--scheduler", cluster.address,
                  "--max-iter", "4", "--out", str(out)])
     printed = capsys.readouterr().out
     assert code == 0, printed
@@ -218,9 +209,9 @@ def test_sweep_through_a_scheduler_and_two_worker_processes(tmp_path, cluster, c
 
 
 @pytest.mark.integration
-def test_killed_worker_has_its_task_resumed_elsewhere(tmp_path, cluster):
+def test_killed_worker_has_its_task_resumed_elsewhere(tmp_path, cluster, config_file, small_config):
     """Kill the worker of a task that has a checkpoint: all 4 results come, that task resumed."""
-    cfg = small_toml(tmp_path, nx=12, ny=6, nz=4)
+    cfg = config_file(small_config(mesh={"nx": 12, "ny": 6, "nz": 4}))
     out = tmp_path / "sw"
     result = {}
 
@@ -269,11 +260,11 @@ def test_killed_worker_has_its_task_resumed_elsewhere(tmp_path, cluster):
 
 
 @pytest.mark.integration
-def test_task_in_a_directory_without_checkpoint_starts_afresh(tmp_path):
+def test_task_in_a_directory_without_checkpoint_starts_afresh(tmp_path, config_file):
     """A worker that died before the first checkpoint leaves a run directory without one: the
     rerun starts the run anew there (run_optimization(resume=True) would refuse it)."""
     from contactopt.studies.sweep import TaskSpec, run_task
-    task = build_tasks(small_toml(tmp_path), [("friction.coefficient", [0.2])])[0]
+    task = build_tasks(config_file(), [("friction.coefficient", [0.2])])[0]
     run = tmp_path / "sw" / "runs" / task.name
     run.mkdir(parents=True)
     (run / "run.log").write_text("an attempt that died\n")

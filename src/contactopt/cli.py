@@ -285,6 +285,19 @@ def _cmd_sweep(args) -> int:
     return 1 if res.n_failed else 0
 
 
+def _cmd_schema(args) -> int:
+    """The JSON Schema of a configuration file, for TOML editors (docs/configuration.md)."""
+    from .config import json_schema
+    text = json.dumps(json_schema(), indent=2, ensure_ascii=False) + "\n"
+    if args.out:
+        from .io.atomic import atomic_write_text
+        atomic_write_text(Path(args.out), text)
+        print(f"wrote {args.out}")
+    else:
+        print(text, end="")
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     ap = argparse.ArgumentParser(prog="contactopt", description=(
         "Shape optimization of 3D elastic bodies in unilateral contact with Coulomb friction "
@@ -349,6 +362,10 @@ def build_parser() -> argparse.ArgumentParser:
     f.add_argument("--method", default="newton", choices=["newton", "fixed-point"])
     f.add_argument("--tol", type=float, default=1e-8)
     f.set_defaults(func=_cmd_solve_fclib)
+
+    j = sub.add_parser("schema", help="the JSON Schema of a configuration file (for TOML editors)")
+    j.add_argument("-o", "--out", help="write it to this file (default: print it)")
+    j.set_defaults(func=_cmd_schema)
     return ap
 
 

@@ -66,7 +66,7 @@ class ShapeProblem:
         from .sensitivity.steps import build_path, step_choice, step_tables
         self.steps = []
         for k, case in enumerate(self.cases):
-            own = self.has_load_cases and self.config.data["load_cases"][k].get("steps") is not None
+            own = self.has_load_cases and self.config.load_cases[k].steps is not None
             where = f"load_cases[{k}].steps" if own else "load_steps"
             self.steps.append(build_path(self.model, case.loads,
                                          step_tables(self.config, k if self.has_load_cases else None), where))
@@ -95,7 +95,7 @@ class ShapeProblem:
     @property
     def has_load_cases(self) -> bool:
         """Whether the configuration lists [[load_cases]] (else one case of [loads])."""
-        return bool(self.config.data.get("load_cases"))
+        return bool(self.config.load_cases)
 
     @property
     def case_names(self) -> tuple:
@@ -415,7 +415,7 @@ class ShapeProblem:
         k = comb.case if case is None else case
         obj = self.cases[k].objective
         value = comb.value if case is None else float(comb.values[case])
-        out = {"type": self.config["objective"]["type"], "value": float(value), "terms": {}}
+        out = {"type": self.config.objective.type, "value": float(value), "terms": {}}
         for name, weight, _ in getattr(obj, "terms", []):
             out["terms"][name] = {"value": obj.last_terms[name], "weight": weight}
         return out

@@ -219,11 +219,11 @@ def _write_checkpoint(path: Path, bstate, oracle: _Oracle, fingerprint: str, ela
     except OSError as exc:
         raise write_error(oracle.history_path, exc) from exc
     d = bstate.to_dict()
-    opt = oracle.problem.config["optimizer"]
+    opt = oracle.problem.config.optimizer
     arrays = {f"bundle_{k}": np.asarray(v) for k, v in d.items()}
     arrays.update(meta_fingerprint=np.array(fingerprint), meta_evaluations=np.array(oracle.count),
-                  meta_elapsed=np.array(elapsed), meta_scale=np.array(oracle.scale), meta_eps=np.array(opt["eps"]),
-                  meta_max_iter=np.array(opt["max_iter"]))
+                  meta_elapsed=np.array(elapsed), meta_scale=np.array(oracle.scale), meta_eps=np.array(opt.eps),
+                  meta_max_iter=np.array(opt.max_iter))
     if getattr(oracle, "reduction", None) is not None:     # the bundle works on β: the design in α
         arrays["meta_alpha"] = oracle.reduction.expand(d["x"])
     if result is not None:
@@ -404,7 +404,7 @@ def run_optimization(config, outdir=None, *, eps=None, max_iter=None, resume=Fal
                                   f"case(s), the configuration has {len(problem.cases)}")
         # before the run directory is touched: a kept Delassus block or AMG hierarchy is rebuilt
         problem.import_contexts(contexts, f"checkpoint {ckpt}")
-        finished = _saved_result(ckpt, bstate, cfg["optimizer"]["max_iter"])
+        finished = _saved_result(ckpt, bstate, cfg.optimizer.max_iter)
     lock = claim_output_dir(out, overwrite=overwrite, resume=resume)
     root = logging.getLogger("contactopt")
     old_level = root.level
@@ -467,7 +467,7 @@ def run_optimization(config, outdir=None, *, eps=None, max_iter=None, resume=Fal
                               stationarity=st.stationarity, nfev=oracle.count,
                               elapsed=time.perf_counter() - oracle.t_start))
 
-        opt = cfg["optimizer"]
+        opt = cfg.optimizer
         if finished is not None:
             res = finished
         else:
@@ -475,11 +475,9 @@ def run_optimization(config, outdir=None, *, eps=None, max_iter=None, resume=Fal
                 f, x0, cons = oracle, alpha0, model.admissible.constraints()
                 if red is not None:       # the optimizer works on β; Pᵀ ξ its subgradient
                     f, x0, cons = _reduced(oracle, red), red.beta0, red.bounds
-                res = minimize_bundle(f, x0, **cons, eps=opt["eps"],
-                                      max_iter=opt["max_iter"], callback=callback,
-                                      **{k: opt[k] for k in ("ftol", "ftol_window", "metric", "metric_memory")
-                                         if k in opt},
-                                      **state_kw)
+                res = minimize_bundle(f, x0, **cons, eps=opt.eps, max_iter=opt.max_iter, callback=callback,
+                                      ftol=opt.ftol, ftol_window=opt.ftol_window, metric=opt.metric,
+                                      metric_memory=opt.metric_memory, **state_kw)
             except RunAborted as exc:
                 exc.checkpoint = ckpt if ckpt.exists() else None
                 exc.args = (f"{exc.args[0]}; " + (f"the checkpoint of iteration {oracle.iteration} is kept "
@@ -536,7 +534,8 @@ def _interrupted(exc, config, out: Path, cfg, position: _Position, oracle) -> In
 
 
 def _stopping(res, opt) -> dict:
-    """Both stopping tests of the run at its end, and which one fired (summary.json).
+    """Both stopping tests of the run at its end, and which one fired (summary.json); ``opt`` the
+    run's ``[optimizer]``.
 
     ``criterion``: "stationarity" (certified, status 0), "predicted_decrease" (status 4),
     "max_iter" (1), "callback" (2) or "stalled" (3); the measures are those of Θ/Θ(α0).
@@ -547,10 +546,10 @@ def _stopping(res, opt) -> dict:
     rel = float(res.relative_decrease)
     pred = float(res.predicted_decrease)
     return {"criterion": res.criterion,
-            "stationarity": float(res.stationarity), "eps": float(opt["eps"]),
+            "stationarity": float(res.stationarity), "eps": float(opt.eps),
             "J_tolerance": pred if np.isfinite(pred) else None,
             "relative_decrease": rel if np.isfinite(rel) else None,
-            "ftol": float(opt.get("ftol", 0.0)), "ftol_window": int(opt.get("ftol_window", 0))}
+            "ftol": float(opt.ftol), "ftol_window": int(opt.ftol_window)}
 
 
 def _finish(out: Path, problem, alpha0, res, oracle, t_start) -> dict:
@@ -602,7 +601,7 @@ def _finish(out: Path, problem, alpha0, res, oracle, t_start) -> dict:
         "name": problem.config.name, "J0": J0, "J": J, "ratio": J / J0 if J0 else None,
         "iterations": int(res.nit), "evaluations": int(oracle.count), "serious_steps": int(res.n_serious),
         "null_steps": int(res.n_null), "success": bool(res.success), "message": str(res.message),
-        "status": int(res.status), "stopping": _stopping(res, problem.config["optimizer"]),
+        "status": int(res.status), "stopping": _stopping(res, problem.config.optimizer),
         "alpha": amat.tolist(), "feasible": bool(model.admissible.is_feasible(x, tol=1e-8)),
         "wall_time_s": wall,
         "time_breakdown_s": {**oracle.time, "outputs": time.perf_counter() - t0},
@@ -617,7 +616,7 @@ def _finish(out: Path, problem, alpha0, res, oracle, t_start) -> dict:
         summary["load_cases"] = _load_case_outputs(out, problem, (c0, states0), (c1, states1))
     if steps1:
         summary["load_steps"] = {"names": list(steps1), "J0": steps0, "J": steps1, "objective_steps":
-                                 problem.config["objective"]["steps"]}
+                                 problem.config.objective.steps}
     summary["export"] = _export(out, model, x)
     summary["time_breakdown_s"]["outputs"] = time.perf_counter() - t0
     atomic_write_json(out / "summary.json", summary)

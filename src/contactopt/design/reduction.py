@@ -231,8 +231,8 @@ def reduction_of(problem, alpha0):
     """The reduction of a shape problem's ``[design] symmetry`` / ``fixed``, or None without
     them (the paper's setting: the optimizer works on α itself). Its ``warnings`` list what is
     not symmetric (:func:`symmetry_warnings`)."""
-    d = problem.config["design"]
-    symmetry, fixed = d.get("symmetry", []), d.get("fixed", [])
+    d = problem.config.design
+    symmetry, fixed = d.symmetry, d.fixed
     if not symmetry and not fixed:
         return None
     model = problem.model

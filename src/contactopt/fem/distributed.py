@@ -103,7 +103,7 @@ class DistributedBody:
         self.old_of = order
         new_cells = self.new_of[cells]
         lo, hi = self.node_range
-        E, nu = model.config["material"]["E"], model.config["material"]["nu"]
+        E, nu = model.config.material.E, model.config.material.nu
         self._formulation = asm.formulation           # B-bar is per element: the sub-meshes take it as they are
         # the stiffness of the owned rows: every element at an owned node (a layer of elements of
         # the neighbouring ranks computed here too, so assembly needs no communication)

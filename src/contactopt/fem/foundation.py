@@ -51,20 +51,21 @@ class Foundation:
     (on the free support DOFs), ``C`` (3p × 3p), ``q_f`` (3p,), ``condensation`` (of K_f onto the
     free support DOFs: the foundation's displacement for outputs)."""
 
-    def __init__(self, cfg, body, backend: str = "auto", check=None):
-        """``check(parts)``: called with :attr:`memory_parts` before K_f is assembled and
+    def __init__(self, spec, body, source: str = "<dict>", backend: str = "auto", check=None):
+        """``spec`` the ``[foundation]`` section of the configuration read from ``source``;
+        ``check(parts)``: called with :attr:`memory_parts` before K_f is assembled and
         condensed (the model's memory check), so that a foundation too large is refused first."""
         from .linsolve import condense
         from .memory import foundation_parts, matrix_entries
         contact_nodes = body.contact_nodes
         contact_xy = body.reference.points[contact_nodes, :2]
-        self.mesh = fm = build_foundation_mesh(cfg, contact_xy)
+        self.mesh = fm = build_foundation_mesh(spec, contact_xy, source)
         ref = fm.reference
-        self.partner = cfg["foundation"]["partner"]
-        self.loads = load_set(fm, cfg["foundation"]["loads"], where=f"{cfg.source}: foundation.loads")
+        self.partner = spec.partner
+        self.loads = load_set(fm, spec.loads, where=f"{source}: foundation.loads")
         self.assembler = ElasticityAssembler(ref.cells, ref.n_nodes, fm.fixed_dofs, fm.E, fm.nu,
                                              element=element_type(ref.cell_type))
-        where = f"{cfg.source}: foundation.top"
+        where = f"{source}: foundation.top"
         p = contact_xy.shape[0]
         faces, weights = locate_partners(ref.points, fm.top.faces, ref.face_type, contact_xy, contact_nodes, where)
         if self.partner == "auto":

@@ -71,20 +71,22 @@ class LoadSet:
         return out
 
 
-def load_set(body, loads: dict, where: str = "loads") -> LoadSet:
-    """Resolve a loads table (``[loads]`` of a configuration) on the parts of ``body``."""
+def load_set(body, loads, where: str = "loads") -> LoadSet:
+    """Resolve loads in the form of ``[loads]`` (:class:`~contactopt.config.Loads`: of the
+    configuration, a load case, a load step or the foundation) on the parts of ``body``; a load
+    not given is none."""
     problems = []
-    out = LoadSet(body_force=np.array(loads.get("body_force", [0.0, 0.0, 0.0]), float))
-    entries = [("traction", {"on": name, "value": loads[f"{name}_traction"]}, f"{where}.{name}_traction")
-               for name in ("top", "right") if f"{name}_traction" in loads]
-    entries += [("traction", e, f"{where}.traction[{i}]") for i, e in enumerate(loads.get("traction", []))]
-    entries += [("pressure", e, f"{where}.pressure[{i}]") for i, e in enumerate(loads.get("pressure", []))]
-    for kind, entry, key in entries:
-        value = np.array(entry["value"], float) if kind == "traction" else float(entry["value"])
+    out = LoadSet(body_force=np.array(loads.body_force if loads.body_force is not None else [0.0, 0.0, 0.0], float))
+    entries = [("traction", name, value, f"{where}.{name}_traction")
+               for name, value in (("top", loads.top_traction), ("right", loads.right_traction)) if value is not None]
+    entries += [("traction", e.on, e.value, f"{where}.traction[{i}]") for i, e in enumerate(loads.traction)]
+    entries += [("pressure", e.on, e.value, f"{where}.pressure[{i}]") for i, e in enumerate(loads.pressure)]
+    for kind, on, given, key in entries:
+        value = np.array(given, float) if kind == "traction" else float(given)
         if not np.any(value):
             continue
         try:
-            part = body.part(entry["on"])
+            part = body.part(on)
         except ConfigError as exc:
             problems += [f"{key}: {p}" for p in exc.problems]
             continue

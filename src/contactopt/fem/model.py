@@ -70,40 +70,39 @@ class ElasticModel:
         cfg = load_config(config) if not isinstance(config, Config) else config
         self.config = cfg
         self.body = body = build_body(cfg) if body is None else body
-        formulation = _formulation(cfg, body.reference.cell_type)
+        formulation = _formulation(cfg.material, body.reference.cell_type, cfg.source)
         check = None
-        if cfg["linear_solver"]["memory_check"]:   # refuse a mesh too large before building on it
+        if cfg.linear_solver.memory_check:   # refuse a mesh too large before building on it
             from .memory import check_memory
             est = check_memory(body, estimate=memory_estimate)
 
             def check(extra):                      # an elastic foundation's part, held beside it
                 return check_memory(body, estimate=lambda b: est.with_parts(extra))
         ref = body.reference
-        d = cfg["design"]
-        d1, d2 = d["degree"]
+        d1, d2 = cfg.design.degree
         (x1lo, x1hi), (x2lo, x2hi) = body.domain
         a, b = x1hi - x1lo, x2hi - x2lo
         self.surface = BezierSurface(d1, d2, a, b, x1lo, x2lo)
-        mat = cfg["material"]
-        self.assembler = ElasticityAssembler(ref.cells, ref.n_nodes, body.fixed_dofs, mat["E"], mat["nu"],
+        mat = cfg.material
+        self.assembler = ElasticityAssembler(ref.cells, ref.n_nodes, body.fixed_dofs, mat.E, mat.nu,
                                              element=element_type(ref.cell_type),
                                              formulation=formulation)
         self._check_reference(ref)
         zero = np.concatenate([np.asarray(v, np.int64) for v in body.fixed_shape.values()] or [np.zeros(0, np.int64)])
         self.weight = harmonic_weight(self.assembler, ref.points, body.contact_face.nodes, zero)
-        if cfg["body"]["mesh"]:
+        if cfg.body.mesh:
             self.mesh = MorphedMesh(ref, self.surface, self.weight, body.contact_nodes,
                                     fixed_shape=tuple(body.fixed_shape))
         else:
             from ..mesh.block import block_axes
-            nx, ny, nz = (x.size - 1 for x in block_axes(cfg["geometry"], cfg["mesh"]))
-            self.mesh = HexMesh(nx, ny, nz, self.surface, cfg["geometry"]["c"], reference=ref,
+            nx, ny, nz = (x.size - 1 for x in block_axes(cfg.geometry, cfg.mesh))
+            self.mesh = HexMesh(nx, ny, nz, self.surface, cfg.geometry.c, reference=ref,
                                 weight=self.weight, contact_nodes=body.contact_nodes,
                                 fixed_shape=tuple(body.fixed_shape))
         self.obstacle, self.frames = None, None     # [obstacle] (absent: the plane x3 = 0, fixed)
         self.force = None       # control = "force": |f|, and per contact node force_b, force_gap (_obstacle_gap)
         self.slip_shift = None  # (p, 3) the tangential part of a prescribed translation, per node frame
-        face_frames = self._obstacle(cfg, ref, body)
+        face_frames = self._obstacle(cfg.obstacle, ref, body)
         self.admissible = self._admissible_set(ref, body, face_frames)
         self.mesh.ratio = self._jacobian_ratio(ref, body)
         self.contact_nodes = body.contact_nodes
@@ -117,16 +116,16 @@ class ElasticModel:
         self._pin_mask = None       # ((shape, nnz) of A's pattern, the CSR entries pinning zeroes)
         self.gap_matrix = self.mesh.gap_matrix()
         # initial gap of a contact face above x3 = 0 (body.initial_gap = "mesh"); 0 on the plane
-        self.gap0 = (ref.points[self.contact_nodes, 2].copy() if cfg["body"].get("initial_gap") == "mesh"
+        self.gap0 = (ref.points[self.contact_nodes, 2].copy() if cfg.body.initial_gap == "mesh"
                      else np.zeros(self.contact_nodes.size))
         if face_frames is not None:
-            self._obstacle_gap(cfg["obstacle"], face_frames)
-        self.loads = load_set(body, cfg["loads"])
+            self._obstacle_gap(cfg.obstacle, face_frames)
+        self.loads = load_set(body, cfg.loads)
         self.body_force = self.loads.body_force
         self.foundation = None      # [foundation]: the elastic foundation under the contact face
-        if "foundation" in cfg.data:
+        if cfg.foundation is not None:
             from .foundation import Foundation
-            self.foundation = Foundation(cfg, body, check=check)
+            self.foundation = Foundation(cfg.foundation, body, source=cfg.source, check=check)
 
     # ------------------------------------------------------------------ checks
     def _check_reference(self, ref) -> None:
@@ -140,17 +139,16 @@ class ElasticModel:
                                " (node order of the cells: meshio/VTK)"])
         self._det_ref = det
 
-    def _obstacle(self, cfg, ref, body):
+    def _obstacle(self, spec, ref, body):
         """The frames of the contact face's nodes on an ``[obstacle]`` (None without one, and on the
         plane x3 = 0, whose frames are (e1, e2, e3): that path stays the one without an obstacle).
         Sets ``obstacle`` and, off the plane, ``frames`` (p, 3, 3) per contact node, columns (t1, t2, n)."""
-        spec = cfg.data.get("obstacle")
-        if not spec:
+        if spec is None:
             return None
         from ..mesh.obstacle import contact_frames, make_obstacle
         self.obstacle = make_obstacle(spec)
-        fr = contact_frames(self.obstacle, ref.points, body.contact_face.nodes, body.tol, cfg.source)
-        if spec["shape"] == "plane":
+        fr = contact_frames(self.obstacle, ref.points, body.contact_face.nodes, body.tol, self.config.source)
+        if spec.shape == "plane":
             return fr
         where = np.searchsorted(body.contact_face.nodes, body.contact_nodes)
         R = fr.R[where]
@@ -169,9 +167,9 @@ class ElasticModel:
             off = np.abs(R[m, :, comp] - np.eye(3)[comp]).max(axis=1) > 1e-12
             if np.any(off):
                 n = int(node[off][0])
-                raise ConfigError([f"{cfg.source}: body.clamped: contact node {n} at {_fmt(ref.points[n])} has its "
+                raise ConfigError([f"{self.config.source}: body.clamped: contact node {n} at {_fmt(ref.points[n])} has its "
                                    f"component u{int(comp[off][0]) + 1} clamped, which is not a tangent of its "
-                                   f"frame on the {spec['shape']} obstacle (the symmetry plane must contain the "
+                                   f"frame on the {spec.shape} obstacle (the symmetry plane must contain the "
                                    "obstacle's normal there)"])
         self.frames = R
         return fr
@@ -181,14 +179,14 @@ class ElasticModel:
         without a translation keeps the gap as it is, bit for bit."""
         where = np.searchsorted(self.body.contact_face.nodes, self.contact_nodes)
         n = fr.normal[where]
-        shift = np.asarray(spec["displacement"], float) if spec["control"] == "displacement" else np.zeros(3)
+        shift = np.asarray(spec.displacement, float) if spec.control == "displacement" else np.zeros(3)
         R = self.frames if self.frames is not None else np.broadcast_to(np.eye(3), (n.shape[0], 3, 3))
         if np.any(shift[:2] != 0) or (self.frames is not None and np.any(shift != 0)):
             # a translation's tangential part moves the obstacle under the node: the contact law sees
             # the slip relative to it (per node (t1, t2, 0) in its frame; paths/condensation.py)
             self.slip_shift = np.einsum("mij,i->mj", R, shift) * [1.0, 1.0, 0.0]
-        if spec["control"] == "force":
-            f = np.asarray(spec["force"], float)
+        if spec.control == "force":
+            f = np.asarray(spec.force, float)
             fhat = f / np.linalg.norm(f)
             # the obstacle translates by s·f̂: the gap falls by s (f̂·n_m); the resultant along f̂ is
             # Σ_m b_m·r_m with b_m = R_mᵀ f̂ (r_m per node (t1, t2, n) in its frame)
@@ -196,10 +194,10 @@ class ElasticModel:
             self.force_b = np.einsum("mij,i->mj", R, fhat)
             self.force_gap = n @ fhat
             if not np.any(self.force_gap > 0):
-                raise ConfigError([f"{self.config.source}: obstacle.force = {spec['force']}: no contact node's "
+                raise ConfigError([f"{self.config.source}: obstacle.force = {spec.force}: no contact node's "
                                    "normal has a component along the force: the obstacle cannot press the body "
                                    "(a force with no component along any free direction)"])
-        if spec["shape"] == "plane":
+        if spec.shape == "plane":
             if shift[2] != 0.0:
                 self.gap0 = self.gap0 - shift[2]
             return
@@ -210,30 +208,30 @@ class ElasticModel:
         """U of ``[design]``; with ``nonnegative_gap`` ϑ_α + g0 ≥ 0 at the nodes of the contact face
         (g0 the face's height in the mesh with ``initial_gap = "mesh"``, else 0); on an obstacle
         other than the plane (n_m·e3) ϑ_α + d_m ≥ 0, d_m the node's distance to it (mesh.obstacle)."""
-        d, s = self.config["design"], self.surface
+        d, s = self.config.design, self.surface
         gap = {}
-        if d.get("nonnegative_gap", True):
+        if d.nonnegative_gap:
             nodes = body.contact_face.nodes
             xy = self.mesh._in_domain(ref.points[nodes, :2])
-            g0 = (ref.points[nodes, 2].copy() if self.config["body"].get("initial_gap") == "mesh"
+            g0 = (ref.points[nodes, 2].copy() if self.config.body.initial_gap == "mesh"
                   else np.zeros(nodes.size))
             B = s.basis_matrix(xy[:, 0], xy[:, 1])
             if frames is not None and self.frames is not None:
                 B, g0 = frames.normal[:, 2:3] * B, frames.distance.copy()
             gap = dict(gap_basis=B, gap_offset=g0, gap_nodes=nodes,
                        gap_points=ref.points[nodes, :2])
-        elif d.get("lower", 0.0) < 0:
+        elif d.lower < 0:
             log.warning("%s: design.lower = %g < 0 with design.nonnegative_gap = false: admissible designs may "
                         "put the contact face below the foundation plane (an initial penetration)",
-                        self.config.source, d["lower"])
+                        self.config.source, d.lower)
         extra = {}             # [design] direction and [[design.linear]] (absent: the paper's U)
-        if d.get("direction", "both") != "both":
-            extra.update(direction=d["direction"], initial=self.initial_design())
-        if d.get("linear"):
-            extra["linear"] = tuple((r["coefficients"], "upper" if "upper" in r else "equal",
-                                     r.get("upper", r.get("equal"))) for r in d["linear"])
-        U = AdmissibleSet(s.d1, s.d2, s.a, s.b, d["C0"], d["C1"], d["C2"], d["slope_divisor"],
-                          lower=d.get("lower", 0.0), **gap, **extra)
+        if d.direction != "both":
+            extra.update(direction=d.direction, initial=self.initial_design())
+        if d.linear:
+            extra["linear"] = tuple((r.coefficients, "upper" if r.upper is not None else "equal", r.bound)
+                                    for r in d.linear)
+        U = AdmissibleSet(s.d1, s.d2, s.a, s.b, d.C0, d.C1, d.C2, d.slope_divisor,
+                          lower=d.lower, **gap, **extra)
         if extra and not U.nonempty():
             raise ConfigError([f"{self.config.source}: design.direction / design.linear leave no admissible "
                                "design: the bounds, slopes, mean value and these rows have no common point"])
@@ -243,10 +241,10 @@ class ElasticModel:
         """det J(α)/det J_ref = 1 + Rα (mesh.morph); C0 must keep it above the threshold on U."""
         G, _ = element_geometry(ref.points[ref.cells], self.assembler.dN)
         centroids = ref.points[ref.cells].mean(axis=1)
-        thr = self.config["body"]["min_jacobian_ratio"]
+        thr = self.config.body.min_jacobian_ratio
         jr = JacobianRatio(ref.cells, G[..., 2], self.mesh.dx3_dalpha(), thr, qpoints=centroids,
                            fixed_parts={name: nodes for name, nodes in body.fixed_shape.items()})
-        C0, lower = self.config["design"]["C0"], self.config["design"].get("lower", 0.0)
+        C0, lower = self.config.design.C0, self.config.design.lower
         worst, e, _, _ = jr.worst_on_box(C0, lower)
         self.safe_C0 = jr.safe_C0(lower)
         if worst <= thr:
@@ -270,7 +268,7 @@ class ElasticModel:
 
     def initial_design(self) -> np.ndarray:
         """α0 of the configuration (a scalar fills every control point)."""
-        init = self.config["design"]["initial"]
+        init = self.config.design.initial
         if np.isscalar(init):
             return np.full(self.n_design, float(init))
         return self.surface.as_vector(init)
@@ -350,25 +348,24 @@ class ElasticModel:
         return self.mesh.contract_dx3(d[:, 2])
 
 
-def _formulation(cfg, cell_type) -> str:
-    """The element formulation of ``[material] formulation`` on the mesh's cells; ConfigError if
-    the mesh's element type does not take it."""
-    mat = cfg["material"]
-    form = mat.get("formulation", "auto")
+def _formulation(mat, cell_type, source: str) -> str:
+    """The element formulation of ``[material] formulation`` (``mat``) on the mesh's cells;
+    ConfigError if the mesh's element type does not take it."""
+    form = mat.formulation
     try:
-        resolved = resolve_formulation(form, cell_type, mat["nu"])
+        resolved = resolve_formulation(form, cell_type, mat.nu)
     except ValueError:
-        raise ConfigError([f"{cfg.source}: material.formulation = {form!r}: B-bar is a formulation of hexahedra; "
+        raise ConfigError([f"{source}: material.formulation = {form!r}: B-bar is a formulation of hexahedra; "
                            f"the mesh has {cell_type} cells, which take 'standard' (or 'auto'). For a nearly "
                            "incompressible material on tetrahedra use quadratic ones (tetra10), which lock far "
                            "less than linear ones; from ν ≈ 0.49 on, hexahedra with 'bbar' "
                            "(docs/materials.md)"]) from None
-    if cell_type == "tetra" and mat["nu"] >= BBAR_AUTO_NU:
+    if cell_type == "tetra" and mat.nu >= BBAR_AUTO_NU:
         log.warning("%s: linear tetrahedra lock at ν = %g (too stiff, contact pressures too high); use "
                     "quadratic tetrahedra (tetra10) or hexahedra with material.formulation = 'auto'",
-                    cfg.source, mat["nu"])
-    elif resolved != "standard" or mat["nu"] >= BBAR_AUTO_NU:
-        log.info("element formulation: %s (%s cells, ν = %g)", resolved, cell_type, mat["nu"])
+                    source, mat.nu)
+    elif resolved != "standard" or mat.nu >= BBAR_AUTO_NU:
+        log.info("element formulation: %s (%s cells, ν = %g)", resolved, cell_type, mat.nu)
     return resolved
 
 

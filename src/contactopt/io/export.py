@@ -127,7 +127,7 @@ def body_meshio(model, coords):
     drops the other points and numbers the rest in order: :func:`contactopt.mesh.reader.from_meshio`),
     so every block, group, tag and extra point stays as the input had it."""
     import meshio
-    src = model.config["body"]["mesh"]
+    src = model.config.body.mesh
     if not src:
         # Gmsh 2.2 keeps the node numbering (4.1 lists nodes by geometric entity): the exported
         # block's node n is the model's node n
@@ -168,37 +168,36 @@ def roundtrip_config(model, mesh_name: str, alpha) -> dict:
     loads, objective and design rectangle, with ``body.initial_gap = "mesh"`` (the face's height
     is the gap), C2 = 0 (α = 0 admissible) and C0 = the room the bound C0 leaves above the design,
     C0 − max α (the lifted mesh may allow less: contactopt then names the largest safe C0)."""
-    import copy
-    cfg = copy.deepcopy(model.config.data)
-    block = not cfg["body"]["mesh"]
-    cfg["name"] = f"{cfg['name']}_optimal"
-    cfg["description"] = (f"The optimal body of {model.config.name} exported by contactopt: its state at "
+    out = model.config.to_dict()
+    block = not model.config.body.mesh
+    out["name"] = f"{model.config.name}_optimal"
+    out["description"] = (f"The optimal body of {model.config.name} exported by contactopt: its state at "
                           "alpha = 0 is the state of the optimal design")
-    cfg["body"]["mesh"] = mesh_name
-    cfg["body"]["initial_gap"] = "mesh"
+    out["body"]["mesh"] = mesh_name
+    out["body"]["initial_gap"] = "mesh"
     (x1lo, x1hi), (x2lo, x2hi) = model.body.domain
-    cfg["design"]["domain"] = [[x1lo, x1hi], [x2lo, x2hi]]
-    cfg["design"]["initial"] = 0.0
-    cfg["design"]["C2"] = 0.0
-    C0 = float(cfg["design"]["C0"])
-    cfg["design"]["C0"] = max(C0 - float(np.max(alpha)), 1e-3 * C0)
+    out["design"]["domain"] = [[x1lo, x1hi], [x2lo, x2hi]]
+    out["design"]["initial"] = 0.0
+    out["design"]["C2"] = 0.0
+    C0 = float(model.config.design.C0)
+    out["design"]["C0"] = max(C0 - float(np.max(alpha)), 1e-3 * C0)
     if block:
-        cfg.pop("geometry", None)
-        cfg.pop("mesh", None)
+        out.pop("geometry", None)
+        out.pop("mesh", None)
 
         def moved(loads):
             for name in ("top", "right"):
                 t = loads.pop(f"{name}_traction", None)
                 if t is not None and any(t):
                     loads.setdefault("traction", []).append({"on": name, "value": list(t)})
-        moved(cfg["loads"])
-        for case in cfg.get("load_cases", []):
+        moved(out["loads"])
+        for case in out.get("load_cases", []):
             moved(case)
             for step in case.get("steps", []):
                 moved(step)
-        for step in cfg.get("load_steps", []):
+        for step in out.get("load_steps", []):
             moved(step)
-    return cfg
+    return out
 
 
 # ---------------------------------------------------------------------- STL
@@ -546,13 +545,16 @@ def export_design(model, alpha, outdir, formats=None, *, unit: str = "mm", stric
             _, fmt, _, suffix = body_meshio(model, coords)
             name = "optimal_body" + suffix
             write_body_mesh(tmpdir / name, model, coords)
+            import tomli_w
+
             from ..config import validate
-            cfg = validate(roundtrip_config(model, str(tmpdir / name), model.surface.as_vector(alpha)), "optimal_body.toml")
-            cfg.data["body"]["mesh"] = name        # relative to the configuration file
+            resolved = validate(roundtrip_config(model, str(tmpdir / name), model.surface.as_vector(alpha)),
+                                "optimal_body.toml").to_dict()
+            resolved["body"]["mesh"] = name        # relative to the configuration file
             atomic_write_text(tmpdir / "optimal_body.toml",
                               "# the optimal body exported by contactopt; its state at alpha = 0 is the optimal "
                               "design's\n# (body.initial_gap = 'mesh': the contact face's height in the mesh is "
-                              "its gap)\n" + cfg.to_toml())
+                              "its gap)\n" + tomli_w.dumps(resolved))
             files["mesh"] = [name, "optimal_body.toml"]
             info["mesh_format"] = fmt
         if "stl" in formats:

@@ -105,7 +105,7 @@ def state_json(model, state: State, config=None, warnings=None, objective=None) 
     if objective is not None:
         doc["objective"] = objective
     if config is not None:
-        doc["config"] = getattr(config, "data", config)
+        doc["config"] = config.to_dict() if hasattr(config, "to_dict") else config
     return doc
 
 

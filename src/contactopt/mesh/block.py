@@ -39,11 +39,11 @@ def block_axes(geometry, mesh) -> tuple:
     direction's list ``x1``/``x2``/``x3`` where given, else its count of equal elements."""
     out = []
     for ax, n, side in (("x1", "nx", "a"), ("x2", "ny", "b"), ("x3", "nz", "c")):
-        given = mesh.get(ax) or []
+        given = getattr(mesh, ax) or []
         if given:
             out.append(np.asarray(given, float))
         else:
-            L, k = geometry[side], mesh[n]
+            L, k = getattr(geometry, side), getattr(mesh, n)
             out.append(L * (np.arange(k + 1) / k) if ax == "x3" else L * np.arange(k + 1) / k)
     return tuple(out)
 

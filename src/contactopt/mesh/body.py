@@ -59,20 +59,20 @@ class Body(HasParts):
 
 def reference_mesh(cfg):
     """The reference mesh of a configuration: the file of ``[body] mesh`` or the block."""
-    path = cfg["body"]["mesh"]
+    path = cfg.body.mesh
     if path:
         from .reader import read_mesh
         return read_mesh(path)
     from .block import block_axes, block_mesh, graded_block_mesh
-    g, m = cfg["geometry"], cfg["mesh"]
-    if not any(m.get(ax) for ax in ("x1", "x2", "x3")):
-        return block_mesh(g["a"], g["b"], g["c"], m["nx"], m["ny"], m["nz"])
+    g, m = cfg.geometry, cfg.mesh
+    if not m.graded:
+        return block_mesh(g.a, g.b, g.c, m.nx, m.ny, m.nz)
     return graded_block_mesh(*block_axes(g, m))
 
 
 def build_body(cfg) -> Body:
     """Resolve ``[body]`` of a validated configuration; ConfigError/MeshError name the problem."""
-    spec = cfg["body"]
+    spec = cfg.body
     try:
         ref = reference_mesh(cfg)
     except MeshError as exc:
@@ -83,27 +83,26 @@ def build_body(cfg) -> Body:
         raise ConfigError([f"{cfg.source}: body.mesh: {ref.source}: the mesh is inverted as given: {bad.size} of "
                            f"{ref.n_cells} cell(s) have a negative orientation, first cell {e} at "
                            f"{_fmt(ref.points[ref.cells[e]].mean(axis=0))} (node order of the cells: meshio/VTK)"])
-    tol = float(spec["tolerance"]) * ref.typical_size()
+    tol = float(spec.tolerance) * ref.typical_size()
     problems = []
     part = part_selector(ref, tol, "body", problems)
 
     clamped = []
-    for entry in _as_list(spec["clamped"]):
-        on, comps = (entry["on"], entry.get("components", [1, 2, 3])) if _is_on_table(entry) else (entry, [1, 2, 3])
-        p = part("clamped", on)
+    for clamp in spec.clamped:
+        p = part("clamped", clamp.on)
         if p is not None:
-            clamped.append((p, sorted({COMPONENTS[c] for c in comps})))
-    face = part("contact", spec["contact"])
+            clamped.append((p, sorted({COMPONENTS[c] for c in clamp.components})))
+    face = part("contact", spec.contact)
     if problems:
         raise ConfigError([f"{cfg.source}: {p}" for p in problems])
     fixed = np.zeros((ref.n_nodes, 3), bool)
     for p, comps in clamped:
         fixed[np.ix_(p.nodes, comps)] = True
-    face = _check_contact_face(ref, face, tol, on_plane=spec.get("initial_gap", "zero") == "zero")
-    contact_nodes, pinned, warnings = _contact_nodes(face, fixed, spec, cfg.source)
+    face = _check_contact_face(ref, face, tol, on_plane=spec.initial_gap == "zero")
+    contact_nodes, pinned, warnings = _contact_nodes(face, fixed, spec.contact, cfg.source)
     _check_rigid_modes(ref, fixed, cfg.source)
-    fixed_shape = _fixed_shape(ref, spec["fixed_shape"], face, tol, cfg.source)
-    domain = _domain(cfg, ref, face, tol)
+    fixed_shape = _fixed_shape(ref, spec.fixed_shape, face, tol, cfg.source)
+    domain = _domain(cfg.design.domain, ref, face, tol, cfg.source)
     eliminated = fixed.copy()
     eliminated.ravel()[pinned] = False
     body = Body(ref, tol, np.flatnonzero(eliminated.ravel()), clamped, face, contact_nodes, fixed_shape, domain,
@@ -114,13 +113,14 @@ def build_body(cfg) -> Body:
     return body
 
 
-def _contact_nodes(face: Part, fixed: np.ndarray, spec, source: str):
-    """(contact nodes, pinned DOFs, warnings) of the contact face under the clamps ``fixed``.
+def _contact_nodes(face: Part, fixed: np.ndarray, contact, source: str):
+    """(contact nodes, pinned DOFs, warnings) of the contact face (the part ``contact``) under the
+    clamps ``fixed``.
 
     A node whose normal component u3 is clamped is no contact node (a warning names those clamped
     in u3 but not in every component); a clamped u1 or u2 of a contact node is pinned (module
     docstring). ConfigError when no node is left, or when u3 is clamped on more than half of the face."""
-    name = describe_part(spec["contact"])
+    name = describe_part(contact)
     f = fixed[face.nodes]
     normal = f[:, 2]
     contact_nodes = face.nodes[~normal]
@@ -145,10 +145,6 @@ def _contact_nodes(face: Part, fixed: np.ndarray, spec, source: str):
 
 def _as_list(x):
     return x if isinstance(x, list) else [x]
-
-
-def _is_on_table(x):
-    return isinstance(x, dict) and "on" in x
 
 
 def _check_contact_face(ref: ReferenceMesh, face: Part, tol: float, on_plane: bool = True) -> Part:
@@ -228,11 +224,10 @@ def _fixed_shape(ref, spec, face: Part, tol: float, source: str) -> dict:
     return out
 
 
-def _domain(cfg, ref, face: Part, tol: float):
+def _domain(given, ref, face: Part, tol: float, source: str):
     """The design rectangle: ``design.domain`` or the bounding rectangle of the contact face."""
     xy = ref.points[face.nodes, :2]
     lo, hi = xy.min(axis=0), xy.max(axis=0)
-    given = cfg["design"].get("domain")
     if not given:
         if np.any(hi - lo <= tol):
             raise ConfigError([f"body.contact = {face.name}: the face has no extent in x{int(np.argmin(hi - lo)) + 1}"])
@@ -241,7 +236,7 @@ def _domain(cfg, ref, face: Part, tol: float):
     out = (xy[:, 0] < a0 - tol) | (xy[:, 0] > a1 + tol) | (xy[:, 1] < b0 - tol) | (xy[:, 1] > b1 + tol)
     if np.any(out):
         n = face.nodes[out][0]
-        raise ConfigError([f"{cfg.source}: design.domain = {given}: {int(out.sum())} node(s) of the contact face "
+        raise ConfigError([f"{source}: design.domain = {given}: {int(out.sum())} node(s) of the contact face "
                            f"lie outside it, first node {n} at {_fmt(ref.points[n, :2])}"])
     return ((float(a0), float(a1)), (float(b0), float(b1)))
 

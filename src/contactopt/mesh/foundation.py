@@ -21,7 +21,7 @@ import numpy as np
 
 from ..errors import ConfigError, MeshError
 from .block import block_mesh
-from .body import COMPONENTS, _as_list, _check_rigid_modes, _is_on_table
+from .body import COMPONENTS, _check_rigid_modes
 from .reference import FACE_CORNERS, HasParts, Part, ReferenceMesh, describe_part, part_selector
 
 
@@ -60,46 +60,46 @@ def foundation_block(size, cells, origin=(0.0, 0.0), element: str = "hexahedron"
     return mesh
 
 
-def build_foundation_mesh(cfg, contact_xy: np.ndarray) -> FoundationMesh:
-    """Resolve ``[foundation]`` of a validated configuration against the body's contact face,
-    given by the (x1, x2) of its nodes ``contact_xy`` (p, 2). ConfigError names every problem."""
-    spec, where = cfg["foundation"], f"{cfg.source}: foundation"
+def build_foundation_mesh(spec, contact_xy: np.ndarray, source: str) -> FoundationMesh:
+    """Resolve ``[foundation]`` (``spec``, of the configuration read from ``source``) against the
+    body's contact face, given by the (x1, x2) of its nodes ``contact_xy`` (p, 2). ConfigError
+    names every problem."""
+    where = f"{source}: foundation"
     try:
-        if spec["mesh"]:
+        if spec.mesh:
             from .reader import read_mesh
-            ref = read_mesh(spec["mesh"])
+            ref = read_mesh(spec.mesh)
         else:
-            b = spec["block"]
-            ref = foundation_block(b["size"], b["cells"], b["origin"], b["element"])
+            b = spec.block
+            ref = foundation_block(b.size, b.cells, b.origin, b.element)
     except MeshError as exc:
         raise ConfigError([f"{where}: {exc}"]) from None
     bad = ref.inverted_cells()
     if bad.size:
         raise ConfigError([f"{where}: {ref.source}: the mesh is inverted as given: {bad.size} of {ref.n_cells} "
                            f"cell(s) have a negative orientation, first cell {int(bad[0])}"])
-    tol = float(spec["tolerance"]) * ref.typical_size()
+    tol = float(spec.tolerance) * ref.typical_size()
     problems = []
     part = part_selector(ref, tol, where, problems)
 
-    top = part("top", spec["top"])
+    top = part("top", spec.top)
     fixed = np.zeros((ref.n_nodes, 3), bool)
-    for entry in _as_list(spec["clamped"]):
-        on, comps = (entry["on"], entry.get("components", [1, 2, 3])) if _is_on_table(entry) else (entry, [1, 2, 3])
-        p = part("clamped", on)
+    for clamp in spec.clamped:
+        p = part("clamped", clamp.on)
         if p is not None:
-            fixed[np.ix_(p.nodes, sorted({COMPONENTS[c] for c in comps}))] = True
+            fixed[np.ix_(p.nodes, sorted({COMPONENTS[c] for c in clamp.components}))] = True
     if problems:
         raise ConfigError(problems)
-    top = _check_top(ref, top, tol, describe_part(spec["top"]), where)
+    top = _check_top(ref, top, tol, describe_part(spec.top), where)
     _check_overlap(ref, contact_xy, tol, where)
     try:
-        _check_rigid_modes(ref, fixed, cfg.source, key="foundation.clamped")
+        _check_rigid_modes(ref, fixed, source, key="foundation.clamped")
     except ConfigError as exc:
         raise ConfigError([p.replace("bodies held only by the foundation are not supported yet",
                                      "the foundation must be held in place by its own clamps")
                            for p in exc.problems]) from None
-    mat = spec["material"]
-    return FoundationMesh(ref, top, np.flatnonzero(fixed.ravel()), tol, float(mat["E"]), float(mat["nu"]))
+    mat = spec.material
+    return FoundationMesh(ref, top, np.flatnonzero(fixed.ravel()), tol, float(mat.E), float(mat.nu))
 
 
 def _check_top(ref: ReferenceMesh, top: Part, tol: float, name: str, where: str) -> Part:

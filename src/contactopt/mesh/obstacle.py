@@ -274,16 +274,16 @@ def read_surface(path: str, key: str = "obstacle.mesh") -> Surface:
                        "obstacle must be a closed surface (the solid it bounds is the obstacle)"])
 
 
-def make_obstacle(spec: dict) -> Obstacle:
-    """The obstacle of a validated ``[obstacle]`` table."""
-    shape = spec["shape"]
+def make_obstacle(spec) -> Obstacle:
+    """The obstacle of a validated ``[obstacle]`` section."""
+    shape = spec.shape
     if shape == "plane":
         return Plane()
     if shape == "sphere":
-        return Sphere(spec["center"], spec["radius"])
+        return Sphere(spec.center, spec.radius)
     if shape == "cylinder":
-        return Cylinder(spec["point"], spec["axis"], spec["radius"])
-    return read_surface(spec["mesh"])
+        return Cylinder(spec.point, spec.axis, spec.radius)
+    return read_surface(spec.mesh)
 
 
 def contact_frames(obstacle: Obstacle, points: np.ndarray, face_nodes: np.ndarray, tol: float,

@@ -71,25 +71,25 @@ def select_path(config, n_free: int, pinned: int = 0) -> tuple[str, str]:
     condensation path, which "auto" takes; the other paths refuse it."""
     from .._mpi import petsc_missing, world_size
     from ..sensitivity.objectives import FULL_SPACE, objective_types
-    ls = config["linear_solver"]
+    ls, foundation = config.linear_solver, config.foundation is not None
     types = objective_types(config)
-    name, objective = ls["path"], "compliance" if "compliance" in types else config["objective"]["type"]
+    name, objective = ls.path, "compliance" if "compliance" in types else config.objective.type
     full = sorted(types & FULL_SPACE)
-    if full and ("foundation" in config.data or name == "petsc" or ranks_of() > 1):
-        where = "an elastic [foundation]" if "foundation" in config.data else "the 'petsc' path"
+    if full and (foundation or name == "petsc" or ranks_of() > 1):
+        where = "an elastic [foundation]" if foundation else "the 'petsc' path"
         raise ConfigError([f"objective: {', '.join(full)} needs ∂J/∂u on every DOF, which the adjoint on "
                            f"{where} does not take; use path 'condensation', 'delassus' or 'fullspace' "
                            "without a foundation"])
     ranks = world_size()
-    if pinned and "foundation" in config.data:
+    if pinned and foundation:
         raise ConfigError([f"body.clamped: {pinned} tangential component(s) of contact nodes are clamped (a "
                            "symmetry plane through the contact face), which an elastic [foundation] does not "
                            "take (its compliance would add to the clamped direction); the rigid foundation does"])
-    obst = config.data.get("obstacle", {})
-    obstacle = obst.get("shape", "plane")
-    if obst.get("control") == "force":
+    obst = config.obstacle
+    obstacle = "plane" if obst is None else obst.shape
+    if obst is not None and obst.control == "force":
         obstacle = f"force-controlled {obstacle}"
-    elif obst.get("control") == "displacement" and any(obst["displacement"][:2]):
+    elif obst is not None and obst.moves_tangentially:
         obstacle = f"{obstacle} moved tangentially"
     if obstacle != "plane":
         # the contact frames rotate the condensed system (paths/condensation.py)
@@ -98,13 +98,13 @@ def select_path(config, n_free: int, pinned: int = 0) -> tuple[str, str]:
                                + f": a {obstacle} [obstacle] is solved on the 'condensation' path only (one "
                                "process); use path 'condensation' or 'auto'"])
         log.info("linear solver: condensation path (%s obstacle)", obstacle)
-        return "condensation", library_for("condensation", ls["library"])
+        return "condensation", library_for("condensation", ls.library)
     if ranks > 1 and name not in ("auto", "petsc"):
         raise ConfigError([f"linear_solver.path = '{name}' runs on one process, and this run has {ranks} MPI "
                            "ranks: use path 'petsc' (or 'auto'), or run without mpiexec"])
     if name == "petsc" or (name == "auto" and ranks > 1):
         problems = []
-        if "foundation" in config.data:
+        if foundation:
             problems.append("linear_solver.path = 'petsc': an elastic [foundation] is solved on the "
                             "'condensation' path only (one process)")
         if objective == "compliance":
@@ -119,31 +119,31 @@ def select_path(config, n_free: int, pinned: int = 0) -> tuple[str, str]:
             raise ConfigError(problems)
         log.info("linear solver: petsc path on %d rank(s)", ranks)
         return "petsc", "petsc"
-    if "foundation" in config.data:
+    if foundation:
         # the foundation's compliance C enters the condensed Delassus operator W = S⁻¹ + C
         if name not in ("auto", "condensation"):
             raise ConfigError([f"linear_solver.path = '{name}': an elastic [foundation] is solved on the "
                                "'condensation' path only; use path 'condensation' or 'auto'"])
         log.info("linear solver: condensation path (elastic foundation)")
-        return "condensation", library_for("condensation", ls["library"])
+        return "condensation", library_for("condensation", ls.library)
     if name == "auto":
         name = "condensation"
-        if n_free >= ls["crossover"] and objective != "compliance":
+        if n_free >= ls.crossover and objective != "compliance":
             from ..fem.linsolve import pardiso_available
             if _have_pyamg():
                 name = "fullspace"
             elif pardiso_available():
                 name = "delassus"
-        log.info("linear solver: %s path for %d DOFs (crossover %d)", name, n_free, ls["crossover"])
+        log.info("linear solver: %s path for %d DOFs (crossover %d)", name, n_free, ls.crossover)
     elif name != "condensation" and objective == "compliance":
         raise ConfigError([f"linear_solver.path = '{name}': the compliance objective needs the condensed "
                            "load on every contact DOF; use path 'condensation' or 'auto'"])
-    return name, library_for(name, ls["library"])
+    return name, library_for(name, ls.library)
 
 
 def make_path(config, model, name: str, library: str) -> SolverPath:
     """The path ``name`` for a model, with the configuration's [state] settings."""
-    return PATHS[name](model, Settings.from_config(config, library))
+    return PATHS[name](model, Settings.from_config(config.state, config.friction, library))
 
 
 def ranks_of() -> int:

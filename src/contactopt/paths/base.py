@@ -46,10 +46,10 @@ class Settings:
     library: str
 
     @classmethod
-    def from_config(cls, config, library: str) -> "Settings":
-        st = config["state"]
-        return cls(float(config["friction"]["coefficient"]), st["method"], st["tol"], st["max_iter"],
-                   bool(st["zone"]), float(st["zone_margin"]), bool(st["reuse_delassus"]), library)
+    def from_config(cls, state, friction, library: str) -> "Settings":
+        """The settings of the sections ``[state]`` and ``[friction]`` of a configuration."""
+        return cls(float(friction.coefficient), state.method, state.tol, state.max_iter,
+                   bool(state.zone), float(state.zone_margin), bool(state.reuse_delassus), library)
 
 
 @dataclass

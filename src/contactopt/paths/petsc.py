@@ -98,7 +98,7 @@ class PetscPath(SolverPath):
         comm = PETSc.COMM_WORLD
         self.size, self.rank = comm.getSize(), comm.getRank()
         self.leader = self.rank == 0 and self.size > 1
-        _set_options(model.config["linear_solver"]["petsc_options"])
+        _set_options(model.config.linear_solver.petsc_options)
         t0 = time.perf_counter()
         self.dist = dist = DistributedBody(model, self.size, self.rank)
         coords = model.body.reference.points

@@ -76,9 +76,10 @@ class Combination:
         return Combined(top, v, coef, active, k)
 
 
-def case_tables(config) -> list[dict]:
-    """The ``[[load_cases]]`` tables of a configuration; none: one case of ``[loads]``."""
-    return list(config.data.get("load_cases", []))
+def case_tables(config) -> list:
+    """The ``[[load_cases]]`` of a configuration (:class:`~contactopt.config.LoadCase`); none:
+    one case of ``[loads]``."""
+    return list(config.load_cases)
 
 
 def build_cases(config, model, solve=None) -> tuple[list[LoadCase], Combination]:
@@ -87,22 +88,22 @@ def build_cases(config, model, solve=None) -> tuple[list[LoadCase], Combination]
     from ..fem.loadset import load_set
     from .objectives import make_objective
     tables = case_tables(config)
-    obj = config["objective"]
+    obj = config.objective
     if not tables:
         cases = [LoadCase(config.name, None, make_objective(config, model, solve=solve))]
     else:
         cases = []
         for k, table in enumerate(tables):
-            loads = model.loads + load_set(model.body, table, where=f"load_cases[{k}]")
+            loads = model.loads + load_set(model.body, table.loads, where=f"load_cases[{k}]")
             # a case's own objective: a 'design' target is λ(α*) of the case's loads
-            objective = make_objective(config, model, target=table.get("target"), case=k, solve=solve, loads=loads)
-            cases.append(LoadCase(table["name"], loads, objective))
+            objective = make_objective(config, model, target=table.target, case=k, solve=solve, loads=loads)
+            cases.append(LoadCase(table.name, loads, objective))
     names = tuple(c.name for c in cases)
-    w = obj["weights"]
+    w = obj.weights
     if isinstance(w, dict):
         weights = np.array([float(w.get(n, 1.0)) for n in names])
     else:
         weights = np.array([float(x) for x in w]) if w else np.ones(len(cases))
     for c, wk in zip(cases, weights):
         c.weight = float(wk)
-    return cases, Combination(obj["combine"], weights, float(obj["active_tol"]), names)
+    return cases, Combination(obj.combine, weights, float(obj.active_tol), names)

@@ -53,7 +53,7 @@ class TargetNormalForce(Objective):
 
     name = "target_normal_force"
 
-    def __init__(self, model, target_spec: dict, scale: float = 1.0, case: int = 0, solve=None):
+    def __init__(self, model, target_spec, scale: float = 1.0, case: int = 0, solve=None):
         super().__init__(model, scale)
         self.spec = target_spec
         self.case = case              # the load case whose state a 'design' target is
@@ -390,46 +390,46 @@ def make_objective(config, model, *, target=None, case: int = 0, solve=None, loa
     ``case`` is the load case it belongs to (:mod:`contactopt.sensitivity.cases`), ``solve(alpha,
     case)`` returns λ of a design's state (for a 'design' target), ``loads`` the case's load set
     (None: the configuration's [loads]) for objectives whose design term has the load's derivative."""
-    obj = config["objective"]
-    if obj.get("terms"):
+    obj = config.objective
+    if obj.terms:
         names, terms = {}, []
-        for k, table in enumerate(obj["terms"]):
-            kind = table["type"]
+        for k, table in enumerate(obj.terms):
+            kind = table.type
             names[kind] = names.get(kind, 0) + 1
             name = kind if names[kind] == 1 else f"{kind}_{names[kind]}"
             one = _one_objective(model, table, 1.0, f"objective.terms[{k}]", target, case, solve)
-            terms.append((name, float(table.get("weight", 1.0)), one))
-        out = WeightedSum(model, terms, obj["scale"])
+            terms.append((name, float(table.weight), one))
+        out = WeightedSum(model, terms, obj.scale)
     else:
-        out = _one_objective(model, obj, obj["scale"], "objective", target, case, solve)
+        out = _one_objective(model, obj, obj.scale, "objective", target, case, solve)
     out.loads = loads
     return out
 
 
 def _one_objective(model, table, scale, key, target, case, solve) -> Objective:
-    cls = OBJECTIVES[table["type"]]
+    """One objective of ``table`` (:class:`~contactopt.config.Objective` or one of its terms)."""
+    cls = OBJECTIVES[table.type]
     if cls is TargetNormalForce:
-        spec = table.get("target", {"kind": "constant", "value": 0.0}) if target is None else target
-        return cls(model, spec, scale, case, solve)
-    agg = (table.get("aggregate", "max"), table.get("rho", 50.0), table.get("p", 8.0))
+        return cls(model, table.target if target is None else target, scale, case, solve)
+    agg = (table.aggregate, table.rho, table.p)
     if cls is MaxPressure:
         return cls(model, scale, *agg)
     if cls is PeakStress:
-        return cls(model, scale, *agg, region=table.get("region") or None, key=f"{key}.region")
+        return cls(model, scale, *agg, region=table.region or None, key=f"{key}.region")
     return cls(model, scale)
 
 
 def objective_types(config) -> set:
     """The objective types a configuration uses (its type, or those of its terms)."""
-    obj = config["objective"]
-    return {t["type"] for t in obj.get("terms") or []} or {obj["type"]}
+    return config.objective.types
 
 
 FULL_SPACE = frozenset({"peak_stress", "frictional_dissipation"})   # ∂J/∂u on every DOF
 
 
-def target_values(spec: dict, model, case: int = 0, solve=None) -> np.ndarray:
-    """Target normal force λ̄ per contact node from a target table of the configuration.
+def target_values(spec, model, case: int = 0, solve=None) -> np.ndarray:
+    """Target normal force λ̄ per contact node from a target (:class:`~contactopt.config.Target`)
+    of the configuration.
 
     kinds: ``constant`` (value), ``step`` (default, then regions {x1 = [lo, hi], x2 = [lo, hi], value}
     applied in order, bounds inclusive, later regions win; with ``per_area = true`` the values are
@@ -439,28 +439,28 @@ def target_values(spec: dict, model, case: int = 0, solve=None) -> np.ndarray:
     """
     xy = model.mesh.contact_points()
     p = xy.shape[0]
-    kind = spec["kind"]
+    kind = spec.kind
     if kind == "constant":
-        return np.full(p, float(spec.get("value", 0.0)))
+        return np.full(p, float(spec.value))
     if kind == "step":
-        out = np.full(p, float(spec.get("default", 0.0)))
+        out = np.full(p, float(spec.default))
         eps = 1e-12
-        for reg in spec.get("regions", []):
-            lo1, hi1 = reg.get("x1", [-np.inf, np.inf])
-            lo2, hi2 = reg.get("x2", [-np.inf, np.inf])
+        for reg in spec.regions:
+            lo1, hi1 = reg.x1
+            lo2, hi2 = reg.x2
             inside = ((xy[:, 0] >= lo1 - eps) & (xy[:, 0] <= hi1 + eps)
                       & (xy[:, 1] >= lo2 - eps) & (xy[:, 1] <= hi2 + eps))
-            out[inside] = float(reg["value"])
-        if spec.get("per_area", False):
+            out[inside] = float(reg.value)
+        if spec.per_area:
             out *= model.contact_areas()           # values are contact stresses
         return out
     if kind == "values":
-        vals = np.asarray(spec["values"], float)
+        vals = np.asarray(spec.values, float)
         if vals.size != p:
             raise ConfigError([f"objective.target.values: has {vals.size} numbers, the mesh has {p} contact nodes"])
         return vals
     if kind == "design":
-        alpha_star = model.surface.as_vector(spec["alpha"]) if not np.isscalar(spec["alpha"]) \
-            else np.full(model.n_design, float(spec["alpha"]))
+        alpha_star = model.surface.as_vector(spec.alpha) if not np.isscalar(spec.alpha) \
+            else np.full(model.n_design, float(spec.alpha))
         return np.array(solve(alpha_star, case), dtype=float)
     raise ConfigError([f"objective.target.kind = {kind!r} is not known"])

@@ -48,13 +48,12 @@ class Step:
     substep: int = 1        # 1…substeps within it
 
 
-def step_tables(config, case: int | None) -> list | None:
-    """The step tables of a load case (``case`` None: the configuration without cases)."""
-    if case is None:
-        return config.data.get("load_steps")
-    tables = config.data.get("load_cases", [])
-    own = tables[case].get("steps") if case < len(tables) else None
-    return own if own is not None else config.data.get("load_steps")
+def step_tables(config, case: int | None) -> tuple:
+    """The load steps (:class:`~contactopt.config.LoadStep`) of a load case (``case`` None: the
+    configuration without cases); empty: no load path."""
+    cases = config.load_cases
+    own = cases[case].steps if case is not None and case < len(cases) else None
+    return own if own is not None else config.load_steps
 
 
 def build_path(model, base_loads, tables, where: str) -> list[Step] | None:
@@ -65,11 +64,11 @@ def build_path(model, base_loads, tables, where: str) -> list[Step] | None:
     base = base_loads if base_loads is not None else model.loads
     out, previous = [], LoadSet()
     for n, table in enumerate(tables):
-        loads = base + load_set(model.body, table, where=f"{where}[{n}]")
-        m = int(table.get("substeps", 1))
+        loads = base + load_set(model.body, table.loads, where=f"{where}[{n}]")
+        m = int(table.substeps)
         for j in range(1, m + 1):
             now = loads if j == m else previous.scaled(1.0 - j / m) + loads.scaled(j / m)
-            out.append(Step(table["name"], now, j == m, n, j))
+            out.append(Step(table.name, now, j == m, n, j))
         previous = loads
     return out
 
@@ -97,7 +96,7 @@ class StepChoice:
 
 
 def step_choice(config) -> StepChoice:
-    s = config["objective"]["steps"]
+    s = config.objective.steps
     return StepChoice("list", tuple(s)) if isinstance(s, list) else StepChoice(s)
 
 

@@ -165,7 +165,7 @@ def build_tasks(config, settings, *, updates: dict | None = None) -> list[SweepT
     for key, values in settings:
         resolved = []
         for value in values:
-            data = copy.deepcopy(base.data)
+            data = base.to_dict()
             try:
                 _set_path(data, key, value)
                 cfg = validate(data, base.source)
@@ -175,7 +175,7 @@ def build_tasks(config, settings, *, updates: dict | None = None) -> list[SweepT
             except ConfigError as exc:
                 problems += [f"--set {key}={format_value(value)}: {p}" for p in exc.problems]
                 continue
-            resolved.append(_lookup(cfg.data, key))
+            resolved.append(_lookup(cfg.to_dict(), key))
         dup = {format_value(v) for v in resolved if resolved.count(v) > 1}
         if dup:
             problems.append(f"--set {key}: the values {', '.join(sorted(dup))} occur more than once")
@@ -184,7 +184,7 @@ def build_tasks(config, settings, *, updates: dict | None = None) -> list[SweepT
     tasks = []
     keys = [k for k, _ in settings]
     for n, combo in enumerate(itertools.product(*(v for _, v in settings))):
-        data = copy.deepcopy(base.data)
+        data = base.to_dict()
         for key, value in zip(keys, combo):
             _set_path(data, key, value)
         try:
@@ -193,7 +193,7 @@ def build_tasks(config, settings, *, updates: dict | None = None) -> list[SweepT
             label = ", ".join(f"{k}={format_value(v)}" for k, v in zip(keys, combo))
             problems += [f"task {label}: {p}" for p in exc.problems]
             continue
-        resolved = tuple((k, _lookup(cfg.data, k)) for k in keys)
+        resolved = tuple((k, _lookup(cfg.to_dict(), k)) for k in keys)
         tasks.append(SweepTask(n, resolved, cfg, _task_name(resolved)))
     if problems:
         raise ConfigError(problems)

@@ -94,7 +94,7 @@ class TaskSpec:
 def _same_config(run_dir: Path, cfg) -> bool:
     try:
         text = (run_dir / "config.toml").read_text()
-        return validate(tomllib.loads(text)).data == cfg.data
+        return validate(tomllib.loads(text)).to_dict() == cfg.to_dict()
     except (OSError, tomllib.TOMLDecodeError, ConfigError):
         return False
 
@@ -209,7 +209,7 @@ def _write_definition(outdir: Path, base, settings, max_iter, eps) -> None:
     if eps is not None:
         sweep["eps"] = eps
     atomic_write_text(outdir / "sweep.toml", "# a contactopt sweep: [sweep] settings over the base "
-                      "configuration [config]\n" + tomli_w.dumps({"sweep": sweep, "config": base.data}))
+                      "configuration [config]\n" + tomli_w.dumps({"sweep": sweep, "config": base.to_dict()}))
 
 
 def read_definition(outdir) -> tuple:
@@ -251,7 +251,7 @@ def gather(outdir, *, write: bool = True) -> SweepResult:
 def _prepare(outdir: Path, *, resume: bool, overwrite: bool, settings, base, max_iter, eps) -> DirLock:
     if resume and (outdir / "sweep.toml").exists():
         old_base, old_settings, _, _ = read_definition(outdir)
-        if old_base.data != base.data:
+        if old_base.to_dict() != base.to_dict():
             raise ConfigError([f"--resume: {outdir} holds a sweep of another base configuration"])
     lock = claim_output_dir(outdir, overwrite=overwrite, resume=resume, what="sweep")
     try:

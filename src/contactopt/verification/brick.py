@@ -1,4 +1,4 @@
-"""Test matrices for the linear-solver layer: Q1 elasticity on a clamped box.
+"""An independent Q1 elasticity assembly on a clamped box: test matrices for the linear-solver layer.
 
 A box [0, a] x [0, b] x [0, c] split into nx x ny x nz trilinear hexahedra, isotropic
 linear elasticity (Young's modulus E, Poisson ratio nu), 2x2x2 Gauss quadrature. The face
@@ -6,9 +6,9 @@ x = 0 is clamped (its DOFs are eliminated); the "Schur" DOFs are the three DOFs 
 every bottom node (z = 0) not on x = 0, node by node in the order of increasing node number
 (x fastest, then y).
 
-This module is shared by ``benchmarks/bench_schur.py`` and ``tests/test_linsolve.py`` (the
-tests put ``benchmarks/`` on ``sys.path``). It is a stand-in for the real FEM of
-``contactopt.fem``; its only job is to produce realistic SPD matrices.
+Written apart from :mod:`contactopt.fem` (its own element routine and numbering), so that the
+factorizations and the condensation are checked on matrices contactopt's assembly did not make
+(tests/test_linsolve.py, benchmarks/bench_schur.py, benchmarks/bench_local.py).
 
 Mesh sizes of the paper's examples:
     Example 1: 32 x 15 x 9 elements -> 15360 free DOFs, 1536 Schur DOFs;

@@ -1,0 +1,114 @@
+"""A validated configuration: frozen, one typed section per TOML section.
+
+Code reads ``cfg.state.tol``, ``cfg.design.degree``, ``cfg.objective.terms`` …; an optional
+section is None (``[foundation]``, ``[obstacle]``, and ``[geometry]``/``[mesh]`` of a body from
+a file) or empty (``load_cases``, ``load_steps``). ``to_dict()`` gives the resolved nested dict
+with every default filled in, to write the configuration back as TOML (``to_toml``) or to
+derive a new one from it.
+"""
+
+from __future__ import annotations
+
+import copy
+from dataclasses import dataclass, field
+
+from .sections import (
+    Body,
+    Design,
+    Foundation,
+    Friction,
+    Geometry,
+    LinearSolver,
+    LoadCase,
+    Loads,
+    LoadStep,
+    Material,
+    Mesh,
+    Objective,
+    Obstacle,
+    Optimizer,
+    State,
+)
+from .validation import resolve
+
+
+@dataclass(frozen=True)
+class Config:
+    """A validated configuration; ``source`` where it came from."""
+
+    name: str
+    description: str
+    body: Body
+    geometry: Geometry | None
+    mesh: Mesh | None
+    material: Material
+    friction: Friction
+    loads: Loads
+    design: Design
+    objective: Objective
+    state: State
+    linear_solver: LinearSolver
+    optimizer: Optimizer
+    foundation: Foundation | None
+    obstacle: Obstacle | None
+    load_cases: tuple[LoadCase, ...]
+    load_steps: tuple[LoadStep, ...]
+    source: str = "<dict>"
+    _data: dict = field(default_factory=dict, repr=False, compare=False)
+
+    @classmethod
+    def from_data(cls, data: dict, source: str = "<dict>") -> "Config":
+        """The typed configuration of a resolved (validated) nested dict."""
+        def opt(key, kind):
+            return kind.from_dict(data[key]) if key in data else None
+        return cls(
+            name=data["name"], description=data["description"], body=Body.from_dict(data["body"]),
+            geometry=opt("geometry", Geometry), mesh=opt("mesh", Mesh),
+            material=Material.from_dict(data["material"]), friction=Friction.from_dict(data["friction"]),
+            loads=Loads.from_dict(data["loads"]), design=Design.from_dict(data["design"]),
+            objective=Objective.from_dict(data["objective"]), state=State.from_dict(data["state"]),
+            linear_solver=LinearSolver.from_dict(data["linear_solver"]),
+            optimizer=Optimizer.from_dict(data["optimizer"]),
+            foundation=opt("foundation", Foundation), obstacle=opt("obstacle", Obstacle),
+            load_cases=tuple(LoadCase.from_dict(c) for c in data.get("load_cases", [])),
+            load_steps=tuple(LoadStep.from_dict(s) for s in data.get("load_steps", [])),
+            source=source, _data=data)
+
+    @property
+    def data(self) -> dict:
+        """The resolved nested dict (as validated; for writing it back, use :meth:`to_dict`)."""
+        return self._data
+
+    def __getitem__(self, key):
+        """A section of the resolved dict, as before the typed sections (for scripts and tests;
+        the package reads attributes, tests/test_architecture.py)."""
+        return self._data[key]
+
+    def __eq__(self, other):
+        return isinstance(other, Config) and self._data == other._data and self.source == other.source
+
+    __hash__ = None
+
+    def to_dict(self) -> dict:
+        """A copy of the resolved nested dict, every default filled in: to write the configuration
+        back, or to derive another from it (then validated again)."""
+        return copy.deepcopy(self._data)
+
+    def with_updates(self, updates: dict) -> "Config":
+        """A new validated Config with nested keys of ``updates`` replaced."""
+        merged = self.to_dict()
+        for sec, vals in updates.items():
+            if isinstance(vals, dict) and isinstance(merged.get(sec), dict):
+                merged[sec].update(copy.deepcopy(vals))
+            else:
+                merged[sec] = copy.deepcopy(vals)
+        return validate(merged, self.source)
+
+    def to_toml(self) -> str:
+        import tomli_w
+        return tomli_w.dumps(self._data)
+
+
+def validate(raw: dict, source: str = "<dict>") -> Config:
+    """Fill defaults and check every key; raise ConfigError listing all problems at once."""
+    return Config.from_data(resolve(raw, source), source)

@@ -1,0 +1,486 @@
+"""Validation: defaults filled in and every key checked; every problem is collected and reported
+at once in a :class:`~contactopt.errors.ConfigError`, each naming the key and the allowed values."""
+
+from __future__ import annotations
+
+import copy
+import math
+from pathlib import Path
+
+from ..errors import ConfigError
+from .checks import _NUM, _axis, _block_spec, _finite, _material_spec, _nonneg, _pos, _posint, _vec3
+from .migration import _legacy_backend
+from .schema import (
+    BLOCK_LOADS,
+    CASE_NAME,
+    FOUNDATION,
+    FOUNDATION_LOADS,
+    OBJECTIVE_TYPES,
+    OBSTACLE,
+    SCHEMA,
+    SUBSTEPS,
+    TERM_KEYS,
+    TERM_WEIGHT,
+    TOP_LEVEL,
+)
+
+
+def _check_target(target, d1d2, problems, key="objective.target"):
+    n0 = len(problems)
+    _check_target_at(target, d1d2, problems)
+    if key != "objective.target":
+        problems[n0:] = [p.replace("objective.target", key, 1) for p in problems[n0:]]
+
+
+def _check_target_at(target, d1d2, problems):
+    kind = target.get("kind")
+    allowed = {"constant": {"kind", "value"},
+               "step": {"kind", "default", "regions", "per_area"},
+               "values": {"kind", "values"},
+               "design": {"kind", "alpha"}}
+    if kind not in allowed:
+        problems.append(f"objective.target.kind = {kind!r}: must be one of {sorted(allowed)}")
+        return
+    for k in set(target) - allowed[kind]:
+        problems.append(f"objective.target.{k}: unknown key for kind {kind!r} (allowed: {sorted(allowed[kind])})")
+    if kind == "constant" and not _finite(target.get("value", 0.0)):
+        problems.append("objective.target.value: must be a finite number")
+    if kind == "step":
+        if not _finite(target.get("default", 0.0)):
+            problems.append("objective.target.default: must be a finite number")
+        if not isinstance(target.get("per_area", False), bool):
+            problems.append("objective.target.per_area: must be true or false")
+        regions = target.get("regions", [])
+        if not isinstance(regions, list):
+            problems.append("objective.target.regions: must be a list of tables {x1=[lo,hi], x2=[lo,hi], value}")
+            regions = []
+        for n, r in enumerate(regions):
+            if not isinstance(r, dict) or set(r) - {"x1", "x2", "value"} or "value" not in r:
+                problems.append(f"objective.target.regions[{n}]: must be a table with keys x1, x2 (optional) and value")
+                continue
+            for ax in ("x1", "x2"):
+                iv = r.get(ax, [-math.inf, math.inf])
+                if not (isinstance(iv, list) and len(iv) == 2 and all(isinstance(v, _NUM) for v in iv) and iv[0] <= iv[1]):
+                    problems.append(f"objective.target.regions[{n}].{ax}: must be [lo, hi] with lo ≤ hi")
+            if not _finite(r["value"]):
+                problems.append(f"objective.target.regions[{n}].value: must be a finite number")
+    if kind == "values":
+        vals = target.get("values")
+        if not (isinstance(vals, list) and all(_finite(v) for v in vals)):
+            problems.append("objective.target.values: must be a list of numbers, one per contact node")
+    if kind == "design":
+        _check_matrix(target.get("alpha"), d1d2, "objective.target.alpha", problems)
+
+
+def _check_matrix(value, d1d2, key, problems):
+    if d1d2 is None:
+        return
+    n1, n2 = d1d2[0] + 1, d1d2[1] + 1
+    if _finite(value):
+        return
+    ok = (isinstance(value, list) and len(value) == n1
+          and all(isinstance(r, list) and len(r) == n2 and all(_finite(v) for v in r) for r in value))
+    if not ok:
+        problems.append(f"{key}: must be a number or a {n1}×{n2} nested list of numbers")
+
+
+def _check_design_constraints(dsg, d1d2, problems):
+    """[design] fixed inside the control net, [[design.linear]] coefficients of its shape."""
+    if d1d2 is None:
+        return
+    n1, n2 = d1d2[0] + 1, d1d2[1] + 1
+    fixed = dsg.get("fixed")
+    if isinstance(fixed, list):
+        for p in fixed:
+            if isinstance(p, list) and len(p) == 2 and not (0 <= p[0] < n1 and 0 <= p[1] < n2):
+                problems.append(f"design.fixed: control point {p} is outside the {n1}×{n2} control net "
+                                f"(i in 0..{n1 - 1}, j in 0..{n2 - 1})")
+    rows = dsg.get("linear")
+    if isinstance(rows, list):
+        for k, r in enumerate(rows):
+            if isinstance(r, dict) and "coefficients" in r:
+                c = r["coefficients"]
+                if _finite(c) or not (isinstance(c, list) and len(c) == n1 and all(
+                        isinstance(v, list) and len(v) == n2 and all(_finite(t) for t in v) for v in c)):
+                    problems.append(f"design.linear[{k}].coefficients: must be a {n1}×{n2} nested list of numbers "
+                                    "(one per control point, like design.initial)")
+
+
+
+def _check_load_cases(cases, d1d2, problems) -> list:
+    """[[load_cases]]: each a name, loads in the form of [loads] (none required) and an optional
+    target in the form of objective.target. Returns the cases as written (validated)."""
+    if not (isinstance(cases, list) and cases and all(isinstance(c, dict) for c in cases)):
+        problems.append("load_cases: must be a non-empty array of tables [[load_cases]] with a name, "
+                        "loads as in [loads] and an optional target")
+        return []
+    allowed = ["name", *SCHEMA["loads"], "target", "steps"]
+    _check_named_loads(cases, "load_cases", allowed, "case", "the case's history column and plots", problems)
+    for n, case in enumerate(cases):
+        if "steps" in case:
+            case["steps"] = _check_load_steps(case["steps"], f"load_cases[{n}].steps", problems)
+        if "target" in case:
+            if isinstance(case["target"], dict):
+                _check_target(case["target"], d1d2, problems, f"load_cases[{n}].target")
+            else:
+                problems.append(f"load_cases[{n}].target: must be a table like objective.target")
+    return cases
+
+
+def _check_named_loads(items, where, allowed, what, names_what, problems) -> None:
+    """Load cases or load steps: each a unique name and loads in the form of [loads] (plus the
+    keys ``allowed``); every problem appended to ``problems``."""
+    seen = set()
+    for n, item in enumerate(items):
+        name = item.get("name")
+        if not (isinstance(name, str) and CASE_NAME.fullmatch(name)):
+            problems.append(f"{where}[{n}].name = {name!r}: must be a name of letters, digits and _ . + - "
+                            f"(it names {names_what})")
+        elif name in seen:
+            problems.append(f"{where}[{n}].name = {name!r}: another {what} has this name")
+        seen.add(name)
+        for k, val in item.items():
+            if k not in allowed:
+                problems.append(f"{where}[{n}].{k}: unknown key (allowed: {', '.join(allowed)})")
+            elif k in SCHEMA["loads"]:
+                _, check, desc = SCHEMA["loads"][k]
+                if not check(val):
+                    problems.append(f"{where}[{n}].{k} = {val!r}: must be {desc}")
+
+
+def _check_load_steps(steps, where, problems) -> list:
+    """[[load_steps]] (or a case's [[load_cases.steps]]): in order, each a name, the TOTAL loads at
+    its end in the form of [loads] and an optional ``substeps`` ≥ 1. Returns them with substeps."""
+    if not (isinstance(steps, list) and steps and all(isinstance(c, dict) for c in steps)):
+        problems.append(f"{where}: must be a non-empty array of tables with a name, loads as in [loads] "
+                        "and an optional substeps")
+        return []
+    allowed = ["name", *SCHEMA["loads"], "substeps"]
+    _check_named_loads(steps, where, allowed, "step", "the step's output directory", problems)
+    for n, step in enumerate(steps):
+        sub = step.setdefault("substeps", SUBSTEPS[0])
+        if not _posint(sub):
+            problems.append(f"{where}[{n}].substeps = {sub!r}: must be an integer ≥ 1 (equal increments of "
+                            "the loads from the previous step's)")
+    return steps
+
+
+def _check_step_names(data, problems, obstacle=None) -> None:
+    """objective.steps names steps of every path; steps at the top level and in cases exclude each
+    other; a force-controlled ``obstacle`` (the raw [obstacle] table) takes no steps."""
+    cases = data.get("load_cases", [])
+    if "load_steps" in data and any("steps" in c for c in cases):
+        problems.append("load_steps: the configuration has [[load_steps]] and [[load_cases.steps]]; give each "
+                        "load case its own steps, or the top-level steps without steps in the cases")
+    if "load_steps" in data or any("steps" in c for c in cases):
+        if isinstance(obstacle, dict) and obstacle.get("control") == "force":
+            problems.append("load_steps: a load path is not yet taken with a force-controlled [obstacle] (its "
+                            "translation would be an unknown of every step); use obstacle.control = 'fixed' or "
+                            "'displacement'")
+    chosen = data["objective"]["steps"]
+    if not isinstance(chosen, list):
+        return
+    paths = [("load_steps", data.get("load_steps"))] if "load_steps" in data else []
+    paths += [(f"load_cases[{n}].steps", c.get("steps")) for n, c in enumerate(cases) if "steps" in c]
+    if not paths:
+        problems.append(f"objective.steps = {chosen!r}: names load steps, but the configuration has no "
+                        "[[load_steps]]")
+    for where, steps in paths:
+        names = [s.get("name") for s in steps or []]
+        for v in chosen:
+            if v not in names:
+                problems.append(f"objective.steps: {v!r} is no step of {where} (steps: "
+                                f"{', '.join(map(str, names))})")
+
+
+def _check_combination(raw, data, problems):
+    """objective.combine/weights name the load cases; without cases only the default max is allowed."""
+    obj, cases = data["objective"], data.get("load_cases", [])
+    names = [c.get("name") for c in cases]
+    weights = obj["weights"]
+    if not cases:
+        if obj["combine"] != "max":
+            problems.append(f"objective.combine = {obj['combine']!r}: combines load cases, but the "
+                            "configuration has no [[load_cases]]")
+        if weights:
+            problems.append("objective.weights: weighs load cases, but the configuration has no [[load_cases]]")
+    elif isinstance(weights, list) and weights and len(weights) != len(cases):
+        problems.append(f"objective.weights: has {len(weights)} number(s) for {len(cases)} load cases "
+                        f"({', '.join(map(str, names))})")
+    elif isinstance(weights, dict):
+        for k in weights:
+            if k not in names:
+                problems.append(f"objective.weights.{k}: no load case has this name "
+                                f"(cases: {', '.join(map(str, names))})")
+    w = list(weights.values()) if isinstance(weights, dict) else weights
+    if cases and w and all(_nonneg(v) for v in w) and not any(v > 0 for v in w) and (
+            isinstance(weights, list) or len(weights) == len(cases)):
+        problems.append("objective.weights: at least one load case must weigh more than 0")
+    has_target = obj["type"] == "target_normal_force" or any(
+        isinstance(t, dict) and t.get("type") == "target_normal_force" for t in obj.get("terms") or [])
+    if any("target" in c for c in cases) and not has_target:
+        problems.append(f"load_cases: a case's target is the target of objective.type = "
+                        f"'target_normal_force', not {obj['type']!r}")
+
+
+
+
+def _check_objective(raw, data, d1d2, problems):
+    """[[objective.terms]]: each a known type with its weight and keys (defaults filled in); with
+    terms the type is 'sum' (implied), and 'sum' needs terms."""
+    obj = data["objective"]
+    given = raw.get("objective", {}) if isinstance(raw.get("objective"), dict) else {}
+    terms = obj["terms"] if isinstance(obj["terms"], list) else []
+    if terms and "type" not in given:
+        obj["type"] = "sum"
+    if terms and obj["type"] != "sum":
+        problems.append(f"objective.type = {obj['type']!r}: with [[objective.terms]] the objective is their "
+                        "weighted sum (write type = 'sum' or leave it out)")
+    if obj["type"] == "sum" and not terms:
+        problems.append("objective.type = 'sum': needs [[objective.terms]]")
+    out = []
+    for n, t in enumerate(terms):
+        key = f"objective.terms[{n}]"
+        for k in t:
+            if k not in TERM_KEYS:
+                problems.append(f"{key}.{k}: unknown key (allowed: {', '.join(sorted(TERM_KEYS))})")
+        if t.get("type") not in OBJECTIVE_TYPES:
+            problems.append(f"{key}.type = {t.get('type')!r}: must be one of "
+                            f"{', '.join(repr(v) for v in OBJECTIVE_TYPES)}")
+        term = {"type": t.get("type")}
+        for k in ("weight", "region", "aggregate", "rho", "p"):
+            default, check, desc = TERM_WEIGHT if k == "weight" else SCHEMA["objective"][k]
+            val = t.get(k, default)
+            _check_value(f"{key}.{k}", val, check, desc, problems)
+            term[k] = float(val) if isinstance(val, int) and not isinstance(val, bool) and k != "region" else val
+        if "target" in t:
+            if t.get("type") != "target_normal_force":
+                problems.append(f"{key}.target: only a target_normal_force term has a target")
+            elif isinstance(t["target"], dict):
+                _check_target(t["target"], d1d2, problems, key=f"{key}.target")
+            else:
+                problems.append(f"{key}.target: must be a table like objective.target")
+            term["target"] = t["target"]
+        elif t.get("type") == "target_normal_force":
+            term["target"] = {"kind": "constant", "value": 0.0}
+        out.append(term)
+    if terms and not any(_nonneg(t["weight"]) and t["weight"] > 0 for t in out):
+        problems.append("objective.terms: at least one term must weigh more than 0")
+    obj["terms"] = out if terms else obj["terms"]
+
+
+def _check_body(raw, data, problems):
+    """A body from a file has no [geometry]/[mesh] and no block loads; on the block, a configuration
+    that lists its own tractions or pressures gets no default block loads."""
+    loads_raw = raw.get("loads", {}) if isinstance(raw.get("loads"), dict) else {}
+    if data["body"]["mesh"]:
+        path = Path(data["body"]["mesh"])
+        if not path.is_file():
+            problems.append(f"body.mesh = {data['body']['mesh']!r}: no such file")
+        for sec in ("geometry", "mesh"):
+            if sec in raw:
+                problems.append(f"[{sec}]: describes the built-in block; with body.mesh the body comes from the "
+                                f"mesh file (remove [{sec}])")
+            data.pop(sec, None)
+        for k in BLOCK_LOADS:
+            if k in loads_raw:
+                problems.append(f"loads.{k}: is a load on a part of the built-in block; on a body from a file "
+                                "use [[loads.traction]] with on = \"<part>\"")
+            data["loads"].pop(k, None)
+            for n, case in enumerate(data.get("load_cases", [])):
+                if k in case:
+                    problems.append(f"load_cases[{n}].{k}: is a load on a part of the built-in block; on a "
+                                    "body from a file use traction = [{ on = \"<part>\", value = [...] }]")
+            for n, step in enumerate(data.get("load_steps", [])):
+                if k in step:
+                    problems.append(f"load_steps[{n}].{k}: is a load on a part of the built-in block; on a "
+                                    "body from a file use traction = [{ on = \"<part>\", value = [...] }]")
+    elif ("traction" in loads_raw or "pressure" in loads_raw or data.get("load_cases")
+          or data.get("load_steps")):
+        # with load cases a case's loads are exactly [loads] as written plus the case's own
+        for k in BLOCK_LOADS:
+            if k not in loads_raw:
+                data["loads"][k] = [0.0, 0.0, 0.0]
+
+
+def _check_graded_block(raw, data, problems) -> None:
+    """[mesh] x1/x2/x3: node coordinates from 0 to a/b/c, strictly increasing, instead of nx/ny/nz.
+    A coordinate list sets its side of the block when [geometry] does not (and must end on it when
+    it does); the resolved configuration keeps either the list or the count of a direction."""
+    m, g = data["mesh"], data["geometry"]
+    raw_m = raw.get("mesh", {}) if isinstance(raw.get("mesh"), dict) else {}
+    raw_g = raw.get("geometry", {}) if isinstance(raw.get("geometry"), dict) else {}
+    for ax, n, side in (("x1", "nx", "a"), ("x2", "ny", "b"), ("x3", "nz", "c")):
+        x = m[ax]
+        if x == []:
+            m.pop(ax)            # equal elements: the resolved configuration keeps the count alone
+            continue
+        if not _axis(x):
+            continue
+        if n in raw_m:
+            problems.append(f"mesh.{ax} and mesh.{n}: give the node coordinates or the number of elements "
+                            f"in {ax}, not both")
+        m.pop(n, None)
+        m[ax] = x = [float(v) for v in x]
+        drops = [k for k in range(1, len(x)) if not x[k] > x[k - 1]]
+        if drops:
+            k = drops[0]
+            problems.append(f"mesh.{ax} = {x}: must be strictly increasing ({ax}[{k}] = {x[k]:g} ≤ "
+                            f"{ax}[{k - 1}] = {x[k - 1]:g}; {len(drops)} such step(s))")
+            continue
+        if x[0] != 0.0:
+            problems.append(f"mesh.{ax} = {x}: must start at 0 (the block is [0, a]×[0, b]×[0, c], its contact "
+                            "face on x3 = 0)")
+            continue
+        if side in raw_g:
+            if _pos(g[side]) and not math.isclose(x[-1], g[side], rel_tol=1e-12):
+                problems.append(f"mesh.{ax} ends at {x[-1]:g}, geometry.{side} = {g[side]:g}: the coordinates "
+                                f"run from 0 to geometry.{side} (or leave geometry.{side} out: the last "
+                                "coordinate sets it)")
+        else:
+            g[side] = x[-1]
+
+
+def _check_foundation(given, data, problems) -> dict:
+    """[foundation]: exactly one of `mesh` and `block`; the material's missing keys are the body's."""
+    if not isinstance(given, dict):
+        problems.append("[foundation]: must be a table")
+        return {}
+    out = _check_table(given, FOUNDATION, "foundation", problems)
+    if isinstance(out["mesh"], str) and isinstance(out["block"], dict):
+        if bool(out["mesh"]) == bool(out["block"]):
+            problems.append("[foundation]: give exactly one of `mesh` (a mesh file) and `block` (a generated box)")
+        elif out["mesh"] and not Path(out["mesh"]).is_file():
+            problems.append(f"foundation.mesh = {out['mesh']!r}: no such file")
+    if isinstance(out["block"], dict) and out["block"] and _block_spec(out["block"]):
+        b = out["block"]
+        out["block"] = {"size": [float(v) for v in b["size"]], "cells": list(b["cells"]),
+                        "origin": [float(v) for v in b.get("origin", [0.0, 0.0])],
+                        "element": b.get("element", "hexahedron")}
+    if isinstance(out["loads"], dict):
+        out["loads"] = {**{k: copy.deepcopy(v[0]) for k, v in FOUNDATION_LOADS.items()}, **out["loads"]}
+    if isinstance(out["material"], dict) and _material_spec(out["material"]):
+        out["material"] = {k: float(out["material"].get(k, data["material"][k])) for k in ("E", "nu")}
+    return out
+
+
+def _check_obstacle(given, data, problems) -> dict:
+    """[obstacle]: the keys its shape needs; excludes [foundation]."""
+    if not isinstance(given, dict):
+        problems.append("[obstacle]: must be a table")
+        return {}
+    out = _check_table(given, OBSTACLE, "obstacle", problems)
+    shape = out["shape"]
+    need = {"sphere": ("center", "radius"), "cylinder": ("point", "axis", "radius"), "surface": ("mesh",)}
+    for k in need.get(shape, ()):
+        if k not in given:
+            problems.append(f"obstacle.{k}: required with shape = {shape!r}")
+    if shape in ("sphere", "cylinder") and "radius" in given and _nonneg(out["radius"]) and not out["radius"] > 0:
+        problems.append(f"obstacle.radius = {out['radius']!r}: must be > 0")
+    if shape == "surface" and out["mesh"] and isinstance(out["mesh"], str) and not Path(out["mesh"]).is_file():
+        problems.append(f"obstacle.mesh = {out['mesh']!r}: no such file")
+    if out["control"] == "force" and _vec3(out["force"]) and not any(v != 0 for v in out["force"]):
+        problems.append("obstacle.force = [0, 0, 0]: with control = 'force' the obstacle translates along the "
+                        "force, which has no direction (a force with no component along any free direction)")
+    obj = data.get("objective", {})
+    types = [obj.get("type")] + [t.get("type") for t in obj.get("terms") or [] if isinstance(t, dict)]
+    moves = out["control"] == "force" or (out["control"] == "displacement" and _vec3(out["displacement"])
+                                          and any(out["displacement"][:2]))
+    if "frictional_dissipation" in types and (shape != "plane" or moves):
+        problems.append(f"objective 'frictional_dissipation' with obstacle.shape = {shape!r}, control = "
+                        f"{out['control']!r}: the objective takes the slip as the body's own (x1, x2) "
+                        "displacement, which holds on the fixed plane only")
+    if "foundation" in data:
+        problems.append("[obstacle] and [foundation] exclude each other: the body touches either a rigid "
+                        "obstacle or an elastic foundation")
+    for k in ("center", "point", "axis", "displacement", "force"):
+        if _vec3(out[k]):
+            out[k] = [float(v) for v in out[k]]
+    return out
+
+
+
+def _check_value(key: str, val, check, desc: str, problems: list) -> None:
+    """Append ``"key = val: must be desc"`` to ``problems`` when ``check(val)`` fails or raises."""
+    try:
+        ok = check(val)
+    except Exception:
+        ok = False
+    if not ok:
+        problems.append(f"{key} = {val!r}: must be {desc}")
+
+
+def _check_table(given: dict, keys: dict, sec: str, problems: list) -> dict:
+    """The keys of table ``sec`` with their defaults filled in; unknown keys and values that fail
+    their check are appended to ``problems`` (an integer where a float is expected becomes one)."""
+    for k in given:
+        if k not in keys:
+            problems.append(f"{sec}.{k}: unknown key (allowed: {', '.join(keys)})")
+    out = {}
+    for k, (default, check, desc) in keys.items():
+        val = given.get(k, copy.deepcopy(default))
+        _check_value(f"{sec}.{k}", val, check, desc, problems)
+        out[k] = float(val) if isinstance(val, int) and isinstance(default, float) and not isinstance(val, bool) else val
+    return out
+
+
+def resolve(raw: dict, source: str = "<dict>") -> dict:
+    """The resolved nested dict of ``raw``: defaults filled in and every key checked; raise
+    ConfigError listing all problems at once."""
+    if not isinstance(raw, dict):
+        raise ConfigError([f"{source}: the configuration must be a table"])
+    problems = []
+    data = {}
+    for key in raw:
+        if key not in SCHEMA and key not in TOP_LEVEL and key not in ("load_cases", "foundation", "obstacle",
+                                                                   "load_steps"):
+            problems.append(f"{key}: unknown section (allowed: "
+                            f"{', '.join(list(TOP_LEVEL) + list(SCHEMA) + ['foundation', 'obstacle', 'load_cases', 'load_steps'])})")
+    for key, (default, check, desc) in TOP_LEVEL.items():
+        val = raw.get(key, default)
+        if not check(val):
+            problems.append(f"{key} = {val!r}: must be {desc}")
+        data[key] = val
+    raw = _legacy_backend(raw, source, problems)
+    for sec, keys in SCHEMA.items():
+        given = raw.get(sec, {})
+        if not isinstance(given, dict):
+            problems.append(f"[{sec}]: must be a table")
+            given = {}
+        data[sec] = _check_table(given, keys, sec, problems)
+    if not (isinstance(raw.get("material"), dict) and "formulation" in raw["material"]):
+        # absent means 'auto': a configuration that does not name it resolves as it did before the key
+        data["material"].pop("formulation", None)
+    deg = data["design"]["degree"]
+    d1d2 = deg if isinstance(deg, list) and len(deg) == 2 and all(_posint(v) for v in deg) else None
+    _check_matrix(data["design"]["initial"], d1d2, "design.initial", problems)
+    _check_design_constraints(data["design"], d1d2, problems)
+    if isinstance(data["objective"]["target"], dict):
+        _check_target(data["objective"]["target"], d1d2, problems)
+    if "load_cases" in raw:
+        data["load_cases"] = _check_load_cases(raw["load_cases"], d1d2, problems)
+    _check_objective(raw, data, d1d2, problems)
+    if "load_steps" in raw:
+        data["load_steps"] = _check_load_steps(raw["load_steps"], "load_steps", problems)
+    _check_step_names(data, problems, obstacle=raw.get("obstacle"))
+    _check_combination(raw, data, problems)
+    _check_body(raw, data, problems)
+    if "foundation" in raw:
+        data["foundation"] = _check_foundation(raw["foundation"], data, problems)
+    if "obstacle" in raw:
+        data["obstacle"] = _check_obstacle(raw["obstacle"], data, problems)
+    if "mesh" in data:
+        _check_graded_block(raw, data, problems)
+    dsg = data["design"]
+    if _finite(dsg["lower"]) and _pos(dsg["C0"]) and dsg["lower"] > dsg["C0"]:
+        problems.append(f"design.lower = {dsg['lower']}: must be ≤ design.C0 = {dsg['C0']} (the control "
+                        "points' lower bound above their upper bound leaves no admissible design)")
+    if "geometry" in data:
+        g = data["geometry"]
+        if _pos(g["c"]) and _pos(data["design"]["C0"]) and data["design"]["C0"] >= g["c"]:
+            problems.append(f"design.C0 = {data['design']['C0']}: must be < geometry.c = {g['c']} "
+                            "(a surface reaching the top face inverts the mesh)")
+    if problems:
+        raise ConfigError([f"{source}: {p}" for p in problems])
+    return data
+

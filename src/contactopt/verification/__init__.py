@@ -1,0 +1,12 @@
+"""Independent checks of contactopt: set-ups whose answer is known without contactopt.
+
+- :mod:`.brick`: Q1 elasticity on a clamped box, assembled apart from :mod:`contactopt.fem`, for
+  checking the factorizations and the condensation on matrices contactopt did not make;
+- :mod:`.hertz`: a rigid sphere, cylinder and flat punch pressed into a block through
+  ``[obstacle]``, measured against Hertz, Mindlin and Boussinesq;
+- :mod:`.hertz_stress`: a paraboloid pressed onto the rigid plane, its peak von Mises stress
+  against Hertz's subsurface field.
+
+The tests run them on coarse meshes; the scripts in ``benchmarks/`` refine them and print the
+tables of docs/obstacles.md and docs/objectives.md.
+"""

@@ -1,0 +1,50 @@
+"""Fixtures shared by the test files: the small configurations most tests run on.
+
+Example 1 on an 8 × 4 × 3 mesh is the workhorse: the paper's body, loads and friction at a size
+whose state solves in milliseconds. ``small_config`` builds it (validated, with section updates);
+``config_file`` writes a configuration to a TOML file, with raw updates written unvalidated so
+that a test can hand the CLI a bad value.
+"""
+
+from __future__ import annotations
+
+import copy
+from pathlib import Path
+
+import pytest
+import tomli_w
+
+from contactopt.config import Config, load_config
+
+SMALL_MESH = {"nx": 8, "ny": 4, "nz": 3}
+
+
+def _small_config(name: str = "small", mesh: dict | None = None, **sections) -> Config:
+    """Example 1 on ``mesh`` (default 8 × 4 × 3) named ``name``, its sections updated by ``sections``."""
+    return load_config("example1").with_updates({"mesh": dict(mesh or SMALL_MESH), "name": name, **sections})
+
+
+@pytest.fixture
+def small_config():
+    """Factory: ``small_config(name="small", mesh=None, **sections)`` → a validated Config."""
+    return _small_config
+
+
+@pytest.fixture
+def config_file(tmp_path):
+    """Factory: ``config_file(config=None, name=None, directory=tmp_path, **raw)`` → the path of a TOML
+    file holding ``config`` (a Config or a dict; default the small Example 1 named ``name``), each
+    section of ``raw`` merged into it unvalidated (bad values allowed)."""
+    def write(config=None, name: str | None = None, directory: Path | None = None, **raw) -> Path:
+        if config is None:
+            config = _small_config(name or "small")
+        data = copy.deepcopy(config.data if isinstance(config, Config) else config)
+        for sec, vals in raw.items():
+            if isinstance(vals, dict) and isinstance(data.get(sec), dict):
+                data[sec].update(vals)
+            else:
+                data[sec] = vals
+        path = Path(directory or tmp_path) / f"{name or data.get('name', 'config')}.toml"
+        path.write_text(tomli_w.dumps(data))
+        return path
+    return write
