@@ -275,14 +275,18 @@ class ShapeProblem:
         return self.combination.combine(values)
 
     def _case_terms(self, k: int, states, systems):
-        """(Θ_k, [(solve index or None, coefficient, objective part)]) of case k: its objective, or
-        on a load path the steps' objectives combined as ``[objective] steps`` says."""
+        """(Θ_k, [(solve index or None, coefficient, objective part)]) of case k: its objective
+        (part (J, ∂J/∂u, ∂J/∂λ, ∂J/∂α)), or on a load path the steps' objectives combined as
+        ``[objective] steps`` says (part (J, {solve: (∂J/∂u, ∂J/∂λ, ∂J/∂α)}): the friction work
+        depends on every solve up to the step's end; sensitivity/steps.py)."""
         case = self.cases[k]
         if not self.steps[k]:
             part = case.objective.evaluate(states[k], systems[k])
             return part[0], [(None, 1.0, part)]
+        from .sensitivity.steps import step_objective
         step_systems, step_states = self._cache.step_systems[k], self._cache.step_states[k]
-        parts = {j: case.objective.evaluate(step_states[j], step_systems[j])
+        memo = {}
+        parts = {j: step_objective(case.objective, self.steps[k], step_states, step_systems, j, memo)
                  for j, step in enumerate(self.steps[k]) if step.end}
         for j, part in parts.items():
             step_states[j].info["objective"] = float(part[0])
@@ -317,22 +321,29 @@ class ShapeProblem:
     def _path_adjoint(self, k: int, terms, choices):
         """(ξ_k, v_u, v_λ of the last solve with a term, degenerate nodes) backward through case
         k's load path (sensitivity/steps.py): each solve's adjoint (4.15) with the objective's
-        right-hand side at the steps it is taken on plus P_t(S v + y*_u) of the solve after it."""
-        from .sensitivity.steps import tangential
+        right-hand side at that solve plus P_t(S v + y*_u) of the solve after it (with y*_u on
+        every DOF, P_t((A ṽ)_c + y*_c): :meth:`~contactopt.paths.base.SolverPath.adjoint_carry`)."""
+        from .sensitivity.objectives import add_terms
+        from .sensitivity.steps import add_at_contact, tangential
         step_systems, step_states, ctxs = self._cache.step_systems[k], self._cache.step_states[k], self.step_contexts[k]
-        coef = {j: (c, part) for j, c, part in terms}
-        last = max(coef)
+        rhs = {}                   # solve -> (c ∂J/∂u, c ∂J/∂λ, c ∂J/∂α) summed over the chosen steps
+        for _, c, (_, parts) in terms:
+            for i, (yu, yl, dJ_da) in parts.items():
+                add_terms(rhs, i, c * yu, c * yl, c * dJ_da)
+        last = max(rhs)
         pinned = self.model.contact_pinned.ravel()
+        contact = (3 * self.model.contact_nodes[:, None] + np.arange(3)).ravel()
         xi, carry, nd, out = 0.0, None, 0, None
         for j in range(last, -1, -1):
             state, system = step_states[j], step_systems[j]
             p = state.lam.size
             y_u, y_lam = np.zeros(3 * p), np.zeros(p)
-            if j in coef:
-                c, (_, yu, yl, dJ_da) = coef[j]
-                y_u, y_lam, xi = c * yu, c * yl, xi + c * dJ_da
-            if carry is not None:
-                y_u = y_u + carry
+            if j in rhs:
+                y_u, y_lam, dJ_da = rhs[j]
+                xi = xi + dJ_da
+            if carry is not None:           # on every DOF: y_u's global components
+                y_u = add_at_contact(y_u, carry if carry.size == y_u.size else self.path.global_contact(carry),
+                                     contact)
             v_u, v_lam, v_full, krylov = self.path.adjoint(system, ctxs[j], state, y_u, y_lam, choices)
             if krylov is not None:
                 state.info["adjoint_krylov"] = krylov
@@ -342,7 +353,7 @@ class ShapeProblem:
             if out is None:
                 out = (v_u, v_lam)
             if j:
-                carry = tangential(self.path.adjoint_force(system, ctxs[j], v_u) + y_u)
+                carry = tangential(self.path.adjoint_carry(system, ctxs[j], v_u, v_full, y_u))
                 carry[pinned] = 0.0          # u_t = 0 there in every step
         return xi, out[0], out[1], nd
 

@@ -166,7 +166,8 @@ SCHEMA = {
             isinstance(x, list) and x and all(isinstance(v, str) for v in x)),
                   "'last' (the objective at the end of the last [[load_steps]]), 'max' (the worst step), "
                   "'sum' (the sum over the steps) or a list of step names (the worst of those steps); "
-                  "without load steps the one step is the last"),
+                  "without load steps the one step is the last ('frictional_dissipation' at a step is the "
+                  "friction work from the start of the path up to the step's end)"),
         "active_tol": (1e-6, lambda x: _nonneg(x) and x < 1,
                        "a number in [0, 1) (with combine = 'max', the cases within this fraction of the "
                        "largest value are reported as active)"),

@@ -166,22 +166,18 @@ def _check_load_steps(steps, where, problems) -> list:
     return steps
 
 
-def _check_step_names(data, problems, raw_sections=()) -> None:
-    """objective.steps names steps of every path; steps at the top level and in cases exclude each other."""
+def _check_step_names(data, problems, obstacle=None) -> None:
+    """objective.steps names steps of every path; steps at the top level and in cases exclude each
+    other; a force-controlled ``obstacle`` (the raw [obstacle] table) takes no steps."""
     cases = data.get("load_cases", [])
     if "load_steps" in data and any("steps" in c for c in cases):
         problems.append("load_steps: the configuration has [[load_steps]] and [[load_cases.steps]]; give each "
                         "load case its own steps, or the top-level steps without steps in the cases")
     if "load_steps" in data or any("steps" in c for c in cases):
-        obj = data["objective"]
-        types = [obj.get("type")] + [t.get("type") for t in obj.get("terms") or [] if isinstance(t, dict)]
-        for whole in ("peak_stress", "frictional_dissipation"):
-            if whole in types:
-                problems.append(f"load_steps: the objective {whole!r} is not yet taken on a load path (its "
-                                "adjoint of the whole displacement is not carried back through the steps)")
-        if "obstacle" in raw_sections:
-            problems.append("load_steps: a load path is not yet taken with an [obstacle] (load steps act on the "
-                            "plane x3 = 0 or an elastic [foundation])")
+        if isinstance(obstacle, dict) and obstacle.get("control") == "force":
+            problems.append("load_steps: a load path is not yet taken with a force-controlled [obstacle] (its "
+                            "translation would be an unknown of every step); use obstacle.control = 'fixed' or "
+                            "'displacement'")
     chosen = data["objective"]["steps"]
     if not isinstance(chosen, list):
         return
@@ -467,7 +463,7 @@ def resolve(raw: dict, source: str = "<dict>") -> dict:
     _check_objective(raw, data, d1d2, problems)
     if "load_steps" in raw:
         data["load_steps"] = _check_load_steps(raw["load_steps"], "load_steps", problems)
-    _check_step_names(data, problems, raw_sections=tuple(raw))
+    _check_step_names(data, problems, obstacle=raw.get("obstacle"))
     if "constraints" in raw:                      # [[constraints]]: config/constraints.py
         data["constraints"] = check_constraints(raw["constraints"], data, problems)
     _check_combination(raw, data, problems)

@@ -89,6 +89,8 @@ def needs(config, pinned: int = 0, ranks: int = 1, rigid=None) -> dict:
         out["whole_displacement"] = ", ".join(full)
     if config.load_steps or any(case.steps for case in config.load_cases):
         out["load_steps"] = "[[load_steps]]"
+        if "obstacle" in out:
+            out["obstacle_steps"] = out["obstacle"]
     if ranks > 1:
         out["many_ranks"] = str(ranks)
     return out

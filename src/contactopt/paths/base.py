@@ -67,6 +67,10 @@ class Capabilities:
         "a force-controlled [obstacle]",
         "linear_solver.path = '{path}': a {detail} [obstacle] is solved on {on} only (one process); "
         "use path {takers} or 'auto'")
+    obstacle_steps: bool = _feature(
+        "load steps on a rigid [obstacle] other than the fixed plane",
+        "linear_solver.path = '{path}': load steps on a {detail} [obstacle] (the slip's reference per node "
+        "frame) are solved on {on} only; use path {takers} or 'auto'")
     held_by_contact: bool = _feature(
         "a body held only by contact",
         "linear_solver.path = '{path}': body.clamped leaves rigid motions free ({detail}); a body held only "
@@ -268,6 +272,24 @@ class SolverPath:
         """S v_u (3p, per node (t1, t2, ν)) of the last :meth:`adjoint` of ``ctx``: what a load
         step passes to the previous one (sensitivity/steps.py)."""
         raise NotImplementedError
+
+    def global_contact(self, v) -> np.ndarray:
+        """A (3p,) contact vector of the path's node frames in global components (the same on
+        the plane; :mod:`.condensation` rotates it on an obstacle)."""
+        return v
+
+    def adjoint_carry(self, system, ctx, v_u, v_full, y_u) -> np.ndarray:
+        """S v_u + ∂J/∂u_c (3p, per node (t1, t2, ν)) of the last :meth:`adjoint` of ``ctx``, with
+        right-hand side ``y_u``: a load step's derivative passed to the previous step
+        (sensitivity/steps.py). For ``y_u`` on every DOF, J sees u_c also through the interior,
+        ∂J/∂u_c = g_c − A_ci A_ii⁻¹g_i, and since the extension ṽ has (A ṽ)_i = −g_i,
+        S v_u + ∂J/∂u_c = (A ṽ)_c + g_c."""
+        if not self.is_full(y_u):
+            return self.adjoint_force(system, ctx, v_u) + y_u
+        asm = self.model.assembler
+        contact = (3 * self.model.contact_nodes[:, None] + np.arange(3)).ravel()
+        Av = asm.to_full(system.assembled.A @ np.asarray(v_full)[asm.free])
+        return Av[contact] + np.asarray(y_u, float)[contact]
 
     def design_contraction(self, system, u_full, v_full, loads=None) -> np.ndarray:
         """vᵀ(∂A/∂α_k u − ∂L/∂α_k) at the system's design (full-length u, v)."""

@@ -115,7 +115,8 @@ class CondensationPath(ZonePath):
     """``[linear_solver] path = "condensation"`` (module docstring)."""
 
     name = "condensation"
-    capabilities = Capabilities(foundation=True, obstacle=True, force_obstacle=True, held_by_contact=True, pinned=True,
+    capabilities = Capabilities(foundation=True, obstacle=True, force_obstacle=True, obstacle_steps=True,
+                                held_by_contact=True, pinned=True,
                                 compliance=True,
                                 whole_displacement=True, load_steps=True, auto="small")
 
@@ -333,6 +334,17 @@ class CondensationPath(ZonePath):
 
     def adjoint_force(self, system, ctx, v_u):
         return system.contact_S @ v_u
+
+    def global_contact(self, v):
+        return v if self.frames is None else from_frames(np.asarray(v), self.frames)
+
+    def adjoint_carry(self, system, ctx, v_u, v_full, y_u):
+        """As :meth:`SolverPath.adjoint_carry`, in the nodes' frames on an obstacle (the load
+        steps' tangential reference is per node frame)."""
+        out = super().adjoint_carry(system, ctx, v_u, v_full, y_u)
+        if self.frames is not None and self.is_full(y_u):
+            out = to_frames(out, self.frames)
+        return out
 
     def uniqueness_bound(self, system):
         """F0 = λ_min(S)/λ_max(S) of the bound (3.16) applied to the condensed system: with A := S,

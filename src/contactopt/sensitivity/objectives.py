@@ -30,6 +30,7 @@ class Objective:
 
     name = "objective"
     full_space = False       # True: ∂J/∂u is on every DOF (3·n_nodes), not on the contact DOFs only
+    accumulates = False      # True: on a load path J sums over the solves (:meth:`evaluate_path`)
     loads = None             # the load set of the objective's load case (None: the configuration's)
 
     def __init__(self, model, scale: float = 1.0):
@@ -38,6 +39,15 @@ class Objective:
 
     def evaluate(self, state, cond):
         raise NotImplementedError
+
+    def evaluate_path(self, states, systems, loads, memo=None):
+        """J at the end of the last of the solves ``states`` of a load path (from the first, in
+        order; ``systems`` and ``loads`` theirs): (value, {solve index: (∂J/∂u, ∂J/∂λ, ∂J/∂α)}),
+        the partial derivatives with respect to each solve's state. An objective of the state
+        alone: the last solve's :meth:`evaluate`. ``memo`` (a dict) keeps what the ends of several
+        steps of one path share."""
+        value, y_u, y_lam, dalpha = self.evaluate(states[-1], systems[-1])
+        return value, {len(states) - 1: (y_u, y_lam, dalpha)}
 
 
 class TargetNormalForce(Objective):
@@ -159,12 +169,22 @@ class FrictionalDissipation(Objective):
 
     name = "frictional_dissipation"
     full_space = True            # ∂J/∂u is on every DOF (the paths' adjoints take it)
+    accumulates = True           # on a load path: the work of every solve's slip increment
 
     def evaluate(self, state, cond):
+        return self._work(state, cond, getattr(self, "loads", None))[:4]
+
+    def _work(self, state, cond, loads):
+        """(τ·Δu_t, ∂/∂u, 0 (p,), ∂/∂α at fixed u, ∂/∂u of the previous solve (every DOF)) of one
+        solve, Δu_t = u_t − u_t^(k−1) its slip increment (u_t itself without ``slip_ref``): the work
+        is −Δũᵀ(A u − L) with Δũ the increment on the tangential contact DOFs, so ∂/∂u = τ̂ − AΔũ
+        and ∂/∂α = −Δũᵀ(∂A u − ∂L); through u_t^(k−1) = Δũ's reference, ∂/∂u^(k−1) = −τ̂."""
         model = self.model
         asm = model.assembler
         p = state.lam.size
         ut = np.asarray(state.u_c)[:, :2]
+        if state.slip_ref is not None:
+            ut = ut - state.slip_ref
         full = (3 * model.contact_nodes[:, None] + np.arange(2)).ravel()
         u_t = np.zeros(asm.n_full)
         u_t[full] = ut.ravel()
@@ -178,9 +198,35 @@ class FrictionalDissipation(Objective):
         tau[full] = np.asarray(state.tau).ravel()
         A = cond.assembled.A if cond is not None and hasattr(cond, "assembled") else asm.stiffness(state.coords)
         dJ_du = tau - asm.to_full(A @ u_t[asm.free])
-        dalpha = -model.design_contraction(state.coords, state.u, u_t, getattr(self, "loads", None))
+        dalpha = -model.design_contraction(state.coords, state.u, u_t, loads)
         value = float(np.sum(np.asarray(state.tau) * ut))
-        return self.scale * value, self.scale * dJ_du, np.zeros(p), self.scale * dalpha
+        return self.scale * value, self.scale * dJ_du, np.zeros(p), self.scale * dalpha, -self.scale * tau
+
+    def evaluate_path(self, states, systems, loads, memo=None):
+        """The friction work along the path up to the last solve: Σ_k τ^k·Δu_t^k over the solves
+        (substeps included), each increment's derivatives on its own solve and, through Δu_t^k's
+        reference u_t^(k−1), on the solve before it."""
+        memo = {} if memo is None else memo
+        value, out = 0.0, {}
+        for i, (st, cond, ld) in enumerate(zip(states, systems, loads)):
+            key = (id(self), i)
+            if key not in memo:
+                memo[key] = self._work(st, cond, ld)
+            v, y_u, y_lam, dalpha, y_prev = memo[key]
+            value += v
+            add_terms(out, i, y_u, y_lam, dalpha)
+            if i:
+                add_terms(out, i - 1, y_prev, np.zeros_like(y_lam), np.zeros_like(dalpha))
+        return value, out
+
+
+def add_terms(out: dict, i: int, y_u, y_lam, dalpha) -> None:
+    """Add a solve's partial derivatives to ``out`` {solve: (∂J/∂u, ∂J/∂λ, ∂J/∂α)} (same sizes)."""
+    if i in out:
+        a, b, c = out[i]
+        out[i] = (a + y_u, b + y_lam, c + dalpha)
+    else:
+        out[i] = (y_u, y_lam, dalpha)
 
 
 class PeakStress(Objective):
@@ -291,6 +337,7 @@ class WeightedSum(Objective):
         super().__init__(model, scale)
         self.terms = terms                      # [(name, weight, objective)]
         self.full_space = any(getattr(o, "full_space", False) for _, _, o in terms)
+        self.accumulates = any(getattr(o, "accumulates", False) for _, _, o in terms)
         self.last_terms = {}
 
     @property
@@ -335,6 +382,28 @@ class WeightedSum(Objective):
             dlam += w * y_lam
             dalpha += w * y_a
         return self.scale * value, self.scale * du, self.scale * dlam, self.scale * dalpha
+
+    def evaluate_path(self, states, systems, loads, memo=None):
+        """Σ_k w_k J_k with each term on the path (:meth:`Objective.evaluate_path`): a term of the
+        state at the last solve, the friction work summed over the solves."""
+        if not self.accumulates:
+            return super().evaluate_path(states, systems, loads, memo)
+        memo = {} if memo is None else memo
+        contact = (3 * self.model.contact_nodes[:, None] + np.arange(3)).ravel()
+        n = self.model.assembler.n_full
+        value, out = 0.0, {}
+        self.last_terms = {}
+        for name, w, obj in self.terms:
+            v, parts = obj.evaluate_path(states, systems, loads, memo)
+            self.last_terms[name] = float(v)
+            value += w * v
+            for i, (y_u, y_lam, y_a) in parts.items():
+                if y_u.size != n:                  # a contact-only gradient in a full-space sum
+                    full = np.zeros(n)
+                    full[contact] = y_u
+                    y_u = full
+                add_terms(out, i, self.scale * w * y_u, self.scale * w * y_lam, self.scale * w * y_a)
+        return self.scale * value, out
 
 
 OBJECTIVES = {"target_normal_force": TargetNormalForce, "pressure_uniformity": PressureUniformity,

@@ -22,7 +22,11 @@ u_k (its own ∇_{u_k}J plus what the later steps pass down),
     a_(k−1) = ∇_{u_(k−1)}J + P_t(S v_k + a_k),   ξ = ∇_α J + Σ_k [ṽ_kᵀ(∂A u_k − ∂L_k) + v_λ,kᵀ ∂g].
 
 ``[objective] steps`` chooses Θ from the named steps' J: "last" (default), "max", "sum", or a
-list of step names (the worst of them).
+list of step names (the worst of them). An objective of the whole displacement (the peak stress)
+gives y*_u on every DOF; what it passes down is then P_t((A ṽ_k)_c + y*_c), the same S v_k + ∂J/∂u_c.
+The friction work is a sum over the solves, J at the end of solve j = Σ_{i≤j} τ^i·Δu_t^i: each
+increment's derivatives act on its own solve and, through Δu_t^i's reference u_t^(i−1), on the
+solve before it (−τ^i on the tangential contact DOFs).
 """
 
 from __future__ import annotations
@@ -94,6 +98,26 @@ class StepChoice:
 def step_choice(config) -> StepChoice:
     s = config.objective.steps
     return StepChoice("list", tuple(s)) if isinstance(s, list) else StepChoice(s)
+
+
+def step_objective(objective, steps, states, systems, j: int, memo: dict):
+    """(J at the end of solve j, {solve i: (∂J/∂u_i, ∂J/∂λ_i, ∂J/∂α)}) of a load path's solves: an
+    objective of the state at solve j alone, the friction work summed over the solves up to j
+    (:meth:`contactopt.sensitivity.objectives.Objective.evaluate_path`)."""
+    if getattr(objective, "accumulates", False):
+        return objective.evaluate_path(states[:j + 1], systems[:j + 1], [s.loads for s in steps[:j + 1]], memo)
+    value, y_u, y_lam, dalpha = objective.evaluate(states[j], systems[j])
+    return value, {j: (y_u, y_lam, dalpha)}
+
+
+def add_at_contact(y_u: np.ndarray, carry: np.ndarray, contact: np.ndarray) -> np.ndarray:
+    """y_u + carry with ``carry`` on the contact DOFs (3p, per node (t1, t2, ν)) and y_u on the
+    contact DOFs (3p) or on every DOF (``contact`` the full indices of the contact DOFs)."""
+    if y_u.size == carry.size:
+        return y_u + carry
+    out = np.array(y_u, dtype=float, copy=True)
+    out[contact] += carry
+    return out
 
 
 def tangential(x: np.ndarray) -> np.ndarray:
