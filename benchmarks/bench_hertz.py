@@ -1,16 +1,5 @@
-"""Hertz contact: the peak von Mises stress of a paraboloid pressed onto the rigid foundation.
-
-A block [−L, L]² × [0, H] of hexahedra whose bottom is lifted by r²/2R (written with meshio, read
-with ``[body] initial_gap = "mesh"``), its top clamped, frictionless. Displacement control: the
-foundation is raised by δ (the gaps g_m = z_m − δ, set through the Python API), so the centre
-penetrates and the contact force P = Σλ follows. With P measured, Hertz gives (rigid foundation,
-E* = E/(1 − ν²))
-
-    a = (3PR/(4E*))^(1/3),   p0 = 3P/(2πa²),
-
-and on the axis (ζ = z/a) σ_z = −p0/(1 + ζ²), σ_r = σ_θ = p0[−(1 + ν)(1 − ζ atan(1/ζ)) + 1/(2(1 + ζ²))],
-so σ_vM = |σ_z − σ_r|, whose maximum at ν = 0.3 is 0.620 p0 at ζ = 0.481. The mesh is uniform
-(h = a/n) in a cube of side 3a around the contact centre and graded outside; L = H = 8a.
+"""Hertz contact: the peak von Mises stress of a paraboloid pressed onto the rigid foundation, over
+refinements (the set-up and the analytic field: :mod:`contactopt.verification.hertz_stress`).
 
 Run: ``PYTHONPATH=src python benchmarks/bench_hertz.py [n ...] [--figure PNG]`` (default n = 3 4
 6 8): one row per refinement, FE peak against the analytic value and the depth of the peak. Results in

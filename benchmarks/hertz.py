@@ -2,18 +2,8 @@
 
     PYTHONPATH=src python benchmarks/hertz.py [--levels 3] [--figure docs/figures/obstacles_hertz.png]
 
-- **Sphere**: a rigid sphere of radius R pressed by the force P (control = "force") into a block
-  clamped at its far face, frictionless; a quarter model (u1 = 0 on x1 = 0, u2 = 0 on x2 = 0), the mesh
-  uniform (h) out to 1.6 a and graded geometrically to L = H = 20 a. P = 4 Σ λ_m n3_m (the quarter's
-  nodal forces); the contact radius a and the peak pressure p0 from a least-squares fit of
-  p² = p0² (1 − r²/a²) to the nodal pressures p_m = λ_m / A_m (A_m the tributary area) inside the
-  contact, against a = (3PR/4E*)^(1/3), p0 = 3P/(2πa²) and δ = a²/R (E* = E/(1 − ν²)). The
-  prescribed δ is the approach to the clamped face at depth H; Hertz's is to points far away, so the
-  column δ + w(H) adds the half-space's displacement at depth H on the axis (Boussinesq,
-  w = P(1 + ν)(3 − 2ν)/(2πEH)).
-- **Cylinder**: a rigid cylinder along x2 pressed into a long block: a half model (u1 = 0 on
-  x1 = 0) one element long with u2 = 0 on both ends (plane strain: every section is the section
-  far from a long block's ends); P′ = 2 Σ λ_m n3_m / b against a = √(4P′R/(πE*)), p0 = 2P′/(πa).
+The set-ups (sphere, cylinder, flat punch, the sphere moved sideways) and what is measured on them
+against Hertz, Mindlin and Boussinesq: :mod:`contactopt.verification.hertz`.
 
 Prints one table per shape over the refinements h = a/3, a/6, a/12 (``--levels``), errors relative;
 then, at h = a/6, the sphere with F = 0.3 against F = 0 (Goodman's coupling) and a half model of

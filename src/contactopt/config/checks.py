@@ -103,3 +103,12 @@ def _material_spec(x):
         return False
     return _pos(x.get("E", 1.0)) and _finite(x.get("nu", 0.0)) and -1.0 < x.get("nu", 0.0) < 0.5
 
+
+def _check_value(key: str, val, check, desc: str, problems: list) -> None:
+    """Append ``"key = val: must be desc"`` to ``problems`` when ``check(val)`` fails or raises."""
+    try:
+        ok = check(val)
+    except Exception:
+        ok = False
+    if not ok:
+        problems.append(f"{key} = {val!r}: must be {desc}")

@@ -8,7 +8,7 @@ import copy
 from dataclasses import dataclass
 from typing import Any
 
-from .checks import _finite, _pos
+from .checks import _check_value, _finite, _pos
 from .schema import SCHEMA
 
 CONSTRAINT_TYPES = ("peak_stress", "max_pressure", "compliance", "frictional_dissipation")
@@ -44,13 +44,6 @@ def check_constraints(given, data, problems) -> list:
     """The resolved [[constraints]] tables: each {type, max, tol} and the keys of an objective of
     that type (defaults filled in). A limit max ≤ 0 on a quantity that is ≥ 0 and positive under
     load leaves no admissible design."""
-    def _check_value(key, val, check, desc, problems):        # as validation's (which imports this module)
-        try:
-            ok = check(val)
-        except Exception:
-            ok = False
-        if not ok:
-            problems.append(f"{key} = {val!r}: must be {desc}")
     if not (isinstance(given, list) and all(isinstance(t, dict) for t in given)):
         problems.append("constraints: must be an array of tables [[constraints]] with `type` and `max`")
         return []

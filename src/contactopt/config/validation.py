@@ -8,7 +8,7 @@ import math
 from pathlib import Path
 
 from ..errors import ConfigError
-from .checks import _NUM, _axis, _block_spec, _finite, _material_spec, _nonneg, _pos, _posint, _vec3
+from .checks import _NUM, _axis, _block_spec, _check_value, _finite, _material_spec, _nonneg, _pos, _posint, _vec3
 from .constraints import check_constraints
 from .migration import _legacy_backend
 from .schema import (
@@ -399,16 +399,6 @@ def _check_obstacle(given, data, problems) -> dict:
             out[k] = [float(v) for v in out[k]]
     return out
 
-
-
-def _check_value(key: str, val, check, desc: str, problems: list) -> None:
-    """Append ``"key = val: must be desc"`` to ``problems`` when ``check(val)`` fails or raises."""
-    try:
-        ok = check(val)
-    except Exception:
-        ok = False
-    if not ok:
-        problems.append(f"{key} = {val!r}: must be {desc}")
 
 
 def _check_table(given: dict, keys: dict, sec: str, problems: list) -> dict:
