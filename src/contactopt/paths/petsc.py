@@ -14,12 +14,16 @@ How the ranks share one optimization: rank 0 runs everything above the path inte
 bundle method, the objective, the run directory) as on one process; the other ranks run
 :func:`contactopt.ranks.serve`. Every call of rank 0 on this path that needs the other ranks (prepare, for_load,
 solve_state, adjoint, the design terms, a checkpoint's context) first sends them its arguments
-(α's mesh coordinates and loads, not matrices), then all ranks do the call together; states and
-adjoints come back on every rank (the contact forces and displacements are gathered, u and ṽ
-too), so the other ranks repeat rank 0's decisions and hold the same warm starts. A checkpoint
+(α's mesh coordinates and loads, a load step's slip reference u_t^(k−1), not matrices), then all
+ranks do the call together; states and adjoints come back on every rank (the contact forces and
+displacements are gathered, u and ṽ too), so the other ranks repeat rank 0's decisions and hold the same warm starts. A checkpoint
 holds the same arrays as the pyamg path's (the displacement in the model's DOF order, the design
-of the hierarchy), so a run resumes with any number of ranks. ``[linear_solver] petsc_options``
-goes to PETSc's options database (``-ksp_view``, ``-log_view``, ``-pc_gamg_*``).
+of the hierarchy; on a load path those of every step), so a run resumes with any number of ranks.
+Load steps as on the pyamg path (:mod:`contactopt.sensitivity.steps`): the Newton holds a sticking
+node's u_t at the previous step's and its Robin rows act on the slip increment, the adjoint's
+sliding frames are the slip increment's, and (A ṽ)_c of each adjoint carries back to the step
+before. ``[linear_solver] petsc_options`` goes to PETSc's options database (``-ksp_view``,
+``-log_view``, ``-pc_gamg_*``).
 """
 
 from __future__ import annotations
