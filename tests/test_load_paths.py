@@ -236,11 +236,11 @@ def test_bad_load_steps_exit_2_and_write_nothing(tmp_path, capsys, case):
 
 
 def test_a_path_without_load_steps_refuses_them_naming_those_that_take_them(tmp_path, capsys, monkeypatch):
-    """The PETSc path (not installed here) does not take load steps; the refusal, shown on the
-    full-space path with its load steps switched off."""
+    """Every path takes load steps (the PETSc path's are tested in tests/test_petsc.py); the
+    refusal, shown on the full-space path with its load steps switched off."""
     from contactopt.paths import PATHS
-    assert not PATHS["petsc"].takes_steps
-    assert [n for n, c in PATHS.items() if c.takes_steps] == ["condensation", "delassus", "fullspace"]
+    assert PATHS["petsc"].takes_steps
+    assert [n for n, c in PATHS.items() if c.takes_steps] == ["condensation", "delassus", "fullspace", "petsc"]
     from dataclasses import replace
     monkeypatch.setattr(PATHS["fullspace"], "capabilities", replace(PATHS["fullspace"].capabilities, load_steps=False))
     out = tmp_path / "out"
@@ -248,8 +248,8 @@ def test_a_path_without_load_steps_refuses_them_naming_those_that_take_them(tmp_
                  "--out", str(out)])
     err = capsys.readouterr().err
     assert code == 2 and not out.exists()
-    assert ("the 'fullspace' solver path does not take load steps; use linear_solver.path = 'condensation' "
-            "or 'delassus'") in err, err
+    assert ("the 'fullspace' solver path does not take load steps; use linear_solver.path = 'condensation', "
+            "'delassus' or 'petsc'") in err, err
 
 
 def test_substeps_interpolate_the_loads_linearly():

@@ -274,3 +274,79 @@ def test_petsc_options_reach_petsc(tmp_path):
     code, out = run_here("state", bad, "--out", tmp_path / "b")
     assert code == 2 and "is not an option" in out, out
     assert not (tmp_path / "b").exists()
+
+
+# ---------------------------------------------------------------------------- load steps
+STEP_MESH = {"mesh": {"nx": 8, "ny": 4, "nz": 3}}
+TOP, SIDE = [0.0, 0.0, -8e-2], [5e-2, 0.0, 0.0]
+PATH3 = [{"name": "press", "top_traction": TOP},
+         {"name": "shear", "top_traction": TOP, "right_traction": SIDE},
+         {"name": "back", "top_traction": TOP, "right_traction": [2e-2, 0.0, 0.0], "substeps": 2}]
+STEP_PATHS = {"two steps": (PATH3[:2], "last"), "three steps": (PATH3, "sum")}
+
+
+def step_config(steps, objective):
+    """Example 1 on a small mesh, its loads in the steps (press, shear, ...): sliding in the shear."""
+    base = load_config("example1").with_updates(STEP_MESH).data
+    return load_config({**base, "loads": {**base["loads"], "top_traction": [0.0] * 3, "right_traction": [0.0] * 3},
+                        "load_steps": steps, "objective": {**base["objective"], "steps": objective}})
+
+
+def step_reference(name):
+    """The pyamg full-space path's evaluations of a load path, every solve's state included."""
+    key = ("steps", name)
+    if key not in _reference:
+        _reference[key] = evaluations(step_config(*STEP_PATHS[name]), "fullspace")
+    return _reference[key]
+
+
+def assert_differences(got, what):
+    """ξ along the directions against central differences of Θ (h = 1e-6), with sliding and no
+    degenerate node."""
+    assert int(got.pop("fd_M1")) > 0 and int(got.pop("fd_degenerate")) == 0, what
+    fd, g = got.pop("fd"), got.pop("fd_xi")
+    err = float(np.abs(g - fd).max() / np.abs(fd).max())
+    assert err <= 1e-6, f"{what}: ξ against central differences {err:.2e} > 1e-6"
+
+
+@pytest.mark.parametrize("name", sorted(STEP_PATHS))
+def test_load_steps_on_one_rank_equal_the_pyamg_path(name):
+    """Every step's state (u, λ, τ) and Θ as the pyamg full-space path's (both solve to 1e-10);
+    ξ against central differences."""
+    got = evaluations(step_config(*STEP_PATHS[name]), "petsc", differences=True)
+    assert sum(k.startswith("u1_step") for k in got) == len(STEP_PATHS[name][0]) + (name == "three steps")
+    assert_differences(got, f"{name}, PETSc path on 1 rank")
+    assert_agree(step_reference(name), got, f"{name}, PETSc path on 1 rank")
+
+
+@pytest.mark.parametrize("name", sorted(STEP_PATHS))
+def test_load_steps_on_two_ranks_equal_the_pyamg_path(name, tmp_path):
+    file = tmp_path / "steps.toml"
+    file.write_text(tomli_w.dumps(step_config(*STEP_PATHS[name]).data))
+    out = tmp_path / "petsc.npz"
+    proc = mpiexec(2, str(ROOT / "tests" / "mpi" / "compare_paths.py"), str(file), str(out))
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    with np.load(out) as npz:
+        got = dict(npz)
+    assert int(got.pop("ranks")) == 2
+    assert_differences(got, f"{name}, PETSc path on 2 ranks")
+    assert_agree(step_reference(name), got, f"{name}, PETSc path on 2 ranks")
+
+
+def test_a_resumed_load_path_run_repeats_the_uninterrupted_one_on_two_ranks(tmp_path):
+    """A checkpoint holds every step's context (warm start, zone, displacement): the 3-step run
+    stopped after 2 iterations and resumed repeats the uninterrupted run's history bit for bit,
+    the steps' own columns included."""
+    cfg = tmp_path / "steps.toml"
+    cfg.write_text(tomli_w.dumps({**step_config(*STEP_PATHS["three steps"]).data, "name": "steps",
+                                  "linear_solver": {"path": "petsc"}}))
+    for out, iters, extra in (("whole", "4", ()), ("part", "2", ()), ("part", "4", ("--resume",))):
+        proc = mpiexec(2, "-m", "contactopt.cli", "run", str(cfg), "--out", str(tmp_path / out), "--max-iter",
+                       iters, *extra)
+        assert proc.returncode == 0, proc.stderr[-3000:]
+    whole, part = ((tmp_path / d / "history.csv").read_text().splitlines() for d in ("whole", "part"))
+    header = whole[0].split(",")
+    keep = [i for i, h in enumerate(header) if "time" not in h and "seconds" not in h]
+    assert any(h.startswith("f_step_") for h in header), header
+    assert len(whole) > 4                                  # the header and an evaluation per row
+    assert [[r.split(",")[i] for i in keep] for r in part] == [[r.split(",")[i] for i in keep] for r in whole]

@@ -14,12 +14,16 @@ How the ranks share one optimization: rank 0 runs everything above the path inte
 bundle method, the objective, the run directory) as on one process; the other ranks run
 :func:`contactopt.ranks.serve`. Every call of rank 0 on this path that needs the other ranks (prepare, for_load,
 solve_state, adjoint, the design terms, a checkpoint's context) first sends them its arguments
-(α's mesh coordinates and loads, not matrices), then all ranks do the call together; states and
-adjoints come back on every rank (the contact forces and displacements are gathered, u and ṽ
-too), so the other ranks repeat rank 0's decisions and hold the same warm starts. A checkpoint
+(α's mesh coordinates and loads, a load step's slip reference u_t^(k−1), not matrices), then all
+ranks do the call together; states and adjoints come back on every rank (the contact forces and
+displacements are gathered, u and ṽ too), so the other ranks repeat rank 0's decisions and hold the same warm starts. A checkpoint
 holds the same arrays as the pyamg path's (the displacement in the model's DOF order, the design
-of the hierarchy), so a run resumes with any number of ranks. ``[linear_solver] petsc_options``
-goes to PETSc's options database (``-ksp_view``, ``-log_view``, ``-pc_gamg_*``).
+of the hierarchy; on a load path those of every step), so a run resumes with any number of ranks.
+Load steps as on the pyamg path (:mod:`contactopt.sensitivity.steps`): the Newton holds a sticking
+node's u_t at the previous step's and its Robin rows act on the slip increment, the adjoint's
+sliding frames are the slip increment's, and (A ṽ)_c of each adjoint carries back to the step
+before. ``[linear_solver] petsc_options`` goes to PETSc's options database (``-ksp_view``,
+``-log_view``, ``-pc_gamg_*``).
 """
 
 from __future__ import annotations
@@ -62,10 +66,12 @@ class PetscSystem:
 
 @dataclass
 class PetscContext(Context):
-    """Also ``u_all``: the case's last displacement on all PETSc DOFs (Newton's warm start)."""
+    """Also ``u_all``: the case's last displacement on all PETSc DOFs (Newton's warm start), and
+    (rank 0) ``adjoint_force`` = (A ṽ)_c of its last adjoint, what a load step passes back."""
 
     key: int = 0
     u_all: np.ndarray | None = None
+    adjoint_force: np.ndarray | None = None
 
 
 class PetscPath(FullSpaceCommon):
@@ -73,7 +79,8 @@ class PetscPath(FullSpaceCommon):
 
     name = "petsc"
     newton_label = "PETSc full-space Newton"
-    capabilities = Capabilities(pinned=True, many_ranks=True, libraries=("petsc4py",), sparse="petsc", auto="ranks")
+    capabilities = Capabilities(pinned=True, many_ranks=True, load_steps=True, libraries=("petsc4py",), sparse="petsc",
+                                auto="ranks")
 
     def __init__(self, model, settings, start=None):
         """On rank 0 under mpiexec the other ranks first build the problem of the model's
@@ -200,12 +207,13 @@ class PetscPath(FullSpaceCommon):
 
     def solve_state(self, system, ctx, alpha, *, method, warm_start, tol, shared, label="", slip_ref=None):
         """As the full-space path's (:meth:`contactopt.paths.fullspace.FullSpacePath.solve_state`);
-        no load steps (``slip_ref`` None: ``capabilities.load_steps`` is False)."""
+        ``slip_ref`` (p, 2), a load step's reference u_t, goes to every rank with the call."""
         self._contexts.setdefault(ctx.key, ctx)
+        ref = None if slip_ref is None else np.asarray(slip_ref, dtype=float)
         return self._call(Command.SOLVE, system.key, ctx.key, np.asarray(alpha, dtype=float), bool(warm_start),
-                          tol, label)
+                          tol, label, ref)
 
-    def _solve(self, skey, ckey, alpha, warm_start, tol, label):
+    def _solve(self, skey, ckey, alpha, warm_start, tol, label, slip_ref=None):
         system, ctx = self._systems[skey], self._context(ckey)
         t0 = time.perf_counter()
         t_setup = self._hierarchy(alpha, system.assembled.coords) if self._hier is None else 0.0
@@ -215,27 +223,37 @@ class PetscPath(FullSpaceCommon):
             u0 = self.newton.A.createVecRight()
             u0.getArray()[:] = self.dist.owned(ctx.u_all)
         res = self.newton.solve(self._hier, system.L, system.gap, self.settings.friction, r0=warm, u0=u0,
-                                **self.newton_options(ctx, tol, warm_start))
+                                slip_ref=slip_ref, **self.newton_options(ctx, tol, warm_start))
         system.u_all = ctx.u_all = res.u_all
         return self.state_of(ctx, system, alpha, res, u_free=self.dist.free_vector(res.u_all), t0=t0,
-                             t_setup=t_setup, info={"backend": "petsc", "ranks": self.size}, label=label)
+                             t_setup=t_setup, info={"backend": "petsc", "ranks": self.size}, label=label,
+                             slip_ref=slip_ref)
 
     # ------------------------------------------------------------------ adjoint and design terms
     def adjoint(self, system, ctx, state, y_u, y_lam, choices=None):
         from ..sensitivity.adjoint_fullspace import check_default_choices
         check_default_choices(choices)
-        v_u, v_lam, its = self._call(Command.ADJOINT, system.key, np.asarray(state.classes), state.u_c, state.lam,
-                                     np.asarray(y_u, dtype=float), np.asarray(y_lam, dtype=float))
+        u_law = state.u_c                # the friction law's: the slip increment in a load step
+        if state.slip_ref is not None:
+            u_law = state.u_c.copy()
+            u_law[:, :2] = state.slip_increment
+        v_u, v_lam, its, force = self._call(Command.ADJOINT, system.key, np.asarray(state.classes), u_law,
+                                            state.lam, np.asarray(y_u, dtype=float), np.asarray(y_lam, dtype=float))
+        ctx.adjoint_force = force
         v_free = self.dist.free_vector(system.v_all)
         return Adjoint(v_u, v_lam, self.model.assembler.to_full(v_free), int(its))
 
-    def _adjoint(self, skey, classes, u_c, lam, y_u, y_lam):
+    def adjoint_force(self, system, ctx, v_u):
+        """S v_u = (A ṽ)_c of the last adjoint of ``ctx`` (gathered on every rank by the adjoint)."""
+        return ctx.adjoint_force
+
+    def _adjoint(self, skey, classes, u_law, lam, y_u, y_lam):
         from ..sensitivity.adjoint_fullspace import ADJOINT_RTOL, adjoint_classes
         system = self._systems[skey]
-        v_all, v_u, v_lam, its = self.newton.adjoint(self._hier, *adjoint_classes(classes), u_c, lam, y_u, y_lam,
-                                                     self.settings.friction, rtol=ADJOINT_RTOL)
+        v_all, v_u, v_lam, its, force = self.newton.adjoint(self._hier, *adjoint_classes(classes), u_law, lam, y_u,
+                                                            y_lam, self.settings.friction, rtol=ADJOINT_RTOL)
         system.v_all = v_all
-        return v_u, v_lam, its
+        return v_u, v_lam, its, force
 
     def design_contraction(self, system, u_full, v_full, loads=None) -> np.ndarray:
         """vᵀ(∂A/∂α u − ∂L/∂α): the stiffness part per rank over its own elements, summed on rank 0."""

@@ -24,7 +24,7 @@ class Command(enum.Enum):
 
     PREPARE = "prepare"            # a design's A(α) and its first load case
     FOR_LOAD = "for_load"          # another load case of the design
-    SOLVE = "solve"                # a state (semismooth Newton)
+    SOLVE = "solve"                # a state (semismooth Newton; a load step's slip reference with it)
     ADJOINT = "adjoint"            # the adjoint (4.15)
     CONTRACTION = "contraction"    # the design terms vᵀ(∂A/∂α)u, reduced to rank 0
     IMPORT = "import"              # a checkpoint's context

@@ -345,13 +345,15 @@ class PetscNewton:
     # ------------------------------------------------------------------ the state
     def solve(self, hier: PetscHierarchy, L, gap, friction, *, r0=None, u0=None, tol=1e-10, zone=None,
               rho_scale=0.5, max_steps=50, krylov_rtol=None, eta_max=1e-2, eta_factor=0.1,
-              zone_margin=0.1, compliance=None) -> FullSpaceResult:
+              zone_margin=0.1, compliance=None, slip_ref=None) -> FullSpaceResult:
         """The contact state of load ``L`` (PETSc Vec) and gaps ``gap`` (p,) from the warm start
         ``r0`` (p, 3; FCLIB order) or ``u0`` (a PETSc Vec); the arguments and the stopping rule as
         :func:`contactopt.contact.fullspace.solve_fullspace`, whose Newton loop
         (:func:`~contactopt.contact.fullspace.newton_loop`) runs here on :class:`PetscBackend`.
         ``compliance`` (p,): the part of the Delassus diagonal estimate beyond the local
-        W_DIAG_FACTOR / mean(A_mm)."""
+        W_DIAG_FACTOR / mean(A_mm). ``slip_ref`` (p, 2): in a load step, u_t at the end of the
+        previous step (the tangential law on u_t − slip_ref, as on the pyamg backend); None: the
+        static problem."""
         t_start = time.perf_counter()
         p, cd = self.p, self.cd
         A = self.A
@@ -382,10 +384,11 @@ class PetscNewton:
             u0.copy(u)
         timings["start"] = time.perf_counter() - t0
 
-        backend = PetscBackend(self, hier, L, gap, Lnorm, krylov_its)
+        shift = None if slip_ref is None else np.asarray(slip_ref, dtype=np.float64).reshape(p, 2)
+        backend = PetscBackend(self, hier, L, gap, Lnorm, krylov_its, shift)
         out = newton_loop(backend, u, st.zone, gap=gap, mu_all=st.mu, rho_all=rho_all, tol=tol, max_steps=max_steps,
                           krylov_rtol=st.krylov_rtol, eta_max=eta_max, eta_factor=eta_factor, zone_margin=zone_margin,
-                          timings=timings, t_start=t_start)
+                          timings=timings, t_start=t_start, shift=shift)
         u_all = self.everywhere(u)
         return finish(backend, out, u_c=u_all[cd], tol=tol, t_start=t_start, timings=timings,
                       krylov_iterations=krylov_its, u_all=u_all)
@@ -397,9 +400,11 @@ class PetscNewton:
     # ------------------------------------------------------------------ the adjoint (4.15)
     def adjoint(self, hier: PetscHierarchy, stick, slide, free_lam, u_c, lam, y_u, y_lam, friction, *,
                 rtol: float):
-        """(ṽ on all PETSc DOFs, v_u (3p), v_λ (p), GMRES iterations) of the adjoint system (4.15)
-        of a state whose nodes ``stick`` are of class M3+, ``slide`` of class M1, ``free_lam`` not
-        of class L (after the degenerate choices): the transpose of the state's Newton system at
+        """(ṽ on all PETSc DOFs, v_u (3p), v_λ (p), GMRES iterations, (A ṽ)_c = S v_u (3p)) of the
+        adjoint system (4.15) of a state whose nodes ``stick`` are of class M3+, ``slide`` of class
+        M1, ``free_lam`` not of class L (after the degenerate choices); ``u_c`` (p, 3) the friction
+        law's displacement per node (t1, t2, ν) (in a load step: the slip increment in t1, t2),
+        whose tangential direction a sliding node's frame is. The transpose of the state's Newton system at
         the solution (:mod:`contactopt.sensitivity.adjoint_fullspace`, whose docstring derives
         it), solved with the transposed products of G and the same GAMG hierarchy (H is symmetric), to
         a residual ≤ ``rtol``·‖right-hand side‖."""
@@ -429,10 +434,11 @@ class PetscNewton:
         self.set_owned(x, cd[slide, 2], lift)
         x.axpy(1.0, v0)
         self.A.mult(x, Av)
-        resid = self.at_contact(Av).ravel() + y_u
+        force = self.at_contact(Av).ravel()
+        resid = force + y_u
         v_lam = np.where(free_lam, -resid[2::3], 0.0)
         v_all = self.everywhere(x)
-        return v_all, v_all[cd].ravel(), v_lam, its
+        return v_all, v_all[cd].ravel(), v_lam, its, force
 
 
 class PetscBackend:
@@ -441,13 +447,15 @@ class PetscBackend:
     systems are assembled as G and H by :meth:`PetscNewton.system` and solved by ``hier``'s GMRES
     (appending their iterations to ``krylov_its``); per contact node the values are gathered on
     every rank in the order (t1, t2, ν), r = (A u − L)_c the contact force on the body, so every
-    rank takes the same decisions. The update u ← u + t du is in place."""
+    rank takes the same decisions. The update u ← u + t du is in place. ``shift`` (p, 2): a load
+    step's reference u_t — a sticking node's u_t is held at it, a sliding node's Robin rows act on
+    u_t − shift."""
 
     label = "full-space Newton (PETSc)"
 
-    def __init__(self, newton, hier, L, gap, Lnorm, krylov_its):
+    def __init__(self, newton, hier, L, gap, Lnorm, krylov_its, shift=None):
         self.newton, self.hier, self.L, self.gap, self.Lnorm = newton, hier, L, gap, Lnorm
-        self.krylov_its = krylov_its
+        self.krylov_its, self.shift = krylov_its, shift
         self.n = newton.dist.n
         self.w, self.x, self.rhs, self.du, self.Adu, self.mask, self.e_t = (
             newton.A.createVecRight() for _ in range(7))
@@ -477,15 +485,21 @@ class PetscBackend:
         # x0: the current iterate with the Dirichlet values of D
         x0c = uc.copy()
         x0c[stick] = 0.0
+        if self.shift is not None:
+            x0c[stick, :2] = self.shift[stick]
         x0c[stick, 2] = -gap[stick]
         x0c[slide, 2] = -gap[slide]
         x0 = u.copy()
         nw.set_owned(x0, cd[stick].ravel(), x0c[stick].ravel())
         nw.set_owned(x0, cd[slide, 2], x0c[slide, 2])
-        # rhs = (I − C_N)(L − (A + K_t) x0) on I, 0 on D
+        # rhs = (I − C_N)(L − A x0 − K_t (x0 − shift)) on I, 0 on D
         nw.A.mult(x0, rhs)
         rhs.aypx(-1.0, self.L)
-        self._robin_and_couple(rhs, x0c, slide, tvec, k, coupling)
+        xk = x0c
+        if self.shift is not None:
+            xk = x0c.copy()
+            xk[:, :2] -= self.shift
+        self._robin_and_couple(rhs, xk, slide, tvec, k, coupling)
         arr = rhs.getArray()
         arr[D[d.rstart:d.rend]] = 0.0
         t1 = time.perf_counter()
