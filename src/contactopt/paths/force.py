@@ -141,3 +141,13 @@ class ForceControl:
 def excess_of(state, b: np.ndarray, force: float) -> float:
     """Σ_m b_m·r_m − |f| of a state (r_m = (−τ, λ) per node in its frame)."""
     return float(np.sum(b[:, :2] * -state.tau) + b[:, 2] @ state.lam) - force
+
+
+def normal_stiffness(A, contact_dofs: np.ndarray, frames) -> np.ndarray:
+    """(p,) n_mᵀ A_mm n_m, the diagonal stiffness of each contact node along its normal (the
+    third column of its frame, e3 without frames): an upper bound of S's, for a first step."""
+    cd = np.asarray(contact_dofs).reshape(-1, 3)
+    n = np.broadcast_to([0.0, 0.0, 1.0], cd.shape) if frames is None else frames[:, :, 2]
+    rows, cols = np.repeat(cd, 3, axis=1), np.tile(cd, (1, 3))
+    block = np.asarray(A[rows.ravel(), cols.ravel()]).reshape(-1, 3, 3)
+    return np.einsum("mi,mij,mj->m", n, block, n)
