@@ -24,11 +24,12 @@ hence S(b + w_u) = Qᵀ(A z)_c with no S formed. With S e the change of the cont
 per unit s:
 
     ∂F/∂α = zᵀ(∂A u − ∂L) + (∂g/∂α)ᵀ w_λ,   ∂F/∂s = S(b + w_u)·e − w_λ·c,
-    ∂Θ/∂s = (A ṽ)_c·e − v_λ·c,
+    ∂Θ/∂s = Qᵀ(A ṽ)_c·e − v_λ·c                 (J of the state's u_c = w and λ),
+    ∂Θ/∂s = Qᵀ(A ṽ + g)_c·e − v_λ·c             (J of the body's whole displacement, g = ∂J/∂u),
 
-(A ṽ)_c = S v_u the force of the objective's adjoint (:meth:`SolverPath.adjoint_force`); for an
-objective of the whole displacement on the Delassus and full-space paths that force is
-(A ṽ)_c = S v_u − A_ci A_ii⁻¹ g_i, exact only where e = 0 (a force along every node's normal).
+ṽ the objective's adjoint extended to every DOF: (A ṽ)_c = S v_u where ṽ is A-harmonic, and
+(A ṽ)_c = S v_u − A_ci A_ii⁻¹ g_i for an objective of the whole displacement, whose body
+displacement u_c = w + s e moves with s also at fixed w: y*_u·e with y*_u = g_c − A_ci A_ii⁻¹ g_i.
 """
 
 from __future__ import annotations
@@ -112,17 +113,24 @@ class ForceControl:
         return st
 
     # ------------------------------------------------------------------ subgradient
-    def controlled_subgradient(self, system, ctx, state, v_u, v_lam, xi, loads=None):
-        """ξ with the translation of a force-controlled obstacle following α (module docstring)."""
+    def controlled_subgradient(self, system, ctx, state, v_u, v_lam, xi, loads=None, *, v=None, y_u=None):
+        """ξ with the translation of a force-controlled obstacle following α (module docstring);
+        ``v`` ṽ of the objective's adjoint on every DOF, ``y_u`` its ∂J/∂u (:meth:`adjoint`)."""
         m = self.model
         if getattr(m, "force", None) is None:
             return xi
         c, b = m.force_gap, m.force_b
         e = (b * TANGENTIAL).ravel()
-        # the objective's adjoint force first: the resultant's adjoint below replaces the case's
-        dT_ds = float(np.ravel(self.adjoint_force(system, ctx, v_u)) @ e - v_lam @ c)
         A, asm = system.assembled.A, m.assembler
         frames = getattr(m, "frames", None)
+        dT_ds = -float(v_lam @ c)
+        if np.any(e):
+            force = (A @ np.asarray(v)[asm.free])[m.contact_dofs]       # (A ṽ)_c
+            if y_u is not None and self.is_full(y_u):                    # J of the body's u = w + s e
+                force = force + np.asarray(y_u, float)[asm.free][m.contact_dofs]
+            if frames is not None:
+                force = np.einsum("mij,mi->mj", frames, force.reshape(-1, 3)).ravel()
+            dT_ds += float(force @ e)
         bg = b.ravel() if frames is None else np.einsum("mij,mj->mi", frames, b).ravel()
         e_free = np.zeros(asm.n_free)
         e_free[m.contact_dofs] = bg
