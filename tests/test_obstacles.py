@@ -301,6 +301,8 @@ def test_a_contact_node_whose_closest_point_is_not_unique_exits_2(tmp_path, caps
 
 @pytest.mark.parametrize("shape,cells", [("sphere", "hexahedron"), ("sphere", "tetra"),
                                          pytest.param("cylinder", "hexahedron", marks=pytest.mark.slow),
+                                         pytest.param("cylinder", "tetra", marks=pytest.mark.slow),
+                                         pytest.param("surface", "hexahedron", marks=pytest.mark.slow),
                                          pytest.param("surface", "tetra", marks=pytest.mark.slow)])
 @pytest.mark.parametrize("other", ["delassus", "fullspace"])
 def test_force_control_on_the_delassus_and_fullspace_paths_equals_the_condensation(tmp_path, other, shape, cells):

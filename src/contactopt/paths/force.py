@@ -38,7 +38,7 @@ import logging
 
 import numpy as np
 
-from ..errors import SolverError
+from ..errors import ContactNotConverged, SolverError
 
 log = logging.getLogger(__name__)
 
@@ -78,7 +78,19 @@ class ForceControl:
         states = {}
 
         def excess(s):
-            st = states[s] = self.fixed_state(self.translated(system, s, c, e), ctx, alpha, **kw)
+            moved = self.translated(system, s, c, e)
+            try:
+                st = self.fixed_state(moved, ctx, alpha, **kw)
+            except ContactNotConverged:
+                if not warm_start and ctx.warm is None:
+                    raise
+                # the full-space Newton can stall where a tangential translation drags the face, from
+                # nothing or from a state at another translation: once more the other way (the same
+                # state, to its tolerance)
+                log.debug("no state at the translation %.6e %s: solved again %s", s,
+                          *(("warm-started", "from nothing") if warm_start else ("from nothing", "warm-started")))
+                st = self.fixed_state(moved, ctx, alpha, **{**kw, "warm_start": not warm_start})
+            states[s] = st
             return excess_of(st, b, f)
 
         touch = float(np.min(system.gap[c > 0] / c[c > 0]))
