@@ -15,7 +15,8 @@ On a rigid obstacle other than the plane the contact DOFs are the local componen
 frame R_m = (t1, t2, n): W = Qᵀ B A⁻¹ Bᵀ Q, Q = diag(R_m), by rotating the forces before each
 sparse solve and the displacements after it (:class:`~contactopt.contact.zone.FramedDelassusZoneProblem`);
 the W-form adjoint's products rotate the same way, and an obstacle's tangential translation shifts q
-as on the condensation path (:mod:`.condensation`).
+as on the condensation path (:mod:`.condensation`; on the plane in the axes' frames). The translation
+is a field of the system, so that a force-controlled obstacle (:mod:`.force`) moves it per trial.
 """
 
 from __future__ import annotations
@@ -61,8 +62,8 @@ class DelassusPath(ForceControl, ZonePath):
     """``[linear_solver] path = "delassus"`` (module docstring)."""
 
     name = "delassus"
-    capabilities = Capabilities(obstacle=True, force_obstacle=True, pinned=True, whole_displacement=True, load_steps=True, auto="large",
-                                auto_order=1, auto_libraries=("pardiso",), auto_avoids=("obstacle",))
+    capabilities = Capabilities(obstacle=True, force_obstacle=True, pinned=True, whole_displacement=True,
+                                load_steps=True, auto="large", auto_order=1, auto_libraries=("pardiso",), auto_avoids=("obstacle",))
     reuse_tol_factor = 1.0    # each Newton step costs a sparse solve here: to tol itself
     accept_at_tol = True      # forming W_Z costs more than a factorization
     probe_warm = True         # the warm start's product Newton needs first anyway

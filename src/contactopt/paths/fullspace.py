@@ -16,7 +16,8 @@ each node's frame R_m = (t1, t2, n): the Newton method solves TᵀA T u_loc = T�
 orthogonal change of basis (the identity but the 3 × 3 blocks R_m at the contact DOFs), so its
 Dirichlet and Robin rows act in the frames unchanged; u = T u_loc, the AMG near-null space is Tᵀ
 times the rigid-body modes, the adjoint is solved on TᵀA T and its extension returned as T ṽ_loc.
-An obstacle's tangential translation is the slip's reference (``slip_ref``), as a load step's is.
+An obstacle's tangential translation is the slip's reference (``slip_ref``), as a load step's is;
+it is a field of the system, so that a force-controlled obstacle (:mod:`.force`) moves it per trial.
 
 :class:`FullSpaceCommon` is what this path and the PETSc path (:mod:`.petsc`), the two backends of
 one method, share: the options of a solve, the state of its result, and the arrays of a
