@@ -299,19 +299,82 @@ def test_a_contact_node_whose_closest_point_is_not_unique_exits_2(tmp_path, caps
              "closest point on the surface is not unique for 9 node(s)", "node 4 at (1, 0, 0)")
 
 
+@pytest.mark.parametrize("shape,cells", [("sphere", "hexahedron"), ("sphere", "tetra"),
+                                         pytest.param("cylinder", "hexahedron", marks=pytest.mark.slow),
+                                         pytest.param("cylinder", "tetra", marks=pytest.mark.slow),
+                                         pytest.param("surface", "hexahedron", marks=pytest.mark.slow),
+                                         pytest.param("surface", "tetra", marks=pytest.mark.slow)])
+@pytest.mark.parametrize("other", ["delassus", "fullspace"])
+def test_force_control_on_the_delassus_and_fullspace_paths_equals_the_condensation(tmp_path, other, shape, cells):
+    # one Brent iteration and one subgradient (paths/force.py) on three ways to solve a state: the
+    # translation, the state and ξ agree, and ξ matches central differences
+    obstacle = FORCED.get(shape) or {**FORCED["cylinder"], "shape": "surface",
+                                     "mesh": polygonal_cylinder(tmp_path / "c.stl")}
+    problems = []
+    for path in ("condensation", other):
+        cfg = block(obstacle, path=path) if cells == "hexahedron" else tet_block(tmp_path, obstacle)
+        problems.append(ShapeProblem(cfg.with_updates({"linear_solver": {"path": path}})))
+    cond, prob = problems
+    assert prob.path.name == other
+    alpha = 0.002 * np.sin(np.arange(cond.model.n_design)) + 0.001
+    sc, so = cond.solve_state(alpha), prob.solve_state(alpha)
+    s = sc.info["obstacle_translation"]
+    assert abs(so.info["obstacle_translation"] - s) <= 1e-8 * abs(s)
+    assert so.info["obstacle_resultant"] == pytest.approx(np.linalg.norm(obstacle["force"]), rel=1e-9)
+    assert np.array_equal(sc.classes, so.classes) and so.counts["M1"] > 0 and so.counts["M3+"] > 0
+    assert np.abs(sc.lam - so.lam).max() <= 1e-8 * sc.lam.max()
+    assert np.abs(sc.u - so.u).max() <= 1e-8 * np.abs(sc.u).max()
+    xc, xo = cond.evaluate(alpha)[1], prob.evaluate(alpha)[1]
+    assert np.abs(xo - xc).max() <= 1e-8 * np.abs(xc).max()
+    rep = check_gradient(prob, alpha, seed=2, n_directions=3)
+    assert rep.n_degenerate == 0
+    assert np.max(rep.rel_errors) <= 1e-6, rep.rel_errors
+
+
+@pytest.mark.parametrize("path", ["condensation", pytest.param("delassus", marks=pytest.mark.slow),
+                                  pytest.param("fullspace", marks=pytest.mark.slow)])
+def test_an_objective_of_the_whole_displacement_under_force_control_matches_central_differences(path):
+    # the body's displacement u_c = w + s e moves with the translation also at fixed law displacement w:
+    # a force with a tangential part in the nodes' frames (e ≠ 0)
+    problem = ShapeProblem(block(FORCED["cylinder"], path=path, objective={"type": "peak_stress"}))
+    alpha = 0.002 * np.sin(np.arange(problem.model.n_design)) + 0.001
+    assert np.abs(problem.model.force_b[:, :2]).max() > 0.1
+    rep = check_gradient(problem, alpha, seed=2, n_directions=3)
+    assert rep.n_degenerate == 0 and np.max(rep.rel_errors) <= 1e-6, rep.rel_errors
+
+
+def test_the_plane_moved_tangentially_on_the_delassus_and_fullspace_paths_equals_the_condensation():
+    # the translation's tangential part is the law's reference on every path, the plane's frames the axes
+    obstacle = {"shape": "plane", "control": "displacement", "displacement": [0.003, 0.001, 0.02]}
+    states = [ShapeProblem(block(obstacle, path=path)).solve_state(np.full(12, 0.001))
+              for path in ("condensation", "delassus", "fullspace")]
+    sc = states[0]
+    assert sc.counts["M1"] > 0 and sc.counts["M3+"] > 0
+    for st in states[1:]:
+        assert np.array_equal(st.classes, sc.classes)
+        assert np.abs(st.lam - sc.lam).max() <= 1e-10 * sc.lam.max()
+        assert np.abs(st.u - sc.u).max() <= 1e-10 * np.abs(sc.u).max()
+
+
 def test_a_zero_force_a_foundation_and_the_other_paths_are_refused(tmp_path, capsys):
     _refused(tmp_path, capsys, write(tmp_path, {**block().data, "obstacle": {**SPHERE, "control": "force"}}),
              "obstacle.force = [0, 0, 0]", "no component along any free direction")
     with pytest.raises(ConfigError, match="no contact node's normal has a component along the force"):
         ShapeProblem(block({**SPHERE, "control": "force", "force": [0.0, 0.0, -1.0]}))
-    for path in ("delassus", "fullspace"):
-        with pytest.raises(ConfigError, match="force-controlled plane"):
-            select_path(block({"shape": "plane", "control": "force", "force": [0.0, 0.0, 1.0]}, path=path), 10)
+    with pytest.raises(ConfigError, match="force-controlled plane"):
+        select_path(block({"shape": "plane", "control": "force", "force": [0.0, 0.0, 1.0]}, path="petsc"), 10)
     with pytest.raises(ConfigError, match=r"\[obstacle\] and \[foundation\] exclude each other"):
         block(SPHERE, foundation={"block": {"size": [3.0, 3.0, 1.0], "cells": [3, 3, 1]}})
-    for path in ("delassus", "fullspace", "petsc"):
-        with pytest.raises(ConfigError, match="solved on the 'condensation' path only"):
-            select_path(block(FORCED["sphere"], path=path), 1000)
+    # force control on the paths that take obstacles; PETSc refuses it, naming them
+    with pytest.raises(ConfigError, match="force-controlled sphere .* solved on the 'condensation', 'delassus' and "
+                                          "'fullspace' paths only") as refused:
+        select_path(block(FORCED["sphere"], path="petsc"), 1000)
+    assert str(refused.value).count("is solved on") == 1
+    for path in ("delassus", "fullspace"):
+        assert select_path(block(FORCED["sphere"], path=path), 1000)[0] == path
+        assert select_path(block({"shape": "plane", "control": "force", "force": [0.0, 0.0, 1.0]}, path=path),
+                           10)[0] == path
+    assert select_path(block(FORCED["sphere"], path="auto"), 10 ** 7)[0] == "condensation"
     with pytest.raises(ConfigError, match="solved on the 'condensation', 'delassus' and 'fullspace' paths"):
         select_path(block(SPHERE, path="petsc"), 1000)
     for path in ("delassus", "fullspace"):

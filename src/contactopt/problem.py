@@ -408,7 +408,7 @@ class ShapeProblem:
             xi = dJ_da + self.path.design_contraction(system, state.u, v_full, self.cases[k].loads) \
                 + self.model.gap_matrix.T @ v_lam_k
             xi = self.path.controlled_subgradient(system, self.contexts[k], state, v_u_k, v_lam_k, xi,
-                                                  self.cases[k].loads)
+                                                  self.cases[k].loads, v=v_full, y_u=y_u)
             g = comb.coefficients[k] * xi if g is None else g + comb.coefficients[k] * xi
             t_adj, t_design = t_adj + t3 - t2, t_design + time.perf_counter() - t3
             nd += state.n_degenerate

@@ -42,8 +42,8 @@ def reference_markdown() -> str:
     lines += ["", "## [obstacle]", "",
               "Optional: a rigid obstacle of any shape (docs/obstacles.md). Absent, it is the plane x3 = 0, "
               "fixed. Each contact node gets a frame (t1, t2, n) from the obstacle at its closest point; the "
-              "gap and the Coulomb law act in that frame. A shape other than the plane runs on the "
-              "condensation path; excludes [foundation].",
+              "gap and the Coulomb law act in that frame. A shape other than the plane, and force control, run "
+              "on the condensation, Delassus and full-space paths; excludes [foundation].",
               "", "| key | default | meaning |", "|---|---|---|"]
     for k, (default, _, desc) in OBSTACLE.items():
         shown = tomli_w.dumps({"v": default}).split("=", 1)[1].strip()

@@ -278,7 +278,7 @@ OBSTACLE = {
     "control": ("fixed", _oneof("fixed", "displacement", "force"),
                 "'fixed', 'displacement' (the obstacle moved by the rigid translation `displacement`) or "
                 "'force' (pressed by the resultant `force`: it translates along the force, its translation an "
-                "unknown of the state; condensation path)"),
+                "unknown of the state; condensation, Delassus and full-space paths)"),
     "displacement": ([0.0, 0.0, 0.0], _vec3,
                      "control = 'displacement': the obstacle's rigid translation [d1, d2, d3] (it enters the "
                      "gap of contact node m as −d·n_m)"),

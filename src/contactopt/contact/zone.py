@@ -312,9 +312,10 @@ class FramedDelassusZoneProblem(DelassusZoneProblem):
         z = self._to_local(x0[self._contact])
         self._set_zone(np.asarray(zone), None, z if shift is None else z - shift)
 
-    def with_load(self, x0, zone):
+    def with_load(self, x0, zone, shift=False):
+        """Another load (and zone) on the same factorization; ``shift`` another translation (False: this one's)."""
         return FramedDelassusZoneProblem(self._factor, self._contact, x0, zone, self._zone_block, self._R,
-                                         self._shift)
+                                         self._shift if shift is False else shift)
 
     def _to_local(self, v):
         v = np.asarray(v, dtype=np.float64)

@@ -72,7 +72,7 @@ def needs(config, pinned: int = 0, ranks: int = 1, rigid=None) -> dict:
         obstacle = f"{obstacle} moved tangentially"
     if obstacle != "plane":             # the contact frames rotate the system (paths/condensation.py, ...)
         out["obstacle"] = obstacle
-    if obst is not None and obst.control == "force":   # the translation balancing the force: condensation
+    if obst is not None and obst.control == "force":   # the translation balancing the force (paths/force.py)
         out["force_obstacle"] = obstacle
     if rigid is not None:               # clamps that leave rigid motions free (paths/rigid.py)
         out["held_by_contact"] = ", ".join(rigid.names())
@@ -104,9 +104,9 @@ def select_path(config, n_free: int, pinned: int = 0, rigid=None) -> tuple[str, 
     ``mpiexec`` with more than one rank, else the full-space path from ``crossover`` free DOFs on
     (the measured crossover, docs/large_meshes.md; the Delassus path where pyamg is missing and
     PARDISO is installed), else the condensation. So the compliance objective (it needs the
-    condensed load ℓ on every contact DOF), an elastic ``[foundation]``, a force-controlled
-    ``[obstacle]`` and a body held only by contact stay on the condensation, and "auto" keeps any
-    other rigid obstacle there too (the Delassus and full-space paths take it when asked). A path asked for that lacks a feature is
+    condensed load ℓ on every contact DOF), an elastic ``[foundation]`` and a body held only by
+    contact stay on the condensation, and "auto" keeps any rigid obstacle there too, force-controlled
+    or not (the Delassus and full-space paths take it when asked). A path asked for that lacks a feature is
     refused with what it lacks and the paths that take it; so is one whose libraries are missing."""
     from .._mpi import world_size
     ls = config.linear_solver
@@ -170,8 +170,9 @@ def _refusal(name: str, need: dict) -> list:
     problems = []
     for f in shown:
         names = [n for n in fit if n in takers(f)] or takers(f)
-        problems.append(Capabilities.refusal(f).format(path=name, detail=need[f], takers=_names(names),
-                                                       on=_on(names)))
+        sentence = Capabilities.refusal(f).format(path=name, detail=need[f], takers=_names(names), on=_on(names))
+        if sentence not in problems:       # two features the same paths take say the same
+            problems.append(sentence)
     return problems + [f"linear_solver.path = '{name}': {summary}"]
 
 

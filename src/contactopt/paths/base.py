@@ -255,9 +255,11 @@ class SolverPath:
         satisfies (A ṽ)_i = −g_i — so the design term ṽᵀ(∂A u − ∂L) needs no other change."""
         raise NotImplementedError
 
-    def controlled_subgradient(self, system, ctx, state, v_u, v_lam, xi, loads=None) -> np.ndarray:
+    def controlled_subgradient(self, system, ctx, state, v_u, v_lam, xi, loads=None, *, v=None,
+                               y_u=None) -> np.ndarray:
         """ξ of a state with a force-controlled obstacle, whose translation depends on α
-        (:mod:`.condensation`); ``xi`` itself on the paths without one."""
+        (:mod:`.force`; ``v`` ṽ of the objective's adjoint, ``y_u`` its ∂J/∂u); ``xi`` itself on
+        the paths without one."""
         return xi
 
     def is_full(self, y_u) -> bool:

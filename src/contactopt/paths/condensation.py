@@ -28,13 +28,9 @@ components u_loc = R_mᵀ u_c, so the system is S_loc = Qᵀ S Q, ℓ_loc = Qᵀ
 the state's ``u_c`` and forces are per node (t1, t2, n) in the node's frame, the interior is
 recovered from Q u_loc, and the adjoint's design terms extend Q v_u. On the plane nothing is rotated.
 
-A force-controlled obstacle (``control = "force"``) translates by s f̂ along its force f: the gap
-is g − s c, c_m = f̂·n_m, and s solves F(s) = Σ_m b_m·r_m − |f| = 0 (b_m = R_mᵀ f̂, the resultant
-along f̂ the obstacle exerts on the body), by Brent's method on a bracket from the first touch,
-one zone solve per step. The subgradient adds the dependence of s on α:
-ξ = ξ_s − (∂Θ/∂s)(∂F/∂s)⁻¹ ∂F/∂α, with ∂Θ/∂s = −v_λᵀc from the objective's adjoint, and
-F = bᵀ(S u_c − ℓ) taken as an objective of its own (y*_u = S b, its design term
-b̃ᵀ(∂A u − ∂L), b̃ the A-harmonic extension of Q b): ∂F/∂s = −w_λᵀc, ∂F/∂α its subgradient.
+A force-controlled obstacle (``control = "force"``) translates by s f̂ along its force: the gap
+falls by s c and the law's load by S s e (:func:`shifted`); s and its subgradient are those of
+:mod:`.force`, shared with the Delassus and full-space paths.
 
 A body held only by contact (clamps that leave rigid motions free) keeps this condensation exact
 with a singular S; its state comes from an anchored problem iterated until the anchor carries no
@@ -49,10 +45,10 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from ..contact import zone as zone_rules
-from ..errors import SolverError
 from ..fem import memory
 from ..fem.model import Assembled
 from .base import Adjoint, Capabilities
+from .force import ForceControl
 from .rigid import anchor, with_contact_diagonal
 from .zone_paths import ZonePath
 
@@ -111,7 +107,7 @@ def on_factor(zp, ell: np.ndarray, zone: np.ndarray):
     return out
 
 
-class CondensationPath(ZonePath):
+class CondensationPath(ForceControl, ZonePath):
     """``[linear_solver] path = "condensation"`` (module docstring)."""
 
     name = "condensation"
@@ -185,56 +181,17 @@ class CondensationPath(ZonePath):
         out.timings["schur"] = time.perf_counter() - t1
         return out
 
-    def solve_state(self, system, ctx, alpha, *, method, warm_start, tol, shared, label="", slip_ref=None):
-        """The state (:class:`ZonePath`); with a force-controlled obstacle the translation s that
-        balances the force, found by Brent's method (module docstring)."""
-        kw = dict(method=method, warm_start=warm_start, tol=tol, shared=shared, label=label, slip_ref=slip_ref)
-        m = self.model
-        if getattr(m, "force", None) is None:
-            return self.held_state(system, ctx, alpha, **kw)
-        from scipy.optimize import brentq
+    def translated(self, system, s, c, e):
+        """The obstacle translated by s f̂ (:mod:`.force`): the gap falls by s c, the law's load
+        by S s e (:func:`shifted`)."""
+        moved = replace(system, gap=system.gap - s * c)
+        return shifted(moved, s * e) if np.any(e) else moved
 
-        c, b, f = m.force_gap, m.force_b, m.force
-        e = (b * [1.0, 1.0, 0.0]).ravel()          # f̂'s tangential part per node frame
-        states = {}
+    def normal_stiffness(self, system):
+        return np.diag(system.contact_S)[2::3]
 
-        def excess(s):
-            moved = replace(system, gap=system.gap - s * c)
-            if np.any(e):
-                moved = shifted(moved, s * e)
-            st = states[s] = self.held_state(moved, ctx, alpha, **kw)
-            return excess_of(st, b, f)
-
-        touch = float(np.min(system.gap[c > 0] / c[c > 0]))
-        S = system.contact_S
-        step = f / float(np.max(np.diag(S)[2::3][c > 0] * c[c > 0] ** 2))
-        # lo just past the first touch: with every gap open and no load the frictionless local
-        # solver does not converge on r = 0 (it does not on the plane either)
-        lo, hi = touch + 1e-3 * step, touch + step
-        f_lo, f_hi = excess(lo), excess(hi)
-        for _ in range(200):
-            if f_lo <= 0 < f_hi:
-                break
-            if f_lo > 0:
-                lo, hi, f_hi = lo - step, lo, f_lo
-                f_lo = excess(lo)
-            else:
-                lo, f_lo, hi = hi, f_hi, hi + step
-                f_hi = excess(hi)
-            step *= 2.0
-        else:
-            raise SolverError(f"obstacle.force = {f:g}: no translation of the obstacle balances it")
-        if f_lo == 0:
-            s = lo
-        else:
-            s = brentq(excess, lo, hi, xtol=1e-15 * (abs(lo) + abs(hi)), rtol=4 * np.finfo(float).eps, maxiter=200)
-        if s not in states:
-            excess(s)
-        st = states[s]
-        st.info["obstacle_translation"] = s
-        st.info["obstacle_resultant"] = f + excess_of(st, b, f)
-        st.info["obstacle_solves"] = len(states)
-        return st
+    def fixed_state(self, system, ctx, alpha, **kw):
+        return self.held_state(system, ctx, alpha, **kw)
 
     def held_state(self, system, ctx, alpha, **kw):
         """The state; of a body held only by contact, by the anchor's iteration (:mod:`.rigid`)."""
@@ -243,24 +200,6 @@ class CondensationPath(ZonePath):
         from .rigid import held_state
         return held_state(lambda sys: ZonePath.solve_state(self, sys, ctx, alpha, **kw), system,
                           kw.get("tol") or self.settings.tol, kw.get("method", self.settings.method))
-
-    def controlled_subgradient(self, system, ctx, state, v_u, v_lam, xi, loads=None):
-        """ξ with the translation of a force-controlled obstacle following α (module docstring)."""
-        m = self.model
-        if getattr(m, "force", None) is None:
-            return xi
-        c, b = m.force_gap, m.force_b.ravel()
-        Se = system.contact_S @ (m.force_b * [1.0, 1.0, 0.0]).ravel()     # ∂(S w − ℓ_eff)/∂s
-        Sb = system.contact_S @ b
-        w_u, w_lam, w_full, _ = self.adjoint(system, ctx, state, Sb, np.zeros(c.size))
-        bg = b if self.frames is None else from_frames(b, self.frames)
-        b_full = m.assembler.to_full(system.factor.extend(bg))
-        dF_da = self.design_contraction(system, state.u, b_full + w_full, loads) + m.gap_matrix.T @ w_lam
-        dF_ds = float(b @ Se + w_u @ Se - w_lam @ c)
-        dT_ds = float(v_u @ Se - v_lam @ c)
-        if dF_ds == 0:
-            return xi
-        return xi - dT_ds * dF_da / dF_ds
 
     def zone_problem(self, system, zone, warm, reuse, shared):
         if reuse and "zone" in shared:
@@ -380,11 +319,6 @@ def to_frames_matrix(S: np.ndarray, R: np.ndarray) -> np.ndarray:
     S4 = S.reshape(p, 3, p, 3)
     out = np.einsum("mai,makb,kbj->mikj", R, S4, R, optimize=True).reshape(3 * p, 3 * p)
     return np.ascontiguousarray(0.5 * (out + out.T))
-
-
-def excess_of(state, b: np.ndarray, force: float) -> float:
-    """Σ_m b_m·r_m − |f| of a state (r_m = (−τ, λ) per node in its frame)."""
-    return float(np.sum(b[:, :2] * -state.tau) + b[:, 2] @ state.lam) - force
 
 
 def shifted(system: CondensedSystem, shift: np.ndarray) -> CondensedSystem:

@@ -15,7 +15,8 @@ On a rigid obstacle other than the plane the contact DOFs are the local componen
 frame R_m = (t1, t2, n): W = Qᵀ B A⁻¹ Bᵀ Q, Q = diag(R_m), by rotating the forces before each
 sparse solve and the displacements after it (:class:`~contactopt.contact.zone.FramedDelassusZoneProblem`);
 the W-form adjoint's products rotate the same way, and an obstacle's tangential translation shifts q
-as on the condensation path (:mod:`.condensation`).
+as on the condensation path (:mod:`.condensation`; on the plane in the axes' frames). The translation
+is a field of the system, so that a force-controlled obstacle (:mod:`.force`) moves it per trial.
 """
 
 from __future__ import annotations
@@ -31,6 +32,7 @@ from ..contact.state import CLASS_CODES, FROM_FCLIB, displacement_scale
 from ..fem import memory
 from ..fem.model import Assembled
 from .base import Adjoint, Capabilities
+from .force import ForceControl, normal_stiffness
 from .zone_paths import ZonePath
 
 log = logging.getLogger(__name__)
@@ -53,14 +55,15 @@ class FactorizedSystem:
     x0: np.ndarray
     gap: np.ndarray
     timings: dict
+    shift: np.ndarray | None = None    # an obstacle's tangential translation (3p, per node frame), or None
 
 
-class DelassusPath(ZonePath):
+class DelassusPath(ForceControl, ZonePath):
     """``[linear_solver] path = "delassus"`` (module docstring)."""
 
     name = "delassus"
-    capabilities = Capabilities(obstacle=True, pinned=True, whole_displacement=True, load_steps=True, auto="large",
-                                auto_order=1, auto_libraries=("pardiso",), auto_avoids=("obstacle",))
+    capabilities = Capabilities(obstacle=True, force_obstacle=True, pinned=True, whole_displacement=True,
+                                load_steps=True, auto="large", auto_order=1, auto_libraries=("pardiso",), auto_avoids=("obstacle",))
     reuse_tol_factor = 1.0    # each Newton step costs a sparse solve here: to tol itself
     accept_at_tol = True      # forming W_Z costs more than a factorization
     probe_warm = True         # the warm start's product Newton needs first anyway
@@ -90,8 +93,10 @@ class DelassusPath(ZonePath):
         self._slot.set(fac)       # releases the last design's zone condensation, if any
         t1 = time.perf_counter()
         x0 = fac.solve(asm.L)
+        s = getattr(self.model, "slip_shift", None)
         return FactorizedSystem(asm, self._slot, x0, asm.gap,
-                                {"factor": t1 - t0, "load_solve": time.perf_counter() - t1})
+                                {"factor": t1 - t0, "load_solve": time.perf_counter() - t1},
+                                None if s is None else s.ravel())
 
     def for_load(self, system, asm) -> FactorizedSystem:
         t1 = time.perf_counter()
@@ -127,34 +132,52 @@ class DelassusPath(ZonePath):
         zone.FramedDelassusZoneProblem`)."""
         return getattr(self.model, "frames", None)
 
+    def law_frames(self, system):
+        """The frames of the zone problems: :attr:`frames`, or the axes on the plane translated
+        tangentially (the shift acts per node frame), else None."""
+        if self.frames is None and system.shift is not None:
+            return np.broadcast_to(np.eye(3), (self.model.n_contact, 3, 3))
+        return self.frames
+
     def _problem(self, system, zone):
-        if self.frames is not None:
+        R = self.law_frames(system)
+        if R is not None:
             return zone_rules.FramedDelassusZoneProblem(system.factor, self.model.contact_dofs, system.x0, zone,
-                                                        self._zone_block(system.assembled.A), self.frames,
-                                                        self.shift)
+                                                        self._zone_block(system.assembled.A), R, system.shift)
         return zone_rules.DelassusZoneProblem(system.factor, self.model.contact_dofs, system.x0, zone,
                                               self._zone_block(system.assembled.A))
-
-    @property
-    def shift(self):
-        """An obstacle's tangential translation (3p, per node frame), or None (paths/condensation.py)."""
-        s = getattr(self.model, "slip_shift", None)
-        return None if s is None else s.ravel()
 
     def body_contact_displacement(self, system, u_c, r):
         """On an obstacle u_c is per node in its frame, relative to a translated obstacle: the body's is
         Q (u_c + shift)."""
-        if self.frames is None:
+        R = self.law_frames(system)
+        if R is None:
             return np.ravel(u_c)
         from .condensation import from_frames
-        u = np.ravel(u_c) if self.shift is None else np.ravel(u_c) + self.shift
-        return from_frames(u, self.frames)
+        u = np.ravel(u_c) if system.shift is None else np.ravel(u_c) + system.shift
+        return from_frames(u, R)
+
+    # ------------------------------------------------------------------ a force-controlled obstacle (.force)
+    def fixed_state(self, system, ctx, alpha, **kw):
+        return ZonePath.solve_state(self, system, ctx, alpha, **kw)
+
+    def translated(self, system, s, c, e):
+        shift = system.shift
+        if np.any(e):
+            shift = s * e if shift is None else shift + s * e
+        return replace(system, gap=system.gap - s * c, shift=shift)
+
+    def normal_stiffness(self, system):
+        return normal_stiffness(system.assembled.A, self.model.contact_dofs, self.frames)
 
     def zone_problem(self, system, zone, warm, reuse, shared):
         if warm is None and self.settings.use_zone and zone.size == self.all_nodes.size:
             zone = self.predicted_zone(system)
         if "zone" in shared:
-            return shared["zone"].with_load(system.x0, zone), zone
+            zp = shared["zone"]
+            if isinstance(zp, zone_rules.FramedDelassusZoneProblem):   # the shift of this system
+                return zp.with_load(system.x0, zone, system.shift), zone
+            return zp.with_load(system.x0, zone), zone
         zp = shared["zone"] = self._problem(system, zone)
         return zp, zone
 
@@ -163,9 +186,10 @@ class DelassusPath(ZonePath):
         forces, x0, closes the gap to within the margin — the zone grows by every node it misses,
         so the state does not depend on this guess, and W_Z is not formed on all contact DOFs."""
         u0 = system.x0[self.model.contact_dofs]
-        if self.frames is not None:
+        R = self.law_frames(system)
+        if R is not None:
             from .condensation import to_frames
-            u0 = to_frames(u0, self.frames) - (0.0 if self.shift is None else self.shift)
+            u0 = to_frames(u0, R) - (0.0 if system.shift is None else system.shift)
         u0 = u0.reshape(-1, 3)
         clearance = u0[:, 2] + system.gap
         return zone_rules.near_nodes(np.zeros(system.gap.size), clearance, displacement_scale(u0, system.gap),

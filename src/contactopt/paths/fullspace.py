@@ -16,7 +16,8 @@ each node's frame R_m = (t1, t2, n): the Newton method solves TᵀA T u_loc = T�
 orthogonal change of basis (the identity but the 3 × 3 blocks R_m at the contact DOFs), so its
 Dirichlet and Robin rows act in the frames unchanged; u = T u_loc, the AMG near-null space is Tᵀ
 times the rigid-body modes, the adjoint is solved on TᵀA T and its extension returned as T ṽ_loc.
-An obstacle's tangential translation is the slip's reference (``slip_ref``), as a load step's is.
+An obstacle's tangential translation is the slip's reference (``slip_ref``), as a load step's is;
+it is a field of the system, so that a force-controlled obstacle (:mod:`.force`) moves it per trial.
 
 :class:`FullSpaceCommon` is what this path and the PETSc path (:mod:`.petsc`), the two backends of
 one method, share: the options of a solve, the state of its result, and the arrays of a
@@ -37,6 +38,7 @@ from ..errors import CheckpointError
 from ..fem import memory
 from ..fem.model import Assembled
 from .base import Adjoint, Capabilities, Context, SolverPath, check_design
+from .force import ForceControl, normal_stiffness
 
 log = logging.getLogger(__name__)
 
@@ -56,6 +58,7 @@ class FullSystem:
     T: object = None
     A: object = None
     L: np.ndarray | None = None
+    shift: np.ndarray | None = None    # an obstacle's tangential translation (p, 2) per node frame, or None
 
     @property
     def law_A(self):
@@ -158,12 +161,12 @@ class FullSpaceCommon(SolverPath):
         self.restore(ctx, arrays, u, alpha, where)
 
 
-class FullSpacePath(FullSpaceCommon):
+class FullSpacePath(ForceControl, FullSpaceCommon):
     """``[linear_solver] path = "fullspace"`` (module docstring)."""
 
     name = "fullspace"
-    capabilities = Capabilities(obstacle=True, pinned=True, whole_displacement=True, load_steps=True,
-                                libraries=("pyamg",), sparse="pyamg", auto="large", auto_order=0,
+    capabilities = Capabilities(obstacle=True, force_obstacle=True, pinned=True, whole_displacement=True,
+                                load_steps=True, libraries=("pyamg",), sparse="pyamg", auto="large", auto_order=0,
                                 auto_avoids=("obstacle",))
 
     def __init__(self, model, settings, start=None):
@@ -182,20 +185,27 @@ class FullSpacePath(FullSpaceCommon):
         """(p, 3, 3) contact frames on an obstacle other than the plane, else None."""
         return getattr(self.model, "frames", None)
 
-    @property
-    def shift(self):
-        """An obstacle's tangential translation (p, 2) per node frame, or None."""
-        s = getattr(self.model, "slip_shift", None)
-        return None if s is None else s[:, :2]
-
     def prepare(self, asm) -> FullSystem:
+        s = getattr(self.model, "slip_shift", None)
+        shift = None if s is None else s[:, :2]
         if self.frames is None:
-            return FullSystem(asm, asm.gap, {})
+            return FullSystem(asm, asm.gap, {}, shift=shift)
         import scipy.sparse as sp
         T = frame_rotation(self.model.contact_dofs, self.frames, self.model.assembler.n_free)
         A = sp.csr_matrix(T.T @ asm.A @ T)
         A.sort_indices()
-        return FullSystem(asm, asm.gap, {}, T, A, T.T @ asm.L)
+        return FullSystem(asm, asm.gap, {}, T, A, T.T @ asm.L, shift)
+
+    # ------------------------------------------------------------------ a force-controlled obstacle (.force)
+    def translated(self, system, s, c, e):
+        shift = system.shift
+        if np.any(e):
+            e2 = e.reshape(-1, 3)[:, :2]
+            shift = s * e2 if shift is None else shift + s * e2
+        return replace(system, gap=system.gap - s * c, shift=shift)
+
+    def normal_stiffness(self, system):
+        return normal_stiffness(system.assembled.A, self.model.contact_dofs, self.frames)
 
     def for_load(self, system, asm) -> FullSystem:
         out = replace(system, assembled=asm, timings={})
@@ -224,8 +234,9 @@ class FullSpacePath(FullSpaceCommon):
         finally:
             np.random.set_state(saved)
 
-    def solve_state(self, system, ctx, alpha, *, method, warm_start, tol, shared, label="", slip_ref=None):
-        """Warm-started from the case's last forces, displacement and contact zone, on the AMG
+    def fixed_state(self, system, ctx, alpha, *, method, warm_start, tol, shared, label="", slip_ref=None):
+        """The state with the obstacle where ``system`` puts it (:meth:`solve_state`, :mod:`.force`),
+        warm-started from the case's last forces, displacement and contact zone, on the AMG
         hierarchy of an earlier design; without ``warm_start`` from nothing the case carries (on
         all contact nodes), so that two such solves of one design agree bit for bit."""
         from ..contact.fullspace import solve_fullspace
@@ -240,7 +251,7 @@ class FullSpacePath(FullSpaceCommon):
             t_setup = time.perf_counter() - t0
         # on an obstacle: the contact DOFs in the nodes' frames (A → TᵀAT), and a tangential translation
         # as the reference of the slip (the law's displacement is w = u_c − shift, as on the condensation path)
-        law_ref = slip_ref if self.shift is None else (self.shift if slip_ref is None else slip_ref + self.shift)
+        law_ref = slip_ref if system.shift is None else (system.shift if slip_ref is None else slip_ref + system.shift)
         res = solve_fullspace(system.law_A, system.law_L, self.model.contact_dofs, system.gap, self.settings.friction,
                               coords=asm.coords, free=self.model.assembler.free, r0=warm, u0=u0,
                               hierarchy=self._hierarchy, slip_ref=law_ref,
@@ -250,9 +261,9 @@ class FullSpacePath(FullSpaceCommon):
         u_free, u_c = res.u, None
         if system.T is not None:
             u_free = system.T @ res.u
-            if self.shift is not None:
-                u_c = res.u_c.copy()
-                u_c[:, :2] -= self.shift
+        if system.shift is not None:
+            u_c = res.u_c.copy()
+            u_c[:, :2] -= system.shift
         return self.state_of(ctx, system, alpha, res, u_free=u_free, u_c=u_c, t0=t0, t_setup=t_setup,
                              info={"backend": "pyamg"}, label=label, slip_ref=slip_ref)
 

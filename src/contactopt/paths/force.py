@@ -1,0 +1,173 @@
+"""A force-controlled obstacle on every path that takes one: its translation and its subgradient.
+
+A force-controlled obstacle (``[obstacle] control = "force"``, :mod:`contactopt.mesh.obstacle`)
+translates by s f̂ along its force f: the gap is g − s c, c_m = f̂·n_m, and the obstacle moves
+under the node by s e_m, e_m = (b_m)_t the tangential part of b_m = R_mᵀ f̂ (per node frame
+(t1, t2, n)), so that the contact law sees w = u_c − s e. The translation s solves
+
+    F(s) = Σ_m b_m·r_m − |f| = 0        (r_m = (−τ_m, λ_m), the force on the body in the node's frame),
+
+the resultant along f̂ the obstacle exerts on the body, by Brent's method on a bracket from the
+first touch, one state solve per step. A path gives only the system moved by s
+(:meth:`ForceControl.translated`), the state of a fixed obstacle (:meth:`ForceControl.fixed_state`)
+and a normal stiffness per node for the bracket's first step (:meth:`ForceControl.normal_stiffness`).
+
+The subgradient adds the dependence of s on α (implicit function theorem on F(α, s) = 0):
+
+    ξ = ξ_s − (∂Θ/∂s)(∂F/∂s)⁻¹ ∂F/∂α,
+
+ξ_s the subgradient at fixed s. F is linear in the whole displacement: F = ẽᵀ(A u − L) with ẽ the
+vector of free DOFs holding Q b at the contact DOFs (Q = diag(R_m)) and 0 elsewhere, so it is an
+objective of the whole displacement with ∂F/∂u = A ẽ and explicit design term ẽᵀ(∂A u − ∂L);
+its adjoint (w_u, w_λ, w̃) on any path gives z = w̃ + ẽ, the A-harmonic extension of Q(b + w_u),
+hence S(b + w_u) = Qᵀ(A z)_c with no S formed. With S e the change of the contact law's load
+per unit s:
+
+    ∂F/∂α = zᵀ(∂A u − ∂L) + (∂g/∂α)ᵀ w_λ,   ∂F/∂s = S(b + w_u)·e − w_λ·c,
+    ∂Θ/∂s = Qᵀ(A ṽ)_c·e − v_λ·c                 (J of the state's u_c = w and λ),
+    ∂Θ/∂s = Qᵀ(A ṽ + g)_c·e − v_λ·c             (J of the body's whole displacement, g = ∂J/∂u),
+
+ṽ the objective's adjoint extended to every DOF: (A ṽ)_c = S v_u where ṽ is A-harmonic, and
+(A ṽ)_c = S v_u − A_ci A_ii⁻¹ g_i for an objective of the whole displacement, whose body
+displacement u_c = w + s e moves with s also at fixed w: y*_u·e with y*_u = g_c − A_ci A_ii⁻¹ g_i.
+"""
+
+from __future__ import annotations
+
+import logging
+
+import numpy as np
+
+from ..errors import ContactNotConverged, SolverError
+
+log = logging.getLogger(__name__)
+
+TANGENTIAL = np.array([1.0, 1.0, 0.0])
+
+
+class ForceControl:
+    """The translation of a force-controlled obstacle and its subgradient (module docstring), for a
+    :class:`~contactopt.paths.base.SolverPath` that implements the three hooks below."""
+
+    # ------------------------------------------------------------------ hooks
+    def fixed_state(self, system, ctx, alpha, **kw):
+        """The state with the obstacle where ``system`` puts it (the path's own solve)."""
+        raise NotImplementedError
+
+    def translated(self, system, s: float, c: np.ndarray, e: np.ndarray):
+        """``system`` with the obstacle translated by s f̂: gap g − s c, tangential shift s e
+        (3p per node frame, normal parts 0) added to the law's."""
+        raise NotImplementedError
+
+    def normal_stiffness(self, system) -> np.ndarray:
+        """(p,) a stiffness per contact node along its normal (the bracket's first step only)."""
+        raise NotImplementedError
+
+    # ------------------------------------------------------------------ state
+    def solve_state(self, system, ctx, alpha, *, method, warm_start, tol, shared, label="", slip_ref=None):
+        """The state; with a force-controlled obstacle the translation s that balances the force,
+        found by Brent's method (module docstring): ``info`` holds s, the resultant and the solves."""
+        kw = dict(method=method, warm_start=warm_start, tol=tol, shared=shared, label=label, slip_ref=slip_ref)
+        m = self.model
+        if getattr(m, "force", None) is None:
+            return self.fixed_state(system, ctx, alpha, **kw)
+        from scipy.optimize import brentq
+
+        c, b, f = m.force_gap, m.force_b, m.force
+        e = (b * TANGENTIAL).ravel()
+        states = {}
+
+        def excess(s):
+            moved = self.translated(system, s, c, e)
+            try:
+                st = self.fixed_state(moved, ctx, alpha, **kw)
+            except ContactNotConverged:
+                if not warm_start and ctx.warm is None:
+                    raise
+                # the full-space Newton can stall where a tangential translation drags the face, from
+                # nothing or from a state at another translation: once more the other way (the same
+                # state, to its tolerance)
+                log.debug("no state at the translation %.6e %s: solved again %s", s,
+                          *(("warm-started", "from nothing") if warm_start else ("from nothing", "warm-started")))
+                st = self.fixed_state(moved, ctx, alpha, **{**kw, "warm_start": not warm_start})
+            states[s] = st
+            return excess_of(st, b, f)
+
+        touch = float(np.min(system.gap[c > 0] / c[c > 0]))
+        step = f / float(np.max(self.normal_stiffness(system)[c > 0] * c[c > 0] ** 2))
+        # lo just past the first touch: with every gap open and no load the frictionless local
+        # solver does not converge on r = 0 (it does not on the plane either)
+        lo, hi = touch + 1e-3 * step, touch + step
+        f_lo, f_hi = excess(lo), excess(hi)
+        for _ in range(200):
+            if f_lo <= 0 < f_hi:
+                break
+            if f_lo > 0:
+                lo, hi, f_hi = lo - step, lo, f_lo
+                f_lo = excess(lo)
+            else:
+                lo, f_lo, hi = hi, f_hi, hi + step
+                f_hi = excess(hi)
+            step *= 2.0
+        else:
+            raise SolverError(f"obstacle.force = {f:g}: no translation of the obstacle balances it")
+        if f_lo == 0:
+            s = lo
+        else:
+            s = brentq(excess, lo, hi, xtol=1e-15 * (abs(lo) + abs(hi)), rtol=4 * np.finfo(float).eps, maxiter=200)
+        if s not in states:
+            excess(s)
+        st = states[s]
+        st.info["obstacle_translation"] = s
+        st.info["obstacle_resultant"] = f + excess_of(st, b, f)
+        st.info["obstacle_solves"] = len(states)
+        log.debug("force-controlled obstacle: translation %.6e after %d state solves", s, len(states))
+        return st
+
+    # ------------------------------------------------------------------ subgradient
+    def controlled_subgradient(self, system, ctx, state, v_u, v_lam, xi, loads=None, *, v=None, y_u=None):
+        """ξ with the translation of a force-controlled obstacle following α (module docstring);
+        ``v`` ṽ of the objective's adjoint on every DOF, ``y_u`` its ∂J/∂u (:meth:`adjoint`)."""
+        m = self.model
+        if getattr(m, "force", None) is None:
+            return xi
+        c, b = m.force_gap, m.force_b
+        e = (b * TANGENTIAL).ravel()
+        A, asm = system.assembled.A, m.assembler
+        frames = getattr(m, "frames", None)
+        dT_ds = -float(v_lam @ c)
+        if np.any(e):
+            force = (A @ np.asarray(v)[asm.free])[m.contact_dofs]       # (A ṽ)_c
+            if y_u is not None and self.is_full(y_u):                    # J of the body's u = w + s e
+                force = force + np.asarray(y_u, float)[asm.free][m.contact_dofs]
+            if frames is not None:
+                force = np.einsum("mij,mi->mj", frames, force.reshape(-1, 3)).ravel()
+            dT_ds += float(force @ e)
+        bg = b.ravel() if frames is None else np.einsum("mij,mj->mi", frames, b).ravel()
+        e_free = np.zeros(asm.n_free)
+        e_free[m.contact_dofs] = bg
+        w = self.adjoint(system, ctx, state, asm.to_full(A @ e_free), np.zeros(c.size))
+        z = w.v + asm.to_full(e_free)                 # the A-harmonic extension of Q(b + w_u)
+        Sz = (A @ z[asm.free])[m.contact_dofs]
+        if frames is not None:
+            Sz = np.einsum("mij,mi->mj", frames, Sz.reshape(-1, 3)).ravel()
+        dF_da = self.design_contraction(system, state.u, z, loads) + m.gap_matrix.T @ w.v_lam
+        dF_ds = float(Sz @ e - w.v_lam @ c)
+        if dF_ds == 0:
+            return xi
+        return xi - dT_ds * dF_da / dF_ds
+
+
+def excess_of(state, b: np.ndarray, force: float) -> float:
+    """Σ_m b_m·r_m − |f| of a state (r_m = (−τ, λ) per node in its frame)."""
+    return float(np.sum(b[:, :2] * -state.tau) + b[:, 2] @ state.lam) - force
+
+
+def normal_stiffness(A, contact_dofs: np.ndarray, frames) -> np.ndarray:
+    """(p,) n_mᵀ A_mm n_m, the diagonal stiffness of each contact node along its normal (the
+    third column of its frame, e3 without frames): an upper bound of S's, for a first step."""
+    cd = np.asarray(contact_dofs).reshape(-1, 3)
+    n = np.broadcast_to([0.0, 0.0, 1.0], cd.shape) if frames is None else frames[:, :, 2]
+    rows, cols = np.repeat(cd, 3, axis=1), np.tile(cd, (1, 3))
+    block = np.asarray(A[rows.ravel(), cols.ravel()]).reshape(-1, 3, 3)
+    return np.einsum("mi,mij,mj->m", n, block, n)
