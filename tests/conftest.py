@@ -48,3 +48,20 @@ def config_file(tmp_path):
         path.write_text(tomli_w.dumps(data))
         return path
     return write
+
+
+@pytest.fixture
+def state_refused(tmp_path, capsys, config_file):
+    """Factory: ``state_refused(config, *needles)``: ``contactopt state`` on ``config`` (a Config, a
+    dict, or the path of a TOML file) exits 2, its error names every needle, and nothing is written."""
+    from contactopt.cli import main
+
+    def check(config, *needles):
+        toml = config if isinstance(config, (str, Path)) else config_file(config, name="refused")
+        out = tmp_path / "refused-out"
+        assert main(["state", str(toml), "--out", str(out)]) == 2
+        err = capsys.readouterr().err
+        for needle in needles:
+            assert needle in err, err
+        assert not out.exists()
+    return check

@@ -262,40 +262,31 @@ def write(tmp_path, cfg, name="c.toml"):
     return path
 
 
-def _refused(tmp_path, capsys, toml, *needles):
-    out = tmp_path / "out"
-    assert main(["state", str(toml), "--out", str(out)]) == 2
-    err = capsys.readouterr().err
-    for needle in needles:
-        assert needle in err, err
-    assert not out.exists()
-
-
-def test_a_body_node_inside_the_obstacle_exits_2_and_writes_nothing(tmp_path, capsys):
+def test_a_body_node_inside_the_obstacle_exits_2_and_writes_nothing(tmp_path, capsys, state_refused):
     deep = {**SPHERE, "center": [1.0, 1.0, -R + 0.05]}
-    _refused(tmp_path, capsys, write(tmp_path, block(deep)), "node(s) of the body lie inside the sphere",
+    state_refused(write(tmp_path, block(deep)), "node(s) of the body lie inside the sphere",
              "depth 0.05")
 
 
-def test_unknown_obstacle_keys_and_missing_radius_exit_2(tmp_path, capsys):
+def test_unknown_obstacle_keys_and_missing_radius_exit_2(tmp_path, capsys, state_refused):
     data = block().data
     data["obstacle"] = {"shape": "sphere", "center": [1.0, 1.0, -5.0], "raduis": 5.0}
-    _refused(tmp_path, capsys, write(tmp_path, data), "obstacle.raduis: unknown key", "obstacle.radius: required")
+    state_refused(write(tmp_path, data), "obstacle.raduis: unknown key", "obstacle.radius: required")
 
 
-def test_an_stl_that_is_not_closed_exits_2(tmp_path, capsys):
+def test_an_stl_that_is_not_closed_exits_2(tmp_path, capsys, state_refused):
     good = polygonal_cylinder(tmp_path / "c.stl", sides=12)
     m = meshio.read(good)
     meshio.write(tmp_path / "open.stl", meshio.Mesh(m.points, [("triangle", m.cells[0].data[1:])]), file_format="stl", binary=True)
     obstacle = {**CYLINDER, "shape": "surface", "mesh": str(tmp_path / "open.stl")}
-    _refused(tmp_path, capsys, write(tmp_path, block(obstacle)), "is not closed", "not shared by exactly two")
+    state_refused(write(tmp_path, block(obstacle)), "is not closed", "not shared by exactly two")
 
 
-def test_a_contact_node_whose_closest_point_is_not_unique_exits_2(tmp_path, capsys):
+def test_a_contact_node_whose_closest_point_is_not_unique_exits_2(tmp_path, capsys, state_refused):
     # a V groove along x2 under x1 = 1: the nodes above its bottom line are as close to both flanks
     groove = prism(tmp_path / "v.stl", [(-1.0, -1.0), (3.0, -1.0), (3.0, -0.1), (1.0, -0.3), (-1.0, -0.1)],
                    -1.0, 3.0)
-    _refused(tmp_path, capsys, write(tmp_path, block({"shape": "surface", "mesh": groove})),
+    state_refused(write(tmp_path, block({"shape": "surface", "mesh": groove})),
              "closest point on the surface is not unique for 9 node(s)", "node 4 at (1, 0, 0)")
 
 
@@ -356,8 +347,8 @@ def test_the_plane_moved_tangentially_on_the_delassus_and_fullspace_paths_equals
         assert np.abs(st.u - sc.u).max() <= 1e-10 * np.abs(sc.u).max()
 
 
-def test_a_zero_force_a_foundation_and_the_other_paths_are_refused(tmp_path, capsys):
-    _refused(tmp_path, capsys, write(tmp_path, {**block().data, "obstacle": {**SPHERE, "control": "force"}}),
+def test_a_zero_force_a_foundation_and_the_other_paths_are_refused(tmp_path, capsys, state_refused):
+    state_refused(write(tmp_path, {**block().data, "obstacle": {**SPHERE, "control": "force"}}),
              "obstacle.force = [0, 0, 0]", "no component along any free direction")
     with pytest.raises(ConfigError, match="no contact node's normal has a component along the force"):
         ShapeProblem(block({**SPHERE, "control": "force", "force": [0.0, 0.0, -1.0]}))
