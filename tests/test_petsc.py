@@ -350,3 +350,56 @@ def test_a_resumed_load_path_run_repeats_the_uninterrupted_one_on_two_ranks(tmp_
     assert any(h.startswith("f_step_") for h in header), header
     assert len(whole) > 4                                  # the header and an evaluation per row
     assert [[r.split(",")[i] for i in keep] for r in part] == [[r.split(",")[i] for i in keep] for r in whole]
+
+
+# ---------------------------------------------------------------------------- load steps on tetrahedra
+SLOPE = [0.0, 0.0, -1.0]
+TET_PATH3 = [{"name": "press", "body_force": SLOPE},
+             {"name": "shear", "body_force": SLOPE, "pressure": [{"on": {"x1": 1.0}, "value": 0.05}]},
+             {"name": "ease", "body_force": SLOPE, "pressure": [{"on": {"x1": 1.0}, "value": 0.03}], "substeps": 2}]
+TET_PATHS = {"two steps": (TET_PATH3[:2], "last"), "three steps": (TET_PATH3, "sum")}
+
+
+def tet_step_config(steps, objective):
+    """A box of 288 nodes and linear tetrahedra read from a Gmsh file (tests/data/two_groups.msh),
+    clamped on top, pressed by its weight and sheared by a pressure on its end x = 1: sliding in
+    the shear and in the easing."""
+    return load_config({
+        "name": "box",
+        "body": {"mesh": str(ROOT / "tests" / "data" / "two_groups.msh"), "clamped": "top", "contact": "bottom"},
+        "design": {"degree": [3, 2], "C0": 0.05, "C2": 0.002, "initial": 0.002},
+        "objective": {"target": {"kind": "constant", "value": 0.001}, "steps": objective},
+        "load_steps": steps})
+
+
+def tet_step_reference(name):
+    key = ("tet steps", name)
+    if key not in _reference:
+        _reference[key] = evaluations(tet_step_config(*TET_PATHS[name]), "fullspace")
+    return _reference[key]
+
+
+@pytest.mark.parametrize("ranks", [1, 2])
+@pytest.mark.parametrize("name", sorted(TET_PATHS))
+def test_load_steps_on_tetrahedra_equal_the_pyamg_path(name, ranks, tmp_path):
+    """The 2- and 3-step paths on tetrahedra: every solve's state and Θ as the pyamg full-space
+    path's, ξ against central differences, on 1 rank and under mpiexec -n 2."""
+    from contactopt.problem import ShapeProblem
+
+    cfg = tet_step_config(*TET_PATHS[name])
+    assert ShapeProblem(cfg).model.mesh.cell_type == "tetra"
+    if ranks == 1:
+        got = evaluations(cfg, "petsc", differences=True)
+    else:
+        file, out = tmp_path / "steps.toml", tmp_path / "petsc.npz"
+        file.write_text(tomli_w.dumps(cfg.data))
+        proc = mpiexec(2, str(ROOT / "tests" / "mpi" / "compare_paths.py"), str(file), str(out))
+        assert proc.returncode == 0, proc.stderr[-3000:]
+        with np.load(out) as npz:
+            got = dict(npz)
+        assert int(got.pop("ranks")) == 2
+    solves = sum(s.get("substeps", 1) for s in TET_PATHS[name][0])
+    assert sum(k.startswith("u1_step") for k in got) == solves
+    what = f"{name} on tetrahedra, PETSc path on {ranks} rank(s)"
+    assert_differences(got, what)
+    assert_agree(tet_step_reference(name), got, what)
