@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from contactopt.config import load_config
-from contactopt.contact.state import CLASS_NAMES, State, class_counts
+from contactopt.contact.state import CLASS_NAMES, SolveStats, State, class_counts
 from contactopt.fem.model import ElasticModel
 from contactopt.io import atomic, plots, statefiles, vtk
 
@@ -36,7 +36,7 @@ def fake_state(model, seed=0):
     return State(alpha=alpha, coords=coords, u=u.ravel(), u_c=u_c, lam=lam, tau=tau,
                  gap=model.gap_matrix @ alpha, classes=classes, friction=0.3, method="fake",
                  iterations=7, residual=1e-11, complementarity=2e-12, converged=True,
-                 timings={"solve": 0.25}, info={"note": "synthetic", "array": np.zeros(3)})
+                 timings={"solve": 0.25}, stats=SolveStats(extra={"note": "synthetic", "array": np.zeros(3)}))
 
 
 def assert_png(path):
