@@ -42,7 +42,7 @@ def sphere(h: float, nu: float, friction: float, size=20.0) -> dict:
     r, p, _, _ = pressure(pr, st)
     a, p0 = fit(r, p)
     shear = np.linalg.norm(st.tau, axis=1) / pr.model.contact_areas()
-    return {"p0_node": float(p[np.argmin(r)]), "p0": p0, "a": a, "delta": st.info["obstacle_translation"],
+    return {"p0_node": float(p[np.argmin(r)]), "p0": p0, "a": a, "delta": st.obstacle.translation,
             "counts": st.counts, "shear_max": float(shear.max()), "time": time.perf_counter() - t0}
 
 

@@ -269,3 +269,58 @@ def test_the_lookup_detector_passes_attribute_reads():
     ok = ('def f(cfg, model):\n    d = cfg.design\n    t = cfg.objective.target\n    raw = cfg.to_dict()\n'
           '    raw["name"] = "x"\n    return d.lower, model.config.state.tol, t.kind, arrays.get("u")')
     assert not _string_lookups(ast.parse(ok))
+
+
+# ------------------------------------------------------------------ typed State data
+_MUTATORS = {"update", "setdefault", "pop", "popitem", "clear", "__setitem__"}
+
+
+def _info_uses(tree) -> list:
+    """(line, text) of every use of a state's dictionary ``info`` as a data channel in ``tree``:
+    ``x.info[...]`` (read, write or delete), ``x.info.update(...)`` and the other mutators,
+    ``x.info.get(...)``, ``"key" in x.info`` and ``x.info = ...``; ``self.info`` (a class's own
+    attribute, e.g. an FCLIB problem's or a factorization's) excepted."""
+    def is_info(node):
+        return isinstance(node, ast.Attribute) and node.attr == "info" \
+            and not (isinstance(node.value, ast.Name) and node.value.id == "self")
+    found = []
+    for n in ast.walk(tree):
+        if isinstance(n, ast.Subscript) and is_info(n.value):
+            found.append((n.lineno, ast.unparse(n)))
+        elif isinstance(n, ast.Call) and isinstance(n.func, ast.Attribute) and is_info(n.func.value) \
+                and n.func.attr in _MUTATORS | {"get"}:
+            found.append((n.lineno, ast.unparse(n)))
+        elif isinstance(n, ast.Compare) and any(isinstance(op, (ast.In, ast.NotIn)) for op in n.ops) \
+                and any(is_info(c) for c in n.comparators):
+            found.append((n.lineno, ast.unparse(n)))
+        elif isinstance(n, (ast.Assign, ast.AugAssign, ast.AnnAssign)):
+            targets = n.targets if isinstance(n, ast.Assign) else [n.target]
+            found += [(n.lineno, ast.unparse(t)) for t in targets if is_info(t)]
+    return sorted(set(found))
+
+
+def test_no_module_writes_or_reads_state_info():
+    """State's data and statistics are named fields (st.step, st.obstacle.translation,
+    st.stats.zone_nodes); ``State.info`` is only their read-only dictionary form for old code:
+    nothing in the package writes into it or reads it by key."""
+    found = []
+    for f in sorted(SRC.rglob("*.py")):
+        found += [f"{f.relative_to(SRC).as_posix()}:{line} {text}" for line, text in _info_uses(ast.parse(f.read_text()))]
+    assert not found, "State.info used as a data channel: " + "; ".join(found)
+
+
+@pytest.mark.parametrize("snippet", [
+    'st.info["step"] = "load"', 'st.info["step"], st.info["substep"] = s.name, s.substep',
+    'x = state.info["obstacle_translation"]', 'steps[j].info["objective"] = 1.0', 'st.info.update(a=1)',
+    'st.info.get("zone_nodes")', '"sparse_solves" in st.info', 'st.info.setdefault("k", 0)',
+    'res.state.info = {}', 'del st.info["slip"]'])
+def test_the_info_detector_sees_a_use(snippet):
+    """The check above is not vacuous: each of these uses ``info`` as a data channel."""
+    assert _info_uses(ast.parse(snippet))
+
+
+def test_the_info_detector_passes_named_fields_and_own_attributes():
+    ok = ('st.step, st.substep = s.name, s.substep\nst.stats.adjoint_krylov = 3\nd = st.obstacle.translation\n'
+          'self.info = 0\nt = self.info.get("title")\nfor k, v in problem.info.items():\n    pass\n'
+          'view = dict(st.info)')
+    assert not _info_uses(ast.parse(ok))

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from contactopt.config import load_config
-from contactopt.contact.state import CLASS_NAMES, State, class_counts
+from contactopt.contact.state import CLASS_NAMES, SolveStats, State, class_counts
 from contactopt.fem.model import ElasticModel
 from contactopt.io import atomic, plots, statefiles, vtk
 
@@ -36,7 +36,7 @@ def fake_state(model, seed=0):
     return State(alpha=alpha, coords=coords, u=u.ravel(), u_c=u_c, lam=lam, tau=tau,
                  gap=model.gap_matrix @ alpha, classes=classes, friction=0.3, method="fake",
                  iterations=7, residual=1e-11, complementarity=2e-12, converged=True,
-                 timings={"solve": 0.25}, info={"note": "synthetic", "array": np.zeros(3)})
+                 timings={"solve": 0.25}, stats=SolveStats(extra={"note": "synthetic", "array": np.zeros(3)}))
 
 
 def assert_png(path):
@@ -182,6 +182,38 @@ def test_write_state_all_files(model, tmp_path):
     assert np.array_equal(statefiles.read_state_npz(out / "state.npz").lam, st2.lam)
     assert "config" not in json.loads((out / "state.json").read_text())
     assert no_temporaries(tmp_path) == [] and no_temporaries(out) == []
+
+
+def test_state_data_round_trip_through_its_named_fields(model, tmp_path):
+    """A load step's data (step, substep, J, slip, obstacle control, rigid anchor, uniqueness
+    bound, path statistics) is written under the keys it always had and read back into the same
+    named fields; ``info`` is their read-only dictionary form."""
+    from contactopt.contact.state import ObstacleControl, RigidAnchor
+    st = fake_state(model, seed=2)
+    p = st.lam.size
+    st.stats = SolveStats(path="delassus", backend="scipy", zone_nodes=p, zone_misses=1, delassus="formed",
+                          sparse_solves=4, adjoint_krylov=9)
+    st.step, st.substep, st.objective = "load", 2, 0.125
+    st.slip_ref, st.slip = np.zeros((p, 2)), np.full((p, 2), 1e-4)
+    st.obstacle = ObstacleControl(translation=-2.5e-3, resultant=0.2, solves=11)
+    st.rigid = RigidAnchor(iterations=3, residual=1e-13)
+    st.uniqueness_bound, st.uniqueness_reason = 0.7, "estimate"
+    keys = {"path", "backend", "zone_nodes", "zone_misses", "delassus", "sparse_solves", "adjoint_krylov",
+            "step", "substep", "slip", "objective", "obstacle_translation", "obstacle_resultant", "obstacle_solves",
+            "rigid_iterations", "rigid_residual", "uniqueness_bound_F0", "uniqueness_bound_F0_reason"}
+    assert set(st.info) == keys and st.info["obstacle_translation"] == -2.5e-3 and st.info["substep"] == 2
+    with pytest.raises(TypeError):
+        st.info["step"] = "other"                  # a view: the named fields are the data
+    out = tmp_path / "st"
+    statefiles.write_state(out, model, st)
+    doc = json.loads((out / "state.json").read_text())
+    assert keys - {"slip"} <= set(doc["summary"]) and doc["summary"]["obstacle_solves"] == 11
+    assert np.allclose(doc["contact"]["slip"], 1e-4)
+    back = statefiles.read_state_npz(out / "state.npz")
+    assert back.stats == st.stats and back.obstacle == st.obstacle and back.rigid == st.rigid
+    assert (back.step, back.substep, back.objective) == ("load", 2, 0.125)
+    assert (back.uniqueness_bound, back.uniqueness_reason) == (0.7, "estimate")
+    assert dict(back.info) == {k: v for k, v in st.info.items() if k != "slip"}
 
 
 def _boom(*args, **kwargs):

@@ -83,9 +83,8 @@ def _cmd_state(args) -> int:
             out.rmdir()                  # a failed solve leaves no empty directory behind
         raise
     for state in states:
-        state.info["uniqueness_bound_F0"] = bound           # JSON has no NaN: absent, with the reason
-        if reason:
-            state.info["uniqueness_bound_F0_reason"] = reason
+        state.uniqueness_bound = bound           # JSON has no NaN: absent, with the reason
+        state.uniqueness_reason = reason or None
     print(f"state of {problem.config.name} ({problem.config.source}) — method {states[0].method}, "
           f"backend {states[0].summary().get('backend')}")
     if problem.has_load_steps:
@@ -134,7 +133,7 @@ def _write_step_states(out, problem, states, warnings, bound, reason, t0) -> int
     for k, name in enumerate(problem.case_names):
         where = out / _case_dir(name, k) if problem.has_load_cases else out
         ends = [(step, state) for step, _, state in problem.step_results(k) or []
-                if state.info.get("substep") == _substeps(problem, k, step)]
+                if state.substep == _substeps(problem, k, step)]
         if not ends:                     # a case without steps: its one state as step "static"
             ends = [("static", states[k])]
         write_steps(where, problem.model, ends, config=problem.config, warnings=warnings)

@@ -191,12 +191,12 @@ class ShapeProblem:
                                                tol=tol or self.tol, shared=shared,
                                                label=f"{self._of(k)}, step {step.name} ({step.substep})",
                                                slip_ref=slip)
-                    st.info["step"], st.info["substep"] = step.name, step.substep
+                    st.step, st.substep = step.name, step.substep
                     if st.slip_ref is None:              # the first step: slip from the unloaded body
                         st.slip_ref = np.zeros((self.model.n_contact, 2))
                     sliding = np.isin(st.classes, [CLASS_CODES["M1"], CLASS_CODES["M2"]])
                     slid = slid + np.where(sliding[:, None], st.slip_increment, 0.0)
-                    st.info["slip"] = slid               # the accumulated slip along the path
+                    st.slip = slid               # the accumulated slip along the path
                     step_states[k].append(st)
                     slip = st.u_c[:, :2].copy()
                 systems[k], states = step_systems[k][-1], states + [step_states[k][-1]]
@@ -289,13 +289,13 @@ class ShapeProblem:
         parts = {j: step_objective(case.objective, self.steps[k], step_states, step_systems, j, memo)
                  for j, step in enumerate(self.steps[k]) if step.end}
         for j, part in parts.items():
-            step_states[j].info["objective"] = float(part[0])
+            step_states[j].objective = float(part[0])
         value, coef = self.step_choice.combine({j: (self.steps[k][j].name, parts[j][0]) for j in parts})
         return value, [(j, c, parts[j]) for j, c in coef.items()]
 
     def step_results(self, case: int = 0):
         """[(step name, substep, state)] of case ``case``'s load path at the last design solved
-        (None without steps); a state's ``info["objective"]`` is J at the step's end."""
+        (None without steps); a state's ``objective`` is J at the step's end."""
         if not self.steps[case] or self._cache is None:
             return None
         return [(st.name, st.substep, state) for st, state in zip(self.steps[case], self._cache.step_states[case])]
@@ -314,7 +314,7 @@ class ShapeProblem:
         :meth:`step_columns`)."""
         out = []
         for k, steps in enumerate(self.steps):
-            out += [float(st.info.get("objective", np.nan)) for s, st in zip(steps or [], self._cache.step_states[k] or [])
+            out += [(np.nan if st.objective is None else st.objective) for s, st in zip(steps or [], self._cache.step_states[k] or [])
                     if s.end]
         return out
 
@@ -346,7 +346,7 @@ class ShapeProblem:
                                      contact)
             v_u, v_lam, v_full, krylov = self.path.adjoint(system, ctxs[j], state, y_u, y_lam, choices)
             if krylov is not None:
-                state.info["adjoint_krylov"] = krylov
+                state.stats.adjoint_krylov = krylov
             xi = xi + self.path.design_contraction(system, state.u, v_full, self.steps[k][j].loads) \
                 + self.model.gap_matrix.T @ v_lam
             nd += state.n_degenerate
@@ -403,7 +403,7 @@ class ShapeProblem:
             _, y_u, y_lam, dJ_da = parts[k][1][0][2]
             v_u_k, v_lam_k, v_full, krylov = self.path.adjoint(system, self.contexts[k], state, y_u, y_lam, choices)
             if krylov is not None:
-                state.info["adjoint_krylov"] = krylov
+                state.stats.adjoint_krylov = krylov
             t3 = time.perf_counter()
             xi = dJ_da + self.path.design_contraction(system, state.u, v_full, self.cases[k].loads) \
                 + self.model.gap_matrix.T @ v_lam_k

@@ -147,8 +147,8 @@ def _log_evaluation(count: int, res) -> None:
     phases = ", ".join(f"{k} {v:.2f}" for k, v in st.timings.items() if k != "total")
     log.log(level, "evaluation %d: %.2f s — state %.2f s (%s; zone %s nodes, Delassus block %s, %s "
             "Newton steps%s), adjoint %.2f s, design terms %.2f s; peak RSS %.2f GB", count, total,
-            res.timings.get("state", 0.0), phases, st.info.get("zone_nodes"), st.info.get("delassus"),
-            st.iterations, f", {st.info['sparse_solves']} sparse solves" if "sparse_solves" in st.info else "",
+            res.timings.get("state", 0.0), phases, st.stats.zone_nodes, st.stats.delassus,
+            st.iterations, f", {st.stats.sparse_solves} sparse solves" if st.stats.sparse_solves is not None else "",
             res.timings.get("adjoint", 0.0), res.timings.get("design_terms", 0.0), _peak_rss_gb())
 
 

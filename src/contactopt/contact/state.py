@@ -25,7 +25,9 @@ has a displacement scale from the rest of the body, so round-off of u_c does not
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from collections.abc import Iterator, Mapping
+from dataclasses import dataclass, field, fields
+from types import MappingProxyType
 
 import numpy as np
 
@@ -94,6 +96,68 @@ class FoundationState:
 
 
 @dataclass
+class SolveStats:
+    """What a path reports about the solve of a state; None where the path does not report it."""
+
+    path: str | None = None                # the path's name
+    backend: str | None = None             # its linear algebra: "pyamg", "petsc", a factorization library
+    ranks: int | None = None               # MPI ranks (PETSc)
+    zone_nodes: int | None = None          # contact nodes in the final zone
+    zone_misses: int | None = None         # zone enlargements (nodes found in contact outside it)
+    delassus: str | None = None            # the Delassus matrix: "formed", "reused" or "none"
+    sparse_solves: int | None = None       # solves with the sparse factor (the Delassus path)
+    krylov_iterations: int | None = None   # Krylov iterations of the full-space Newton steps
+    adjoint_krylov: int | None = None      # Krylov iterations of the adjoint solve
+    extra: dict = field(default_factory=dict)   # a caller's statistics without a named field
+
+    def items(self) -> Iterator[tuple[str, object]]:
+        """(name, value) of every statistic reported: the named fields set, then ``extra``."""
+        for f in fields(self):
+            value = getattr(self, f.name)
+            if f.name != "extra" and value is not None:
+                yield f.name, value
+        yield from self.extra.items()
+
+    @classmethod
+    def of(cls, entries: Mapping) -> SolveStats:
+        """The record of the dictionary form ``entries``: names of fields into them, the rest into
+        ``extra``."""
+        named = {f.name for f in fields(cls)} - {"extra"}
+        return cls(**{k: v for k, v in entries.items() if k in named},
+                   extra={k: v for k, v in entries.items() if k not in named})
+
+
+@dataclass(frozen=True)
+class ObstacleControl:
+    """A force-controlled obstacle (:mod:`contactopt.paths.force`): its translation s along the
+    force's direction, the resultant of the contact forces at s, and the state solves it took."""
+
+    translation: float
+    resultant: float
+    solves: int
+
+
+@dataclass(frozen=True)
+class RigidAnchor:
+    """The anchor of a body held by no Dirichlet condition (:mod:`contactopt.paths.rigid`): the
+    iterations of its rigid-motion loop and the loop's final residual ratio."""
+
+    iterations: int
+    residual: float
+
+
+# the dictionary form of State's data (State.info): key -> (field, attribute of the field's record)
+_DATA_KEYS = {"step": ("step", None), "substep": ("substep", None), "slip": ("slip", None),
+              "objective": ("objective", None),
+              "obstacle_translation": ("obstacle", "translation"),
+              "obstacle_resultant": ("obstacle", "resultant"), "obstacle_solves": ("obstacle", "solves"),
+              "rigid_iterations": ("rigid", "iterations"), "rigid_residual": ("rigid", "residual"),
+              "uniqueness_bound_F0": ("uniqueness_bound", None),
+              "uniqueness_bound_F0_reason": ("uniqueness_reason", None)}
+_RECORDS = {"obstacle": ObstacleControl, "rigid": RigidAnchor}
+
+
+@dataclass
 class State:
     """Solution of the discrete Coulomb contact problem for one design (see module docstring)."""
 
@@ -112,9 +176,48 @@ class State:
     complementarity: float        # max violation of the contact conditions, relative
     converged: bool
     timings: dict = field(default_factory=dict)
-    info: dict = field(default_factory=dict)
+    stats: SolveStats = field(default_factory=SolveStats)   # what the path reports about the solve
     slip_ref: np.ndarray | None = None   # (p, 2) u_t at the end of the previous load step, or None
     foundation: FoundationState | None = None   # on an elastic foundation
+    step: str | None = None              # on a load path: the step's name
+    substep: int | None = None           # and the substep (1, 2, ... up to the step's end)
+    slip: np.ndarray | None = None       # (p, 2) the slip accumulated along the load path
+    objective: float | None = None       # J at a step's end (the steps the objective sees)
+    obstacle: ObstacleControl | None = None   # a force-controlled obstacle
+    rigid: RigidAnchor | None = None     # a body anchored by its contact alone
+    uniqueness_bound: float | None = None     # the friction bound F0 of the uniqueness estimate
+    uniqueness_reason: str | None = None      # why that bound is absent or only an estimate
+
+    @property
+    def info(self) -> Mapping:
+        """The dictionary form of the solve statistics and the data (read-only, for old code):
+        the keys of :class:`SolveStats`, ``step``, ``substep``, ``slip``, ``objective``,
+        ``obstacle_translation``/``_resultant``/``_solves``, ``rigid_iterations``/``_residual``,
+        ``uniqueness_bound_F0(_reason)``, each where set. New code reads the named fields."""
+        out = dict(self.stats.items())
+        for key, (name, attr) in _DATA_KEYS.items():
+            value = getattr(self, name)
+            if value is not None and attr is not None:
+                value = getattr(value, attr)
+            if value is not None:
+                out[key] = value
+        return MappingProxyType(out)
+
+    @staticmethod
+    def fields_of_info(info: Mapping) -> dict:
+        """The keyword arguments of State (``stats`` and the data fields) for the dictionary
+        form ``info`` (:attr:`info`; e.g. read back from a state file)."""
+        out, parts, rest = {}, {}, {}
+        for key, value in info.items():
+            if key not in _DATA_KEYS:
+                rest[key] = value
+            elif _DATA_KEYS[key][1] is None:
+                out[_DATA_KEYS[key][0]] = value
+            else:
+                parts.setdefault(_DATA_KEYS[key][0], {})[_DATA_KEYS[key][1]] = value
+        for name, kw in parts.items():
+            out[name] = _RECORDS[name](**kw)
+        return {"stats": SolveStats.of(rest), **out}
 
     @property
     def slip_increment(self) -> np.ndarray:
@@ -150,8 +253,8 @@ class State:
         }
 
     def scalars(self) -> dict:
-        """The scalars of ``info`` (solver counts, the path), and whether the state is on an
-        elastic foundation."""
+        """The scalars of :attr:`info` (solver counts, the path, the step, J ...), and whether the
+        state is on an elastic foundation."""
         out = {k: v for k, v in self.info.items() if isinstance(v, (int, float, str, bool))}
         if self.foundation is not None:
             out["foundation"] = True

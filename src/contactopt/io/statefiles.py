@@ -97,7 +97,7 @@ def state_json(model, state: State, config=None, warnings=None, objective=None, 
         doc["contact"]["u_partner"] = np.asarray(state.foundation.u_partner, float).tolist()
     if state.slip_ref is not None:            # a load step: the law's slip increment, the accumulated slip
         doc["contact"]["slip_increment"] = np.asarray(state.slip_increment, float).tolist()
-        doc["contact"]["slip"] = np.asarray(state.info.get("slip", state.slip_increment), float).tolist()
+        doc["contact"]["slip"] = np.asarray(state.slip_increment if state.slip is None else state.slip, float).tolist()
     if getattr(model, "foundation", None) is not None:
         doc["foundation"] = model.foundation.summary()
     if warnings is not None:
@@ -139,7 +139,7 @@ def _state_arrays(model, state: State) -> dict:
             "u_partner": np.asarray(state.foundation.u_partner, float),
             "foundation_u": np.asarray(state.foundation.displacement, float)} if state.foundation is not None else {}),
         **({"slip_increment": np.asarray(state.slip_increment, float),
-            "slip": np.asarray(state.info.get("slip", state.slip_increment), float)}
+            "slip": np.asarray(state.slip_increment if state.slip is None else state.slip, float)}
            if state.slip_ref is not None else {}),
     }
 
@@ -230,7 +230,8 @@ _NPZ_KEYS = ("alpha", "coords", "u", "u_c", "lam", "tau", "gap", "classes", "fri
 def read_state_npz(path) -> State:
     """Read a state.npz written by :func:`write_state` back into a :class:`State` (no pickles).
 
-    ``info`` holds only the scalar entries of the original ``State.info`` (the ones summary() keeps).
+    Of the statistics and data (``State.info``) it holds the scalars (the ones summary() keeps), in
+    their named fields (:meth:`State.fields_of_info`).
     """
     path = Path(path)
     with np.load(path, allow_pickle=False) as z:
@@ -248,7 +249,7 @@ def read_state_npz(path) -> State:
             gap=z["gap"], classes=z["classes"].astype(int), friction=float(z["friction"]),
             method=str(z["method"]), iterations=int(z["iterations"]), residual=float(z["residual"]),
             complementarity=float(z["complementarity"]), converged=bool(z["converged"]),
-            timings=json.loads(str(z["timings_json"])), info=info, foundation=foundation)
+            timings=json.loads(str(z["timings_json"])), foundation=foundation, **State.fields_of_info(info))
 
 
 def write_steps(outdir, model, steps, *, config=None, warnings=None) -> list[dict]:

@@ -27,7 +27,14 @@ from typing import NamedTuple
 import numpy as np
 
 from ..contact import zone as zone_rules
-from ..contact.state import FoundationState, State, classify_nodes, contact_conditions_violation, displacement_scale
+from ..contact.state import (
+    FoundationState,
+    SolveStats,
+    State,
+    classify_nodes,
+    contact_conditions_violation,
+    displacement_scale,
+)
 from ..errors import CheckpointError
 
 log = logging.getLogger(__name__)
@@ -323,10 +330,10 @@ class SolverPath:
 
     # ------------------------------------------------------------------ shared by the paths
     def finish_state(self, ctx, *, alpha, coords, u, u_c, r, gap, load, method, outcome, timings,
-                     info, slip_ref=None, foundation: FoundationState | None = None) -> State:
+                     stats, slip_ref=None, foundation: FoundationState | None = None) -> State:
         """The :class:`State` of contact forces ``r`` ((p, 3) per node (t1, t2, ν)) and
         displacements, with the node classes of Table 4.1; ``outcome`` the solver's (iterations,
-        error, converged). The case's next zone is set from it. ``slip_ref`` (p, 2): in a load
+        error, converged), ``stats`` the path's :class:`SolveStats` fields. The case's next zone is set from it. ``slip_ref`` (p, 2): in a load
         step, u_t at the end of the previous step; the classes see the slip increment."""
         pinned = self.model.contact_pinned
         if np.any(pinned):         # u = 0 and no contact force there, exactly (fem.model)
@@ -346,7 +353,7 @@ class SolverPath:
                       friction=self.settings.friction, method=method, iterations=outcome[0],
                       residual=outcome[1],
                       complementarity=contact_conditions_violation(law_u, lam, tau, gap, self.settings.friction),
-                      converged=outcome[2], timings=timings, info={"path": self.name, **info}, slip_ref=slip_ref,
+                      converged=outcome[2], timings=timings, stats=SolveStats(path=self.name, **stats), slip_ref=slip_ref,
                       foundation=foundation)
         if self.settings.use_zone:
             ctx.next_zone = zone_rules.near_nodes(lam, u_c[:, 2] + gap, displacement_scale(u_c, gap),

@@ -38,6 +38,7 @@ import logging
 
 import numpy as np
 
+from ..contact.state import ObstacleControl
 from ..errors import ContactNotConverged, SolverError
 
 log = logging.getLogger(__name__)
@@ -66,7 +67,7 @@ class ForceControl:
     # ------------------------------------------------------------------ state
     def solve_state(self, system, ctx, alpha, *, method, warm_start, tol, shared, label="", slip_ref=None):
         """The state; with a force-controlled obstacle the translation s that balances the force,
-        found by Brent's method (module docstring): ``info`` holds s, the resultant and the solves."""
+        found by Brent's method (module docstring): the state's ``obstacle`` holds s, the resultant and the solves."""
         kw = dict(method=method, warm_start=warm_start, tol=tol, shared=shared, label=label, slip_ref=slip_ref)
         m = self.model
         if getattr(m, "force", None) is None:
@@ -118,9 +119,7 @@ class ForceControl:
         if s not in states:
             excess(s)
         st = states[s]
-        st.info["obstacle_translation"] = s
-        st.info["obstacle_resultant"] = f + excess_of(st, b, f)
-        st.info["obstacle_solves"] = len(states)
+        st.obstacle = ObstacleControl(translation=s, resultant=f + excess_of(st, b, f), solves=len(states))
         log.debug("force-controlled obstacle: translation %.6e after %d state solves", s, len(states))
         return st
 

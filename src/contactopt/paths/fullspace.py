@@ -107,7 +107,7 @@ class FullSpaceCommon(SolverPath):
         return {"tol": max(tol or s.tol, FULLSPACE_TOL), "zone": ctx.next_zone if s.use_zone and warm_start else None,
                 "zone_margin": s.zone_margin}
 
-    def state_of(self, ctx, system, alpha, res, *, u_free, t0, t_setup, info, label, slip_ref=None, u_c=None):
+    def state_of(self, ctx, system, alpha, res, *, u_free, t0, t_setup, stats, label, slip_ref=None, u_c=None):
         """The :class:`~contactopt.contact.state.State` of a full-space result ``res``
         (:class:`~contactopt.contact.fullspace.FullSpaceResult`; ``u_free`` its displacement on
         the model's free DOFs; ``u_c`` the contact nodes' displacement where it is not the
@@ -121,7 +121,7 @@ class FullSpaceCommon(SolverPath):
         state = self.finish_state(ctx, alpha=alpha, coords=asm.coords, u=self.model.assembler.to_full(u_free),
                                   u_c=res.u_c if u_c is None else u_c, r=r, gap=system.gap, load=asm.L, method="fullspace",
                                   outcome=(res.newton_steps, res.error, res.converged), timings=timings,
-                                  info={**info, "zone_nodes": int(res.zone.size), "zone_misses": int(res.zone_growths),
+                                  stats={**stats, "zone_nodes": int(res.zone.size), "zone_misses": int(res.zone_growths),
                                         "delassus": "none", "krylov_iterations": int(sum(res.krylov_iterations))},
                                   slip_ref=slip_ref)
         ctx.warm = res.r.copy()
@@ -265,7 +265,7 @@ class FullSpacePath(ForceControl, FullSpaceCommon):
             u_c = res.u_c.copy()
             u_c[:, :2] -= system.shift
         return self.state_of(ctx, system, alpha, res, u_free=u_free, u_c=u_c, t0=t0, t_setup=t_setup,
-                             info={"backend": "pyamg"}, label=label, slip_ref=slip_ref)
+                             stats={"backend": "pyamg"}, label=label, slip_ref=slip_ref)
 
     def adjoint(self, system, ctx, state, y_u, y_lam, choices=None):
         from ..sensitivity.adjoint_fullspace import solve_adjoint_fullspace

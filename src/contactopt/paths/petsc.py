@@ -226,7 +226,7 @@ class PetscPath(FullSpaceCommon):
                                 slip_ref=slip_ref, **self.newton_options(ctx, tol, warm_start))
         system.u_all = ctx.u_all = res.u_all
         return self.state_of(ctx, system, alpha, res, u_free=self.dist.free_vector(res.u_all), t0=t0,
-                             t_setup=t_setup, info={"backend": "petsc", "ranks": self.size}, label=label,
+                             t_setup=t_setup, stats={"backend": "petsc", "ranks": self.size}, label=label,
                              slip_ref=slip_ref)
 
     # ------------------------------------------------------------------ adjoint and design terms

@@ -26,7 +26,7 @@ body held only by contact. The iteration β ← Qᵀu(β) (a proximal point iter
 motions) starts from β = 0, the body where the mesh puts it; while contact holds a motion
 (closed gaps, sticking nodes) u(β) hardly depends on β along it, and the iteration converges in
 a few zone solves. It stops when ‖Qᵀ(ℓ + r)‖ ≤ tol · max(‖ℓ‖, ‖r‖) (``tol`` of ``[state]``); the
-state's ``info`` holds ``rigid_iterations`` and ``rigid_residual`` (that ratio).
+state's ``rigid`` (:class:`~contactopt.contact.state.RigidAnchor`) holds the iterations and that ratio.
 
 The adjoint (4.15) is solved with the singular S itself (the equation rows of
 :func:`contactopt.sensitivity.adjoint.solve_adjoint` never invert S; its system on the nodes that
@@ -43,6 +43,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 import scipy.sparse as sp
 
+from ..contact.state import RigidAnchor
 from ..errors import SolverError
 
 log = logging.getLogger(__name__)
@@ -134,7 +135,6 @@ def held_state(solve, system, tol: float, method: str = "newton"):
         raise SolverError(f"{an.names[k]} is not held: after {MAX_ANCHOR_STEPS} anchor steps the contact forces "
                           f"still leave {history[-1]:.3g} of the load unbalanced on the free rigid motions "
                           "(a load near the limit of what friction holds?)")
-    st.info["rigid_iterations"] = len(history)
-    st.info["rigid_residual"] = history[-1]
+    st.rigid = RigidAnchor(iterations=len(history), residual=history[-1])
     log.debug("body held only by contact: %d anchor step(s), unbalanced %.2e", len(history), history[-1])
     return st

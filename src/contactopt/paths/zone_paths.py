@@ -141,12 +141,12 @@ class ZonePath(SolverPath):
             t1 = time.perf_counter()
             warm = self._zone_warm(res.r, zone)
             zone = zp.zone
-        info = {"backend": self.library_of(system), "zone_nodes": int(zone.size), "zone_misses": misses,
+        stats = {"backend": self.library_of(system), "zone_nodes": int(zone.size), "zone_misses": misses,
                 "delassus": reused[-1], **self.solve_counts(zp)}
         state = self.finish_state(ctx, alpha=alpha, coords=system.assembled.coords, u=u, u_c=u3, r=r,
                                   gap=system.gap, load=self.load_scale(system), method=method,
                                   outcome=(res.iterations, res.error, res.converged),
-                                  timings=timings, info=info, slip_ref=slip_ref,
+                                  timings=timings, stats=stats, slip_ref=slip_ref,
                                   foundation=self.foundation_state(system, u3, r, u_body))
         ctx.warm = self._zone_warm(res.r, zone)
         self.n_zone_misses += misses

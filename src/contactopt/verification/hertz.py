@@ -115,7 +115,7 @@ def measure_punch(h: float, stl: str, radius: float, force: float) -> dict:
     pr = punch_problem(h, stl, radius, force)
     st = pr.solve_state(np.zeros(pr.model.n_design))
     H = pr.config.geometry.c
-    delta = st.info["obstacle_translation"]
+    delta = st.obstacle.translation
     w_H = force * (1 + NU) * (3 - 2 * NU) / (2 * math.pi * E * H)
     return {"h": h, "p": pr.model.n_contact, "P": force, "delta": delta, "delta_corr": delta + w_H,
             "delta_H": force / (2 * radius * E_STAR), "in_contact": int(np.sum(st.lam > 0)),
@@ -178,7 +178,7 @@ def measure_sphere(h: float, friction=0.0) -> dict:
     a_fit, p0_fit = fit(r, p)
     a = (3 * P * R / (4 * E_STAR)) ** (1 / 3)
     p0 = 3 * P / (2 * math.pi * a ** 2)
-    delta = st.info["obstacle_translation"]
+    delta = st.obstacle.translation
     # the approach is prescribed against the clamped far face at depth H, Hertz's against points far
     # away: add the half-space's displacement on the axis at depth H (Boussinesq, point load P)
     H = pr.config.geometry.c
