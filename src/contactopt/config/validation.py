@@ -44,12 +44,13 @@ def _check_target_at(target, d1d2, problems):
         return
     for k in set(target) - allowed[kind]:
         problems.append(f"objective.target.{k}: unknown key for kind {kind!r} (allowed: {sorted(allowed[kind])})")
-    if kind == "constant" and not _finite(target.get("value", 0.0)):
+    # absent keys take the defaults of the Target and Region records (config/sections.py)
+    if kind == "constant" and "value" in target and not _finite(target["value"]):
         problems.append("objective.target.value: must be a finite number")
     if kind == "step":
-        if not _finite(target.get("default", 0.0)):
+        if "default" in target and not _finite(target["default"]):
             problems.append("objective.target.default: must be a finite number")
-        if not isinstance(target.get("per_area", False), bool):
+        if "per_area" in target and not isinstance(target["per_area"], bool):
             problems.append("objective.target.per_area: must be true or false")
         regions = target.get("regions", [])
         if not isinstance(regions, list):
@@ -59,8 +60,8 @@ def _check_target_at(target, d1d2, problems):
             if not isinstance(r, dict) or set(r) - {"x1", "x2", "value"} or "value" not in r:
                 problems.append(f"objective.target.regions[{n}]: must be a table with keys x1, x2 (optional) and value")
                 continue
-            for ax in ("x1", "x2"):
-                iv = r.get(ax, [-math.inf, math.inf])
+            for ax in (a for a in ("x1", "x2") if a in r):
+                iv = r[ax]
                 if not (isinstance(iv, list) and len(iv) == 2 and all(isinstance(v, _NUM) for v in iv) and iv[0] <= iv[1]):
                     problems.append(f"objective.target.regions[{n}].{ax}: must be [lo, hi] with lo ≤ hi")
             if not _finite(r["value"]):
