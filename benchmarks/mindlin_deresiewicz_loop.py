@@ -23,7 +23,8 @@ side 2/n on |x1 − 1|, |x2 − 1| ≤ 0.45 (1.7 Hertz radii) and in depth at th
 by a factor 1.25 towards the sides, the top and the foundation's bottom; the foundation is the same
 grid in (x1, x2) (a mesh file, node-to-node partners).
 
-    PYTHONPATH=src python benchmarks/mindlin_deresiewicz_loop.py [n ...] [--steps m] [--graded] [--figure out.png]
+    PYTHONPATH=src python benchmarks/mindlin_deresiewicz_loop.py [n ...] [--steps m] [--graded] [--nu ν]
+        [--figure out.png]
 """
 
 from __future__ import annotations
@@ -34,6 +35,7 @@ from pathlib import Path
 
 import numpy as np
 
+import cattaneo_mindlin
 from cattaneo_mindlin import ESTAR, F3, MU, NU, E, R, config, moment_radius
 from contactopt.config import load_config
 from contactopt.fem.loadset import LoadSet
@@ -41,6 +43,16 @@ from contactopt.problem import ShapeProblem
 
 G = E / (2 * (1 + NU))
 KCOMP = 2 * (2 - NU) / G                     # (2 − ν1)/G1 + (2 − ν2)/G2, one material
+
+
+def set_poisson(nu: float) -> None:
+    """Both bodies' Poisson ratio (default 0.3) and the constants that depend on it. With ν = 0 a
+    tangential traction moves the surface only along itself, and Mindlin's solution (slip parallel
+    to Q) is exact rather than an approximation."""
+    global NU, G, KCOMP, ESTAR
+    NU, G = nu, E / (2 * (1 + nu))
+    KCOMP, ESTAR = 2 * (2 - nu) / G, E / (2 * (1 - nu ** 2))
+    cattaneo_mindlin.NU, cattaneo_mindlin.ESTAR = NU, ESTAR
 
 
 def graded_axis(h: float, half: float = 0.45, growth: float = 1.25, side: float = 2.0) -> list:
@@ -218,6 +230,8 @@ def main(argv):
     for arg in it:
         if arg == "--steps":
             m = int(next(it))
+        elif arg == "--nu":
+            set_poisson(float(next(it)))
         elif arg == "--graded":
             graded = True
         elif arg == "--figure":
