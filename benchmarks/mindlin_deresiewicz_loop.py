@@ -186,7 +186,8 @@ def run(n: int, m: int, target: float = 0.7, graded: bool = False):
         work += float(np.sum(st.tau * st.slip_increment))
     Qs = 0.5 * (Q[m] - Q[3 * m])
     dW_fe = float(analytic(P, a_fe)[1](Qs))
-    return {"a_fe": a_fe, "dW_fe": dW_fe, "graded": graded, "n": n, "m": m, "P": P, "P_range": (Ps[1:].min(), Ps[1:].max()), "a": a_h, "k0": k0, "Qs": Qs,
+    return {"n": n, "m": m, "graded": graded, "P": P, "P_range": (Ps[1:].min(), Ps[1:].max()), "a": a_h,
+            "a_fe": a_fe, "dW_fe": dW_fe, "k0": k0, "Qs": Qs,
             "x": Qs / (MU * P), "dW": float(dissipation(Qs)), "area": -area, "work_loop": work_loop,
             "work": work, "Q": Q, "delta": d, "loading": loading, "bulk": bulk, "d0": d0}
 
