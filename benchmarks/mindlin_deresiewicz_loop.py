@@ -17,22 +17,91 @@ Measured: the loop's area ∮δ dQ (trapezoids over the steps) and the friction 
 over the cycle's solves (the energy the interface dissipates), each against ΔW; and the branches
 with the initial full-stick slope subtracted (FE: from the first small increment; theory: K/8a).
 
-    PYTHONPATH=src python benchmarks/mindlin_deresiewicz_loop.py [n ...] [--steps m] [--figure out.png]
+The FE's own contact radius (from the second moment of λ, Σλr²/Σλ = (2/5)a²) gives a second ΔW
+next to Hertz's a from the measured P. ``--graded``: each n is instead a graded block, elements of
+side 2/n on |x1 − 1|, |x2 − 1| ≤ 0.45 (1.7 Hertz radii) and in depth at the contact face, growing
+by a factor 1.25 towards the sides, the top and the foundation's bottom; the foundation is the same
+grid in (x1, x2) (a mesh file, node-to-node partners).
+
+    PYTHONPATH=src python benchmarks/mindlin_deresiewicz_loop.py [n ...] [--steps m] [--graded] [--nu ν]
+        [--figure out.png]
 """
 
 from __future__ import annotations
 
 import sys
+import tempfile
+from pathlib import Path
 
 import numpy as np
 
-from cattaneo_mindlin import ESTAR, F3, MU, NU, E, R, config
+import cattaneo_mindlin
+from cattaneo_mindlin import ESTAR, F3, MU, NU, E, R, config, moment_radius
 from contactopt.config import load_config
 from contactopt.fem.loadset import LoadSet
 from contactopt.problem import ShapeProblem
 
 G = E / (2 * (1 + NU))
 KCOMP = 2 * (2 - NU) / G                     # (2 − ν1)/G1 + (2 − ν2)/G2, one material
+
+
+def set_poisson(nu: float) -> None:
+    """Both bodies' Poisson ratio (default 0.3) and the constants that depend on it. With ν = 0 a
+    tangential traction moves the surface only along itself, and Mindlin's solution (slip parallel
+    to Q) is exact rather than an approximation."""
+    global NU, G, KCOMP, ESTAR
+    NU, G = nu, E / (2 * (1 + nu))
+    KCOMP, ESTAR = 2 * (2 - nu) / G, E / (2 * (1 - nu ** 2))
+    cattaneo_mindlin.NU, cattaneo_mindlin.ESTAR = NU, ESTAR
+
+
+def graded_axis(h: float, half: float = 0.45, growth: float = 1.25, side: float = 2.0) -> list:
+    """Node coordinates on [0, side]: spacing h on |x − side/2| ≤ half, growing by ``growth`` outside."""
+    inner = int(round(half / h))
+    right = [side / 2 + k * h for k in range(inner + 1)]
+    step = h
+    while right[-1] < side - 1e-12:
+        step *= growth
+        right.append(right[-1] + step)
+    if right[-1] - right[-2] < 0.5 * (right[-2] - right[-3]):
+        del right[-2]
+    right[-1] = side
+    left = [side - x for x in reversed(right[1:])]
+    out = left + right
+    out[0] = 0.0
+    return out
+
+
+def depth_axis(h: float, depth: float = 1.0, growth: float = 1.25) -> list:
+    """Node coordinates on [0, depth]: spacing h at 0, growing by ``growth``."""
+    z, step = [0.0], h
+    while z[-1] < depth - 1e-12:
+        z.append(z[-1] + step)
+        step *= growth
+    if depth - z[-2] < 0.5 * (z[-2] - z[-3]):
+        del z[-2]
+    z[-1] = depth
+    return z
+
+
+def graded_config(n: int, steps: list, where: Path) -> dict:
+    """``config`` of benchmarks/cattaneo_mindlin.py on graded grids (module docstring); the
+    foundation's mesh file is written to ``where``."""
+    import meshio
+
+    from contactopt.mesh.block import graded_block_mesh
+    h = 2.0 / n
+    xy, z = graded_axis(h), depth_axis(h)
+    cfg = config(n, steps)
+    cfg["mesh"] = {"x1": xy, "x2": xy, "x3": z}
+    found = graded_block_mesh(xy, xy, z)
+    pts = found.points.copy()
+    pts[:, 2] = -pts[:, 2]                  # mirrored (top face on x3 = 0, below it), cells re-oriented
+    path = where / f"foundation{n}.vtu"
+    meshio.write(path, meshio.Mesh(pts, [("hexahedron", found.cells[:, [4, 5, 6, 7, 0, 1, 2, 3]])]))
+    cfg["foundation"] = {"mesh": str(path), "top": {"x3": 0.0}, "clamped": {"x3": -1.0},
+                         "material": {"E": E, "nu": NU}}
+    return cfg
 
 
 class WithNodal(LoadSet):
@@ -73,13 +142,17 @@ def analytic(P, a):
     return loading, dissipation
 
 
-def run(n: int, m: int, target: float = 0.7):
-    """The cycle at n elements per side with m steps per quarter branch; δ* from a stick calibration
-    so that Q*/μP ≈ ``target``. Returns the measurements (dict)."""
+def run(n: int, m: int, target: float = 0.7, graded: bool = False):
+    """The cycle at n elements per side (``graded``: fine spacing 2/n near the contact) with m steps
+    per quarter branch; δ* from a stick calibration so that Q*/μP ≈ ``target``. Returns the
+    measurements (dict)."""
+    tmp = Path(tempfile.mkdtemp(prefix="mdloop"))
+
     def problem(deltas):
         steps = [{"name": "press", "body_force": [0.0, 0.0, F3]}]
         steps += [{"name": f"d{j}", "body_force": [0.0, 0.0, F3]} for j in range(1, len(deltas) + 1)]
-        pr = ShapeProblem(load_config(config(n, steps)))
+        cfg = graded_config(n, steps, tmp) if graded else config(n, steps)
+        pr = ShapeProblem(load_config(cfg))
         unit = top_unit_load(pr)
         for step in pr.steps[0][1:]:
             step.loads = WithNodal(step.loads, deltas[step.index - 1] * unit)
@@ -88,8 +161,9 @@ def run(n: int, m: int, target: float = 0.7):
 
     # calibration: a small increment sticks everywhere, Q = k0 δ; Mindlin's loading curve gives δ*
     d0 = 1e-4
-    _, sts = problem([d0])
+    pr0, sts = problem([d0])
     P = sts[0].lam.sum()
+    a_fe = moment_radius(sts[0], pr0.model)
     k0 = sts[1].tau[:, 0].sum() / d0
     a_h = (3 * P * R / (4 * ESTAR)) ** (1 / 3)
     loading, dissipation = analytic(P, a_h)
@@ -111,7 +185,9 @@ def run(n: int, m: int, target: float = 0.7):
     for st in sts[m + 2:]:                   # the solves of the cycle (after δ*)
         work += float(np.sum(st.tau * st.slip_increment))
     Qs = 0.5 * (Q[m] - Q[3 * m])
-    return {"n": n, "m": m, "P": P, "P_range": (Ps[1:].min(), Ps[1:].max()), "a": a_h, "k0": k0, "Qs": Qs,
+    dW_fe = float(analytic(P, a_fe)[1](Qs))
+    return {"n": n, "m": m, "graded": graded, "P": P, "P_range": (Ps[1:].min(), Ps[1:].max()), "a": a_h,
+            "a_fe": a_fe, "dW_fe": dW_fe, "k0": k0, "Qs": Qs,
             "x": Qs / (MU * P), "dW": float(dissipation(Qs)), "area": -area, "work_loop": work_loop,
             "work": work, "Q": Q, "delta": d, "loading": loading, "bulk": bulk, "d0": d0}
 
@@ -150,21 +226,25 @@ def figure(r, path):
 
 
 def main(argv):
-    m, fig, sizes = 4, None, []
+    m, fig, sizes, graded = 4, None, [], False
     it = iter(argv)
     for arg in it:
         if arg == "--steps":
             m = int(next(it))
+        elif arg == "--nu":
+            set_poisson(float(next(it)))
+        elif arg == "--graded":
+            graded = True
         elif arg == "--figure":
             fig = next(it)
         else:
             sizes.append(int(arg))
     print("| n | steps per quarter | Q*/μP | P range | ∮δ dQ | ∮Q dδ | friction work Στ·Δu_t | ΔW (MD) | "
-          "area/ΔW | work/ΔW | branch error / δ* |")
-    print("|---|---|---|---|---|---|---|---|---|---|---|")
+          "area/ΔW | work/ΔW | branch error / δ* | a Hertz | a FE | area/ΔW(a FE) |")
+    print("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|")
     last = None
     for n in sizes or [16, 24]:
-        r = run(n, m)
+        r = run(n, m, graded=graded)
         (qu, fu), (qr, fr), _, _ = branches(r)
         loading, Qs = r["loading"], r["Qs"]
         dstar, lin = loading(Qs), KCOMP / (8 * r["a"])
@@ -175,7 +255,8 @@ def main(argv):
         err = max(np.abs(fu - th_u - off).max(), np.abs(fr - th_r - off).max()) / dstar
         print(f"| {n} | {m} | {r['x']:.3f} | {r['P_range'][0]:.5g}–{r['P_range'][1]:.5g} | {r['area']:.4e} | "
               f"{r['work_loop']:.4e} | {r['work']:.4e} | {r['dW']:.4e} | {r['area'] / r['dW']:.3f} | "
-              f"{r['work'] / r['dW']:.3f} | {err:.3f} |", flush=True)
+              f"{r['work'] / r['dW']:.3f} | {err:.3f} | {r['a']:.4f} | {r['a_fe']:.4f} | "
+              f"{r['area'] / r['dW_fe']:.3f} |", flush=True)
         last = r
     if fig:
         figure(last, fig)
