@@ -158,7 +158,7 @@ def run_brick(repeat, methods):
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--fclib-dir", default=os.environ.get("CONTACTOPT_FCLIB_DIR",
-                                                          "/work/shared/data/fclib"))
+                                                          str(Path(__file__).resolve().parent.parent / "tests" / "data" / "fclib")))
     ap.add_argument("--repeat", type=int, default=3, help="timings are medians of REPEAT runs")
     ap.add_argument("--no-fixed-point", action="store_true", help="Newton only")
     ap.add_argument("--blas-threads", type=int, default=None,

@@ -74,9 +74,7 @@ def test_inverted_mesh_is_refused_by_the_mesh():
 
 
 def test_solve_fclib_command(capsys):
-    path = os.path.join(os.path.dirname(__file__), "..", "..", "shared", "data", "fclib", "local_problem_test.hdf5")
-    if not os.path.exists(path):
-        path = "/work/shared/data/fclib/local_problem_test.hdf5"
+    path = os.path.join(os.path.dirname(__file__), "data", "fclib", "local_problem_test.hdf5")
     assert main(["solve-fclib", path]) == 0
     assert "error" in capsys.readouterr().out
 

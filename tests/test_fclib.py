@@ -14,13 +14,12 @@ from contactopt.contact import LocalResult, solve_local
 from contactopt.errors import ContactOptError, FclibError
 from contactopt.io.fclib import FclibProblem, read_fclib, solve_fclib, write_fclib
 
-DATA = Path(os.environ.get("CONTACTOPT_FCLIB_DIR", "/work/shared/data/fclib"))
+DATA = Path(os.environ.get("CONTACTOPT_FCLIB_DIR", Path(__file__).parent / "data" / "fclib"))
 FILES = {  # name: (contacts, distinct friction coefficients)
     "local_problem_test.hdf5": (48, [0.7]),
     "LMGC_100_PR_PerioBox-i00361-60-03000.hdf5": (60, [0.3, 0.5]),
     "Capsules-i125-1213.hdf5": (286, [0.7]),
 }
-needs_data = pytest.mark.skipif(not DATA.is_dir(), reason=f"FCLIB data not found in {DATA}")
 
 
 def reference_error(W, q, mu, r):
@@ -42,7 +41,6 @@ def reference_error(W, q, mu, r):
     return np.sqrt(total) / max(np.linalg.norm(q), np.linalg.norm(r), np.linalg.norm(u))
 
 
-@needs_data
 @pytest.mark.parametrize("name", list(FILES))
 def test_read_public_problems(name):
     prob = read_fclib(DATA / name)
@@ -57,7 +55,6 @@ def test_read_public_problems(name):
     assert np.linalg.matrix_rank(prob.W.toarray()) < 3 * p
 
 
-@needs_data
 @pytest.mark.parametrize("name", list(FILES))
 def test_public_problems_reach_1e_8_with_newton(name):
     prob = read_fclib(DATA / name)
@@ -68,7 +65,6 @@ def test_public_problems_reach_1e_8_with_newton(name):
     assert len(res.history) == res.iterations and np.all(np.isfinite(res.r))
 
 
-@needs_data
 @pytest.mark.parametrize("name", list(FILES))
 def test_public_problems_with_fixed_point(name):
     prob = read_fclib(DATA / name)
@@ -111,7 +107,6 @@ def test_round_trip(tmp_path, fmt, nz):
     np.testing.assert_array_equal(again.W.toarray(), prob.W.toarray())
 
 
-@needs_data
 def test_round_trip_public_file(tmp_path):
     prob = read_fclib(DATA / "local_problem_test.hdf5")
     write_fclib(tmp_path / "copy.hdf5", prob)
