@@ -53,10 +53,12 @@ def graded_axis(h: float, fine: float, length: float, growth: float = 1.25) -> l
 
 
 def configure(updates: dict):
-    """Example 1's configuration with ``updates`` (its [mesh] replaced, the other sections updated)."""
+    """Example 1's configuration with ``updates`` (its [mesh] and arrays of tables replaced, the other
+    sections updated)."""
     data = load_config("example1").to_dict()
     for sec, vals in updates.items():
-        data[sec] = dict(vals) if sec == "mesh" else {**data.get(sec, {}), **vals}
+        data[sec] = (list(vals) if isinstance(vals, list) else dict(vals) if sec == "mesh"
+                     else {**data.get(sec, {}), **vals})
     return validate(data, "hertz")
 
 
