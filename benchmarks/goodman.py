@@ -113,14 +113,53 @@ def steps_table(levels: int, nus, counts, friction: float = 0.3) -> dict:
     return out
 
 
+def punch(h: float, friction: float = 0.3) -> dict:
+    """The flat punch of radius a(1 + 1/24) (the rim between nodes, benchmarks/hertz.py) pressed by
+    P with friction, static, ν = 0.3: its stick zone. Its contact area is fixed and its tractions
+    scale with P, so the static problem is the monotonic one; and an increment of the monotonic
+    Hertz indentation at contact radius a is this punch's problem (below), so the two c/a agree."""
+    import tempfile
+
+    from contactopt.verification.hertz import P_SPHERE, punch_problem, punch_stl
+    radius = A_TARGET * (1 + 1 / 24)
+    t0 = time.perf_counter()
+    with tempfile.TemporaryDirectory() as tmp:
+        stl = punch_stl(f"{tmp}/punch.stl", radius / math.cos(math.pi / 96) ** 0.5)
+        pr = punch_problem(h, stl, radius, P_SPHERE, friction=friction)
+        st = pr.solve_state(np.zeros(pr.model.n_design))
+    m = pr.model
+    x = m.body.reference.points[m.contact_nodes]
+    r = np.hypot(x[:, 0], x[:, 1])
+    A = m.contact_areas()
+    names = st.class_names
+    stick, slip, touch = (names == "M3+") & (st.lam > 0), (names == "M1") & (st.lam > 0), st.lam > 0
+    return {"c_area": math.sqrt(4 * A[stick].sum() / math.pi), "a_area": math.sqrt(4 * A[touch].sum() / math.pi),
+            "stick": float(r[stick].max(initial=0.0)), "slip": float(r[slip].min(initial=np.inf)), "radius": radius,
+            "counts": st.counts, "time": time.perf_counter() - t0}
+
+
+def punch_table(levels: int) -> None:
+    print("| h | c/a (areas) | stick out to r/a | slip from r/a | stick / slip nodes | time |")
+    print("|---" * 6 + "|")
+    for level in range(levels):
+        q = punch(A_TARGET / (3 * 2 ** level))
+        print(f"| a/{3 * 2 ** level} | {q['c_area'] / q['a_area']:.3f} | {q['stick'] / q['radius']:.3f} | "
+              f"{q['slip'] / q['radius']:.3f} | {q['counts']['M3+']} / {q['counts']['M1']} | {q['time']:.1f} s |",
+              flush=True)
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--levels", type=int, default=2)
     ap.add_argument("--nus", type=float, nargs="+", default=[0.3, 0.4, 0.49])
     ap.add_argument("--steps", type=int, nargs="*", default=None,
                     help="load steps N of the monotonic indentation (F = 0.3); absent: the static table")
+    ap.add_argument("--punch", action="store_true",
+                    help="the stick zone of the flat punch with F = 0.3 (static), the monotonic Hertz c/a's counterpart")
     args = ap.parse_args()
-    if args.steps:
+    if args.punch:
+        punch_table(args.levels)
+    elif args.steps:
         steps_table(args.levels, args.nus, args.steps)
     else:
         static_table(args.levels, args.nus)

@@ -388,6 +388,38 @@ def test_hertz_contact_of_a_sphere_and_a_cylinder_on_coarse_meshes():
     assert abs(c[1]["a"] / c[1]["a_H"] - 1) < 0.005
 
 
+@pytest.mark.slow
+def test_monotonic_indentation_with_friction_changes_the_hertz_pressure_by_a_few_percent():
+    """Goodman's coupling under monotonic loading (docs/obstacles.md, "Friction"): the sphere's force
+    raised in 8 load steps with F = 0.3 (ν = 0.3, β = 0.29, h = a/3) against the frictionless run and
+    the static (one-step) problem. Measured (benchmarks/goodman.py --steps): the centre pressure
+    +5.7 % (static +6.0 %), the fitted contact radius −1.2 %, the approach −0.7 %; the last
+    increment's stick zone c/a = 0.89 (static 0.59). Bounds: a few percent and below the static
+    problem's change (sticking from the unloaded state resists more than sticking from capture)."""
+    from contactopt.verification.hertz import A_TARGET, P_SPHERE, fit, pressure, sphere_problem
+
+    def measure(friction, steps=0):
+        pr = sphere_problem(A_TARGET / 3, friction, steps=steps)
+        pr.solve_states(np.zeros(pr.model.n_design))
+        st = pr.solve_state(np.zeros(pr.model.n_design))
+        r, p, _, _ = pressure(pr, st)
+        A = pr.model.contact_areas()
+        stick = (st.class_names == "M3+") & (st.lam > 0)
+        out = {"p0": float(p[np.argmin(r)]), "a": fit(r, p)[0], "delta": st.obstacle.translation,
+               "c": float(np.sqrt(A[stick].sum() / A[st.lam > 0].sum()))}
+        if steps:
+            out["forces"] = [s.obstacle.resultant for _, _, s in pr.step_results()]
+        return out
+
+    free, static, monotonic = measure(0.0), measure(0.3), measure(0.3, steps=8)
+    assert monotonic["forces"] == pytest.approx(P_SPHERE / 4 * np.arange(1, 9) / 8, rel=1e-12)
+    rise = {k: q["p0"] / free["p0"] - 1 for k, q in (("static", static), ("monotonic", monotonic))}
+    assert 0.03 < rise["monotonic"] < rise["static"] < 0.08, rise
+    assert -0.02 < monotonic["a"] / free["a"] - 1 < 0
+    assert -0.01 < monotonic["delta"] / free["delta"] - 1 < 0
+    assert monotonic["c"] > static["c"] + 0.2
+
+
 def test_the_state_command_on_a_force_controlled_sphere_writes_the_frames(tmp_path):
     out = tmp_path / "st"
     assert main(["state", str(write(tmp_path, block(FORCED["sphere"]))), "--out", str(out)]) == 0
