@@ -400,7 +400,6 @@ def test_monotonic_indentation_with_friction_changes_the_hertz_pressure_by_a_few
 
     def measure(friction, steps=0):
         pr = sphere_problem(A_TARGET / 3, friction, steps=steps)
-        pr.solve_states(np.zeros(pr.model.n_design))
         st = pr.solve_state(np.zeros(pr.model.n_design))
         r, p, _, _ = pressure(pr, st)
         A = pr.model.contact_areas()
