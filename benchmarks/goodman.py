@@ -138,6 +138,22 @@ def punch(h: float, friction: float = 0.3) -> dict:
             "counts": st.counts, "time": time.perf_counter() - t0}
 
 
+def spence_table(nus, friction: float = 0.3) -> None:
+    """c/a of the frictional flat punch from the half-space's integral equations
+    (:mod:`contactopt.verification.spence`) on 60, 120, 200 rings, with its two checks."""
+    from contactopt.verification.spence import load_ratio, punch_system, stick_ratio
+    print("| ν | β/F | rings | P/(2aE*δ) frictionless | bonded / Mossakovskii | c/a between | time |")
+    print("|---" * 7 + "|")
+    for nu in nus:
+        for n in (60, 120, 200):
+            t0 = time.perf_counter()
+            s = punch_system(nu, n)
+            lo, hi = stick_ratio(s, friction)
+            bonded = load_ratio(s, True) / (math.log(3 - 4 * nu) / (2 * s.beta))
+            print(f"| {nu:g} | {s.beta / friction:.3f} | {n} | {load_ratio(s, False):.6f} | {bonded:.6f} | "
+                  f"{lo:.4f} – {hi:.4f} | {time.perf_counter() - t0:.1f} s |", flush=True)
+
+
 def punch_table(levels: int) -> None:
     print("| h | c/a (areas) | stick out to r/a | slip from r/a | stick / slip nodes | time |")
     print("|---" * 6 + "|")
@@ -155,9 +171,11 @@ def main():
     ap.add_argument("--steps", type=int, nargs="*", default=None,
                     help="load steps N of the monotonic indentation (F = 0.3); absent: the static table")
     ap.add_argument("--punch", action="store_true",
-                    help="the stick zone of the flat punch with F = 0.3 (static), the monotonic Hertz c/a's counterpart")
+                    help="the stick zone of the flat punch with F = 0.3, the monotonic Hertz c/a's counterpart: "
+                         "from the half-space's integral equations (--nus), and by the FE (static, ν = 0.3)")
     args = ap.parse_args()
     if args.punch:
+        spence_table(args.nus)
         punch_table(args.levels)
     elif args.steps:
         steps_table(args.levels, args.nus, args.steps)

@@ -419,6 +419,42 @@ def test_monotonic_indentation_with_friction_changes_the_hertz_pressure_by_a_few
     assert monotonic["c"] > static["c"] + 0.2
 
 
+@pytest.mark.slow
+def test_the_stick_zone_of_monotonic_indentation_is_the_frictional_flat_punchs():
+    """The sphere's force in 4 load steps, F = 0.3, ν = 0.3, h = a/6: the stick–slip boundary of the
+    last increment lies between the last sticking and the first slipping node (0.87 a and 0.92 a,
+    a fitted), and Spence's ratio from the punch's integral equations, c/a = 0.898–0.902, lies
+    between them: two independent computations agree to the mesh's ring spacing."""
+    from contactopt.verification.hertz import A_TARGET, fit, pressure, sphere_problem
+    from contactopt.verification.spence import punch_system, stick_ratio
+    pr = sphere_problem(A_TARGET / 6, 0.3, steps=4)
+    st = pr.solve_state(np.zeros(pr.model.n_design))
+    r, p, _, _ = pressure(pr, st)
+    a = fit(r, p)[0]
+    names = st.class_names
+    stick = r[(names == "M3+") & (st.lam > 0)].max() / a
+    slip = r[(names == "M1") & (st.lam > 0)].min() / a
+    lo, hi = stick_ratio(punch_system(0.3, 200), 0.3)
+    assert stick < lo < hi < slip, (stick, lo, hi, slip)
+    assert slip - stick < 0.06                     # one ring of nodes: the comparison is that sharp
+
+
+def test_the_frictional_flat_punch_from_the_half_space_integral_equations():
+    """The reference stick ratio of the monotonic frictional Hertz indentation (verification/spence.py):
+    its collocation reproduces the frictionless punch (P = 2aE*δ) and the fully bonded one
+    (Mossakovskii's ln(3 − 4ν)/(2β)) to 2e-5, and gives c/a = 0.90 at β/F = 0.95 (ν = 0.3, F = 0.3;
+    0.897–0.903 on 120 rings, 0.898–0.901 on 200), the slip annulus vanishing as F grows."""
+    import math
+
+    from contactopt.verification.spence import load_ratio, punch_system, stick_ratio
+    system = punch_system(0.3, 120)
+    assert load_ratio(system, bonded=False) == pytest.approx(1.0, abs=2e-5)
+    assert load_ratio(system, bonded=True) == pytest.approx(math.log(3 - 4 * 0.3) / (2 * system.beta), rel=2e-5)
+    lo, hi = stick_ratio(system, 0.3)
+    assert 0.89 < lo < hi < 0.91
+    assert stick_ratio(system, 0.6)[0] > hi and stick_ratio(system, 1.0)[0] > 0.999
+
+
 def test_the_state_command_on_a_force_controlled_sphere_writes_the_frames(tmp_path):
     out = tmp_path / "st"
     assert main(["state", str(write(tmp_path, block(FORCED["sphere"]))), "--out", str(out)]) == 0
