@@ -11,6 +11,8 @@ the resultant along f̂ the obstacle exerts on the body, by Brent's method on a 
 first touch, one state solve per step. A path gives only the system moved by s
 (:meth:`ForceControl.translated`), the state of a fixed obstacle (:meth:`ForceControl.fixed_state`)
 and a normal stiffness per node for the bracket's first step (:meth:`ForceControl.normal_stiffness`).
+On a load path (condensation path, :mod:`contactopt.sensitivity.steps`) every solve has its own |f|
+(the system's ``force``: a step's ``obstacle_force``, ramped over its substeps) and its own s.
 
 The subgradient adds the dependence of s on α (implicit function theorem on F(α, s) = 0):
 
@@ -30,6 +32,11 @@ per unit s:
 ṽ the objective's adjoint extended to every DOF: (A ṽ)_c = S v_u where ṽ is A-harmonic, and
 (A ṽ)_c = S v_u − A_ci A_ii⁻¹ g_i for an objective of the whole displacement, whose body
 displacement u_c = w + s e moves with s also at fixed w: y*_u·e with y*_u = g_c − A_ci A_ii⁻¹ g_i.
+
+Through a load path's solves s_k depends also on the previous solve's slip w_(k−1) (the reference
+of the law): with μ_k = (∂Θ/∂s_k)/(∂F_k/∂s_k), ξ gains −μ_k ∂F_k/∂α and what solve k passes to
+solve k − 1 gains −μ_k P_t(S w_u + ∂F_k/∂u_c), F_k's own carry (:meth:`ForceControl.force_terms`,
+:meth:`contactopt.problem.ShapeProblem._path_adjoint`; docs/load_paths.md).
 """
 
 from __future__ import annotations
