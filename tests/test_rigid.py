@@ -158,6 +158,13 @@ def test_a_free_block_equals_the_block_clamped_at_one_node_whose_clamp_carries_n
             assert np.abs(force[1:]).max() <= 1e-12 * st.lam.max()
         else:
             assert np.abs(force).max() <= 1e-12 * st.lam.max()
+    # the subgradient with one clamp of u2 and five motions held by contact, on a design with gaps (the
+    # clamp on the top, which the design does not move: the motions left free stay A(α)'s kernel)
+    top = {"box": [[0.999, 1.001], [0.499, 0.501], [0.999, 1.001]]}
+    clamped = ShapeProblem(free_block(clamped=[{"on": top, "components": [2]}]))
+    assert clamped.model.body.rigid.count == 5
+    rep = check_gradient(clamped, design(clamped), seed=1, n_directions=3, state_method="newton", state_tol=1e-13)
+    assert rep.n_degenerate == 0 and np.max(rep.rel_errors) <= 1e-6, rep.rel_errors
 
 
 def test_clamps_that_fix_some_components_leave_the_others_to_contact():
