@@ -615,3 +615,18 @@ def test_a_load_path_on_a_force_controlled_sphere_matches_central_differences(tm
     rep = check_gradient(pr, alpha, seed=1, n_directions=3)
     assert rep.n_degenerate == 0 and np.max(rep.rel_errors) <= 1e-6, rep.rel_errors
     assert rep.taylor_rate >= 1.9
+
+
+@pytest.mark.slow
+def test_a_whole_displacement_objective_on_a_force_controlled_path_matches_central_differences():
+    """The peak stress (KS, summed over the steps) with a force that has a tangential part: the body's
+    u_c = w + s e moves with s at fixed w, so its own ∂J/∂u enters ∂Θ/∂s_k, not what later steps pass
+    down (paths/force.py)."""
+    from contactopt.sensitivity.check import check_gradient
+    sphere = {**FORCED_SPHERE, "force": [0.3, 0.0, 1.2]}
+    objective = {"type": "peak_stress", "aggregate": "ks", "rho": 5.0, "steps": "sum"}
+    pr = ShapeProblem(sphere_block(FORCED_PATH, obstacle=sphere, objective=objective))
+    alpha = 0.002 * np.sin(np.arange(pr.model.n_design)) + 0.001
+    rep = check_gradient(pr, alpha, seed=1, n_directions=3)
+    assert rep.n_degenerate == 0 and np.max(rep.rel_errors) <= 1e-6, rep.rel_errors
+    assert rep.taylor_rate >= 1.9
