@@ -8,7 +8,8 @@ The block 2 × 1 × 1 (hexahedra 8 × 4 × 3) without clamps on the plane x3 = 0
 - the anchor iterations and the state's distance to the converged one for the anchor stiffness
   γ = c · mean diag S, c = 1e-1 … 1e-4 (the default is 1e-3), on a design with gaps;
 - the free block against the same block clamped at three nodes that stick in contact (u, λ, τ and
-  the clamps' reactions against the free body's contact forces at those nodes);
+  the clamps' reactions against the free body's contact forces at those nodes), and against the
+  block clamped at one node in some components (the clamp's force);
 - the subgradient against Richardson-extrapolated central differences (3 seeded directions) on
   hexahedra, and the time of one evaluation of the free block over that of the block clamped on
   its top (same run);
@@ -75,6 +76,8 @@ def main():
           f"{np.abs(sc.tau - st.tau[keep]).max() / st.lam.max():.2e}")
     print(f"  max |clamp reaction − free contact force| / max λ = {np.abs(reaction - force).max() / st.lam.max():.2e}")
 
+    one_node(zero)
+
     rep = check_gradient(p, gapped, seed=1, n_directions=3, state_method="newton", state_tol=1e-13)
     print(f"\nsubgradient vs central differences: {np.array2string(rep.rel_errors, precision=2)}, "
           f"Taylor rate {rep.taylor_rate:.2f}")
@@ -92,6 +95,34 @@ def main():
         ShapeProblem(block(side=0.07))
     except ConfigError as exc:
         print("\nQ = 0.07:", exc.problems[0])
+
+
+def one_node(alpha) -> None:
+    """The free block against the block clamped at ONE node, the centre (1, 0.5, 0) of the contact
+    face, in some components: u2 under the side traction (the symmetry plane x2 = 0.5), u1 and u2
+    under the side traction, u1 and u2 under the top pressure alone (double symmetry)."""
+    tight = {"state": {"method": "newton", "tol": 1e-14}}
+    print("\none clamped node (1, 0.5, 0), state tol 1e-14:")
+    print("side traction | clamped | motions left | max |u − u_free| / max |u| | clamp force / max λ | "
+          "free body's (−τ1, −τ2, λ) there / max λ")
+    for side, comps in ((0.02, [2]), (0.02, [1, 2]), (0.0, [1, 2])):
+        free = ShapeProblem(block(side=side, **tight))
+        st = free.solve_state(alpha)
+        m = free.model
+        pts = m.body.reference.points
+        node = int(np.flatnonzero(np.all(np.abs(pts - [1.0, 0.5, 0.0]) < 1e-12, axis=1))[0])
+        box = {"box": [[0.999, 1.001], [0.499, 0.501], [-1e-3, 1e-3]]}
+        clamped = ShapeProblem(block(side=side, clamped=[{"on": box, "components": comps}], **tight))
+        sc = clamped.solve_state(alpha)
+        asm = m.assemble(alpha)
+        force = m.assembler.to_full(asm.A @ sc.u[m.assembler.free] - asm.L).reshape(-1, 3)
+        force[clamped.model.contact_nodes] -= np.c_[-sc.tau, sc.lam]
+        k = int(np.searchsorted(m.contact_nodes, node))
+        scale = st.lam.max()
+        print(f"{side:g} | u{', u'.join(map(str, comps))} | {clamped.model.body.rigid.count} | "
+              f"{np.abs(sc.u - st.u).max() / np.abs(st.u).max():.1e} | "
+              f"{np.array2string(force[node] / scale, precision=2)} | "
+              f"{np.array2string(np.r_[-st.tau[k], st.lam[k]] / scale, precision=3)}")
 
 
 if __name__ == "__main__":

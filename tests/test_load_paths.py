@@ -221,6 +221,12 @@ BAD = {
                                "objective.steps: 'b' is no step of load_steps"),
     "steps twice": ('[[load_steps]]\nname = "a"\n[[load_cases]]\nname = "c"\n[[load_cases.steps]]\nname = "a"\n',
                     "the configuration has [[load_steps]] and [[load_cases.steps]]"),
+    "a step's force without force control": ('[[load_steps]]\nname = "a"\nobstacle_force = [0.0, 0.0, 1.0]\n',
+                                             "load_steps[0].obstacle_force: needs [obstacle] control = 'force'"),
+    "a step's force off the obstacle's": (
+        '[obstacle]\nshape = "sphere"\ncenter = [1.0, 0.5, -5.0]\nradius = 5.0\ncontrol = "force"\n'
+        'force = [0.0, 0.0, 1.0]\n[[load_steps]]\nname = "a"\nobstacle_force = [0.1, 0.0, 1.0]\n',
+        "load_steps[0].obstacle_force = [0.1, 0.0, 1.0]: must be a positive multiple of obstacle.force"),
 }
 
 
@@ -480,13 +486,15 @@ def test_load_cases_with_their_own_paths(tmp_path):
     assert (out / "case-once" / "step-static" / "state.npz").is_file()
 
 
-def test_load_paths_refuse_what_they_do_not_take_yet():
-    """A force-controlled obstacle is not carried through the steps (its translation would be an
-    unknown of every step): refused with a message naming the combination, not solved wrongly."""
+@pytest.mark.parametrize("path", ["delassus", "fullspace"])
+def test_load_paths_on_a_force_controlled_obstacle_are_refused_off_the_condensation_path(path):
+    """A force-controlled obstacle's translation is an unknown of every step on the condensation path
+    only: the other paths refuse with a message naming it, not solved wrongly."""
     steps = [{"name": "press", "top_traction": TOP}, {"name": "shear", "top_traction": TOP, "right_traction": SIDE}]
-    with pytest.raises(ConfigError, match="not yet taken with a force-controlled \\[obstacle\\]"):
-        block(steps, obstacle={"shape": "sphere", "center": [1.0, 1.0, -5.0], "radius": 5.0,
-                               "control": "force", "force": [0.0, 0.0, 1.0]})
+    with pytest.raises(ConfigError, match="force-controlled sphere \\[obstacle\\].*'condensation'"):
+        ShapeProblem(block(steps, obstacle={"shape": "sphere", "center": [1.0, 1.0, -5.0], "radius": 5.0,
+                                            "control": "force", "force": [0.0, 0.0, 1.0]},
+                           linear_solver={"path": path}))
 
 
 # ---------------------------------------------------------------- rigid obstacles
@@ -539,3 +547,86 @@ def test_one_step_on_a_sphere_is_the_static_problem_bit_for_bit():
     assert ja == jb and np.array_equal(ga, gb)
     sa, sb = a.solve_state(alpha), b.solve_state(alpha)
     assert np.array_equal(sa.u, sb.u) and np.array_equal(sa.lam, sb.lam) and np.array_equal(sa.classes, sb.classes)
+
+
+# ---------------------------------------------------------------- a force-controlled obstacle
+FORCED_SPHERE = {"shape": "sphere", "center": [1.0, 1.0, -5.0], "radius": 5.0, "control": "force",
+                 "force": [0.0, 0.0, 1.2]}
+# pressed by the force, then sheared at that force: both steps slide (and stick)
+FORCED_PATH = [{"name": "press"}, {"name": "shear", "body_force": [0.06, 0.0, 0.0]}]
+
+
+def test_one_step_with_a_force_controlled_obstacle_is_the_static_problem_bit_for_bit():
+    a = ShapeProblem(sphere_block(None, obstacle=FORCED_SPHERE))
+    b = ShapeProblem(sphere_block([{"name": "all"}], obstacle=FORCED_SPHERE))
+    alpha = 0.002 * np.sin(np.arange(a.model.n_design)) + 0.001
+    (ja, ga), (jb, gb) = a.evaluate(alpha), b.evaluate(alpha)
+    assert ja == jb and np.array_equal(ga, gb)
+    sa, sb = a.solve_state(alpha), b.solve_state(alpha)
+    assert np.array_equal(sa.u, sb.u) and np.array_equal(sa.lam, sb.lam) and np.array_equal(sa.classes, sb.classes)
+    assert sa.obstacle == sb.obstacle
+
+
+def test_a_steps_force_is_ramped_over_its_substeps_and_balanced_in_each():
+    steps = [{"name": "half", "obstacle_force": [0.0, 0.0, 0.6], "substeps": 2}, {"name": "full", "substeps": 2}]
+    pr = ShapeProblem(sphere_block(steps, obstacle=FORCED_SPHERE))
+    pr.solve_states(np.zeros(pr.model.n_design))
+    results = pr.step_results()
+    assert [(n, k) for n, k, _ in results] == [("half", 1), ("half", 2), ("full", 1), ("full", 2)]
+    forces = [st.obstacle.resultant for _, _, st in results]
+    assert forces == pytest.approx([0.3, 0.6, 0.9, 1.2], rel=1e-12)
+    s = [st.obstacle.translation for _, _, st in results]
+    assert np.all(np.diff(s) > 0)                 # pressed further in each solve
+
+
+def forced_tets(tmp_path, steps):
+    """The 2 × 2 × 1 block as linear tetrahedra (8 × 8 × 3 cubes, six each) on the forced sphere."""
+    import meshio
+
+    from contactopt.config import validate
+    from contactopt.mesh.block import block_mesh
+    from contactopt.mesh.tetsplit import hex_to_tets
+    hexes = block_mesh(2.0, 2.0, 1.0, 8, 8, 3)
+    path = tmp_path / "tets.vtu"
+    meshio.write(path, meshio.Mesh(hexes.points, [("tetra", hex_to_tets(hexes.cells))]))
+    data = {k: v for k, v in sphere_block(steps, obstacle=FORCED_SPHERE).data.items() if k not in ("geometry", "mesh")}
+    data["body"] = {**data["body"], "mesh": str(path), "clamped": {"x3": 1.0}, "contact": {"x3": 0.0}}
+    data["loads"] = {"body_force": [0.0, 0.0, 0.0]}
+    return validate(data, "tets")
+
+
+@pytest.mark.parametrize("cells", ["hexahedron", pytest.param("tetra", marks=pytest.mark.slow)])
+def test_a_load_path_on_a_force_controlled_sphere_matches_central_differences(tmp_path, cells):
+    """Pressed by the force, then sheared at that force: each step's translation balances the force
+    (Brent's method), and the subgradient follows every step's translation with α and with the
+    previous step's slip, against central differences."""
+    from contactopt.sensitivity.check import check_gradient
+    objective = {"objective": {"steps": "sum", "target": {"kind": "constant", "value": 0.01}}}
+    cfg = (sphere_block(FORCED_PATH, obstacle=FORCED_SPHERE, **objective) if cells == "hexahedron"
+           else forced_tets(tmp_path, FORCED_PATH).with_updates(objective))
+    pr = ShapeProblem(cfg)
+    assert pr.model.body.reference.cell_type == cells
+    alpha = 0.002 * np.sin(np.arange(pr.model.n_design)) + 0.001
+    pr.solve_states(alpha)
+    results = pr.step_results()
+    for _, _, st in results:
+        assert st.obstacle.resultant == pytest.approx(1.2, rel=1e-12)
+        assert st.counts["M1"] > 0 and st.counts["M3+"] > 0
+    rep = check_gradient(pr, alpha, seed=1, n_directions=3)
+    assert rep.n_degenerate == 0 and np.max(rep.rel_errors) <= 1e-6, rep.rel_errors
+    assert rep.taylor_rate >= 1.9
+
+
+@pytest.mark.slow
+def test_a_whole_displacement_objective_on_a_force_controlled_path_matches_central_differences():
+    """The peak stress (KS, summed over the steps) with a force that has a tangential part: the body's
+    u_c = w + s e moves with s at fixed w, so its own ∂J/∂u enters ∂Θ/∂s_k, not what later steps pass
+    down (paths/force.py)."""
+    from contactopt.sensitivity.check import check_gradient
+    sphere = {**FORCED_SPHERE, "force": [0.3, 0.0, 1.2]}
+    objective = {"type": "peak_stress", "aggregate": "ks", "rho": 5.0, "steps": "sum"}
+    pr = ShapeProblem(sphere_block(FORCED_PATH, obstacle=sphere, objective=objective))
+    alpha = 0.002 * np.sin(np.arange(pr.model.n_design)) + 0.001
+    rep = check_gradient(pr, alpha, seed=1, n_directions=3)
+    assert rep.n_degenerate == 0 and np.max(rep.rel_errors) <= 1e-6, rep.rel_errors
+    assert rep.taylor_rate >= 1.9

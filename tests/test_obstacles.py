@@ -388,6 +388,73 @@ def test_hertz_contact_of_a_sphere_and_a_cylinder_on_coarse_meshes():
     assert abs(c[1]["a"] / c[1]["a_H"] - 1) < 0.005
 
 
+@pytest.mark.slow
+def test_monotonic_indentation_with_friction_changes_the_hertz_pressure_by_a_few_percent():
+    """Goodman's coupling under monotonic loading (docs/obstacles.md, "Friction"): the sphere's force
+    raised in 8 load steps with F = 0.3 (ν = 0.3, β = 0.29, h = a/3) against the frictionless run and
+    the static (one-step) problem. Measured (benchmarks/goodman.py --steps): the centre pressure
+    +5.7 % (static +6.0 %), the fitted contact radius −1.2 %, the approach −0.7 %; the last
+    increment's stick zone c/a = 0.89 (static 0.59). Bounds: a few percent and below the static
+    problem's change (sticking from the unloaded state resists more than sticking from capture)."""
+    from contactopt.verification.hertz import A_TARGET, P_SPHERE, fit, pressure, sphere_problem
+
+    def measure(friction, steps=0):
+        pr = sphere_problem(A_TARGET / 3, friction, steps=steps)
+        st = pr.solve_state(np.zeros(pr.model.n_design))
+        r, p, _, _ = pressure(pr, st)
+        A = pr.model.contact_areas()
+        stick = (st.class_names == "M3+") & (st.lam > 0)
+        out = {"p0": float(p[np.argmin(r)]), "a": fit(r, p)[0], "delta": st.obstacle.translation,
+               "c": float(np.sqrt(A[stick].sum() / A[st.lam > 0].sum()))}
+        if steps:
+            out["forces"] = [s.obstacle.resultant for _, _, s in pr.step_results()]
+        return out
+
+    free, static, monotonic = measure(0.0), measure(0.3), measure(0.3, steps=8)
+    assert monotonic["forces"] == pytest.approx(P_SPHERE / 4 * np.arange(1, 9) / 8, rel=1e-12)
+    rise = {k: q["p0"] / free["p0"] - 1 for k, q in (("static", static), ("monotonic", monotonic))}
+    assert 0.03 < rise["monotonic"] < rise["static"] < 0.08, rise
+    assert -0.02 < monotonic["a"] / free["a"] - 1 < 0
+    assert -0.01 < monotonic["delta"] / free["delta"] - 1 < 0
+    assert monotonic["c"] > static["c"] + 0.2
+
+
+@pytest.mark.slow
+def test_the_stick_zone_of_monotonic_indentation_is_the_frictional_flat_punchs():
+    """The sphere's force in 4 load steps, F = 0.3, ν = 0.3, h = a/6: the stick–slip boundary of the
+    last increment lies between the last sticking and the first slipping node (0.87 a and 0.92 a,
+    a fitted), and Spence's ratio from the punch's integral equations, c/a = 0.898–0.902, lies
+    between them: two independent computations agree to the mesh's ring spacing."""
+    from contactopt.verification.hertz import A_TARGET, fit, pressure, sphere_problem
+    from contactopt.verification.spence import punch_system, stick_ratio
+    pr = sphere_problem(A_TARGET / 6, 0.3, steps=4)
+    st = pr.solve_state(np.zeros(pr.model.n_design))
+    r, p, _, _ = pressure(pr, st)
+    a = fit(r, p)[0]
+    names = st.class_names
+    stick = r[(names == "M3+") & (st.lam > 0)].max() / a
+    slip = r[(names == "M1") & (st.lam > 0)].min() / a
+    lo, hi = stick_ratio(punch_system(0.3, 200), 0.3)
+    assert stick < lo < hi < slip, (stick, lo, hi, slip)
+    assert slip - stick < 0.06                     # one ring of nodes: the comparison is that sharp
+
+
+def test_the_frictional_flat_punch_from_the_half_space_integral_equations():
+    """The reference stick ratio of the monotonic frictional Hertz indentation (verification/spence.py):
+    its collocation reproduces the frictionless punch (P = 2aE*δ) and the fully bonded one
+    (Mossakovskii's ln(3 − 4ν)/(2β)) to 2e-5, and gives c/a = 0.90 at β/F = 0.95 (ν = 0.3, F = 0.3;
+    0.897–0.903 on 120 rings, 0.898–0.901 on 200), the slip annulus vanishing as F grows."""
+    import math
+
+    from contactopt.verification.spence import load_ratio, punch_system, stick_ratio
+    system = punch_system(0.3, 120)
+    assert load_ratio(system, bonded=False) == pytest.approx(1.0, abs=2e-5)
+    assert load_ratio(system, bonded=True) == pytest.approx(math.log(3 - 4 * 0.3) / (2 * system.beta), rel=2e-5)
+    lo, hi = stick_ratio(system, 0.3)
+    assert 0.89 < lo < hi < 0.91
+    assert stick_ratio(system, 0.6)[0] > hi and stick_ratio(system, 1.0)[0] > 0.999
+
+
 def test_the_state_command_on_a_force_controlled_sphere_writes_the_frames(tmp_path):
     out = tmp_path / "st"
     assert main(["state", str(write(tmp_path, block(FORCED["sphere"]))), "--out", str(out)]) == 0

@@ -115,6 +115,58 @@ def test_a_free_block_equals_the_block_clamped_at_three_still_nodes_whose_clamps
     assert np.abs(reaction - r[still]).max() <= 1e-10 * st.lam.max()
 
 
+def one_node_clamp(problem, alpha, node, components, **updates):
+    """(the state of the block clamped in ``components`` at ``node`` only, the clamp's force there):
+    A u − L of the unclamped stiffness at the node less the clamped body's own contact force."""
+    m = problem.model
+    x, y, z = m.body.reference.points[node]
+    box = {"box": [[x - 1e-3, x + 1e-3], [y - 1e-3, y + 1e-3], [z - 1e-3, z + 1e-3]]}
+    clamped = ShapeProblem(free_block(clamped=[{"on": box, "components": components}], **updates))
+    sc = clamped.solve_state(alpha)
+    asm = m.assemble(alpha)
+    force = m.assembler.to_full(asm.A @ sc.u[m.assembler.free] - asm.L).reshape(-1, 3)
+    force[clamped.model.contact_nodes] -= np.c_[-sc.tau, sc.lam]
+    return clamped, sc, force[node]
+
+
+def test_a_free_block_equals_the_block_clamped_at_one_node_whose_clamp_carries_no_force():
+    """One clamped node carries no force where the free body's displacement and force vanish in the
+    clamped components: u2 on the symmetry plane x2 = 1/2 under the side traction (the other five
+    motions held by contact); u1, u2 at the centre of the contact face under the top pressure alone
+    (double symmetry: u_t = 0 and τ = 0 there). Under the side traction no node has τ1 = 0 (it changes
+    sign between nodes), so a clamp of u1 at a sticking node carries that node's friction force,
+    inside its cone: the same state, the clamp doing what friction did."""
+    tight = {"state": {"method": "newton", "tol": 1e-14}}
+    for side, components in ((0.02, [2]), (0.02, [1, 2]), (0.0, [1, 2])):
+        problem = ShapeProblem(free_block(side=side, **tight))
+        alpha = np.zeros(problem.model.n_design)
+        st = problem.solve_state(alpha)
+        m = problem.model
+        pts = m.body.reference.points
+        centre = int(np.flatnonzero(np.all(np.abs(pts - [1.0, 0.5, 0.0]) < 1e-12, axis=1))[0])
+        k = int(np.searchsorted(m.contact_nodes, centre))
+        assert st.class_names[k] == "M3+" and np.abs(st.u.reshape(-1, 3)[centre]).max() <= 1e-10 * np.abs(st.u).max()
+        clamped, sc, force = one_node_clamp(problem, alpha, centre, components, side=side, **tight)
+        assert clamped.model.body.rigid.count == {1: 5, 2: 4}[len(components)]     # u2: 5 motions; u1, u2: 4
+        assert np.abs(sc.u - st.u).max() <= 1e-10 * np.abs(st.u).max()
+        assert np.array_equal(sc.classes, st.classes)
+        assert np.abs(sc.lam - st.lam).max() <= 1e-10 * st.lam.max()
+        free_force = np.r_[-st.tau[k], st.lam[k]]
+        if side and 1 in components:        # the node's friction force, carried by the clamp instead
+            assert abs(force[0] - free_force[0]) <= 1e-10 * st.lam.max()
+            assert abs(force[0]) > 1e-2 * st.lam.max() and abs(force[0]) < 0.3 * st.lam[k]
+            assert np.abs(force[1:]).max() <= 1e-12 * st.lam.max()
+        else:
+            assert np.abs(force).max() <= 1e-12 * st.lam.max()
+    # the subgradient with one clamp of u2 and five motions held by contact, on a design with gaps (the
+    # clamp on the top, which the design does not move: the motions left free stay A(α)'s kernel)
+    top = {"box": [[0.999, 1.001], [0.499, 0.501], [0.999, 1.001]]}
+    clamped = ShapeProblem(free_block(clamped=[{"on": top, "components": [2]}]))
+    assert clamped.model.body.rigid.count == 5
+    rep = check_gradient(clamped, design(clamped), seed=1, n_directions=3, state_method="newton", state_tol=1e-13)
+    assert rep.n_degenerate == 0 and np.max(rep.rel_errors) <= 1e-6, rep.rel_errors
+
+
 def test_clamps_that_fix_some_components_leave_the_others_to_contact():
     # u1 = 0 on the face x1 = 0: the contact holds u2, u3 and the rotation about x1
     part = ShapeProblem(free_block(clamped=[{"on": {"x1": 0.0}, "components": [1]}]))

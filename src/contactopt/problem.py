@@ -134,7 +134,10 @@ class ShapeProblem:
         """The system of every solve of case k's load path (sharing the case's prepared system)."""
         out = []
         for step in self.steps[k]:
-            out.append(self._for_loads(system, asm, step.loads))
+            system_k = self._for_loads(system, asm, step.loads)
+            if step.force is not None:       # a force-controlled obstacle: the step's force (paths/force.py)
+                system_k = replace(system_k, force=step.force)
+            out.append(system_k)
         return out
 
     def _for_loads(self, system, asm, loads):
@@ -341,6 +344,7 @@ class ShapeProblem:
             if j in rhs:
                 y_u, y_lam, dJ_da = rhs[j]
                 xi = xi + dJ_da
+            own = y_u                       # the objective's own ∂J/∂u at this solve
             if carry is not None:           # on every DOF: y_u's global components
                 y_u = add_at_contact(y_u, carry if carry.size == y_u.size else self.path.global_contact(carry),
                                      contact)
@@ -354,8 +358,27 @@ class ShapeProblem:
                 out = (v_u, v_lam)
             if j:
                 carry = tangential(self.path.adjoint_carry(system, ctxs[j], v_u, v_full, y_u))
+            if self.steps[k][j].force is not None:
+                xi, carry = self._step_force(system, ctxs[j], state, v_lam, v_full, own, xi, carry, j,
+                                             self.steps[k][j].loads)
+            if j:
                 carry[pinned] = 0.0          # u_t = 0 there in every step
         return xi, out[0], out[1], nd
+
+    def _step_force(self, system, ctx, state, v_lam, v_full, own, xi, carry, j: int, loads):
+        """(ξ, carry) of solve j of a load path with a force-controlled obstacle, its translation s_j
+        following α and the previous solve's slip u_t^(j−1) (F_j(α, u_t^(j−1), s_j) = 0): with
+        μ = (∂Θ/∂s)/(∂F/∂s), ξ gains −μ ∂F/∂α and the carry −μ P_t(S w_u + ∂F/∂u_c) of F's adjoint w
+        (paths/force.py; sensitivity/steps.py)."""
+        from .sensitivity.steps import tangential
+        t = self.path.force_terms(system, ctx, state, v_lam, loads, v=v_full, y_u=own)
+        if t.dF_ds == 0:
+            return xi, carry
+        xi = xi - t.dT_ds * t.dF_da / t.dF_ds
+        if j:
+            carry_F = tangential(self.path.adjoint_carry(system, ctx, t.adjoint.v_u, t.adjoint.v, t.y_F))
+            carry = carry - t.dT_ds * carry_F / t.dF_ds
+        return xi, carry
 
     def evaluate(self, alpha):
         """(Θ(α), ξ) with ξ a Clarke subgradient from the adjoint system (4.15)."""

@@ -16,6 +16,7 @@ from .schema import (
     OBSTACLE,
     SCHEMA,
     SECTION_DOCS,
+    STEP_FORCE,
     SUBSTEPS,
     TERM_KEYS,
     TERM_WEIGHT,
@@ -140,7 +141,9 @@ def json_schema() -> dict:
     name = {"type": "string", "pattern": "^[A-Za-z0-9_.+-]+$"}
     step = {"type": "object", "required": ["name"], "additionalProperties": False,
             "properties": _loads_keys({"name": name, "substeps": {"type": "integer", "minimum": 1, "default": SUBSTEPS[0],
-                                                                "description": SUBSTEPS[2]}})}
+                                                                "description": SUBSTEPS[2]},
+                                       "obstacle_force": {"type": "array", "items": {"type": "number"}, "minItems": 3,
+                                                          "maxItems": 3, "description": STEP_FORCE[2]}})}
     steps = {"type": "array", "minItems": 1, "items": step}
     props["load_steps"] = {**steps, "description": "the load path: steps in order, each the TOTAL loads at its end"}
     props["load_cases"] = {"type": "array", "minItems": 1, "description": "named load cases", "items": {

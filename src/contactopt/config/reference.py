@@ -61,6 +61,9 @@ def reference_markdown() -> str:
               "with a `name`, the TOTAL loads at its end in the keys of [loads] ([loads] adds to every step) and "
               "`substeps` (default 1: equal increments, linear in the loads, from the previous step's loads). "
               "Coulomb's law acts on the slip of each step. `objective.steps` says which steps Θ is taken on. "
+              "With a force-controlled [obstacle] a step may give `obstacle_force` = [f1, f2, f3], the force at "
+              "its end, a positive multiple of `obstacle.force` (absent: `obstacle.force`), ramped like the "
+              "loads over its substeps (the first step's from zero). "
               "Without steps the problem is one step, the static problem."]
     lines += CONSTRAINTS_REFERENCE
     return "\n".join(lines) + "\n"

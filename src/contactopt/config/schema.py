@@ -296,6 +296,10 @@ TERM_KEYS = {"type", "weight", "region", "aggregate", "rho", "p", "target"}
 # keys of the arrays of tables: a term's weight (its other keys as in [objective]), a step's substeps
 TERM_WEIGHT = (1.0, _nonneg, "a number ≥ 0")
 SUBSTEPS = (1, _posint, "an integer ≥ 1 (equal increments of the loads from the previous step's)")
+# a step's force of a force-controlled [obstacle]: absent, the step takes obstacle.force
+STEP_FORCE = (None, _vec3, "[f1, f2, f3], the resultant the force-controlled obstacle exerts on the body at the "
+              "step's end, a positive multiple of obstacle.force (absent: obstacle.force); its substeps ramp "
+              "it linearly from the previous step's (the first step's from zero)")
 
 SECTION_DOCS = {
     "body": "The body: a mesh file with named parts, or (no `mesh`) the paper's block of [geometry] and [mesh]. "

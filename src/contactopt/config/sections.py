@@ -410,10 +410,12 @@ class LoadStep:
     name: str
     loads: Loads
     substeps: int
+    obstacle_force: tuple | None = None    # a force-controlled obstacle's force at the step's end (None: obstacle.force)
 
     @classmethod
     def from_dict(cls, d: dict) -> "LoadStep":
-        return cls(d["name"], Loads.from_dict(d), d["substeps"])
+        force = d.get("obstacle_force")
+        return cls(d["name"], Loads.from_dict(d), d["substeps"], None if force is None else tuple(map(float, force)))
 
 
 @dataclass(frozen=True)

@@ -19,6 +19,7 @@ from .schema import (
     OBJECTIVE_TYPES,
     OBSTACLE,
     SCHEMA,
+    STEP_FORCE,
     SUBSTEPS,
     TERM_KEYS,
     TERM_WEIGHT,
@@ -157,28 +158,48 @@ def _check_load_steps(steps, where, problems) -> list:
         problems.append(f"{where}: must be a non-empty array of tables with a name, loads as in [loads] "
                         "and an optional substeps")
         return []
-    allowed = ["name", *SCHEMA["loads"], "substeps"]
+    allowed = ["name", *SCHEMA["loads"], "substeps", "obstacle_force"]
     _check_named_loads(steps, where, allowed, "step", "the step's output directory", problems)
     for n, step in enumerate(steps):
         sub = step.setdefault("substeps", SUBSTEPS[0])
         if not _posint(sub):
             problems.append(f"{where}[{n}].substeps = {sub!r}: must be an integer ≥ 1 (equal increments of "
                             "the loads from the previous step's)")
+        if "obstacle_force" in step and not STEP_FORCE[1](step["obstacle_force"]):
+            problems.append(f"{where}[{n}].obstacle_force = {step['obstacle_force']!r}: must be {STEP_FORCE[2]}")
     return steps
+
+
+def _check_step_forces(steps, where, obstacle, problems) -> None:
+    """A step's ``obstacle_force`` needs a force-controlled ``obstacle`` (the raw [obstacle] table)
+    and points along its force: the obstacle translates along one direction in every step."""
+    force = obstacle.get("force") if isinstance(obstacle, dict) and obstacle.get("control") == "force" else None
+    for n, step in enumerate(steps):
+        f = step.get("obstacle_force") if isinstance(step, dict) else None
+        if f is None or not _vec3(f):
+            continue
+        if force is None:
+            problems.append(f"{where}[{n}].obstacle_force: needs [obstacle] control = 'force' (the force the "
+                            "obstacle presses with in this step)")
+        elif _vec3(force) and any(force):
+            norm_f, norm_s = math.sqrt(sum(x * x for x in force)), math.sqrt(sum(x * x for x in f))
+            cos = sum(a * b for a, b in zip(f, force)) / (norm_f * norm_s) if norm_s else 0.0
+            if cos < 1 - 1e-12:
+                problems.append(f"{where}[{n}].obstacle_force = {f!r}: must be a positive multiple of "
+                                f"obstacle.force = {force!r} (the obstacle translates along its force in every step)")
 
 
 def _check_step_names(data, problems, obstacle=None) -> None:
     """objective.steps names steps of every path; steps at the top level and in cases exclude each
-    other; a force-controlled ``obstacle`` (the raw [obstacle] table) takes no steps."""
+    other; a step's ``obstacle_force`` is checked against ``obstacle`` (the raw [obstacle] table)."""
     cases = data.get("load_cases", [])
     if "load_steps" in data and any("steps" in c for c in cases):
         problems.append("load_steps: the configuration has [[load_steps]] and [[load_cases.steps]]; give each "
                         "load case its own steps, or the top-level steps without steps in the cases")
-    if "load_steps" in data or any("steps" in c for c in cases):
-        if isinstance(obstacle, dict) and obstacle.get("control") == "force":
-            problems.append("load_steps: a load path is not yet taken with a force-controlled [obstacle] (its "
-                            "translation would be an unknown of every step); use obstacle.control = 'fixed' or "
-                            "'displacement'")
+    paths = [("load_steps", data["load_steps"])] if "load_steps" in data else []
+    paths += [(f"load_cases[{n}].steps", c["steps"]) for n, c in enumerate(cases) if "steps" in c]
+    for where, steps in paths:
+        _check_step_forces(steps or [], where, obstacle, problems)
     chosen = data["objective"]["steps"]
     if not isinstance(chosen, list):
         return

@@ -69,6 +69,7 @@ class CondensedSystem:
     shift: np.ndarray | None = None    # an obstacle's tangential translation (3p,) per node frame: ℓ_eff = ℓ − S shift
     rigid: object = None               # a body held only by contact: its Anchor (the kernel of S, module docstring)
     beta: np.ndarray | None = None     # ... and the anchor's position β of this solve
+    force: float | None = None         # a load step's |f| of a force-controlled obstacle (None: the model's)
 
     @property
     def law_S(self) -> np.ndarray:

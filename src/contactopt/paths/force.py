@@ -11,6 +11,8 @@ the resultant along f̂ the obstacle exerts on the body, by Brent's method on a 
 first touch, one state solve per step. A path gives only the system moved by s
 (:meth:`ForceControl.translated`), the state of a fixed obstacle (:meth:`ForceControl.fixed_state`)
 and a normal stiffness per node for the bracket's first step (:meth:`ForceControl.normal_stiffness`).
+On a load path (condensation path, :mod:`contactopt.sensitivity.steps`) every solve has its own |f|
+(the system's ``force``: a step's ``obstacle_force``, ramped over its substeps) and its own s.
 
 The subgradient adds the dependence of s on α (implicit function theorem on F(α, s) = 0):
 
@@ -30,11 +32,17 @@ per unit s:
 ṽ the objective's adjoint extended to every DOF: (A ṽ)_c = S v_u where ṽ is A-harmonic, and
 (A ṽ)_c = S v_u − A_ci A_ii⁻¹ g_i for an objective of the whole displacement, whose body
 displacement u_c = w + s e moves with s also at fixed w: y*_u·e with y*_u = g_c − A_ci A_ii⁻¹ g_i.
+
+Through a load path's solves s_k depends also on the previous solve's slip w_(k−1) (the reference
+of the law): with μ_k = (∂Θ/∂s_k)/(∂F_k/∂s_k), ξ gains −μ_k ∂F_k/∂α and what solve k passes to
+solve k − 1 gains −μ_k P_t(S w_u + ∂F_k/∂u_c), F_k's own carry (:meth:`ForceControl.force_terms`,
+:meth:`contactopt.problem.ShapeProblem._path_adjoint`; docs/load_paths.md).
 """
 
 from __future__ import annotations
 
 import logging
+from typing import NamedTuple
 
 import numpy as np
 
@@ -75,6 +83,8 @@ class ForceControl:
         from scipy.optimize import brentq
 
         c, b, f = m.force_gap, m.force_b, m.force
+        if getattr(system, "force", None) is not None:      # a load step's own force (sensitivity/steps.py)
+            f = system.force
         e = (b * TANGENTIAL).ravel()
         states = {}
 
@@ -127,9 +137,18 @@ class ForceControl:
     def controlled_subgradient(self, system, ctx, state, v_u, v_lam, xi, loads=None, *, v=None, y_u=None):
         """ξ with the translation of a force-controlled obstacle following α (module docstring);
         ``v`` ṽ of the objective's adjoint on every DOF, ``y_u`` its ∂J/∂u (:meth:`adjoint`)."""
-        m = self.model
-        if getattr(m, "force", None) is None:
+        if getattr(self.model, "force", None) is None:
             return xi
+        t = self.force_terms(system, ctx, state, v_lam, loads, v=v, y_u=y_u)
+        if t.dF_ds == 0:
+            return xi
+        return xi - t.dT_ds * t.dF_da / t.dF_ds
+
+    def force_terms(self, system, ctx, state, v_lam, loads=None, *, v=None, y_u=None) -> "ForceTerms":
+        """∂Θ/∂s, ∂F/∂s, ∂F/∂α and the adjoint of F (module docstring) at a state; ``v`` ṽ of the
+        objective's adjoint on every DOF, ``y_u`` the objective's own ∂J/∂u (on every DOF, it moves
+        with s at fixed w; on a load path without what later steps pass down)."""
+        m = self.model
         c, b = m.force_gap, m.force_b
         e = (b * TANGENTIAL).ravel()
         A, asm = system.assembled.A, m.assembler
@@ -145,16 +164,27 @@ class ForceControl:
         bg = b.ravel() if frames is None else np.einsum("mij,mj->mi", frames, b).ravel()
         e_free = np.zeros(asm.n_free)
         e_free[m.contact_dofs] = bg
-        w = self.adjoint(system, ctx, state, asm.to_full(A @ e_free), np.zeros(c.size))
+        y_F = asm.to_full(A @ e_free)                 # ∂F/∂u on every DOF
+        w = self.adjoint(system, ctx, state, y_F, np.zeros(c.size))
         z = w.v + asm.to_full(e_free)                 # the A-harmonic extension of Q(b + w_u)
         Sz = (A @ z[asm.free])[m.contact_dofs]
         if frames is not None:
             Sz = np.einsum("mij,mi->mj", frames, Sz.reshape(-1, 3)).ravel()
         dF_da = self.design_contraction(system, state.u, z, loads) + m.gap_matrix.T @ w.v_lam
         dF_ds = float(Sz @ e - w.v_lam @ c)
-        if dF_ds == 0:
-            return xi
-        return xi - dT_ds * dF_da / dF_ds
+        return ForceTerms(dT_ds, dF_ds, dF_da, w, y_F)
+
+
+class ForceTerms(NamedTuple):
+    """What :meth:`ForceControl.force_terms` gives: ∂Θ/∂s, ∂F/∂s, ∂F/∂α, the adjoint of F
+    (:class:`~contactopt.paths.base.Adjoint`) and its right-hand side ∂F/∂u on every DOF (what a
+    load step passes to the previous one is that adjoint's :meth:`adjoint_carry`)."""
+
+    dT_ds: float
+    dF_ds: float
+    dF_da: np.ndarray
+    adjoint: object
+    y_F: np.ndarray
 
 
 def excess_of(state, b: np.ndarray, force: float) -> float:

@@ -46,6 +46,7 @@ class Step:
     end: bool
     index: int = 0          # the user's step (0-based)
     substep: int = 1        # 1…substeps within it
+    force: float | None = None   # |f| of a force-controlled obstacle at its end (None: no force control)
 
 
 def step_tables(config, case: int | None) -> tuple:
@@ -63,13 +64,17 @@ def build_path(model, base_loads, tables, where: str) -> list[Step] | None:
         return None
     base = base_loads if base_loads is not None else model.loads
     out, previous = [], LoadSet()
+    force = getattr(model, "force", None)          # |f| of a force-controlled obstacle, else None
+    f_prev = 0.0
     for n, table in enumerate(tables):
         loads = base + load_set(model.body, table.loads, where=f"{where}[{n}]")
+        f_end = force if force is None or table.obstacle_force is None else float(np.linalg.norm(table.obstacle_force))
         m = int(table.substeps)
         for j in range(1, m + 1):
             now = loads if j == m else previous.scaled(1.0 - j / m) + loads.scaled(j / m)
-            out.append(Step(table.name, now, j == m, n, j))
-        previous = loads
+            f_now = f_end if j == m or force is None else f_prev * (1.0 - j / m) + f_end * (j / m)
+            out.append(Step(table.name, now, j == m, n, j, f_now))
+        previous, f_prev = loads, f_end
     return out
 
 

@@ -5,7 +5,9 @@
 - :mod:`.hertz`: a rigid sphere, cylinder and flat punch pressed into a block through
   ``[obstacle]``, measured against Hertz, Mindlin and Boussinesq;
 - :mod:`.hertz_stress`: a paraboloid pressed onto the rigid plane, its peak von Mises stress
-  against Hertz's subsurface field.
+  against Hertz's subsurface field;
+- :mod:`.spence`: the rigid flat punch pressed with friction, from the half-space's axisymmetric
+  integral equations: the stick ratio c/a of the monotonic frictional Hertz indentation.
 
 The tests run them on coarse meshes; the scripts in ``benchmarks/`` refine them and print the
 tables of docs/obstacles.md and docs/objectives.md.

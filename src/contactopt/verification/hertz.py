@@ -53,10 +53,12 @@ def graded_axis(h: float, fine: float, length: float, growth: float = 1.25) -> l
 
 
 def configure(updates: dict):
-    """Example 1's configuration with ``updates`` (its [mesh] replaced, the other sections updated)."""
+    """Example 1's configuration with ``updates`` (its [mesh] and arrays of tables replaced, the other
+    sections updated)."""
     data = load_config("example1").to_dict()
     for sec, vals in updates.items():
-        data[sec] = dict(vals) if sec == "mesh" else {**data.get(sec, {}), **vals}
+        data[sec] = (list(vals) if isinstance(vals, list) else dict(vals) if sec == "mesh"
+                     else {**data.get(sec, {}), **vals})
     return validate(data, "hertz")
 
 
@@ -71,16 +73,19 @@ def common(friction=0.0):
 P_SPHERE = 4 * E_STAR * A_TARGET ** 3 / (3 * R)     # the force of contact radius A_TARGET
 
 
-def sphere_problem(h: float, friction=0.0, size=20.0, force=P_SPHERE) -> ShapeProblem:
-    """The quarter model pressed by the force P (the quarter carries P/4; control = "force")."""
+def sphere_problem(h: float, friction=0.0, size=20.0, force=P_SPHERE, steps=0) -> ShapeProblem:
+    """The quarter model pressed by the force P (the quarter carries P/4; control = "force");
+    ``steps`` N > 0: P reached in N equal increments (one load step of N substeps)."""
     L = size * A_TARGET
     x = graded_axis(h, 1.6 * A_TARGET, L)
-    cfg = configure({
+    updates = {
         **common(friction), "geometry": {"a": L, "b": L, "c": L}, "mesh": {"x1": x, "x2": x, "x3": x},
         "body": {"clamped": ["top", {"on": {"x1": 0.0}, "components": [1]}, {"on": {"x2": 0.0}, "components": [2]}]},
         "obstacle": {"shape": "sphere", "center": [0.0, 0.0, -R], "radius": R, "control": "force",
-                     "force": [0.0, 0.0, force / 4]}})
-    return ShapeProblem(cfg)
+                     "force": [0.0, 0.0, force / 4]}}
+    if steps:
+        updates["load_steps"] = [{"name": "press", "substeps": steps}]
+    return ShapeProblem(configure(updates))
 
 
 def punch_stl(path: str, radius: float, sides: int = 96, depth: float = 5.0) -> str:
@@ -98,12 +103,12 @@ def punch_stl(path: str, radius: float, sides: int = 96, depth: float = 5.0) -> 
     return path
 
 
-def punch_problem(h: float, stl: str, radius: float, force: float, size=20.0) -> ShapeProblem:
+def punch_problem(h: float, stl: str, radius: float, force: float, size=20.0, friction=0.0) -> ShapeProblem:
     """The quarter block pressed by the flat punch (a surface obstacle, control = "force")."""
     L = size * A_TARGET
     x = graded_axis(h, 1.6 * A_TARGET, L)
     cfg = configure({
-        **common(), "geometry": {"a": L, "b": L, "c": L}, "mesh": {"x1": x, "x2": x, "x3": x},
+        **common(friction), "geometry": {"a": L, "b": L, "c": L}, "mesh": {"x1": x, "x2": x, "x3": x},
         "body": {"clamped": ["top", {"on": {"x1": 0.0}, "components": [1]}, {"on": {"x2": 0.0}, "components": [2]}]},
         "obstacle": {"shape": "surface", "mesh": stl, "control": "force", "force": [0.0, 0.0, force / 4]}})
     return ShapeProblem(cfg)
