@@ -403,3 +403,75 @@ def test_load_steps_on_tetrahedra_equal_the_pyamg_path(name, ranks, tmp_path):
     what = f"{name} on tetrahedra, PETSc path on {ranks} rank(s)"
     assert_differences(got, what)
     assert_agree(tet_step_reference(name), got, what)
+
+
+# ---------------------------------------------------------------------------- objectives of the whole displacement
+# peak stress and friction work: ∂J/∂u on every DOF, the interior rows of the adjoint get −g_i
+# (docs/objectives.md); on hexahedra (Example 1, 8×4×3) and tetrahedra (the round pad), static
+# and along a 2-step path (press, then shear: sliding in the shear)
+PEAK = {"type": "peak_stress"}
+KS = {"type": "peak_stress", "aggregate": "ks", "rho": 50.0}
+WORK = {"type": "frictional_dissipation"}
+WHOLE = {"hex max": ("hex", PEAK), "hex ks": ("hex", KS), "hex work": ("hex", WORK),
+         "tet max": ("tet", PEAK), "tet ks": ("tet", KS), "tet work": ("tet", WORK),
+         "hex 2 steps max": ("steps", PEAK), "hex 2 steps work": ("steps", WORK)}
+
+
+def whole_config(name):
+    body, objective = WHOLE[name]
+    if body == "tet":
+        cfg = load_config(str(ROOT / "examples" / "round_pad.toml"))
+    elif body == "hex":
+        cfg = load_config("example1").with_updates(STEP_MESH)
+    else:
+        cfg = step_config(PATH3[:2], "last")
+    return cfg.with_updates({"objective": {**cfg.data["objective"], **objective}})
+
+
+def whole_reference(name):
+    key = ("whole", name)
+    if key not in _reference:
+        _reference[key] = evaluations(whole_config(name), "fullspace")
+    return _reference[key]
+
+
+def whole_evaluations(name, ranks, tmp_path):
+    """The PETSc path's evaluations of a case of WHOLE, central differences included."""
+    cfg = whole_config(name)
+    if ranks == 1:
+        return evaluations(cfg, "petsc", differences=True)
+    file, out = tmp_path / "whole.toml", tmp_path / "petsc.npz"
+    file.write_text(tomli_w.dumps(cfg.data))
+    proc = mpiexec(2, str(ROOT / "tests" / "mpi" / "compare_paths.py"), str(file), str(out), "--differences")
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    with np.load(out) as npz:
+        got = dict(npz)
+    assert int(got.pop("ranks")) == 2
+    return got
+
+
+@pytest.mark.parametrize("ranks", [1, 2])
+@pytest.mark.parametrize("name", list(WHOLE))
+def test_objectives_of_the_whole_displacement_equal_the_pyamg_path(name, ranks, tmp_path):
+    """Peak stress (max, KS) and friction work: Θ, the states and ξ as the pyamg full-space path's,
+    ξ against central differences (≤ 1e-6), on 1 rank and under mpiexec -n 2."""
+    got = whole_evaluations(name, ranks, tmp_path)
+    what = f"{name}, PETSc path on {ranks} rank(s)"
+    assert_differences(got, what)
+    assert_agree(whole_reference(name), got, what)
+
+
+def test_the_differences_see_the_adjoint_without_its_interior_rows(monkeypatch):
+    """Dropped, the adjoint's interior right-hand side −g_i (only ∂J/∂u_c left) gives a ξ that
+    central differences refuse: the check above cannot pass without it."""
+    from contactopt.contact.fullspace.petsc import PetscNewton
+    adjoint = PetscNewton.adjoint
+
+    def contact_only(self, hier, stick, slide, free_lam, u_c, lam, y_u, *args, **kw):
+        y_u = np.asarray(y_u)
+        return adjoint(self, hier, stick, slide, free_lam, u_c, lam,
+                       y_u[self.cd.ravel()] if y_u.size == self.dist.n else y_u, *args, **kw)
+
+    monkeypatch.setattr(PetscNewton, "adjoint", contact_only)
+    with pytest.raises(AssertionError, match="central differences"):
+        assert_differences(evaluations(whole_config("hex max"), "petsc", differences=True), "dropped")
