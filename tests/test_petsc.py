@@ -15,8 +15,10 @@ import io
 import json
 import os
 import shutil
+import signal
 import subprocess
 import sys
+import time
 from pathlib import Path
 
 import numpy as np
@@ -352,6 +354,94 @@ def test_a_resumed_load_path_run_repeats_the_uninterrupted_one_on_two_ranks(tmp_
     assert [[r.split(",")[i] for i in keep] for r in part] == [[r.split(",")[i] for i in keep] for r in whole]
 
 
+def checkpoint_position(out):
+    """(iteration, evaluations) of a run directory's checkpoint, or None without one."""
+    if not (out / "checkpoint.npz").exists():
+        return None
+    with np.load(out / "checkpoint.npz", allow_pickle=False) as z:
+        return int(z["bundle_nit"]), int(z["meta_evaluations"])
+
+
+def killed_at(seconds, *args):
+    """``mpiexec -n 2 contactopt ARGS`` in a session of its own, its whole process group killed
+    (SIGKILL: mpiexec and both ranks at once, nothing flushed) ``seconds`` after the start: True,
+    or False where the run ended first."""
+    exe = shutil.which("mpiexec")
+    if exe is None:
+        pytest.skip("mpiexec not found")
+    proc = subprocess.Popen([exe, "-n", "2", sys.executable, "-m", "contactopt.cli", *map(str, args)], env=mpi_env(),
+                            cwd=ROOT, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, start_new_session=True)
+    try:
+        proc.wait(timeout=seconds)
+        return False
+    except subprocess.TimeoutExpired:
+        os.killpg(proc.pid, signal.SIGKILL)
+        proc.wait()
+        return True
+    finally:
+        deadline = time.monotonic() + 30
+        while time.monotonic() < deadline:      # the ranks leave the group's table after their parent
+            try:
+                os.killpg(proc.pid, 0)
+            except ProcessLookupError:
+                break
+            time.sleep(0.05)
+        else:
+            pytest.fail("processes of the killed mpiexec group are still alive")
+
+
+N_KILLS = 2
+
+
+def test_a_load_path_run_killed_at_random_moments_resumes_bit_for_bit_on_two_ranks(tmp_path):
+    """kill -9 of the whole mpiexec group at seeded random moments within the measured duration of
+    the 3-step run, then ``--resume`` on 2 ranks: J, α (summary.json, alpha.json) and history.csv
+    (every column but the times) bit for bit the uninterrupted run's; a run killed before its first
+    checkpoint is refused by --resume and started anew with --overwrite."""
+    import random
+    cfg = tmp_path / "steps.toml"
+    cfg.write_text(tomli_w.dumps({**step_config(*STEP_PATHS["three steps"]).data, "name": "steps",
+                                  "linear_solver": {"path": "petsc"}, "optimizer": {"ftol": 0.0, "eps": 1e-8}}))
+    iters = "4"
+    t0 = time.perf_counter()
+    proc = mpiexec(2, "-m", "contactopt.cli", "run", str(cfg), "--out", str(tmp_path / "whole"), "--max-iter", iters)
+    wall = time.perf_counter() - t0
+    assert proc.returncode == 0, proc.stderr[-3000:]
+
+    def outcome(d):
+        s = summary(tmp_path / d)
+        rows = (tmp_path / d / "history.csv").read_text().splitlines()
+        header = rows[0].split(",")
+        keep = [i for i, h in enumerate(header) if "time" not in h and "seconds" not in h]
+        return (s["J"], s["iterations"], s["evaluations"], (tmp_path / d / "alpha.json").read_text(),
+                [[r.split(",")[i] for i in keep] for r in rows])
+
+    whole = outcome("whole")
+    assert whole[1] == int(iters) and len(whole[4]) > int(iters)
+    rng = random.Random("kill -9 a PETSc load path")
+    killed = 0
+    for n in range(N_KILLS):
+        out, moment = tmp_path / f"kill{n}", rng.uniform(0.0, wall)
+        t1 = time.perf_counter()
+        hit = killed_at(moment, "run", cfg, "--out", out, "--max-iter", iters)
+        killed += hit
+        position = checkpoint_position(out)
+        resumed = mpiexec(2, "-m", "contactopt.cli", "run", str(cfg), "--out", str(out), "--max-iter", iters,
+                          "--resume")
+        if not (out / "checkpoint.npz").exists() or resumed.returncode == 2:
+            assert resumed.returncode == 2 and "no checkpoint" in resumed.stderr, resumed.stderr[-3000:]
+            resumed = mpiexec(2, "-m", "contactopt.cli", "run", str(cfg), "--out", str(out), "--max-iter", iters,
+                              "--overwrite")
+        assert resumed.returncode == 0, resumed.stderr[-3000:]
+        got = outcome(f"kill{n}")
+        assert got[0] == whole[0], (n, moment, got[0], whole[0])
+        assert got == whole, (n, moment)
+        print(f"\nkill -9 at {moment:.2f} s of {wall:.2f} s ({'killed' if hit else 'it had ended'}, "
+              f"{time.perf_counter() - t1:.1f} s with the resume): checkpoint "
+              f"{'none' if position is None else 'at iteration %d (%d evaluations)' % position}; bit-identical")
+    assert killed, "every run ended before its moment"
+
+
 # ---------------------------------------------------------------------------- load steps on tetrahedra
 SLOPE = [0.0, 0.0, -1.0]
 TET_PATH3 = [{"name": "press", "body_force": SLOPE},
@@ -457,8 +547,16 @@ def test_objectives_of_the_whole_displacement_equal_the_pyamg_path(name, ranks, 
     ξ against central differences (≤ 1e-6), on 1 rank and under mpiexec -n 2."""
     got = whole_evaluations(name, ranks, tmp_path)
     what = f"{name}, PETSc path on {ranks} rank(s)"
+    fd = np.abs(got["fd_xi"] - got["fd"]).max() / np.abs(got["fd"]).max()
     assert_differences(got, what)
     assert_agree(whole_reference(name), got, what)
+    ref = whole_reference(name)
+
+    def largest(*prefixes):
+        return max(float(np.abs(ref[k] - got[k]).max() / max(np.abs(ref[k]).max(), 1e-300))
+                   for k in ref if k.startswith(prefixes))
+    print(f"\n{what}: states {largest('u', 'lam', 'tau'):.1e}, Θ {largest('value'):.1e}, "
+          f"ξ {largest('xi'):.1e}, ξ vs central differences {fd:.1e}")
 
 
 def test_the_differences_see_the_adjoint_without_its_interior_rows(monkeypatch):

@@ -22,7 +22,10 @@ of the hierarchy; on a load path those of every step), so a run resumes with any
 Load steps as on the pyamg path (:mod:`contactopt.sensitivity.steps`): the Newton holds a sticking
 node's u_t at the previous step's and its Robin rows act on the slip increment, the adjoint's
 sliding frames are the slip increment's, and (A ṽ)_c of each adjoint carries back to the step
-before. ``[linear_solver] petsc_options`` goes to PETSc's options database (``-ksp_view``,
+before. An objective of the whole displacement (peak stress, friction work) is evaluated on rank 0
+from the gathered u; its ∂J/∂u = g, on every DOF, goes to the ranks with the adjoint call (each
+subtracts its rows of g), the carry to the previous step is (A ṽ)_c + g_c, and the friction work's
+A(α) ũ is multiplied on the ranks (``PetscSystem.product``). ``[linear_solver] petsc_options`` goes to PETSc's options database (``-ksp_view``,
 ``-log_view``, ``-pc_gamg_*``).
 """
 
