@@ -559,6 +559,34 @@ def test_objectives_of_the_whole_displacement_equal_the_pyamg_path(name, ranks, 
           f"ξ {largest('xi'):.1e}, ξ vs central differences {fd:.1e}")
 
 
+def test_a_sum_with_the_peak_stress_under_a_friction_work_constraint_runs_on_two_ranks_as_on_one_process(tmp_path):
+    """`contactopt run` of a sum with a peak-stress term (KS, a region) under a [[constraints]] limit
+    on the friction work, infeasible at α0: under mpiexec -n 2 on the PETSc path as on the pyamg path
+    in one process — the same iterations and evaluations, J, the terms and the constraint's value to
+    1e-6 (the tolerance of the run comparison above)."""
+    upd = {**SMALL, "objective": {"type": "sum", "terms": [
+        {"type": "target_normal_force", "weight": 1.0},
+        {"type": "peak_stress", "aggregate": "ks", "rho": 50.0, "region": {"box": [[0, 2], [0, 1], [0, 0.2]]},
+         "weight": 1e-3}]}, "constraints": [{"type": "frictional_dissipation", "max": 2.3e-5}]}
+    one = write_config(tmp_path, "one", {**upd, "linear_solver": {"path": "fullspace"}}, base="example1")
+    mpi = write_config(tmp_path, "mpi", {**upd, "linear_solver": {"path": "petsc"}}, base="example1")
+    code, out = run_here("run", one, "--out", tmp_path / "one", "--max-iter", 4)
+    assert code == 0, out
+    proc = mpiexec(2, "-m", "contactopt.cli", "run", str(mpi), "--out", str(tmp_path / "mpi"), "--max-iter", "4")
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    ref, got = summary(tmp_path / "one"), summary(tmp_path / "mpi")
+    assert (got["iterations"], got["evaluations"]) == (ref["iterations"], ref["evaluations"]) and ref["iterations"] == 4
+    c_ref, c_got = (s["constraints"]["responses"]["frictional_dissipation"] for s in (ref, got))
+    assert c_ref["initial"]["margin"] < 0                       # infeasible at α0
+    pairs = [(got["J"], ref["J"]), (c_got["value"], c_ref["value"])] + [
+        (got["objective"]["J"]["terms"][t]["value"], ref["objective"]["J"]["terms"][t]["value"])
+        for t in ("target_normal_force", "peak_stress")]
+    print(f"\nsum under a constraint, 2 ranks vs one process: J, c, terms within "
+          f"{max(abs(x - y) / abs(y) for x, y in pairs):.1e} (relative)")
+    for x, y in pairs:
+        assert abs(x - y) <= 1e-6 * abs(y), pairs
+
+
 def test_the_differences_see_the_adjoint_without_its_interior_rows(monkeypatch):
     """Dropped, the adjoint's interior right-hand side −g_i (only ∂J/∂u_c left) gives a ξ that
     central differences refuse: the check above cannot pass without it."""
