@@ -25,8 +25,8 @@ sliding frames are the slip increment's, and (A ṽ)_c of each adjoint carries b
 before. An objective of the whole displacement (peak stress, friction work) is evaluated on rank 0
 from the gathered u; its ∂J/∂u = g, on every DOF, goes to the ranks with the adjoint call (each
 subtracts its rows of g), the carry to the previous step is (A ṽ)_c + g_c, and the friction work's
-A(α) ũ is multiplied on the ranks (``PetscSystem.product``). ``[linear_solver] petsc_options`` goes to PETSc's options database (``-ksp_view``,
-``-log_view``, ``-pc_gamg_*``).
+A(α) ũ is multiplied on the ranks (``PetscSystem.product``). ``[linear_solver] petsc_options``
+goes to PETSc's options database (``-ksp_view``, ``-log_view``, ``-pc_gamg_*``).
 """
 
 from __future__ import annotations

@@ -448,7 +448,6 @@ class PetscNewton:
         v_all = self.everywhere(x)
         return v_all, v_all[cd].ravel(), v_lam, its, force
 
-
     def product(self, x_all: np.ndarray) -> np.ndarray:
         """A(α) x on every PETSc DOF, on every rank, for x on every PETSc DOF (every rank holds it)."""
         x, y = self.A.createVecRight(), self.A.createVecLeft()
