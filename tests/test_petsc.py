@@ -4,7 +4,9 @@ and under ``mpiexec -n 2`` (tests/mpi/compare_paths.py), for Examples 1 and 2 (h
 round pad (tetrahedra from a mesh file). Both paths solve to the same tolerance (Siconos error and
 equilibrium ≤ 1e-10), so they agree to 1e-8 relative; Θ and the subgradient, whose error the bundle
 method amplifies, to 2e-10 (the adjoint (4.15) is solved to 1e-13; measured ≤ 2.8e-11 on 1 and 2
-ranks, docs/scaling.md "The same answer on any number of ranks").
+ranks, docs/scaling.md "The same answer on any number of ranks"). The same comparison, with
+central differences, for objectives of the whole displacement (peak stress, friction work; static
+and along a load path) and for load paths; runs on 2 ranks resumed after a stop and after kill -9.
 
 Skipped without petsc4py/mpi4py (``pip install .`` does not install them; docs/install.md,
 'PETSc and MPI'); ``.ci/run`` installs them and runs this file.
