@@ -292,11 +292,14 @@ def test_bad_objective_input_exits_2_and_writes_nothing(tmp_path, capsys, case, 
         assert not out.exists()
 
 
-def test_full_space_objectives_are_refused_on_the_petsc_path():
-    cfg = load_config("example1").with_updates({"objective": {"type": "peak_stress"},
-                                                "linear_solver": {"path": "petsc"}})
-    with pytest.raises(ConfigError, match="peak_stress needs ∂J/∂u on every DOF"):
-        ShapeProblem(cfg)
+def test_full_space_objectives_are_taken_on_the_petsc_path():
+    """Formerly refused there; its adjoint takes ∂J/∂u on every DOF now (tests/test_petsc.py
+    compares it with the pyamg path and central differences)."""
+    from contactopt.paths import PATHS, needs
+    for kind in ("peak_stress", "frictional_dissipation"):
+        need = needs(load_config("example1").with_updates({"objective": {"type": kind}}))
+        assert need == {"whole_displacement": kind}
+        assert PATHS["petsc"].capabilities.lacks(need) == []
 
 
 # ------------------------------------------------------------------ Hertz

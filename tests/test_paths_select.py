@@ -34,15 +34,32 @@ def test_a_refusal_names_the_need_the_lack_and_the_paths_that_take_it():
 
 
 def test_auto_refuses_what_no_path_takes_and_lists_every_path(monkeypatch):
-    """Two MPI ranks and an objective of the whole displacement: the PETSc path takes the ranks,
-    the others the objective, none both."""
+    """Two MPI ranks and the compliance objective: the PETSc path takes the ranks, the
+    condensation the objective, none both."""
     monkeypatch.setenv("OMPI_COMM_WORLD_SIZE", "2")
     with pytest.raises(ConfigError) as err:
-        select_path(example1(objective={"type": "peak_stress"}), 1000)
+        select_path(example1(objective={"type": "compliance"}), 1000)
     (msg,) = err.value.problems
     assert msg.startswith("linear_solver.path = 'auto': no solver path takes this configuration")
     for name in paths.NAMES:
         assert f"'{name}' lacks" in msg
+
+
+@pytest.mark.parametrize("objective", [{"type": "peak_stress"}, {"type": "frictional_dissipation"},
+                                       {"type": "sum", "terms": [{"type": "target_normal_force", "weight": 1.0},
+                                                                 {"type": "peak_stress", "weight": 0.1}]}])
+def test_every_path_takes_objectives_of_the_whole_displacement_and_the_petsc_path_under_mpiexec(objective,
+                                                                                                monkeypatch):
+    """Peak stress, friction work, a sum with one of them, and [[constraints]] of those types: every
+    path declares them, and under mpiexec the PETSc path is the one that runs them."""
+    monkeypatch.setenv("OMPI_COMM_WORLD_SIZE", "2")
+    for cfg in (example1(objective=objective),
+                example1(constraints=[{"type": objective["type"] if objective["type"] != "sum" else "peak_stress",
+                                       "max": 1.0}])):
+        need = needs(cfg, ranks=2)
+        assert "whole_displacement" in need
+        assert [n for n, cls in paths.PATHS.items() if not cls.capabilities.lacks(need)] == ["petsc"]
+        assert paths._auto(list(paths.PATHS.values()), 1000, 10, 2, need).name == "petsc"
 
 
 def test_a_new_capability_is_one_field_and_the_paths_that_declare_it(monkeypatch):

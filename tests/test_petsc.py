@@ -4,7 +4,9 @@ and under ``mpiexec -n 2`` (tests/mpi/compare_paths.py), for Examples 1 and 2 (h
 round pad (tetrahedra from a mesh file). Both paths solve to the same tolerance (Siconos error and
 equilibrium ≤ 1e-10), so they agree to 1e-8 relative; Θ and the subgradient, whose error the bundle
 method amplifies, to 2e-10 (the adjoint (4.15) is solved to 1e-13; measured ≤ 2.8e-11 on 1 and 2
-ranks, docs/scaling.md "The same answer on any number of ranks").
+ranks, docs/scaling.md "The same answer on any number of ranks"). The same comparison, with
+central differences, for objectives of the whole displacement (peak stress, friction work; static
+and along a load path) and for load paths; runs on 2 ranks resumed after a stop and after kill -9.
 
 Skipped without petsc4py/mpi4py (``pip install .`` does not install them; docs/install.md,
 'PETSc and MPI'); ``.ci/run`` installs them and runs this file.
@@ -15,8 +17,10 @@ import io
 import json
 import os
 import shutil
+import signal
 import subprocess
 import sys
+import time
 from pathlib import Path
 
 import numpy as np
@@ -352,6 +356,94 @@ def test_a_resumed_load_path_run_repeats_the_uninterrupted_one_on_two_ranks(tmp_
     assert [[r.split(",")[i] for i in keep] for r in part] == [[r.split(",")[i] for i in keep] for r in whole]
 
 
+def checkpoint_position(out):
+    """(iteration, evaluations) of a run directory's checkpoint, or None without one."""
+    if not (out / "checkpoint.npz").exists():
+        return None
+    with np.load(out / "checkpoint.npz", allow_pickle=False) as z:
+        return int(z["bundle_nit"]), int(z["meta_evaluations"])
+
+
+def killed_at(seconds, *args):
+    """``mpiexec -n 2 contactopt ARGS`` in a session of its own, its whole process group killed
+    (SIGKILL: mpiexec and both ranks at once, nothing flushed) ``seconds`` after the start: True,
+    or False where the run ended first."""
+    exe = shutil.which("mpiexec")
+    if exe is None:
+        pytest.skip("mpiexec not found")
+    proc = subprocess.Popen([exe, "-n", "2", sys.executable, "-m", "contactopt.cli", *map(str, args)], env=mpi_env(),
+                            cwd=ROOT, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, start_new_session=True)
+    try:
+        proc.wait(timeout=seconds)
+        return False
+    except subprocess.TimeoutExpired:
+        os.killpg(proc.pid, signal.SIGKILL)
+        proc.wait()
+        return True
+    finally:
+        deadline = time.monotonic() + 30
+        while time.monotonic() < deadline:      # the ranks leave the group's table after their parent
+            try:
+                os.killpg(proc.pid, 0)
+            except ProcessLookupError:
+                break
+            time.sleep(0.05)
+        else:
+            pytest.fail("processes of the killed mpiexec group are still alive")
+
+
+N_KILLS = 2
+
+
+def test_a_load_path_run_killed_at_random_moments_resumes_bit_for_bit_on_two_ranks(tmp_path):
+    """kill -9 of the whole mpiexec group at seeded random moments within the measured duration of
+    the 3-step run, then ``--resume`` on 2 ranks: J, α (summary.json, alpha.json) and history.csv
+    (every column but the times) bit for bit the uninterrupted run's; a run killed before its first
+    checkpoint is refused by --resume and started anew with --overwrite."""
+    import random
+    cfg = tmp_path / "steps.toml"
+    cfg.write_text(tomli_w.dumps({**step_config(*STEP_PATHS["three steps"]).data, "name": "steps",
+                                  "linear_solver": {"path": "petsc"}, "optimizer": {"ftol": 0.0, "eps": 1e-8}}))
+    iters = "4"
+    t0 = time.perf_counter()
+    proc = mpiexec(2, "-m", "contactopt.cli", "run", str(cfg), "--out", str(tmp_path / "whole"), "--max-iter", iters)
+    wall = time.perf_counter() - t0
+    assert proc.returncode == 0, proc.stderr[-3000:]
+
+    def outcome(d):
+        s = summary(tmp_path / d)
+        rows = (tmp_path / d / "history.csv").read_text().splitlines()
+        header = rows[0].split(",")
+        keep = [i for i, h in enumerate(header) if "time" not in h and "seconds" not in h]
+        return (s["J"], s["iterations"], s["evaluations"], (tmp_path / d / "alpha.json").read_text(),
+                [[r.split(",")[i] for i in keep] for r in rows])
+
+    whole = outcome("whole")
+    assert whole[1] == int(iters) and len(whole[4]) > int(iters)
+    rng = random.Random("kill -9 a PETSc load path")
+    killed = 0
+    for n in range(N_KILLS):
+        out, moment = tmp_path / f"kill{n}", rng.uniform(0.0, wall)
+        t1 = time.perf_counter()
+        hit = killed_at(moment, "run", cfg, "--out", out, "--max-iter", iters)
+        killed += hit
+        position = checkpoint_position(out)
+        resumed = mpiexec(2, "-m", "contactopt.cli", "run", str(cfg), "--out", str(out), "--max-iter", iters,
+                          "--resume")
+        if not (out / "checkpoint.npz").exists() or resumed.returncode == 2:
+            assert resumed.returncode == 2 and "no checkpoint" in resumed.stderr, resumed.stderr[-3000:]
+            resumed = mpiexec(2, "-m", "contactopt.cli", "run", str(cfg), "--out", str(out), "--max-iter", iters,
+                              "--overwrite")
+        assert resumed.returncode == 0, resumed.stderr[-3000:]
+        got = outcome(f"kill{n}")
+        assert got[0] == whole[0], (n, moment, got[0], whole[0])
+        assert got == whole, (n, moment)
+        print(f"\nkill -9 at {moment:.2f} s of {wall:.2f} s ({'killed' if hit else 'it had ended'}, "
+              f"{time.perf_counter() - t1:.1f} s with the resume): checkpoint "
+              f"{'none' if position is None else 'at iteration %d (%d evaluations)' % position}; bit-identical")
+    assert killed, "every run ended before its moment"
+
+
 # ---------------------------------------------------------------------------- load steps on tetrahedra
 SLOPE = [0.0, 0.0, -1.0]
 TET_PATH3 = [{"name": "press", "body_force": SLOPE},
@@ -403,3 +495,111 @@ def test_load_steps_on_tetrahedra_equal_the_pyamg_path(name, ranks, tmp_path):
     what = f"{name} on tetrahedra, PETSc path on {ranks} rank(s)"
     assert_differences(got, what)
     assert_agree(tet_step_reference(name), got, what)
+
+
+# ---------------------------------------------------------------------------- objectives of the whole displacement
+# peak stress and friction work: ∂J/∂u on every DOF, the interior rows of the adjoint get −g_i
+# (docs/objectives.md); on hexahedra (Example 1, 8×4×3) and tetrahedra (the round pad), static
+# and along a 2-step path (press, then shear: sliding in the shear)
+PEAK = {"type": "peak_stress"}
+KS = {"type": "peak_stress", "aggregate": "ks", "rho": 50.0}
+WORK = {"type": "frictional_dissipation"}
+WHOLE = {"hex max": ("hex", PEAK), "hex ks": ("hex", KS), "hex work": ("hex", WORK),
+         "tet max": ("tet", PEAK), "tet ks": ("tet", KS), "tet work": ("tet", WORK),
+         "hex 2 steps max": ("steps", PEAK), "hex 2 steps work": ("steps", WORK)}
+
+
+def whole_config(name):
+    body, objective = WHOLE[name]
+    if body == "tet":
+        cfg = load_config(str(ROOT / "examples" / "round_pad.toml"))
+    elif body == "hex":
+        cfg = load_config("example1").with_updates(STEP_MESH)
+    else:
+        cfg = step_config(PATH3[:2], "last")
+    return cfg.with_updates({"objective": {**cfg.data["objective"], **objective}})
+
+
+def whole_reference(name):
+    key = ("whole", name)
+    if key not in _reference:
+        _reference[key] = evaluations(whole_config(name), "fullspace")
+    return _reference[key]
+
+
+def whole_evaluations(name, ranks, tmp_path):
+    """The PETSc path's evaluations of a case of WHOLE, central differences included."""
+    cfg = whole_config(name)
+    if ranks == 1:
+        return evaluations(cfg, "petsc", differences=True)
+    file, out = tmp_path / "whole.toml", tmp_path / "petsc.npz"
+    file.write_text(tomli_w.dumps(cfg.data))
+    proc = mpiexec(2, str(ROOT / "tests" / "mpi" / "compare_paths.py"), str(file), str(out), "--differences")
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    with np.load(out) as npz:
+        got = dict(npz)
+    assert int(got.pop("ranks")) == 2
+    return got
+
+
+@pytest.mark.parametrize("ranks", [1, 2])
+@pytest.mark.parametrize("name", list(WHOLE))
+def test_objectives_of_the_whole_displacement_equal_the_pyamg_path(name, ranks, tmp_path):
+    """Peak stress (max, KS) and friction work: Θ, the states and ξ as the pyamg full-space path's,
+    ξ against central differences (≤ 1e-6), on 1 rank and under mpiexec -n 2."""
+    got = whole_evaluations(name, ranks, tmp_path)
+    what = f"{name}, PETSc path on {ranks} rank(s)"
+    fd = np.abs(got["fd_xi"] - got["fd"]).max() / np.abs(got["fd"]).max()
+    assert_differences(got, what)
+    assert_agree(whole_reference(name), got, what)
+    ref = whole_reference(name)
+
+    def largest(*prefixes):
+        return max(float(np.abs(ref[k] - got[k]).max() / max(np.abs(ref[k]).max(), 1e-300))
+                   for k in ref if k.startswith(prefixes))
+    print(f"\n{what}: states {largest('u', 'lam', 'tau'):.1e}, Θ {largest('value'):.1e}, "
+          f"ξ {largest('xi'):.1e}, ξ vs central differences {fd:.1e}")
+
+
+def test_a_sum_with_the_peak_stress_under_a_friction_work_constraint_runs_on_two_ranks_as_on_one_process(tmp_path):
+    """`contactopt run` of a sum with a peak-stress term (KS, a region) under a [[constraints]] limit
+    on the friction work, infeasible at α0: under mpiexec -n 2 on the PETSc path as on the pyamg path
+    in one process — the same iterations and evaluations, J, the terms and the constraint's value to
+    1e-6 (the tolerance of the run comparison above)."""
+    upd = {**SMALL, "objective": {"type": "sum", "terms": [
+        {"type": "target_normal_force", "weight": 1.0},
+        {"type": "peak_stress", "aggregate": "ks", "rho": 50.0, "region": {"box": [[0, 2], [0, 1], [0, 0.2]]},
+         "weight": 1e-3}]}, "constraints": [{"type": "frictional_dissipation", "max": 2.3e-5}]}
+    one = write_config(tmp_path, "one", {**upd, "linear_solver": {"path": "fullspace"}}, base="example1")
+    mpi = write_config(tmp_path, "mpi", {**upd, "linear_solver": {"path": "petsc"}}, base="example1")
+    code, out = run_here("run", one, "--out", tmp_path / "one", "--max-iter", 4)
+    assert code == 0, out
+    proc = mpiexec(2, "-m", "contactopt.cli", "run", str(mpi), "--out", str(tmp_path / "mpi"), "--max-iter", "4")
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    ref, got = summary(tmp_path / "one"), summary(tmp_path / "mpi")
+    assert (got["iterations"], got["evaluations"]) == (ref["iterations"], ref["evaluations"]) and ref["iterations"] == 4
+    c_ref, c_got = (s["constraints"]["responses"]["frictional_dissipation"] for s in (ref, got))
+    assert c_ref["initial"]["margin"] < 0                       # infeasible at α0
+    pairs = [(got["J"], ref["J"]), (c_got["value"], c_ref["value"])] + [
+        (got["objective"]["J"]["terms"][t]["value"], ref["objective"]["J"]["terms"][t]["value"])
+        for t in ("target_normal_force", "peak_stress")]
+    print(f"\nsum under a constraint, 2 ranks vs one process: J, c, terms within "
+          f"{max(abs(x - y) / abs(y) for x, y in pairs):.1e} (relative)")
+    for x, y in pairs:
+        assert abs(x - y) <= 1e-6 * abs(y), pairs
+
+
+def test_the_differences_see_the_adjoint_without_its_interior_rows(monkeypatch):
+    """Dropped, the adjoint's interior right-hand side −g_i (only ∂J/∂u_c left) gives a ξ that
+    central differences refuse: the check above cannot pass without it."""
+    from contactopt.contact.fullspace.petsc import PetscNewton
+    adjoint = PetscNewton.adjoint
+
+    def contact_only(self, hier, stick, slide, free_lam, u_c, lam, y_u, *args, **kw):
+        y_u = np.asarray(y_u)
+        return adjoint(self, hier, stick, slide, free_lam, u_c, lam,
+                       y_u[self.cd.ravel()] if y_u.size == self.dist.n else y_u, *args, **kw)
+
+    monkeypatch.setattr(PetscNewton, "adjoint", contact_only)
+    with pytest.raises(AssertionError, match="central differences"):
+        assert_differences(evaluations(whole_config("hex max"), "petsc", differences=True), "dropped")

@@ -22,8 +22,11 @@ of the hierarchy; on a load path those of every step), so a run resumes with any
 Load steps as on the pyamg path (:mod:`contactopt.sensitivity.steps`): the Newton holds a sticking
 node's u_t at the previous step's and its Robin rows act on the slip increment, the adjoint's
 sliding frames are the slip increment's, and (A ṽ)_c of each adjoint carries back to the step
-before. ``[linear_solver] petsc_options`` goes to PETSc's options database (``-ksp_view``,
-``-log_view``, ``-pc_gamg_*``).
+before. An objective of the whole displacement (peak stress, friction work) is evaluated on rank 0
+from the gathered u; its ∂J/∂u = g, on every DOF, goes to the ranks with the adjoint call (each
+subtracts its rows of g), the carry to the previous step is (A ṽ)_c + g_c, and the friction work's
+A(α) ũ is multiplied on the ranks (``PetscSystem.product``). ``[linear_solver] petsc_options``
+goes to PETSc's options database (``-ksp_view``, ``-log_view``, ``-pc_gamg_*``).
 """
 
 from __future__ import annotations
@@ -53,7 +56,9 @@ def _world():
 @dataclass
 class PetscSystem:
     """One design's system of one load case: ``assembled`` (A(α) not formed: ``A`` is None), the
-    load ``L`` as a PETSc Vec, the last state's u and adjoint ṽ on all PETSc DOFs (every rank)."""
+    load ``L`` as a PETSc Vec, the last state's u and adjoint ṽ on all PETSc DOFs (every rank);
+    on rank 0 ``product``, x ↦ A(α) x on the free DOFs computed on the ranks (what an objective
+    of the whole displacement asks of A(α): the friction work's A ũ)."""
 
     key: int
     assembled: Assembled
@@ -62,6 +67,7 @@ class PetscSystem:
     timings: dict
     u_all: np.ndarray | None = None
     v_all: np.ndarray | None = None
+    product: object = None
 
 
 @dataclass
@@ -79,8 +85,8 @@ class PetscPath(FullSpaceCommon):
 
     name = "petsc"
     newton_label = "PETSc full-space Newton"
-    capabilities = Capabilities(pinned=True, many_ranks=True, load_steps=True, libraries=("petsc4py",), sparse="petsc",
-                                auto="ranks")
+    capabilities = Capabilities(pinned=True, whole_displacement=True, many_ranks=True, load_steps=True,
+                                libraries=("petsc4py",), sparse="petsc", auto="ranks")
 
     def __init__(self, model, settings, start=None):
         """On rank 0 under mpiexec the other ranks first build the problem of the model's
@@ -142,11 +148,25 @@ class PetscPath(FullSpaceCommon):
 
     def prepare(self, asm) -> PetscSystem:
         key = next(self._keys)
-        return self._call(Command.PREPARE, key, asm.alpha, asm.coords, asm.L_full, asm.gap)
+        return self._with_product(self._call(Command.PREPARE, key, asm.alpha, asm.coords, asm.L_full, asm.gap))
 
     def for_load(self, system, asm) -> PetscSystem:
         key = next(self._keys)
-        return self._call(Command.FOR_LOAD, system.key, key, asm.L_full)
+        return self._with_product(self._call(Command.FOR_LOAD, system.key, key, asm.L_full))
+
+    def _with_product(self, system):
+        system.product = lambda x_free: self.stiffness_product(system, x_free)
+        return system
+
+    def stiffness_product(self, system, x_free) -> np.ndarray:
+        """A(α) x (free DOFs, the model's order) of the system's design, multiplied on the ranks."""
+        d = self.dist
+        return d.free_vector(self._call(Command.PRODUCT, system.key, d.petsc_of_free(np.asarray(x_free, dtype=float))))
+
+    def _product(self, skey, x_all):
+        if self._design_key is None or skey not in self._systems:
+            raise RuntimeError("the PETSc matrix no longer holds the design of this system")
+        return self.newton.product(x_all)
 
     def _prepare(self, key, alpha, coords, L_full, gap):
         t0 = time.perf_counter()
@@ -237,8 +257,11 @@ class PetscPath(FullSpaceCommon):
         if state.slip_ref is not None:
             u_law = state.u_c.copy()
             u_law[:, :2] = state.slip_increment
+        y_u = np.asarray(y_u, dtype=float)
+        if self.is_full(y_u):            # ∂J/∂u on every DOF: its free part, in PETSc's order
+            y_u = self.dist.petsc_of_free(y_u[self.model.assembler.free])
         v_u, v_lam, its, force = self._call(Command.ADJOINT, system.key, np.asarray(state.classes), u_law,
-                                            state.lam, np.asarray(y_u, dtype=float), np.asarray(y_lam, dtype=float))
+                                            state.lam, y_u, np.asarray(y_lam, dtype=float))
         ctx.adjoint_force = force
         v_free = self.dist.free_vector(system.v_all)
         return Adjoint(v_u, v_lam, self.model.assembler.to_full(v_free), int(its))
@@ -246,6 +269,14 @@ class PetscPath(FullSpaceCommon):
     def adjoint_force(self, system, ctx, v_u):
         """S v_u = (A ṽ)_c of the last adjoint of ``ctx`` (gathered on every rank by the adjoint)."""
         return ctx.adjoint_force
+
+    def adjoint_carry(self, system, ctx, v_u, v_full, y_u):
+        """As :meth:`SolverPath.adjoint_carry`: (A ṽ)_c + ∂J/∂u_c, (A ṽ)_c of the last adjoint of
+        ``ctx`` (A(α) is not formed on rank 0)."""
+        if not self.is_full(y_u):
+            return ctx.adjoint_force + y_u
+        contact = (3 * self.model.contact_nodes[:, None] + np.arange(3)).ravel()
+        return ctx.adjoint_force + np.asarray(y_u, float)[contact]
 
     def _adjoint(self, skey, classes, u_law, lam, y_u, y_lam):
         from ..sensitivity.adjoint_fullspace import ADJOINT_RTOL, adjoint_classes
@@ -300,7 +331,7 @@ class PetscPath(FullSpaceCommon):
 
     handlers = MappingProxyType({Command.PREPARE: _prepare, Command.FOR_LOAD: _for_load, Command.SOLVE: _solve,
                                  Command.ADJOINT: _adjoint, Command.CONTRACTION: _contraction,
-                                 Command.IMPORT: _import})   # what each rank runs for a command
+                                 Command.PRODUCT: _product, Command.IMPORT: _import})   # what each rank runs for a command
 
 
 def _set_options(text: str) -> None:

@@ -27,6 +27,7 @@ class Command(enum.Enum):
     SOLVE = "solve"                # a state (semismooth Newton; a load step's slip reference with it)
     ADJOINT = "adjoint"            # the adjoint (4.15)
     CONTRACTION = "contraction"    # the design terms vᵀ(∂A/∂α)u, reduced to rank 0
+    PRODUCT = "product"            # A(α) x for an objective of the whole displacement, on every rank
     IMPORT = "import"              # a checkpoint's context
 
 

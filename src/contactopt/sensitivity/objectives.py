@@ -196,8 +196,7 @@ class FrictionalDissipation(Objective):
             u_t[contact] -= coupling.foundation.C @ tau3.ravel()
         tau = np.zeros(asm.n_full)
         tau[full] = np.asarray(state.tau).ravel()
-        A = cond.assembled.A if cond is not None and hasattr(cond, "assembled") else asm.stiffness(state.coords)
-        dJ_du = tau - asm.to_full(A @ u_t[asm.free])
+        dJ_du = tau - asm.to_full(stiffness_product(cond, asm, state.coords, u_t[asm.free]))
         dalpha = -model.design_contraction(state.coords, state.u, u_t, loads)
         value = float(np.sum(np.asarray(state.tau) * ut))
         return self.scale * value, self.scale * dJ_du, np.zeros(p), self.scale * dalpha, -self.scale * tau
@@ -218,6 +217,17 @@ class FrictionalDissipation(Objective):
             if i:
                 add_terms(out, i - 1, y_prev, np.zeros_like(y_lam), np.zeros_like(dalpha))
         return value, out
+
+
+def stiffness_product(cond, asm, coords, x) -> np.ndarray:
+    """A(α) x on the free DOFs: by the system's own ``product`` where A(α) is not formed on this
+    process (the PETSc path multiplies on its ranks), else with the system's A(α), else with A
+    assembled at ``coords``."""
+    product = getattr(cond, "product", None)
+    if product is not None:
+        return product(x)
+    A = cond.assembled.A if cond is not None and hasattr(cond, "assembled") else asm.stiffness(coords)
+    return A @ x
 
 
 def add_terms(out: dict, i: int, y_u, y_lam, dalpha) -> None:

@@ -404,7 +404,9 @@ class PetscNewton:
         adjoint system (4.15) of a state whose nodes ``stick`` are of class M3+, ``slide`` of class
         M1, ``free_lam`` not of class L (after the degenerate choices); ``u_c`` (p, 3) the friction
         law's displacement per node (t1, t2, ν) (in a load step: the slip increment in t1, t2),
-        whose tangential direction a sliding node's frame is. The transpose of the state's Newton system at
+        whose tangential direction a sliding node's frame is; ``y_u`` ∂J/∂u_c (3p), or g = ∂J/∂u
+        on every PETSc DOF (every rank holds it whole) for an objective of the whole displacement,
+        whose interior rows then read (A ṽ)_i = −g_i. The transpose of the state's Newton system at
         the solution (:mod:`contactopt.sensitivity.adjoint_fullspace`, whose docstring derives
         it), solved with the transposed products of G and the same GAMG hierarchy (H is symmetric), to
         a residual ≤ ``rtol``·‖right-hand side‖."""
@@ -414,12 +416,18 @@ class PetscNewton:
         v0c = known_adjoint_part(self.p, stick, slide, y_lam)
         v0, rhs, x, Av = (self.A.createVecRight() for _ in range(4))
         self.set_owned(v0, cd.ravel(), v0c.ravel())
-        # rhs = −Bᵀy*_u − (A + K_t) v0 on I (K_t v0 = 0: v0 is zero on tangential DOFs)
+        # rhs = −Bᵀy*_u − (A + K_t) v0 on I (K_t v0 = 0: v0 is zero on tangential DOFs); −g on
+        # every owned row for y_u on every DOF
         self.A.mult(v0, rhs)
         rhs.scale(-1.0)
         arr = rhs.getArray()
-        own = d.owns_contact
-        arr[cd[own].ravel() - d.rstart] -= np.asarray(y_u, dtype=np.float64).reshape(-1, 3)[own].ravel()
+        y_u = np.asarray(y_u, dtype=np.float64)
+        if y_u.size == d.n:
+            arr -= d.owned(y_u)
+            y_u = y_u[cd.ravel()]
+        else:
+            own = d.owns_contact
+            arr[cd[own].ravel() - d.rstart] -= y_u.reshape(-1, 3)[own].ravel()
         arr[D[d.rstart:d.rend]] = 0.0
         scale = max(rhs.norm(), 1e-300)
         # Gᵀ as G's transposed product (MatMultTranspose of a BAIJ matrix costs what its MatMult
@@ -439,6 +447,13 @@ class PetscNewton:
         v_lam = np.where(free_lam, -resid[2::3], 0.0)
         v_all = self.everywhere(x)
         return v_all, v_all[cd].ravel(), v_lam, its, force
+
+    def product(self, x_all: np.ndarray) -> np.ndarray:
+        """A(α) x on every PETSc DOF, on every rank, for x on every PETSc DOF (every rank holds it)."""
+        x, y = self.A.createVecRight(), self.A.createVecLeft()
+        x.getArray()[:] = self.dist.owned(np.asarray(x_all, dtype=np.float64))
+        self.A.mult(x, y)
+        return self.everywhere(y)
 
 
 class PetscBackend:
