@@ -54,7 +54,13 @@ class PunchSystem:
 
 
 def punch_system(nu: float, n: int = 120) -> PunchSystem:
-    """The ring integrals of the kernels (module docstring), by adaptive quadrature split at the
+    """The punch's rings, clustered at the rim where its pressure is singular (ρ_j = sin(πj/2n))."""
+    return ring_system(nu, np.sin(0.5 * np.pi * np.arange(n + 1) / n))
+
+
+def ring_system(nu: float, edges: np.ndarray) -> PunchSystem:
+    """The ring integrals of the kernels (module docstring) on the rings between ``edges`` (0 = edges[0]
+    < … < edges[-1] = 1), collocated at the rings' middles, by adaptive quadrature split at the
     collocation point (the kernels' logarithmic singularity)."""
     from scipy.integrate import quad
     from scipy.special import ellipe, ellipkm1
@@ -73,7 +79,7 @@ def punch_system(nu: float, n: int = 120) -> PunchSystem:
         return quad(lambda x: k(r, x), lo, hi, points=[r] if lo < r < hi else None, limit=200,
                     epsabs=1e-14, epsrel=1e-11)[0]
 
-    edges = np.sin(0.5 * np.pi * np.arange(n + 1) / n)
+    edges = np.asarray(edges, dtype=float)
     mid = 0.5 * (edges[1:] + edges[:-1])
     lo, hi = edges[:-1], edges[1:]
     A = np.array([[ring(k_w, r, a, b) for a, b in zip(lo, hi)] for r in mid])
