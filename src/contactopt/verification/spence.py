@@ -155,6 +155,15 @@ class Indentation:
         k = int(np.argmin(self.stick)) if not self.stick.all() else self.stick.size
         return float(self.system.edges[k])
 
+    def fitted(self) -> tuple[float, float]:
+        """(a, p0) of p² = p0²(1 − r²/a²) fitted by least squares to the last step's ring pressures at
+        the rings' middles, weighted by the rings' areas (as a mesh's nodes are spread over the face),
+        the outermost ring left out: what a fit of a Hertz profile to a computed pressure reads."""
+        m = int(np.searchsorted(self.system.edges, self.a[-1]))
+        r = 0.5 * (self.system.edges[1:m] + self.system.edges[:m - 1])
+        c = np.polyfit(r ** 2, self.p[:m - 1] ** 2, 1, w=np.sqrt(self.system.area[:m - 1]))
+        return float(np.sqrt(-c[1] / c[0])), float(np.sqrt(c[1]))
+
     def hertz(self) -> dict:
         """Each of P, δ, p0 at the last step's a over the frictionless Hertz value at that a
         (P = 4E*a³/(3R), δ = a²/R, p0 = 2E*a/(πR)), and P/(aδ) over (4/3)E*."""
