@@ -1,6 +1,7 @@
-"""The rigid flat circular punch pressed with Coulomb friction into an elastic half-space: its stick
-radius c/a, the reference for the monotonic frictional Hertz indentation (docs/obstacles.md,
-"Friction").
+"""The rigid flat circular punch and the rigid paraboloid pressed with Coulomb friction into an
+elastic half-space: the punch's stick radius c/a, and the monotonic frictional Hertz indentation
+solved step by step (``indent``), the references for the FE's frictional Hertz figures
+(docs/obstacles.md, "Friction").
 
 An increment of the Hertz indentation at contact radius a is this punch's problem (the pressure's
 increment is the flat punch's, a point of the slip annulus has slipped since it entered the contact),
@@ -22,6 +23,12 @@ The punch: w = δ on r < 1; u_r = 0 on the stick disc r < c; q = F p on the slip
 rim (ρ_j = sin(πj/2n)), collocation at the rings' middles. c is the largest ring edge at which the
 stick disc's shear stays in the cone, |q| ≤ F p. Checks: without friction P = 2aE*δ; fully bonded
 P = 2aE*δ ln(3 − 4ν)/(2β) (Mossakovskii).
+
+The paraboloid (``indent``): the same kernels on uniform rings of the final contact radius, the
+contact growing ring by ring, with the history (u_r of each step) carried from step to step; it
+does not use the punch. Its checks: without friction Hertz; with friction the punch's c/a and
+P = (4/3)E* k aδ, k the punch's P/(2aE*δ) (each increment is the punch's, dP = 2aE*k dδ, and
+δ ∝ a² by self-similarity), bonded k = ln(3 − 4ν)/(2β).
 """
 
 from __future__ import annotations
