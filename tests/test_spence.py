@@ -20,7 +20,7 @@ def rings(n, nu=NU):
 def test_frictionless_indentation_on_rings_is_hertz():
     """F = 0: P, δ, p0 at the last step's a against Hertz (4E*a³/(3R), a²/R, 2E*a/(πR)) to 1e-3 on 120
     rings, the error falling as 1/n (60 → 120 rings); the contact radius from P, (3PR/4E*)^(1/3), and
-    the Hertz profile fitted to the ring pressures to 5e-4."""
+    the Hertz profile fitted to the ring pressures to 5e-4; the gap open outside the contact."""
     errors = {}
     for n in (60, 120):
         z = indent(rings(n), 0.0)
@@ -30,6 +30,7 @@ def test_frictionless_indentation_on_rings_is_hertz():
     assert 0.9 < rate < 1.1, rate
     e_star = z.system.e_star
     assert (3 * z.load[-1] / (4 * e_star)) ** (1 / 3) == pytest.approx(z.a[-1], rel=5e-4)
+    assert z.min_gap > 0
     a_fit, p0_fit = z.fitted()
     assert a_fit == pytest.approx(1.0, rel=5e-4)
     assert p0_fit == pytest.approx(2 * e_star / math.pi, rel=5e-4)
@@ -38,7 +39,8 @@ def test_frictionless_indentation_on_rings_is_hertz():
 def test_frictional_indentation_sticks_inside_the_flat_punchs_stick_radius():
     """F = 0.3, ν = 0.3, 120 rings, one ring per step: the last step's stick disc ends within one ring
     of the frictional flat punch's c/a (Spence's self-similarity, computed from the punch on its own
-    rings), its slip annulus slides inward, the shear of the stick disc stays in the cone, and
+    rings), its slip annulus slides inward, the shear of the stick disc stays in the cone, the
+    pressure is positive on the contact and the gap open outside it in every step, and
     P/(aδ) = (4/3)E* k with k the punch's P/(2aE*δ) (dP = 2aE*k dδ with δ ∝ a²) to 3e-4 of the
     frictionless run's own error."""
     s = rings(120)
@@ -47,7 +49,7 @@ def test_frictional_indentation_sticks_inside_the_flat_punchs_stick_radius():
     lo, hi = stick_ratio(ps, 0.3)
     assert f.c < hi and f.c + 1 / 120 > lo, (f.c, lo, hi)
     m = f.stick.size
-    assert np.all(f.p[:m] > 0)
+    assert np.all(f.p[:m] > 0) and f.min_gap > 0
     assert np.all(f.q[:m][~f.stick] > 0)                       # q = +F p: the body moved inward
     assert np.all(np.abs(f.q[:m][f.stick]) <= 0.3 * f.p[:m][f.stick] * (1 + 1e-12))
     ratio = f.hertz()["P/(a delta)"] / z.hertz()["P/(a delta)"]

@@ -144,7 +144,9 @@ class Indentation:
     """The monotonic indentation by the paraboloid gap r²/(2R), one entry per step (contact radius
     ``a``, approach ``delta``, force ``load``, centre pressure ``p0``), and the last step's ring
     pressures ``p``, radial shears ``q`` (> 0 outward on the body) and ``stick`` (the rings whose u_r
-    did not change in it); ``c`` the outer edge of its stick disc."""
+    did not change in it); ``c`` the outer edge of its stick disc; ``min_gap`` the least gap
+    w − (δ_k − r²/(2R)) over the rings outside the contact, in every step, over δ_k (≥ 0: the gap
+    closes only inside the contact)."""
 
     system: PunchSystem
     friction: float
@@ -156,6 +158,7 @@ class Indentation:
     p: np.ndarray
     q: np.ndarray
     stick: np.ndarray
+    min_gap: float
 
     @property
     def c(self) -> float:
@@ -216,7 +219,7 @@ def indent(system: PunchSystem, friction: float, radius: float = 1.0, rings_per_
     ms = list(range(max(2, rings_per_step), n + 1, rings_per_step))
     if ms[-1] != n:
         ms.append(n)
-    stick = np.zeros(0, bool)
+    stick, min_gap = np.zeros(0, bool), np.inf
     for m in ms:
         u_old = system.C[:m] @ p_all + system.D[:m] @ q_all
         rho = _edge_ratio(edges, m)
@@ -251,9 +254,12 @@ def indent(system: PunchSystem, friction: float, radius: float = 1.0, rings_per_
             log.warning("indent: a negative ring pressure at a = %.4f (%.2e)", edges[m], p.min())
         stick = sense[:m] == 0
         p_all[:m], q_all[:m] = p, q
+        if m < n:
+            gap = system.A[m:, :m] @ p + system.B[m:, :m] @ q - x[2 * m] + mid[m:] ** 2 / (2 * radius)
+            min_gap = min(min_gap, float(gap.min()) / x[2 * m])
         out["a"].append(edges[m])
         out["delta"].append(x[2 * m])
         out["load"].append(float(p @ system.area[:m]))
         out["p0"].append(p[0])
     return Indentation(system, friction, radius, *(np.array(out[k]) for k in ("a", "delta", "load", "p0")),
-                       p=p_all.copy(), q=q_all.copy(), stick=stick)
+                       p=p_all.copy(), q=q_all.copy(), stick=stick, min_gap=min_gap)
