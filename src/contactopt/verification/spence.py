@@ -33,9 +33,12 @@ P = (4/3)E* k aδ, k the punch's P/(2aE*δ) (each increment is the punch's, dP =
 
 from __future__ import annotations
 
+import logging
 from dataclasses import dataclass
 
 import numpy as np
+
+log = logging.getLogger(__name__)
 
 
 @dataclass(frozen=True)
@@ -208,8 +211,9 @@ def indent(system: PunchSystem, friction: float, radius: float = 1.0, rings_per_
     step (a stick ring whose |q| exceeds F p slips with the sense of q; a slip ring moving against
     its sense sticks), started from the step before, a ring entering the contact slipping inward.
     ``friction`` 0: frictionless (q = 0); ``np.inf``: bonded (every ring in contact sticks)."""
-    import logging
-    log = logging.getLogger(__name__)
+    if not friction >= 0 or rings_per_step < 1 or system.area.size < 2:
+        raise ValueError(f"indent: friction {friction} must be ≥ 0, rings_per_step {rings_per_step} ≥ 1, "
+                         f"and at least 2 rings ({system.area.size})")
     n, edges, mid = system.area.size, system.edges, 0.5 * (system.edges[1:] + system.edges[:-1])
     p_all, q_all = np.zeros(n), np.zeros(n)
     sense = np.ones(n)                       # +1 slip inward, −1 slip outward, 0 stick
