@@ -20,6 +20,13 @@ Hertz, the resultant Σλ against P, and the stick zone of the last increment (t
 increment vanishes, M3+): c/a from the areas (tributary areas of the sticking nodes and of the
 nodes in contact), the largest sticking and the smallest slipping radius over the fitted a.
 N = 1 is the static problem.
+
+With ``--halfspace`` (no FE): the same monotonic indentation of an elastic half-space from its
+axisymmetric surface integral equations on rings (``contactopt.verification.spence.indent``), F = 0.3,
+on 60, 120, 240 uniform rings and 1, 4, 8 rings per step; each quantity relative to the frictionless
+run on the same rings, at the same P (self-similarity: P ∝ a³, p0 ∝ a, δ ∝ a²) or the same a.
+
+    PYTHONPATH=src python benchmarks/goodman.py --halfspace [--nus 0.3 0.4 0.49]
 """
 
 from __future__ import annotations
@@ -154,6 +161,39 @@ def spence_table(nus, friction: float = 0.3) -> None:
                   f"{lo:.4f} – {hi:.4f} | {time.perf_counter() - t0:.1f} s |", flush=True)
 
 
+def halfspace_table(nus, friction: float = 0.3, rings=(60, 120, 240), steps=(1, 4, 8)) -> None:
+    """The monotonic frictional indentation of the half-space on rings against the frictionless one:
+    the centre pressure, the contact radius and the approach at the same P, the same read through a
+    fitted Hertz profile (as the FE's columns "fit"), P at the same a, c/a against the punch's, and
+    P/(aδ) against (4/3)E* times the punch's P/(2aE*δ); the frictionless run against Hertz."""
+    from contactopt.verification.spence import indent, punch_load_ratio, punch_system, ring_system, stick_ratio
+    print("| ν | rings | rings / step | F = 0: P, δ, p0 vs Hertz | p0 (centre) | p0 (fit) | a | a (fit) | δ | "
+          "P at the same a | c/a (punch) | P/(aδ) / punch's | time |")
+    print("|---" * 13 + "|")
+    for nu in nus:
+        ps = punch_system(nu, 200)
+        lo, hi = stick_ratio(ps, friction)
+        k_punch = punch_load_ratio(ps, friction)
+        for n in rings:
+            t0 = time.perf_counter()
+            s = ring_system(nu, np.linspace(0.0, 1.0, n + 1))
+            z = indent(s, 0.0)
+            zh, (za, zp) = z.hertz(), z.fitted()
+            for st in steps:
+                f = indent(s, friction, rings_per_step=st)
+                fh, (fa, fp) = f.hertz(), f.fitted()
+                ar = (zh["P"] / fh["P"]) ** (1 / 3)          # a at the same P over the frictionless a
+                print(f"| {nu:g} | {n} | {st} | {zh['P'] - 1:+.1e}, {zh['delta'] - 1:+.1e}, {zh['p0'] - 1:+.1e} | "
+                      f"{fh['p0'] / zh['p0'] * ar - 1:+.2%} | {fp / zp * ar - 1:+.2%} | {ar - 1:+.2%} | "
+                      f"{fa / za * ar - 1:+.2%} | {fh['delta'] / zh['delta'] * ar * ar - 1:+.2%} | "
+                      f"{fh['P'] / zh['P'] - 1:+.2%} | {f.c:.4f} ({lo:.4f} – {hi:.4f}) | "
+                      f"{fh['P/(a delta)'] / zh['P/(a delta)'] / k_punch:.5f} | {time.perf_counter() - t0:.1f} s |",
+                      flush=True)
+        b = indent(s, math.inf).hertz()["P/(a delta)"] / zh["P/(a delta)"]
+        print(f"bonded, ν = {nu:g}, {rings[-1]} rings: P/(aδ) over (4/3)E* = {b:.5f}, "
+              f"Mossakovskii's ln(3 − 4ν)/(2β) = {math.log(3 - 4 * nu) / (2 * s.beta):.5f}\n", flush=True)
+
+
 def punch_table(levels: int) -> None:
     print("| h | c/a (areas) | stick out to r/a | slip from r/a | stick / slip nodes | time |")
     print("|---" * 6 + "|")
@@ -173,8 +213,12 @@ def main():
     ap.add_argument("--punch", action="store_true",
                     help="the stick zone of the flat punch with F = 0.3, the monotonic Hertz c/a's counterpart: "
                          "from the half-space's integral equations (--nus), and by the FE (static, ν = 0.3)")
+    ap.add_argument("--halfspace", action="store_true",
+                    help="the monotonic indentation of the half-space on rings (F = 0.3, --nus), no FE")
     args = ap.parse_args()
-    if args.punch:
+    if args.halfspace:
+        halfspace_table(args.nus)
+    elif args.punch:
         spence_table(args.nus)
         punch_table(args.levels)
     elif args.steps:

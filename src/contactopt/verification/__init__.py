@@ -6,8 +6,9 @@
   ``[obstacle]``, measured against Hertz, Mindlin and Boussinesq;
 - :mod:`.hertz_stress`: a paraboloid pressed onto the rigid plane, its peak von Mises stress
   against Hertz's subsurface field;
-- :mod:`.spence`: the rigid flat punch pressed with friction, from the half-space's axisymmetric
-  integral equations: the stick ratio c/a of the monotonic frictional Hertz indentation.
+- :mod:`.spence`: the rigid flat punch and the rigid paraboloid pressed with friction, from the
+  half-space's axisymmetric integral equations: the stick ratio c/a of the monotonic frictional
+  Hertz indentation, and that indentation solved step by step (its pressure against Hertz's).
 
 The tests run them on coarse meshes; the scripts in ``benchmarks/`` refine them and print the
 tables of docs/obstacles.md and docs/objectives.md.
