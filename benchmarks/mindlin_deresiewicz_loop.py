@@ -24,7 +24,7 @@ by a factor 1.25 towards the sides, the top and the foundation's bottom; the fou
 grid in (x1, x2) (a mesh file, node-to-node partners).
 
     PYTHONPATH=src python benchmarks/mindlin_deresiewicz_loop.py [n ...] [--steps m] [--graded] [--nu ν]
-        [--target Q*/μP] [--figure out.png]
+        [--target Q*/μP] [--depth d] [--f3 f] [--fine w] [--figure out.png]
 """
 
 from __future__ import annotations
@@ -43,6 +43,8 @@ from contactopt.problem import ShapeProblem
 
 G = E / (2 * (1 + NU))
 KCOMP = 2 * (2 - NU) / G                     # (2 − ν1)/G1 + (2 − ν2)/G2, one material
+DEPTH = 1.0                                  # of the pad and of the foundation (graded meshes)
+FINE = 0.45                                  # half-width of the graded meshes' fine zone about the centre
 
 
 def set_poisson(nu: float) -> None:
@@ -53,6 +55,13 @@ def set_poisson(nu: float) -> None:
     NU, G = nu, E / (2 * (1 + nu))
     KCOMP, ESTAR = 2 * (2 - nu) / G, E / (2 * (1 - nu ** 2))
     cattaneo_mindlin.NU, cattaneo_mindlin.ESTAR = NU, ESTAR
+
+
+def set_geometry(depth: float | None = None, f3: float | None = None, fine: float | None = None) -> None:
+    """The graded meshes' depth of both bodies (default 1), the pressing body force f3 (default
+    −0.08) and the fine zone's half-width (default 0.45)."""
+    global DEPTH, F3, FINE
+    DEPTH, F3, FINE = depth or DEPTH, f3 or F3, fine or FINE
 
 
 def graded_axis(h: float, half: float = 0.45, growth: float = 1.25, side: float = 2.0) -> list:
@@ -91,15 +100,16 @@ def graded_config(n: int, steps: list, where: Path) -> dict:
 
     from contactopt.mesh.block import graded_block_mesh
     h = 2.0 / n
-    xy, z = graded_axis(h), depth_axis(h)
+    xy, z = graded_axis(h, FINE), depth_axis(h, DEPTH)
     cfg = config(n, steps)
+    cfg["geometry"]["c"] = DEPTH
     cfg["mesh"] = {"x1": xy, "x2": xy, "x3": z}
     found = graded_block_mesh(xy, xy, z)
     pts = found.points.copy()
     pts[:, 2] = -pts[:, 2]                  # mirrored (top face on x3 = 0, below it), cells re-oriented
     path = where / f"foundation{n}.vtu"
     meshio.write(path, meshio.Mesh(pts, [("hexahedron", found.cells[:, [4, 5, 6, 7, 0, 1, 2, 3]])]))
-    cfg["foundation"] = {"mesh": str(path), "top": {"x3": 0.0}, "clamped": {"x3": -1.0},
+    cfg["foundation"] = {"mesh": str(path), "top": {"x3": 0.0}, "clamped": {"x3": -DEPTH},
                          "material": {"E": E, "nu": NU}}
     return cfg
 
@@ -249,6 +259,8 @@ def main(argv):
             target = float(next(it))
         elif arg == "--nu":
             set_poisson(float(next(it)))
+        elif arg in ("--depth", "--f3", "--fine"):
+            set_geometry(**{arg[2:]: float(next(it))})
         elif arg == "--graded":
             graded = True
         elif arg == "--figure":
