@@ -17,10 +17,11 @@ the rest is the curve's shape at small x, where the slip annulus is thinner than
 
 ``--rings``: after the press, the nodal normal forces summed over rings of r/a against the nodal
 forces of Hertz's pressure (consistent: ∫pφ_i over the four faces around node i; lumped: ∫p over
-the node's h × h square), with Hertz's a and with the FE's.
+the node's h × h square), with Hertz's a and with the FE's; and the tangential forces the press
+leaves (‖τ‖/μλ, the nodes at the friction limit). ``--elastic``: :func:`elastic`.
 
     cd benchmarks && PYTHONPATH=../src python mindlin_deresiewicz_virgin.py [n ...] [--steps m] [--at x*,…] [--rings | --elastic]
-        [--depth d] [--f3 f] [--fine w]
+        [--depth d] [--f3 f] [--fine w] [--nu ν]
         (graded meshes of benchmarks/mindlin_deresiewicz_loop.py, fine spacing 2/n; default 48, 16 steps)
 """
 
@@ -115,7 +116,11 @@ def rings(n: int) -> None:
             out[i] = np.sum(w * p0 * np.sqrt(np.clip(1 - rho2, 0, None)))
         return out
     ref = {"consistent": nodal(a_h, True), "lumped": nodal(a_h, False), "FE a": nodal(a_fe, True)}
-    print(f"\nn = {n} (graded), a/h = {a_h / h:.2f}, P = {P:.6g}, a Hertz {a_h:.4f}, a FE {a_fe:.4f}")
+    touching = lam > 0
+    ratio = np.linalg.norm(st.tau[touching], axis=1) / (MU * lam[touching])
+    print(f"\nn = {n} (graded), ν = {loop.NU}, a/h = {a_h / h:.2f}, P = {P:.6g}, a Hertz {a_h:.4f}, a FE {a_fe:.4f}; "
+          f"after the press ‖τ‖/μλ ≤ {ratio.max():.3f}, {np.sum(ratio > 1 - 1e-6)} of {touching.sum()} contact nodes "
+          "at the friction limit")
     print("\n| r/a (Hertz a) | nodes | Σλ/P (FE) | consistent Hertz | lumped Hertz | consistent, FE's a |")
     print("|---|---|---|---|---|---|")
     edges = np.array([0, .5, .7, .8, .85, .9, .95, 1.0, 1.05, 1.1, 1.5])
@@ -196,6 +201,8 @@ def main(argv):
             at = tuple(float(v) for v in next(it).split(","))
         elif arg in ("--depth", "--f3", "--fine"):
             loop.set_geometry(**{arg[2:]: float(next(it))})
+        elif arg == "--nu":
+            loop.set_poisson(float(next(it)))
         elif arg in ("--rings", "--elastic"):
             mode = arg[2:]
         else:

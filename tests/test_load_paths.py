@@ -428,8 +428,9 @@ def test_mindlin_deresiewicz_hysteresis_loop_dissipates_the_analytic_energy():
     δ* (4 steps per quarter, n = 24; benchmarks/mindlin_deresiewicz_loop.py). The loop's area
     ∮δ dQ against Mindlin–Deresiewicz's ΔW = (9μ²P²K/10a)[1 − (1 − x)^(5/3) − (5x/6)(1 + (1 − x)^(2/3))]
     (x = Q*/μP, K = 2(2 − ν)/G, a Hertz's): measured 1.131 ΔW here on every BLAS kernel, of which
-    about 2.5 % the finite bodies' elasticity and the rest the slip annulus resolved by one element
-    (docs/load_paths.md), so within 18 %; and the external work around the loop equals the friction
+    1.4 % the elasticity of the finite bodies (+2.5 %, their discretization −1 %) and the rest the
+    slip zone resolved by about one element (docs/load_paths.md), so within 18 %; and the external
+    work around the loop equals the friction
     work Σ τ·Δu_t of the cycle's solves (energy balance, two independent sums; measured 1.5 %, the
     trapezoids over 4 steps) to 2 %."""
     n, m = 24, 4
