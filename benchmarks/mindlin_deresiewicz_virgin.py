@@ -14,13 +14,14 @@ the curve (Hertz's a and the FE's own a from the second moment of λ), the stick
 the Masing area of the FE's g for Q*/μP = 0.3, 0.5, 0.7, 0.9 (``--at``) against ΔW, next to c·ΔW with c the
 least-squares factor of g ≈ c·g_MD + e·Q for x ≥ 0.4 (the part that scales like a compliance;
 the rest is the curve's shape at small x, where the slip annulus is thinner than an element).
+``--figure``: g/g_MD of each n's loading curve and of its elastic test (below).
 
 ``--rings``: after the press, the nodal normal forces summed over rings of r/a against the nodal
 forces of Hertz's pressure (consistent: ∫pφ_i over the four faces around node i; lumped: ∫p over
 the node's h × h square), with Hertz's a and with the FE's; and the tangential forces the press
 leaves (‖τ‖/μλ, the nodes at the friction limit). ``--elastic``: :func:`elastic`.
 
-    cd benchmarks && PYTHONPATH=../src python mindlin_deresiewicz_virgin.py [n ...] [--steps m] [--at x*,…] [--rings | --elastic]
+    cd benchmarks && PYTHONPATH=../src python mindlin_deresiewicz_virgin.py [n ...] [--steps m] [--at x*,…] [--figure out.png] [--rings | --elastic]
         [--depth d] [--f3 f] [--fine w] [--nu ν]
         (graded meshes of benchmarks/mindlin_deresiewicz_loop.py, fine spacing 2/n; default 48, 16 steps)
 """
@@ -67,6 +68,25 @@ def virgin(n: int, m: int, xmax: float = 0.95) -> dict:
     d = np.array([loop.remote(cal, x) for x in xs])
     stick = [int(np.sum(st.classes == CLASS_CODES["M3+"])) for st in sts[2:]]
     return dict(cal, n=n, Q=Q, g=d - Q / cal["k0"], stick=stick, contact=int(np.sum(sts[0].lam > 0)))
+
+
+def figure(curves: dict, path: str) -> None:
+    """g/g_MD against Q/μP: the loading curve of each n and the elastic test's (``curves``:
+    label → (x, ratio))."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    fig, ax = plt.subplots(figsize=(6.4, 4.0))
+    for (label, (x, ratio)), style in zip(curves.items(), ("rs-", "bo-", "r--", "b--")):
+        ax.plot(x, ratio, style, ms=3, lw=1, label=label)
+    ax.axhline(1.0, color="k", lw=0.8)
+    ax.set_ylim(0.0, 1.3)
+    ax.set_xlabel("Q/μP")
+    ax.set_ylabel("g / g_MD (slip part of δ against Cattaneo–Mindlin)")
+    ax.legend(fontsize=8)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    print(f"wrote {path}")
 
 
 def report(v: dict, at=(0.3, 0.5, 0.7, 0.9)) -> None:
@@ -133,14 +153,15 @@ def rings(n: int) -> None:
 XS = tuple(np.round(np.arange(0.025, 0.951, 0.025), 3))      # Q/μP of the elastic test
 
 
-def elastic(n: int, xs=XS) -> None:
+def elastic(n: int, xs=XS):
     """No friction solve: Mindlin's tangential traction at Q/μP = x, μp0[√(1 − r²/a²) − (c/a)√(1 − r²/c²)]
     (Hertz's a and p0 from the pressed state's P, c = a(1 − x)^(1/3)), applied as consistent nodal
     forces to the pad and, opposite, to the foundation; w1 = (W r)_1 at the centre (W = S_eff⁻¹ the
     interface's compliance, both bodies clamped), uniform inside c in Mindlin's solution (the spread
     over the nodes inside c − h is printed).
     Its nonlinear part g_el(x) = w1(x) − Q w1(x0)/Q(x0) (x0 the first x) against g_MD, and the
-    Masing area of g_el against ΔW: the elastic discretization alone, Mindlin's tractions given."""
+    Masing area of g_el against ΔW: the elastic discretization alone, Mindlin's tractions given.
+    Returns (x, g_el/g_MD)."""
     from scipy.linalg import cho_factor, cho_solve
     h = 2.0 / n
     cfg = loop.graded_config(n, [{"name": "press", "body_force": [0.0, 0.0, loop.F3]}], Path(tempfile.mkdtemp()))
@@ -189,14 +210,17 @@ def elastic(n: int, xs=XS) -> None:
     print("|---|---|")
     for xstar in (0.3, 0.5, 0.7, 0.9):
         print(f"| {xstar} | {masing_area(Q, g, xstar * MU * P) / loop.analytic(P, a)[1](xstar * MU * P):.4f} |")
+    return np.asarray(xs)[1:], (g / gm)[1:]            # g_el = 0 at x0 by construction
 
 
 def main(argv):
-    m, sizes, mode, at = 16, [], "virgin", (0.3, 0.5, 0.7, 0.9)
+    m, sizes, mode, at, path = 16, [], "virgin", (0.3, 0.5, 0.7, 0.9), None
     it = iter(argv)
     for arg in it:
         if arg == "--steps":
             m = int(next(it))
+        elif arg == "--figure":
+            path = next(it)
         elif arg == "--at":
             at = tuple(float(v) for v in next(it).split(","))
         elif arg in ("--depth", "--f3", "--fine"):
@@ -207,13 +231,20 @@ def main(argv):
             mode = arg[2:]
         else:
             sizes.append(int(arg))
+    curves = {}
     for n in sizes or [48]:
         if mode == "rings":
             rings(n)
         elif mode == "elastic":
             elastic(n)
         else:
-            report(virgin(n, m), at)
+            v = virgin(n, m)
+            report(v, at)
+            curves[f"n = {n}, contactopt"] = (v["Q"] / (MU * v["P"]), v["g"] / g_md(v["Q"], v["P"], v["a"]))
+    if path and curves:
+        for n in sizes or [48]:
+            curves[f"n = {n}, Mindlin's tractions on the FE bodies"] = elastic(n)
+        figure(curves, path)
 
 
 if __name__ == "__main__":
