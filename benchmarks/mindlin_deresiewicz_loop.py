@@ -24,7 +24,8 @@ by a factor 1.25 towards the sides, the top and the foundation's bottom; the fou
 grid in (x1, x2) (a mesh file, node-to-node partners).
 
     PYTHONPATH=src python benchmarks/mindlin_deresiewicz_loop.py [n ...] [--steps m] [--graded] [--nu ν]
-        [--target Q*/μP] [--depth d] [--f3 f] [--fine w] [--figure out.png]
+        [--target Q*/μP] [--depth d] [--f3 f] [--fine w]
+        [--ring k,r0,r1] [--figure out.png]
 """
 
 from __future__ import annotations
@@ -45,6 +46,7 @@ G = E / (2 * (1 + NU))
 KCOMP = 2 * (2 - NU) / G                     # (2 − ν1)/G1 + (2 − ν2)/G2, one material
 DEPTH = 1.0                                  # of the pad and of the foundation (graded meshes)
 FINE = 0.45                                  # half-width of the graded meshes' fine zone about the centre
+RING = None                                  # (k, r0, r1): spacing k·h on |x − 1| < r0, h on r0–r1 only
 
 
 def set_poisson(nu: float) -> None:
@@ -64,10 +66,16 @@ def set_geometry(depth: float | None = None, f3: float | None = None, fine: floa
     DEPTH, F3, FINE = depth or DEPTH, f3 or F3, fine or FINE
 
 
-def graded_axis(h: float, half: float = 0.45, growth: float = 1.25, side: float = 2.0) -> list:
-    """Node coordinates on [0, side]: spacing h on |x − side/2| ≤ half, growing by ``growth`` outside."""
-    inner = int(round(half / h))
-    right = [side / 2 + k * h for k in range(inner + 1)]
+def graded_axis(h: float, half: float = 0.45, growth: float = 1.25, side: float = 2.0, ring=None) -> list:
+    """Node coordinates on [0, side]: spacing h on |x − side/2| ≤ half, growing by ``growth`` outside;
+    with ``ring`` = (k, r0, r1) spacing k·h on |x − side/2| < r0 and h on r0–r1 instead (a band at
+    the contact's edge refined alone)."""
+    if ring is None:
+        right = [side / 2 + k * h for k in range(int(round(half / h)) + 1)]
+    else:
+        k, r0, r1 = ring
+        right = [side / 2 + j * k * h for j in range(int(round(r0 / (k * h))) + 1)]
+        right += [right[-1] + j * h for j in range(1, int(round((side / 2 + r1 - right[-1]) / h)) + 1)]
     step = h
     while right[-1] < side - 1e-12:
         step *= growth
@@ -100,7 +108,7 @@ def graded_config(n: int, steps: list, where: Path) -> dict:
 
     from contactopt.mesh.block import graded_block_mesh
     h = 2.0 / n
-    xy, z = graded_axis(h, FINE), depth_axis(h, DEPTH)
+    xy, z = graded_axis(h, FINE, ring=RING), depth_axis(h, DEPTH)
     cfg = config(n, steps)
     cfg["geometry"]["c"] = DEPTH
     cfg["mesh"] = {"x1": xy, "x2": xy, "x3": z}
@@ -261,6 +269,9 @@ def main(argv):
             set_poisson(float(next(it)))
         elif arg in ("--depth", "--f3", "--fine"):
             set_geometry(**{arg[2:]: float(next(it))})
+        elif arg == "--ring":
+            global RING
+            RING = tuple(float(v) for v in next(it).split(","))
         elif arg == "--graded":
             graded = True
         elif arg == "--figure":
