@@ -19,9 +19,11 @@ the rest is the curve's shape at small x, where the slip annulus is thinner than
 ``--rings``: after the press, the nodal normal forces summed over rings of r/a against the nodal
 forces of Hertz's pressure (consistent: ∫pφ_i over the four faces around node i; lumped: ∫p over
 the node's h × h square), with Hertz's a and with the FE's; and the tangential forces the press
-leaves (‖τ‖/μλ, the nodes at the friction limit). ``--elastic``: :func:`elastic`.
+leaves (‖τ‖/μλ, the nodes at the friction limit). ``--elastic``: :func:`elastic`. ``--unloading``:
+:func:`unloading` (``--steps``: steps per quarter).
 
-    cd benchmarks && PYTHONPATH=../src python mindlin_deresiewicz_virgin.py [n ...] [--steps m] [--at x*,…] [--figure out.png] [--rings | --elastic]
+    cd benchmarks && PYTHONPATH=../src python mindlin_deresiewicz_virgin.py [n ...] [--steps m] [--at x*,…] [--figure out.png]
+        [--rings | --elastic | --unloading]
         [--depth d] [--f3 f] [--fine w] [--nu ν]
         (graded meshes of benchmarks/mindlin_deresiewicz_loop.py, fine spacing 2/n; default 48, 16 steps)
 """
@@ -153,6 +155,61 @@ def rings(n: int) -> None:
 XS = tuple(np.round(np.arange(0.025, 0.951, 0.025), 3))      # Q/μP of the elastic test
 
 
+def profile_forces(xy, h: float, rad: float, samples: int = 60) -> np.ndarray:
+    """∫√(1 − r²/rad²)₊ φ_i over the four h × h faces around each node (xy relative to the centre):
+    the consistent nodal forces of a Hertz-shaped traction of unit peak on radius ``rad``."""
+    s = (np.arange(samples) + 0.5) / samples * 2 - 1
+    S1, S2 = np.meshgrid(s, s, indexing="ij")
+    tent = (1 - np.abs(S1)) * (1 - np.abs(S2)) * 4 * h * h / S1.size
+    out = np.zeros(len(xy))
+    for i in np.flatnonzero(np.hypot(xy[:, 0], xy[:, 1]) < rad + 1.5 * h):
+        rho2 = ((xy[i, 0] + h * S1) ** 2 + (xy[i, 1] + h * S2) ** 2) / rad ** 2
+        out[i] = np.sum(tent * np.sqrt(np.clip(1 - rho2, 0, None)))
+    return out
+
+
+def unloading(n: int, m: int = 4, target: float = 0.7) -> None:
+    """The loop's unloading branch (m steps per quarter up to Q*/μP ≈ ``target``, then 2m down to
+    −δ*) radius by radius: τ1 summed over rings of r/a against Mindlin–Deresiewicz's traction
+    q_L(Q*) − 2q_L((Q* − Q)/2), q_L(Q') = μp0[√(1 − r²/a²) − (c'/a)√(1 − r²/c'²)],
+    c' = a(1 − Q'/μP)^(1/3) (consistent nodal forces; Hertz's a and p0 from P, Q and Q* measured),
+    and the stick radius from the stick (M3+) nodes' area against c′ of (Q* − Q)/2."""
+    cal = loop.calibrate(n, graded=True)
+    dstar = loop.remote(cal, target)
+    deltas = [cal["d0"]] + [dstar * j / m for j in range(1, m + 1)] + [dstar * (1 - j / m) for j in range(1, 2 * m + 1)]
+    pr, sts = loop.solve_path(n, deltas, graded=True)
+    h = 2.0 / n
+    P, a = cal["P"], cal["a"]
+    p0 = 3 * P / (2 * np.pi * a * a)
+    xy = pr.model.mesh.contact_points()[:, :2] - 1.0
+    r = np.hypot(xy[:, 0], xy[:, 1])
+    H = {}
+
+    def q_loading(Q):
+        c = a * (1 - Q / (MU * P)) ** (1 / 3)
+        H.setdefault(c, profile_forces(xy, h, c))
+        H.setdefault(a, profile_forces(xy, h, a))
+        return MU * p0 * (H[a] - c / a * H[c])
+    Qs = sts[m + 1].tau[:, 0].sum()
+    edges = np.array([0, .5, .8, .9, 1.0, 1.2])
+    print(f"\nn = {n} (graded), a/h = {a / h:.2f}, Q*/μP = {Qs / (MU * P):.3f}; τ1 summed over rings of r/a, "
+          "/μP: contactopt / Mindlin–Deresiewicz")
+    print("\n| Q/Q* | c′/a (stick nodes) | c′/a (M–D) | " + " | ".join(f"{lo:.1f}–{hi:.1f}" for lo, hi in zip(edges[:-1], edges[1:]))
+          + " |")
+    print("|---|---|---|" + "---|" * (len(edges) - 1))
+    for st in sts[m + 2:]:                   # the unloading steps
+        Q = st.tau[:, 0].sum()
+        md = q_loading(Qs) - 2 * q_loading((Qs - Q) / 2)
+        stick = np.sum(st.classes == CLASS_CODES["M3+"])
+        contact = np.sum(st.lam > 0)
+        cells = []
+        for lo, hi in zip(edges[:-1], edges[1:]):
+            sel = (r >= lo * a) & (r < hi * a)
+            cells.append(f"{st.tau[sel, 0].sum() / (MU * P):+.3f} / {md[sel].sum() / (MU * P):+.3f}")
+        print(f"| {Q / Qs:+.3f} | {np.sqrt(stick / contact) if contact else 0:.3f} | "
+              f"{(1 - (Qs - Q) / (2 * MU * P)) ** (1 / 3):.3f} | " + " | ".join(cells) + " |")
+
+
 def elastic(n: int, xs=XS):
     """No friction solve: Mindlin's tangential traction at Q/μP = x, μp0[√(1 − r²/a²) − (c/a)√(1 − r²/c²)]
     (Hertz's a and p0 from the pressed state's P, c = a(1 − x)^(1/3)), applied as consistent nodal
@@ -227,7 +284,7 @@ def main(argv):
             loop.set_geometry(**{arg[2:]: float(next(it))})
         elif arg == "--nu":
             loop.set_poisson(float(next(it)))
-        elif arg in ("--rings", "--elastic"):
+        elif arg in ("--rings", "--elastic", "--unloading"):
             mode = arg[2:]
         else:
             sizes.append(int(arg))
@@ -237,6 +294,8 @@ def main(argv):
             rings(n)
         elif mode == "elastic":
             elastic(n)
+        elif mode == "unloading":
+            unloading(n, m)
         else:
             v = virgin(n, m)
             report(v, at)
