@@ -24,7 +24,8 @@ by a factor 1.25 towards the sides, the top and the foundation's bottom; the fou
 grid in (x1, x2) (a mesh file, node-to-node partners).
 
     PYTHONPATH=src python benchmarks/mindlin_deresiewicz_loop.py [n ...] [--steps m] [--graded] [--nu ν]
-        [--figure out.png]
+        [--target Q*/μP] [--depth d] [--f3 f] [--fine w]
+        [--ring k,r0,r1] [--figure out.png]
 """
 
 from __future__ import annotations
@@ -43,6 +44,9 @@ from contactopt.problem import ShapeProblem
 
 G = E / (2 * (1 + NU))
 KCOMP = 2 * (2 - NU) / G                     # (2 − ν1)/G1 + (2 − ν2)/G2, one material
+DEPTH = 1.0                                  # of the pad and of the foundation (graded meshes)
+FINE = 0.45                                  # half-width of the graded meshes' fine zone about the centre
+RING = None                                  # (k, r0, r1): spacing k·h on |x − 1| < r0, h on r0–r1 only
 
 
 def set_poisson(nu: float) -> None:
@@ -55,10 +59,23 @@ def set_poisson(nu: float) -> None:
     cattaneo_mindlin.NU, cattaneo_mindlin.ESTAR = NU, ESTAR
 
 
-def graded_axis(h: float, half: float = 0.45, growth: float = 1.25, side: float = 2.0) -> list:
-    """Node coordinates on [0, side]: spacing h on |x − side/2| ≤ half, growing by ``growth`` outside."""
-    inner = int(round(half / h))
-    right = [side / 2 + k * h for k in range(inner + 1)]
+def set_geometry(depth: float | None = None, f3: float | None = None, fine: float | None = None) -> None:
+    """The graded meshes' depth of both bodies (default 1), the pressing body force f3 (default
+    −0.08) and the fine zone's half-width (default 0.45)."""
+    global DEPTH, F3, FINE
+    DEPTH, F3, FINE = depth or DEPTH, f3 or F3, fine or FINE
+
+
+def graded_axis(h: float, half: float = 0.45, growth: float = 1.25, side: float = 2.0, ring=None) -> list:
+    """Node coordinates on [0, side]: spacing h on |x − side/2| ≤ half, growing by ``growth`` outside;
+    with ``ring`` = (k, r0, r1) spacing k·h on |x − side/2| < r0 and h on r0–r1 instead (a band at
+    the contact's edge refined alone)."""
+    if ring is None:
+        right = [side / 2 + k * h for k in range(int(round(half / h)) + 1)]
+    else:
+        k, r0, r1 = ring
+        right = [side / 2 + j * k * h for j in range(int(round(r0 / (k * h))) + 1)]
+        right += [right[-1] + j * h for j in range(1, int(round((side / 2 + r1 - right[-1]) / h)) + 1)]
     step = h
     while right[-1] < side - 1e-12:
         step *= growth
@@ -91,15 +108,16 @@ def graded_config(n: int, steps: list, where: Path) -> dict:
 
     from contactopt.mesh.block import graded_block_mesh
     h = 2.0 / n
-    xy, z = graded_axis(h), depth_axis(h)
+    xy, z = graded_axis(h, FINE, ring=RING), depth_axis(h, DEPTH)
     cfg = config(n, steps)
+    cfg["geometry"]["c"] = DEPTH
     cfg["mesh"] = {"x1": xy, "x2": xy, "x3": z}
     found = graded_block_mesh(xy, xy, z)
     pts = found.points.copy()
     pts[:, 2] = -pts[:, 2]                  # mirrored (top face on x3 = 0, below it), cells re-oriented
     path = where / f"foundation{n}.vtu"
     meshio.write(path, meshio.Mesh(pts, [("hexahedron", found.cells[:, [4, 5, 6, 7, 0, 1, 2, 3]])]))
-    cfg["foundation"] = {"mesh": str(path), "top": {"x3": 0.0}, "clamped": {"x3": -1.0},
+    cfg["foundation"] = {"mesh": str(path), "top": {"x3": 0.0}, "clamped": {"x3": -DEPTH},
                          "material": {"E": E, "nu": NU}}
     return cfg
 
@@ -142,38 +160,52 @@ def analytic(P, a):
     return loading, dissipation
 
 
+def solve_path(n: int, deltas: list, graded: bool = False, where: Path | None = None):
+    """Press, then move the clamped top by each δ of ``deltas`` in turn (one load step each).
+    Returns the problem and the states of the steps (the press first)."""
+    steps = [{"name": "press", "body_force": [0.0, 0.0, F3]}]
+    steps += [{"name": f"d{j}", "body_force": [0.0, 0.0, F3]} for j in range(1, len(deltas) + 1)]
+    where = where or Path(tempfile.mkdtemp(prefix="mdloop"))
+    cfg = graded_config(n, steps, where) if graded else config(n, steps)
+    pr = ShapeProblem(load_config(cfg))
+    unit = top_unit_load(pr)
+    for step in pr.steps[0][1:]:
+        step.loads = WithNodal(step.loads, deltas[step.index - 1] * unit)
+    pr.solve_states(pr.model.initial_design())
+    return pr, [st for _, _, st in pr.step_results()]
+
+
+def calibrate(n: int, graded: bool = False, d0: float = 1e-4) -> dict:
+    """Press, then a first increment δ = d0 that sticks everywhere: P, Q = k0 δ, Hertz's a and the
+    FE's (second moment of λ), and the FE's stick compliance beyond Mindlin's K/8a (``bulk``)."""
+    pr, sts = solve_path(n, [d0], graded)
+    P = sts[0].lam.sum()
+    k0 = sts[1].tau[:, 0].sum() / d0
+    a_h = (3 * P * R / (4 * ESTAR)) ** (1 / 3)
+    return {"P": P, "k0": k0, "a": a_h, "a_fe": moment_radius(sts[0], pr.model), "d0": d0,
+            "bulk": 1 / k0 - KCOMP / (8 * a_h)}
+
+
+def remote(cal: dict, x: float) -> float:
+    """δ for Q/μP = x on Mindlin's loading curve plus the FE's extra stick compliance."""
+    P = cal["P"]
+    return float(analytic(P, cal["a"])[0](x * MU * P) + cal["bulk"] * x * MU * P)
+
+
 def run(n: int, m: int, target: float = 0.7, graded: bool = False):
     """The cycle at n elements per side (``graded``: fine spacing 2/n near the contact) with m steps
     per quarter branch; δ* from a stick calibration so that Q*/μP ≈ ``target``. Returns the
     measurements (dict)."""
     tmp = Path(tempfile.mkdtemp(prefix="mdloop"))
-
-    def problem(deltas):
-        steps = [{"name": "press", "body_force": [0.0, 0.0, F3]}]
-        steps += [{"name": f"d{j}", "body_force": [0.0, 0.0, F3]} for j in range(1, len(deltas) + 1)]
-        cfg = graded_config(n, steps, tmp) if graded else config(n, steps)
-        pr = ShapeProblem(load_config(cfg))
-        unit = top_unit_load(pr)
-        for step in pr.steps[0][1:]:
-            step.loads = WithNodal(step.loads, deltas[step.index - 1] * unit)
-        pr.solve_states(pr.model.initial_design())
-        return pr, [st for _, _, st in pr.step_results()]
-
-    # calibration: a small increment sticks everywhere, Q = k0 δ; Mindlin's loading curve gives δ*
-    d0 = 1e-4
-    pr0, sts = problem([d0])
-    P = sts[0].lam.sum()
-    a_fe = moment_radius(sts[0], pr0.model)
-    k0 = sts[1].tau[:, 0].sum() / d0
-    a_h = (3 * P * R / (4 * ESTAR)) ** (1 / 3)
+    cal = calibrate(n, graded)
+    P, k0, a_h, a_fe, d0, bulk = (cal[k] for k in ("P", "k0", "a", "a_fe", "d0", "bulk"))
     loading, dissipation = analytic(P, a_h)
-    bulk = 1 / k0 - KCOMP / (8 * a_h)          # the FE's stick compliance beyond Mindlin's K/8a
-    dstar = float(loading(target * MU * P) + bulk * target * MU * P)
+    dstar = remote(cal, target)
     up = [dstar * j / m for j in range(1, m + 1)]
     down = [dstar * (1 - j / m) for j in range(1, 2 * m + 1)]
     back = [-dstar * (1 - j / m) for j in range(1, 2 * m + 1)]
     deltas = [d0] + up + down + back
-    pr, sts = problem(deltas)
+    pr, sts = solve_path(n, deltas, graded, tmp)
     Q = np.array([st.tau[:, 0].sum() for st in sts[1:]])
     Ps = np.array([st.lam.sum() for st in sts])
     d = np.array(deltas)
@@ -226,13 +258,20 @@ def figure(r, path):
 
 
 def main(argv):
-    m, fig, sizes, graded = 4, None, [], False
+    m, fig, sizes, graded, target = 4, None, [], False, 0.7
     it = iter(argv)
     for arg in it:
         if arg == "--steps":
             m = int(next(it))
+        elif arg == "--target":
+            target = float(next(it))
         elif arg == "--nu":
             set_poisson(float(next(it)))
+        elif arg in ("--depth", "--f3", "--fine"):
+            set_geometry(**{arg[2:]: float(next(it))})
+        elif arg == "--ring":
+            global RING
+            RING = tuple(float(v) for v in next(it).split(","))
         elif arg == "--graded":
             graded = True
         elif arg == "--figure":
@@ -244,7 +283,7 @@ def main(argv):
     print("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|")
     last = None
     for n in sizes or [16, 24]:
-        r = run(n, m, graded=graded)
+        r = run(n, m, target, graded=graded)
         (qu, fu), (qr, fr), _, _ = branches(r)
         loading, Qs = r["loading"], r["Qs"]
         dstar, lin = loading(Qs), KCOMP / (8 * r["a"])

@@ -387,43 +387,61 @@ class WithNodal(LoadSet):
         return super().vector(coords, assembler) + self.extra
 
 
+def press_and_move(n, deltas):
+    """The paraboloidal pad pressed by f3 = −0.08, then its clamped top moved tangentially by each
+    δ of ``deltas`` in turn (one step each, through the equivalent nodal load −K_fd u_d): the
+    states of the steps, the press first (benchmarks/mindlin_deresiewicz_loop.py)."""
+    steps = [{"name": "press", "body_force": [0.0, 0.0, -0.08]}]
+    steps += [{"name": f"d{j}", "body_force": [0.0, 0.0, -0.08]} for j in range(1, len(deltas) + 1)]
+    pr = ShapeProblem(paraboloid_on_foundation(n, steps))
+    asm = pr.model.assembler
+    Kf = asm.full_stiffness(pr.model.mesh.coordinates(pr.model.initial_design()))
+    ud = np.zeros(asm.n_full)
+    ud[3 * pr.model.body.part("top").nodes] = 1.0
+    unit = np.zeros(asm.n_full)
+    unit[asm.free] = -(Kf @ ud)[asm.free]
+    for step in pr.steps[0][1:]:
+        step.loads = WithNodal(step.loads, deltas[step.index - 1] * unit)
+    pr.solve_states(pr.model.initial_design())
+    return [st for _, _, st in pr.step_results()]
+
+
+MD_NU, MD_MU = 0.3, 0.3
+MD_K = 2 * (2 - MD_NU) * 2 * (1 + MD_NU)                 # K = (2 − ν1)/G1 + (2 − ν2)/G2, E = 1
+
+
+def mindlin_loading(P, x):
+    """Cattaneo–Mindlin's remote displacement at Q = xμP, (3μPK/16a)[1 − (1 − x)^(2/3)], Hertz's a."""
+    a = (3 * P * 2.0 / (4 * 1.0 / (2 * (1 - MD_NU ** 2)))) ** (1 / 3)
+    return 3 * MD_MU * P * MD_K / (16 * a) * (1 - (1 - x) ** (2 / 3)), a
+
+
+def loop_deltas(n, m, x=0.7, d0=1e-4):
+    """δ of a first increment d0 (sticks everywhere: Q = k0 δ), then up to δ* and round the loop
+    δ* → −δ* → δ*, m steps per quarter; δ* from Mindlin's loading curve at Q*/μP = x plus the FE's
+    stick compliance beyond K/8a. Returns (P, k0, δ*, the δ list)."""
+    sts = press_and_move(n, [d0])
+    P, k0 = sts[0].lam.sum(), sts[1].tau[:, 0].sum() / d0
+    d, a = mindlin_loading(P, x)
+    dstar = d + (1 / k0 - MD_K / (8 * a)) * x * MD_MU * P
+    return P, k0, dstar, [d0] + [dstar * j / m for j in range(1, m + 1)] \
+        + [dstar * (1 - j / m) for j in range(1, 2 * m + 1)] + [-dstar * (1 - j / m) for j in range(1, 2 * m + 1)]
+
+
 @pytest.mark.slow
 def test_mindlin_deresiewicz_hysteresis_loop_dissipates_the_analytic_energy():
     """The paraboloidal pad pressed, then its clamped top moved by δ: up to δ*, back to −δ*, up to
     δ* (4 steps per quarter, n = 24; benchmarks/mindlin_deresiewicz_loop.py). The loop's area
     ∮δ dQ against Mindlin–Deresiewicz's ΔW = (9μ²P²K/10a)[1 − (1 − x)^(5/3) − (5x/6)(1 + (1 − x)^(2/3))]
-    (x = Q*/μP, K = 2(2 − ν)/G, a Hertz's): measured 1.13 ΔW here and 1.08 at n = 32 (the slip
-    annulus is one element wide here, 1.5 at n = 32), so within 25 %; and the external work
-    around the loop equals the friction work Σ τ·Δu_t of the cycle's solves (energy balance, two
-    independent sums; measured 1.5 %, the trapezoids over 4 steps) to 2 %."""
-    n, m, mu, nu = 24, 4, 0.3, 0.3
-    G = 1.0 / (2 * (1 + nu))
-    K = 2 * (2 - nu) / G
-
-    def solve(deltas):
-        steps = [{"name": "press", "body_force": [0.0, 0.0, -0.08]}]
-        steps += [{"name": f"d{j}", "body_force": [0.0, 0.0, -0.08]} for j in range(1, len(deltas) + 1)]
-        pr = ShapeProblem(paraboloid_on_foundation(n, steps))
-        asm = pr.model.assembler
-        Kf = asm.full_stiffness(pr.model.mesh.coordinates(pr.model.initial_design()))
-        ud = np.zeros(asm.n_full)
-        ud[3 * pr.model.body.part("top").nodes] = 1.0
-        unit = np.zeros(asm.n_full)
-        unit[asm.free] = -(Kf @ ud)[asm.free]
-        for step in pr.steps[0][1:]:
-            step.loads = WithNodal(step.loads, deltas[step.index - 1] * unit)
-        pr.solve_states(pr.model.initial_design())
-        return [st for _, _, st in pr.step_results()]
-
-    d0 = 1e-4
-    sts = solve([d0])
-    P, k0 = sts[0].lam.sum(), sts[1].tau[:, 0].sum() / d0
-    a = (3 * P * 2.0 / (4 * 1.0 / (2 * (1 - nu ** 2)))) ** (1 / 3)
-    x = 0.7                                              # δ* from Mindlin's loading curve plus the bulk
-    dstar = 3 * mu * P * K / (16 * a) * (1 - (1 - x) ** (2 / 3)) + (1 / k0 - K / (8 * a)) * x * mu * P
-    deltas = [d0] + [dstar * j / m for j in range(1, m + 1)] + [dstar * (1 - j / m) for j in range(1, 2 * m + 1)] \
-        + [-dstar * (1 - j / m) for j in range(1, 2 * m + 1)]
-    sts = solve(deltas)
+    (x = Q*/μP, K = 2(2 − ν)/G, a Hertz's): measured 1.131 ΔW here on every BLAS kernel, of which
+    1.4 % the elasticity of the finite bodies (+2.5 %, their discretization −1 %) and the rest the
+    slip zone resolved by about one element (docs/load_paths.md), so within 18 %; and the external
+    work around the loop equals the friction
+    work Σ τ·Δu_t of the cycle's solves (energy balance, two independent sums; measured 1.5 %, the
+    trapezoids over 4 steps) to 2 %."""
+    n, m = 24, 4
+    P, _, _, deltas = loop_deltas(n, m)
+    sts = press_and_move(n, deltas)
     Q = np.array([st.tau[:, 0].sum() for st in sts[1:]])
     d = np.array(deltas)
     Ps = np.array([st.lam.sum() for st in sts])
@@ -432,11 +450,36 @@ def test_mindlin_deresiewicz_hysteresis_loop_dissipates_the_analytic_energy():
     area = -float(np.sum(0.5 * (d[cyc][1:] + d[cyc][:-1]) * np.diff(Q[cyc])))
     work = sum(float(np.sum(st.tau * st.slip_increment)) for st in sts[m + 2:])
     Qs = 0.5 * (Q[m] - Q[3 * m])
-    xs = Qs / (mu * P)
-    dW = 9 * mu ** 2 * P ** 2 * K / (10 * a) * (1 - (1 - xs) ** (5 / 3) - 5 * xs / 6 * (1 + (1 - xs) ** (2 / 3)))
+    xs = Qs / (MD_MU * P)
+    a = mindlin_loading(P, xs)[1]
+    dW = 9 * MD_MU ** 2 * P ** 2 * MD_K / (10 * a) * (1 - (1 - xs) ** (5 / 3) - 5 * xs / 6 * (1 + (1 - xs) ** (2 / 3)))
     assert 0.5 < xs < 0.9 and Q[-1] == pytest.approx(Q[m], rel=0.02)      # the loop closes
     assert work == pytest.approx(area, rel=0.02)
-    assert area == pytest.approx(dW, rel=0.25)
+    assert area == pytest.approx(dW, rel=0.18)
+
+
+@pytest.mark.slow
+def test_hysteresis_loop_is_the_masing_loop_of_the_loading_curve():
+    """Masing's rule of Mindlin–Deresiewicz (unloading δ* − 2δ_L((Q* − Q)/2)) holds for the discrete
+    pad too, whatever its error against the half-space: the friction work of the loop of the test
+    above equals the area of the Masing loop of the pad's own virgin loading curve, 4Q*g(Q*) −
+    8∫_0^Q* g with g = δ − Q/k0 (24 steps up to δ*, an independent sequence of solves); measured
+    0.4 % (docs/load_paths.md)."""
+    n, m = 24, 4
+    P, k0, dstar, deltas = loop_deltas(n, m)
+    sts = press_and_move(n, deltas)
+    Q = np.array([st.tau[:, 0].sum() for st in sts[1:]])
+    work = sum(float(np.sum(st.tau * st.slip_increment)) for st in sts[m + 2:])
+    Qs = 0.5 * (Q[m] - Q[3 * m])
+    up = [dstar * j / 24 for j in range(1, 25)]
+    sts = press_and_move(n, up)
+    Qv = np.concatenate([[0.0], [st.tau[:, 0].sum() for st in sts[1:]]])
+    g = np.concatenate([[0.0], up]) - Qv / k0
+    s = np.linspace(0.0, Qs, 4001)
+    gs = np.interp(s, Qv, g)
+    masing = 4 * Qs * gs[-1] - 8 * np.trapezoid(gs, s)
+    assert Qv[-1] == pytest.approx(Q[m], rel=1e-4)       # monotone loading: the steps hardly change Q(δ*)
+    assert masing == pytest.approx(work, rel=0.01)
 
 
 def test_subgradient_through_the_steps_on_an_elastic_foundation():
