@@ -11,7 +11,6 @@ from contactopt.config.schema import SCHEMA
 from contactopt.optimize import BTOptions, minimize_bundle
 from contactopt.optimize.testproblems import PROBLEMS
 
-
 # the two defaults the entry points do not share (docs/stopping.md): Θ's practical stop and its
 # metric, both measured to cost the collection its verdicts (Maxquad 42 % above f* at ftol 5e-4;
 # HS78 7e-6 above f* with "auto" under one BLAS kernel)
