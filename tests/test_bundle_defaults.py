@@ -65,3 +65,54 @@ def test_invalid_tolf_options_are_named():
     with pytest.raises(OptimizerError) as exc:
         minimize_bundle(PROBLEMS["CB2"], np.zeros(2), tolf=-1.0, tolf_steps=0)
     assert "tolf <" in str(exc.value) and "tolf_steps" in str(exc.value)
+
+
+def test_curvature_pairs_tell_a_quadratic_from_a_kink():
+    """The trapezoidal rule is exact for a quadratic (a curvature pair) and fails across the kink
+    of |x|, where the subgradient jumps (sᵀy = 2 > 0 but the rule is off by 0.5 = sᵀy/4)."""
+    from contactopt.optimize._bundle_control import is_curvature_pair
+    A = np.array([[3.0, 1.0], [1.0, 2.0]])
+    x, s = np.array([0.3, -0.2]), np.array([-0.5, 0.4])
+    f = lambda z: 0.5 * float(z @ A @ z)            # noqa: E731
+    assert is_curvature_pair(s, A @ s, f(x), f(x + s), A @ x, A @ (x + s))
+    s = np.array([1.0])                              # |x| from −0.25 to 0.75: g jumps from −1 to 1
+    assert not is_curvature_pair(s, np.array([2.0]), 0.25, 0.75, np.array([-1.0]), np.array([1.0]))
+
+
+@pytest.mark.parametrize("name,fmt", [("Rosenbrock", "json"), ("Maxquad", "npz")])
+def test_auto_metric_resumes_bit_for_bit(name, fmt, tmp_path):
+    """metric="auto" keeps its choice (the curvature flags, W or the identity) in the state: a run
+    stopped half-way and restored from npz or JSON repeats the uninterrupted run's iterates. On
+    Rosenbrock (smooth) the method switches to BFGS; on Maxquad it keeps W = I for a while."""
+    import json
+
+    from contactopt.optimize import BundleState
+    prob = PROBLEMS[name]
+    kw = dict(max_iter=80, metric="auto")
+    xs_full, metrics = [], []
+    full = minimize_bundle(prob, prob.x0, callback=lambda r: (xs_full.append(r.x.copy()),
+                                                            metrics.append(r.state.w is not None)), **kw)
+    if name == "Rosenbrock":
+        assert any(metrics) and not all(metrics)           # W = I first, then BFGS
+    k = len(xs_full) // 2
+    saved = {}
+
+    def stop_at_k(r):
+        if r.nit == k:
+            saved["state"] = r.state.to_dict()
+            raise StopIteration
+
+    minimize_bundle(prob, prob.x0, callback=stop_at_k, **kw)
+    if fmt == "npz":
+        np.savez(tmp_path / "state.npz", **saved["state"])
+        with np.load(tmp_path / "state.npz") as z:
+            state = BundleState.from_dict(dict(z))
+    else:
+        text = json.dumps({key: (v.tolist() if isinstance(v, np.ndarray) else v)
+                           for key, v in saved["state"].items()})
+        state = BundleState.from_dict(json.loads(text))
+    xs_rest = []
+    rest = minimize_bundle(prob, None, state=state, callback=lambda r: xs_rest.append(r.x.copy()), **kw)
+    assert len(xs_rest) == len(xs_full) - k
+    assert all(np.array_equal(a, b) for a, b in zip(xs_rest, xs_full[k:]))
+    assert rest.fun == full.fun and rest.nfev == full.nfev and rest.history == full.history
