@@ -222,12 +222,13 @@ SCHEMA = {
                  "whose test problems ask f* to 1e-6)"),
         "ftol_window": (5, _posint, "an integer ≥ 1 (serious steps before the ftol test may stop "
                         "the run)"),
-        "metric": ("auto", _oneof("auto", "bfgs", "diagonal", "none"),
-                   "'auto', 'bfgs', 'diagonal' or 'none' (the variable metric of the bundle QP's "
-                   "proximal term: 'auto' chooses damped BFGS from the last `metric_memory` serious "
-                   "steps while they show curvature, as Θ's do, and the identity while they show "
-                   "kinks, as a polyhedral function's do; contactopt.optimize.minimize_bundle uses "
-                   "the identity by default; docs/stopping.md)"),
+        "metric": ("bfgs", _oneof("auto", "bfgs", "diagonal", "none"),
+                   "'bfgs', 'auto', 'diagonal' or 'none' (the variable metric of the bundle QP's "
+                   "proximal term: damped BFGS from the last `metric_memory` serious steps, for a "
+                   "piecewise smooth Θ; 'auto' lets the method choose BFGS while those steps show "
+                   "curvature and the identity while they show kinks; a diagonal secant estimate; "
+                   "or the identity, the default of contactopt.optimize.minimize_bundle, for "
+                   "polyhedral functions; docs/stopping.md)"),
         "metric_memory": (20, _posint, "an integer ≥ 1 (serious steps the metric is estimated "
                           "from)"),
     },
