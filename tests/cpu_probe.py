@@ -28,9 +28,7 @@ def main(outdir: Path) -> dict:
         out[prob.name] = {"status": int(res.status), "f": float(res.fun), "f_star": prob.f_star,
                           "nfev": int(res.nfev)}
     cfg = load_config("example2").with_updates({"mesh": {"nx": 18, "ny": 8, "nz": 8},
-                                                "name": "probe",
-                                                # the metric the spread below was measured with
-                                                "optimizer": {"max_iter": 300, "metric": "bfgs"}})
+                                                "name": "probe", "optimizer": {"max_iter": 300}})
     s = run_optimization(cfg, outdir / "example2").summary
     out["example2"] = {"status": int(s["status"]), "success": bool(s["success"]), "J": float(s["J"]),
                        "evaluations": int(s["evaluations"]),

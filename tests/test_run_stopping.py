@@ -10,8 +10,7 @@ from contactopt.runner import run_optimization
 
 @pytest.mark.integration
 def test_run_stops_when_the_model_predicts_no_decrease(tmp_path, small_config):
-    # the coarse mesh's Θ is rough: ftol 1e-2; eps and the metric as before the defaults changed
-    cfg = small_config(optimizer={"max_iter": 200, "ftol": 1e-2, "eps": 1e-4, "metric": "bfgs"})
+    cfg = small_config(optimizer={"max_iter": 200, "ftol": 1e-2})     # the coarse mesh's Θ is rough: ftol 1e-2
     rr = run_optimization(cfg, tmp_path / "run")
     s = json.loads((tmp_path / "run" / "summary.json").read_text())
     assert s["message"] == rr.summary["message"]
