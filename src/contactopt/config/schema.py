@@ -213,7 +213,7 @@ SCHEMA = {
         "eps": (1e-7, lambda x: _pos(x) and x < 1,
                 "a number in (0, 1) (the certified stop: stationarity of Θ/Θ(α0) ≤ eps; the same "
                 "default as contactopt.optimize.minimize_bundle; a run that cannot certify ends by "
-                "the f-change test, docs/stopping.md)"),
+                "the f-change test or by ftol, docs/stopping.md)"),
         "max_iter": (1000, _posint, "an integer ≥ 1"),
         "ftol": (5e-4, lambda x: _nonneg(x) and x < 1,
                  "a number in [0, 1) (stop when, right after a serious step, the bundle model "
