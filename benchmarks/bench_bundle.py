@@ -1,12 +1,13 @@
 """Benchmark of the bundle optimizer on the Lukšan–Vlček nonsmooth test problems.
 
-Run:  python benchmarks/bench_bundle.py [--eps EPS] [--max-iter 3000] [--ftol 0]
+Run:  python benchmarks/bench_bundle.py [--eps EPS] [--max-iter 3000] [--ftol 0] [--tolf 1e-8]
 
 Prints one row per problem of Lukšan & Vlček's collection (n, f*, f found, relative error —
 absolute where f* = 0 —, iterations, serious/null steps, oracle evaluations, wall time, the
 stopping test that fired, and the evaluations of the published verification runs of PBUN and
 PVAR, ACM TOMS Algorithm 811, where its drivers ran the problem, with options the drivers chose
-per problem), with the defaults of ``minimize_bundle`` (``--eps`` and ``--ftol`` override them),
+per problem), with the defaults of ``minimize_bundle`` (``--eps``, ``--ftol`` and ``--tolf`` override
+them; the stop column names the test that fired: f_change, stationarity, roundoff, ...),
 the total over the unconstrained problems 1–20 beside the published totals, then:
 the 32-variable problem on the paper-like admissible set against an SOCP reference (Clarabel,
 when installed); the polyhedral problems with n ≥ 50 — GOFFIN (Lukšan–Vlček, f* = 0, a
@@ -114,16 +115,20 @@ def main(argv=None):
     ap.add_argument("--max-iter", type=int, default=3000)
     ap.add_argument("--ftol", type=float, default=0.0,
                     help="practical stop (predicted relative decrease); 0: off")
+    ap.add_argument("--tolf", type=float, default=None,
+                    help="f-change stop (relative change of f in consecutive serious steps); "
+                         "default: the method's, 0: off")
     args = ap.parse_args(argv)
 
     head = (f"{'problem':<18}{'n':>4}{'f*':>15}{'f found':>17}{'rel err':>10}{'iter':>7}"
             f"{'serious/null':>14}{'evals':>7}{'PBUN':>6}{'PVAR':>6}{'time s':>8}  status")
-    print(f"bundle method, eps = {args.eps or 'default'}, ftol = {args.ftol:g}")
+    print(f"bundle method, eps = {args.eps or 'default'}, ftol = {args.ftol:g}, "
+          f"tolf = {'default' if args.tolf is None else args.tolf}")
     print(head)
     print("-" * len(head))
     n_ok = 0
     total_t = 0.0
-    opts = {"ftol": args.ftol}
+    opts = {"ftol": args.ftol} | ({} if args.tolf is None else {"tolf": args.tolf})
     rows = [(p, p.f_star, args.eps, 1e-6, opts) for p in PROBLEMS.values()]
     ours_1_20 = 0
     big = max_quadratics_problem()

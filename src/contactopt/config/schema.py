@@ -210,19 +210,25 @@ SCHEMA = {
                          "evaluation exceeds the available memory; contactopt.fem.memory)"),
     },
     "optimizer": {
-        "eps": (1e-4, lambda x: _pos(x) and x < 1, "a number in (0, 1) (BT stopping parameter ε)"),
-        "max_iter": (400, _posint, "an integer ≥ 1"),
+        "eps": (1e-7, lambda x: _pos(x) and x < 1,
+                "a number in (0, 1) (the certified stop: stationarity of Θ/Θ(α0) ≤ eps; the same "
+                "default as contactopt.optimize.minimize_bundle; a run that cannot certify ends by "
+                "the f-change test or by ftol, docs/stopping.md)"),
+        "max_iter": (1000, _posint, "an integer ≥ 1"),
         "ftol": (5e-4, lambda x: _nonneg(x) and x < 1,
                  "a number in [0, 1) (stop when, right after a serious step, the bundle model "
                  "predicts a relative decrease of Θ below this fraction: J within about ftol of a "
-                 "local optimum, docs/stopping.md; 0: off)"),
+                 "local optimum, docs/stopping.md; 0: off, as in contactopt.optimize.minimize_bundle, "
+                 "whose test problems ask f* to 1e-6)"),
         "ftol_window": (5, _posint, "an integer ≥ 1 (serious steps before the ftol test may stop "
                         "the run)"),
-        "metric": ("bfgs", _oneof("bfgs", "diagonal", "none"),
-                   "'bfgs', 'diagonal' or 'none' (the variable metric of the bundle QP's proximal "
-                   "term: damped BFGS from the last `metric_memory` serious steps, for a piecewise "
-                   "smooth Θ; a diagonal secant estimate; or the identity, the default of "
-                   "contactopt.optimize.minimize_bundle, for polyhedral functions; docs/stopping.md)"),
+        "metric": ("bfgs", _oneof("auto", "bfgs", "diagonal", "none"),
+                   "'bfgs', 'auto', 'diagonal' or 'none' (the variable metric of the bundle QP's "
+                   "proximal term: damped BFGS from the last `metric_memory` serious steps, for a "
+                   "piecewise smooth Θ; 'auto' lets the method choose BFGS while those steps show "
+                   "curvature and the identity while they show kinks; a diagonal secant estimate; "
+                   "or the identity, the default of contactopt.optimize.minimize_bundle, for "
+                   "polyhedral functions; docs/stopping.md)"),
         "metric_memory": (20, _posint, "an integer ≥ 1 (serious steps the metric is estimated "
                           "from)"),
     },

@@ -49,19 +49,50 @@ def direction(poly: Polyhedron, x, G, alpha, t, w):
                        solver=qp.solver)
 
 
-def update_metric(st, s, y, memory: int, bound: float, kind: str = "bfgs") -> None:
+# metric "auto": a pair (s, y) of a serious step is a curvature pair when the trapezoidal rule,
+# exact for a quadratic, holds along the step to within SMOOTH_DEFECT·sᵀy; the BFGS metric is
+# used while at least SMOOTH_SHARE of the kept pairs (and at least SMOOTH_MIN) are such pairs
+SMOOTH_DEFECT = 0.1
+SMOOTH_SHARE = 0.75
+SMOOTH_MIN = 4
+
+
+def is_curvature_pair(s, y, f_old: float, f_new: float, g_old, g_new) -> bool:
+    """True when f along the step s behaves like a quadratic with positive curvature.
+
+    For a quadratic, f(x + s) − f(x) = ½(g(x) + g(x + s))ᵀs exactly and sᵀy = sᵀHs > 0; across
+    a kink the subgradient jumps and the rule fails by a share of sᵀy near one (an affine piece
+    has sᵀy = 0).
+    """
+    sy = float(s @ y)
+    defect = abs(f_new - f_old - 0.5 * float((g_old + g_new) @ s))
+    return sy > 0.0 and defect <= SMOOTH_DEFECT * sy
+
+
+def update_metric(st, s, y, memory: int, bound: float, kind: str = "bfgs",
+                  smooth: bool = False) -> None:
     """The metric W of the proximal term from the last ``memory`` serious steps (s, y).
 
     ``"diagonal"``: the secant estimate w_i = Σ|y_i s_i| / Σ s_i².  ``"bfgs"``: damped BFGS
     updates (Powell's damping, sᵀy ≥ 0.2 sᵀWs, keeps W positive definite where f is not convex)
     with the pairs oldest first, from that diagonal.  Either is normalised to geometric mean 1 of
     its eigenvalues (t keeps its scale) and its eigenvalues clipped to [1/bound, bound].
+    ``"auto"``: that BFGS metric while at least ``SMOOTH_SHARE`` of the kept pairs (and
+    ``SMOOTH_MIN`` of them) are curvature pairs (``smooth``, :func:`is_curvature_pair`), else
+    W = I — the exact cutting-plane model of a polyhedral f, whose subgradient changes are
+    jumps, not curvature.
     """
     n = st.x.size
     S = np.zeros((0, n)) if st.S is None else st.S
     Y = np.zeros((0, n)) if st.Y is None else st.Y
     st.S = np.vstack([S, s[None, :]])[-memory:]
     st.Y = np.vstack([Y, y[None, :]])[-memory:]
+    if kind == "auto":
+        flags = np.zeros(0) if st.smooth is None else st.smooth
+        st.smooth = np.concatenate([flags, [1.0 if smooth else 0.0]])[-memory:]
+        if st.smooth.size < SMOOTH_MIN or st.smooth.mean() < SMOOTH_SHARE:
+            st.w = None
+            return
     num = np.abs(st.Y * st.S).sum(axis=0)
     den = (st.S ** 2).sum(axis=0)
     ok = (den > 0) & (num > 0)
@@ -160,3 +191,19 @@ def relative_decrease(history: list, window: int) -> float:
         return math.inf
     drop = fs[-1] - fs[0]
     return drop / abs(fs[0]) if fs[0] != 0 else (0.0 if drop == 0 else math.inf)
+
+
+def flat_serious_steps(history: list, count: int, tol: float) -> bool:
+    """True when each of the last ``count`` serious steps changed f by at most
+    ``tol·max(1, |f|)`` and the last iteration was one of them."""
+    if not history or history[-1]["step"] != "serious":
+        return False
+    fs = []
+    for h in reversed(history):
+        if h["step"] == "serious":
+            fs.append(h["f"])
+            if len(fs) > count:
+                break
+    if len(fs) <= count:
+        return False
+    return all(abs(a - b) <= tol * max(1.0, abs(a)) for a, b in zip(fs[:-1], fs[1:]))
