@@ -11,10 +11,12 @@ from contactopt.config.schema import SCHEMA
 from contactopt.optimize import BTOptions, minimize_bundle
 from contactopt.optimize.testproblems import PROBLEMS
 
-# the two defaults the entry points do not share (docs/stopping.md): Θ's practical stop and its
+# the defaults the entry points do not share (docs/stopping.md): Θ's practical stop and its
 # metric, both measured to cost the collection its verdicts (Maxquad 42 % above f* at ftol 5e-4;
-# BFGS is slow on polyhedral f, and "auto" let HS78 stop 7e-6 above f* under one BLAS kernel)
-NOT_SHARED = {"ftol": (0.0, 5e-4), "metric": ("none", "bfgs")}
+# BFGS is slow on polyhedral f, and "auto" let HS78 stop 7e-6 above f* under one BLAS kernel);
+# and eps, max_iter: every shipped run and its documented result was measured at 1e-4 and 400
+NOT_SHARED = {"ftol": (0.0, 5e-4), "metric": ("none", "bfgs"), "eps": (1e-7, 1e-4),
+              "max_iter": (1000, 400)}
 
 
 def test_minimize_bundle_defaults_are_the_optimizer_table_defaults():

@@ -210,11 +210,11 @@ SCHEMA = {
                          "evaluation exceeds the available memory; contactopt.fem.memory)"),
     },
     "optimizer": {
-        "eps": (1e-7, lambda x: _pos(x) and x < 1,
-                "a number in (0, 1) (the certified stop: stationarity of Θ/Θ(α0) ≤ eps; the same "
-                "default as contactopt.optimize.minimize_bundle; a run that cannot certify ends by "
-                "the f-change test or by ftol, docs/stopping.md)"),
-        "max_iter": (1000, _posint, "an integer ≥ 1"),
+        "eps": (1e-4, lambda x: _pos(x) and x < 1,
+                "a number in (0, 1) (the certified stop: stationarity of Θ/Θ(α0) ≤ eps; "
+                "contactopt.optimize.minimize_bundle's default is 1e-7; a run that cannot certify "
+                "ends by the f-change test or by ftol, docs/stopping.md)"),
+        "max_iter": (400, _posint, "an integer ≥ 1"),
         "ftol": (5e-4, lambda x: _nonneg(x) and x < 1,
                  "a number in [0, 1) (stop when, right after a serious step, the bundle model "
                  "predicts a relative decrease of Θ below this fraction: J within about ftol of a "
