@@ -539,3 +539,85 @@ def test_one_step_on_a_sphere_is_the_static_problem_bit_for_bit():
     assert ja == jb and np.array_equal(ga, gb)
     sa, sb = a.solve_state(alpha), b.solve_state(alpha)
     assert np.array_equal(sa.u, sb.u) and np.array_equal(sa.lam, sb.lam) and np.array_equal(sa.classes, sb.classes)
+
+
+# ---------------------------------------------------------------- [[constraints]] along a path
+BOTTOM = {"box": [[0.0, 2.0], [0.0, 1.0], [0.0, 0.3]]}       # the elements next to the contact face
+PATH_CONSTRAINTS = [{"type": "peak_stress", "max": 1.0, "region": BOTTOM},
+                    {"type": "frictional_dissipation", "max": 1.0},
+                    {"type": "peak_stress", "max": 1.0, "aggregate": "ks", "rho": 20.0, "steps": "last"},
+                    {"type": "frictional_dissipation", "max": 1.0, "steps": ["press"]}]
+
+
+def with_constraints(cfg, constraints):
+    return load_config({**cfg.data, "constraints": constraints})
+
+
+def test_a_constraint_on_a_path_holds_at_the_steps_it_names():
+    """The responses against a direct computation from the solves' states: the peak stress (the
+    largest σ_vM of the region's quadrature points) at the worst step's end by default, at the
+    last with steps = "last" (KS); the friction work Σ τ^k·(u_t^k − u_t^(k−1)) over the solves up
+    to the step's end. The steps' objective values are not touched by the constraints."""
+    from contactopt.fem.stress import von_mises_points
+    from contactopt.sensitivity.objectives import aggregate, region_cells
+    pr = ShapeProblem(with_constraints(block(PATH3), PATH_CONSTRAINTS))
+    assert [c.steps.kind for c in pr.constraints] == ["max", "max", "last", "list"]
+    alpha = wavy(pr)
+    theta = pr.evaluate_value(alpha)
+    objective_at_ends = pr.step_values()
+    values = pr.constraint_values(alpha)
+    assert pr.step_values() == objective_at_ends and pr.evaluate_value(alpha) == theta
+    solves = pr.step_results()
+    ends = [j for j, s in enumerate(pr.steps[0]) if s.end]
+    cells = region_cells(pr.model, BOTTOM, "region")
+    vm = [von_mises_points(pr.model.assembler, st.coords, st.u, cells).ravel() for _, _, st in solves]
+    work, previous = [], np.zeros((pr.model.n_contact, 2))
+    for _, _, st in solves:
+        work.append(float(np.sum(st.tau * (st.u_c[:, :2] - previous))))
+        previous = st.u_c[:, :2]
+    work = np.cumsum(work)
+    assert min(work[1:] - work[:-1]) > -1e-15 and work[1] > 1.5 * work[0]      # the shear slides
+    peaks = [vm[j].max() for j in ends]
+    assert np.argmax(peaks) != len(ends) - 1          # the worst moment is not the last step's end
+    assert values[0] == pytest.approx(max(peaks), rel=1e-13)
+    assert values[1] == pytest.approx(work[ends[-1]], rel=1e-12)
+    st = solves[-1][2]                                # KS over the whole body, at the last step's end
+    whole = von_mises_points(pr.model.assembler, st.coords, st.u, np.arange(pr.model.assembler.elements.shape[0]))
+    assert values[2] == pytest.approx(aggregate(whole.ravel(), "ks", 20.0, 8.0)[0], rel=1e-13)
+    assert values[3] == pytest.approx(work[ends[0]], rel=1e-12)
+
+
+def _path_constraint_cases():
+    for body in ("hex", "tet"):
+        for path in ("condensation", "delassus", "fullspace"):
+            for n in (2, 3):
+                fast = path == "condensation" and (body, n) != ("tet", 2)
+                yield pytest.param(body, path, n, marks=() if fast else (pytest.mark.slow,), id=f"{body}-{path}-{n}")
+
+
+@pytest.mark.parametrize("body,path,n", list(_path_constraint_cases()))
+def test_constraints_along_a_path_match_central_differences(body, path, n, tmp_path):
+    """Each constraint's subgradient through the steps (the peak stress at the worst step, the
+    friction work of the solves up to a step) on 2- and 3-step paths that slide."""
+    if path == "delassus":
+        from contactopt.fem.linsolve import pardiso_available
+        if not pardiso_available():
+            pytest.skip("the Delassus path needs MKL PARDISO")
+    if body == "hex":
+        pr = ShapeProblem(with_constraints(block(PATH3[:n], linear_solver={"path": path}), PATH_CONSTRAINTS))
+        alpha, h = wavy(pr), 1e-6
+    else:
+        steps = [{"name": "press", "body_force": [0.0, 0.0, -1.0]},
+                 {"name": "shear", "body_force": [0.0, 0.0, -1.0], "side": 0.05},
+                 {"name": "ease", "body_force": [0.0, 0.0, -1.0], "side": 0.02}][:n]
+        cfg = tet_box(steps, tmp_path, "")
+        cfg = with_constraints(cfg.with_updates({"linear_solver": {"path": path}}),
+                               [{**c, "region": {"box": [[0.0, 1.0], [0.0, 0.5], [0.0, 0.15]]}}
+                                if "region" in c else c for c in PATH_CONSTRAINTS])
+        pr = ShapeProblem(cfg)
+        alpha, h = pr.model.initial_design() + 0.002 * np.cos(np.arange(pr.model.n_design)), 1e-7
+    for j, _ in enumerate(pr.constraints):
+        with pr._as_objective(j):
+            check_against_differences(pr, alpha, 11 + j, n_dir=2, h=h)
+    pr.solve_states(alpha)
+    assert any(st.counts["M1"] for _, _, st in pr.step_results())

@@ -64,6 +64,7 @@ class ShapeProblem:
         self.model = ElasticModel(self.config, body=body, memory_estimate=PATHS[name].memory_estimate)
         self.n_state_solves = 0    # designs solved (all cases at once)
         self._cache = None         # DesignCache of the last design
+        self._responding = None    # the constraint evaluated in place of the objective (_as_objective)
         from .sensitivity.cases import build_cases
         self.cases, self.combination = build_cases(self.config, self.model, self._design_lambda)
         self.path = make_path(self.config, self.model, name, library,
@@ -288,8 +289,9 @@ class ShapeProblem:
         memo = {}
         parts = {j: step_objective(case.objective, self.steps[k], step_states, step_systems, j, memo)
                  for j, step in enumerate(self.steps[k]) if step.end}
-        for j, part in parts.items():
-            step_states[j].objective = float(part[0])
+        if self._responding is None:          # a constraint's response is not the steps' objective
+            for j, part in parts.items():
+                step_states[j].objective = float(part[0])
         value, coef = self.step_choice.combine({j: (self.steps[k][j].name, parts[j][0]) for j in parts})
         return value, [(j, c, parts[j]) for j, c in coef.items()]
 
@@ -436,19 +438,24 @@ class ShapeProblem:
     @contextmanager
     def _as_objective(self, j: int):
         """Constraint j's response in place of the objective of every case, the cases joined by the
-        max (the limit holds in each): the oracle's code then evaluates and differentiates it."""
+        max (the limit holds in each) and on a load path the steps chosen by the constraint's
+        ``steps``: the oracle's code then evaluates and differentiates it."""
         con = self.constraints[j]
-        saved = [c.objective for c in self.cases], self.combination
+        saved = [c.objective for c in self.cases], self.combination, self.step_choice
         from .sensitivity.cases import Combination
         for case, obj in zip(self.cases, con.objectives):
             case.objective = obj
         self.combination = Combination("max", np.ones(len(self.cases)), saved[1].active_tol, saved[1].names)
+        if con.steps is not None:
+            self.step_choice = con.steps
+        self._responding = con
         try:
             yield con
         finally:
+            self._responding = None
             for case, obj in zip(self.cases, saved[0]):
                 case.objective = obj
-            self.combination = saved[1]
+            self.combination, self.step_choice = saved[1], saved[2]
 
     def constraint_subgradients(self, alpha, *, choices=None) -> list:
         """One :class:`~contactopt.sensitivity.adjoint.SubgradientResult` per constraint at α:

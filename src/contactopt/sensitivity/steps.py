@@ -96,8 +96,13 @@ class StepChoice:
 
 
 def step_choice(config) -> StepChoice:
-    s = config.objective.steps
-    return StepChoice("list", tuple(s)) if isinstance(s, list) else StepChoice(s)
+    """The choice of ``[objective] steps``."""
+    return choice_of(config.objective.steps)
+
+
+def choice_of(steps) -> StepChoice:
+    """The :class:`StepChoice` of a ``steps`` value ("last", "max", "sum" or a list of step names)."""
+    return StepChoice("list", tuple(steps)) if isinstance(steps, (list, tuple)) else StepChoice(steps)
 
 
 def step_objective(objective, steps, states, systems, j: int, memo: dict):
