@@ -80,6 +80,11 @@ class StepChoice:
     kind: str                 # "last", "max", "sum" or "list"
     names: tuple = ()
 
+    @property
+    def spec(self):
+        """The choice as configured: "last", "max", "sum" or the list of step names."""
+        return list(self.names) if self.kind == "list" else self.kind
+
     def combine(self, values: dict) -> tuple[float, dict]:
         """(Θ, {solve index: coefficient}) from ``values`` {solve index: (step name, J)} of the
         steps' ends in order."""
