@@ -15,6 +15,7 @@ from contactopt.fem.loadset import LoadSet
 from contactopt.problem import ShapeProblem
 
 DATA = Path(__file__).parent / "data"
+ROOT = Path(__file__).resolve().parents[1]
 SMALL = {"mesh": {"nx": 8, "ny": 4, "nz": 3}}
 TOP, SIDE = [0.0, 0.0, -8e-2], [5e-2, 0.0, 0.0]
 PATH3 = [{"name": "press", "top_traction": TOP},
@@ -676,3 +677,20 @@ def test_state_writes_the_objective_and_the_constraints_of_every_step(tmp_path, 
     for t, term in listing["objective"]["terms"].items():     # Θ's terms: summed over the steps as Θ is
         assert term["value"] == pytest.approx(press["objective"]["terms"][t]["value"]
                                               + shear["objective"]["terms"][t]["value"], rel=1e-12)
+
+
+@pytest.mark.slow
+def test_a_path_run_meets_a_friction_work_limit_that_the_unconstrained_optimum_breaks(tmp_path):
+    """preload_shear on an 8×4×3 mesh: the target's optimum triples the friction work of press,
+    then shear; a limit between the two is met and active at the constrained optimum."""
+    from contactopt.runner import run_optimization
+    base = load_config(ROOT / "examples" / "preload_shear.toml").with_updates(SMALL)
+    limit = 5e-5
+    cfg = with_constraints(base, [{"type": "frictional_dissipation", "max": limit}])
+    free = run_optimization(base, tmp_path / "free").summary
+    con = run_optimization(cfg, tmp_path / "con").summary
+    work_free = ShapeProblem(cfg).constraint_values(np.asarray(free["alpha"]).ravel())[0]
+    resp = con["constraints"]["responses"]["frictional_dissipation"]
+    assert work_free > 1.4 * limit > 2.0 * resp["initial"]["value"]
+    assert resp["satisfied"] and abs(resp["margin"]) <= 1e-4 * limit          # met, and active
+    assert free["J"] < con["J"] < 0.01 * con["J0"]
