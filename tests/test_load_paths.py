@@ -220,6 +220,13 @@ BAD = {
     "substeps < 1": ('[[load_steps]]\nname = "a"\nsubsteps = 0\n', "load_steps[0].substeps = 0: must be an integer ≥ 1"),
     "unknown objective step": ('[objective]\nsteps = ["a", "b"]\n[[load_steps]]\nname = "a"\n',
                                "objective.steps: 'b' is no step of load_steps"),
+    "unknown constraint step": ('[[load_steps]]\nname = "a"\n[[constraints]]\ntype = "compliance"\nmax = 1.0\n'
+                                'steps = ["b"]\n', "constraints[0].steps: 'b' is no step of load_steps"),
+    "constraint steps without a path": ('[[constraints]]\ntype = "peak_stress"\nmax = 1.0\nsteps = ["a"]\n',
+                                        "constraints[0].steps = ['a']: names load steps, but the configuration has "
+                                        "no [[load_steps]]"),
+    "bad constraint steps": ('[[load_steps]]\nname = "a"\n[[constraints]]\ntype = "peak_stress"\nmax = 1.0\n'
+                             'steps = "first"\n', "constraints[0].steps = 'first': must be 'max'"),
     "steps twice": ('[[load_steps]]\nname = "a"\n[[load_cases]]\nname = "c"\n[[load_cases.steps]]\nname = "a"\n',
                     "the configuration has [[load_steps]] and [[load_cases.steps]]"),
 }
