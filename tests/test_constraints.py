@@ -276,6 +276,17 @@ def test_the_bracket_meets_the_stress_limit_that_the_unconstrained_optimum_break
 
 
 @pytest.mark.slow
+def test_check_gradient_passes_on_the_bracket_as_shipped(capsys):
+    """At α0 the side load puts the peak stress at one point: Θ's and the constraint's subgradients
+    agree with central differences, Taylor order 2 (at the symmetric bracket's α0 the peak sat at
+    two mirror points and the constraint's check failed)."""
+    assert main(["check-gradient", str(ROOT / "examples" / "bracket_stress.toml"), "--directions", "3"]) == 0
+    out = capsys.readouterr().out
+    orders = [float(line.split()[2]) for line in out.splitlines() if line.strip().startswith("observed order")]
+    assert len(orders) == 2 and min(orders) >= 1.9, out
+
+
+@pytest.mark.slow
 @pytest.mark.parametrize("iteration", [60, 125])
 def test_a_killed_constrained_run_resumes_bit_for_bit(tmp_path, iteration):
     """Killed (SIGKILL) after ``iteration`` — before and after σ is raised — and resumed with
