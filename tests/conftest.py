@@ -17,6 +17,7 @@ import tomli_w
 from contactopt.config import Config, load_config
 
 SMALL_MESH = {"nx": 8, "ny": 4, "nz": 3}
+DATA = Path(__file__).parent / "data"
 
 
 def _small_config(name: str = "small", mesh: dict | None = None, **sections) -> Config:
@@ -65,3 +66,52 @@ def state_refused(tmp_path, capsys, config_file):
             assert needle in err, err
         assert not out.exists()
     return check
+
+
+@pytest.fixture
+def small_toml(tmp_path):
+    """Factory: ``small_toml(text="", drop=(), **sections)`` → the path of a TOML file holding Example 1
+    on the 8 × 4 × 3 mesh with ``sections`` updated (validated), without the tables in ``drop``, and
+    the raw TOML ``text`` appended (bad values allowed)."""
+    def write(text: str = "", drop=(), **sections) -> Path:
+        data = load_config("example1").with_updates({"mesh": dict(SMALL_MESH), **sections}).data
+        for key in drop:
+            data.pop(key)
+        path = tmp_path / "bad.toml"
+        path.write_text(tomli_w.dumps(data) + text)
+        return path
+    return write
+
+
+@pytest.fixture
+def refused_by_state_and_run(tmp_path, capsys):
+    """Factory: ``refused_by_state_and_run(toml, message)``: ``contactopt state`` and ``contactopt run
+    --max-iter 1`` on the file ``toml`` exit 2, name ``message`` on stderr and write nothing."""
+    from contactopt.cli import main
+
+    def check(toml, message):
+        out = tmp_path / "out"
+        for cmd in (["state"], ["run", "--max-iter", "1"]):
+            code = main([cmd[0], str(toml), "--out", str(out), *cmd[1:]])
+            err = capsys.readouterr().err
+            assert code == 2, err
+            assert message in err, err
+            assert not out.exists()
+    return check
+
+
+@pytest.fixture
+def tet_box_config(tmp_path):
+    """Factory: ``tet_box_config(path="condensation", **sections)`` → a validated Config: the box of linear
+    tetrahedra in tests/data/two_groups.msh clamped on top, its bottom in contact (F = 0.3), pressed
+    by its weight and a pressure 0.05 on its end x1 = 1, a degree (3, 2) design, on the solver path
+    ``path``, with ``sections`` updated."""
+    def build(path: str = "condensation", **sections) -> Config:
+        toml = tmp_path / "box.toml"
+        toml.write_text(f'name = "box"\n[body]\nmesh = "{DATA / "two_groups.msh"}"\nclamped = "top"\n'
+                        'contact = "bottom"\n[friction]\ncoefficient = 0.3\n'
+                        '[loads]\nbody_force = [0.0, 0.0, -1.0]\n[[loads.pressure]]\non = { x1 = 1.0 }\nvalue = 0.05\n'
+                        '[design]\ndegree = [3, 2]\nC0 = 0.05\nC2 = 0.002\ninitial = 0.002\n'
+                        f'[linear_solver]\npath = "{path}"\n')
+        return load_config(toml).with_updates(sections)
+    return build

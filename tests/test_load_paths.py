@@ -15,6 +15,7 @@ from contactopt.fem.loadset import LoadSet
 from contactopt.problem import ShapeProblem
 
 DATA = Path(__file__).parent / "data"
+ROOT = Path(__file__).resolve().parents[1]
 SMALL = {"mesh": {"nx": 8, "ny": 4, "nz": 3}}
 TOP, SIDE = [0.0, 0.0, -8e-2], [5e-2, 0.0, 0.0]
 PATH3 = [{"name": "press", "top_traction": TOP},
@@ -219,6 +220,13 @@ BAD = {
     "substeps < 1": ('[[load_steps]]\nname = "a"\nsubsteps = 0\n', "load_steps[0].substeps = 0: must be an integer ≥ 1"),
     "unknown objective step": ('[objective]\nsteps = ["a", "b"]\n[[load_steps]]\nname = "a"\n',
                                "objective.steps: 'b' is no step of load_steps"),
+    "unknown constraint step": ('[[load_steps]]\nname = "a"\n[[constraints]]\ntype = "compliance"\nmax = 1.0\n'
+                                'steps = ["b"]\n', "constraints[0].steps: 'b' is no step of load_steps"),
+    "constraint steps without a path": ('[[constraints]]\ntype = "peak_stress"\nmax = 1.0\nsteps = ["a"]\n',
+                                        "constraints[0].steps = ['a']: names load steps, but the configuration has "
+                                        "no [[load_steps]]"),
+    "bad constraint steps": ('[[load_steps]]\nname = "a"\n[[constraints]]\ntype = "peak_stress"\nmax = 1.0\n'
+                             'steps = "first"\n', "constraints[0].steps = 'first': must be 'max'"),
     "steps twice": ('[[load_steps]]\nname = "a"\n[[load_cases]]\nname = "c"\n[[load_cases.steps]]\nname = "a"\n',
                     "the configuration has [[load_steps]] and [[load_cases.steps]]"),
     "a step's force without force control": ('[[load_steps]]\nname = "a"\nobstacle_force = [0.0, 0.0, 1.0]\n',
@@ -673,3 +681,157 @@ def test_a_whole_displacement_objective_on_a_force_controlled_path_matches_centr
     rep = check_gradient(pr, alpha, seed=1, n_directions=3)
     assert rep.n_degenerate == 0 and np.max(rep.rel_errors) <= 1e-6, rep.rel_errors
     assert rep.taylor_rate >= 1.9
+
+
+# ---------------------------------------------------------------- [[constraints]] along a path
+BOTTOM = {"box": [[0.0, 2.0], [0.0, 1.0], [0.0, 0.3]]}       # the elements next to the contact face
+PATH_CONSTRAINTS = [{"type": "peak_stress", "max": 1.0, "region": BOTTOM},
+                    {"type": "frictional_dissipation", "max": 1.0},
+                    {"type": "peak_stress", "max": 1.0, "aggregate": "ks", "rho": 20.0, "steps": "last"},
+                    {"type": "frictional_dissipation", "max": 1.0, "steps": ["press"]}]
+
+
+def with_constraints(cfg, constraints):
+    return load_config({**cfg.data, "constraints": constraints})
+
+
+def test_a_constraint_on_a_path_holds_at_the_steps_it_names():
+    """The responses against a direct computation from the solves' states: the peak stress (the
+    largest σ_vM of the region's quadrature points) at the worst step's end by default, at the
+    last with steps = "last" (KS); the friction work Σ τ^k·(u_t^k − u_t^(k−1)) over the solves up
+    to the step's end. The steps' objective values are not touched by the constraints."""
+    from contactopt.fem.stress import von_mises_points
+    from contactopt.sensitivity.objectives import aggregate, region_cells
+    pr = ShapeProblem(with_constraints(block(PATH3), PATH_CONSTRAINTS))
+    assert [c.steps.kind for c in pr.constraints] == ["max", "max", "last", "list"]
+    alpha = wavy(pr)
+    theta = pr.evaluate_value(alpha)
+    objective_at_ends = pr.step_values()
+    values = pr.constraint_values(alpha)
+    assert pr.step_values() == objective_at_ends and pr.evaluate_value(alpha) == theta
+    solves = pr.step_results()
+    ends = [j for j, s in enumerate(pr.steps[0]) if s.end]
+    cells = region_cells(pr.model, BOTTOM, "region")
+    vm = [von_mises_points(pr.model.assembler, st.coords, st.u, cells).ravel() for _, _, st in solves]
+    work, previous = [], np.zeros((pr.model.n_contact, 2))
+    for _, _, st in solves:
+        work.append(float(np.sum(st.tau * (st.u_c[:, :2] - previous))))
+        previous = st.u_c[:, :2]
+    work = np.cumsum(work)
+    assert min(work[1:] - work[:-1]) > -1e-15 and work[1] > 1.5 * work[0]      # the shear slides
+    peaks = [vm[j].max() for j in ends]
+    assert np.argmax(peaks) != len(ends) - 1          # the worst moment is not the last step's end
+    assert values[0] == pytest.approx(max(peaks), rel=1e-13)
+    assert values[1] == pytest.approx(work[ends[-1]], rel=1e-12)
+    st = solves[-1][2]                                # KS over the whole body, at the last step's end
+    whole = von_mises_points(pr.model.assembler, st.coords, st.u, np.arange(pr.model.assembler.elements.shape[0]))
+    assert values[2] == pytest.approx(aggregate(whole.ravel(), "ks", 20.0, 8.0)[0], rel=1e-13)
+    assert values[3] == pytest.approx(work[ends[0]], rel=1e-12)
+
+
+def _path_constraint_cases():
+    for body in ("hex", "tet"):
+        for path in ("condensation", "delassus", "fullspace"):
+            for n in (2, 3):
+                fast = path == "condensation" and (body, n) != ("tet", 2)
+                yield pytest.param(body, path, n, marks=() if fast else (pytest.mark.slow,), id=f"{body}-{path}-{n}")
+
+
+@pytest.mark.parametrize("body,path,n", list(_path_constraint_cases()))
+def test_constraints_along_a_path_match_central_differences(body, path, n, tmp_path):
+    """Each constraint's subgradient through the steps (the peak stress at the worst step, the
+    friction work of the solves up to a step) on 2- and 3-step paths that slide. On the full-space
+    path the differences are of Θ solved on the condensation path (the same function): its Newton
+    stops at 1e-10, which a difference quotient divides by h (1e-6 off on the tetrahedra)."""
+    if path == "delassus":
+        from contactopt.fem.linsolve import pardiso_available
+        if not pardiso_available():
+            pytest.skip("the Delassus path needs MKL PARDISO")
+    if body == "hex":
+        cfg = with_constraints(block(PATH3[:n], linear_solver={"path": path}), PATH_CONSTRAINTS)
+        h = 1e-6
+    else:
+        steps = [{"name": "press", "body_force": [0.0, 0.0, -1.0]},
+                 {"name": "shear", "body_force": [0.0, 0.0, -1.0], "side": 0.05},
+                 {"name": "ease", "body_force": [0.0, 0.0, -1.0], "side": 0.02}][:n]
+        cfg = with_constraints(tet_box(steps, tmp_path, "").with_updates({"linear_solver": {"path": path}}),
+                               [{**c, "region": {"box": [[0.0, 1.0], [0.0, 0.5], [0.0, 0.15]]}}
+                                if "region" in c else c for c in PATH_CONSTRAINTS])
+        h = 1e-7
+    pr = ShapeProblem(cfg)
+    twin = ShapeProblem(cfg.with_updates({"linear_solver": {"path": "condensation"}})) if path == "fullspace" else pr
+    alpha = wavy(pr) if body == "hex" else pr.model.initial_design() + 0.001 * np.cos(np.arange(pr.model.n_design))
+    for j, _ in enumerate(pr.constraints):
+        rng = np.random.default_rng(11 + j)
+        directions = [rng.standard_normal(alpha.size) for _ in range(2)]
+        with pr._as_objective(j):
+            res = pr.subgradient(alpha)
+        with twin._as_objective(j):
+            fd = central_differences(twin, alpha, directions, h=h)
+        assert res.n_degenerate == 0
+        g = np.array([res.gradient @ d for d in directions])
+        assert np.abs(g - fd).max() <= 1e-6 * np.abs(fd).max(), (j, g, fd)
+    pr.solve_states(alpha)
+    assert any(st.counts["M1"] for _, _, st in pr.step_results())
+
+
+def test_state_writes_the_objective_and_the_constraints_of_every_step(tmp_path, capsys):
+    """contactopt state on a load path: each step's state.json has the objective (and its terms)
+    and every constraint's response at the step's end; steps.json Θ over the steps as
+    objective.steps says and the constraints as their own steps say. Checked against problems
+    whose steps key names the one step."""
+    import json
+    terms = [{"type": "target_normal_force", "target": {"kind": "constant", "value": 0.001}},
+             {"type": "frictional_dissipation", "weight": 10.0}]
+    steps = [{"name": "press", "top_traction": TOP},
+             {"name": "shear", "top_traction": TOP, "right_traction": SIDE, "substeps": 2}]
+    cons = PATH_CONSTRAINTS[:2]
+    cfg = with_constraints(block(steps, objective={"type": "sum", "terms": terms, "steps": "sum"}), cons)
+    toml = tmp_path / "p.toml"
+    toml.write_text(cfg.to_toml())
+    out = tmp_path / "out"
+    assert main(["state", str(toml), "--out", str(out)]) == 0
+    printed = capsys.readouterr().out
+    assert printed.count("constraint frictional_dissipation") == 2
+    listing = json.loads((out / "steps.json").read_text())
+    pr = ShapeProblem(load_config(toml))
+    alpha = pr.model.initial_design()
+    assert listing["objective"]["value"] == pytest.approx(pr.evaluate_value(alpha), rel=1e-12)
+    assert listing["objective"]["steps"] == "sum"
+    for c, v in zip(listing["constraints"].values(), pr.constraint_values(alpha)):
+        assert c["steps"] == "max" and c["value"] == pytest.approx(v, rel=1e-12)
+        assert c["margin"] == pytest.approx(1.0 - v, rel=1e-12)
+    for n, step in enumerate(("press", "shear")):
+        doc = json.loads((out / f"step-{step}" / "state.json").read_text())
+        at = [dict(c, steps=[step]) for c in cons]
+        one = ShapeProblem(with_constraints(block(steps, objective={"type": "sum", "terms": terms, "steps": [step]}), at))
+        ref = one.objective_report(alpha)
+        assert doc["objective"]["value"] == pytest.approx(ref["value"], rel=1e-12)
+        assert listing["steps"][n]["objective"] == doc["objective"]["value"]
+        for t in ("target_normal_force", "frictional_dissipation"):
+            assert doc["objective"]["terms"][t]["value"] == pytest.approx(ref["terms"][t]["value"], rel=1e-12)
+        for c, v in zip(doc["constraints"].values(), one.constraint_values(alpha)):
+            assert c["value"] == pytest.approx(v, rel=1e-12) and c["limit"] == 1.0
+    press, shear = (json.loads((out / f"step-{s}" / "state.json").read_text()) for s in ("press", "shear"))
+    work = [d["constraints"]["frictional_dissipation"]["value"] for d in (press, shear)]
+    assert 0 < work[0] < work[1]              # the work accumulates along the path
+    for t, term in listing["objective"]["terms"].items():     # Θ's terms: summed over the steps as Θ is
+        assert term["value"] == pytest.approx(press["objective"]["terms"][t]["value"]
+                                              + shear["objective"]["terms"][t]["value"], rel=1e-12)
+
+
+@pytest.mark.slow
+def test_a_path_run_meets_a_friction_work_limit_that_the_unconstrained_optimum_breaks(tmp_path):
+    """preload_shear on an 8×4×3 mesh: the target's optimum triples the friction work of press,
+    then shear; a limit between the two is met and active at the constrained optimum."""
+    from contactopt.runner import run_optimization
+    base = load_config(ROOT / "examples" / "preload_shear.toml").with_updates(SMALL)
+    limit = 5e-5
+    cfg = with_constraints(base, [{"type": "frictional_dissipation", "max": limit}])
+    free = run_optimization(base, tmp_path / "free").summary
+    con = run_optimization(cfg, tmp_path / "con").summary
+    work_free = ShapeProblem(cfg).constraint_values(np.asarray(free["alpha"]).ravel())[0]
+    resp = con["constraints"]["responses"]["frictional_dissipation"]
+    assert work_free > 1.4 * limit > 2.0 * resp["initial"]["value"]
+    assert resp["satisfied"] and abs(resp["margin"]) <= 1e-4 * limit          # met, and active
+    assert free["J"] < con["J"] < 0.01 * con["J0"]

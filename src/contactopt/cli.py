@@ -88,7 +88,7 @@ def _cmd_state(args) -> int:
     print(f"state of {problem.config.name} ({problem.config.source}) — method {states[0].method}, "
           f"backend {states[0].summary().get('backend')}")
     if problem.has_load_steps:
-        return _write_step_states(out, problem, states, warnings, bound, reason, t0)
+        return _write_step_states(out, problem, alpha, states, warnings, bound, reason, t0)
     if not problem.has_load_cases:
         write_state(out, model, states[0], config=problem.config, warnings=warnings, objective=reports[0],
                     constraints=cons)
@@ -126,21 +126,29 @@ def _design_warnings(model, alpha, what: str) -> list[str]:
     return [head, *broken]
 
 
-def _write_step_states(out, problem, states, warnings, bound, reason, t0) -> int:
+def _write_step_states(out, problem, alpha, states, warnings, bound, reason, t0) -> int:
     """`contactopt state` on load paths: step-<name>/ per step (case-<case>/step-<name>/ with
-    load cases), steps.json and body.pvd."""
+    load cases), each with the objective and the constraints at the step's end; steps.json with
+    Θ and the constraints over the steps; body.pvd."""
     from .io.statefiles import write_steps
     for k, name in enumerate(problem.case_names):
         where = out / _case_dir(name, k) if problem.has_load_cases else out
         ends = [(step, state) for step, _, state in problem.step_results(k) or []
                 if state.substep == _substeps(problem, k, step)]
+        reports = problem.step_reports(alpha, k)
         if not ends:                     # a case without steps: its one state as step "static"
             ends = [("static", states[k])]
-        write_steps(where, problem.model, ends, config=problem.config, warnings=warnings)
-        for step, state in ends:
+            reports = [("static", problem.objective_report(alpha, k), problem.constraint_report(alpha, k))]
+        case = k if problem.has_load_cases else None
+        combined = {**problem.objective_report(alpha, case), "steps": problem.step_choice.spec}
+        limits = {n: {**c, "steps": con.steps.spec} for (n, c), con in
+                  zip(problem.constraint_report(alpha, case).items(), problem.constraints)}
+        write_steps(where, problem.model, ends, config=problem.config, warnings=warnings,
+                    reports=[r[1:] for r in reports], combined=(combined, limits))
+        for (step, state), (_, objective, cons) in zip(ends, reports):
             print(f"{'load case ' + repr(name) + ', ' if problem.has_load_cases else ''}step {step!r} → "
                   f"{where}/step-{step}/")
-            _print_state(state, bound, reason)
+            _print_state(state, bound, reason, objective, cons)
     print(f"  wrote {out}/ in {time.perf_counter() - t0:.1f}s")
     return 0
 

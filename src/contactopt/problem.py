@@ -64,6 +64,7 @@ class ShapeProblem:
         self.model = ElasticModel(self.config, body=body, memory_estimate=PATHS[name].memory_estimate)
         self.n_state_solves = 0    # designs solved (all cases at once)
         self._cache = None         # DesignCache of the last design
+        self._responding = None    # the constraint evaluated in place of the objective (_as_objective)
         from .sensitivity.cases import build_cases
         self.cases, self.combination = build_cases(self.config, self.model, self._design_lambda)
         self.path = make_path(self.config, self.model, name, library,
@@ -288,12 +289,18 @@ class ShapeProblem:
             return part[0], [(None, 1.0, part)]
         from .sensitivity.steps import step_objective
         step_systems, step_states = self._cache.step_systems[k], self._cache.step_states[k]
-        memo = {}
-        parts = {j: step_objective(case.objective, self.steps[k], step_states, step_systems, j, memo)
-                 for j, step in enumerate(self.steps[k]) if step.end}
-        for j, part in parts.items():
-            step_states[j].objective = float(part[0])
+        memo, parts, terms = {}, {}, {}
+        for j, step in enumerate(self.steps[k]):
+            if step.end:
+                parts[j] = step_objective(case.objective, self.steps[k], step_states, step_systems, j, memo)
+                terms[j] = dict(getattr(case.objective, "last_terms", {}))
+        if self._responding is None:          # a constraint's response is not the steps' objective
+            for j, part in parts.items():
+                step_states[j].objective = float(part[0])
         value, coef = self.step_choice.combine({j: (self.steps[k][j].name, parts[j][0]) for j in parts})
+        if terms[max(terms)]:                 # the terms of Θ: combined over the steps as Θ is
+            case.objective.last_terms = {name: float(sum(c * terms[j][name] for j, c in coef.items()))
+                                         for name in terms[max(terms)]}
         return value, [(j, c, parts[j]) for j, c in coef.items()]
 
     def step_results(self, case: int = 0):
@@ -459,19 +466,24 @@ class ShapeProblem:
     @contextmanager
     def _as_objective(self, j: int):
         """Constraint j's response in place of the objective of every case, the cases joined by the
-        max (the limit holds in each): the oracle's code then evaluates and differentiates it."""
+        max (the limit holds in each) and on a load path the steps chosen by the constraint's
+        ``steps``: the oracle's code then evaluates and differentiates it."""
         con = self.constraints[j]
-        saved = [c.objective for c in self.cases], self.combination
+        saved = [c.objective for c in self.cases], self.combination, self.step_choice
         from .sensitivity.cases import Combination
         for case, obj in zip(self.cases, con.objectives):
             case.objective = obj
         self.combination = Combination("max", np.ones(len(self.cases)), saved[1].active_tol, saved[1].names)
+        if con.steps is not None:
+            self.step_choice = con.steps
+        self._responding = con
         try:
             yield con
         finally:
+            self._responding = None
             for case, obj in zip(self.cases, saved[0]):
                 case.objective = obj
-            self.combination = saved[1]
+            self.combination, self.step_choice = saved[1], saved[2]
 
     def constraint_subgradients(self, alpha, *, choices=None) -> list:
         """One :class:`~contactopt.sensitivity.adjoint.SubgradientResult` per constraint at α:
@@ -483,19 +495,53 @@ class ShapeProblem:
                 out.append(self.subgradient(alpha, choices=choices))
         return out
 
-    def constraint_values(self, alpha, **kw) -> list[float]:
-        """The responses of the constraints at α (``kw`` go to :meth:`solve_state`)."""
+    def constraint_values(self, alpha, case: int | None = None, **kw) -> list[float]:
+        """The responses of the constraints at α: the worst load case's, or load case ``case``'s
+        (``kw`` go to :meth:`solve_state`)."""
         out = []
         for j in range(len(self.constraints)):
             with self._as_objective(j):
-                out.append(float(self.evaluate_cases(alpha, **kw).value))
+                comb = self.evaluate_cases(alpha, **kw)
+                out.append(float(comb.value if case is None else comb.values[case]))
         return out
 
-    def constraint_report(self, alpha, **kw) -> dict:
+    def constraint_report(self, alpha, case: int | None = None, **kw) -> dict:
         """{name: {type, value, limit, margin}} at α (margin = limit − value ≥ 0 where the
-        constraint holds), e.g. for state.json and summary.json; empty without [[constraints]]."""
-        return {con.name: {"type": con.type, "value": v, "limit": con.limit, "margin": con.limit - v}
-                for con, v in zip(self.constraints, self.constraint_values(alpha, **kw))}
+        constraint holds; the worst load case, or load case ``case``), e.g. for state.json and
+        summary.json; empty without [[constraints]]."""
+        return {con.name: _limit(con, v) for con, v in zip(self.constraints, self.constraint_values(alpha, case, **kw))}
+
+    def step_reports(self, alpha, case: int = 0, **kw) -> list | None:
+        """[(step name, objective {type, value, terms}, constraints {name: {type, value, limit,
+        margin}})] at the end of every step of load case ``case``'s path at α (None without steps):
+        each value is the response at that step's end alone (the friction work from the start of
+        the path up to it), before ``[objective] steps`` or a constraint's ``steps`` combine them."""
+        from .sensitivity.steps import step_objective
+        if not self.steps[case]:
+            return None
+        self.prepare_objectives()
+        self.solve_states(alpha, **kw)
+        steps = self.steps[case]
+        states, systems = self._cache.step_states[case], self._cache.step_systems[case]
+        ends = [j for j, s in enumerate(steps) if s.end]
+
+        def at_ends(objective):
+            memo, out = {}, []
+            for j in ends:
+                value = float(step_objective(objective, steps, states, systems, j, memo)[0])
+                terms = {name: {"value": objective.last_terms[name], "weight": w}
+                         for name, w, _ in getattr(objective, "terms", [])}
+                out.append((value, terms))
+            return out
+
+        objective = at_ends(self.cases[case].objective)
+        responses = [at_ends(con.objectives[case]) for con in self.constraints]
+        out = []
+        for n, j in enumerate(ends):
+            value, terms = objective[n]
+            cons = {con.name: _limit(con, r[n][0]) for con, r in zip(self.constraints, responses)}
+            out.append((steps[j].name, {"type": self.config.objective.type, "value": value, "terms": terms}, cons))
+        return out
 
     def term_names(self) -> list:
         """The names of the [[objective.terms]] (their type, numbered from the second of a type on)."""
@@ -517,3 +563,8 @@ class ShapeProblem:
 
     def _of(self, k: int) -> str:
         return f" of load case {self.cases[k].name}" if len(self.cases) > 1 else ""
+
+
+def _limit(con, value: float) -> dict:
+    """{type, value, limit, margin} of constraint ``con`` with response ``value``."""
+    return {"type": con.type, "value": float(value), "limit": con.limit, "margin": con.limit - float(value)}

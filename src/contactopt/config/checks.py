@@ -112,3 +112,20 @@ def _check_value(key: str, val, check, desc: str, problems: list) -> None:
         ok = False
     if not ok:
         problems.append(f"{key} = {val!r}: must be {desc}")
+
+
+def _check_step_list(chosen, key: str, data, problems: list) -> None:
+    """A list of step names (``objective.steps`` or a constraint's ``steps``, under ``key``) names
+    steps of every load path of ``data`` (the resolved [[load_steps]] or [[load_cases.steps]])."""
+    if not isinstance(chosen, list):
+        return
+    cases = data.get("load_cases", [])
+    paths = [("load_steps", data.get("load_steps"))] if "load_steps" in data else []
+    paths += [(f"load_cases[{n}].steps", c.get("steps")) for n, c in enumerate(cases) if "steps" in c]
+    if not paths:
+        problems.append(f"{key} = {chosen!r}: names load steps, but the configuration has no [[load_steps]]")
+    for where, steps in paths:
+        names = [s.get("name") for s in steps or []]
+        for v in chosen:
+            if v not in names:
+                problems.append(f"{key}: {v!r} is no step of {where} (steps: {', '.join(map(str, names))})")

@@ -8,7 +8,7 @@ import copy
 from dataclasses import dataclass
 from typing import Any
 
-from .checks import _check_value, _finite, _pos
+from .checks import _check_step_list, _check_value, _finite, _pos
 from .schema import SCHEMA
 
 CONSTRAINT_TYPES = ("peak_stress", "max_pressure", "compliance", "frictional_dissipation")
@@ -17,13 +17,19 @@ CONSTRAINT_KEYS = {"peak_stress": ("region", "aggregate", "rho", "p"), "max_pres
                    "compliance": (), "frictional_dissipation": ()}
 CONSTRAINT_TOL = (1e-4, lambda x: _pos(x) and x < 1,
                   "a number in (0, 1): the largest violation (value − max)/max a result may keep")
+# on a load path a limit holds at the end of every step (as in every load case) unless `steps` names
+# others; the objective's default, the last step, would let a peak on the way there pass unseen
+CONSTRAINT_STEPS = ("max", SCHEMA["objective"]["steps"][1],
+                    "'max' (the limit holds at the end of every step of a load path), 'last', 'sum' or a "
+                    "list of step names (it holds at the end of each of them), as objective.steps")
 
 
 @dataclass(frozen=True)
 class ResponseConstraint:
     """One ``[[constraints]]`` table: the response ``type`` must stay ≤ ``max`` (to ``tol``,
     relative); ``region``, ``aggregate``, ``rho``, ``p`` as in ``[objective]`` (its defaults
-    where the type does not take the key)."""
+    where the type does not take the key); on a load path ``steps`` chooses the steps it holds at
+    (the values of ``objective.steps``; default every step, "max")."""
 
     type: str
     max: float
@@ -32,12 +38,14 @@ class ResponseConstraint:
     aggregate: str
     rho: float
     p: float
+    steps: Any = CONSTRAINT_STEPS[0]
 
     @classmethod
     def from_dict(cls, d: dict) -> "ResponseConstraint":
         obj = SCHEMA["objective"]
         return cls(d["type"], d["max"], d["tol"],
-                   *(copy.deepcopy(d.get(k, obj[k][0])) for k in ("region", "aggregate", "rho", "p")))
+                   *(copy.deepcopy(d.get(k, obj[k][0])) for k in ("region", "aggregate", "rho", "p")),
+                   copy.deepcopy(d.get("steps", CONSTRAINT_STEPS[0])))
 
 
 def check_constraints(given, data, problems) -> list:
@@ -53,7 +61,7 @@ def check_constraints(given, data, problems) -> list:
         kind = t.get("type")
         if kind not in CONSTRAINT_TYPES:
             problems.append(f"{key}.type = {kind!r}: must be one of {', '.join(map(repr, CONSTRAINT_TYPES))}")
-        allowed = {"type", "max", "tol", *CONSTRAINT_KEYS.get(kind, ("region", "aggregate", "rho", "p"))}
+        allowed = {"type", "max", "tol", "steps", *CONSTRAINT_KEYS.get(kind, ("region", "aggregate", "rho", "p"))}
         for k in t:
             if k not in allowed:
                 problems.append(f"{key}.{k}: unknown key for type {kind!r} (allowed: {', '.join(sorted(allowed))})")
@@ -68,17 +76,16 @@ def check_constraints(given, data, problems) -> list:
         tol = t.get("tol", CONSTRAINT_TOL[0])
         _check_value(f"{key}.tol", tol, *CONSTRAINT_TOL[1:], problems)
         row["tol"] = float(tol) if _finite(tol) else tol
+        steps = t.get("steps", CONSTRAINT_STEPS[0])
+        _check_value(f"{key}.steps", steps, *CONSTRAINT_STEPS[1:], problems)
+        _check_step_list(steps, f"{key}.steps", data, problems)
+        row["steps"] = copy.deepcopy(steps)
         for k in CONSTRAINT_KEYS.get(kind, ()):
             default, check, desc = SCHEMA["objective"][k]
             val = t.get(k, default)
             _check_value(f"{key}.{k}", val, check, desc, problems)
             row[k] = float(val) if k in ("rho", "p") and _finite(val) else val
         out.append(row)
-    steps = bool(data.get("load_steps")) or any("steps" in c for c in data.get("load_cases", []))
-    for kind in sorted({r["type"] for r in out} & {"peak_stress", "frictional_dissipation"}):
-        if steps:
-            problems.append(f"constraints: {kind!r} is not yet taken on a load path (its adjoint of the whole "
-                            "displacement is not carried back through the steps)")
     return out
 
 
@@ -89,6 +96,8 @@ def json_schema(objective_properties: dict) -> dict:
              "tol": {"type": "number", "exclusiveMinimum": 0, "exclusiveMaximum": 1, "default": CONSTRAINT_TOL[0],
                      "description": CONSTRAINT_TOL[2]}}
     props.update({k: objective_properties[k] for k in ("region", "aggregate", "rho", "p")})
+    props["steps"] = {**objective_properties["steps"], "default": CONSTRAINT_STEPS[0],
+                      "description": CONSTRAINT_STEPS[2]}
     return {"type": "array", "description": "limits on responses of the state (docs/objectives.md)",
             "items": {"type": "object", "required": ["type", "max"], "additionalProperties": False,
                       "properties": props}}
@@ -100,4 +109,6 @@ REFERENCE = ["", "## [[constraints]]", "",
              "stay ≤ max), `tol` (default 1e-4: the relative violation (value − max)/max a result may keep) and "
              "the keys of an objective of that type (`region`, `aggregate`, `rho`, `p`, with the defaults of "
              "[objective]). The bundle method takes them by an exact penalty whose weight it adapts; an "
-             "infeasible initial design is allowed. With load cases a constraint holds in every case."]
+             "infeasible initial design is allowed. With load cases a constraint holds in every case; on a "
+             "load path at the end of every step, or of the steps its `steps` names (the values of "
+             "`objective.steps`; default \"max\": every step)."]

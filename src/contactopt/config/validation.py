@@ -8,7 +8,19 @@ import math
 from pathlib import Path
 
 from ..errors import ConfigError
-from .checks import _NUM, _axis, _block_spec, _check_value, _finite, _material_spec, _nonneg, _pos, _posint, _vec3
+from .checks import (
+    _NUM,
+    _axis,
+    _block_spec,
+    _check_step_list,
+    _check_value,
+    _finite,
+    _material_spec,
+    _nonneg,
+    _pos,
+    _posint,
+    _vec3,
+)
 from .constraints import check_constraints
 from .migration import _legacy_backend
 from .schema import (
@@ -200,20 +212,7 @@ def _check_step_names(data, problems, obstacle=None) -> None:
     paths += [(f"load_cases[{n}].steps", c["steps"]) for n, c in enumerate(cases) if "steps" in c]
     for where, steps in paths:
         _check_step_forces(steps or [], where, obstacle, problems)
-    chosen = data["objective"]["steps"]
-    if not isinstance(chosen, list):
-        return
-    paths = [("load_steps", data.get("load_steps"))] if "load_steps" in data else []
-    paths += [(f"load_cases[{n}].steps", c.get("steps")) for n, c in enumerate(cases) if "steps" in c]
-    if not paths:
-        problems.append(f"objective.steps = {chosen!r}: names load steps, but the configuration has no "
-                        "[[load_steps]]")
-    for where, steps in paths:
-        names = [s.get("name") for s in steps or []]
-        for v in chosen:
-            if v not in names:
-                problems.append(f"objective.steps: {v!r} is no step of {where} (steps: "
-                                f"{', '.join(map(str, names))})")
+    _check_step_list(data["objective"]["steps"], "objective.steps", data, problems)
 
 
 def _check_combination(raw, data, problems):

@@ -252,17 +252,28 @@ def read_state_npz(path) -> State:
             timings=json.loads(str(z["timings_json"])), foundation=foundation, **State.fields_of_info(info))
 
 
-def write_steps(outdir, model, steps, *, config=None, warnings=None) -> list[dict]:
+def write_steps(outdir, model, steps, *, config=None, warnings=None, reports=None, combined=None) -> list[dict]:
     """The states of a load path's steps ``steps`` [(name, state)], each into ``step-<name>/``
     (:func:`write_state`), with ``steps.json`` listing them and ``body.pvd``, the bodies as a
-    time series (time = the step's position). Returns the listing."""
+    time series (time = the step's position). ``reports`` [(objective, constraints)] per step go
+    into each state.json (the responses at the step's end), ``combined`` (objective, constraints)
+    over the steps into steps.json. Returns the listing."""
     from .atomic import atomic_write_json
     outdir = Path(outdir)
     listing = []
     for k, (name, state) in enumerate(steps):
         d = f"step-{name}"
-        write_state(outdir / d, model, state, config=config, warnings=warnings)
+        objective, constraints = reports[k] if reports is not None else (None, None)
+        write_state(outdir / d, model, state, config=config, warnings=warnings, objective=objective,
+                    constraints=constraints or None)
         listing.append({"name": name, "index": k + 1, "directory": d, "summary": state.summary()})
-    atomic_write_json(outdir / "steps.json", {"steps": listing, "warnings": warnings})
+        if objective is not None:
+            listing[-1]["objective"] = objective["value"]
+    doc = {"steps": listing, "warnings": warnings}
+    if combined is not None:
+        doc["objective"] = combined[0]
+        if combined[1]:
+            doc["constraints"] = combined[1]
+    atomic_write_json(outdir / "steps.json", doc)
     vtk.write_pvd(outdir / "body.pvd", [(k + 1, f"step-{name}/body.vtu") for k, (name, _) in enumerate(steps)])
     return listing

@@ -469,19 +469,23 @@ def constraint_types(config) -> set:
 class Constraint:
     """One of the ``[[constraints]]``: the response ``objectives[k]`` (an :class:`Objective` of
     load case k, built as the objective of that type is) must stay ≤ ``limit``; ``tol`` the
-    relative violation (value − limit)/limit a result may keep. A constraint is an objective
-    with a limit: its value and subgradient come from the same code (adjoint included)."""
+    relative violation (value − limit)/limit a result may keep; ``steps`` the steps of a load path
+    it holds at (a :class:`~contactopt.sensitivity.steps.StepChoice`, in place of ``[objective]
+    steps``). A constraint is an objective with a limit: its value and subgradient come from the
+    same code (adjoint included)."""
 
     name: str
     type: str
     limit: float
     tol: float
     objectives: list
+    steps: object = None
 
 
 def make_constraints(config, model, cases, solve=None) -> list:
     """The :class:`Constraint` list of ``[[constraints]]`` (:class:`~contactopt.config.ResponseConstraint`
     records), one objective per load case in ``cases`` (each with the case's loads)."""
+    from .steps import choice_of
     out, names = [], {}
     for n, table in enumerate(config.constraints):
         names[table.type] = names.get(table.type, 0) + 1
@@ -491,7 +495,8 @@ def make_constraints(config, model, cases, solve=None) -> list:
             one.loads = case.loads
             objs.append(one)
         name = table.type if names[table.type] == 1 else f"{table.type}_{names[table.type]}"
-        out.append(Constraint(name, table.type, float(table.max), float(table.tol), objs))
+        out.append(Constraint(name, table.type, float(table.max), float(table.tol), objs,
+                              choice_of(table.steps)))
     return out
 
 

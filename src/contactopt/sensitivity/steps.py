@@ -85,6 +85,11 @@ class StepChoice:
     kind: str                 # "last", "max", "sum" or "list"
     names: tuple = ()
 
+    @property
+    def spec(self):
+        """The choice as configured: "last", "max", "sum" or the list of step names."""
+        return list(self.names) if self.kind == "list" else self.kind
+
     def combine(self, values: dict) -> tuple[float, dict]:
         """(Θ, {solve index: coefficient}) from ``values`` {solve index: (step name, J)} of the
         steps' ends in order."""
@@ -101,8 +106,13 @@ class StepChoice:
 
 
 def step_choice(config) -> StepChoice:
-    s = config.objective.steps
-    return StepChoice("list", tuple(s)) if isinstance(s, list) else StepChoice(s)
+    """The choice of ``[objective] steps``."""
+    return choice_of(config.objective.steps)
+
+
+def choice_of(steps) -> StepChoice:
+    """The :class:`StepChoice` of a ``steps`` value ("last", "max", "sum" or a list of step names)."""
+    return StepChoice("list", tuple(steps)) if isinstance(steps, (list, tuple)) else StepChoice(steps)
 
 
 def step_objective(objective, steps, states, systems, j: int, memo: dict):
