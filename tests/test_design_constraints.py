@@ -164,10 +164,13 @@ def test_symmetry_warnings_name_what_breaks_it():
     red = reduction_of(p := ShapeProblem(small(symmetry=["x1"])), p.model.initial_design())
     text = "\n".join(red.warnings)
     assert "clamped part 'clamped'" in text and "only the loads break it" in text and "contact face" not in text
+
+
+def test_a_contact_face_not_symmetric_about_the_line_is_refused():
     # a design rectangle wider than the face: the face is not symmetric about its mid-line x2 = 0.75
-    red = reduction_of(p := ShapeProblem(small(symmetry=["x2"], domain=[[0.0, 2.0], [0.0, 1.5]])),
-                       p.model.initial_design())
-    assert any("the contact face is not symmetric about x2 = 0.75" in w for w in red.warnings)
+    prob = ShapeProblem(small(symmetry=["x2"], domain=[[0.0, 2.0], [0.0, 1.5]]))
+    with pytest.raises(ConfigError, match=r"the contact face is not symmetric about x2 = 0.75: node \d+"):
+        reduction_of(prob, prob.model.initial_design())
 
 
 def test_initial_design_must_be_symmetric():
@@ -183,7 +186,7 @@ def _all_but(i, j):
 
 
 @pytest.mark.parametrize("case", ["fixed_outside", "linear_shape", "linear_scalar", "rows_contradict_bounds",
-                                  "fixed_and_mean_value", "grow_and_row", "all_fixed"])
+                                  "fixed_and_mean_value", "grow_and_row", "all_fixed", "asymmetric_face"])
 def test_bad_design_constraints_exit_2_and_nothing_written(tmp_path, capsys, case):
     one = np.zeros((8, 4))
     one[0, 0] = 1.0
@@ -201,6 +204,9 @@ def test_bad_design_constraints_exit_2_and_nothing_written(tmp_path, capsys, cas
                                  "design.fixed / design.symmetry leave no admissible design"),
         "all_fixed": ({"fixed": _all_but(0, 0)[:-4] + [[0, 0]], "symmetry": ["x1"]},
                       "nothing is left to optimize"),
+        # the design rectangle wider than the face: the face is not symmetric about x2 = 0.75
+        "asymmetric_face": ({"symmetry": ["x2"], "domain": [[0.0, 2.0], [0.0, 1.5]]},
+                            "the contact face is not symmetric about x2 = 0.75"),
         "grow_and_row": ({"direction": "grow", "C2": 0.012,
                           "linear": [{"coefficients": one.tolist(), "upper": 0.005}]},
                          "leave no admissible design"),

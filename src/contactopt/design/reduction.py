@@ -165,7 +165,10 @@ def _independent_rows(A, b, bad):
 
 def symmetry_warnings(model, symmetry, loads=None) -> list[str]:
     """What is not symmetric about the mirror lines of ``symmetry`` (module docstring): a list of
-    messages, each logged as a warning. ``loads``: the LoadSets to check (default the model's)."""
+    messages about the clamps and the loads, each logged as a warning (the state is solved on the
+    whole body, so they act as they are). A contact face that is not symmetric is a ConfigError:
+    the mirrored control points would then shape different parts of the face. ``loads``: the
+    LoadSets to check (default the model's)."""
     body, sf = model.body, model.surface
     pts = body.reference.points
     face = body.contact_face
@@ -180,8 +183,9 @@ def symmetry_warnings(model, symmetry, loads=None) -> list[str]:
         worst, at = _outside_face(pts[:, :2], face.faces, xy)
         if worst > 0.05:
             m = int(face.nodes[at])
-            out.append(f"design.symmetry = '{name}': the contact face is not symmetric about {line}: node {m} "
-                       f"at ({pts[m, 0]:.4g}, {pts[m, 1]:.4g}) has its mirror image off the face")
+            raise ConfigError(f"design.symmetry = '{name}': the contact face is not symmetric about {line}: "
+                              f"node {m} at ({pts[m, 0]:.4g}, {pts[m, 1]:.4g}) has its mirror image off the "
+                              f"face; drop '{name}' from design.symmetry or make the face symmetric")
         tol = 1e-6 * max(np.ptp(pts[:, 0]), np.ptp(pts[:, 1]), 1e-300)
         for part, _comps in body.clamped:
             lo, hi = pts[part.nodes, k].min(), pts[part.nodes, k].max()
