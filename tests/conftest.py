@@ -115,3 +115,23 @@ def tet_box_config(tmp_path):
                         f'[linear_solver]\npath = "{path}"\n')
         return load_config(toml).with_updates(sections)
     return build
+
+
+@pytest.fixture
+def bundle_state_roundtrip(tmp_path):
+    """Factory: ``roundtrip(state_dict, fmt)`` → the BundleState read back after writing
+    ``state_dict`` as a checkpoint does, to an .npz file (``fmt = "npz"``) or as JSON."""
+    import json
+
+    import numpy as np
+
+    from contactopt.optimize import BundleState
+
+    def roundtrip(state: dict, fmt: str):
+        if fmt == "npz":
+            np.savez(tmp_path / "state.npz", **state)
+            with np.load(tmp_path / "state.npz") as z:
+                return BundleState.from_dict(dict(z))
+        text = json.dumps({key: (v.tolist() if isinstance(v, np.ndarray) else v) for key, v in state.items()})
+        return BundleState.from_dict(json.loads(text))
+    return roundtrip

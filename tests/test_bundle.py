@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import json
 import logging
 import re
 
@@ -153,7 +152,7 @@ def _record(prob, **kw):
 @pytest.mark.parametrize("name,fmt,metric", [("Shor", "npz", "diagonal"), ("MAD5", "json", "diagonal"),
                                              ("MAXQUAD-U32", "npz", "diagonal"),
                                              ("MAXQUAD-U32", "json", "bfgs")])
-def test_restore_mid_run_gives_bit_identical_iterates(name, fmt, metric, tmp_path):
+def test_restore_mid_run_gives_bit_identical_iterates(name, fmt, metric, tmp_path, bundle_state_roundtrip):
     prob = max_quadratics_problem() if name == "MAXQUAD-U32" else PROBLEMS[name]
     kw = dict(eps=1e-7, max_iter=60, metric=metric)
     xs_full, res_full = _record(prob, **kw)
@@ -170,14 +169,7 @@ def test_restore_mid_run_gives_bit_identical_iterates(name, fmt, metric, tmp_pat
     first = minimize_bundle(prob, prob.x0, callback=stop_at_k, **prob.constraints(), **kw)
     assert not first.success and first.status == 2 and "callback" in first.message
     assert first.nit == k
-    if fmt == "npz":
-        np.savez(tmp_path / "state.npz", **saved["state"])
-        with np.load(tmp_path / "state.npz") as z:
-            state = BundleState.from_dict(dict(z))
-    else:
-        text = json.dumps({key: (v.tolist() if isinstance(v, np.ndarray) else v)
-                           for key, v in saved["state"].items()})
-        state = BundleState.from_dict(json.loads(text))
+    state = bundle_state_roundtrip(saved["state"], fmt)
     xs_rest = []
     res_rest = minimize_bundle(prob, None, state=state,
                                callback=lambda r: xs_rest.append(r.x.copy()),

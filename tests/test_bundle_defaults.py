@@ -82,13 +82,11 @@ def test_curvature_pairs_tell_a_quadratic_from_a_kink():
 
 
 @pytest.mark.parametrize("name,fmt", [("Rosenbrock", "json"), ("Maxquad", "npz")])
-def test_auto_metric_resumes_bit_for_bit(name, fmt, tmp_path):
+def test_auto_metric_resumes_bit_for_bit(name, fmt, tmp_path, bundle_state_roundtrip):
     """metric="auto" keeps its choice (the curvature flags, W or the identity) in the state: a run
     stopped half-way and restored from npz or JSON repeats the uninterrupted run's iterates. On
     Rosenbrock (smooth) the method switches to BFGS; on Maxquad it keeps W = I for a while."""
-    import json
 
-    from contactopt.optimize import BundleState
     prob = PROBLEMS[name]
     kw = dict(max_iter=80, metric="auto")
     xs_full, metrics = [], []
@@ -105,14 +103,7 @@ def test_auto_metric_resumes_bit_for_bit(name, fmt, tmp_path):
             raise StopIteration
 
     minimize_bundle(prob, prob.x0, callback=stop_at_k, **kw)
-    if fmt == "npz":
-        np.savez(tmp_path / "state.npz", **saved["state"])
-        with np.load(tmp_path / "state.npz") as z:
-            state = BundleState.from_dict(dict(z))
-    else:
-        text = json.dumps({key: (v.tolist() if isinstance(v, np.ndarray) else v)
-                           for key, v in saved["state"].items()})
-        state = BundleState.from_dict(json.loads(text))
+    state = bundle_state_roundtrip(saved["state"], fmt)
     xs_rest = []
     rest = minimize_bundle(prob, None, state=state, callback=lambda r: xs_rest.append(r.x.copy()), **kw)
     assert len(xs_rest) == len(xs_full) - k
