@@ -585,8 +585,9 @@ def _stopping(res, opt) -> dict:
     """Both stopping tests of the run at its end, and which one fired (summary.json); ``opt`` the
     run's ``[optimizer]``.
 
-    ``criterion``: "stationarity" (certified, status 0), "predicted_decrease" (status 4),
-    "max_iter" (1), "callback" (2) or "stalled" (3); the measures are those of Θ/Θ(α0).
+    ``criterion``: "stationarity" (certified, status 0), "predicted_decrease" or "f_change"
+    (status 4), "roundoff" (5), "max_iter" (1), "callback" (2) or "stalled" (3); the measures are
+    those of Θ/Θ(α0).
     ``J_tolerance``: the relative decrease of J that the bundle model still predicts at the last
     iterate, from a step of the size of the last serious step — at a practical stop at most
     ``ftol`` (docs/stopping.md); ``relative_decrease`` the realised one over the last

@@ -818,7 +818,8 @@ def minimize_bundle(oracle, x0, *, lb=None, ub=None, A_ub=None, b_ub=None, A_eq=
     Returns
     -------
     BundleResult
-        ``success`` is True for status 0 (certified), 4 (predicted decrease) and 5 (round-off);
+        ``success`` is True for status 0 (certified), 4 (f-change or predicted decrease) and 5
+        (round-off);
         ``message``
         names the criterion that fired and its value, ``criterion`` says which in one word.
 
