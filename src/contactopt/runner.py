@@ -255,6 +255,7 @@ def _saved_result(path: Path, bstate, max_iter: int):
     """The optimizer's result stored with a finished run's checkpoint (None: the run had not
     stopped, or it is resumed with another ``max_iter`` and so goes on)."""
     from .optimize import BundleResult
+    from .optimize.bundle import SUCCESS_STATUS
     with np.load(path, allow_pickle=False) as z:
         if "meta_result_status" not in z.files or int(z["meta_max_iter"]) != max_iter:
             return None
@@ -262,7 +263,7 @@ def _saved_result(path: Path, bstate, max_iter: int):
         criterion, rel = str(z["meta_result_criterion"]) or None, float(z["meta_result_relative_decrease"])
     st = bstate.copy()
     return BundleResult(x=st.x.copy(), fun=st.f, jac=st.xi.copy(), nit=st.nit, nfev=st.nfev,
-                        n_serious=st.n_serious, n_null=st.n_null, success=status in (0, 4), status=status,
+                        n_serious=st.n_serious, n_null=st.n_null, success=status in SUCCESS_STATUS, status=status,
                         message=message, criterion=criterion, stationarity=st.stationarity,
                         relative_decrease=rel, predicted_decrease=st.predicted, gamma=st.gamma, t=st.t,
                         history=[dict(r) for r in st.history], state=st)
