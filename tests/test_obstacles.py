@@ -160,6 +160,22 @@ def test_subgradient_on_an_obstacle_matches_central_differences(tmp_path, shape,
     assert rep.taylor_rate >= 1.9
 
 
+def equal_to_condensation(cond, prob, alpha, tol, seed):
+    """Asserts that ``prob``'s state at ``alpha`` equals the condensation path's (the same classes,
+    some sliding and some sticking; λ and u to ``tol`` relative), ξ to 1e-8, and that its ξ
+    matches central differences to 1e-6; returns both states and the check's report."""
+    sc, so = cond.solve_state(alpha), prob.solve_state(alpha)
+    assert np.array_equal(sc.classes, so.classes) and so.counts["M1"] > 0 and so.counts["M3+"] > 0
+    assert np.abs(sc.lam - so.lam).max() <= tol * sc.lam.max()
+    assert np.abs(sc.u - so.u).max() <= tol * np.abs(sc.u).max()
+    xc, xo = cond.evaluate(alpha)[1], prob.evaluate(alpha)[1]
+    assert np.abs(xo - xc).max() <= 1e-8 * np.abs(xc).max()
+    rep = check_gradient(prob, alpha, seed=seed, n_directions=3)
+    assert rep.n_degenerate == 0
+    assert np.max(rep.rel_errors) <= 1e-6, rep.rel_errors
+    return sc, so, rep
+
+
 @pytest.mark.parametrize("shape", ["sphere", "cylinder", "surface"])
 @pytest.mark.parametrize("cells", ["hexahedron", "tetra"])
 @pytest.mark.parametrize("other", ["delassus", "fullspace"])
@@ -178,15 +194,7 @@ def test_the_delassus_and_fullspace_paths_on_an_obstacle_equal_the_condensation_
     cond, dela = problems
     assert dela.path.name == other
     alpha = 0.002 * np.sin(np.arange(cond.model.n_design)) + 0.001
-    sc, sd = cond.solve_state(alpha), dela.solve_state(alpha)
-    assert np.array_equal(sc.classes, sd.classes) and sd.counts["M1"] > 0 and sd.counts["M3+"] > 0
-    assert np.abs(sc.lam - sd.lam).max() <= 1e-10 * sc.lam.max()
-    assert np.abs(sc.u - sd.u).max() <= 1e-10 * np.abs(sc.u).max()
-    xc, xd = cond.evaluate(alpha)[1], dela.evaluate(alpha)[1]
-    assert np.abs(xd - xc).max() <= 1e-8 * np.abs(xc).max()
-    rep = check_gradient(dela, alpha, seed=1, n_directions=3)
-    assert rep.n_degenerate == 0
-    assert np.max(rep.rel_errors) <= 1e-6, rep.rel_errors
+    _, _, rep = equal_to_condensation(cond, dela, alpha, 1e-10, seed=1)
     # (the full-space Newton stops at 1e-10, the floor of its Taylor remainders at the smallest steps)
     assert other == "fullspace" or rep.taylor_rate >= 1.9
 
@@ -308,18 +316,10 @@ def test_force_control_on_the_delassus_and_fullspace_paths_equals_the_condensati
     cond, prob = problems
     assert prob.path.name == other
     alpha = 0.002 * np.sin(np.arange(cond.model.n_design)) + 0.001
-    sc, so = cond.solve_state(alpha), prob.solve_state(alpha)
+    sc, so, _ = equal_to_condensation(cond, prob, alpha, 1e-8, seed=2)
     s = sc.info["obstacle_translation"]
     assert abs(so.info["obstacle_translation"] - s) <= 1e-8 * abs(s)
     assert so.info["obstacle_resultant"] == pytest.approx(np.linalg.norm(obstacle["force"]), rel=1e-9)
-    assert np.array_equal(sc.classes, so.classes) and so.counts["M1"] > 0 and so.counts["M3+"] > 0
-    assert np.abs(sc.lam - so.lam).max() <= 1e-8 * sc.lam.max()
-    assert np.abs(sc.u - so.u).max() <= 1e-8 * np.abs(sc.u).max()
-    xc, xo = cond.evaluate(alpha)[1], prob.evaluate(alpha)[1]
-    assert np.abs(xo - xc).max() <= 1e-8 * np.abs(xc).max()
-    rep = check_gradient(prob, alpha, seed=2, n_directions=3)
-    assert rep.n_degenerate == 0
-    assert np.max(rep.rel_errors) <= 1e-6, rep.rel_errors
 
 
 @pytest.mark.parametrize("path", ["condensation", pytest.param("delassus", marks=pytest.mark.slow),
