@@ -835,3 +835,16 @@ def test_a_path_run_meets_a_friction_work_limit_that_the_unconstrained_optimum_b
     assert work_free > 1.4 * limit > 2.0 * resp["initial"]["value"]
     assert resp["satisfied"] and abs(resp["margin"]) <= 1e-4 * limit          # met, and active
     assert free["J"] < con["J"] < 0.01 * con["J0"]
+
+
+def test_a_state_without_warm_start_does_not_depend_on_what_was_solved_before():
+    """A run's final figures are solved without warm start, also when the optimizer's last
+    evaluation (warm-started: under force control Brent's solves start from each other) was at
+    the same design, so that a resumed finished run repeats the uninterrupted one bit for bit."""
+    cfg = sphere_block(None, obstacle=FORCED_SPHERE)
+    fresh = ShapeProblem(cfg)
+    alpha = fresh.model.initial_design()
+    cold = fresh.evaluate_cases(alpha, warm_start=False).value
+    after = ShapeProblem(cfg)
+    after.evaluate(alpha)
+    assert after.evaluate_cases(alpha, warm_start=False).value == cold

@@ -38,7 +38,9 @@ log = logging.getLogger(__name__)
 class DesignCache:
     """The last design's solves: ``key`` α's bytes and ``method``; per load case its ``systems``
     and ``states`` (the last step's on a load path), and on a load path every step's
-    (``step_systems``, ``step_states``: None for a case without steps)."""
+    (``step_systems``, ``step_states``: None for a case without steps); ``cold``: solved without
+    warm start, so that a request without warm start (a run's final figures) is answered only by
+    such solves and does not depend on what was solved before."""
 
     key: bytes
     method: str
@@ -46,6 +48,7 @@ class DesignCache:
     states: list
     step_systems: list
     step_states: list
+    cold: bool = False
 
 
 class ShapeProblem:
@@ -175,7 +178,8 @@ class ShapeProblem:
         if not np.all(np.isfinite(alpha)):
             raise SolverError("design contains NaN or infinite entries")
         key, method = alpha.tobytes(), method or self.method
-        if self._cache is not None and (self._cache.key, self._cache.method) == (key, method):
+        if (self._cache is not None and (self._cache.key, self._cache.method) == (key, method)
+                and (warm_start or self._cache.cold)):
             return list(self._cache.states)
         step_systems, step_states = [None] * len(self.cases), [None] * len(self.cases)
         with sequential_openblas():
@@ -205,7 +209,7 @@ class ShapeProblem:
                     slip = st.u_c[:, :2].copy()
                 systems[k], states = step_systems[k][-1], states + [step_states[k][-1]]
         self._cache = DesignCache(key=key, method=method, systems=systems, states=states,
-                                  step_systems=step_systems, step_states=step_states)
+                                  step_systems=step_systems, step_states=step_states, cold=not warm_start)
         self.n_state_solves += 1
         return list(states)
 
