@@ -1,6 +1,7 @@
 """Benchmark of the bundle optimizer on the Lukšan–Vlček nonsmooth test problems.
 
 Run:  python benchmarks/bench_bundle.py [--eps EPS] [--max-iter 3000] [--ftol 0] [--tolf 1e-8]
+      [--scale none]
       [--only NAME,...]
 
 Prints one row per problem of Lukšan & Vlček's collection (n, f*, f found, relative error —
@@ -119,6 +120,9 @@ def main(argv=None):
     ap.add_argument("--tolf", type=float, default=None,
                     help="f-change stop (relative change of f in consecutive serious steps); "
                          "default: the method's, 0: off")
+    ap.add_argument("--scale", default=None,
+                    help="the variables the method works in (option scale): bounds, none; "
+                         "default: the method's")
     ap.add_argument("--only", default=None,
                     help="comma-separated problem names (e.g. 'HS114,Dembo7'): run only these "
                          "problems of the collection, without the extra problems and the QP timing")
@@ -127,12 +131,14 @@ def main(argv=None):
     head = (f"{'problem':<18}{'n':>4}{'f*':>15}{'f found':>17}{'rel err':>10}{'iter':>7}"
             f"{'serious/null':>14}{'evals':>7}{'PBUN':>6}{'PVAR':>6}{'time s':>8}  status")
     print(f"bundle method, eps = {args.eps or 'default'}, ftol = {args.ftol:g}, "
-          f"tolf = {'default' if args.tolf is None else args.tolf}")
+          f"tolf = {'default' if args.tolf is None else args.tolf}, "
+          f"scale = {args.scale or 'default'}")
     print(head)
     print("-" * len(head))
     n_ok = 0
     total_t = 0.0
     opts = {"ftol": args.ftol} | ({} if args.tolf is None else {"tolf": args.tolf})
+    opts |= {} if args.scale is None else {"scale": args.scale}
     if args.only:
         names = [s.strip() for s in args.only.split(",") if s.strip()]
         unknown = [s for s in names if s not in PROBLEMS]

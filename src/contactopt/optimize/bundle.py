@@ -171,6 +171,7 @@ from ._bundle_control import (
     update_metric,
 )
 from ._bundle_qp import DirectionQP, Polyhedron
+from ._scaling import SCALINGS, variable_scaling
 
 __all__ = ["minimize_bundle", "BundleResult", "BundleState", "BTOptions"]
 
@@ -252,7 +253,11 @@ class BTOptions:
     stall_window: stop (status 3) when over this many iterations (at least 2(n + 1), the null
     steps a polyhedral f may need at one x) f did not decrease and the stationarity measure did
     not halve (eps below the reachable precision);
-    feas_tol: scaled feasibility tolerance of iterates.
+    feas_tol: scaled feasibility tolerance of iterates;
+    scale: the variables the method works in (:mod:`._scaling`): "bounds" (default) x = D z with
+    D_ii the width ub_i − lb_i of each finite box relative to the geometric mean of those widths
+    (as a power of two; D = I where the widths are equal or no box is finite, so such a run is
+    bit for bit the unscaled one), "none" the user's variables.
     """
 
     m1: float = 0.01
@@ -283,6 +288,7 @@ class BTOptions:
     tolf_steps: int = 2
     stall_window: int = 50
     feas_tol: float = 1e-9
+    scale: str = "bounds"
 
     @classmethod
     def from_kwargs(cls, options: dict) -> "BTOptions":
@@ -323,6 +329,9 @@ class BTOptions:
         if o.metric not in _METRICS:
             problems.append(f"metric must be one of {', '.join(map(repr, _METRICS))} "
                             f"({o.metric!r})")
+        if o.scale not in SCALINGS:
+            problems.append(f"scale must be one of {', '.join(map(repr, SCALINGS))} "
+                            f"({o.scale!r})")
         if o.max_bundle is not None and o.max_bundle < 3:
             problems.append(f"need max_bundle >= 3 (max_bundle={o.max_bundle})")
         if o.max_inner < 1:
@@ -834,6 +843,13 @@ def minimize_bundle(oracle, x0, *, lb=None, ub=None, A_ub=None, b_ub=None, A_eq=
         n = st.x.size
     else:
         n = np.asarray(x0).size
+    # the method works in z = x/d (the state too); the user's x, f, g and U are wrapped here
+    scaling = variable_scaling(n, lb, ub, o.scale)
+    if scaling is not None:
+        oracle, callback = scaling.oracle(oracle), scaling.callback(callback)
+        x0 = scaling.inner(x0) if state is None else x0
+        lb, ub, A_ub, b_ub, A_eq, b_eq = scaling.constraints(lb, ub, A_ub, b_ub, A_eq,
+                                                             b_eq).values()
     poly = Polyhedron(n, lb, ub, A_ub, b_ub, A_eq, b_eq)
     if state is None:
         st = _initial_state(oracle, poly, x0, o)
@@ -921,4 +937,5 @@ def minimize_bundle(oracle, x0, *, lb=None, ub=None, A_ub=None, b_ub=None, A_eq=
                        f"stationarity measure did not halve ({st.stationarity:.2e} > eps {eps:.0e})")
             break
     logger.info("bundle end: %s; f=%.10g nit=%d nfev=%d", message, st.f, st.nit, st.nfev)
-    return _result(st, status, message, criterion, rel)
+    res = _result(st, status, message, criterion, rel)
+    return res if scaling is None else scaling.result(res)
