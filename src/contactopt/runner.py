@@ -251,10 +251,13 @@ def _write_checkpoint(path: Path, bstate, oracle: _Oracle, fingerprint: str, ela
     atomic_savez(path, **arrays)
 
 
-def _saved_result(path: Path, bstate, max_iter: int):
+def _saved_result(path: Path, bstate, max_iter: int, lb=None, ub=None):
     """The optimizer's result stored with a finished run's checkpoint (None: the run had not
-    stopped, or it is resumed with another ``max_iter`` and so goes on)."""
+    stopped, or it is resumed with another ``max_iter`` and so goes on); ``lb``, ``ub`` the box
+    of the optimized variables, whose widths scale the state's variables (minimize_bundle's
+    option ``scale``)."""
     from .optimize import BundleResult
+    from .optimize._scaling import variable_scaling
     from .optimize.bundle import SUCCESS_STATUS
     with np.load(path, allow_pickle=False) as z:
         if "meta_result_status" not in z.files or int(z["meta_max_iter"]) != max_iter:
@@ -262,11 +265,13 @@ def _saved_result(path: Path, bstate, max_iter: int):
         status, message = int(z["meta_result_status"]), str(z["meta_result_message"])
         criterion, rel = str(z["meta_result_criterion"]) or None, float(z["meta_result_relative_decrease"])
     st = bstate.copy()
-    return BundleResult(x=st.x.copy(), fun=st.f, jac=st.xi.copy(), nit=st.nit, nfev=st.nfev,
-                        n_serious=st.n_serious, n_null=st.n_null, success=status in SUCCESS_STATUS, status=status,
-                        message=message, criterion=criterion, stationarity=st.stationarity,
-                        relative_decrease=rel, predicted_decrease=st.predicted, gamma=st.gamma, t=st.t,
-                        history=[dict(r) for r in st.history], state=st)
+    res = BundleResult(x=st.x.copy(), fun=st.f, jac=st.xi.copy(), nit=st.nit, nfev=st.nfev,
+                       n_serious=st.n_serious, n_null=st.n_null, success=status in SUCCESS_STATUS, status=status,
+                       message=message, criterion=criterion, stationarity=st.stationarity,
+                       relative_decrease=rel, predicted_decrease=st.predicted, gamma=st.gamma, t=st.t,
+                       history=[dict(r) for r in st.history], state=st)
+    scaling = variable_scaling(st.x.size, lb, ub)
+    return res if scaling is None else scaling.result(res)
 
 
 def _read_checkpoint(path: Path, fingerprint: str):
@@ -442,7 +447,9 @@ def run_optimization(config, outdir=None, *, eps=None, max_iter=None, resume=Fal
             raise CheckpointError(f"checkpoint {ckpt}: {'no' if pstate is None else 'a'} penalty state for a "
                                   f"configuration {'with' if problem.constraints else 'without'} [[constraints]]")
         # a constrained run's end is its penalty state's: minimize_constrained returns it without evaluating
-        finished = None if pstate is not None else _saved_result(ckpt, bstate, cfg.optimizer.max_iter)
+        box = red.bounds if red is not None else model.admissible.constraints()
+        finished = None if pstate is not None else _saved_result(ckpt, bstate, cfg.optimizer.max_iter,
+                                                                 box["lb"], box["ub"])
     lock = claim_output_dir(out, overwrite=overwrite, resume=resume)
     root = logging.getLogger("contactopt")
     old_level = root.level

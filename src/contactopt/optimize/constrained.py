@@ -36,6 +36,7 @@ import numpy as np
 from scipy.optimize import nnls
 
 from ..errors import OptimizerError
+from ._scaling import variable_scaling
 from .bundle import BundleResult, minimize_bundle
 
 logger = logging.getLogger(__name__)
@@ -177,6 +178,11 @@ def minimize_constrained(oracle, x0, *, ctol=1e-6, sigma0=None, sigma_factor=10.
     else:
         pen, bstate = state.copy(), bundle_state
         start = bstate.x
+    # a bundle state is in the method's variables z = x/d (minimize_bundle's option scale)
+    scaling = variable_scaling(np.asarray(start).size, kwargs.get("lb"), kwargs.get("ub"),
+                               kwargs.get("scale", "bounds"))
+    if state is not None and scaling is not None:
+        start = scaling.outer(start)
     if not (math.isfinite(pen.sigma) and pen.sigma > 0):
         raise OptimizerError(f"penalty weight σ = {pen.sigma}: must be a positive number")
     ctol = np.broadcast_to(np.asarray(ctol, float), pen.at_x[2].shape)
@@ -190,7 +196,7 @@ def minimize_constrained(oracle, x0, *, ctol=1e-6, sigma0=None, sigma_factor=10.
         return penalty(*ans, pen.sigma)
 
     def report(inter, finished=None):
-        pen.at_x = seen.get(inter.state.x.tobytes(), pen.at_x)
+        pen.at_x = seen.get(inter.x.tobytes(), pen.at_x)      # x in the user's variables
         p = pen.copy()
         p.finished = finished
         inter.penalty = p
@@ -199,7 +205,7 @@ def minimize_constrained(oracle, x0, *, ctol=1e-6, sigma0=None, sigma_factor=10.
     def inner_callback(inter):
         report(inter)
         seen.clear()
-        seen[inter.state.x.tobytes()] = pen.at_x          # only x's answer is needed later
+        seen[inter.x.tobytes()] = pen.at_x          # only x's answer is needed later
         if callback is not None:
             callback(inter)
 
@@ -207,6 +213,7 @@ def minimize_constrained(oracle, x0, *, ctol=1e-6, sigma0=None, sigma_factor=10.
         fin = pen.finished
         if fin is not None and not (fin[0] == 1 and max_iter > pen.nit + bstate.nit):
             res = _bundle_result(bstate, *fin, kwargs.get("ftol_window", 5))   # resumed at a run's end
+            res = res if scaling is None else scaling.result(res)
         else:
             res = minimize_bundle(phi, start, eps=eps, max_iter=max(max_iter - pen.nit, 0),
                                   callback=inner_callback, state=bstate, **kwargs)
