@@ -797,13 +797,16 @@ def minimize_bundle(oracle, x0, *, lb=None, ub=None, A_ub=None, b_ub=None, A_eq=
         ``oracle(x) -> (f, g)`` with g one Clarke subgradient of f at x.  Called only at
         points of U (feasible to ``feas_tol``, bounds exactly).
     x0 : array (n,)
-        Start; when infeasible it is replaced by its Euclidean projection onto U (logged).
+        Start; when infeasible it is replaced by its Euclidean projection onto U (logged; in
+        the scaled variables z when ``scale`` applies).
     eps : float
         Certified stop (status 0) when ``stationarity = max(‖p‖, α_p + σ)/max(1, |f|) ≤ eps``:
         the aggregate subgradient of f + indicator(U) is an ``eps·max(1, |f|)``-subgradient at x
         of that length, so that (for convex f) ``f(x) − f(z) ≤ eps·max(1, |f|)·(1 + ‖z − x‖)``
-        for all z ∈ U.  Default 1e-7: the 35 problems of Lukšan & Vlček's collection that the
-        method solves end within 1e-6 (relative) of f* (docs/stopping.md).  The defaults of
+        for all z ∈ U.  With the variables scaled (option ``scale``, x = D z), p and the norm
+        are those of z: ``f(x) − f(z) ≤ eps·max(1, |f|)·(1 + ‖D⁻¹(z − x)‖)``, distances in units
+        of the box widths.  Default 1e-7: the 37 problems of Lukšan & Vlček's collection that
+        the method solves end within 1e-6 (relative) of f* (docs/stopping.md).  The defaults of
         ``eps``, ``max_iter`` and the options are those of ``contactopt run``'s ``[optimizer]``
         table but two (a test holds them so): ``ftol`` (0 here, 5e-4 there) and ``metric``
         ("none" here, "bfgs" there), docs/stopping.md; the f-change test (``tolf``) is the same
@@ -817,7 +820,8 @@ def minimize_bundle(oracle, x0, *, lb=None, ub=None, A_ub=None, b_ub=None, A_eq=
         (``success`` False, status 2).
     state : BundleState, optional
         Resume from a saved state (``x0`` is then ignored); the iterates that follow are
-        bit-identical to those of the uninterrupted run with the same options.
+        bit-identical to those of the uninterrupted run with the same options and U.  A state is
+        in the method's variables z = x/d (``scale``); results and callbacks are in the user's.
     **options
         Parameters of the method, see :class:`BTOptions`; among them the practical stop
         (status 4): the f-change test ``tolf`` (default 1e-8) over ``tolf_steps`` (2) serious
