@@ -404,7 +404,14 @@ class ShapeProblem:
             ξ_k = ∂J/∂α + ṽᵀ(∂A/∂α ũ − ∂L_k/∂α) + v_λᵀ ∂g/∂α,
 
         ṽ the A-harmonic extension of the adjoint v_u, which the path returns; ξ = Σ_k c_k ξ_k over
-        the cases of nonzero coefficient (the max: the chosen active case; the sum: every case)."""
+        the cases of nonzero coefficient (the max: the chosen active case; the sum: every case).
+
+        OpenBLAS runs on one thread throughout, as in the state solve (:mod:`contactopt._threads`):
+        its spinning threads would otherwise slow the next design's PARDISO factorization."""
+        with sequential_openblas():
+            return self._subgradient(alpha, choices)
+
+    def _subgradient(self, alpha, choices):
         from .sensitivity.adjoint import DEFAULT_CHOICES, SubgradientResult
         self.prepare_objectives()
         t0 = time.perf_counter()
