@@ -8,6 +8,7 @@ on a zone that misses nodes (they close their gap) must equal the state on all c
 from __future__ import annotations
 
 import ctypes
+import os
 
 import numpy as np
 import pytest
@@ -374,3 +375,32 @@ def test_warm_start_after_a_small_design_change_needs_at_most_three_steps():
         assert st.info["delassus"] == ("reused" if reuse else "formed")
     assert steps[True] <= 3 and steps[False] <= 3
 
+
+@pytest.mark.skipif(not _pardiso.available() or (os.cpu_count() or 1) < 2,
+                    reason="MKL's threads on a machine with two cores or more")
+def test_one_mkl_thread_makes_evaluations_those_of_a_single_threaded_run():
+    """[linear_solver] threads = 1 (the default): Θ and ξ along a few designs are those of a process
+    whose MKL runs on one thread, bit for bit, while MKL's own pool has two; with threads = 0 two
+    MKL threads sum in another order (so the comparison can tell)."""
+    lib, _ = _pardiso._load()
+    set_global, get_max = lib.MKL_Set_Num_Threads, lib.MKL_Get_Max_Threads
+    set_global.argtypes, get_max.restype = [ctypes.c_int], ctypes.c_int
+    before = get_max()
+
+    def evaluations(threads, mkl):
+        set_global(mkl)
+        cfg = load_config("example1").with_updates({"mesh": {"nx": 16, "ny": 8, "nz": 5},
+                                                    "linear_solver": {"threads": threads}})
+        pr = ShapeProblem(cfg)
+        a0 = pr.model.initial_design()
+        return [pr.evaluate(a0 + 0.002 * k) for k in range(3)]
+
+    try:
+        one = evaluations(1, 1)
+        pinned = evaluations(1, 2)
+        free = evaluations(0, 2)
+    finally:
+        set_global(before)
+    assert all(f == g and np.array_equal(x, y) for (f, x), (g, y) in zip(one, pinned))
+    assert any(f != g or not np.array_equal(x, y) for (f, x), (g, y) in zip(one, free))
+    assert max(abs(f - g) / abs(f) for (f, _), (g, _) in zip(one, free)) < 1e-12   # round-off only

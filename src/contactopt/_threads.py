@@ -15,7 +15,10 @@ threads made it 2–4 times slower than one.
 :func:`sequential_openblas` is the context manager used by :class:`contactopt.ShapeProblem`
 around the state solve and the whole subgradient (the adjoint's dense LU and the design terms
 too: with OpenBLAS's threads there, the adjoint of a ``contactopt run`` with the libraries'
-default threads cost ten times that of a single-threaded run, docs/measurements.md).
+default threads cost ten times that of a single-threaded run, docs/measurements.md). On the
+condensation path MKL itself runs on ``[linear_solver] threads`` (default 1) inside the model's
+construction and every evaluation (``SolverPath.library_threads``): an evaluation is then that of
+a single-threaded run bit for bit, whatever MKL_NUM_THREADS or OMP_NUM_THREADS say.
 Set ``CONTACTOPT_OPENBLAS_THREADS=keep`` to leave OpenBLAS's threading alone.
 """
 

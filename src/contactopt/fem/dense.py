@@ -33,23 +33,30 @@ def _mkl(name):
 
 
 @contextmanager
-def mkl_sequential(on: bool = True):
-    """MKL on one thread inside (for the calling thread only, restored after) where ``on``.
+def mkl_threads(n: int):
+    """MKL (LAPACK and PARDISO) on ``n`` threads inside, for the calling thread only, restored
+    after; ``n = 0`` changes nothing (MKL's own count: MKL_NUM_THREADS, else one per core).
 
-    For the small dense factorizations of a contact solve (the Newton matrices, a few hundred to
-    a few thousand rows): on the 2-core reference machine, shared with other work, MKL's two
-    threads made ``sgetrf`` of 600–2000 rows 2–4 times slower than one, as two threads in lock
-    step wait for the core another process holds (docs/measurements.md); on one thread the
-    factors are those of a run with ``MKL_NUM_THREADS=1``, bit for bit."""
-    setter = _mkl_threads_local() if on else None
+    A thread count changes the order of MKL's sums: on one thread the results are those of a
+    run with ``MKL_NUM_THREADS=1``, bit for bit."""
+    setter = _mkl_threads_local() if n else None
     if setter is None:
         yield
         return
-    previous = setter(1)
+    previous = setter(int(n))
     try:
         yield
     finally:
         setter(previous)
+
+
+def mkl_sequential(on: bool = True):
+    """:func:`mkl_threads` (1) where ``on``: for the small dense factorizations of a contact solve
+    (the Newton matrices, a few hundred to a few thousand rows). On the 2-core reference machine,
+    shared with other work, MKL's two threads made ``sgetrf`` of 600–2000 rows 2–4 times slower
+    than one, as two threads in lock step wait for the core another process holds
+    (docs/measurements.md)."""
+    return mkl_threads(1 if on else 0)
 
 
 def _mkl_threads_local():
