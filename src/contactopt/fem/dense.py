@@ -52,10 +52,9 @@ def mkl_threads(n: int):
 
 def mkl_sequential(on: bool = True):
     """:func:`mkl_threads` (1) where ``on``: for the small dense factorizations of a contact solve
-    (the Newton matrices, a few hundred to a few thousand rows). On the 2-core reference machine,
-    shared with other work, MKL's two threads made ``sgetrf`` of 600–2000 rows 2–4 times slower
-    than one, as two threads in lock step wait for the core another process holds
-    (docs/measurements.md)."""
+    (the Newton matrices, a few hundred to a few thousand rows), where two threads in lock step
+    gain little and lose several times over when another process holds a core
+    (docs/measurements.md, "Threads on a shared machine")."""
     return mkl_threads(1 if on else 0)
 
 
