@@ -7,6 +7,9 @@ on a zone that misses nodes (they close their gap) must equal the state on all c
 
 from __future__ import annotations
 
+import ctypes
+import os
+
 import numpy as np
 import pytest
 
@@ -98,6 +101,31 @@ def test_single_precision_lu_solves_to_its_precision(lapack_backend):
     assert dense.LUFactor(np.zeros((4, 4), dtype=np.float32)).info > 0
     with pytest.raises(SolverError, match="float64 or float32"):
         dense.LUFactor(M.astype(np.float16))
+
+
+@pytest.mark.skipif(not _pardiso.available(), reason="MKL's thread count is MKL's")
+def test_sequential_lu_is_the_one_thread_factor_and_restores_the_threads():
+    """LUFactor(sequential=True) factorizes as MKL on one thread does, bit for bit, and leaves the
+    calling thread's MKL thread count as it found it."""
+    lib, _ = _pardiso._load()
+    set_local, get_max = lib.MKL_Set_Num_Threads_Local, lib.MKL_Get_Max_Threads
+    set_local.restype, get_max.restype = ctypes.c_int, ctypes.c_int
+    set_local.argtypes = [ctypes.c_int]
+    rng = np.random.default_rng(11)
+    M = (rng.standard_normal((400, 400)) + 40 * np.eye(400)).astype(np.float32)
+    b = rng.standard_normal(400)
+    before = get_max()
+    with dense.mkl_sequential():
+        assert get_max() == 1
+        one = dense.LUFactor(M.copy())
+        x_one, rc_one = one.solve(b), one.rcond(float(np.abs(M).sum(axis=1).max()))
+    assert get_max() == before
+    lu = dense.LUFactor(M.copy(), sequential=True)
+    assert get_max() == before
+    assert np.array_equal(lu.a, one.a) and np.array_equal(lu.piv, one.piv)
+    assert np.array_equal(lu.solve(b), x_one)
+    assert lu.rcond(float(np.abs(M).sum(axis=1).max())) == rc_one
+    assert np.linalg.norm(M.astype(np.float64) @ x_one - b) <= 1e-4 * np.linalg.norm(b)
 
 
 @pytest.mark.parametrize("zone", [np.arange(40), np.array([0, 3, 4, 17, 39]), np.array([22])])
@@ -346,3 +374,33 @@ def test_warm_start_after_a_small_design_change_needs_at_most_three_steps():
         steps[reuse] = st.iterations
         assert st.info["delassus"] == ("reused" if reuse else "formed")
     assert steps[True] <= 3 and steps[False] <= 3
+
+
+@pytest.mark.skipif(not _pardiso.available() or (os.cpu_count() or 1) < 2,
+                    reason="MKL's threads on a machine with two cores or more")
+def test_one_mkl_thread_makes_evaluations_those_of_a_single_threaded_run():
+    """[linear_solver] threads = 1 (the default): Θ and ξ along a few designs are those of a process
+    whose MKL runs on one thread, bit for bit, while MKL's own pool has two; with threads = 0 two
+    MKL threads sum in another order (so the comparison can tell)."""
+    lib, _ = _pardiso._load()
+    set_global, get_max = lib.MKL_Set_Num_Threads, lib.MKL_Get_Max_Threads
+    set_global.argtypes, get_max.restype = [ctypes.c_int], ctypes.c_int
+    before = get_max()
+
+    def evaluations(threads, mkl):
+        set_global(mkl)
+        cfg = load_config("example1").with_updates({"mesh": {"nx": 16, "ny": 8, "nz": 5},
+                                                    "linear_solver": {"threads": threads}})
+        pr = ShapeProblem(cfg)
+        a0 = pr.model.initial_design()
+        return [pr.evaluate(a0 + 0.002 * k) for k in range(3)]
+
+    try:
+        one = evaluations(1, 1)
+        pinned = evaluations(1, 2)
+        free = evaluations(0, 2)
+    finally:
+        set_global(before)
+    assert all(f == g and np.array_equal(x, y) for (f, x), (g, y) in zip(one, pinned))
+    assert any(f != g or not np.array_equal(x, y) for (f, x), (g, y) in zip(one, free))
+    assert max(abs(f - g) / abs(f) for (f, _), (g, _) in zip(one, free)) < 1e-12   # round-off only

@@ -7,10 +7,18 @@ Schur complement 1.3–1.8× slower and the Newton phase 2–5× slower, with la
 scatter (``benchmarks/bench_state.py``; Example 1: state solve 0.5–0.8 s against 0.40 s with
 sequential OpenBLAS). The Newton steps work on matrices of a few hundred rows, where OpenBLAS's
 threading gains nothing, and the one large dense factorization of a state solve (the Delassus
-factorization, the zone's Delassus block, the Newton LU) run in MKL's pool
-(:mod:`contactopt.fem.dense`) when MKL is present.
+factorization, the zone's Delassus block) runs in MKL's pool (:mod:`contactopt.fem.dense`) when
+MKL is present. The Newton LU (a few hundred to a few thousand rows) runs on one MKL thread
+(:func:`contactopt.fem.dense.mkl_sequential`): with the second core held by other work, two MKL
+threads made it 2–4 times slower than one.
 
-:func:`sequential_openblas` is the context manager used by :class:`contactopt.ShapeProblem`.
+:func:`sequential_openblas` is the context manager used by :class:`contactopt.ShapeProblem`
+around the state solve and the whole subgradient (the adjoint's dense LU and the design terms
+too: with OpenBLAS's threads there, the adjoint of a ``contactopt run`` with the libraries'
+default threads cost ten times that of a single-threaded run, docs/measurements.md). On the
+condensation path MKL itself runs on ``[linear_solver] threads`` (default 1) inside the model's
+construction and every evaluation (``SolverPath.library_threads``): an evaluation is then that of
+a single-threaded run bit for bit, whatever MKL_NUM_THREADS or OMP_NUM_THREADS say.
 Set ``CONTACTOPT_OPENBLAS_THREADS=keep`` to leave OpenBLAS's threading alone.
 """
 

@@ -64,7 +64,8 @@ class ShapeProblem:
         body = build_body(self.config)
         name, library = select_path(self.config, memory.free_dofs(body), pinned=int(body.pinned_dofs.size),
                                     rigid=body.rigid)
-        self.model = ElasticModel(self.config, body=body, memory_estimate=PATHS[name].memory_estimate)
+        with PATHS[name].library_threads(self.config.linear_solver.threads):   # the morph weight's solve
+            self.model = ElasticModel(self.config, body=body, memory_estimate=PATHS[name].memory_estimate)
         self.n_state_solves = 0    # designs solved (all cases at once)
         self._cache = None         # DesignCache of the last design
         self._responding = None    # the constraint evaluated in place of the objective (_as_objective)
@@ -182,7 +183,7 @@ class ShapeProblem:
                 and (warm_start or self._cache.cold)):
             return list(self._cache.states)
         step_systems, step_states = [None] * len(self.cases), [None] * len(self.cases)
-        with sequential_openblas():
+        with sequential_openblas(), self.path.evaluation_threads():
             systems = self._systems(alpha)
             shared = {}                # what the cases of one design share (e.g. a factor of S)
             states = []
@@ -404,7 +405,15 @@ class ShapeProblem:
             ξ_k = ∂J/∂α + ṽᵀ(∂A/∂α ũ − ∂L_k/∂α) + v_λᵀ ∂g/∂α,
 
         ṽ the A-harmonic extension of the adjoint v_u, which the path returns; ξ = Σ_k c_k ξ_k over
-        the cases of nonzero coefficient (the max: the chosen active case; the sum: every case)."""
+        the cases of nonzero coefficient (the max: the chosen active case; the sum: every case).
+
+        OpenBLAS runs on one thread throughout, as in the state solve (:mod:`contactopt._threads`):
+        its spinning threads would otherwise slow the next design's PARDISO factorization; MKL on
+        the path's evaluation threads (``[linear_solver] threads``)."""
+        with sequential_openblas(), self.path.evaluation_threads():
+            return self._subgradient(alpha, choices)
+
+    def _subgradient(self, alpha, choices):
         from .sensitivity.adjoint import DEFAULT_CHOICES, SubgradientResult
         self.prepare_objectives()
         t0 = time.perf_counter()

@@ -208,6 +208,12 @@ SCHEMA = {
         "memory_check": (True, lambda x: isinstance(x, bool),
                          "true or false (refuse up front a mesh whose estimated peak memory of an "
                          "evaluation exceeds the available memory; contactopt.fem.memory)"),
+        "threads": (1, lambda x: isinstance(x, int) and not isinstance(x, bool) and x >= 0,
+                    "an integer ≥ 0 (MKL's threads inside an evaluation on the condensation path: PARDISO "
+                    "and the dense factorizations of the contact solve. 1: every evaluation is that of a "
+                    "single-threaded run, bit for bit, whatever MKL_NUM_THREADS says, and on a 2-core machine "
+                    "shared with other work also the fastest (docs/measurements.md); 0: MKL's own count "
+                    "(MKL_NUM_THREADS, else one per core); N > 1: N threads)"),
     },
     "optimizer": {
         "eps": (1e-4, lambda x: _pos(x) and x < 1,

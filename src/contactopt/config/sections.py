@@ -313,6 +313,7 @@ class LinearSolver:
     crossover: int
     petsc_options: str
     memory_check: bool
+    threads: int
 
     @classmethod
     def from_dict(cls, d: dict) -> "LinearSolver":

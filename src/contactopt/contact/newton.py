@@ -250,7 +250,7 @@ class _Solver:
         if alpha:                              # (W + alpha I) in the same frame
             diag[:b] += alpha
             diag[b:] += cF * alpha
-        lu = LUFactor(M)
+        lu = LUFactor(M, sequential=True)   # small: one MKL thread (fem/dense.py)
         self.counts["factorizations"] += 1
         # dgecon costs about a quarter of the factorization: only when the pivots look bad
         if lu.info != 0 or (not lu.pivot_ratio() > _PIVOT_SCREEN

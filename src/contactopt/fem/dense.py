@@ -10,6 +10,7 @@ SciPy's LAPACK. Arrays are C-ordered; "lower" is the lower triangle of the C arr
 from __future__ import annotations
 
 import ctypes
+from contextlib import contextmanager
 
 import numpy as np
 import scipy.linalg as sla
@@ -29,6 +30,44 @@ def _mkl(name):
     fn = getattr(lib, name)
     fn.restype = cint
     return fn, cint
+
+
+@contextmanager
+def mkl_threads(n: int):
+    """MKL (LAPACK and PARDISO) on ``n`` threads inside, for the calling thread only, restored
+    after; ``n = 0`` changes nothing (MKL's own count: MKL_NUM_THREADS, else one per core).
+
+    A thread count changes the order of MKL's sums: on one thread the results are those of a
+    run with ``MKL_NUM_THREADS=1``, bit for bit."""
+    setter = _mkl_threads_local() if n else None
+    if setter is None:
+        yield
+        return
+    previous = setter(int(n))
+    try:
+        yield
+    finally:
+        setter(previous)
+
+
+def mkl_sequential(on: bool = True):
+    """:func:`mkl_threads` (1) where ``on``: for the small dense factorizations of a contact solve
+    (the Newton matrices, a few hundred to a few thousand rows), where two threads in lock step
+    gain little and lose several times over when another process holds a core
+    (docs/measurements.md, "Threads on a shared machine")."""
+    return mkl_threads(1 if on else 0)
+
+
+def _mkl_threads_local():
+    """MKL_Set_Num_Threads_Local (returns the previous local count, 0: the global one), or None."""
+    if not _pardiso.available():
+        return None
+    lib, _ = _pardiso._load()
+    fn = getattr(lib, "MKL_Set_Num_Threads_Local", None)
+    if fn is not None:
+        fn.restype = ctypes.c_int
+        fn.argtypes = [ctypes.c_int]
+    return fn
 
 
 def _square(a, name, dtypes=(np.float64,)):
@@ -112,12 +151,14 @@ class LUFactor:
     MKL's LAPACK (its thread pool) when available, else SciPy's. ``info`` is getrf's: > 0 means
     an exactly singular M. A float32 M is factorized in single precision (``sgetrf``: half the
     memory traffic and about half the time, for matrices that need not be exact, such as
-    approximate Newton matrices); solutions are returned in float64 either way.
+    approximate Newton matrices); solutions are returned in float64 either way. ``sequential``:
+    getrf, getrs and gecon on one MKL thread (:func:`mkl_sequential`).
     """
 
-    def __init__(self, M: np.ndarray):
+    def __init__(self, M: np.ndarray, *, sequential: bool = False):
         self.n = _square(M, "LUFactor", (np.float64, np.float32))
         self.dtype = M.dtype
+        self.sequential = sequential
         self._p = "s" if M.dtype == np.float32 else "d"
         self._real = ctypes.c_float if self._p == "s" else ctypes.c_double
         self._mkl = _mkl(f"LAPACKE_{self._p}getrf")
@@ -126,8 +167,9 @@ class LUFactor:
             self._cint = cint
             self.a = M
             self.piv = np.zeros(self.n, dtype=np.int64 if cint is ctypes.c_int64 else np.int32)
-            self.info = int(fn(ctypes.c_int(_COL_MAJOR), cint(self.n), cint(self.n),
-                               _pardiso._ptr(M), cint(self.n), _pardiso._ptr(self.piv)))
+            with mkl_sequential(sequential):
+                self.info = int(fn(ctypes.c_int(_COL_MAJOR), cint(self.n), cint(self.n),
+                                   _pardiso._ptr(M), cint(self.n), _pardiso._ptr(self.piv)))
         else:
             getrf, = sla.get_lapack_funcs(("getrf",), dtype=M.dtype)
             self.a, self.piv, self.info = getrf(M.T, overwrite_a=True)
@@ -148,8 +190,9 @@ class LUFactor:
         if self._mkl is not None:
             fn, cint = _mkl(f"LAPACKE_{self._p}gecon")
             out = self._real(0.0)
-            info = fn(ctypes.c_int(_COL_MAJOR), ctypes.c_char(b"1"), cint(self.n),
-                      _pardiso._ptr(self.a), cint(self.n), self._real(anorm), ctypes.byref(out))
+            with mkl_sequential(self.sequential):
+                info = fn(ctypes.c_int(_COL_MAJOR), ctypes.c_char(b"1"), cint(self.n),
+                          _pardiso._ptr(self.a), cint(self.n), self._real(anorm), ctypes.byref(out))
             return float(out.value) if info == 0 else 0.0
         gecon, = sla.get_lapack_funcs(("gecon",), dtype=self.dtype)
         rc, info = gecon(self.a, anorm, norm="1")
@@ -160,9 +203,10 @@ class LUFactor:
         if self._mkl is not None:
             fn, cint = _mkl(f"LAPACKE_{self._p}getrs")
             x = np.array(b, dtype=self.dtype)
-            info = fn(ctypes.c_int(_COL_MAJOR), ctypes.c_char(b"T"), cint(self.n), cint(1),
-                      _pardiso._ptr(self.a), cint(self.n), _pardiso._ptr(self.piv), _pardiso._ptr(x),
-                      cint(self.n))
+            with mkl_sequential(self.sequential):
+                info = fn(ctypes.c_int(_COL_MAJOR), ctypes.c_char(b"T"), cint(self.n), cint(1),
+                          _pardiso._ptr(self.a), cint(self.n), _pardiso._ptr(self.piv), _pardiso._ptr(x),
+                          cint(self.n))
         else:
             getrs, = sla.get_lapack_funcs(("getrs",), dtype=self.dtype)
             x, info = getrs(self.a, self.piv, np.asarray(b, dtype=self.dtype), trans=1)

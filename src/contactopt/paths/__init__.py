@@ -202,7 +202,8 @@ def missing_library(library: str) -> str | None:
 
 def make_path(config, model, name: str, library: str, start: Start | None = None) -> SolverPath:
     """The path ``name`` for a model, with the configuration's [state] settings."""
-    return PATHS[name](model, Settings.from_config(config.state, config.friction, library), start)
+    settings = Settings.from_config(config.state, config.friction, library, config.linear_solver.threads)
+    return PATHS[name](model, settings, start)
 
 
 def _have_pyamg() -> bool:

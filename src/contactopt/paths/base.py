@@ -21,6 +21,7 @@ the normal force on the body, τ = −r_t; a warm start is per node in the FCLIB
 from __future__ import annotations
 
 import logging
+from contextlib import nullcontext
 from dataclasses import dataclass, field, fields
 from typing import NamedTuple
 
@@ -180,12 +181,15 @@ class Settings:
     zone_margin: float
     reuse_delassus: bool
     library: str
+    threads: int = 0          # [linear_solver] threads: MKL's inside an evaluation (0: MKL's own)
 
     @classmethod
-    def from_config(cls, state, friction, library: str) -> "Settings":
-        """The settings of the sections ``[state]`` and ``[friction]`` of a configuration."""
+    def from_config(cls, state, friction, library: str, threads: int = 0) -> "Settings":
+        """The settings of the sections ``[state]`` and ``[friction]`` of a configuration, and
+        ``[linear_solver] threads``."""
         return cls(float(friction.coefficient), state.method, state.tol, state.max_iter,
-                   bool(state.zone), float(state.zone_margin), bool(state.reuse_delassus), library)
+                   bool(state.zone), float(state.zone_margin), bool(state.reuse_delassus), library,
+                   int(threads))
 
 
 @dataclass
@@ -233,6 +237,18 @@ class SolverPath:
     def assemble(self, alpha, loads=None):
         """A(α), L(α) and the gaps of a design (:meth:`contactopt.fem.model.ElasticModel.assemble`)."""
         return self.model.assemble(alpha, loads)
+
+    @classmethod
+    def library_threads(cls, threads: int):
+        """Context manager: the libraries' threads inside the work done for this path (the model's
+        construction, every evaluation) for ``[linear_solver] threads``; here: as they are (the
+        condensation path: MKL's)."""
+        return nullcontext()
+
+    def evaluation_threads(self):
+        """:meth:`library_threads` of this path's settings, around an evaluation's state solves
+        and subgradient."""
+        return self.library_threads(self.settings.threads)
 
     def prepare(self, asm):
         """The system of a design for its first load case (``asm`` holds L of that case)."""

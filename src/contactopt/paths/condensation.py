@@ -155,6 +155,13 @@ class CondensationPath(ForceControl, ZonePath):
         system.timings["schur"] = time.perf_counter() - t1
         return system
 
+    @classmethod
+    def library_threads(cls, threads: int):
+        """MKL on ``threads`` threads (1: bit for bit a single-threaded run's results;
+        :func:`contactopt.fem.dense.mkl_threads`)."""
+        from ..fem.dense import mkl_threads
+        return mkl_threads(threads)
+
     @property
     def foundation(self):
         return getattr(self.model, "foundation", None)

@@ -240,7 +240,7 @@ class ZonePath(SolverPath):
                 ctx.jacobian = j
                 return
         try:
-            with sequential_openblas():       # the same round-off as inside a state solve
+            with sequential_openblas(), self.evaluation_threads():   # the round-off of a state solve
                 system = self.prepare(self.model.assemble(alpha, self.first_loads))
                 ctx.jacobian = KeptBlock(alpha, zone, self.own_block(system, zone).astype(JACOBIAN_DTYPE))
         except ContactOptError as exc:
