@@ -39,9 +39,14 @@ Notation (current serious iterate x, bundle elements j):
   f + indicator(U) ``p = −W d/t = ξ + Cᵀμ`` (μ the multipliers of the constraints) and
   complementarity gap ``σ = μᵀ(b − Cx) ≥ 0`` of those multipliers at x;
 * inner loop on t (one *iteration* = one serious or one null step): the trial point
-  ``y = x + d(t)`` gives a **serious step** when ``f(y) − f(x) ≤ m1·v``; with ``extend`` (off
-  by default) a steep slope ``g(y)ᵀd < m2·v`` first enlarges t within the iteration, as in
-  BT.  Without descent the step is a **null step** when the new cut changes the model,
+  ``y = x + d(t)`` gives a **serious step** when ``f(y) − f(x) ≤ m1·v``; where the slope there
+  is still steep, ``g(y)ᵀd < m2·v``, a **line search** extrapolates along the same d (the
+  step lengths of PBUN's and BT's line searches beyond the QP step): ``x + τd`` for τ = 2, 4, …
+  up to ``extrapolation`` (4), each kept while it passes the descent test for τ·v and lowers f,
+  until the slope flattens; every point it evaluates adds its cut to the bundle (measured on
+  Lukšan & Vlček's collection: 5–10 % fewer evaluations over U1–U20 under three of four BLAS
+  kernels, docs/stopping.md).  With ``extend`` (off by default) a steep slope instead enlarges
+  t and re-solves the QP within the iteration, as in BT.  Without descent the step is a **null step** when the new cut changes the model,
   ``g(y)ᵀd − α(x, y) ≥ m3·v``, and y is local, ``α(x, y) ≤ locality·|v|`` (or t has reached
   t_min); otherwise t is reduced and the QP re-solved (the safeguard of BT for a nonconvex f);
 * **proximity control between iterations** (K. C. Kiwiel, *Proximity control in bundle
@@ -119,7 +124,10 @@ Stopping tests (what ``eps``, ``tolf`` and ``ftol`` mean).
 * **f-change** (status 4, a success; on by default, ``tolf = 1e-8``, ``tolf_steps = 2``): at the
   start of an iteration right after a serious step, f changed by at most ``tolf·max(1, |f|)`` in
   each of the last ``tolf_steps`` serious steps (the test of PBUN, Lukšan & Vlček's proximal
-  bundle code, with its default tolerance), and the stationarity measure is at most
+  bundle code, with its default tolerance), the model predicts no larger decrease at the
+  present t (``−v ≤ tolf·max(1, |f|)``: on a crawl the steps are small because the model is
+  poor, not because there is nothing left — HS78 stopped 1.8e-6 above f* under one BLAS kernel
+  without it, once serious steps were extrapolated), and the stationarity measure is at most
   ``sqrt(tolf)`` (the pairing of an f-change tolerance τ with a first-order test at a root of τ
   of Gill, Murray & Wright, *Practical Optimization*, 8.2.3).  So x is certified at
   ``sqrt(tolf)`` = 1e-4 (for a convex f, ``f(x) − f(z) ≤ 1e-4·max(1, |f|)·(1 + ‖z − x‖)``) and
@@ -217,8 +225,8 @@ class BundleResult(OptimizeResult):
 class BTOptions:
     """Parameters of the method (keyword ``**options`` of :func:`minimize_bundle`).
 
-    m1: serious-step (descent) test f(y) − f(x) ≤ m1·v; m2 (> m1): slope test for enlarging t
-    within an iteration (only with ``extend``); m3: null-step test (the new cut must lift the
+    m1: serious-step (descent) test f(y) − f(x) ≤ m1·v; m2 (> m1): slope test g(y)ᵀd < m2·v
+    for the line search beyond a serious step (or for enlarging t with ``extend``); m3: null-step test (the new cut must lift the
     model at d to at least m3·v);
     gamma: weight of ‖x − y‖² in the locality measure α (0 is exact for convex f); None
     (default): set by the run (module docstring) — gamma_t0/t (in the units of f per x², the
@@ -229,6 +237,8 @@ class BTOptions:
     t_min, t_max: bounds of t (default 1e-8·t0 and 1e4·t0);
     t_decrease: factor of t in the inner loop (far or useless trial point);
     t_increase: factor of t in the inner loop with ``extend`` (bisection once bracketed);
+    extrapolation: largest multiple τ of a serious step's direction that the line search tries
+    (τ doubles from 1 while the slope stays steep; 1 switches it off; module docstring);
     extend: enlarge t within an iteration after a serious-step candidate with a steep slope
     (BT's inner loop; costs evaluations);
     adapt_t: Kiwiel's update of t between iterations (module docstring); m_r: decrease ratio
@@ -268,6 +278,7 @@ class BTOptions:
     t_increase: float = 4.0
     t_decrease: float = 0.25
     extend: bool = False
+    extrapolation: float = 1.0
     adapt_t: bool = True
     m_r: float = 0.5
     t_factor: float = 10.0
@@ -309,6 +320,9 @@ class BTOptions:
             problems.append("need t_increase > 1 and 0 < t_decrease < 1")
         if not (isinstance(o.rise_patience, int) and o.rise_patience >= 1):
             problems.append(f"need an integer rise_patience >= 1 ({o.rise_patience!r})")
+        if not (isinstance(o.extrapolation, (int, float)) and math.isfinite(o.extrapolation)
+                and o.extrapolation >= 1):
+            problems.append(f"need a finite extrapolation >= 1 ({o.extrapolation!r})")
         if not o.t_factor > 1:
             problems.append(f"need t_factor > 1 (t_factor={o.t_factor})")
         if not o.metric_range >= 1:
@@ -638,6 +652,7 @@ def _iteration(oracle, poly: Polyhedron, st: BundleState, o: BTOptions, eps: flo
             # 1e-4 above f*; a guard relative to the measure at x0 let HS78 stop 2e-6 above f*
             # under one BLAS kernel)
             if (o.tolf > 0 and st.stationarity <= math.sqrt(o.tolf)
+                    and -qp.v <= o.tolf * max(1.0, abs(f))
                     and flat_serious_steps(st.history, o.tolf_steps, o.tolf)):
                 return _Step("fchange", qp, t)
             before, st.predicted = st.predicted, _predicted_decrease(poly, st, qp, alpha, t,
@@ -672,6 +687,9 @@ def _iteration(oracle, poly: Polyhedron, st: BundleState, o: BTOptions, eps: flo
                 alpha = _alpha(st, o.gamma)             # cuts that overestimate f at y
         if fy - f <= o.m1 * qp.v:                       # descent: serious-step candidate
             cand = _Step("serious", qp, t, y, fy, gy)
+            if not o.extend and o.extrapolation > 1 and gy @ d < o.m2 * qp.v:
+                _extrapolate(oracle, poly, st, o, cand, d, qp.v)
+                return cand
             if not o.extend or gy @ d >= o.m2 * qp.v or t >= st.t_max or last:
                 return cand
             lo = t                                      # steep slope: try a longer step
@@ -692,6 +710,37 @@ def _iteration(oracle, poly: Polyhedron, st: BundleState, o: BTOptions, eps: flo
         hi = t                                          # cut useless here: shrink the region
         t = max(t * o.t_decrease, st.t_min)
     raise AssertionError("unreachable")  # pragma: no cover
+
+
+def _extrapolate(oracle, poly: Polyhedron, st: BundleState, o: BTOptions, cand: _Step, d,
+                 v: float) -> None:
+    """Line search beyond a serious step y = x + d whose slope g(y)ᵀd is still below m2·v.
+
+    Tries x + τd for τ = 2, 4, … ≤ ``extrapolation`` (clipped to the bounds; a point outside
+    the other constraints ends the search) and moves the candidate to each one that passes the
+    descent test f − f(x) ≤ m1·τ·v and lowers f, until the slope flattens; the cuts of the
+    points passed over (and of a failed one) go into the bundle.  t is not changed: the ratio
+    ρ of the next update of t sees the longer step's decrease.
+    """
+    x, f = st.x, st.f
+    tau = 1.0
+    while 2.0 * tau <= o.extrapolation:
+        y = poly.clip(x + 2.0 * tau * d)
+        if poly.violation(y) > o.feas_tol:
+            return
+        out = _evaluate(oracle, y, trial=True)
+        st.nfev += 1
+        if out is None:
+            return
+        fy, gy = out
+        if fy - f > o.m1 * 2.0 * tau * v or fy >= cand.fy:
+            cand.extra.append((y, fy, gy))
+            return
+        cand.extra.append((cand.y, cand.fy, cand.gy))
+        cand.y, cand.fy, cand.gy = y, fy, gy
+        tau *= 2.0
+        if gy @ d >= o.m2 * v:
+            return
 
 
 def _update_bundle(st: BundleState, step: _Step, max_bundle: int, gamma: float) -> None:
