@@ -229,8 +229,8 @@ class BTOptions:
     """Parameters of the method (keyword ``**options`` of :func:`minimize_bundle`).
 
     m1: serious-step (descent) test f(y) − f(x) ≤ m1·v; m2 (> m1): slope test g(y)ᵀd < m2·v
-    for the line search beyond a serious step (or for enlarging t with ``extend``); m3: null-step test (the new cut must lift the
-    model at d to at least m3·v);
+    for the line search beyond a serious step (or for enlarging t with ``extend``); m3:
+    null-step test (the new cut must lift the model at d to at least m3·v);
     gamma: weight of ‖x − y‖² in the locality measure α (0 is exact for convex f); None
     (default): set by the run (module docstring) — gamma_t0/t (in the units of f per x², the
     weight of the proximal term times gamma_t0) or gamma_factor times the nonconvexity the
