@@ -539,9 +539,48 @@ def test_line_search_saves_evaluations_on_rosenbrock():
     assert ls.nfev <= 0.8 * off.nfev
 
 
+@pytest.mark.parametrize("name", ["Colville1", "MAXQ"])
+def test_secant_cap_of_t_saves_evaluations(name):
+    """t capped after serious steps by the secant step sᵀs/sᵀ(p⁺ − p) of the aggregate
+    subgradients: Colville1 66 → 43 and MAXQ 192 → 146 evaluations to the stop within 1e-6 of
+    f* (measured, the same under the Prescott, Haswell and SkylakeX kernels)."""
+    prob = PROBLEMS[name]
+    cap = minimize_bundle(prob, prob.x0, t_secant=True)
+    off = minimize_bundle(prob, prob.x0)
+    for res in (cap, off):
+        assert res.success and rel_error(res.fun, prob.f_star) <= 1e-6, res.message
+    assert cap.nfev <= 0.8 * off.nfev
+    ts = [h["t"] for h in cap.history]
+    assert min(b / a for a, b in zip(ts, ts[1:])) >= 0.1 - 1e-12    # at most t/t_factor per step
+
+
+@pytest.mark.parametrize("fmt", ["json", "npz"])
+def test_secant_cap_resumes_bit_for_bit(fmt, bundle_state_roundtrip):
+    """The step and aggregate waiting for the next iteration are part of the state: a run
+    stopped right after a serious step and restored repeats the uninterrupted run."""
+    prob = PROBLEMS["Colville1"]
+    kw = dict(max_iter=60, t_secant=True)
+    full = minimize_bundle(prob, prob.x0, **kw)
+    k = next(h["iteration"] for h in full.history[10:] if h["step"] == "serious")
+    saved = {}
+
+    def stop_at_k(r):
+        if r.nit == k:
+            assert r.state.pending_s is not None
+            saved["state"] = r.state.to_dict()
+            raise StopIteration
+
+    minimize_bundle(prob, prob.x0, callback=stop_at_k, **kw)
+    rest = minimize_bundle(prob, None, state=bundle_state_roundtrip(saved["state"], fmt), **kw)
+    assert np.array_equal(rest.x, full.x) and rest.nfev == full.nfev
+    assert rest.history == full.history
+
+
 def test_invalid_extrapolation_is_named():
     with pytest.raises(OptimizerError, match="extrapolation >= 1"):
         minimize_bundle(PROBLEMS["CB2"], np.zeros(2), extrapolation=0.5)
+    with pytest.raises(OptimizerError, match="t_secant must be True or False"):
+        minimize_bundle(PROBLEMS["CB2"], np.zeros(2), t_secant="yes")
 
 
 # ------------------------------------------------------------------ polyhedral, n >= 50
