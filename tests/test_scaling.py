@@ -214,3 +214,30 @@ def test_the_widely_scaled_problems_reach_f_star_under_every_blas_kernel(kernel)
     out = json.loads(proc.stdout.strip().splitlines()[-1])
     for name, (f, success, _nfev) in out.items():
         assert success and rel_error(f, PROBLEMS[name].f_star) <= 1e-6, (kernel, name, f)
+
+
+def test_the_optimizer_table_chooses_the_scaling_of_a_run(tmp_path, monkeypatch):
+    """``[optimizer] scale`` reaches the method (the box of a design has one width, so only a
+    user's choice of "none" for a safety box matters there); a bad value is refused by name."""
+    import contactopt.optimize as optimize
+    from contactopt.errors import ConfigError
+    from contactopt.runner import run_optimization
+
+    seen = {}
+
+    class Stop(Exception):
+        pass
+
+    def record(oracle, x0, **kw):
+        seen.update(kw)
+        raise Stop
+
+    monkeypatch.setattr(optimize, "minimize_bundle", record)
+    small = {"mesh": {"nx": 8, "ny": 4, "nz": 3}}
+    for scale in ("bounds", "none"):
+        cfg = load_config("example1").with_updates({**small, "optimizer": {"scale": scale}})
+        with pytest.raises(Stop):
+            run_optimization(cfg, tmp_path / scale)
+        assert seen["scale"] == scale
+    with pytest.raises(ConfigError, match=r"optimizer\.scale"):
+        load_config("example1").with_updates({"optimizer": {"scale": "units"}})

@@ -251,7 +251,7 @@ def _write_checkpoint(path: Path, bstate, oracle: _Oracle, fingerprint: str, ela
     atomic_savez(path, **arrays)
 
 
-def _saved_result(path: Path, bstate, max_iter: int, lb=None, ub=None):
+def _saved_result(path: Path, bstate, max_iter: int, lb=None, ub=None, scale="bounds"):
     """The optimizer's result stored with a finished run's checkpoint (None: the run had not
     stopped, or it is resumed with another ``max_iter`` and so goes on); ``lb``, ``ub`` the box
     of the optimized variables, whose widths scale the state's variables (minimize_bundle's
@@ -270,7 +270,7 @@ def _saved_result(path: Path, bstate, max_iter: int, lb=None, ub=None):
                        message=message, criterion=criterion, stationarity=st.stationarity,
                        relative_decrease=rel, predicted_decrease=st.predicted, gamma=st.gamma, t=st.t,
                        history=[dict(r) for r in st.history], state=st)
-    scaling = variable_scaling(st.x.size, lb, ub)
+    scaling = variable_scaling(st.x.size, lb, ub, scale)
     return res if scaling is None else scaling.result(res)
 
 
@@ -449,7 +449,8 @@ def run_optimization(config, outdir=None, *, eps=None, max_iter=None, resume=Fal
         # a constrained run's end is its penalty state's: minimize_constrained returns it without evaluating
         box = red.bounds if red is not None else model.admissible.constraints()
         finished = None if pstate is not None else _saved_result(ckpt, bstate, cfg.optimizer.max_iter,
-                                                                 box["lb"], box["ub"])
+                                                                 box["lb"], box["ub"],
+                                                                 cfg.optimizer.scale)
     lock = claim_output_dir(out, overwrite=overwrite, resume=resume)
     root = logging.getLogger("contactopt")
     old_level = root.level
@@ -532,7 +533,7 @@ def run_optimization(config, outdir=None, *, eps=None, max_iter=None, resume=Fal
                     minimize = partial(minimize_constrained, ctol=[c.tol for c in problem.constraints])
                 res = minimize(f, x0, **cons, eps=opt.eps, max_iter=opt.max_iter, callback=callback,
                                ftol=opt.ftol, ftol_window=opt.ftol_window, metric=opt.metric,
-                               metric_memory=opt.metric_memory, **state_kw)
+                               metric_memory=opt.metric_memory, scale=opt.scale, **state_kw)
             except RunAborted as exc:
                 exc.checkpoint = ckpt if ckpt.exists() else None
                 exc.args = (f"{exc.args[0]}; " + (f"the checkpoint of iteration {oracle.iteration} is kept "

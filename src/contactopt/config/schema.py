@@ -237,6 +237,12 @@ SCHEMA = {
                    "polyhedral functions; docs/stopping.md)"),
         "metric_memory": (20, _posint, "an integer ≥ 1 (serious steps the metric is estimated "
                           "from)"),
+        "scale": ("bounds", _oneof("bounds", "none"),
+                  "'bounds' or 'none' (the variables the method works in: 'bounds' scales each "
+                  "design variable by the width of its box relative to the others, the identity "
+                  "where the widths are equal, as in the paper's admissible set; 'none' for a box "
+                  "that is only a safeguard, far wider than the range the variables move in; "
+                  "docs/stopping.md)"),
     },
 }
 

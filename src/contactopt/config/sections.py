@@ -330,6 +330,7 @@ class Optimizer:
     ftol_window: int
     metric: str
     metric_memory: int
+    scale: str
 
     @classmethod
     def from_dict(cls, d: dict) -> "Optimizer":
