@@ -9,6 +9,10 @@ that a test can hand the CLI a bad value.
 from __future__ import annotations
 
 import copy
+import json
+import os
+import subprocess
+import sys
 from pathlib import Path
 
 import pytest
@@ -135,3 +139,32 @@ def bundle_state_roundtrip(tmp_path):
         text = json.dumps({key: (v.tolist() if isinstance(v, np.ndarray) else v) for key, v in state.items()})
         return BundleState.from_dict(json.loads(text))
     return roundtrip
+
+
+# instructions each OpenBLAS core type needs (a kernel this CPU lacks dies of an illegal instruction)
+KERNEL_NEEDS = {"Prescott": (), "Haswell": ("avx2", "fma"), "SkylakeX": ("avx512f",), "Zen": ("avx2", "fma")}
+
+
+def _cpu_flags() -> set:
+    for line in Path("/proc/cpuinfo").read_text().splitlines():
+        if line.startswith("flags"):
+            return set(line.split(":", 1)[1].split())
+    return set()
+
+
+@pytest.fixture
+def kernel_probe():
+    """``kernel_probe(kernel, code)`` → the JSON that the Python ``code`` prints last, run in a
+    subprocess with OPENBLAS_CORETYPE = ``kernel`` (one of KERNEL_NEEDS) and one BLAS thread;
+    the test is skipped where this CPU cannot run that kernel."""
+    return _run_under_kernel
+
+
+def _run_under_kernel(kernel: str, code: str):
+    if not _cpu_flags().issuperset(KERNEL_NEEDS[kernel]):
+        pytest.skip(f"this CPU cannot run the {kernel} kernel")
+    env = dict(os.environ, OPENBLAS_CORETYPE=kernel, OPENBLAS_NUM_THREADS="1",
+               PYTHONPATH=str(Path(__file__).resolve().parents[1] / "src"))
+    proc = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True, timeout=600)
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    return json.loads(proc.stdout.strip().splitlines()[-1])
