@@ -83,7 +83,9 @@ def test_command_lines_parse(line):
 
 def test_sources_cite_only_the_repository():
     """Docstrings and comments point to the project's own docs, never to a file outside it."""
-    offenders = [f"{p.relative_to(ROOT)}:{n}" for base in ("src", "tests", "benchmarks", "docs")
-                 for p in sorted((ROOT / base).rglob("*")) if p.suffix in (".py", ".md") and p.name != Path(__file__).name
+    files = [p for base in ("src", "tests", "benchmarks", "docs", "examples") for p in sorted((ROOT / base).rglob("*"))]
+    files += sorted(ROOT.glob("*.md"))                  # README, REPRODUCTION, ...
+    offenders = [f"{p.relative_to(ROOT)}:{n}"
+                 for p in files if p.suffix in (".py", ".md") and p.name != Path(__file__).name
                  for n, line in enumerate(p.read_text(errors="replace").splitlines(), 1) if "DESIGN.md" in line]
     assert not offenders, offenders
