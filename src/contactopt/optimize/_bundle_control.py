@@ -178,15 +178,21 @@ def no_progress(history: list, window: int) -> bool:
     return recent >= 0.5 * before
 
 
-def relative_decrease(history: list, window: int) -> float:
-    """(f_then − f_now)/|f_now| over the last ``window`` serious steps (inf before there are
-    window + 1 of them)."""
+def _last_serious_f(history: list, count: int) -> list:
+    """f of the last ``count`` + 1 serious steps, newest first (fewer where there are fewer)."""
     fs = []
     for h in reversed(history):
         if h["step"] == "serious":
             fs.append(h["f"])
-            if len(fs) > window:
+            if len(fs) > count:
                 break
+    return fs
+
+
+def relative_decrease(history: list, window: int) -> float:
+    """(f_then − f_now)/|f_now| over the last ``window`` serious steps (inf before there are
+    window + 1 of them)."""
+    fs = _last_serious_f(history, window)
     if len(fs) <= window:
         return math.inf
     drop = fs[-1] - fs[0]
@@ -198,12 +204,7 @@ def flat_serious_steps(history: list, count: int, tol: float) -> bool:
     ``tol·max(1, |f|)`` and the last iteration was one of them."""
     if not history or history[-1]["step"] != "serious":
         return False
-    fs = []
-    for h in reversed(history):
-        if h["step"] == "serious":
-            fs.append(h["f"])
-            if len(fs) > count:
-                break
+    fs = _last_serious_f(history, count)
     if len(fs) <= count:
         return False
     return all(abs(a - b) <= tol * max(1.0, abs(a)) for a, b in zip(fs[:-1], fs[1:]))
