@@ -22,6 +22,7 @@ from contactopt.optimize.testproblems import (
     paper_admissible_set,
 )
 from contactopt.problem import ShapeProblem
+from contactopt.runner import run_optimization
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -197,11 +198,10 @@ def test_the_widely_scaled_problems_reach_f_star_under_every_blas_kernel(kernel,
 
 
 def test_the_optimizer_table_chooses_the_scaling_of_a_run(tmp_path, monkeypatch):
-    """``[optimizer] scale`` reaches the method (the box of a design has one width, so only a
-    user's choice of "none" for a safety box matters there); a bad value is refused by name."""
+    """``[optimizer] scale`` reaches the method (a design's box has one width unless
+    ``design.direction`` is "grow" or "shrink"); a bad value is refused by name."""
     import contactopt.optimize as optimize
     from contactopt.errors import ConfigError
-    from contactopt.runner import run_optimization
 
     seen = {}
 
@@ -221,3 +221,23 @@ def test_the_optimizer_table_chooses_the_scaling_of_a_run(tmp_path, monkeypatch)
         assert seen["scale"] == scale
     with pytest.raises(ConfigError, match=r"optimizer\.scale"):
         load_config("example1").with_updates({"optimizer": {"scale": "units"}})
+
+
+def test_a_run_of_a_design_with_unequal_box_widths_resumes_bit_for_bit(tmp_path):
+    """``design.direction = "shrink"`` from a graded initial design: each control point's box is
+    [0, its initial value], widths 0.02–0.13, so the run is scaled (d from 1/4 to 2); a run
+    stopped at max_iter and resumed from its checkpoint ends where the uninterrupted one ends."""
+    i, j = np.arange(8)[:, None], np.arange(4)[None, :]
+    init = np.round(0.02 + 0.1 * (i / 7.0) ** 2 + 0.01 * j, 4).tolist()
+    cfg = load_config("example1").with_updates({
+        "mesh": {"nx": 8, "ny": 4, "nz": 3},
+        "design": {"initial": init, "direction": "shrink", "C2": 0.005, "C1": 2.0},
+        "optimizer": {"ftol": 0.0, "eps": 1e-9}})
+    box = ShapeProblem(cfg).model.admissible.constraints()
+    scaling = variable_scaling(32, box["lb"], box["ub"])
+    assert scaling is not None and np.ptp(np.log2(scaling.d)) >= 2
+    full = run_optimization(cfg, tmp_path / "full", max_iter=12).summary
+    run_optimization(cfg, tmp_path / "cut", max_iter=5)
+    resumed = run_optimization(cfg, tmp_path / "cut", max_iter=12, resume=True).summary
+    assert resumed["evaluations"] == full["evaluations"] and resumed["J"] == full["J"]
+    assert resumed["alpha"] == full["alpha"]
