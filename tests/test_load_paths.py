@@ -764,10 +764,8 @@ def test_constraints_along_a_path_match_central_differences(body, path, n, tmp_p
     for j, _ in enumerate(pr.constraints):
         rng = np.random.default_rng(11 + j)
         directions = [rng.standard_normal(alpha.size) for _ in range(2)]
-        with pr._as_objective(j):
-            res = pr.subgradient(alpha)
-        with twin._as_objective(j):
-            fd = central_differences(twin, alpha, directions, h=h)
+        res = pr.for_constraint(j).subgradient(alpha)
+        fd = central_differences(twin.for_constraint(j), alpha, directions, h=h)
         assert res.n_degenerate == 0
         g = np.array([res.gradient @ d for d in directions])
         assert np.abs(g - fd).max() <= 1e-6 * np.abs(fd).max(), (j, g, fd)

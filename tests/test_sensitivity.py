@@ -47,7 +47,7 @@ def signorini_adjoint_gradient(pr, alpha):
     E = np.zeros((3 * p, nA))
     E[3 * active + 2, np.arange(nA)] = 1.0
     K = np.block([[cond.S, -E], [E.T, np.zeros((nA, nA))]])
-    _, _, dJ_dlam, _ = pr.objective.evaluate(state, cond)
+    dJ_dlam = pr.objective.evaluate(state, cond).derivatives.dlam
     rhs = np.concatenate([np.zeros(3 * p), dJ_dlam[active]])
     adj = np.linalg.solve(K.T, -rhs)            # multipliers of the two equation blocks
     mu, eta = adj[:3 * p], adj[3 * p:]

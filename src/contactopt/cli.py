@@ -244,8 +244,9 @@ def _cmd_check_gradient(args) -> int:
             print(f"gradient check of {problem.config.name}: Θ = {rep.value:.8e}, degenerate nodes "
                   f"{rep.n_degenerate} {rep.counts}")
         else:
-            with problem._as_objective(j) as con:
-                rep = check_gradient(problem, alpha, seed=args.seed, n_directions=args.directions, h=args.h)
+            con = problem.constraints[j]
+            rep = check_gradient(problem.for_constraint(j), alpha, seed=args.seed, n_directions=args.directions,
+                                 h=args.h)
             print(f"\nconstraint {con.name} (max {con.limit:g}): value = {rep.value:.8e}")
         passed = _print_check(rep) and passed
     return 0 if passed else 1

@@ -44,6 +44,7 @@ from ..errors import SolverError
 from ..fem.amg import ContactHierarchy
 from ..fem.krylov import KrylovNotConverged, gmres
 from .adjoint import DEFAULT_CHOICES, effective_classes
+from .partials import FULL
 
 __all__ = ["solve_adjoint_fullspace", "subgradient_fullspace", "FullSpaceAdjoint", "ADJOINT_RTOL"]
 
@@ -162,8 +163,10 @@ def subgradient_fullspace(model, objective, alpha, asm, result, friction, *, loa
                   tau=tau, gap=asm.gap, classes=classes, friction=friction, method="fullspace",
                   iterations=result.newton_steps, residual=result.error, complementarity=float("nan"),
                   converged=result.converged)
-    value, y_u, y_lam, dJ = objective.evaluate(state, None)
-    if np.asarray(y_u).size == model.assembler.n_full:      # ∂J/∂u on every DOF: its free part
+    part = objective.evaluate(state, None)
+    value, d = part.value, part.derivatives
+    y_u, y_lam, dJ = d.du, d.dlam, d.dalpha
+    if d.space == FULL:                     # ∂J/∂u on every DOF: its free part
         y_u = np.asarray(y_u)[model.assembler.free]
     t1 = time.perf_counter()
     adj = solve_adjoint_fullspace(asm.A, model.contact_dofs, classes, u_c, lam, y_u, y_lam, friction,

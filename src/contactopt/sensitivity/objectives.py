@@ -1,13 +1,15 @@
 """Objectives J(α, y) as pluggable pieces with value and partial gradients.
 
-An objective sees the state (λ, τ, u_c; conventions in :mod:`contactopt.contact.state`) and the
-condensed system of the design, and returns
+An objective sees the state (λ, τ, u_c; conventions in :mod:`contactopt.contact.state`: per
+contact node the order (t1, t2, ν), λ = r_ν ≥ 0, τ = −r_t) and the system of the design, and
+returns a :class:`~contactopt.sensitivity.partials.Partials` record: the value and
 
-    value,  ∂J/∂u_c (3p, per node (t1, t2, ν)),  ∂J/∂λ (p,),  ∂J/∂α at fixed (u_c, λ) (n_design,).
+    ∂J/∂u_c (3p, per node (t1, t2, ν)),  ∂J/∂λ (p,),  ∂J/∂α at fixed (u_c, λ) (n_design,).
 
 An objective of the whole displacement (``full_space``: the peak stress, the friction work)
 returns ∂J/∂u on every DOF (3·n_nodes, DOF 3n + m) in place of ∂J/∂u_c, and ∂J/∂α at fixed u;
-each solver path's adjoint takes it (:meth:`contactopt.paths.base.SolverPath.adjoint`).
+the record's ``space`` says which (each solver path's adjoint takes either,
+:meth:`contactopt.paths.base.SolverPath.adjoint`).
 
 The adjoint (:mod:`contactopt.sensitivity.adjoint`) turns these into a Clarke subgradient of
 Θ(α) = J(α, S(α)). To add an objective, subclass :class:`Objective` and register it in
@@ -23,10 +25,14 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import ConfigError
+from ..fem.stress import von_mises_gradients, von_mises_points
+from .partials import CONTACT, FULL, Derivatives, Partials, add_solve
+from .steps import choice_of
 
 
 class Objective:
-    """Base class: ``evaluate(state, cond) -> (value, dJ_du (3p,), dJ_dlam (p,), dJ_dalpha (n_design,))``."""
+    """Base class: ``evaluate(state, system) -> Partials`` of one solve (its ``space`` the DOFs of
+    ∂J/∂u: ``FULL`` where ``full_space``, else ``CONTACT``)."""
 
     name = "objective"
     full_space = False       # True: ∂J/∂u is on every DOF (3·n_nodes), not on the contact DOFs only
@@ -37,17 +43,23 @@ class Objective:
         self.model = model
         self.scale = float(scale)
 
-    def evaluate(self, state, cond):
+    def evaluate(self, state, cond) -> Partials:
         raise NotImplementedError
 
-    def evaluate_path(self, states, systems, loads, memo=None):
+    def resolve(self) -> None:
+        """Compute now what the objective needs from other designs (a 'design' target solves a
+        state, which must not come between a state and its adjoint); nothing by default."""
+
+    def partials(self, value, du, dlam, dalpha) -> Partials:
+        """The :class:`Partials` of one solve, ∂J/∂u on this objective's space."""
+        return Partials(value, {0: Derivatives(du, dlam, dalpha, FULL if self.full_space else CONTACT)})
+
+    def evaluate_path(self, states, systems, loads, memo=None) -> Partials:
         """J at the end of the last of the solves ``states`` of a load path (from the first, in
-        order; ``systems`` and ``loads`` theirs): (value, {solve index: (∂J/∂u, ∂J/∂λ, ∂J/∂α)}),
-        the partial derivatives with respect to each solve's state. An objective of the state
-        alone: the last solve's :meth:`evaluate`. ``memo`` (a dict) keeps what the ends of several
-        steps of one path share."""
-        value, y_u, y_lam, dalpha = self.evaluate(states[-1], systems[-1])
-        return value, {len(states) - 1: (y_u, y_lam, dalpha)}
+        order; ``systems`` and ``loads`` theirs), its derivatives keyed by each solve's index. An
+        objective of the state alone: the last solve's :meth:`evaluate`. ``memo`` (a dict) keeps
+        what the ends of several steps of one path share."""
+        return self.evaluate(states[-1], systems[-1]).at_solve(len(states) - 1)
 
 
 class TargetNormalForce(Objective):
@@ -64,15 +76,18 @@ class TargetNormalForce(Objective):
 
     @property
     def target(self) -> np.ndarray:
+        self.resolve()
+        return self._target
+
+    def resolve(self) -> None:
         if self._target is None:
             self._target = target_values(self.spec, self.model, self.case, self.solve)
-        return self._target
 
     def evaluate(self, state, cond):
         d = self.target - state.lam
         p = state.lam.size
-        return (self.scale * float(d @ d), np.zeros(3 * p), -2.0 * self.scale * d,
-                np.zeros(state.alpha.size))
+        return self.partials(self.scale * float(d @ d), np.zeros(3 * p), -2.0 * self.scale * d,
+                             np.zeros(state.alpha.size))
 
 
 class PressureUniformity(Objective):
@@ -97,8 +112,8 @@ class PressureUniformity(Objective):
         d = lam / a - pbar
         grad = np.zeros(state.lam.size)
         grad[m] = 2.0 * self.scale * d           # Σ a_m d_m = 0: p̄'s derivative drops out
-        return (self.scale * float(a @ (d * d)), np.zeros(3 * state.lam.size), grad,
-                np.zeros(state.alpha.size))
+        return self.partials(self.scale * float(a @ (d * d)), np.zeros(3 * state.lam.size), grad,
+                             np.zeros(state.alpha.size))
 
 
 def node_areas(model):
@@ -149,7 +164,7 @@ class MaxPressure(Objective):
         value, w = aggregate(state.lam[m] / a, self.kind, self.rho, self.p)
         grad = np.zeros(state.lam.size)
         grad[m] = self.scale * w / a
-        return self.scale * value, np.zeros(3 * state.lam.size), grad, np.zeros(state.alpha.size)
+        return self.partials(self.scale * value, np.zeros(3 * state.lam.size), grad, np.zeros(state.alpha.size))
 
 
 class FrictionalDissipation(Objective):
@@ -172,7 +187,7 @@ class FrictionalDissipation(Objective):
     accumulates = True           # on a load path: the work of every solve's slip increment
 
     def evaluate(self, state, cond):
-        return self._work(state, cond, getattr(self, "loads", None))[:4]
+        return self.partials(*self._work(state, cond, self.loads)[:4])
 
     def _work(self, state, cond, loads):
         """(τ·Δu_t, ∂/∂u, 0 (p,), ∂/∂α at fixed u, ∂/∂u of the previous solve (every DOF)) of one
@@ -213,10 +228,10 @@ class FrictionalDissipation(Objective):
                 memo[key] = self._work(st, cond, ld)
             v, y_u, y_lam, dalpha, y_prev = memo[key]
             value += v
-            add_terms(out, i, y_u, y_lam, dalpha)
+            add_solve(out, i, Derivatives(y_u, y_lam, dalpha, FULL))
             if i:
-                add_terms(out, i - 1, y_prev, np.zeros_like(y_lam), np.zeros_like(dalpha))
-        return value, out
+                add_solve(out, i - 1, Derivatives(y_prev, np.zeros_like(y_lam), np.zeros_like(dalpha), FULL))
+        return Partials(value, out)
 
 
 def stiffness_product(cond, asm, coords, x) -> np.ndarray:
@@ -228,15 +243,6 @@ def stiffness_product(cond, asm, coords, x) -> np.ndarray:
         return product(x)
     A = cond.assembled.A if cond is not None and hasattr(cond, "assembled") else asm.stiffness(coords)
     return A @ x
-
-
-def add_terms(out: dict, i: int, y_u, y_lam, dalpha) -> None:
-    """Add a solve's partial derivatives to ``out`` {solve: (∂J/∂u, ∂J/∂λ, ∂J/∂α)} (same sizes)."""
-    if i in out:
-        a, b, c = out[i]
-        out[i] = (a + y_u, b + y_lam, c + dalpha)
-    else:
-        out[i] = (y_u, y_lam, dalpha)
 
 
 class PeakStress(Objective):
@@ -260,11 +266,9 @@ class PeakStress(Objective):
 
     def values(self, state) -> np.ndarray:
         """σ_vM (len(cells), Q) of the state."""
-        from ..fem.stress import von_mises_points
         return von_mises_points(self.model.assembler, state.coords, state.u, self.cells)
 
     def evaluate(self, state, cond):
-        from ..fem.stress import von_mises_gradients
         model = self.model
         vm = self.values(state)
         value, w = aggregate(vm.ravel(), self.kind, self.rho, self.p)
@@ -272,7 +276,7 @@ class PeakStress(Objective):
         rows = np.flatnonzero(np.any(w != 0, axis=1))     # the max: one element only
         g_u, g_x = von_mises_gradients(model.assembler, state.coords, state.u, self.cells[rows], w[rows])
         dalpha = model.mesh.contract_dx3(g_x[:, 2])
-        return self.scale * value, self.scale * g_u, np.zeros(state.lam.size), self.scale * dalpha
+        return self.partials(self.scale * value, self.scale * g_u, np.zeros(state.lam.size), self.scale * dalpha)
 
 
 def region_cells(model, region, key: str) -> np.ndarray:
@@ -321,7 +325,7 @@ class Compliance(Objective):
             dw = coupling.to_eff(cond.ell)
             z = -coupling.adjoint_z(coupling.foundation.C @ cond.ell)
             dalpha += dc(asm.coords, state.u, model.assembler.to_full(cond.factor.extend(z)))
-        return (self.scale * value, self.scale * dw, np.zeros(state.lam.size), self.scale * dalpha)
+        return self.partials(self.scale * value, self.scale * dw, np.zeros(state.lam.size), self.scale * dalpha)
 
     def evaluate_full(self, state, cond):
         """The same J = L(α)ᵀu with ∂J/∂u = L on every DOF and ∂J/∂α = uᵀ∂L/∂α at fixed u: the form a
@@ -329,8 +333,9 @@ class Compliance(Objective):
         adjoint maps ∂J/∂u of the body to the state's w itself (:class:`WeightedSum`)."""
         asm = cond.assembled
         dalpha = -self.model.design_contraction(asm.coords, np.zeros_like(state.u), state.u)
-        return (self.scale * float(asm.L_full @ state.u), self.scale * np.asarray(asm.L_full, float),
-                np.zeros(state.lam.size), self.scale * dalpha)
+        return Partials(self.scale * float(asm.L_full @ state.u),
+                        {0: Derivatives(self.scale * np.asarray(asm.L_full, float), np.zeros(state.lam.size),
+                                        self.scale * dalpha, FULL)})
 
 
 class WeightedSum(Objective):
@@ -338,7 +343,8 @@ class WeightedSum(Objective):
 
     A term whose ∂J/∂u is on the contact DOFs only is put on every DOF (zero off the contact
     DOFs) when another term's is on every DOF; the adjoint is then solved once for the sum.
-    ``last_terms``: the terms' own values (unweighted, without ``scale``) at the last evaluation.
+    The :class:`~contactopt.sensitivity.partials.Partials` it returns carry the terms' own values
+    (unweighted, without ``scale``) in ``terms``.
     """
 
     name = "sum"
@@ -346,20 +352,19 @@ class WeightedSum(Objective):
     def __init__(self, model, terms, scale: float = 1.0):
         super().__init__(model, scale)
         self.terms = terms                      # [(name, weight, objective)]
-        self.full_space = any(getattr(o, "full_space", False) for _, _, o in terms)
-        self.accumulates = any(getattr(o, "accumulates", False) for _, _, o in terms)
-        self.last_terms = {}
+        self.full_space = any(o.full_space for _, _, o in terms)
+        self.accumulates = any(o.accumulates for _, _, o in terms)
+
+    def resolve(self) -> None:
+        for _, _, o in self.terms:
+            o.resolve()
 
     @property
     def target(self):
-        """The target of the first target_normal_force term, else None. Reading it computes every
-        term's target: a 'design' target solves a state, which must not come between a state and
-        its adjoint (:meth:`contactopt.problem.ShapeProblem.prepare_objectives`)."""
-        out = None
-        for _, _, o in self.terms:
-            t = getattr(o, "target", None)
-            out = t if out is None else out
-        return out
+        """The target of the first target_normal_force term, else None (every term's is computed)."""
+        self.resolve()
+        targets = [o.target for _, _, o in self.terms if isinstance(o, TargetNormalForce)]
+        return targets[0] if targets else None
 
     @property
     def loads(self):
@@ -376,22 +381,24 @@ class WeightedSum(Objective):
         value, dlam, dalpha = 0.0, np.zeros(p), np.zeros(state.alpha.size)
         du = np.zeros(n if self.full_space else 3 * p)
         contact = (3 * self.model.contact_nodes[:, None] + np.arange(3)).ravel()
-        self.last_terms = {}
+        terms = {}
         # on an elastic foundation ∂J/∂u_c of a contact-only term is on the state's w, not on the
         # body's u_c: compliance (the one such term with ∂J/∂u_c ≠ 0) joins in its whole-body form
         coupled = self.full_space and getattr(cond, "coupling", None) is not None
         for name, w, obj in self.terms:
-            full = coupled and hasattr(obj, "evaluate_full")
-            v, y_u, y_lam, y_a = obj.evaluate_full(state, cond) if full else obj.evaluate(state, cond)
-            self.last_terms[name] = float(v)
-            value += w * v
-            if y_u.size == du.size:
-                du += w * y_u
+            full = coupled and isinstance(obj, Compliance)
+            part = obj.evaluate_full(state, cond) if full else obj.evaluate(state, cond)
+            d = part.derivatives
+            terms[name] = float(part.value)
+            value += w * part.value
+            if d.space == FULL or not self.full_space:
+                du += w * d.du
             else:                               # a contact-only gradient in a full-space sum
-                du[contact] += w * y_u
-            dlam += w * y_lam
-            dalpha += w * y_a
-        return self.scale * value, self.scale * du, self.scale * dlam, self.scale * dalpha
+                du[contact] += w * d.du
+            dlam += w * d.dlam
+            dalpha += w * d.dalpha
+        out = self.partials(self.scale * value, self.scale * du, self.scale * dlam, self.scale * dalpha)
+        return Partials(out.value, out.solves, terms)
 
     def evaluate_path(self, states, systems, loads, memo=None):
         """Σ_k w_k J_k with each term on the path (:meth:`Objective.evaluate_path`): a term of the
@@ -401,19 +408,14 @@ class WeightedSum(Objective):
         memo = {} if memo is None else memo
         contact = (3 * self.model.contact_nodes[:, None] + np.arange(3)).ravel()
         n = self.model.assembler.n_full
-        value, out = 0.0, {}
-        self.last_terms = {}
+        value, out, terms = 0.0, {}, {}
         for name, w, obj in self.terms:
-            v, parts = obj.evaluate_path(states, systems, loads, memo)
-            self.last_terms[name] = float(v)
-            value += w * v
-            for i, (y_u, y_lam, y_a) in parts.items():
-                if y_u.size != n:                  # a contact-only gradient in a full-space sum
-                    full = np.zeros(n)
-                    full[contact] = y_u
-                    y_u = full
-                add_terms(out, i, self.scale * w * y_u, self.scale * w * y_lam, self.scale * w * y_a)
-        return self.scale * value, out
+            part = obj.evaluate_path(states, systems, loads, memo)
+            terms[name] = float(part.value)
+            value += w * part.value
+            for i, d in part.solves.items():
+                add_solve(out, i, d.on_every_dof(contact, n).scaled(self.scale * w))
+        return Partials(self.scale * value, out, terms)
 
 
 OBJECTIVES = {"target_normal_force": TargetNormalForce, "pressure_uniformity": PressureUniformity,
@@ -485,7 +487,6 @@ class Constraint:
 def make_constraints(config, model, cases, solve=None) -> list:
     """The :class:`Constraint` list of ``[[constraints]]`` (:class:`~contactopt.config.ResponseConstraint`
     records), one objective per load case in ``cases`` (each with the case's loads)."""
-    from .steps import choice_of
     out, names = [], {}
     for n, table in enumerate(config.constraints):
         names[table.type] = names.get(table.type, 0) + 1

@@ -116,13 +116,12 @@ def choice_of(steps) -> StepChoice:
 
 
 def step_objective(objective, steps, states, systems, j: int, memo: dict):
-    """(J at the end of solve j, {solve i: (∂J/∂u_i, ∂J/∂λ_i, ∂J/∂α)}) of a load path's solves: an
-    objective of the state at solve j alone, the friction work summed over the solves up to j
-    (:meth:`contactopt.sensitivity.objectives.Objective.evaluate_path`)."""
-    if getattr(objective, "accumulates", False):
+    """The :class:`~contactopt.sensitivity.partials.Partials` of J at the end of solve j of a load
+    path, keyed by solve: an objective of the state at solve j alone, the friction work summed over
+    the solves up to j (:meth:`contactopt.sensitivity.objectives.Objective.evaluate_path`)."""
+    if objective.accumulates:
         return objective.evaluate_path(states[:j + 1], systems[:j + 1], [s.loads for s in steps[:j + 1]], memo)
-    value, y_u, y_lam, dalpha = objective.evaluate(states[j], systems[j])
-    return value, {j: (y_u, y_lam, dalpha)}
+    return objective.evaluate(states[j], systems[j]).at_solve(j)
 
 
 def add_at_contact(y_u: np.ndarray, carry: np.ndarray, contact: np.ndarray) -> np.ndarray:
