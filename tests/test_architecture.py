@@ -324,3 +324,57 @@ def test_the_info_detector_passes_named_fields_and_own_attributes():
           'self.info = 0\nt = self.info.get("title")\nfor k, v in problem.info.items():\n    pass\n'
           'view = dict(st.info)')
     assert not _info_uses(ast.parse(ok))
+
+
+# ---------------------------------------------------------------- the evaluation as values
+SIDE_CHANNELS = {"last_terms", "prepare_objectives", "_as_objective", "_responding"}
+
+
+def _class_lines(path: Path, name: str) -> int:
+    (node,) = [n for n in ast.parse(path.read_text()).body if isinstance(n, ast.ClassDef) and n.name == name]
+    return node.end_lineno - node.lineno + 1
+
+
+def test_the_shape_problem_is_short():
+    """ShapeProblem builds the parts and keeps the last design: what it computes lives in
+    contactopt.sensitivity (solution, responses, subgradient) and the reports in contactopt.io."""
+    assert _class_lines(SRC / "problem.py", "ShapeProblem") <= 250
+
+
+def _side_channels(tree) -> list:
+    """Names of the former side channels (attributes written by one object for another to read)."""
+    found = []
+    for n in ast.walk(tree):
+        name = n.attr if isinstance(n, ast.Attribute) else n.name if isinstance(n, (ast.FunctionDef, ast.ClassDef)) \
+            else n.value if isinstance(n, ast.Constant) and isinstance(n.value, str) else None
+        if name in SIDE_CHANNELS:
+            found.append((n.lineno, name))
+    return found
+
+
+def test_no_side_channel_between_objectives_and_the_problem():
+    """An objective returns its terms' values in its Partials record; nothing stores them on the
+    objective for another object to read, and no objective is swapped in for another."""
+    found = []
+    for f in sorted(SRC.rglob("*.py")):
+        found += [f"{f.relative_to(SRC).as_posix()}:{line} {name}" for line, name in _side_channels(ast.parse(f.read_text()))]
+    assert not found, "side channels: " + "; ".join(found)
+
+
+@pytest.mark.parametrize("snippet", ['obj.last_terms = {}', 'x = getattr(o, "last_terms", {})',
+                                     'def prepare_objectives(self):\n    pass', 'with p._as_objective(0):\n    pass'])
+def test_the_side_channel_detector_sees_a_use(snippet):
+    assert _side_channels(ast.parse(snippet))
+
+
+def test_an_objective_says_on_which_dofs_its_derivative_lives():
+    """∂J/∂u is on the contact DOFs or on every DOF as a field of the record, not by its length:
+    no module of the evaluation compares an array's size to decide it (the paths' adjoints take
+    arrays; the evaluation hands them a record's arrays)."""
+    found = []
+    for f in [SRC / "sensitivity" / f"{m}.py" for m in ("objectives", "partials", "responses", "steps", "subgradient")]:
+        for n in ast.walk(ast.parse(f.read_text())):
+            if isinstance(n, ast.Compare) and any(isinstance(x, ast.Attribute) and x.attr == "size"
+                                                  for x in [n.left, *n.comparators]):
+                found.append(f"{f.name}:{n.lineno} {ast.unparse(n)}")
+    assert not [s for s in found if "y_u" in s or "du" in s or "carry" in s], found

@@ -124,10 +124,10 @@ def step_objective(objective, steps, states, systems, j: int, memo: dict):
     return objective.evaluate(states[j], systems[j]).at_solve(j)
 
 
-def add_at_contact(y_u: np.ndarray, carry: np.ndarray, contact: np.ndarray) -> np.ndarray:
+def add_at_contact(y_u: np.ndarray, carry: np.ndarray, contact: np.ndarray, full: bool) -> np.ndarray:
     """y_u + carry with ``carry`` on the contact DOFs (3p, per node (t1, t2, ν)) and y_u on the
-    contact DOFs (3p) or on every DOF (``contact`` the full indices of the contact DOFs)."""
-    if y_u.size == carry.size:
+    contact DOFs (``full`` False) or on every DOF (``contact`` the full indices of the contact DOFs)."""
+    if not full:
         return y_u + carry
     out = np.array(y_u, dtype=float, copy=True)
     out[contact] += carry

@@ -86,7 +86,7 @@ def case_subgradient(parts, k: int, case, rhs: dict, choices):
         own = y_u                       # the response's own ∂J/∂u at this solve
         if carry is not None:           # on every DOF: y_u's global components
             full = j in rhs and rhs[j].space == FULL
-            y_u = add_at_contact(y_u, path.global_contact(carry) if full else carry, contact)
+            y_u = add_at_contact(y_u, path.global_contact(carry) if full else carry, contact, full)
         v_u, v_lam, v_full, krylov = path.adjoint(system, ctxs[j], state, y_u, y_lam, choices)
         if krylov is not None:
             state.stats.adjoint_krylov = krylov
