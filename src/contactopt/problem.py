@@ -54,6 +54,7 @@ class ShapeProblem:
         with PATHS[name].library_threads(self.config.linear_solver.threads):   # the morph weight's solve
             self.model = ElasticModel(self.config, body=body, memory_estimate=PATHS[name].memory_estimate)
         self.cases, self.combination = build_cases(self.config, self.model, self._design_lambda)
+        self._selected = name, library
         self.path = make_path(self.config, self.model, name, library, Start(first_loads=self.cases[0].loads))
         self.friction = self.path.settings.friction
         self.method = method or self.path.settings.method
@@ -66,13 +67,28 @@ class ShapeProblem:
                                  f"load_cases[{k}].steps" if self.has_load_cases and self.config.load_cases[k].steps
                                  is not None else "load_steps") for k, case in enumerate(self.cases)]
         self.step_choice = step_choice(self.config)
-        self.parts = Parts(self.model, self.path, self.cases, self.steps,
-                           [[ctx] + [self.path.new_context() for _ in (steps or [None])[1:]]
-                            for ctx, steps in zip(contexts, self.steps)])
-        self._last = LastDesign(self.parts)
+        self._use(self.path, contexts)
         self._objective = Response("objective", tuple(c.objective for c in self.cases), self.combination,
                                    self.step_choice)
         self.response = self._objective          # what evaluate and subgradient answer for
+
+    def _use(self, path, contexts) -> None:
+        """Solve on ``path``, each case from its context in ``contexts`` (a load path's later solves
+        from new ones), with no last design."""
+        self.path = path
+        self.parts = Parts(self.model, path, self.cases, self.steps,
+                           [[ctx] + [path.new_context() for _ in (steps or [None])[1:]]
+                            for ctx, steps in zip(contexts, self.steps)])
+        self._last = LastDesign(self.parts)
+
+    def detached(self) -> ShapeProblem:
+        """This problem on a solver path, contexts and last design of its own (the model shared): a
+        side computation, such as a warning at another design, that leaves this problem's warm
+        starts and kept factorizations as they are."""
+        out = copy.copy(self)
+        path = make_path(self.config, self.model, *self._selected, Start(first_loads=self.cases[0].loads))
+        out._use(path, [path.new_context() for _ in self.cases])
+        return out
 
     def _check_held(self) -> None:
         """A body held only by contact: ConfigError when no admissible contact force balances a

@@ -498,7 +498,7 @@ def run_optimization(config, outdir=None, *, eps=None, max_iter=None, resume=Fal
             oracle.scale = abs(theta0) if theta0 != 0 else 1.0
             log.info("Θ(α0) = %.8e; the bundle method minimises Θ/Θ(α0), so ε is relative", theta0)
         # at α0 (a resumed run asks a separate problem: its own must continue bit for bit)
-        run_warnings = uniqueness_warnings(ShapeProblem(cfg) if resume and problem.friction > 0 else problem,
+        run_warnings = uniqueness_warnings(problem.detached() if resume and problem.friction > 0 else problem,
                                            alpha0)
         if red is not None:
             run_warnings += red.warnings
