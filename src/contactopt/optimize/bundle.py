@@ -932,106 +932,121 @@ def minimize_bundle(oracle, x0, *, lb=None, ub=None, A_ub=None, b_ub=None, A_eq=
         Empty feasible set, invalid input, a failed QP subproblem or a non-finite oracle value.
     """
     o = BTOptions.from_kwargs(options)
-    if state is not None:
-        st = state.copy()
-        n = st.x.size
-    else:
-        n = np.asarray(x0).size
-    # the method works in z = x/d (the state too); the user's x, f, g and U are wrapped here
-    scaling = variable_scaling(n, lb, ub, o.scale)
-    if scaling is not None:
-        oracle, callback = scaling.oracle(oracle), scaling.callback(callback)
-        x0 = scaling.inner(x0) if state is None else x0
-        lb, ub, A_ub, b_ub, A_eq, b_eq = scaling.constraints(lb, ub, A_ub, b_ub, A_eq,
-                                                             b_eq).values()
-    poly = Polyhedron(n, lb, ub, A_ub, b_ub, A_eq, b_eq)
-    if state is None:
-        st = _initial_state(oracle, poly, x0, o)
-    elif poly.violation(st.x) > o.feas_tol:
-        raise OptimizerError("the restored state's x violates the constraints")
-    max_bundle = o.max_bundle if o.max_bundle is not None else max(5, n + 3)
+    oracle, callback, poly, scaling, st = _start(oracle, x0, (lb, ub, A_ub, b_ub, A_eq, b_eq), callback, state, o)
+    max_bundle = o.max_bundle if o.max_bundle is not None else max(5, poly.n + 3)
     logger.info("bundle start: n=%d f=%.10g eps=%.1e ftol=%.1e/%d t=%.3e bundle<=%d "
-                "(iteration %d)", n, st.f, eps, o.ftol, o.ftol_window, st.t, max_bundle, st.nit)
+                "(iteration %d)", poly.n, st.f, eps, o.ftol, o.ftol_window, st.t, max_bundle, st.nit)
     rel = relative_decrease(st.history, o.ftol_window)
-    criterion = None
     while True:
         if st.nit >= max_iter:
-            status, criterion = 1, "max_iter"
-            message = f"max_iter reached ({max_iter} iterations)"   # measures: in the result
+            stop = (1, "max_iter", f"max_iter reached ({max_iter} iterations)")   # measures: in the result
             break
         step = _iteration(oracle, poly, st, o, eps)
         if step.kind == "restart":
-            k = int(np.argmin(_alpha(st, o.gamma)))
-            st.G, st.fhat, st.s = st.G[k:k + 1].copy(), st.fhat[k:k + 1].copy(), st.s[k:k + 1].copy()
-            st.verified = 1
-            logger.debug("restart at f=%.10g: bundle reduced to the cut at x", st.f)
+            _restart(st, o.gamma)
             continue
-        if step.kind == "converged":
-            status, criterion = 0, "stationarity"
-            cmp = "<" if st.stationarity < eps else "<="
-            message = f"converged: stationarity {st.stationarity:.1e} {cmp} eps {eps:.0e}"
+        stop = _converged(step, st, o, eps)
+        if stop is not None:
             break
-        if step.kind == "practical":
-            status, criterion = 4, "predicted_decrease"
-            message = (f"converged: the model predicts a relative decrease {st.predicted:.1e} < ftol "
-                       f"{o.ftol:.0e} (stationarity {st.stationarity:.1e}, eps {eps:.0e})")
-            break
-        if step.kind == "fchange":
-            status, criterion = 4, "f_change"
-            message = (f"converged: f changed by at most tolf {o.tolf:.0e} (relative) in "
-                       f"{o.tolf_steps} serious steps in a row, stationarity "
-                       f"{st.stationarity:.1e} <= sqrt(tolf) (eps {eps:.0e})")
-            break
-        if step.kind == "roundoff":
-            status, criterion = 5, "roundoff"
-            message = (f"converged: the model predicts a decrease {-step.qp.v:.2e} at the round-off "
-                       f"of f (stationarity {st.stationarity:.2e}, eps {eps:.0e})")
-            break
-        f_old = st.f
-        if o.t_secant and step.kind == "serious":
-            st.pending_s, st.pending_p = step.y - st.x, step.qp.p.copy()
-        if o.metric != "none" and step.kind == "serious":
-            g_x = st.G[int(np.argmin(_alpha(st, o.gamma)))]
-            s_k, y_k = step.y - st.x, step.gy - g_x
-            update_metric(st, s_k, y_k, o.metric_memory, o.metric_range, o.metric,
-                          o.metric == "auto" and is_curvature_pair(s_k, y_k, st.f, step.fy, g_x,
-                                                                   step.gy))
-        _update_bundle(st, step, max_bundle, o.gamma)
-        if o.gamma is None:
-            _measure_gamma(st, o.gamma_factor, anew=step.kind == "serious")
-        st.t = next_t(st, step, f_old, o)
-        st.n_stuck = st.n_stuck + 1 if step.stalled else 0
-        st.nit += 1
-        if step.kind == "serious":
-            st.n_serious += 1
-            st.verified = 0
-        else:
-            st.n_null += 1
-        st.history.append({"iteration": st.nit, "f": st.f, "step": step.kind, "t": step.t,
-                           "stationarity": st.stationarity, "nfev": st.nfev})
-        logger.debug("it %d %s f=%.10g t=%.3e stat=%.3e nfev=%d", st.nit, step.kind, st.f,
-                     step.t, st.stationarity, st.nfev)
+        _advance(st, step, o, max_bundle)
         rel = relative_decrease(st.history, o.ftol_window)
         if callback is not None:
             try:
                 callback(_result(st, -1, f"iteration {st.nit}", relative_decrease=rel))
             except StopIteration:
-                status, criterion = 2, "callback"
-                message = f"stopped by the callback after iteration {st.nit}"
+                stop = (2, "callback", f"stopped by the callback after iteration {st.nit}")
                 break
-        if st.n_stuck >= 3:
-            status, criterion = 3, "stalled"
-            message = (f"stalled: {st.n_stuck} null steps in a row returned cuts already in the "
-                       f"bundle (the QP resolution is reached; stationarity "
-                       f"{st.stationarity:.2e} > eps {eps:.0e})")
+        stop = _stalled(st, o, eps, poly.n)
+        if stop is not None:
             break
-        # a polyhedral f may need n + 1 null steps at one x: a shorter window is no evidence
-        window = max(o.stall_window, 2 * (n + 1))
-        if no_progress(st.history, window):
-            status, criterion = 3, "stalled"
-            message = (f"stalled: f did not decrease in the last {window} iterations and the "
-                       f"stationarity measure did not halve ({st.stationarity:.2e} > eps {eps:.0e})")
-            break
+    status, criterion, message = stop
     logger.info("bundle end: %s; f=%.10g nit=%d nfev=%d", message, st.f, st.nit, st.nfev)
     res = _result(st, status, message, criterion, rel)
     return res if scaling is None else scaling.result(res)
+
+
+def _start(oracle, x0, U: tuple, callback, state, o: BTOptions):
+    """The run's oracle and callback (wrapped when the variables are scaled: the method works in
+    z = x/d, the state too), U as a :class:`Polyhedron`, the scaling (or None) and the state,
+    restored or built at x0."""
+    n = state.x.size if state is not None else np.asarray(x0).size
+    scaling = variable_scaling(n, U[0], U[1], o.scale)
+    if scaling is not None:
+        oracle, callback = scaling.oracle(oracle), scaling.callback(callback)
+        x0 = scaling.inner(x0) if state is None else x0
+        U = tuple(scaling.constraints(*U).values())
+    poly = Polyhedron(n, *U)
+    if state is None:
+        st = _initial_state(oracle, poly, x0, o)
+    else:
+        st = state.copy()
+        if poly.violation(st.x) > o.feas_tol:
+            raise OptimizerError("the restored state's x violates the constraints")
+    return oracle, callback, poly, scaling, st
+
+
+def _restart(st: BundleState, gamma) -> None:
+    """Cut the bundle to the element with the smallest α (restart before a certificate)."""
+    k = int(np.argmin(_alpha(st, gamma)))
+    st.G, st.fhat, st.s = st.G[k:k + 1].copy(), st.fhat[k:k + 1].copy(), st.s[k:k + 1].copy()
+    st.verified = 1
+    logger.debug("restart at f=%.10g: bundle reduced to the cut at x", st.f)
+
+
+def _converged(step: _Step, st: BundleState, o: BTOptions, eps: float):
+    """(status, criterion, message) when the iteration's step is a stop, else None."""
+    if step.kind == "converged":
+        cmp = "<" if st.stationarity < eps else "<="
+        return 0, "stationarity", f"converged: stationarity {st.stationarity:.1e} {cmp} eps {eps:.0e}"
+    if step.kind == "practical":
+        return 4, "predicted_decrease", (f"converged: the model predicts a relative decrease {st.predicted:.1e} "
+                                         f"< ftol {o.ftol:.0e} (stationarity {st.stationarity:.1e}, eps {eps:.0e})")
+    if step.kind == "fchange":
+        return 4, "f_change", (f"converged: f changed by at most tolf {o.tolf:.0e} (relative) in "
+                               f"{o.tolf_steps} serious steps in a row, stationarity "
+                               f"{st.stationarity:.1e} <= sqrt(tolf) (eps {eps:.0e})")
+    if step.kind == "roundoff":
+        return 5, "roundoff", (f"converged: the model predicts a decrease {-step.qp.v:.2e} at the round-off "
+                               f"of f (stationarity {st.stationarity:.2e}, eps {eps:.0e})")
+    return None
+
+
+def _advance(st: BundleState, step: _Step, o: BTOptions, max_bundle: int) -> None:
+    """The state after a serious or null step: metric, bundle, γ, t, counts and history."""
+    f_old = st.f
+    if o.t_secant and step.kind == "serious":
+        st.pending_s, st.pending_p = step.y - st.x, step.qp.p.copy()
+    if o.metric != "none" and step.kind == "serious":
+        g_x = st.G[int(np.argmin(_alpha(st, o.gamma)))]
+        s_k, y_k = step.y - st.x, step.gy - g_x
+        update_metric(st, s_k, y_k, o.metric_memory, o.metric_range, o.metric,
+                      o.metric == "auto" and is_curvature_pair(s_k, y_k, st.f, step.fy, g_x, step.gy))
+    _update_bundle(st, step, max_bundle, o.gamma)
+    if o.gamma is None:
+        _measure_gamma(st, o.gamma_factor, anew=step.kind == "serious")
+    st.t = next_t(st, step, f_old, o)
+    st.n_stuck = st.n_stuck + 1 if step.stalled else 0
+    st.nit += 1
+    if step.kind == "serious":
+        st.n_serious += 1
+        st.verified = 0
+    else:
+        st.n_null += 1
+    st.history.append({"iteration": st.nit, "f": st.f, "step": step.kind, "t": step.t,
+                       "stationarity": st.stationarity, "nfev": st.nfev})
+    logger.debug("it %d %s f=%.10g t=%.3e stat=%.3e nfev=%d", st.nit, step.kind, st.f,
+                 step.t, st.stationarity, st.nfev)
+
+
+def _stalled(st: BundleState, o: BTOptions, eps: float, n: int):
+    """(3, "stalled", message) when the run makes no progress, else None."""
+    if st.n_stuck >= 3:
+        return 3, "stalled", (f"stalled: {st.n_stuck} null steps in a row returned cuts already in the "
+                              f"bundle (the QP resolution is reached; stationarity "
+                              f"{st.stationarity:.2e} > eps {eps:.0e})")
+    # a polyhedral f may need n + 1 null steps at one x: a shorter window is no evidence
+    window = max(o.stall_window, 2 * (n + 1))
+    if no_progress(st.history, window):
+        return 3, "stalled", (f"stalled: f did not decrease in the last {window} iterations and the "
+                              f"stationarity measure did not halve ({st.stationarity:.2e} > eps {eps:.0e})")
+    return None
