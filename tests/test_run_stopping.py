@@ -63,7 +63,7 @@ def test_a_finished_run_restored_from_its_checkpoint_keeps_its_verdict(tmp_path,
     from contactopt.io.checkpoint import Checkpoint, SavedResult
     from contactopt.optimize import BundleState
     from contactopt.optimize.bundle import SUCCESS_STATUS
-    from contactopt.optimize.testproblems import PROBLEMS
+    from contactopt.optimize.gallery import PROBLEMS
     from contactopt.runner import _saved_result
     prob = PROBLEMS["Mifflin1"]
     saved = {}
