@@ -11,6 +11,7 @@ from pathlib import Path
 
 from ..errors import ContactOptError
 from .atomic import atomic_write_json, atomic_write_text, write_error
+from .checkpoint import CHECKPOINT_NAME
 from .lock import LOCK_NAME, DirLock, LockedError, acquire, describe, held_by, live_holders
 
 log = logging.getLogger(__name__)
@@ -142,7 +143,7 @@ class RunDirectory:
 
     @property
     def checkpoint(self) -> Path:
-        return self.path / "checkpoint.npz"
+        return self.path / CHECKPOINT_NAME
 
     @property
     def history(self) -> Path:

@@ -69,7 +69,7 @@ class PenaltyState:
                             [dict(r) for r in self.history], at, self.finished)
 
     def to_dict(self) -> dict:
-        """Plain arrays (for ``np.savez``; the runner prefixes them ``penalty_``)."""
+        """Plain arrays (a checkpoint stores them, :mod:`contactopt.io.checkpoint`)."""
         d = {"sigma": float(self.sigma), "counts": np.array([self.outer, self.nit, self.nfev, self.n_serious,
                                                              self.n_null], dtype=np.int64)}
         d["history"] = np.array([[r["iteration"], r["f"], r["step"] == "serious", r["t"], r["stationarity"],
