@@ -7,7 +7,8 @@ Layout of a run directory::
     history.csv        one row per evaluation of Θ
     iterations.csv     one row per bundle-trust iteration: Θ, step kind, t, stationarity measure
     checkpoint.npz     optimizer + oracle state after the last iteration (written atomically)
-    summary.json       J0, J, iterations, evaluations, serious/null steps, success, message, alpha, times
+    summary.json       J0, J, iterations, evaluations, serious/null steps, success, message, alpha, times,
+                       admissible (α in U) and constraints_satisfied ([[constraints]]; null without)
     alpha.json         optimal control points;  surface.csv  ϑ_α on a grid
     stress.png, pressure.png, surface.png, history.png, classes.png, contact.png (pressure, ‖τ‖,
                        slip, stick/slip), von_mises.png (the largest von Mises stresses)
