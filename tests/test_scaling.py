@@ -212,7 +212,7 @@ def test_the_optimizer_table_chooses_the_scaling_of_a_run(tmp_path, monkeypatch)
         seen.update(kw)
         raise Stop
 
-    monkeypatch.setattr(optimize, "minimize_bundle", record)
+    monkeypatch.setitem(optimize.METHODS, "bundle", record)
     small = {"mesh": {"nx": 8, "ny": 4, "nz": 3}}
     for scale in ("bounds", "none"):
         cfg = load_config("example1").with_updates({**small, "optimizer": {"scale": scale}})
