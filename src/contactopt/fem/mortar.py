@@ -41,12 +41,12 @@ from __future__ import annotations
 import numpy as np
 import scipy.sparse as sp
 
-from ..mesh.segmentation import Segmentation, reference_coordinates, segment
+from ..mesh.segmentation import Segmentation, is_affine, reference_coordinates, segment
 from .elements import face_type, tri_rule
 
 __all__ = ["MortarCoupling", "dual_coefficients", "mortar_coupling", "mortar_matrices"]
 
-QUAD_EXTRA = 6    # degree added for bilinear faces (a non-affine quadrilateral is not polynomial in the plane)
+QUAD_EXTRA = 6    # degree added on quadrilaterals that are not parallelograms (Φ, N not polynomial in the plane)
 _G3 = np.array([-np.sqrt(0.6), 0.0, np.sqrt(0.6)])
 _W3 = np.array([5.0, 8.0, 5.0]) / 9.0
 
@@ -89,7 +89,8 @@ def mortar_matrices(s_type, s_faces: np.ndarray, s_xy: np.ndarray, m_type, m_fac
     n_slave = int(s_xy.shape[0]) if n_slave is None else n_slave
     n_master = int(m_xy.shape[0]) if n_master is None else n_master
     A = dual_coefficients(st, Xs)
-    degree = 2 * (st.degree + mt.degree) + (QUAD_EXTRA if "quad" in (st.name, mt.name) else 0)
+    affine = is_affine(Xs[:, :ncs]) and is_affine(Xm[:, :ncm])
+    degree = 2 * (st.degree + mt.degree) + (0 if affine else QUAD_EXTRA)
     x, dA = seg.quadrature(tri_rule(degree))                      # (T, Q, 2), (T, Q)
     T, Q = dA.shape
     s_of, m_of = np.repeat(seg.slave, Q), np.repeat(seg.master, Q)

@@ -142,7 +142,6 @@ def reference_coordinates(corners: np.ndarray, x: np.ndarray) -> np.ndarray:
         J = np.stack([X[:, 1] - X[:, 0], X[:, 2] - X[:, 0]], axis=2)              # (n, 2, 2)
         return np.linalg.solve(J, (x - X[:, 0])[..., None])[..., 0]
     xi = np.zeros((x.shape[0], 2))
-    scale = np.max(np.abs(X - X.mean(axis=1, keepdims=True)), axis=(1, 2)) + 1e-300
     for _ in range(NEWTON_STEPS):
         lin = 1.0 + xi[:, None, :] * _QSIGN[None]
         N = lin[:, :, 0] * lin[:, :, 1] / 4.0
@@ -151,9 +150,20 @@ def reference_coordinates(corners: np.ndarray, x: np.ndarray) -> np.ndarray:
         J = np.einsum("nai,naj->nij", X, dN)
         step = np.linalg.solve(J, res[..., None])[..., 0]
         xi -= step
-        if np.abs(step).max() < 1e-15 and np.abs(res).max() < 1e-14 * scale.max():
+        if np.abs(step).max() < 1e-14:
             break
     return xi
+
+
+def is_affine(corners: np.ndarray, rel_tol: float = 1e-12) -> bool:
+    """Whether every face of corner polygons (F, k, 2) has an affine map from its reference face:
+    triangles always, quadrilaterals when they are parallelograms (then functions of the face are
+    polynomials in the plane's coordinates, and a rule of the triangle integrates them exactly)."""
+    X = np.asarray(corners, float)
+    if X.shape[1] == 3:
+        return True
+    size = np.max(np.ptp(X, axis=1))
+    return bool(np.abs(X[:, 0] + X[:, 2] - X[:, 1] - X[:, 3]).max() <= rel_tol * size)
 
 
 def _ccw(polys: np.ndarray) -> np.ndarray:
