@@ -1,12 +1,17 @@
 """Mortar partners on the elastic foundation: the contact patch test, convergence, cost.
 
-    python benchmarks/bench_mortar.py [--part patch|meshes|cost|all] [--steps 6]
+    python benchmarks/bench_mortar.py [--part patch|meshes|hertz|cost|all] [--steps 6]
 
 patch   The contact patch test of contactopt.verification.patch (overlap loading) with point,
         averaged and mortar partners, F = 0 and 0.3: max and rms of (λ/a − p)/p, max ‖τ‖/(a p).
 meshes  The body 12×6×4 of the tests on the slab [−0.5, 2.5]×[−0.5, 1.5]×[−1, 0] (E_f = E/10),
         the slab 0.5, 1, 1.5, 2 times as fine as the body, against a slab 3 times as fine with the
         same partners: max |λ − λ_ref| / max λ_ref and ‖λ − λ_ref‖₂ / ‖λ_ref‖₂, averaged and mortar.
+hertz   Two bodies of one material in Hertz contact (E = 1, ν = 0.3, R = 2: the paraboloidal pad
+        [0, 2]²×[0, 1] on the slab [0, 2]²×[−1, 0], pressed by a body force, F = 0): the pad n×n on
+        a slab 0.7 n and 1.5 n, averaged and mortar partners, against the matching slab (point
+        partners, node-to-node): rms of (p − p_match)/p0 over the face (the non-matching bias),
+        and rms of (p − p_Hertz)/p0, p = λ/a per node, p_Hertz = p0 √(1 − r²/a²) from Σλ.
 cost    examples/example1_elastic.toml (body 32×15×9, slab 24×16×8: non-matching): the time to
         build the partners (segmentation and mortar matrices once per run) and the median time of
         one evaluation (state + subgradient) along a path of small design steps, mortar against
@@ -78,6 +83,45 @@ def meshes() -> None:
         print(f"{f:6.1f}      {out[0]}        {out[1]}", flush=True)
 
 
+def _pad(n: int, slab: int, partner: str) -> dict:
+    b = np.array([0.25, -0.25, 0.25])            # (x − 1)²/2R on [0, 2] in the Bernstein basis, R = 2
+    return {"name": f"pad{n}", "geometry": {"a": 2.0, "b": 2.0, "c": 1.0},
+            "mesh": {"nx": n, "ny": n, "nz": max(4, n // 2)}, "body": {"clamped": "top"},
+            "material": {"E": 1.0, "nu": 0.3}, "friction": {"coefficient": 0.0},
+            "loads": {"top_traction": [0.0] * 3, "right_traction": [0.0] * 3, "body_force": [0.0, 0.0, -0.08]},
+            "design": {"degree": [2, 2], "C0": 0.6, "lower": -0.6,
+                       "initial": (b[:, None] + b[None, :]).tolist()},
+            "objective": {"type": "compliance"}, "state": {"method": "newton", "tol": 1e-12},
+            "foundation": {"block": {"size": [2.0, 2.0, 1.0], "cells": [slab, slab, max(4, slab // 2)]},
+                           "top": "top", "clamped": "bottom", "partner": partner}}
+
+
+def hertz(sizes=(12, 16, 24)) -> None:
+    from contactopt.io.pressure import contact_areas
+    estar = 1.0 / (2 * (1 - 0.3 ** 2))
+    print("| pad n | slab | partner | rms (p − p_match)/p0 | rms (p − p_Hertz)/p0 |")
+    print("|---|---|---|---|---|")
+    for n in sizes:
+        def pressure(slab, partner):
+            pb = ShapeProblem(load_config(_pad(n, slab, partner)))
+            st = pb.solve_state(pb.model.initial_design())
+            b = pb.model.body
+            x = b.reference.points[b.contact_nodes, :2]
+            p = st.lam / contact_areas(b.reference.points, b.contact_face.faces, b.contact_nodes)
+            P = st.lam.sum()
+            a = (3 * P * 2.0 / (4 * estar)) ** (1 / 3)
+            p0 = 3 * P / (2 * np.pi * a * a)
+            r2 = ((x - 1.0) ** 2).sum(axis=1)
+            return p, p0 * np.sqrt(np.clip(1 - r2 / a ** 2, 0, None)), p0
+        pm, ph, p0 = pressure(n, "point")
+        print(f"| {n} | {n} (matching) | point | 0 | {np.sqrt(np.mean((pm - ph) ** 2)) / p0:.2e} |", flush=True)
+        for slab in (int(round(0.7 * n)), int(round(1.5 * n))):
+            for partner in ("average", "mortar"):
+                p, ph, p0 = pressure(slab, partner)
+                print(f"| {n} | {slab} | {partner} | {np.sqrt(np.mean((p - pm) ** 2)) / p0:.2e} | "
+                      f"{np.sqrt(np.mean((p - ph) ** 2)) / p0:.2e} |", flush=True)
+
+
 def cost(steps: int) -> None:
     el = load_config(ELASTIC)
     pbs = {p: ShapeProblem(el.with_updates({"foundation": {**el["foundation"], "partner": p}}))
@@ -114,13 +158,15 @@ def cost(steps: int) -> None:
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--part", default="all", choices=["patch", "meshes", "cost", "all"])
+    ap.add_argument("--part", default="all", choices=["patch", "meshes", "hertz", "cost", "all"])
     ap.add_argument("--steps", type=int, default=6)
     args = ap.parse_args()
     if args.part in ("patch", "all"):
         patch()
     if args.part in ("meshes", "all"):
         meshes()
+    if args.part in ("hertz", "all"):
+        hertz()
     if args.part in ("cost", "all"):
         cost(args.steps)
 
