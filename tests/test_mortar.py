@@ -176,3 +176,18 @@ def test_subgradient_with_mortar_partners_matches_central_differences(element):
     assert gc.n_degenerate == 0
     assert gc.passed, gc.rel_errors
     assert gc.counts["M1"] > 0 and gc.counts["M3+"] > 0 and gc.counts["L"] > 0
+
+
+def test_subgradient_on_a_tetrahedral_body_with_mortar_partners(tmp_path):
+    """A tetrahedral body 6×6 on hexahedra 8×8 (the patch test's blocks), a crowned design and a
+    sideways pull on the top: free, sliding and sticking nodes; ξ·d against central differences."""
+    cfg = patch_config(6, 8, 0.3, tmp_path, body="tetra").with_updates(
+        {"design": {"degree": [2, 2], "initial": 0.0},
+         "loads": {"traction": [{"on": {"x3": H_BODY}, "value": [0.02, 0.01, 0.0]}]}})
+    pb = ShapeProblem(cfg)
+    assert pb.model.foundation.partner == "mortar"
+    a = pb.model.initial_design() + 0.004 * np.random.default_rng(0).standard_normal(9) - 0.003
+    gc = check_gradient(pb, a, n_directions=3, seed=0)
+    assert gc.n_degenerate == 0
+    assert gc.passed, gc.rel_errors
+    assert gc.counts["M1"] > 0 and gc.counts["M3+"] > 0 and gc.counts["L"] > 0
