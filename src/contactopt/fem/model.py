@@ -34,6 +34,7 @@ from .._threads import sequential_openblas
 from ..config import Config, load_config
 from ..design.admissible import AdmissibleSet
 from ..design.bezier import BezierSurface
+from ..design.chart import motion_directions
 from ..errors import ConfigError
 from ..mesh.body import build_body
 from ..mesh.hexmesh import HexMesh
@@ -90,15 +91,20 @@ class ElasticModel:
         self._check_reference(ref)
         zero = np.concatenate([np.asarray(v, np.int64) for v in body.fixed_shape.values()] or [np.zeros(0, np.int64)])
         self.weight = harmonic_weight(self.assembler, ref.points, body.contact_face.nodes, zero)
+        chart = {}            # a chart of the face and normal motion (design.chart); none: the paper's map
+        if body.chart is not None:
+            chart["chart"] = body.chart
+        if cfg.design.motion == "normal":
+            chart["directions"] = motion_directions(ref.points, body.contact_face, ref.face_type)
         if cfg.body.mesh:
             self.mesh = MorphedMesh(ref, self.surface, self.weight, body.contact_nodes,
-                                    fixed_shape=tuple(body.fixed_shape))
+                                    fixed_shape=tuple(body.fixed_shape), **chart)
         else:
             from ..mesh.block import block_axes
             nx, ny, nz = (x.size - 1 for x in block_axes(cfg.geometry, cfg.mesh))
             self.mesh = HexMesh(nx, ny, nz, self.surface, cfg.geometry.c, reference=ref,
                                 weight=self.weight, contact_nodes=body.contact_nodes,
-                                fixed_shape=tuple(body.fixed_shape))
+                                fixed_shape=tuple(body.fixed_shape), **chart)
         self.obstacle, self.frames = None, None     # [obstacle] (absent: the plane x3 = 0, fixed)
         self.force = None       # control = "force": |f|, and per contact node force_b, force_gap (_obstacle_gap)
         self.slip_shift = None  # (p, 3) the tangential part of a prescribed translation, per node frame
@@ -147,7 +153,8 @@ class ElasticModel:
             return None
         from ..mesh.obstacle import contact_frames, make_obstacle
         self.obstacle = make_obstacle(spec)
-        fr = contact_frames(self.obstacle, ref.points, body.contact_face.nodes, body.tol, self.config.source)
+        fr = contact_frames(self.obstacle, ref.points, body.contact_face.nodes, body.penetration_tol,
+                            self.config.source, interference=self.config.body.interference)
         if spec.shape == "plane":
             return fr
         where = np.searchsorted(body.contact_face.nodes, body.contact_nodes)
@@ -201,8 +208,14 @@ class ElasticModel:
             if shift[2] != 0.0:
                 self.gap0 = self.gap0 - shift[2]
             return
-        self.gap_matrix = n[:, 2:3] * self.gap_matrix
+        self.gap_matrix = self._gap_factor(n, self.contact_nodes)[:, None] * self.gap_matrix
         self.gap0 = fr.distance[where] - n @ shift
+
+    def _gap_factor(self, n, nodes) -> np.ndarray:
+        """n_m·d_m per node: the counterpart's normal n_m (towards the body) against the motion's
+        direction d_m (e3 on the paper's map, whose factor is n_m3 itself)."""
+        d = self.mesh.directions
+        return n[:, 2].copy() if d is None else np.einsum("ij,ij->i", n, d[nodes])
 
     def _admissible_set(self, ref, body, frames=None) -> AdmissibleSet:
         """U of ``[design]``; with ``nonnegative_gap`` ϑ_α + g0 ≥ 0 at the nodes of the contact face
@@ -210,14 +223,14 @@ class ElasticModel:
         other than the plane (n_m·e3) ϑ_α + d_m ≥ 0, d_m the node's distance to it (mesh.obstacle)."""
         d, s = self.config.design, self.surface
         gap = {}
-        if d.nonnegative_gap:
+        if d.nonnegative_gap and not self.config.body.interference:
             nodes = body.contact_face.nodes
-            xy = self.mesh._in_domain(ref.points[nodes, :2])
+            xy = self.mesh._in_domain(self.mesh.chart_points(ref.points[nodes]))
             g0 = (ref.points[nodes, 2].copy() if self.config.body.initial_gap == "mesh"
                   else np.zeros(nodes.size))
             B = s.basis_matrix(xy[:, 0], xy[:, 1])
             if frames is not None and self.frames is not None:
-                B, g0 = frames.normal[:, 2:3] * B, frames.distance.copy()
+                B, g0 = self._gap_factor(frames.normal, nodes)[:, None] * B, frames.distance.copy()
             gap = dict(gap_basis=B, gap_offset=g0, gap_nodes=nodes,
                        gap_points=ref.points[nodes, :2])
         elif d.lower < 0:
@@ -242,7 +255,7 @@ class ElasticModel:
         G, _ = element_geometry(ref.points[ref.cells], self.assembler.dN)
         centroids = ref.points[ref.cells].mean(axis=1)
         thr = self.config.body.min_jacobian_ratio
-        jr = JacobianRatio(ref.cells, G[..., 2], self.mesh.dx3_dalpha(), thr, qpoints=centroids,
+        jr = JacobianRatio(ref.cells, self.mesh.ratio_gradient(G), self.mesh.dx3_dalpha(), thr, qpoints=centroids,
                            fixed_parts={name: nodes for name, nodes in body.fixed_shape.items()})
         C0, lower = self.config.design.C0, self.config.design.lower
         worst, e, _, _ = jr.worst_on_box(C0, lower)
@@ -345,7 +358,7 @@ class ElasticModel:
         u_full, v_full = self.unpin(u_full), self.unpin(v_full)
         d = self.assembler.stiffness_shape_contraction(coords, u_full, v_full)
         d -= (loads or self.loads).shape_contraction(coords, v_full, self.assembler)
-        return self.mesh.contract_dx3(d[:, 2])
+        return self.mesh.contract_dx(d)
 
 
 def _formulation(mat, cell_type, source: str) -> str:
