@@ -346,7 +346,7 @@ class ShapeProblem:
             for i, (yu, yl, dJ_da) in parts.items():
                 add_terms(rhs, i, c * yu, c * yl, c * dJ_da)
         last = max(rhs)
-        pinned = self.model.contact_pinned.ravel()
+        pinned = self.model.contact_pinned_global.ravel()
         contact = (3 * self.model.contact_nodes[:, None] + np.arange(3)).ravel()
         xi, carry, nd, out = 0.0, None, 0, None
         for j in range(last, -1, -1):

@@ -108,6 +108,7 @@ class ElasticModel:
         self.obstacle, self.frames = None, None     # [obstacle] (absent: the plane x3 = 0, fixed)
         self.force = None       # control = "force": |f|, and per contact node force_b, force_gap (_obstacle_gap)
         self.slip_shift = None  # (p, 3) the tangential part of a prescribed translation, per node frame
+        self.pinned_columns = None  # per pinned DOF its frame column, where a pinned u3 is a tangent
         face_frames = self._obstacle(cfg.obstacle, ref, body)
         self.admissible = self._admissible_set(ref, body, face_frames)
         self.mesh.ratio = self._jacobian_ratio(ref, body)
@@ -117,8 +118,14 @@ class ElasticModel:
         assert np.all(self.contact_dofs >= 0)
         self.pinned_dofs = np.asarray(body.pinned_dofs, np.int64)       # full DOF indices
         self.pinned_free = self.assembler.full_to_free[self.pinned_dofs]
-        # (p, 3) per contact node (t1, t2, ν): True on the pinned components
-        self.contact_pinned = np.isin(full, self.pinned_dofs).reshape(-1, 3)
+        # (p, 3) per contact node (t1, t2, ν): True on the pinned components; in global components
+        # (u1, u2, u3) for what is held per DOF of the body (they differ only where a pinned u3 is a tangent)
+        self.contact_pinned_global = np.isin(full, self.pinned_dofs).reshape(-1, 3)
+        self.contact_pinned = self.contact_pinned_global
+        if self.pinned_columns is not None:
+            node, _ = np.divmod(self.pinned_dofs, 3)
+            self.contact_pinned = np.zeros_like(self.contact_pinned_global)
+            self.contact_pinned[np.searchsorted(self.contact_nodes, node), self.pinned_columns] = True
         self._pin_mask = None       # ((shape, nnz) of A's pattern, the CSR entries pinning zeroes)
         self.gap_matrix = self.mesh.gap_matrix()
         # initial gap of a contact face above x3 = 0 (body.initial_gap = "mesh"); 0 on the plane
@@ -165,6 +172,8 @@ class ElasticModel:
             node, comp = np.divmod(body.pinned_dofs, 3)
             m = np.searchsorted(body.contact_nodes, node)
             R = R.copy()
+            if np.any(comp == 2):               # a tangent e3 (a face on a chart, not the plane)
+                return self._pinned_frames(spec, ref, body, fr, R, node, m, comp)
             for mm, k in zip(m, comp):
                 n = R[mm, :, 2]
                 if abs(n[k]) < 1e-12 and np.abs(R[mm, :, k] - np.eye(3)[k]).max() > 1e-12:
@@ -178,6 +187,36 @@ class ElasticModel:
                                    f"component u{int(comp[off][0]) + 1} clamped, which is not a tangent of its "
                                    f"frame on the {spec.shape} obstacle (the symmetry plane must contain the "
                                    "obstacle's normal there)"])
+        self.frames = R
+        return fr
+
+    def _pinned_frames(self, spec, ref, body, fr, R, node, m, comp):
+        """Frames of contact nodes with clamped components on a face of any chart: each clamped
+        component e_k (⟂ n) becomes a tangent column of the node's frame (t1 first), the frame
+        right-handed; ``pinned_columns`` maps the pinned DOFs to those columns (t1, t2)."""
+        cols = {}
+        for mm, k in zip(m, comp):
+            cols.setdefault(int(mm), []).append(int(k))
+        self.pinned_columns = np.zeros(comp.size, np.int64)
+        for mm, ks in cols.items():
+            n = R[mm, :, 2]
+            bad = [k for k in ks if abs(n[k]) > 1e-9]
+            if bad or len(ks) > 2:
+                nn = int(body.contact_nodes[mm])
+                raise ConfigError([f"{self.config.source}: body.clamped: contact node {nn} at {_fmt(ref.points[nn])} "
+                                   f"has its component u{(bad or ks)[0] + 1} clamped, which is not a tangent of its "
+                                   f"frame on the {spec.shape} obstacle (the symmetry plane must contain the "
+                                   "obstacle's normal there)"])
+            t1 = np.eye(3)[ks[0]]
+            t2 = np.eye(3)[ks[1]] if len(ks) == 2 else np.cross(n, t1)
+            order = list(ks)
+            if np.cross(t1, t2) @ n < 0:
+                t1, t2, order = t2, t1, order[::-1]
+            R[mm, :, 0], R[mm, :, 1] = t1 - (t1 @ n) * n, t2 - (t2 @ n) * n
+            R[mm, :, 0] /= np.linalg.norm(R[mm, :, 0])
+            R[mm, :, 1] /= np.linalg.norm(R[mm, :, 1])
+            for i in np.flatnonzero(m == mm):
+                self.pinned_columns[i] = order.index(int(comp[i])) if len(ks) == 2 else 0
         self.frames = R
         return fr
 

@@ -110,7 +110,12 @@ def build_body(cfg) -> Body:
                                    interference=spec.interference)
     else:
         face = Part(face.name, np.unique(face.faces), face.faces, face.origin)
-    contact_nodes, pinned, warnings = _contact_nodes(face, fixed, spec.contact, cfg.source)
+    normal_comp = None
+    if chart is not None:
+        # on a chart the components clamped along the face's normal take a node out, those in its
+        # tangent plane (a symmetry plane or an end face through the face) are pinned tangents
+        normal_comp = np.abs(chart.outward(ref.points[face.nodes])) > 1e-9
+    contact_nodes, pinned, warnings = _contact_nodes(face, fixed, spec.contact, cfg.source, normal_comp)
     from .rigid import free_modes
     rigid = free_modes(ref.points, fixed)
     if rigid.count:
@@ -129,16 +134,18 @@ def build_body(cfg) -> Body:
     return body
 
 
-def _contact_nodes(face: Part, fixed: np.ndarray, contact, source: str):
+def _contact_nodes(face: Part, fixed: np.ndarray, contact, source: str, normal_comp=None):
     """(contact nodes, pinned DOFs, warnings) of the contact face (the part ``contact``) under the
     clamps ``fixed``.
 
     A node whose normal component u3 is clamped is no contact node (a warning names those clamped
     in u3 but not in every component); a clamped u1 or u2 of a contact node is pinned (module
-    docstring). ConfigError when no node is left, or when u3 is clamped on more than half of the face."""
+    docstring). ConfigError when no node is left, or when u3 is clamped on more than half of the face.
+    ``normal_comp`` (face nodes × 3, on a chart): the global components with a part along the face's
+    normal; a clamp of one of them takes the node out, the other clamped components are pinned."""
     name = describe_part(contact)
     f = fixed[face.nodes]
-    normal = f[:, 2]
+    normal = f[:, 2] if normal_comp is None else np.any(f & normal_comp, axis=1)
     contact_nodes = face.nodes[~normal]
     if contact_nodes.size == 0:
         raise ConfigError([f"{source}: body.contact = {name}: every node of the contact face is clamped in its "
@@ -154,8 +161,11 @@ def _contact_nodes(face: Part, fixed: np.ndarray, contact, source: str):
         warnings.append(f"body.clamped: {partly.size} node(s) of the contact face {name} have their normal "
                         f"component u3 clamped and are no contact nodes: nodes "
                         + ", ".join(str(int(n)) for n in partly[:10]) + (", …" if partly.size > 10 else ""))
-    tangential = fixed[contact_nodes, :2]
-    pinned = (3 * contact_nodes[:, None] + np.arange(2))[tangential].astype(np.int64)
+    if normal_comp is None:
+        tangential = fixed[contact_nodes, :2]
+        pinned = (3 * contact_nodes[:, None] + np.arange(2))[tangential].astype(np.int64)
+    else:
+        pinned = (3 * contact_nodes[:, None] + np.arange(3))[fixed[contact_nodes]].astype(np.int64)
     return contact_nodes, np.sort(pinned), warnings
 
 
