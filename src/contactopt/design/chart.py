@@ -259,10 +259,15 @@ def _fmt(x) -> str:
     return "(" + ", ".join(f"{v:.6g}" for v in np.asarray(x, float)) + ")"
 
 
-def motion_directions(points: np.ndarray, face, face_type: str) -> np.ndarray:
-    """(n_nodes, 3) unit directions of ``motion = "normal"``: at the nodes of the contact face its
-    inward unit normal (−:func:`nodal_normals`), elsewhere that of the nearest node of the face."""
+def motion_directions(points: np.ndarray, face, face_type: str, chart=None) -> np.ndarray:
+    """(n_nodes, 3) unit directions of ``motion = "normal"``: the chart surface's inward unit normal
+    at every node (a plane's normal; on a cylinder the radial direction through the node, so that a
+    node on a symmetry plane through the axis stays on it); without a chart (the face a graph over
+    x3 = 0) the face's inward unit normal (−:func:`nodal_normals`) at its nodes, elsewhere that of
+    the nearest node of the face."""
     from scipy.spatial import cKDTree
+    if chart is not None:
+        return -chart.outward(points)
     nodes = np.unique(face.faces)
     inward = -nodal_normals(points, face.faces, face_type, nodes)
     _, near = cKDTree(points[nodes]).query(points)

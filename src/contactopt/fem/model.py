@@ -95,7 +95,7 @@ class ElasticModel:
         if body.chart is not None:
             chart["chart"] = body.chart
         if cfg.design.motion == "normal":
-            chart["directions"] = motion_directions(ref.points, body.contact_face, ref.face_type)
+            chart["directions"] = motion_directions(ref.points, body.contact_face, ref.face_type, body.chart)
         if cfg.body.mesh:
             self.mesh = MorphedMesh(ref, self.surface, self.weight, body.contact_nodes,
                                     fixed_shape=tuple(body.fixed_shape), **chart)

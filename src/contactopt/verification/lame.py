@@ -34,14 +34,14 @@ def pressure_equal_materials(E=E, nu=NU, b=B, c=C, delta=DELTA) -> float:
     return E * delta * (c * c - b * b) / (2 * (1 - nu * nu) * b * c * c)
 
 
-def quarter_hub_mesh(path, nr: int, nt: int, nz: int, b=B, c=C, length=0.25, grading=1.0):
-    """Write the quarter hub b ≤ r ≤ c, 0 ≤ θ ≤ π/2, 0 ≤ x3 ≤ length as hexahedra (nr × nt × nz) to a
+def quarter_hub_mesh(path, nr: int, nt: int, nz: int, b=B, c=C, length=0.25, grading=1.0, angle=0.5 * np.pi):
+    """Write the quarter hub b ≤ r ≤ c, 0 ≤ θ ≤ ``angle`` (π/2), 0 ≤ x3 ≤ length as hexahedra (nr × nt × nz) to a
     Gmsh 2.2 file with the physical groups ``bore`` (its faces at r = b) and ``hub`` (the volume).
     ``grading`` > 1 makes the radial elements grow geometrically from the bore. Returns ``path``."""
     import meshio
     w = grading ** np.arange(nr)
     r = b + (c - b) * np.r_[0.0, np.cumsum(w)] / w.sum()
-    t = 0.5 * np.pi * np.arange(nt + 1) / nt
+    t = angle * np.arange(nt + 1) / nt
     z = length * np.arange(nz + 1) / nz
     R, T, Z = np.meshgrid(r, t, z, indexing="ij")
     pts = np.c_[(R * np.cos(T)).ravel(), (R * np.sin(T)).ravel(), Z.ravel()]
