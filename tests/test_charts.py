@@ -113,3 +113,22 @@ def test_normal_motion_on_a_face_whose_normals_flip_is_refused(tmp_path, state_r
     data = hub(tmp_path, nt=12, angle=1.2 * np.pi, length=2.5, design={"chart": "plane", "motion": "normal"})
     data["body"]["clamped"] = data["body"]["clamped"][2:] + [{"on": {"x1": 0.0}, "components": [1, 2]}]
     state_refused(data, "normals of the contact face bore flip", "graph over its chart")
+
+
+@pytest.mark.parametrize("other", ["delassus", "fullspace"])
+def test_the_delassus_and_fullspace_paths_on_a_cylindrical_chart_equal_the_condensation(tmp_path, other):
+    # interference, normal motion and symmetry planes whose clamped u3 is a tangent of the bore
+    problems = [ShapeProblem(validate(hub(tmp_path, friction=0.3, path=path,
+                                          objective={"type": "pressure_uniformity"}), "lame"))
+                for path in ("condensation", other)]
+    cond, prob = problems
+    assert prob.path.name == other
+    alpha = 1e-4 * (1.0 + np.sin(np.arange(cond.model.n_design)))
+    sc, so = cond.solve_state(alpha), prob.solve_state(alpha)
+    assert np.array_equal(sc.classes, so.classes)
+    assert np.abs(sc.lam - so.lam).max() <= 1e-9 * sc.lam.max()
+    xc, xo = cond.evaluate(alpha)[1], prob.evaluate(alpha)[1]
+    assert np.abs(xo - xc).max() <= 1e-7 * np.abs(xc).max()
+    if other == "delassus":     # (the full-space ξ equals the condensation's, checked against differences above)
+        rep = check_gradient(prob, alpha, seed=4, n_directions=2)
+        assert rep.n_degenerate == 0 and np.max(rep.rel_errors) <= 1e-6, rep.rel_errors
