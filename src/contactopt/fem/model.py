@@ -110,6 +110,9 @@ class ElasticModel:
         self.slip_shift = None  # (p, 3) the tangential part of a prescribed translation, per node frame
         self.pinned_columns = None  # per pinned DOF its frame column, where a pinned u3 is a tangent
         face_frames = self._obstacle(cfg.obstacle, ref, body)
+        self.foundation = None      # [foundation]: the elastic foundation under the contact face
+        if cfg.foundation is not None and body.chart is not None:
+            self._curved_foundation(cfg, ref, body, check)
         self.admissible = self._admissible_set(ref, body, face_frames)
         self.mesh.ratio = self._jacobian_ratio(ref, body)
         self.contact_nodes = body.contact_nodes
@@ -133,10 +136,13 @@ class ElasticModel:
                      else np.zeros(self.contact_nodes.size))
         if face_frames is not None:
             self._obstacle_gap(cfg.obstacle, face_frames)
+        if self.foundation is not None:          # a curved face: gaps along the contact normals
+            n = self.frames[:, :, 2]
+            self.gap_matrix = self._gap_factor(n, self.contact_nodes)[:, None] * self.gap_matrix
+            self.gap0 = self.foundation.gap0.copy()
         self.loads = load_set(body, cfg.loads)
         self.body_force = self.loads.body_force
-        self.foundation = None      # [foundation]: the elastic foundation under the contact face
-        if cfg.foundation is not None:
+        if cfg.foundation is not None and self.foundation is None:
             from .foundation import Foundation
             self.foundation = Foundation(cfg.foundation, body, source=cfg.source, check=check)
 
@@ -173,7 +179,8 @@ class ElasticModel:
             m = np.searchsorted(body.contact_nodes, node)
             R = R.copy()
             if np.any(comp == 2):               # a tangent e3 (a face on a chart, not the plane)
-                return self._pinned_frames(spec, ref, body, fr, R, node, m, comp)
+                self._pinned_frames(f"{spec.shape} obstacle", ref, body, R, m, comp)
+                return fr
             for mm, k in zip(m, comp):
                 n = R[mm, :, 2]
                 if abs(n[k]) < 1e-12 and np.abs(R[mm, :, k] - np.eye(3)[k]).max() > 1e-12:
@@ -190,10 +197,11 @@ class ElasticModel:
         self.frames = R
         return fr
 
-    def _pinned_frames(self, spec, ref, body, fr, R, node, m, comp):
+    def _pinned_frames(self, what, ref, body, R, m, comp):
         """Frames of contact nodes with clamped components on a face of any chart: each clamped
         component e_k (⟂ n) becomes a tangent column of the node's frame (t1 first), the frame
-        right-handed; ``pinned_columns`` maps the pinned DOFs to those columns (t1, t2)."""
+        right-handed; ``pinned_columns`` maps the pinned DOFs to those columns (t1, t2). Sets
+        ``frames``; ``what`` names the counterpart in messages."""
         cols = {}
         for mm, k in zip(m, comp):
             cols.setdefault(int(mm), []).append(int(k))
@@ -205,8 +213,8 @@ class ElasticModel:
                 nn = int(body.contact_nodes[mm])
                 raise ConfigError([f"{self.config.source}: body.clamped: contact node {nn} at {_fmt(ref.points[nn])} "
                                    f"has its component u{(bad or ks)[0] + 1} clamped, which is not a tangent of its "
-                                   f"frame on the {spec.shape} obstacle (the symmetry plane must contain the "
-                                   "obstacle's normal there)"])
+                                   f"frame on the {what} (the symmetry plane must contain the contact normal "
+                                   "there)"])
             t1 = np.eye(3)[ks[0]]
             t2 = np.eye(3)[ks[1]] if len(ks) == 2 else np.cross(n, t1)
             order = list(ks)
@@ -218,7 +226,34 @@ class ElasticModel:
             for i in np.flatnonzero(m == mm):
                 self.pinned_columns[i] = order.index(int(comp[i])) if len(ks) == 2 else 0
         self.frames = R
-        return fr
+
+    def _curved_foundation(self, cfg, ref, body, check) -> None:
+        """An elastic foundation under a curved contact face (fem.foundation): contact normals
+        n_m = the chart's inward normal at the node (from the foundation to the body), frames
+        (t1, t2, n_m) with the clamped components as tangents, the partners and initial gaps along
+        n_m; an overlap deeper than the penetration tolerance needs ``body.interference``."""
+        from ..mesh.obstacle import tangent_frames
+        from .foundation import Foundation
+        x = ref.points[body.contact_nodes]
+        n = -body.chart.outward(x)
+        R = tangent_frames(n)
+        if body.pinned_dofs.size:
+            node, comp = np.divmod(body.pinned_dofs, 3)
+            self._pinned_frames("elastic foundation", ref, body, R.copy(), np.searchsorted(body.contact_nodes, node),
+                                comp)
+        else:
+            self.frames = R
+        self.foundation = Foundation(cfg.foundation, body, source=cfg.source, check=check, normals=n)
+        self.foundation.rotate(self.frames)
+        g = self.foundation.gap0
+        deep = np.flatnonzero(g < -body.penetration_tol)
+        if deep.size and not cfg.body.interference:
+            deep = deep[np.argsort(g[deep], kind="stable")]
+            raise ConfigError([f"{cfg.source}: foundation: {deep.size} contact node(s) of the body lie inside the "
+                               f"foundation deeper than the tolerance {body.penetration_tol:.3g}, deepest first: "
+                               + ", ".join(f"node {int(body.contact_nodes[k])} at {_fmt(x[k])} (depth {-g[k]:.3g})"
+                                           for k in deep[:5])
+                               + " (an intended overlap, a press or shrink fit: body.interference = true)"])
 
     def _obstacle_gap(self, spec, fr) -> None:
         """Gap on an obstacle: g_m = d_m + (n_m·e3) ϑ_α(x'_m) − d·n_m (mesh.obstacle); the plane

@@ -187,17 +187,16 @@ def _chart(cfg, ref: ReferenceMesh, face: Part, gtol: float):
     obstacle = getattr(cfg, "obstacle", None)
     if d.chart == "auto" and not d.axis and not d.origin:
         nf, _ = face_normals(ref.points, face.faces, ref.face_type)
-        if np.all(nf[:, 2] < 0) or obstacle is None or obstacle.shape == "plane":
+        rigid_plane = obstacle is None or obstacle.shape == "plane"
+        if np.all(nf[:, 2] < 0) or (rigid_plane and getattr(cfg, "foundation", None) is None):
             return None
     chart = resolve_chart(d, ref.points, face, ref.face_type, gtol, cfg.source)
     flat = chart.kind == "plane" and np.abs(chart.normal - [0.0, 0.0, -1.0]).max() <= 1e-12
-    if not flat and (obstacle is None or obstacle.shape == "plane"):
+    foundation = getattr(cfg, "foundation", None) is not None
+    if not flat and (obstacle is None or obstacle.shape == "plane") and not foundation:
         raise ConfigError([f"{cfg.source}: body.contact = {face.name}: the face lies on a {chart.describe()}, "
                            "not on the foundation plane x3 = 0: its counterpart must be a rigid [obstacle] "
-                           "(sphere, cylinder or surface), which gives each contact node its frame"])
-    if not flat and getattr(cfg, "foundation", None) is not None:
-        raise ConfigError([f"{cfg.source}: body.contact = {face.name}: an elastic [foundation] takes a contact face "
-                           f"on the plane x3 = 0 only; this face lies on a {chart.describe()}"])
+                           "(sphere, cylinder or surface) or an elastic [foundation] whose top face it touches"])
     return chart
 
 

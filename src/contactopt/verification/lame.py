@@ -63,6 +63,58 @@ def quarter_hub_mesh(path, nr: int, nt: int, nz: int, b=B, c=C, length=0.25, gra
     return str(path)
 
 
+def _write_groups(path, pts, surface, hexes, names):
+    import meshio
+    pts = np.asarray(pts, float)
+    pts[np.abs(pts) < 1e-15] = 0.0
+    blocks = [("quad", surface), ("hexahedron", hexes)]
+    tags = [np.full(len(surface), 1), np.full(len(hexes), 2)]
+    meshio.write(path, meshio.Mesh(pts, blocks, cell_data={"gmsh:physical": tags, "gmsh:geometrical": tags},
+                                   field_data={names[0]: np.array([1, 2]), names[1]: np.array([2, 3])}),
+                 file_format="gmsh22", binary=False)
+    return str(path)
+
+
+def quarter_shaft_mesh(path, n: int, nt: int, nz: int, radius=B, length=0.25, core=0.5):
+    """Write the quarter of a solid shaft r ≤ ``radius``, 0 ≤ θ ≤ π/2, 0 ≤ x3 ≤ length as hexahedra
+    (an O-grid: an n × n square core [0, core·radius]² and a ring of nt/2 + nt/2 cells around it,
+    n radial layers, nt cells along the arc at equal angles, nz along x3; nt even) to a Gmsh 2.2
+    file with the physical groups ``surface`` (its faces at r = radius) and ``shaft``."""
+    if nt % 2:
+        raise ValueError("nt must be even")
+    s = core * radius
+    h = nt // 2
+    # the core's nodes, then the ring's (layers 1..n, layer 0 is the core's boundary)
+    ii, jj = np.meshgrid(np.arange(h + 1), np.arange(h + 1), indexing="ij")
+    core_xy = np.c_[(s * ii / h).ravel(), (s * jj / h).ravel()]
+    core_id = (ii * (h + 1) + jj)
+    # the core's outer boundary from θ = 0 to π/2: along x1 = s upwards, then along x2 = s leftwards
+    bnd = [core_id[h, j] for j in range(h + 1)] + [core_id[i, h] for i in range(h - 1, -1, -1)]
+    theta = 0.5 * np.pi * np.arange(nt + 1) / nt
+    arc = radius * np.c_[np.cos(theta), np.sin(theta)]
+    inner = core_xy[bnd]
+    ring_xy = [inner + (k / n) * (arc - inner) for k in range(1, n + 1)]
+    xy = np.vstack([core_xy] + ring_xy)
+    n0 = core_xy.shape[0]
+    ring_id = np.vstack([np.asarray(bnd)] + [n0 + (k - 1) * (nt + 1) + np.arange(nt + 1) for k in range(1, n + 1)])
+    quads = [[core_id[i, j], core_id[i + 1, j], core_id[i + 1, j + 1], core_id[i, j + 1]]
+             for i in range(h) for j in range(h)]
+    quads += [[ring_id[k, j], ring_id[k + 1, j], ring_id[k + 1, j + 1], ring_id[k, j + 1]]
+              for k in range(n) for j in range(nt)]
+    quads = np.asarray(quads)
+    a, b, c = xy[quads[:, 0]], xy[quads[:, 1]], xy[quads[:, 2]]
+    neg = np.cross(b - a, c - a) < 0
+    quads[neg] = quads[neg][:, ::-1]
+    z = length * np.arange(nz + 1) / nz
+    m = xy.shape[0]
+    pts = np.vstack([np.c_[xy, np.full(m, zk)] for zk in z])
+    hexes = np.vstack([np.c_[quads + k * m, quads + (k + 1) * m] for k in range(nz)])
+    outer = ring_id[n]
+    surface = np.vstack([np.c_[outer[j] + k * m, outer[j + 1] + k * m, outer[j + 1] + (k + 1) * m, outer[j] + (k + 1) * m]
+                         for k in range(nz) for j in range(nt)])
+    return _write_groups(path, pts, surface, hexes, ("surface", "shaft"))
+
+
 def shrink_fit_config(mesh_path, *, delta=DELTA, b=B, length=0.25, degree=(2, 1), friction=0.0,
                       path="condensation", motion="normal", **updates) -> dict:
     """The configuration (a dict) of the quarter hub on a rigid shaft of radius b + δ."""
@@ -81,6 +133,17 @@ def shrink_fit_config(mesh_path, *, delta=DELTA, b=B, length=0.25, degree=(2, 1)
     }
     for key, val in updates.items():
         cfg.setdefault(key, {}).update(val)
+    return cfg
+
+
+def shaft_config(hub_path, shaft_path, *, delta=DELTA, b=B, length=0.25, **kw) -> dict:
+    """The quarter hub (bore radius b) on an elastic quarter shaft of radius b + δ of the same
+    material (``[foundation]``), both in plane strain with the symmetry planes through both."""
+    cfg = shrink_fit_config(hub_path, delta=delta, b=b, length=length, **kw)
+    del cfg["obstacle"]
+    cfg["foundation"] = {"mesh": str(shaft_path), "top": "surface", "partner": "point",
+                         "clamped": [{"on": {"x1": 0.0}, "components": [1]}, {"on": {"x2": 0.0}, "components": [2]},
+                                     {"on": {"x3": 0.0}, "components": [3]}, {"on": {"x3": length}, "components": [3]}]}
     return cfg
 
 
