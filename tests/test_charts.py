@@ -132,3 +132,43 @@ def test_the_delassus_and_fullspace_paths_on_a_cylindrical_chart_equal_the_conde
     if other == "delassus":     # (the full-space ξ equals the condensation's, checked against differences above)
         rep = check_gradient(prob, alpha, seed=4, n_directions=2)
         assert rep.n_degenerate == 0 and np.max(rep.rel_errors) <= 1e-6, rep.rel_errors
+
+
+# ------------------------------------------------------------------ an elastic curved counterpart
+def shaft(tmp_path, nt=8, nt_shaft=None, k=1, **kw):
+    h = lame.quarter_hub_mesh(tmp_path / "hub.msh", 4 * k, nt * k, 1)
+    s = lame.quarter_shaft_mesh(tmp_path / "shaft.msh", 3 * k, (nt_shaft or nt) * k, 1, radius=lame.B + lame.DELTA)
+    return lame.shaft_config(h, s, **kw)
+
+
+def test_the_shrink_fit_on_a_shaft_of_the_same_material_converges_to_lames_pressure(tmp_path):
+    p = lame.pressure_equal_materials()
+    errors = [lame.pressure_errors(ShapeProblem(validate(shaft(tmp_path, k=k), "lame")), p) for k in (1, 2)]
+    assert errors[0][1] < 0.006 and errors[1][1] < 0.0015, errors
+    assert np.log2(errors[0][0] / errors[1][0]) > 1.9, errors
+
+
+def test_the_subgradient_on_an_elastic_curved_counterpart_matches_central_differences(tmp_path):
+    cfg = validate(shaft(tmp_path, friction=0.3, objective={"type": "pressure_uniformity"}), "lame")
+    problem = ShapeProblem(cfg)
+    assert problem.model.foundation is not None and problem.model.frames is not None
+    alpha = 1e-4 * (1.0 + np.sin(np.arange(problem.model.n_design)))
+    st = problem.solve_state(alpha)
+    assert st.counts["L"] == 0
+    rep = check_gradient(problem, alpha, seed=5, n_directions=3)
+    assert rep.n_degenerate == 0
+    assert np.max(rep.rel_errors) <= 1e-6, rep.rel_errors
+
+
+def test_an_overlap_with_the_foundation_without_interference_is_refused(tmp_path, state_refused):
+    data = shaft(tmp_path)
+    data["body"]["interference"] = False
+    state_refused(data, "contact node(s) of the body lie inside the foundation", "depth 0.001",
+                  "body.interference = true")
+
+
+def test_a_symmetry_plane_through_the_body_only_is_refused_on_a_foundation(tmp_path, state_refused):
+    data = shaft(tmp_path)
+    # the shaft's plane x1 = 0 clamped away from its surface only
+    data["foundation"]["clamped"][0]["on"] = {"box": [[-0.1, 0.1], [-0.1, 0.5], [-0.1, 1.0]]}
+    state_refused(data, "free at their partners on the foundation", "foundation.clamped")

@@ -103,7 +103,8 @@ def quarter_shaft_mesh(path, n: int, nt: int, nz: int, radius=B, length=0.25, co
               for k in range(n) for j in range(nt)]
     quads = np.asarray(quads)
     a, b, c = xy[quads[:, 0]], xy[quads[:, 1]], xy[quads[:, 2]]
-    neg = np.cross(b - a, c - a) < 0
+    u, v = b - a, c - a
+    neg = u[:, 0] * v[:, 1] - u[:, 1] * v[:, 0] < 0
     quads[neg] = quads[neg][:, ::-1]
     z = length * np.arange(nz + 1) / nz
     m = xy.shape[0]
