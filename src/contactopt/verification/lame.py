@@ -140,12 +140,11 @@ def shrink_fit_config(mesh_path, *, delta=DELTA, b=B, length=0.25, degree=(2, 1)
 def shaft_config(hub_path, shaft_path, *, delta=DELTA, b=B, length=0.25, **kw) -> dict:
     """The quarter hub (bore radius b) on an elastic quarter shaft of radius b + δ of the same
     material (``[foundation]``), both in plane strain with the symmetry planes through both."""
-    cfg = shrink_fit_config(hub_path, delta=delta, b=b, length=length, **kw)
-    del cfg["obstacle"]
-    cfg["foundation"] = {"mesh": str(shaft_path), "top": "surface", "partner": "point",
-                         "clamped": [{"on": {"x1": 0.0}, "components": [1]}, {"on": {"x2": 0.0}, "components": [2]},
-                                     {"on": {"x3": 0.0}, "components": [3]}, {"on": {"x3": length}, "components": [3]}]}
-    return cfg
+    hub = shrink_fit_config(hub_path, delta=delta, b=b, length=length, **kw)
+    clamps = [{"on": {"x1": 0.0}, "components": [1]}, {"on": {"x2": 0.0}, "components": [2]},
+              {"on": {"x3": 0.0}, "components": [3]}, {"on": {"x3": length}, "components": [3]}]
+    return {**{k: v for k, v in hub.items() if k != "obstacle"},
+            "foundation": {"mesh": str(shaft_path), "top": "surface", "partner": "point", "clamped": clamps}}
 
 
 def contact_pressure(problem, alpha=None):
