@@ -49,8 +49,10 @@ class ShapeProblem:
     def __init__(self, config, *, method: str | None = None):
         self.config = config if isinstance(config, Config) else load_config(config)
         body = build_body(self.config)
+        # pinned components on an elastic foundation: the foundation checks that they are clamped at
+        # their partners too (fem.foundation), where the condensation takes them
         name, library = select_path(self.config, memory.free_dofs(body), pinned=int(body.pinned_dofs.size),
-                                    rigid=body.rigid)
+                                    rigid=body.rigid, pinned_held=True)
         with PATHS[name].library_threads(self.config.linear_solver.threads):   # the morph weight's solve
             self.model = ElasticModel(self.config, body=body, memory_estimate=PATHS[name].memory_estimate)
         self.cases, self.combination = build_cases(self.config, self.model, self._design_lambda)
@@ -109,6 +111,7 @@ class ShapeProblem:
     has_load_steps = property(lambda self: any(self.steps), doc="Whether a load case has a load path.")
     case_names = property(lambda self: self.combination.names)
     contexts = property(lambda self: [row[0] for row in self.parts.contexts], doc="Each case's own context.")
+    step_contexts = property(lambda self: self.parts.contexts, doc="Per case the context of every solve.")
     n_state_solves = property(lambda self: self._last.n_solves, doc="Designs solved (all cases at once).")
     # the first case's context under the names of a problem without cases
     next_zone = property(lambda self: self.contexts[0].next_zone,
@@ -186,11 +189,12 @@ class ShapeProblem:
                 if st.objective is not None]
 
     # ------------------------------------------------------------------ checkpoints
-    def export_contexts(self) -> dict:
-        """What the cases carry from design to design, as arrays (:func:`~.sensitivity.solution.export_contexts`)."""
+    def export_contexts(self) -> list:
+        """What the cases carry from design to design: ``[k][j]`` the arrays of load case k at load
+        step j (:func:`~.sensitivity.solution.export_contexts`)."""
         return export_contexts(self.parts)
 
-    def import_contexts(self, arrays: dict, where: str) -> None:
+    def import_contexts(self, arrays: list, where: str) -> None:
         """Put back :meth:`export_contexts` (read from a checkpoint ``where``)."""
         import_contexts(self.parts, arrays, where)
 

@@ -36,7 +36,7 @@ displacement u_c = w + s e moves with s also at fixed w: y*_u·e with y*_u = g_c
 Through a load path's solves s_k depends also on the previous solve's slip w_(k−1) (the reference
 of the law): with μ_k = (∂Θ/∂s_k)/(∂F_k/∂s_k), ξ gains −μ_k ∂F_k/∂α and what solve k passes to
 solve k − 1 gains −μ_k P_t(S w_u + ∂F_k/∂u_c), F_k's own carry (:meth:`ForceControl.force_terms`,
-:meth:`contactopt.problem.ShapeProblem._path_adjoint`; docs/load_paths.md).
+:func:`contactopt.sensitivity.subgradient.case_subgradient`; docs/load_paths.md).
 """
 
 from __future__ import annotations

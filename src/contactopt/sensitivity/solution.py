@@ -184,25 +184,17 @@ class LastDesign:
         self.solution, self._values = None, {}
 
 
-def export_contexts(parts: Parts) -> dict:
-    """What every solve carries from design to design, as arrays: case k ≥ 1 prefixed ``case{k}_``,
-    a load path's later solve j ≥ 1 ``step{j}_`` before that."""
-    out = {}
-    for k, row in enumerate(parts.contexts):
-        for j, ctx in enumerate(row):
-            pre = (f"step{j}_" if j else "") + (f"case{k}_" if k else "")
-            out.update({pre + name: v for name, v in parts.path.export_context(ctx).items()})
-    return out
+def export_contexts(parts: Parts) -> list:
+    """What every solve carries from design to design: ``[k][j]`` the arrays of load case k at
+    load step j (a checkpoint holds them)."""
+    return [[parts.path.export_context(ctx) for ctx in row] for row in parts.contexts]
 
 
-def import_contexts(parts: Parts, arrays: dict, where: str) -> None:
+def import_contexts(parts: Parts, arrays: list, where: str) -> None:
     """Put back :func:`export_contexts` (read from a checkpoint ``where``)."""
     rows = parts.contexts
     for k, row in enumerate(rows):
-        for j, ctx in enumerate(row):
-            pre = (f"step{j}_" if j else "") + (f"case{k}_" if k else "")
-            own = {name[len(pre):]: v for name, v in arrays.items()
-                   if name.startswith(pre) and (k or not name[len(pre):].startswith("case"))}
-            others = [r[0] for r in rows[:k]] if not j else \
-                [r[0] for r in rows] + [c for r in rows for c in r[1:] if c is not ctx]
-            parts.path.import_context(ctx, own, where, others=others)
+        parts.path.import_context(row[0], arrays[k][0], where, others=[r[0] for r in rows[:k]])
+        for j, ctx in enumerate(row[1:], 1):
+            parts.path.import_context(ctx, arrays[k][j], where, others=[r[0] for r in rows] + [
+                c for r in rows for c in r[1:] if c is not ctx])
