@@ -44,7 +44,7 @@ class Parts:
         return (self.cases[k].loads,) if not self.steps[k] else tuple(s.loads for s in self.steps[k])
 
     def forces(self, k: int) -> tuple:
-        """|f| of a force-controlled obstacle at every solve of case k (None: no force control)."""
+        """The force magnitude of a force-controlled obstacle at every solve of case k (None: no force control)."""
         return (self.model.force,) if not self.steps[k] else tuple(s.force for s in self.steps[k])
 
 
