@@ -462,3 +462,32 @@ def test_an_objective_says_on_which_dofs_its_derivative_lives():
                                                   for x in [n.left, *n.comparators]):
                 found.append(f"{f.name}:{n.lineno} {ast.unparse(n)}")
     assert not [s for s in found if "y_u" in s or "du" in s or "carry" in s], found
+
+
+MAX_FUNCTION_IMPORTS = 60
+
+
+def function_imports(tree) -> list:
+    """(line, statement) of the imports inside functions of ``tree``."""
+    found = {}
+    for fn in ast.walk(tree):
+        if isinstance(fn, (ast.FunctionDef, ast.AsyncFunctionDef)):
+            for n in ast.walk(fn):
+                if isinstance(n, (ast.Import, ast.ImportFrom)):
+                    found[n.lineno] = ast.unparse(n)
+    return sorted(found.items())
+
+
+def test_imports_sit_at_module_level():
+    """Imports go at the top of a module; inside a function only what needs an optional
+    dependency (petsc4py, mpi4py, gmsh, dask, bokeh, clarabel), probes of an installed library,
+    the package's lazy attribute and what a test replaces at run time. The import graph has no
+    cycle (test_no_import_cycles), so nothing else needs to wait."""
+    found = [f"{f.relative_to(SRC).as_posix()}:{line} {text}" for f in sorted(SRC.rglob("*.py"))
+             for line, text in function_imports(ast.parse(f.read_text()))]
+    assert len(found) <= MAX_FUNCTION_IMPORTS, f"{len(found)} imports inside functions:\n" + "\n".join(found)
+
+
+def test_the_import_counter_sees_imports_in_functions():
+    tree = ast.parse("import os\ndef f():\n    import json\n    def g():\n        from .a import b\n")
+    assert [t for _, t in function_imports(tree)] == ["import json", "from .a import b"]

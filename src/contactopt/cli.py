@@ -14,6 +14,7 @@ import argparse
 import contextlib
 import json
 import logging
+import re
 import signal
 import sys
 import threading
@@ -22,7 +23,19 @@ from pathlib import Path
 
 import numpy as np
 
+from .config import json_schema, load_config
 from .errors import ConfigError, ContactOptError, MeshError
+from .fem.model import ElasticModel
+from .io.atomic import WriteError, atomic_write_json, atomic_write_text, write_error
+from .io.export import export_design, normalize_formats
+from .io.fclib import solve_fclib
+from .io.lock import acquire
+from .io.rundir import prepare_output_dir
+from .io.statefiles import state_files, write_state, write_steps
+from .problem import ShapeProblem
+from .runner import Interrupted, run_from_cli
+from .sensitivity.check import check_gradient
+from .studies import parse_settings, run_sweep
 
 log = logging.getLogger("contactopt")
 
@@ -54,10 +67,6 @@ def _read_alpha(path: str, model) -> np.ndarray:
 
 
 def _cmd_state(args) -> int:
-    from .io.atomic import atomic_write_json
-    from .io.rundir import prepare_output_dir
-    from .io.statefiles import state_files, write_state
-    from .problem import ShapeProblem
     problem = ShapeProblem(args.config, method=args.method)
     model = problem.model
     alpha = _read_alpha(args.alpha, model) if args.alpha else model.initial_design()
@@ -130,7 +139,6 @@ def _write_step_states(out, problem, alpha, states, warnings, bound, reason, t0)
     """`contactopt state` on load paths: step-<name>/ per step (case-<case>/step-<name>/ with
     load cases), each with the objective and the constraints at the step's end; steps.json with
     Θ and the constraints over the steps; body.pvd."""
-    from .io.statefiles import write_steps
     for k, name in enumerate(problem.case_names):
         where = out / _case_dir(name, k) if problem.has_load_cases else out
         ends = [(step, state) for step, _, state in problem.step_results(k) or []
@@ -159,7 +167,6 @@ def _substeps(problem, k: int, name: str) -> int:
 
 def _case_dir(name: str, k: int) -> str:
     """Directory of load case ``name`` (k-th): its name where that is a safe file name."""
-    import re
     safe = re.sub(r"[^A-Za-z0-9_.-]", "_", str(name)).strip(".")
     return f"case-{safe}" if safe else f"case-{k}"
 
@@ -183,9 +190,6 @@ def _print_state(state, bound, reason, objective=None, constraints=None) -> None
 
 
 def _cmd_export(args) -> int:
-    from .config import load_config
-    from .fem.model import ElasticModel
-    from .io.export import normalize_formats
     run = Path(args.run_dir)
     if not (run / "config.toml").is_file():
         raise ConfigError([f"{run}: not a run directory (no config.toml; 'contactopt run' writes one)"])
@@ -210,9 +214,6 @@ def _cmd_export(args) -> int:
 
 def _export_locked(model, alpha, out: Path, formats, args) -> dict:
     """export_design into ``out`` as its only writer (refused while a run or export holds it)."""
-    from .io.atomic import write_error
-    from .io.export import export_design
-    from .io.lock import acquire
     created = not out.exists()
     try:
         out.mkdir(parents=True, exist_ok=True)
@@ -231,8 +232,6 @@ def _export_locked(model, alpha, out: Path, formats, args) -> dict:
 
 
 def _cmd_check_gradient(args) -> int:
-    from .problem import ShapeProblem
-    from .sensitivity.check import check_gradient
     problem = ShapeProblem(args.config)
     model = problem.model
     alpha = _read_alpha(args.alpha, model) if args.alpha else model.initial_design()
@@ -266,7 +265,6 @@ def _print_check(rep) -> bool:
 
 
 def _cmd_solve_fclib(args) -> int:
-    from .io.fclib import solve_fclib
     t0 = time.perf_counter()
     res = solve_fclib(args.file, method=args.method, tol=args.tol)
     dt = time.perf_counter() - t0
@@ -276,12 +274,10 @@ def _cmd_solve_fclib(args) -> int:
 
 
 def _cmd_run(args) -> int:
-    from .runner import run_from_cli
     return run_from_cli(args)
 
 
 def _cmd_sweep(args) -> int:
-    from .studies import parse_settings, run_sweep
     settings = parse_settings(args.set or [])
     if args.max_iter is not None and args.max_iter < 1:
         raise ConfigError([f"--max-iter {args.max_iter}: must be an integer ≥ 1"])
@@ -313,10 +309,8 @@ def _cmd_sweep(args) -> int:
 
 def _cmd_schema(args) -> int:
     """The JSON Schema of a configuration file, for TOML editors (docs/configuration.md)."""
-    from .config import json_schema
     text = json.dumps(json_schema(), indent=2, ensure_ascii=False) + "\n"
     if args.out:
-        from .io.atomic import atomic_write_text
         atomic_write_text(Path(args.out), text)
         print(f"wrote {args.out}")
     else:
@@ -415,7 +409,6 @@ def _main(argv=None) -> int:
     console.setFormatter(logging.Formatter("%(levelname)s %(name)s: %(message)s"))
     logging.getLogger().addHandler(console)
     logging.getLogger("contactopt").setLevel(min(level, logging.INFO))
-    from .io.atomic import WriteError
     try:
         with _signals_interrupt():
             return args.func(args)
@@ -440,7 +433,6 @@ def _signals_interrupt():
     if threading.current_thread() is not threading.main_thread():
         yield
         return
-    from .runner import Interrupted
 
     def interrupt(signum, frame):
         raise Interrupted(signum)

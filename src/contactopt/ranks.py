@@ -13,6 +13,8 @@ import logging
 
 from ._mpi import petsc_missing, world_size
 from .errors import ContactOptError
+from .paths import protocol
+from .problem import ShapeProblem
 
 log = logging.getLogger(__name__)
 
@@ -26,7 +28,6 @@ def run_on_ranks(main, *args, **kw):
         return main(*args, **kw)      # every rank meets the configuration error of the missing PETSc
     from mpi4py import MPI
 
-    from .paths import protocol
     if MPI.COMM_WORLD.Get_rank() == 0:
         try:
             out = main(*args, **kw)
@@ -55,8 +56,6 @@ def serve() -> None:
     wait for this one forever)."""
     from mpi4py import MPI
 
-    from .paths import protocol
-    from .problem import ShapeProblem
     follower = protocol.Follower()
     while True:
         msg = protocol.receive()

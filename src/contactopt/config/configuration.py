@@ -12,6 +12,8 @@ from __future__ import annotations
 import copy
 from dataclasses import dataclass, field
 
+import tomli_w
+
 from .constraints import ResponseConstraint
 from .sections import (
     Body,
@@ -108,7 +110,6 @@ class Config:
         return validate(merged, self.source)
 
     def to_toml(self) -> str:
-        import tomli_w
         return tomli_w.dumps(self._data)
 
 

@@ -2,13 +2,14 @@
 
 from __future__ import annotations
 
+import tomli_w
+
 from .constraints import REFERENCE as CONSTRAINTS_REFERENCE
 from .schema import FOUNDATION, OBSTACLE, SCHEMA, SECTION_DOCS, TOP_LEVEL
 
 
 def reference_markdown() -> str:
     """The configuration reference (docs/configuration.md): every key with its default and meaning."""
-    import tomli_w
     lines = ["# Configuration reference", "",
              "A configuration is a TOML file (or a built-in example: `example1`, `example2`, `example3`).",
              "Every key is optional; the whole file is validated up front and every problem is listed at",

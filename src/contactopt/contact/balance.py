@@ -19,6 +19,7 @@ tangential load T = |P − (P·n)n| against F·N.
 from __future__ import annotations
 
 import numpy as np
+from scipy.optimize import linprog
 
 from ..errors import ConfigError
 from ..mesh.rigid import AXES, mode_name
@@ -29,7 +30,6 @@ SIDES = 64
 def check_held(rigid, points, contact_nodes, frames, friction: float, loads: list, source: str) -> None:
     """ConfigError naming the first free rigid motion of ``rigid`` that no admissible contact
     force holds, for the load vectors ``loads`` (full length 3n, named: [(name, f)])."""
-    from scipy.optimize import linprog
     k = rigid.count
     p = contact_nodes.size
     R = np.broadcast_to(np.eye(3), (p, 3, 3)) if frames is None else frames        # columns (t1, t2, n)

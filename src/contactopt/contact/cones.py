@@ -16,6 +16,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from .state import CLASS_NAMES, classify_nodes
+
 __all__ = [
     "as_contacts",
     "project_cone",
@@ -126,7 +128,6 @@ def node_class(r: np.ndarray, u: np.ndarray, mu, *, rtol: float = 1e-8) -> np.nd
     weak sticking with weak contact. "Weak" means that both members of a complementarity pair
     vanish up to ``rtol`` times the largest entry of ``r`` (forces) or ``u`` (displacements).
     """
-    from .state import CLASS_NAMES, classify_nodes
     R = as_contacts(np.asarray(r, dtype=float))
     U = as_contacts(np.asarray(u, dtype=float))
     mu = np.broadcast_to(np.asarray(mu, dtype=float), (R.shape[0],))

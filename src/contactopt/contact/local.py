@@ -20,6 +20,8 @@ successive approximations, Cor. 3.9, with Kučera's Algorithm 1 inside).
 from __future__ import annotations
 
 from ..errors import ProblemDataError
+from .fixed_point import solve_fixed_point
+from .newton import solve_newton
 from .result import LocalResult, check_problem
 
 __all__ = ["LocalResult", "solve_local", "check_problem"]
@@ -47,9 +49,9 @@ def solve_local(W, q, mu, *, method: str = "newton", tol: float = 1e-8, max_iter
     options : passed on to the method (see ``solve_newton`` and ``solve_fixed_point``).
     """
     if method == "newton":
-        from .newton import solve_newton as solver
+        solver = solve_newton
     elif method in ("fixed-point", "fixed_point", "fp"):
-        from .fixed_point import solve_fixed_point as solver
+        solver = solve_fixed_point
     else:
         raise ProblemDataError(f"unknown method {method!r}; choose one of {', '.join(METHODS)}")
     kwargs = dict(tol=tol, r0=r0, raise_on_failure=raise_on_failure, **options)

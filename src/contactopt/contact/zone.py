@@ -33,7 +33,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..fem.dense import cholesky_lower, cholesky_solve, inverse_from_cholesky
+from ..fem.dense import cholesky_lower, cholesky_solve, inverse_from_cholesky, spd_inverse
 from .state import CLASS_RTOL, TO_FCLIB
 
 CLEARANCE_RTOL = CLASS_RTOL  # a gap closes exactly where classify_nodes calls it closed
@@ -262,7 +262,6 @@ class DelassusZoneProblem(ZoneProblem):
         return x[self._contact]
 
     def _zone_inverse(self) -> np.ndarray:
-        from ..fem.dense import spd_inverse
         S = self._zone_block(self._contact[self._dof_z])
         W = spd_inverse(S)
         current = getattr(self._factor, "current", None)
@@ -339,7 +338,6 @@ class FramedDelassusZoneProblem(DelassusZoneProblem):
         return self._to_local(x[self._contact])
 
     def _zone_inverse(self):
-        from ..fem.dense import spd_inverse
         S = self._zone_block(self._contact[self._dof_z])       # global components in FCLIB order (x3, x1, x2)
         perm = TO_FCLIB
         T = self._R[self.zone][:, perm][:, :, perm]           # (z, 3, 3): FCLIB-local → FCLIB-global

@@ -28,6 +28,7 @@ import logging
 from dataclasses import dataclass, field
 
 import numpy as np
+from scipy.optimize import linprog
 
 from ..errors import InfeasibleDesignError
 
@@ -155,7 +156,6 @@ class AdmissibleSet:
 
     def nonempty(self, A_ub=None, b_ub=None, A_eq=None, b_eq=None, lb=None, ub=None) -> bool:
         """Whether U (or the given linear set, default U's own rows) holds a point: one LP."""
-        from scipy.optimize import linprog
         A_ub = self.A_ub if A_ub is None else A_ub
         b_ub = self.b_ub if b_ub is None else b_ub
         A_eq = self.A_eq if A_eq is None else A_eq
@@ -199,7 +199,6 @@ class AdmissibleSet:
 
     def _least_control_points(self):
         """min α_k over the box, slope and volume rows, for every k (None if that set is empty)."""
-        from scipy.optimize import linprog
         n = self.size
         A, b = self.A_ub, self.b_ub
         out = np.empty(n)

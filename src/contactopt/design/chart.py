@@ -27,6 +27,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+from scipy.spatial import cKDTree
 
 from ..errors import ConfigError
 from ..mesh.reference import FACE_CORNERS
@@ -246,7 +247,6 @@ def _check_graph(chart, points, face, nodes, nf, cf, tol, pre) -> None:
         if np.ptp(theta) >= 2 * np.pi - 1e-6 or np.abs(theta).max() > np.pi - 1e-9:
             raise ConfigError([f"{pre}design.chart: the contact face {face.name} wraps around the axis of the "
                                f"{chart.describe()}: model a sector of it (with symmetry planes)"])
-    from scipy.spatial import cKDTree
     pairs = cKDTree(xi).query_pairs(tol, output_type="ndarray")
     if len(pairs):
         a, b = nodes[pairs[0, 0]], nodes[pairs[0, 1]]
@@ -265,7 +265,6 @@ def motion_directions(points: np.ndarray, face, face_type: str, chart=None) -> n
     node on a symmetry plane through the axis stays on it); without a chart (the face a graph over
     x3 = 0) the face's inward unit normal (−:func:`nodal_normals`) at its nodes, elsewhere that of
     the nearest node of the face."""
-    from scipy.spatial import cKDTree
     if chart is not None:
         return -chart.outward(points)
     nodes = np.unique(face.faces)

@@ -8,6 +8,7 @@ import time
 
 import numpy as np
 import scipy.sparse as sp
+from pyamg.relaxation.relaxation import gauss_seidel, gauss_seidel_indexed
 
 from .._progress import progress, progress_level
 from ..errors import SolverError
@@ -176,7 +177,6 @@ class VCycle:
     hierarchy's precision), returned in double precision."""
 
     def __init__(self, H, dirichlet, P, R, ops, dtype=np.float64):
-        from pyamg.relaxation.relaxation import gauss_seidel, gauss_seidel_indexed
         self._gs, self._gs_idx = gauss_seidel, gauss_seidel_indexed
         if H.dtype != dtype:
             raise SolverError(f"the fine matrix is {H.dtype}, the hierarchy {np.dtype(dtype)}")

@@ -27,6 +27,7 @@ GAMG took 4 % more iterations and an evaluation 8 % longer.
 from __future__ import annotations
 
 import numpy as np
+import scipy.sparse as sp
 
 from ..errors import ConfigError
 from .elasticity import ElasticityAssembler
@@ -155,7 +156,6 @@ class DistributedBody:
         """(block indptr, block columns (PETSc nodes), the position in the values of the owned
         rows (``indptr``, local columns ``lcols``: rows 3·node + c) of every entry of the 3×3
         blocks, row-major)."""
-        import scipy.sparse as sp
         nnz = lcols.size
         tag = sp.csr_matrix((np.arange(1, nnz + 1, dtype=np.float64), lcols, indptr),
                             shape=(indptr.size - 1, n_cols))

@@ -31,6 +31,7 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import numpy as np
+from scipy.special import roots_jacobi
 
 from ..errors import MeshError
 
@@ -189,7 +190,6 @@ def tri6_shape(q):
 def _conical(degree: int, dim: int):
     """Stroud's conical product rule of the reference simplex (positive weights, exact to
     ``degree``): Gauss–Jacobi points collapsed from the cube, (⌈(degree+1)/2⌉)^dim points."""
-    from scipy.special import roots_jacobi
     n = max(1, (degree + 2) // 2)
     axes = []
     for k in range(dim):                       # weight (1 − t)^(dim−1−k) on [0, 1]

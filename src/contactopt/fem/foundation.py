@@ -33,15 +33,19 @@ from __future__ import annotations
 import logging
 
 import numpy as np
+import scipy.linalg as sla
 import scipy.sparse as sp
+from scipy.linalg import solve_triangular
+from scipy.linalg.blas import dsyrk
 
 from ..errors import ConfigError
 from ..mesh.foundation import build_foundation_mesh
 from ..mesh.reference import FACE_CORNERS
-from .dense import spd_inverse
+from .dense import cholesky_lower, cholesky_solve, spd_inverse, symmetrize_lower
 from .elasticity import ElasticityAssembler
-from .elements import element_type, face_type
+from .elements import element_type, face_type, tri_rule
 from .loadset import load_set
+from .memory import foundation_parts, matrix_entries
 from .mortar import MortarCoupling, mortar_matrices
 
 log = logging.getLogger(__name__)
@@ -66,7 +70,6 @@ class Foundation:
         ``normals`` (p, 3): the contact normals of a curved contact face (module docstring), whose
         partners lie along them; None: the face on x3 = 0, partners below the nodes."""
         from .linsolve import condense
-        from .memory import foundation_parts, matrix_entries
         contact_nodes = body.contact_nodes
         contact_xy = body.reference.points[contact_nodes, :2]
         self.mesh = fm = build_foundation_mesh(spec, contact_xy, source, curved=normals is not None)
@@ -197,13 +200,11 @@ class _WholeMatrix:
     there is no interior to eliminate."""
 
     def __init__(self, K, order: np.ndarray):
-        import scipy.linalg as sla
         self._order = np.asarray(order)
         self.S = np.asarray(K[np.ix_(self._order, self._order)].toarray())
         self._factor = sla.cho_factor(self.S, lower=True)
 
     def solve(self, f: np.ndarray) -> np.ndarray:
-        import scipy.linalg as sla
         x = np.zeros_like(f)
         x[self._order] = sla.cho_solve(self._factor, f[self._order])
         return x
@@ -226,10 +227,7 @@ class Coupling:
     order is (t1, t2, ν); r is the contact force on the body."""
 
     def __init__(self, S: np.ndarray, foundation: Foundation):
-        from scipy.linalg import solve_triangular
-        from scipy.linalg.blas import dsyrk
 
-        from .dense import cholesky_lower, symmetrize_lower
         self.foundation = f = foundation
         P = f.P
         self._P = P
@@ -242,7 +240,6 @@ class Coupling:
         self.S_eff = symmetrize_lower(np.ascontiguousarray(np.tril(S) - YtY))
 
     def _solve_M(self, b: np.ndarray) -> np.ndarray:
-        from .dense import cholesky_solve
         return cholesky_solve(self._L, b)
 
     def to_eff(self, x: np.ndarray) -> np.ndarray:
@@ -464,7 +461,6 @@ def _composite_rule(name: str, k: int):
         t = (np.arange(k)[:, None] + (g[None] + 1) / 2).ravel() * (2.0 / k) - 1.0      # (2k,)
         q = np.array([(a, b) for b in t for a in t])
         return q, np.full(q.shape[0], (1.0 / k) ** 2)
-    from .elements import tri_rule
     qt, wt = tri_rule(2)
     pts, wts = [], []
     for i in range(k):

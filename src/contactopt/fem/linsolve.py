@@ -41,6 +41,7 @@ import scipy.sparse.linalg as sla
 
 from ..errors import SolverError
 from . import _pardiso
+from .dense import cholesky_lower, cholesky_solve
 
 logger = logging.getLogger(__name__)
 
@@ -207,7 +208,6 @@ class Condensation:
         """A⁻¹ b for b of shape (n,) or (n, k), from the same factorization: with ℓ_b the
         condensed right-hand side, x_c = S⁻¹ℓ_b (dense Cholesky of S, computed on first use) and
         x_i = A_ii⁻¹(b_i − A_ic x_c)."""
-        from .dense import cholesky_lower, cholesky_solve
         b = self._full(b, "b")
         ell = self.condense_load(b)
         if self.S_inverse is not None:          # S⁻¹ given (the Delassus block of a zone)

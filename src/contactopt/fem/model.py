@@ -36,13 +36,17 @@ from ..design.admissible import AdmissibleSet
 from ..design.bezier import BezierSurface
 from ..design.chart import motion_directions
 from ..errors import ConfigError
+from ..mesh.block import block_axes
 from ..mesh.body import build_body
 from ..mesh.hexmesh import HexMesh
 from ..mesh.morph import JacobianRatio, MorphedMesh
+from ..mesh.obstacle import contact_frames, make_obstacle, tangent_frames
 from .elasticity import BBAR_AUTO_NU, ElasticityAssembler, element_geometry, resolve_formulation
 from .elements import element_type
+from .foundation import Foundation
 from .loads import face_areas_nodal
 from .loadset import load_set
+from .memory import check_memory
 from .weight import harmonic_weight
 
 log = logging.getLogger(__name__)
@@ -74,7 +78,6 @@ class ElasticModel:
         formulation = _formulation(cfg.material, body.reference.cell_type, cfg.source)
         check = None
         if cfg.linear_solver.memory_check:   # refuse a mesh too large before building on it
-            from .memory import check_memory
             est = check_memory(body, estimate=memory_estimate)
 
             def check(extra):                      # an elastic foundation's part, held beside it
@@ -100,7 +103,6 @@ class ElasticModel:
             self.mesh = MorphedMesh(ref, self.surface, self.weight, body.contact_nodes,
                                     fixed_shape=tuple(body.fixed_shape), **chart)
         else:
-            from ..mesh.block import block_axes
             nx, ny, nz = (x.size - 1 for x in block_axes(cfg.geometry, cfg.mesh))
             self.mesh = HexMesh(nx, ny, nz, self.surface, cfg.geometry.c, reference=ref,
                                 weight=self.weight, contact_nodes=body.contact_nodes,
@@ -143,7 +145,6 @@ class ElasticModel:
         self.loads = load_set(body, cfg.loads)
         self.body_force = self.loads.body_force
         if cfg.foundation is not None and self.foundation is None:
-            from .foundation import Foundation
             self.foundation = Foundation(cfg.foundation, body, source=cfg.source, check=check)
 
     # ------------------------------------------------------------------ checks
@@ -164,7 +165,6 @@ class ElasticModel:
         Sets ``obstacle`` and, off the plane, ``frames`` (p, 3, 3) per contact node, columns (t1, t2, n)."""
         if spec is None:
             return None
-        from ..mesh.obstacle import contact_frames, make_obstacle
         self.obstacle = make_obstacle(spec)
         fr = contact_frames(self.obstacle, ref.points, body.contact_face.nodes, body.penetration_tol,
                             self.config.source, interference=self.config.body.interference)
@@ -232,8 +232,6 @@ class ElasticModel:
         n_m = the chart's inward normal at the node (from the foundation to the body), frames
         (t1, t2, n_m) with the clamped components as tangents, the partners and initial gaps along
         n_m; an overlap deeper than the penetration tolerance needs ``body.interference``."""
-        from ..mesh.obstacle import tangent_frames
-        from .foundation import Foundation
         x = ref.points[body.contact_nodes]
         n = -body.chart.outward(x)
         R = tangent_frames(n)

@@ -19,8 +19,13 @@ from __future__ import annotations
 import logging
 
 import numpy as np
+import pyamg
 
 from ..errors import MeshError
+from ..mesh.block import block_mesh
+from ..mesh.hexmesh import HexMesh
+from ..mesh.morph import JacobianRatio
+from .elasticity import ElasticityAssembler, element_geometry, hex_reference
 
 log = logging.getLogger(__name__)
 
@@ -71,7 +76,6 @@ def harmonic_weight(assembler, coords, one_nodes, zero_nodes) -> np.ndarray:
 def _amg_cg(K, rhs) -> np.ndarray:
     """K⁻¹ rhs by AMG-preconditioned CG (K the SPD Laplacian on the free nodes), seeded so that
     the same mesh gives the same w bit for bit."""
-    import pyamg
     saved = np.random.get_state()
     np.random.seed(20090101)
     try:
@@ -92,10 +96,6 @@ def block_hexmesh(nx: int, ny: int, nz: int, surface, c: float):
     """The paper's block [0, a]×[0, b]×[0, c] as a :class:`~contactopt.mesh.hexmesh.HexMesh` on
     its own (without a configuration): its weight is the harmonic extension of 1 on the contact
     face and 0 on the top, and designs that invert an element are refused (``mesh.ratio``)."""
-    from ..mesh.block import block_mesh
-    from ..mesh.hexmesh import HexMesh
-    from ..mesh.morph import JacobianRatio
-    from .elasticity import ElasticityAssembler, element_geometry, hex_reference
     ref = block_mesh(surface.a, surface.b, c, nx, ny, nz)
     laplace = ElasticityAssembler(ref.cells, ref.n_nodes, [], 1.0, 0.0)   # its scalar Laplacian only
     weight = harmonic_weight(laplace, ref.points, ref.parts["contact"].nodes, ref.parts["top"].nodes)

@@ -35,13 +35,18 @@ import logging
 import os
 import shutil
 import struct
+import sys
 import tempfile
 import threading
 from pathlib import Path
 
+import meshio
 import numpy as np
+from meshio._helpers import _writer_map
 
 from ..errors import ContactOptError
+from ..fem.elasticity import element_geometry
+from ..mesh.reader import VOLUME_TYPES
 from ..mesh.reference import CELL_FACES, FACE_CORNERS
 from .atomic import WriteError, atomic_output, atomic_write_text, fsync_dir, write_error
 
@@ -86,7 +91,6 @@ def has_cad_kernel() -> bool:
 def _source_format(path: Path) -> tuple[str, bool, bool]:
     """(meshio writer, binary, in the input's format) of the input mesh file: Gmsh keeps its
     version, else the writer of the extension, else Gmsh 4.1."""
-    import meshio
     if path.suffix.lower() == ".msh":
         with open(path, "rb") as fh:
             head = fh.read(64).split()
@@ -97,14 +101,12 @@ def _source_format(path: Path) -> tuple[str, bool, bool]:
             return "gmsh", False, True
         return ("gmsh22" if version.startswith("2") else "gmsh"), binary, True
     types = meshio.extension_to_filetypes.get(path.suffix.lower(), [])
-    from meshio._helpers import _writer_map
     writable = [t for t in types if t in _writer_map]
     return (writable[0], False, True) if writable else ("gmsh", False, False)
 
 
 def _block_meshio(model, coords):
     """The paper's block as a meshio mesh with its parts as Gmsh physical surfaces."""
-    import meshio
     ref = model.body.reference
     ftype = CELL_FACES[ref.cell_type][0]
     cells = [(ref.cell_type, ref.cells)]
@@ -126,13 +128,11 @@ def body_meshio(model, coords):
     A body from a file is that file re-read with the nodes of its volume cells moved (the reader
     drops the other points and numbers the rest in order: :func:`contactopt.mesh.reader.from_meshio`),
     so every block, group, tag and extra point stays as the input had it."""
-    import meshio
     src = model.config.body.mesh
     if not src:
         # Gmsh 2.2 keeps the node numbering (4.1 lists nodes by geometric entity): the exported
         # block's node n is the model's node n
         return _block_meshio(model, coords), "gmsh22", False, ".msh"
-    from ..mesh.reader import VOLUME_TYPES
     path = Path(src)
     if not path.is_file():
         raise ExportError(f"body.mesh = {src}: the input mesh is needed to export the body in its format "
@@ -152,7 +152,6 @@ def body_meshio(model, coords):
 
 def write_body_mesh(path, model, coords) -> Path:
     """Write Ω at ``coords`` as a volume mesh (see :func:`body_meshio`) to ``path``, atomically."""
-    import meshio
     m, fmt, binary, _ = body_meshio(model, coords)
     kw = {"binary": binary} if fmt in ("gmsh", "gmsh22") else {}
     path = Path(path)
@@ -321,7 +320,6 @@ def triangle_mesh_check(points, tris) -> dict:
 def fe_volume(model, coords) -> float:
     """Volume of the FE mesh at ``coords``: Σ ∫ det J over the cells (the body-load rule, exact for
     the elements' polynomial Jacobians)."""
-    from ..fem.elasticity import element_geometry
     el = model.assembler.element
     _, dN, w = el.reference(load=True)
     _, det = element_geometry(np.asarray(coords, float)[model.assembler.elements], dN, check=False)
@@ -333,7 +331,6 @@ def fe_volume(model, coords) -> float:
 def _quiet():
     """Silence C/C++ writes to stdout/stderr (OpenCASCADE prints transfer statistics): the library
     does not print."""
-    import sys
     try:
         sys.stdout.flush()
         sys.stderr.flush()

@@ -19,9 +19,11 @@ import os
 from dataclasses import dataclass, field
 from pathlib import Path
 
+import h5py
 import numpy as np
 import scipy.sparse as sp
 
+from ..contact.local import solve_local
 from ..errors import FclibError
 
 __all__ = ["FclibProblem", "read_fclib", "write_fclib", "solve_fclib"]
@@ -59,7 +61,6 @@ class FclibProblem:
 
 
 def _h5py():
-    import h5py  # lazily: only the FCLIB functions need HDF5
 
     return h5py
 
@@ -280,7 +281,6 @@ def solve_fclib(path, method: str = "newton", *, tol: float = 1e-8, **options):
     Returns the :class:`contactopt.contact.local.LocalResult`; does not raise when the
     tolerance is not reached (``converged`` tells), so that a command-line tool can report.
     """
-    from ..contact.local import solve_local
 
     prob = read_fclib(path)
     options.setdefault("raise_on_failure", False)

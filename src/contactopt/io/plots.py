@@ -29,8 +29,10 @@ from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.colors import BoundaryNorm, ListedColormap
 from matplotlib.figure import Figure
 from matplotlib.patches import Patch
+from matplotlib.tri import Triangulation
 
 from ..contact.state import CLASS_NAMES
+from ..fem.stress import quadrature_points, von_mises_points
 from .atomic import atomic_output
 
 log = logging.getLogger(__name__)
@@ -112,7 +114,6 @@ def face_triangulation(model):
     face's triangles (a quadrilateral split in two, a six-node triangle by its corners) whose
     vertices are all contact nodes.
     """
-    from matplotlib.tri import Triangulation
     faces = np.asarray(model.body.contact_face.faces)
     corners = faces[:, :4] if faces.shape[1] == 4 else faces[:, :3]
     tris = np.vstack([corners[:, [0, 1, 2]], corners[:, [0, 2, 3]]]) if corners.shape[1] == 4 else corners
@@ -354,7 +355,6 @@ def plot_surface(path, model, alpha, *, resolution=(81, 41), title="Contact surf
     Z = surf.evaluate(A, G1.ravel(), G2.ravel()).reshape(G1.shape)
     if not _has_grid(model):
         # the surface over the contact face only (a disc, an L: the rectangle carries the net)
-        from matplotlib.tri import Triangulation
         corners = np.asarray(model.body.contact_face.faces)
         corners = corners[:, :4] if corners.shape[1] == 4 else corners[:, :3]
         tris = np.vstack([corners[:, [0, 1, 2]], corners[:, [0, 2, 3]]]) if corners.shape[1] == 4 else corners
@@ -481,7 +481,6 @@ def plot_peak_stress(path, model, coords, u_full, *, cells=None, fraction: float
     elements ``cells`` (all by default) whose σ_vM is at least ``fraction`` of the peak, seen from
     below (x1, x2) and from the side (x1, x3), coloured by σ_vM; the peak is marked ★ with its
     value and position (:mod:`contactopt.fem.stress`; the value peak_stress's 'max' takes)."""
-    from ..fem.stress import quadrature_points, von_mises_points
     asm = model.assembler
     vm = von_mises_points(asm, coords, u_full, cells)
     x = quadrature_points(asm, coords, cells)

@@ -258,7 +258,6 @@ def write_steps(outdir, model, steps, *, config=None, warnings=None, reports=Non
     time series (time = the step's position). ``reports`` [(objective, constraints)] per step go
     into each state.json (the responses at the step's end), ``combined`` (objective, constraints)
     over the steps into steps.json. Returns the listing."""
-    from .atomic import atomic_write_json
     outdir = Path(outdir)
     listing = []
     for k, (name, state) in enumerate(steps):

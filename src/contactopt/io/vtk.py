@@ -48,8 +48,10 @@ import os
 import xml.etree.ElementTree as ET
 from pathlib import Path, PurePosixPath
 
+import meshio
 import numpy as np
 
+from ..fem.stress import von_mises_points
 from .atomic import atomic_output, atomic_write_text
 from .pressure import contact_pressure
 
@@ -137,7 +139,6 @@ def write_body_vtu(path, model, state, extra_point_data=None, *, deformed: bool 
     x + u when ``deformed`` is true. Point data: see the module docstring for every field and its
     sign convention. Returns the path.
     """
-    import meshio
 
     path = Path(path)
     coords = np.asarray(state.coords, float)
@@ -165,7 +166,6 @@ def cell_stress_data(assembler, coords, u_full) -> dict:
     s = _finite("stress", assembler.cell_stresses(np.asarray(coords, float), np.asarray(u_full, float)))
     vm = np.sqrt(0.5 * ((s[:, 0] - s[:, 1]) ** 2 + (s[:, 1] - s[:, 2]) ** 2 + (s[:, 2] - s[:, 0]) ** 2)
                  + 3.0 * (s[:, 3] ** 2 + s[:, 4] ** 2 + s[:, 5] ** 2))
-    from ..fem.stress import von_mises_points
     peak = _finite("von_mises_max", von_mises_points(assembler, np.asarray(coords, float),
                                                      np.asarray(u_full, float)).max(axis=1))
     return {"stress": [s], "von_mises": [vm], "von_mises_max": [peak]}
@@ -173,7 +173,6 @@ def cell_stress_data(assembler, coords, u_full) -> dict:
 
 def write_foundation_vtu(path, foundation, state) -> Path:
     """Write the elastic foundation of ``state`` (its reference mesh, module docstring) as a VTU."""
-    import meshio
 
     path = Path(path)
     ref = foundation.mesh.reference

@@ -30,9 +30,14 @@ import logging
 from dataclasses import dataclass, field
 
 import numpy as np
+from scipy.spatial import cKDTree
 
+from ..design.chart import face_normals, resolve_chart
 from ..errors import ConfigError, MeshError
+from .block import block_axes, block_mesh, graded_block_mesh
+from .reader import read_mesh
 from .reference import FACE_CORNERS, HasParts, Part, ReferenceMesh, describe_part, part_selector, select_part
+from .rigid import free_modes
 
 log = logging.getLogger(__name__)
 
@@ -64,9 +69,7 @@ def reference_mesh(cfg):
     """The reference mesh of a configuration: the file of ``[body] mesh`` or the block."""
     path = cfg.body.mesh
     if path:
-        from .reader import read_mesh
         return read_mesh(path)
-    from .block import block_axes, block_mesh, graded_block_mesh
     g, m = cfg.geometry, cfg.mesh
     if not m.graded:
         return block_mesh(g.a, g.b, g.c, m.nx, m.ny, m.nz)
@@ -116,7 +119,6 @@ def build_body(cfg) -> Body:
         # tangent plane (a symmetry plane or an end face through the face) are pinned tangents
         normal_comp = np.abs(chart.outward(ref.points[face.nodes])) > 1e-9
     contact_nodes, pinned, warnings = _contact_nodes(face, fixed, spec.contact, cfg.source, normal_comp)
-    from .rigid import free_modes
     rigid = free_modes(ref.points, fixed)
     if rigid.count:
         log.info("body.clamped leaves %d rigid-body motion(s) free: %s; contact must hold them", rigid.count,
@@ -180,7 +182,6 @@ def _chart(cfg, ref: ReferenceMesh, face: Part, gtol: float):
 
     A chart other than a plane with outward normal −e3 needs a counterpart that gives each contact
     node its frame: a rigid ``[obstacle]`` other than the plane x3 = 0."""
-    from ..design.chart import face_normals, resolve_chart
     d = cfg.design
     if face.faces.shape[0] == 0:
         return None                       # _check_contact_face names it
@@ -232,7 +233,6 @@ def _check_contact_face(ref: ReferenceMesh, face: Part, tol: float, on_plane: bo
         raise ConfigError([f"body.contact = {name}: {int(np.sum(n3 >= 0))} face(s) have the body below them "
                            f"(outward normal +x3; the body must lie in x3 ≥ 0 above the foundation), first with "
                            f"nodes {up.tolist()}"])
-    from scipy.spatial import cKDTree
     pairs = cKDTree(ref.points[nodes, :2]).query_pairs(graph_tol, output_type="ndarray")
     if len(pairs):
         a, b = nodes[pairs[0, 0]], nodes[pairs[0, 1]]

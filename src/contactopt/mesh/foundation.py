@@ -23,6 +23,7 @@ from ..errors import ConfigError, MeshError
 from .block import block_mesh
 from .body import COMPONENTS, _check_rigid_modes
 from .reference import FACE_CORNERS, HasParts, Part, ReferenceMesh, describe_part, part_selector
+from .tetsplit import hex_to_tets
 
 
 @dataclass
@@ -47,7 +48,6 @@ def foundation_block(size, cells, origin=(0.0, 0.0), element: str = "hexahedron"
     cells_ = ref.cells
     ctype = "hexahedron"
     if element == "tetra":
-        from .tetsplit import hex_to_tets
         cells_, ctype = hex_to_tets(ref.cells, points), "tetra"
     mesh = ReferenceMesh(points, cells_, ctype, source=f"foundation block {n1}×{n2}×{n3} ({ctype})")
     x, lo, hi = points, points.min(axis=0), points.max(axis=0)

@@ -16,9 +16,12 @@ Geometry only: what is computed on it (the rotated condensed system) lives in ``
 
 from __future__ import annotations
 
+import contextlib
+import io
 import logging
 from dataclasses import dataclass
 
+import meshio
 import numpy as np
 
 from ..errors import ConfigError
@@ -238,10 +241,7 @@ def read_surface(path: str, key: str = "obstacle.mesh") -> Surface:
     points are merged (STL repeats them per triangle). ConfigError when it has no triangles or is
     not closed (an edge not shared by exactly two triangles, or two triangles of opposite
     orientation on an edge), naming the first such edge."""
-    import contextlib
-    import io
 
-    import meshio
     try:
         with contextlib.redirect_stdout(io.StringIO()), contextlib.redirect_stderr(io.StringIO()):
             m = meshio.read(path)

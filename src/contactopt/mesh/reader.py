@@ -22,6 +22,7 @@ import io
 import logging
 from pathlib import Path
 
+import meshio
 import numpy as np
 
 from ..errors import MeshError
@@ -37,7 +38,6 @@ SURFACE_TYPES = {"triangle", "triangle6", "triangle7", "quad", "quad8", "quad9",
 
 def read_mesh(path) -> ReferenceMesh:
     """Read a mesh file into a :class:`ReferenceMesh` (see the module docstring)."""
-    import meshio
     path = Path(path)
     if not path.exists():
         raise MeshError(f"mesh file {path}: no such file")

@@ -24,6 +24,7 @@ import logging
 from dataclasses import dataclass
 
 import numpy as np
+from scipy.optimize import linprog
 
 from ..errors import OptimizerError
 
@@ -175,7 +176,6 @@ class Polyhedron:
                              f"{flag} ({_DAQP_FLAGS.get(flag, 'unknown')})")
 
     def _lp_infeasible(self) -> bool:
-        from scipy.optimize import linprog
 
         res = linprog(np.zeros(self.n), A_ub=self.A_ub if self.n_ub else None,
                       b_ub=self.b_ub if self.n_ub else None,

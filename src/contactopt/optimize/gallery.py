@@ -44,6 +44,7 @@ from dataclasses import dataclass, field
 from typing import Callable
 
 import numpy as np
+import scipy.sparse as sp
 
 __all__ = ["NonsmoothProblem", "ConstrainedProblem", "PROBLEMS", "CONSTRAINED", "get_problem",
            "problem_names", "paper_admissible_set", "max_quadratics_problem", "max_quadratics_reference",
@@ -825,7 +826,6 @@ def max_quadratics_reference(prob):
     Clarabel is a test-only dependency: ImportError when it is not installed.
     """
     import clarabel
-    import scipy.sparse as sp
 
     n = prob.n
     Q, c, b = prob.data["Q"], prob.data["c"], prob.data["b"]

@@ -24,7 +24,10 @@ from __future__ import annotations
 import logging
 from types import MappingProxyType
 
+from .. import _mpi
 from ..errors import ConfigError
+from ..fem.linsolve import pardiso_available
+from ..sensitivity.objectives import FULL_SPACE, constraint_types, objective_types
 from .base import Capabilities, Context, Settings, SolverPath, Start
 from .condensation import CondensationPath
 from .delassus import DelassusPath
@@ -49,7 +52,6 @@ def library_for(name: str, library: str) -> str:
         return own
     if library != "auto":
         return library
-    from ..fem.linsolve import pardiso_available
     return "pardiso" if pardiso_available() else "scipy"
 
 
@@ -62,7 +64,6 @@ def needs(config, pinned: int = 0, ranks: int = 1, rigid=None, pinned_held: bool
     ``pinned_held``: the pinned components are clamped at their partners on an elastic foundation
     too (the symmetry planes run through both bodies, :class:`contactopt.fem.foundation.Foundation`
     refuses them otherwise), so that the foundation adds no compliance to the clamped directions."""
-    from ..sensitivity.objectives import FULL_SPACE, constraint_types, objective_types
     out, foundation = {}, config.foundation is not None
     types = objective_types(config) | constraint_types(config)     # [[constraints]] are objectives too
     if foundation:
@@ -192,13 +193,11 @@ def _on(names: list) -> str:
 def missing_library(library: str) -> str | None:
     """None where ``library`` (of ``Capabilities.libraries``) imports, else why not."""
     if library == "petsc4py":
-        from .. import _mpi
         missing = _mpi.petsc_missing()
         return f"petsc4py and mpi4py: {missing}" if missing else None
     if library == "pyamg":
         return None if _have_pyamg() else "pyamg: it is not installed (pip install pyamg)"
     if library == "pardiso":
-        from ..fem.linsolve import pardiso_available
         return None if pardiso_available() else "MKL PARDISO: the mkl wheel is not installed"
     raise ValueError(f"unknown library {library!r}")
 

@@ -43,13 +43,18 @@ import time
 from dataclasses import dataclass, replace
 
 import numpy as np
+from scipy.sparse.linalg import eigsh
 
 from ..contact import zone as zone_rules
+from ..contact.state import FoundationState
 from ..fem import memory
+from ..fem.dense import mkl_threads, spd_inverse
+from ..fem.foundation import Coupling
 from ..fem.model import Assembled
+from ..sensitivity.adjoint import solve_adjoint
 from .base import Adjoint, Capabilities
 from .force import ForceControl
-from .rigid import anchor, with_contact_diagonal
+from .rigid import anchor, held_state, with_contact_diagonal
 from .zone_paths import ZonePath
 
 
@@ -147,7 +152,6 @@ class CondensationPath(ForceControl, ZonePath):
         if self.model.slip_shift is not None:
             system = shifted(system, self.model.slip_shift.ravel())
         if self.foundation is not None:
-            from ..fem.foundation import Coupling
             system.coupling = Coupling(system.S, self.foundation)
             system.ell_eff = system.coupling.ell_eff(system.ell)
         if self.rigid_modes is not None:
@@ -159,7 +163,6 @@ class CondensationPath(ForceControl, ZonePath):
     def library_threads(cls, threads: int):
         """MKL on ``threads`` threads (1: bit for bit a single-threaded run's results;
         :func:`contactopt.fem.dense.mkl_threads`)."""
-        from ..fem.dense import mkl_threads
         return mkl_threads(threads)
 
     @property
@@ -205,7 +208,6 @@ class CondensationPath(ForceControl, ZonePath):
         """The state; of a body held only by contact, by the anchor's iteration (:mod:`.rigid`)."""
         if system.rigid is None:
             return ZonePath.solve_state(self, system, ctx, alpha, **kw)
-        from .rigid import held_state
         return held_state(lambda sys: ZonePath.solve_state(self, sys, ctx, alpha, **kw), system,
                           kw.get("tol") or self.settings.tol, kw.get("method", self.settings.method))
 
@@ -236,7 +238,6 @@ class CondensationPath(ForceControl, ZonePath):
         (t1, t2, ν) — w = u_c − partner is the state's ``u_c`` — and the foundation's own."""
         if system.coupling is None:
             return None
-        from ..contact.state import FoundationState
         body = (u_body if self.frames is None else to_frames(np.ravel(u_body), self.frames)).reshape(-1, 3)
         return FoundationState(u_body_c=body, u_partner=body - u_c, displacement=self.foundation.displacement(r))
 
@@ -255,7 +256,6 @@ class CondensationPath(ForceControl, ZonePath):
         y_c = g_c − A_ci A_ii⁻¹ g_i (4.15) takes y*_u = S_eff S⁻¹ y_c; at fixed w, r and with it
         u_c move with α: g·δu gains −y_cᵀC δr = −(S⁻¹S_eff C y_c)ᵀ(∂A u − ∂L)… extended, so
         z = S⁻¹S_eff (v_u − C y_c) (docs/foundation.md)."""
-        from ..sensitivity.adjoint import solve_adjoint
         zhat = y_c = None
         if self.is_full(y_u):          # ∂J/∂u on every DOF (SolverPath.adjoint): ẑ = (0, A_ii⁻¹g_i)
             fac, asm = system.factor, self.model.assembler
@@ -296,9 +296,7 @@ class CondensationPath(ForceControl, ZonePath):
     def uniqueness_bound(self, system):
         """F0 = λ_min(S)/λ_max(S) of the bound (3.16) applied to the condensed system: with A := S,
         N and T select components so β = ‖T‖ = 1. Known to be very pessimistic."""
-        from scipy.sparse.linalg import eigsh
 
-        from ..fem.dense import spd_inverse
         if system.rigid is not None:
             return None, ("the body is held only by contact: its condensed stiffness S is singular, and the "
                           "bound (3.16) needs λ_min(S) > 0")

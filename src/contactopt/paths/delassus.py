@@ -30,8 +30,11 @@ import numpy as np
 from ..contact import zone as zone_rules
 from ..contact.state import CLASS_CODES, FROM_FCLIB, displacement_scale
 from ..fem import memory
+from ..fem.linsolve import Factorization, SolverSlot
 from ..fem.model import Assembled
+from ..sensitivity.adjoint import check_choices, effective_classes, solve_adjoint_delassus
 from .base import Adjoint, Capabilities
+from .condensation import from_frames, to_frames
 from .force import ForceControl, normal_stiffness
 from .zone_paths import ZonePath
 
@@ -81,7 +84,6 @@ class DelassusPath(ForceControl, ZonePath):
         return memory.estimate_evaluation(body, memory.delassus_parts, keep_cholesky=keep_cholesky)
 
     def prepare(self, asm) -> FactorizedSystem:
-        from ..fem.linsolve import Factorization, SolverSlot
         t0 = time.perf_counter()
         fac = self._factor
         if fac is None:           # the first design, or the Cholesky was released (_zone_block)
@@ -153,7 +155,6 @@ class DelassusPath(ForceControl, ZonePath):
         R = self.law_frames(system)
         if R is None:
             return np.ravel(u_c)
-        from .condensation import from_frames
         u = np.ravel(u_c) if system.shift is None else np.ravel(u_c) + system.shift
         return from_frames(u, R)
 
@@ -188,7 +189,6 @@ class DelassusPath(ForceControl, ZonePath):
         u0 = system.x0[self.model.contact_dofs]
         R = self.law_frames(system)
         if R is not None:
-            from .condensation import to_frames
             u0 = to_frames(u0, R) - (0.0 if system.shift is None else system.shift)
         u0 = u0.reshape(-1, 3)
         clearance = u0[:, 2] + system.gap
@@ -221,11 +221,9 @@ class DelassusPath(ForceControl, ZonePath):
         """(4.15) in W-form (:func:`contactopt.sensitivity.adjoint.solve_adjoint_delassus`): products
         W s by sparse solves, preconditioned by the case's kept Delassus block on the nodes in
         contact (exact columns for nodes outside it; the zone's Schur complement without one)."""
-        from ..sensitivity.adjoint import check_choices, effective_classes, solve_adjoint_delassus
         contact = self.model.contact_dofs
         n = system.x0.size
         R = self.frames
-        from .condensation import from_frames, to_frames
         rot, back = (lambda v: v, lambda v: v) if R is None else (lambda v: to_frames(v, R), lambda v: from_frames(v, R))
 
         def apply(s):

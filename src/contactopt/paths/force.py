@@ -45,6 +45,7 @@ import logging
 from typing import NamedTuple
 
 import numpy as np
+from scipy.optimize import brentq
 
 from ..contact.state import ObstacleControl
 from ..errors import ContactNotConverged, SolverError
@@ -80,7 +81,6 @@ class ForceControl:
         m = self.model
         if getattr(m, "force", None) is None:
             return self.fixed_state(system, ctx, alpha, **kw)
-        from scipy.optimize import brentq
 
         c, b, f = m.force_gap, m.force_b, m.force
         if getattr(system, "force", None) is not None:      # a load step's own force (sensitivity/steps.py)

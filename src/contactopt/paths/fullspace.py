@@ -32,11 +32,16 @@ import time
 from dataclasses import dataclass, replace
 
 import numpy as np
+import scipy.sparse as sp
 
 from .._threads import sequential_openblas
+from ..contact.fullspace import solve_fullspace
+from ..contact.fullspace.pyamg import sorted_csr
 from ..errors import CheckpointError
 from ..fem import memory
+from ..fem.amg import ContactHierarchy, rigid_body_modes
 from ..fem.model import Assembled
+from ..sensitivity.adjoint_fullspace import solve_adjoint_fullspace
 from .base import Adjoint, Capabilities, Context, SolverPath, check_design
 from .force import ForceControl, normal_stiffness
 
@@ -73,7 +78,6 @@ class FullSystem:
 def frame_rotation(contact_dofs: np.ndarray, frames: np.ndarray, n_free: int):
     """T (n_free × n_free, orthogonal, sparse): the identity but at each contact node, whose free DOFs
     (x1, x2, x3) it maps from the node's frame (t1, t2, n): u = T u_loc (module docstring)."""
-    import scipy.sparse as sp
     cd = np.asarray(contact_dofs).reshape(-1, 3)
     other = np.setdiff1d(np.arange(n_free), cd.ravel())
     rows = np.concatenate([other, np.repeat(cd, 3, axis=1).ravel()])
@@ -190,7 +194,6 @@ class FullSpacePath(ForceControl, FullSpaceCommon):
         shift = None if s is None else s[:, :2]
         if self.frames is None:
             return FullSystem(asm, asm.gap, {}, shift=shift)
-        import scipy.sparse as sp
         T = frame_rotation(self.model.contact_dofs, self.frames, self.model.assembler.n_free)
         A = sp.csr_matrix(T.T @ asm.A @ T)
         if self.model.pinned_dofs.size:
@@ -225,8 +228,6 @@ class FullSpacePath(ForceControl, FullSpaceCommon):
         pyamg estimates spectral radii from random start vectors of NumPy's global generator: it
         is seeded here (and its state restored), and OpenBLAS runs on one thread, so that the same
         design gives the same hierarchy bit for bit."""
-        from ..contact.fullspace.pyamg import sorted_csr
-        from ..fem.amg import ContactHierarchy, rigid_body_modes
         if asm is None:
             asm = self.model.assemble(alpha, self.first_loads)
         system = self.prepare(asm)
@@ -247,7 +248,6 @@ class FullSpacePath(ForceControl, FullSpaceCommon):
         warm-started from the case's last forces, displacement and contact zone, on the AMG
         hierarchy of an earlier design; without ``warm_start`` from nothing the case carries (on
         all contact nodes), so that two such solves of one design agree bit for bit."""
-        from ..contact.fullspace import solve_fullspace
         asm = system.assembled
         t0 = time.perf_counter()
         warm = ctx.warm if warm_start else None
@@ -276,7 +276,6 @@ class FullSpacePath(ForceControl, FullSpaceCommon):
                              stats={"backend": "pyamg"}, label=label, slip_ref=slip_ref)
 
     def adjoint(self, system, ctx, state, y_u, y_lam, choices=None):
-        from ..sensitivity.adjoint_fullspace import solve_adjoint_fullspace
         if self.is_full(y_u):          # ∂J/∂u on every DOF: the free DOFs' part
             y_u = np.asarray(y_u, float)[self.model.assembler.free]
         u_law = state.u_c                # the friction law's: the slip increment in a load step

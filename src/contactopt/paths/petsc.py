@@ -41,6 +41,7 @@ import numpy as np
 
 from ..errors import ConfigError
 from ..fem.model import Assembled
+from ..sensitivity.adjoint_fullspace import ADJOINT_RTOL, adjoint_classes, check_default_choices
 from .base import Adjoint, Capabilities, Context, SolverPath
 from .fullspace import FullSpaceCommon
 from .protocol import Call, Command, Problem, new_path_id, send
@@ -251,7 +252,6 @@ class PetscPath(FullSpaceCommon):
 
     # ------------------------------------------------------------------ adjoint and design terms
     def adjoint(self, system, ctx, state, y_u, y_lam, choices=None):
-        from ..sensitivity.adjoint_fullspace import check_default_choices
         check_default_choices(choices)
         u_law = state.u_c                # the friction law's: the slip increment in a load step
         if state.slip_ref is not None:
@@ -279,7 +279,6 @@ class PetscPath(FullSpaceCommon):
         return ctx.adjoint_force + np.asarray(y_u, float)[contact]
 
     def _adjoint(self, skey, classes, u_law, lam, y_u, y_lam):
-        from ..sensitivity.adjoint_fullspace import ADJOINT_RTOL, adjoint_classes
         system = self._systems[skey]
         v_all, v_u, v_lam, its, force = self.newton.adjoint(self._hier, *adjoint_classes(classes), u_law, lam, y_u,
                                                             y_lam, self.settings.friction, rtol=ADJOINT_RTOL)

@@ -25,6 +25,8 @@ import numpy as np
 
 from .._threads import sequential_openblas
 from ..contact import zone as zone_rules
+from ..contact.local import solve_local
+from ..contact.newton import solve_newton
 from ..contact.state import FROM_FCLIB, displacement_scale
 from ..errors import CheckpointError, ContactOptError
 from .base import Context, SolverPath, check_design, check_node_set
@@ -173,8 +175,6 @@ class ZonePath(SolverPath):
         matrix and exact products W_Z r (:meth:`ZoneProblem.product`), so the state is exact
         either way; W_Z is formed (and kept for later designs) when that solve fails, and the kept
         block is dropped when it needed more than REUSE_MAX_STEPS steps."""
-        from ..contact.local import solve_local
-        from ..contact.newton import solve_newton
         s = self.settings
         q = zp.q0.copy()
         q[0::3] += system.gap[zp.zone]

@@ -45,6 +45,8 @@ import scipy.sparse as sp
 
 from ..contact.state import CLASS_CODES, State
 from ..errors import SolverError
+from ..fem.dense import LUFactor
+from ..fem.krylov import KrylovNotConverged, gmres
 
 log = logging.getLogger(__name__)
 
@@ -196,7 +198,6 @@ def solve_adjoint_delassus(apply, W_approx, state: State, y_u: np.ndarray, y_lam
     v_u = W s + d and ṽ = A⁻¹Bᵀs + d_full with d_full = −A⁻¹g₀ (g₀ = ∂J/∂u off the contact
     DOFs), and ``y_u`` is ∂J/∂u on the contact DOFs; the equations above hold with this v.
     """
-    from ..fem.krylov import gmres
     rtol = ADJOINT_RTOL if rtol is None else rtol
     choices = check_choices(choices)
     p = state.lam.size
@@ -271,7 +272,6 @@ def solve_adjoint_delassus(apply, W_approx, state: State, y_u: np.ndarray, y_lam
         return Eb @ linear(f)[0][dofK] + Db @ sK
 
     # the preconditioner only: single precision, as the Newton matrices of the kept block
-    from ..fem.dense import LUFactor
     Qt = np.ascontiguousarray(Eb @ np.asarray(W_approx, dtype=np.float32), dtype=np.float32)
     blk = (3 * np.arange(k)[:, None, None] + np.arange(3)[None, :, None], 3 * np.arange(k)[:, None, None]
            + np.arange(3)[None, None, :])
@@ -292,7 +292,6 @@ def solve_adjoint_delassus(apply, W_approx, state: State, y_u: np.ndarray, y_lam
     true = np.linalg.norm(Eb @ v_u[dofK] + Db @ res.x - h.ravel()) / max(np.linalg.norm(h), np.linalg.norm(rhs),
                                                                           1e-300)
     if not true <= 100 * rtol:
-        from ..fem.krylov import KrylovNotConverged
         raise KrylovNotConverged(f"adjoint system (4.15): GMRES estimate {res.history[-1]:.2e}, true "
                                  f"relative residual {true:.2e} > {100 * rtol:.0e}", res.history + [true])
     v_lam = np.zeros(p)

@@ -23,6 +23,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ..fem.loadset import load_set
+from .objectives import make_objective
+
 
 @dataclass
 class LoadCase:
@@ -85,8 +88,6 @@ def case_tables(config) -> list:
 def build_cases(config, model, solve=None) -> tuple[list[LoadCase], Combination]:
     """The load cases of a configuration and their combination; ``solve(alpha, case)`` returns λ
     of a design's state under a case's loads (the objectives' 'design' targets)."""
-    from ..fem.loadset import load_set
-    from .objectives import make_objective
     tables = case_tables(config)
     obj = config.objective
     if not tables:

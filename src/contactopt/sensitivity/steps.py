@@ -35,6 +35,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..fem.loadset import LoadSet, load_set
+
 
 @dataclass
 class Step:
@@ -59,7 +61,6 @@ def step_tables(config, case: int | None) -> tuple:
 
 def build_path(model, base_loads, tables, where: str) -> list[Step] | None:
     """The solves of a load path: every substep of every step, in order; None without steps."""
-    from ..fem.loadset import LoadSet, load_set
     if not tables:
         return None
     base = base_loads if base_loads is not None else model.loads

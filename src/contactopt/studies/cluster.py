@@ -13,6 +13,7 @@ dask is an optional dependency (``pip install 'contactopt[cluster]'``); it is im
 
 from __future__ import annotations
 
+import inspect
 import logging
 import os
 from contextlib import contextmanager
@@ -130,7 +131,6 @@ def thread_budget(client, threads: int | None = None) -> dict:
 
 
 def _takes_n_workers(client) -> bool:
-    import inspect
     return "n_workers" in inspect.signature(client.scheduler_info).parameters
 
 
@@ -146,7 +146,6 @@ def limit_threads(n: int) -> int:
         _pardiso.available()
     except Exception:  # pragma: no cover - SciPy backend
         pass
-    import scipy.linalg  # noqa: F401 - loads OpenBLAS
     try:
         from threadpoolctl import threadpool_limits
         threadpool_limits(limits=n)

@@ -15,6 +15,7 @@ import csv
 import logging
 from pathlib import Path
 
+import meshio
 import numpy as np
 
 from ..io.plots import _new_figure, _save
@@ -97,7 +98,6 @@ def plot_surfaces(path, outdir, keys, rows) -> Path:
 
 
 def _read_lambda(run_dir: Path):
-    import meshio
     mesh = meshio.read(run_dir / "optimal.vtu")
     on = np.asarray(mesh.point_data["contact_node"]).ravel() > 0
     pts = np.asarray(mesh.points)[on]

@@ -47,11 +47,14 @@ import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
 
+import tomli_w
+
 from ..config import load_config, validate
 from ..errors import ConfigError
 from ..io.atomic import WriteError, atomic_write_json, atomic_write_text, write_error
 from ..io.lock import DirLock, LockedError, describe, held_by
 from ..io.rundir import RunDirectory, claim_output_dir
+from ..runner import resolve_config, run_optimization
 from .settings import SweepTask, build_tasks, format_value
 
 log = logging.getLogger(__name__)
@@ -130,7 +133,6 @@ def _worker_threads(threads: dict) -> tuple[int, str]:
 def run_task(spec: TaskSpec) -> dict:
     """Run (or reuse, or continue) one task's optimization; always returns a row, never raises
     for a failed run (its error is in the row)."""
-    from ..runner import resolve_config, run_optimization
     from .cluster import limit_threads
     task = spec.task
     out = Path(spec.run_dir)
@@ -202,7 +204,6 @@ def write_tables(outdir: Path, keys: list, rows: list) -> None:
 
 
 def _write_definition(outdir: Path, base, settings, max_iter, eps) -> None:
-    import tomli_w
     sweep = {"settings": {k: v for k, v in settings}, "base": base.source}
     if max_iter is not None:
         sweep["max_iter"] = max_iter

@@ -26,6 +26,7 @@ from __future__ import annotations
 import math
 import time
 
+import meshio
 import numpy as np
 
 from contactopt.config import load_config, validate
@@ -91,7 +92,6 @@ def sphere_problem(h: float, friction=0.0, size=20.0, force=P_SPHERE, steps=0) -
 def punch_stl(path: str, radius: float, sides: int = 96, depth: float = 5.0) -> str:
     """A closed STL of a flat cylindrical punch: the ``sides``-gon of circumradius ``radius`` about
     the x3 axis (a vertex on x1 and on x2), its top face on x3 = 0, extruded down to −depth."""
-    import meshio
     t = 2 * np.pi * np.arange(sides) / sides
     ring = np.c_[radius * np.cos(t), radius * np.sin(t)]
     pts = np.r_[np.c_[ring, np.zeros(sides)], np.c_[ring, np.full(sides, -depth)], [[0, 0, 0], [0, 0, -depth]]]

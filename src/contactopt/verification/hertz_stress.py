@@ -23,14 +23,20 @@ import tempfile
 import time
 from pathlib import Path
 
+import meshio
 import numpy as np
+from scipy.optimize import minimize_scalar
+
+from contactopt.config import load_config
+from contactopt.fem.stress import quadrature_points
+from contactopt.mesh.block import block_mesh
+from contactopt.problem import ShapeProblem
 
 E, NU, R, A_TARGET = 21.19, 0.3, 10.0, 0.1
 
 
 def hertz_axis(nu: float = NU):
     """(max σ_vM/p0, its depth ζ = z/a) on the axis of the Hertz contact (module docstring)."""
-    from scipy.optimize import minimize_scalar
 
     def vm(z):
         sz = -1.0 / (1.0 + z * z)
@@ -56,9 +62,7 @@ def graded(h: float, fine: float, end: float, ratio: float = 1.3) -> np.ndarray:
 def hertz_mesh(path: Path, n: int, a: float = A_TARGET, ratio: float = 1.3) -> Path:
     """The lifted block of the module docstring as a Gmsh 2.2 file with groups body, top, contact
     (the bottom quadrilaterals within 1.5a of the axis)."""
-    import meshio
 
-    from contactopt.mesh.block import block_mesh
     h = a / n
     half = graded(h, 1.5 * a, 8 * a, ratio)
     xs = np.concatenate([-half[:0:-1], half])
@@ -81,8 +85,6 @@ def hertz_mesh(path: Path, n: int, a: float = A_TARGET, ratio: float = 1.3) -> P
 
 
 def hertz_problem(mesh: Path, path: str = "condensation"):
-    from contactopt.config import load_config
-    from contactopt.problem import ShapeProblem
     cfg = load_config({
         "name": "hertz",
         "body": {"mesh": str(mesh), "contact": "contact", "clamped": "top", "initial_gap": "mesh"},
@@ -97,7 +99,6 @@ def hertz_problem(mesh: Path, path: str = "condensation"):
 
 def hertz_peak(n: int, *, a: float = A_TARGET, path: str = "condensation", workdir=None) -> dict:
     """The FE peak von Mises stress of the refinement n against Hertz (module docstring)."""
-    from contactopt.fem.stress import quadrature_points
     with tempfile.TemporaryDirectory() as tmp:
         mesh = hertz_mesh(Path(workdir or tmp) / f"hertz_{n}.msh", n, a)
         t0 = time.perf_counter()

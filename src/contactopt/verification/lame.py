@@ -18,6 +18,7 @@ Used by tests/test_charts.py (coarse) and benchmarks/lame.py (the refinements of
 
 from __future__ import annotations
 
+import meshio
 import numpy as np
 
 E, NU = 1.0, 0.3
@@ -38,7 +39,6 @@ def quarter_hub_mesh(path, nr: int, nt: int, nz: int, b=B, c=C, length=0.25, gra
     """Write the quarter hub b ≤ r ≤ c, 0 ≤ θ ≤ ``angle`` (π/2), 0 ≤ x3 ≤ length as hexahedra (nr × nt × nz) to a
     Gmsh 2.2 file with the physical groups ``bore`` (its faces at r = b) and ``hub`` (the volume).
     ``grading`` > 1 makes the radial elements grow geometrically from the bore. Returns ``path``."""
-    import meshio
     w = grading ** np.arange(nr)
     r = b + (c - b) * np.r_[0.0, np.cumsum(w)] / w.sum()
     t = angle * np.arange(nt + 1) / nt
@@ -64,7 +64,6 @@ def quarter_hub_mesh(path, nr: int, nt: int, nz: int, b=B, c=C, length=0.25, gra
 
 
 def _write_groups(path, pts, surface, hexes, names):
-    import meshio
     pts = np.asarray(pts, float)
     pts[np.abs(pts) < 1e-15] = 0.0
     blocks = [("quad", surface), ("hexahedron", hexes)]

@@ -21,9 +21,11 @@ from __future__ import annotations
 
 from pathlib import Path
 
+import meshio
 import numpy as np
 
 from ..config import load_config
+from ..io.pressure import contact_areas
 from ..mesh.block import block_mesh, graded_block_mesh
 from ..mesh.foundation import foundation_block
 from ..mesh.tetsplit import hex_to_tets, tet4_to_tet10
@@ -35,7 +37,6 @@ E, NU = 21.19, 0.277
 
 
 def _write(path: Path, points, cells, ctype: str) -> str:
-    import meshio
     meshio.write(path, meshio.Mesh(points, [(ctype, cells)]))
     return str(path)
 
@@ -94,7 +95,6 @@ def exact_pressure(coords: np.ndarray, contact_nodes: np.ndarray) -> float:
 
 def patch_errors(problem, state) -> dict:
     """max and rms of (λ/a − p)/p and max ‖τ‖/(a p) over the contact nodes of a solved state."""
-    from ..io.pressure import contact_areas
     b = problem.model.body
     area = contact_areas(b.reference.points, b.contact_face.faces, b.contact_nodes)
     p = exact_pressure(state.coords, b.contact_nodes)

@@ -37,6 +37,8 @@ import logging
 from dataclasses import dataclass
 
 import numpy as np
+from scipy.integrate import quad
+from scipy.special import ellipe, ellipkm1
 
 log = logging.getLogger(__name__)
 
@@ -72,8 +74,6 @@ def ring_system(nu: float, edges: np.ndarray) -> PunchSystem:
     """The ring integrals of the kernels (module docstring) on the rings between ``edges`` (0 = edges[0]
     < … < edges[-1] = 1), collocated at the rings' middles, by adaptive quadrature split at the
     collocation point (the kernels' logarithmic singularity)."""
-    from scipy.integrate import quad
-    from scipy.special import ellipe, ellipkm1
 
     c0, kappa = (1 - nu ** 2) / np.pi, (1 - 2 * nu) * (1 + nu)
 
