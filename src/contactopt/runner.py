@@ -1,12 +1,21 @@
 """One optimization run = one output directory (resolved config, log, history, checkpoint, results).
 
+The story of a run (:func:`run_optimization`): the configuration is resolved and the problem set up;
+a resume reads its :class:`~contactopt.io.checkpoint.Checkpoint`, checks it against the
+configuration and puts the solver's contexts back, before the directory is touched; the
+:class:`~contactopt.io.rundir.RunDirectory` is claimed (lock, run.log, config.toml,
+history.csv); the optimizer runs through :func:`contactopt.optimize.minimize` (``method``
+"bundle", or "constrained" with [[constraints]]), checkpointing after every iteration; the
+result files are written at the optimum (:mod:`contactopt.io.outputs`).
+
 Layout of a run directory::
 
     config.toml        the resolved configuration, with package versions
     run.log            the log of the run
     history.csv        one row per evaluation of Θ
     iterations.csv     one row per bundle-trust iteration: Θ, step kind, t, stationarity measure
-    checkpoint.npz     optimizer + oracle state after the last iteration (written atomically)
+    checkpoint.npz     optimizer + oracle state after the last iteration (written atomically;
+                       :mod:`contactopt.io.checkpoint`, the one module that reads and writes it)
     summary.json       J0, J, iterations, evaluations, serious/null steps, success, message, alpha, times,
                        admissible (α in U) and constraints_satisfied ([[constraints]]; null without)
     alpha.json         optimal control points;  surface.csv  ϑ_α on a grid

@@ -25,6 +25,9 @@ keys name a part and a field, ``<part>/<field>``:
     what the state solver of load case k carries from design to design at load step j (warm
     starts, a kept Delassus block, the design of an AMG hierarchy), as the solver path exports
     it; k and j count from 0, and a run without load cases or load path has case0/step0 only.
+    The warm start ``warm`` is the contact force r, shape (p, 3): one row per contact node in
+    the model's order, components (t1, t2, ν) — ν the normal force, positive in compression
+    (λ ≥ 0) — and ``zone`` the contact nodes (indices into that order) of the next solve.
 
 Writes are atomic (:func:`~contactopt.io.atomic.atomic_savez`): a killed writer leaves the
 previous checkpoint whole.
