@@ -21,7 +21,7 @@ extensions = [
 ]
 source_suffix = {".md": "markdown"}
 master_doc = "index"
-exclude_patterns = ["_build"]
+exclude_patterns = ["_build", "_static"]
 myst_enable_extensions = ["dollarmath", "colon_fence"]
 myst_heading_anchors = 3
 napoleon_google_docstring = False
@@ -30,4 +30,6 @@ autodoc_member_order = "bysource"
 autodoc_typehints = "none"
 html_theme = "alabaster"
 html_title = "contactopt"
-html_static_path = []
+html_static_path = ["_static"]
+# MathJax served with the site (docs/_static/mathjax, Apache-2.0): formulas render offline
+mathjax_path = "mathjax/tex-svg.js"

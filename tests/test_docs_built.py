@@ -1,6 +1,7 @@
 """The configuration reference as a reader sees it: the page built by Sphinx (with the site's own
 conf.py) has one table row for every key of the JSON Schema, under the heading of its section."""
 
+import re
 import shutil
 from html.parser import HTMLParser
 from pathlib import Path
@@ -63,16 +64,24 @@ def section_name(heading: str) -> str:
 
 @pytest.fixture(scope="module")
 def built_page(tmp_path_factory):
-    """docs/configuration.md built to HTML with docs/conf.py, alone (the rest of the site is not needed)."""
+    """docs/configuration.md and docs/theory.md built to HTML with docs/conf.py (the rest of the site
+    is not needed); the configuration page's HTML."""
     tmp = tmp_path_factory.mktemp("site")
     src = tmp / "src"
     src.mkdir()
-    shutil.copy(DOCS / "configuration.md", src / "configuration.md")
+    for page in ("configuration.md", "theory.md"):
+        shutil.copy(DOCS / page, src / page)
     app = sphinx.Sphinx(str(src), str(DOCS), str(tmp / "html"), str(tmp / "doctrees"), "html",
                         confoverrides={"master_doc": "configuration"}, status=None, warning=None,
                         freshenv=True)
     app.build()
-    return (tmp / "html" / "configuration.html").read_text()
+    page = _Page((tmp / "html" / "configuration.html").read_text())
+    page.html_dir = str(tmp / "html")
+    return page
+
+
+class _Page(str):
+    """The HTML of the configuration page, with the directory of the built pages."""
 
 
 def test_every_schema_key_has_its_own_row(built_page):
@@ -111,3 +120,13 @@ def test_no_table_falls_apart(built_page):
     parser.feed(built_page)
     stray = [t.strip() for t in parser.text if "|" in t]
     assert not stray, f"table text outside a table: {stray[:5]}"
+
+
+def test_math_renders_without_a_network(built_page):
+    """The theory page loads MathJax from the site itself (docs/_static), never from a network."""
+    theory = (Path(built_page.html_dir) / "theory.html").read_text()
+    scripts = re.findall(r'<script[^>]*src="([^"]*)"', theory)
+    assert any(s.startswith("_static/mathjax/tex-svg.js") for s in scripts), scripts
+    assert not [s for s in scripts if "://" in s or s.startswith("//")], scripts
+    assert (DOCS / "_static" / "mathjax" / "tex-svg.js").stat().st_size > 1_000_000
+    assert (DOCS / "_static" / "mathjax" / "LICENSE").exists()
