@@ -303,7 +303,7 @@ def _cmd_sweep(args) -> int:
 
     res = run_sweep(args.config, settings, out, workers=args.workers, scheduler=args.scheduler,
                     threads=args.threads, max_iter=args.max_iter, eps=args.eps, resume=args.resume,
-                    overwrite=args.overwrite, progress=progress, on_client=connected)
+                    overwrite=args.overwrite, progress=progress, on_client=connected, plots=not args.no_plots)
     print(f"{len(res.rows) - res.n_failed} of {len(res.rows)} tasks finished, {res.n_failed} failed, "
           f"{res.wall_time_s:.1f}s; results in {res.outdir}/ (sweep.csv, sweep.json"
           + "".join(f", {p.name}" for p in res.plots) + ")")
@@ -337,6 +337,8 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--eps", type=float, help="BT stopping parameter ε")
     r.add_argument("--resume", action="store_true", help="continue the run in --out from its checkpoint")
     r.add_argument("--overwrite", action="store_true", help="replace the contents of a non-empty --out")
+    r.add_argument("--no-plots", action="store_true",
+                   help="write every output but the PNG figures (the summary, history, VTU and exports)")
     r.set_defaults(func=_cmd_run)
 
     s = sub.add_parser("state", help="solve the contact problem for one design")
@@ -380,6 +382,8 @@ def build_parser() -> argparse.ArgumentParser:
     w.add_argument("--resume", action="store_true",
                    help="reuse finished runs in --out and continue unfinished ones")
     w.add_argument("--overwrite", action="store_true", help="replace the contents of a non-empty --out")
+    w.add_argument("--no-plots", action="store_true",
+                   help="no PNG figures: neither each run's nor the sweep's comparison plots")
     w.set_defaults(func=_cmd_sweep)
 
     f = sub.add_parser("solve-fclib", help="solve an FCLIB local frictional-contact problem")

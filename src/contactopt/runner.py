@@ -400,8 +400,9 @@ class _Position:
 
 
 def run_optimization(config, outdir=None, *, eps=None, max_iter=None, resume=False, overwrite=False,
-                     progress=None) -> RunResult:
+                     progress=None, plots=True) -> RunResult:
     """Optimize the contact surface of a configuration; see the module docstring for the outputs.
+    ``plots=False`` writes every output but the PNG figures (sweeps, scripted studies).
 
     One writer per run directory: its lock is taken before anything is written
     (:class:`~contactopt.io.lock.LockedError` if another live process holds it). A failed write
@@ -547,7 +548,7 @@ def run_optimization(config, outdir=None, *, eps=None, max_iter=None, resume=Fal
                               penalty=res.get("penalty"))
         if red is not None:
             res.x = red.expand(res.x)
-        summary = _finish(out, problem, alpha0, res, oracle, t_start)
+        summary = _finish(out, problem, alpha0, res, oracle, t_start, plots=plots)
         summary["warnings"] = run_warnings
         if red is not None:
             summary["design_variables"] = {"alpha": red.n_alpha, "optimized": red.n_beta}
@@ -610,16 +611,15 @@ def _stopping(res, opt) -> dict:
             "ftol": float(opt.ftol), "ftol_window": int(opt.ftol_window)}
 
 
-def _finish(out: Path, problem, alpha0, res, oracle, t_start) -> dict:
-    from .io.plots import plot_history, plot_node_classes, plot_stress_comparison, plot_surface
+def _finish(out: Path, problem, alpha0, res, oracle, t_start, plots=True) -> dict:
     from .io.vtk import write_body_vtu, write_foundation_vtu, write_pvd
     model = problem.model
     x = np.asarray(res.x)
     t0 = time.perf_counter()
     c0 = problem.evaluate_cases(alpha0, warm_start=False)      # Θ of the combined load cases
-    states0, J0, steps0 = problem.solve_states(alpha0), c0.value, _step_outputs(out, problem, "initial")
+    states0, J0, steps0 = problem.solve_states(alpha0), c0.value, _step_outputs(out, problem, "initial", plots)
     c1 = problem.evaluate_cases(x, warm_start=False)
-    states1, J, steps1 = problem.solve_states(x), c1.value, _step_outputs(out, problem, "optimal")
+    states1, J, steps1 = problem.solve_states(x), c1.value, _step_outputs(out, problem, "optimal", plots)
     s0, s1 = states0[c1.case], states1[c1.case]      # the load case active at the optimum
     target = getattr(problem.cases[c1.case].objective, "target", None)
     write_body_vtu(out / "initial.vtu", model, s0)
@@ -630,20 +630,8 @@ def _finish(out: Path, problem, alpha0, res, oracle, t_start) -> dict:
         write_foundation_vtu(out / "optimal_foundation.vtu", model.foundation, s1)
         pvd += [(0, "initial_foundation.vtu", 1), (1, "optimal_foundation.vtu", 1)]
     write_pvd(out / "bodies.pvd", pvd)
-    plot_stress_comparison(out / "stress.png", model, target if target is not None else np.zeros_like(s0.lam),
-                           s0.lam, s1.lam)
-    from .io.pressure import contact_pressure
-    p0, p1 = contact_pressure(model, s0.lam, s0.coords), contact_pressure(model, s1.lam, s1.coords)
-    # the target in the same units: λ̄ over the optimal design's areas, as the optimal λ
-    p_target = (contact_pressure(model, target, s1.coords) if target is not None else np.zeros_like(p0))
-    plot_stress_comparison(out / "pressure.png", model, p_target, p0, p1, zlabel="contact pressure $p = \\lambda/a$")
-    plot_surface(out / "surface.png", model, x)
-    plot_node_classes(out / "classes.png", model, s1.classes)
-    from .io.plots import plot_contact_response, plot_peak_stress
-    plot_contact_response(out / "contact.png", model, p1, s1.tau, s1.u_c[:, :2], s1.classes,
-                          title="optimal design")
-    plot_peak_stress(out / "von_mises.png", model, s1.coords, s1.u, title="optimal design")
-    plot_history(out / "history.png", [{**r, "kind": r.get("step")} for r in res.history])
+    if plots:
+        _figures(out, model, x, target, s0, s1, res)
     atomic_write_text(out / "iterations.csv", "iteration,J,step,t,stationarity,evaluations\n" + "".join(
         f"{r['iteration']},{r['f'] * oracle.scale!r},{r['step']},{r['t']:.6e},{r['stationarity']:.6e},"
         f"{r['nfev']}\n" for r in res.history))
@@ -673,7 +661,7 @@ def _finish(out: Path, problem, alpha0, res, oracle, t_start) -> dict:
     if problem.constraints:             # each response at the optimum: value, limit, margin (≥ 0: met)
         summary["constraints"] = _constraint_outputs(problem, alpha0, x, res)
     if problem.has_load_cases:
-        summary["load_cases"] = _load_case_outputs(out, problem, (c0, states0), (c1, states1))
+        summary["load_cases"] = _load_case_outputs(out, problem, (c0, states0), (c1, states1), plots)
     if steps1:
         summary["load_steps"] = {"names": list(steps1), "J0": steps0, "J": steps1, "objective_steps":
                                  problem.config.objective.steps}
@@ -681,6 +669,33 @@ def _finish(out: Path, problem, alpha0, res, oracle, t_start) -> dict:
     summary["time_breakdown_s"]["outputs"] = time.perf_counter() - t0
     atomic_write_json(out / "summary.json", summary)
     return summary
+
+
+def _figures(out: Path, model, x, target, s0, s1, res) -> None:
+    """The run's figures (contactopt.io.plots): λ and the contact pressure p = λ/a of the target, α0
+    and the optimum, the optimal surface, its node classes, contact response and von Mises
+    stress, and the convergence history."""
+    from .io.plots import (
+        plot_contact_response,
+        plot_history,
+        plot_node_classes,
+        plot_peak_stress,
+        plot_stress_comparison,
+        plot_surface,
+    )
+    from .io.pressure import contact_pressure
+    plot_stress_comparison(out / "stress.png", model, target if target is not None else np.zeros_like(s0.lam),
+                           s0.lam, s1.lam)
+    p0, p1 = contact_pressure(model, s0.lam, s0.coords), contact_pressure(model, s1.lam, s1.coords)
+    # the target in the same units: λ̄ over the optimal design's areas, as the optimal λ
+    p_target = (contact_pressure(model, target, s1.coords) if target is not None else np.zeros_like(p0))
+    plot_stress_comparison(out / "pressure.png", model, p_target, p0, p1, zlabel="contact pressure $p = \\lambda/a$")
+    plot_surface(out / "surface.png", model, x)
+    plot_node_classes(out / "classes.png", model, s1.classes)
+    plot_contact_response(out / "contact.png", model, p1, s1.tau, s1.u_c[:, :2], s1.classes,
+                          title="optimal design")
+    plot_peak_stress(out / "von_mises.png", model, s1.coords, s1.u, title="optimal design")
+    plot_history(out / "history.png", [{**r, "kind": r.get("step")} for r in res.history])
 
 
 def _constraint_outputs(problem, alpha0, x, res) -> dict:
@@ -695,12 +710,12 @@ def _constraint_outputs(problem, alpha0, x, res) -> dict:
     return {"responses": out, "sigma": float(res.get("sigma", float("nan"))), "sigma_raised": int(res.get("outer", 0))}
 
 
-def _step_outputs(out: Path, problem, which: str) -> dict:
+def _step_outputs(out: Path, problem, which: str, plots=True) -> dict:
     """Load paths: J at each step's end at the design just evaluated, and (at the optimum) a
     stick/slip map per step, classes-<step>.png."""
     if not problem.has_load_steps:
         return {}
-    if which == "optimal":
+    if which == "optimal" and plots:
         from .io.plots import plot_node_classes
         for k in range(len(problem.cases)):
             pre = f"{problem.cases[k].name}." if problem.has_load_cases else ""
@@ -723,14 +738,15 @@ def _export(out: Path, model, x) -> dict:
         return {"files": {}, "error": str(exc)}
 
 
-def _load_case_outputs(out: Path, problem, initial, optimal) -> dict:
+def _load_case_outputs(out: Path, problem, initial, optimal, plots=True) -> dict:
     """Per-case λ maps (cases.png) and the summary's ``load_cases``: Θ_k at α0 and at the
     optimum, the active cases there and the case whose state the other plots show."""
     from .io.plots import plot_load_cases
     names = problem.case_names
     (c0, states0), (c1, states1) = initial, optimal
-    plot_load_cases(out / "cases.png", problem.model, names, [s.lam for s in states0], [s.lam for s in states1],
-                    c0.values, c1.values)
+    if plots:
+        plot_load_cases(out / "cases.png", problem.model, names, [s.lam for s in states0],
+                        [s.lam for s in states1], c0.values, c1.values)
     return {"combine": problem.combination.kind, "names": list(names),
             "weights": dict(zip(names, problem.combination.weights.tolist())),
             "J0": dict(zip(names, c0.values.tolist())), "J": dict(zip(names, c1.values.tolist())),
@@ -749,7 +765,8 @@ def run_from_cli(args) -> int:
         raise ConfigError([f"--eps {args.eps}: must be in (0, 1)"])
     try:
         rr = run_optimization(args.config, args.out, eps=args.eps, max_iter=args.max_iter,
-                              resume=args.resume, overwrite=args.overwrite, progress=progress)
+                              resume=args.resume, overwrite=args.overwrite, progress=progress,
+                              plots=not args.no_plots)
     except RunAborted as exc:
         print(f"contactopt: run stopped: {exc}", flush=True)
         raise
