@@ -310,6 +310,21 @@ def _cmd_sweep(args) -> int:
     return 1 if res.n_failed else 0
 
 
+def _cmd_examples(args) -> int:
+    """Copy the shipped example configurations (and their meshes) into a directory, or list them."""
+    from .io.examples import copy_examples, list_examples
+    if args.list:
+        for ex in list_examples():
+            text = " ".join(ex.description.split())
+            print(f"{ex.name:28s} {text if len(text) <= 90 else text[:89] + '…'}")
+        return 0
+    written = copy_examples(args.dir, overwrite=args.overwrite)
+    tomls = sorted(p.name for p in written if p.suffix == ".toml")
+    print(f"{len(tomls)} configurations and {len(written) - len(tomls)} mesh and geometry files in {args.dir}/; "
+          f"run one with: contactopt run {Path(args.dir) / 'bracket.toml'}")
+    return 0
+
+
 def _cmd_schema(args) -> int:
     """The JSON Schema of a configuration file, for TOML editors (docs/configuration.md)."""
     from .config import json_schema
@@ -391,6 +406,13 @@ def build_parser() -> argparse.ArgumentParser:
     f.add_argument("--method", default="newton", choices=["newton", "fixed-point"])
     f.add_argument("--tol", type=float, default=1e-8)
     f.set_defaults(func=_cmd_solve_fclib)
+
+    x = sub.add_parser("examples", help="copy the example configurations and their meshes into a directory")
+    x.add_argument("dir", nargs="?", default="contactopt-examples",
+                   help="directory to copy them into (default contactopt-examples)")
+    x.add_argument("--list", action="store_true", help="list the examples with their descriptions, copy nothing")
+    x.add_argument("--overwrite", action="store_true", help="replace files of the same name in DIR")
+    x.set_defaults(func=_cmd_examples)
 
     j = sub.add_parser("schema", help="the JSON Schema of a configuration file (for TOML editors)")
     j.add_argument("-o", "--out", help="write it to this file (default: print it)")
