@@ -14,6 +14,7 @@ import argparse
 import contextlib
 import json
 import logging
+import os
 import signal
 import sys
 import threading
@@ -22,6 +23,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ._progress import LiveLine
 from .errors import ConfigError, ContactOptError, MeshError
 
 log = logging.getLogger("contactopt")
@@ -440,6 +442,14 @@ def _main(argv=None) -> int:
     console.setFormatter(logging.Formatter("%(levelname)s %(name)s: %(message)s"))
     logging.getLogger().addHandler(console)
     logging.getLogger("contactopt").setLevel(min(level, logging.INFO))
+    # on a terminal, a long set-up (a factorization, a foundation's compliance) shows one line
+    # that counts its seconds; piped or redirected, nothing of it
+    live = LiveLine(sys.stderr) if _interactive(sys.stderr) else None
+    progress_logger = logging.getLogger("contactopt.progress")
+    old_progress_level = progress_logger.level
+    if live is not None:
+        progress_logger.addHandler(live)
+        progress_logger.setLevel(logging.DEBUG)
     from .io.atomic import WriteError
     try:
         with _signals_interrupt():
@@ -455,6 +465,18 @@ def _main(argv=None) -> int:
         return 128 + getattr(exc, "signum", signal.SIGINT)
     finally:      # the next command in this process (tests, a notebook) has its own
         logging.getLogger().removeHandler(console)
+        if live is not None:
+            progress_logger.removeHandler(live)
+            progress_logger.setLevel(old_progress_level)
+            live.close()
+
+
+def _interactive(stream) -> bool:
+    """Whether ``stream`` is a terminal a person watches (not a pipe, a file or a CI log)."""
+    try:
+        return stream.isatty() and os.environ.get("TERM", "") != "dumb"
+    except (AttributeError, ValueError):
+        return False
 
 
 @contextlib.contextmanager
