@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import json
 import math
+import re
 
 from .constraints import REFERENCE as CONSTRAINTS_REFERENCE
 from .json_schema import json_schema
@@ -38,9 +39,14 @@ def inline_toml(value) -> str:
     return "[" + ", ".join(inline_toml(v) for v in value) + "]"
 
 
+_PAGE = re.compile(r"docs/([a-z_/-]+)\.md")
+
+
 def _cell(text: str) -> str:
-    """Text of a table cell: a ``|`` escaped, no line breaks."""
-    return " ".join(str(text).split()).replace("|", "\\|")
+    """Text of a table cell: a ``|`` escaped, no line breaks, a page of the manual
+    ("docs/materials.md") a link to it."""
+    text = " ".join(str(text).split()).replace("|", "\\|")
+    return _PAGE.sub(lambda m: f"[{m.group(1).split('/')[-1].replace('_', ' ').replace('-', ' ')}]({m.group(1)}.md)", text)
 
 
 def _row(key: str, default, meaning: str) -> str:
@@ -123,6 +129,6 @@ def reference_markdown() -> str:
               "like the loads over its substeps (the first step's from zero). Without steps the problem is one "
               "step, the static problem.", ""]
     lines += _array_rows(schema["load_steps"]["items"], "load_steps")
-    lines += CONSTRAINTS_REFERENCE + [""]
+    lines += [_PAGE.sub(lambda m: f"[{m.group(1)}]({m.group(1)}.md)", line) for line in CONSTRAINTS_REFERENCE] + [""]
     lines += _array_rows(schema["constraints"]["items"], "constraints")
     return "\n".join(lines) + "\n"
