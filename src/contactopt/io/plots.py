@@ -232,7 +232,9 @@ def plot_node_classes(path, model, classes, title="Contact node classes (Table 4
                          f"got {codes.min()}..{codes.max()}")
     cmap = ListedColormap(CLASS_COLORS, name="node_classes")
     norm = BoundaryNorm(np.arange(-0.5, len(CLASS_NAMES) + 0.5), cmap.N)
-    fig = _new_figure(_figsize_map(model, extra_width=2.6))
+    size = _figsize_map(model, extra_width=2.6)
+    fig = _new_figure(size, layout=None)
+    fig.subplots_adjust(left=0.9 / size[0], right=1.0 - 2.9 / size[0], bottom=0.6 / size[1], top=1.0 - 0.5 / size[1])
     ax = _map_axes(fig, model)
     _categories(ax, model, codes, cmap, norm)
     handles = [Patch(facecolor=CLASS_COLORS[k], edgecolor="0.4",
@@ -302,7 +304,8 @@ def _stress_maps(path, model, fields, titles, zlabel, suptitle) -> Path:
     if hi == lo:
         hi = lo + 1.0
     w, h = _figsize_map(model, extra_width=0.0)
-    fig = _new_figure((3 * w * 0.8 + 1.5, h * 0.8 + 0.6))
+    fig = _new_figure((3 * w * 0.8 + 1.5, h * 0.8 + 0.6), layout=None)
+    fig.subplots_adjust(left=0.05, right=0.98, bottom=0.12, top=0.78 if suptitle else 0.82, wspace=0.3)
     tri = face_triangulation(model)
     for n, (g, title) in enumerate(zip(fields, titles)):
         ax = _map_axes(fig, model, (1, 3, n + 1))
