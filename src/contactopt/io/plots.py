@@ -71,15 +71,19 @@ def _save(fig: Figure, path) -> Path:
 def _bars(ax, x0, y0, dx, dy, dz, colors) -> None:
     """3D bars from (x0, y0, 0) to (x0 + dx, y0 + dy, dz), shaded like ``Axes3D.bar3d``, drawn with
     the faces that the view of :func:`plot_stress_comparison` (azimuth −60°, from above) can see:
-    the top, the face at x1 = x0 + dx and the face at x2 = y0 (half of bar3d's six faces). The
-    colours are one RGBA row per bar."""
+    the top, the face at x1 = x0 + dx and the face at x2 = y0 (half of bar3d's six faces; a bar
+    of height 0 its top only). The colours are one RGBA row per bar."""
     from mpl_toolkits.mplot3d.art3d import Poly3DCollection
     x1, y1, z0 = x0 + dx, y0 + dy, np.zeros_like(dz)
     top = np.stack([np.stack(c, axis=-1) for c in ((x0, y0, dz), (x1, y0, dz), (x1, y1, dz), (x0, y1, dz))], axis=1)
     east = np.stack([np.stack(c, axis=-1) for c in ((x1, y0, z0), (x1, y1, z0), (x1, y1, dz), (x1, y0, dz))], axis=1)
     south = np.stack([np.stack(c, axis=-1) for c in ((x0, y0, z0), (x1, y0, z0), (x1, y0, dz), (x0, y0, dz))], axis=1)
-    polys = np.stack([top, east, south], axis=1).reshape(-1, 4, 3)
-    facecolors = np.repeat(np.asarray(colors, float), 3, axis=0)
+    polys = np.stack([top, east, south], axis=1)
+    facecolors = np.repeat(np.asarray(colors, float)[:, None, :], 3, axis=1)
+    # a bar of height 0 (a node out of contact) has side faces of no area: its top alone is drawn
+    keep = np.ones(polys.shape[:2], bool)
+    keep[:, 1:] = (dz != 0)[:, None]
+    polys, facecolors = polys[keep], facecolors[keep]
     ax.add_collection(Poly3DCollection(polys, facecolors=facecolors, shade=True, linewidth=0.0))
 
 
