@@ -55,15 +55,17 @@ class ShapeProblem:
     """Discrete shape optimization problem (P̃) of a configuration.
 
     ``solve_state(alpha)`` returns the :class:`~contactopt.contact.state.State`;
-    ``evaluate(alpha)`` returns (Θ(α), one Clarke subgradient) (:meth:`subgradient`).
+    ``evaluate(alpha)`` returns (Θ(α), one Clarke subgradient) (:meth:`evaluate`).
     ``path``: the :class:`~contactopt.paths.base.SolverPath` the configuration runs on.
     """
 
     def __init__(self, config, *, method: str | None = None):
         self.config = config if isinstance(config, Config) else load_config(config)
         body = build_body(self.config)
+        # pinned components on an elastic foundation: the foundation checks that they are clamped at
+        # their partners too (fem.foundation), where the condensation takes them
         name, library = select_path(self.config, memory.free_dofs(body), pinned=int(body.pinned_dofs.size),
-                                    rigid=body.rigid)
+                                    rigid=body.rigid, pinned_held=True)
         with PATHS[name].library_threads(self.config.linear_solver.threads):   # the morph weight's solve
             self.model = ElasticModel(self.config, body=body, memory_estimate=PATHS[name].memory_estimate)
         self.n_state_solves = 0    # designs solved (all cases at once)
@@ -335,7 +337,7 @@ class ShapeProblem:
             for i, (yu, yl, dJ_da) in parts.items():
                 add_terms(rhs, i, c * yu, c * yl, c * dJ_da)
         last = max(rhs)
-        pinned = self.model.contact_pinned.ravel()
+        pinned = self.model.contact_pinned_global.ravel()
         contact = (3 * self.model.contact_nodes[:, None] + np.arange(3)).ravel()
         xi, carry, nd, out = 0.0, None, 0, None
         for j in range(last, -1, -1):
