@@ -191,3 +191,16 @@ def test_subgradient_on_a_tetrahedral_body_with_mortar_partners(tmp_path):
     assert gc.n_degenerate == 0
     assert gc.passed, gc.rel_errors
     assert gc.counts["M1"] > 0 and gc.counts["M3+"] > 0 and gc.counts["L"] > 0
+
+
+@pytest.mark.parametrize("friction", [0.0, 0.3])
+def test_patch_test_with_symmetry_planes_through_both_bodies(friction, tmp_path):
+    """The overlap loading with rollers u1 = 0 on x1 = 0 and u2 = 0 on x2 = 0 through the contact face
+    of the body and the foundation alike, 7×7 on 10×10 with mortar partners: still exact."""
+    raw = patch_config(7, 10, friction, tmp_path).to_dict()
+    raw["body"]["clamped"] = [{"on": {"x1": 0.0}, "components": [1]}, {"on": {"x2": 0.0}, "components": [2]},
+                              {"on": {"x3": H_BODY}, "components": [3]}]
+    pb = ShapeProblem(load_config(raw))
+    assert pb.model.foundation.partner == "mortar" and pb.model.body.pinned_dofs.size > 0
+    err = patch_errors(pb, pb.solve_state(pb.model.initial_design()))
+    assert err["max"] <= 1e-8 and err["shear"] <= 1e-8, err
