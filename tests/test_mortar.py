@@ -204,3 +204,16 @@ def test_patch_test_with_symmetry_planes_through_both_bodies(friction, tmp_path)
     assert pb.model.foundation.partner == "mortar" and pb.model.body.pinned_dofs.size > 0
     err = patch_errors(pb, pb.solve_state(pb.model.initial_design()))
     assert err["max"] <= 1e-8 and err["shear"] <= 1e-8, err
+
+
+def test_the_segmentation_is_built_once_per_run_not_per_evaluation(monkeypatch, tmp_path):
+    """Π = D⁻¹M does not depend on α (design moves are normal to the common plane): evaluations of
+    new designs never segment again."""
+    import contactopt.fem.mortar as mortar
+    pb = ShapeProblem(patch_config(7, 10, 0.3, tmp_path))
+    calls = []
+    monkeypatch.setattr(mortar, "segment", lambda *a, **k: calls.append(1))
+    a = pb.model.initial_design()
+    for k in range(2):
+        pb.evaluate(a - 0.001 * k)
+    assert not calls
