@@ -217,3 +217,14 @@ def test_the_segmentation_is_built_once_per_run_not_per_evaluation(monkeypatch, 
     for k in range(2):
         pb.evaluate(a - 0.001 * k)
     assert not calls
+
+
+def test_mortar_partners_on_a_curved_face_are_refused(tmp_path, state_refused):
+    """Mortar partners segment on the plane x3 = 0; a face on a cylinder (a hub on a shaft) is refused
+    by name, exit 2."""
+    from contactopt.verification import lame
+    h = lame.quarter_hub_mesh(tmp_path / "hub.msh", 4, 8, 1)
+    s = lame.quarter_shaft_mesh(tmp_path / "shaft.msh", 3, 8, 1, radius=lame.B + lame.DELTA)
+    data = lame.shaft_config(h, s)
+    data["foundation"]["partner"] = "mortar"
+    state_refused(data, "foundation.partner = 'mortar' takes a contact face on x3 = 0")
