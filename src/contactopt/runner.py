@@ -328,8 +328,9 @@ class _Position:
 
 
 def run_optimization(config, outdir=None, *, eps=None, max_iter=None, resume=False, overwrite=False,
-                     progress=None) -> RunResult:
+                     progress=None, plots=True) -> RunResult:
     """Optimize the contact surface of a configuration; see the module docstring for the outputs.
+    ``plots=False`` writes every output but the PNG figures (sweeps, scripted studies).
 
     One writer per run directory: its lock is taken before anything is written
     (:class:`~contactopt.io.lock.LockedError` if another live process holds it). A failed write
@@ -356,7 +357,7 @@ def run_optimization(config, outdir=None, *, eps=None, max_iter=None, resume=Fal
         _start(oracle, setup, ckpt, finished)
         run_warnings = _warnings(setup, resume)
         res = finished if finished is not None else _optimize(oracle, setup, ckpt, progress)
-        summary = _finish(run_dir, setup, res, oracle, run_warnings)
+        summary = _finish(run_dir, setup, res, oracle, run_warnings, plots)
     except WriteError as exc:
         position = _Position.on_disk(run_dir.checkpoint)
         exc.args = (f"{exc.args[0]}; {position.describe()}" + position.hint(config, run_dir.path),)
@@ -495,12 +496,13 @@ def _callback(oracle: _Oracle, progress):
     return callback
 
 
-def _finish(run_dir: RunDirectory, setup: _SetUp, res, oracle: _Oracle, run_warnings: list) -> dict:
+def _finish(run_dir: RunDirectory, setup: _SetUp, res, oracle: _Oracle, run_warnings: list,
+            plots: bool = True) -> dict:
     """The result files and summary.json at the optimum (in α)."""
     red = setup.reduction
     if red is not None:
         res.x = red.expand(res.x)
-    summary = write_outputs(run_dir.path, setup.problem, setup.alpha0, res, oracle)
+    summary = write_outputs(run_dir.path, setup.problem, setup.alpha0, res, oracle, plots)
     summary["warnings"] = run_warnings
     if red is not None:
         summary["design_variables"] = {"alpha": red.n_alpha, "optimized": red.n_beta}
@@ -541,7 +543,8 @@ def run_from_cli(args) -> int:
         raise ConfigError([f"--eps {args.eps}: must be in (0, 1)"])
     try:
         rr = run_optimization(args.config, args.out, eps=args.eps, max_iter=args.max_iter,
-                              resume=args.resume, overwrite=args.overwrite, progress=progress)
+                              resume=args.resume, overwrite=args.overwrite, progress=progress,
+                              plots=not args.no_plots)
     except RunAborted as exc:
         print(f"contactopt: run stopped: {exc}", flush=True)
         raise
