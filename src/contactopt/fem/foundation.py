@@ -83,9 +83,9 @@ class Foundation:
             faces, weights = locate_partners(ref.points, fm.top.faces, ref.face_type, contact_xy, contact_nodes,
                                              where)
         else:
-            if self.partner == "average":
-                raise ConfigError([f"{where}: foundation.partner = 'average' takes a contact face on x3 = 0; a "
-                                   "curved face's partners are points along its normals (partner = 'point')"])
+            if self.partner in ("average", "mortar"):
+                raise ConfigError([f"{where}: foundation.partner = {self.partner!r} takes a contact face on x3 = 0; "
+                                   "a curved face's partners are points along its normals (partner = 'point')"])
             faces, weights, self.gap0 = ray_partners(ref.points, fm.top.faces, ref.face_type,
                                                      body.reference.points[contact_nodes], normals, contact_nodes,
                                                      where)
