@@ -21,7 +21,7 @@ import math
 import numpy as np
 
 from .hertz import fit, graded_axis
-from .lame import E, NU
+from .lame import NU, E
 
 R1, R2 = 10.0, 20.0
 A_TARGET = 0.5
