@@ -302,12 +302,14 @@ FOUNDATION = {
         "a table with any of traction, pressure (lists of { on = <part of the foundation>, value = … }, as "
         "in [loads]) and body_force = [f1, f2, f3] (per unit volume): the foundation's own loads, the same "
         "in every load case"),
-    "partner": ("auto", _oneof("auto", "point", "average"),
+    "partner": ("auto", _oneof("auto", "point", "average", "mortar"),
                 "'point' (a contact node's partner is the point of the top face directly below it: exact "
                 "node-to-node coupling on matching meshes), 'average' (the mean of the foundation's "
                 "displacement over the node's tributary area: a foundation finer than the body then "
-                "converges; linear body elements only) or 'auto' ('point' where every partner is a node of "
-                "the top face or the body's faces are quadratic, else 'average')"),
+                "converges; linear body elements only), 'mortar' (the relative displacement weighted by "
+                "the node's dual basis function over the segmented faces: the contact patch test passes "
+                "on non-matching meshes; linear body elements only) or 'auto' ('point' where every partner "
+                "is a node of the top face or the body's faces are quadratic, else 'mortar')"),
     "tolerance": (1e-3, lambda x: _pos(x) and x < 0.5,
                   "a number in (0, 0.5) (geometric tolerance of the checks of the foundation's mesh, "
                   "relative to its median boundary edge length)"),

@@ -42,6 +42,7 @@ from .dense import spd_inverse
 from .elasticity import ElasticityAssembler
 from .elements import element_type, face_type
 from .loadset import load_set
+from .mortar import MortarCoupling, mortar_matrices
 
 log = logging.getLogger(__name__)
 
@@ -54,7 +55,7 @@ class Foundation:
 
     Attributes: ``mesh`` (:class:`~contactopt.mesh.foundation.FoundationMesh`), ``assembler`` (on
     its free DOFs), ``support`` (top-face nodes carrying partners), ``Pi`` (3p × 3n_s sparse, per
-    contact node (t1, t2, ν) and support node (x1, x2, x3)), ``partner`` ('point' or 'average'), ``W_f``
+    contact node (t1, t2, ν) and support node (x1, x2, x3)), ``partner`` ('point', 'average' or 'mortar'), ``W_f``
     (on the free support DOFs), ``C`` (3p × 3p), ``q_f`` (3p,), ``condensation`` (of K_f onto the
     free support DOFs: the foundation's displacement for outputs)."""
 
@@ -97,6 +98,8 @@ class Foundation:
             log.info("foundation.partner = 'auto': %r", self.partner)
         if self.partner == "point":
             rows, cols, vals = np.repeat(np.arange(p), weights.shape[1]), fm.top.faces[faces].ravel(), weights.ravel()
+        elif self.partner == "mortar":
+            rows, cols, vals = mortar_partners(body, fm, where)
         else:
             rows, cols, vals = averaged_partners(body, fm, where)
         Pn = sp.csr_matrix((vals, (rows, cols)), shape=(p, ref.n_nodes))
@@ -395,10 +398,43 @@ def _reference_point(X: np.ndarray, x: np.ndarray, nc: int):
 def auto_partner(weights: np.ndarray, body_degree: int, tol: float = 1e-9) -> str:
     """``partner = "auto"``: 'point' where every point partner is a node of the top face (one
     weight 1: matching meshes, where point partners are exact node-to-node contact) or the body's
-    faces are quadratic (averaging needs linear faces), else 'average' — point partners do not
-    converge as the foundation alone is refined (docs/foundation.md)."""
+    faces are quadratic (the dual basis is built for linear faces), else 'mortar' — point partners
+    do not converge as the foundation alone is refined, and mortar partners pass the contact patch
+    test on non-matching meshes (docs/foundation.md, docs/mortar.md)."""
     on_nodes = bool(np.all(np.abs(weights).max(axis=1) >= 1.0 - tol))
-    return "point" if on_nodes or body_degree != 1 else "average"
+    return "point" if on_nodes or body_degree != 1 else "mortar"
+
+
+def mortar_partners(body, fm, where: str):
+    """(rows, cols, values) of Π = D⁻¹M for ``partner = "mortar"`` (:mod:`contactopt.fem.mortar`):
+    the body's contact face projected along x3 on the top face x3 = 0, segmented against the top
+    faces, the relative displacement of contact node m weighted by its dual basis function Φ_m,
+
+        w_m = u_m − (Π u_f)_m = D_mm⁻¹ ∫ Φ_m (u − u_f) dA,
+
+    so that a uniform pressure and a uniform strain pass across non-matching meshes exactly. Per
+    node the order is (t1, t2, ν) = (x1, x2, x3), ν = +x3 into the body. Rows are contact nodes,
+    columns foundation nodes. The body's face must lie over the top face and be linear."""
+    ref = body.reference
+    ftype = face_type(ref.face_type)
+    if ftype.degree != 1:
+        raise ConfigError([f"{where}: foundation.partner = 'mortar' needs a body of linear elements "
+                           f"(its contact face has {ftype.name} faces); use partner = 'point'"])
+    faces = body.contact_face.faces
+    top = fm.top.faces
+    D, M, seg = mortar_matrices(ftype.name, faces, ref.points[:, :2], fm.reference.face_type, top,
+                                fm.reference.points[:, :2])
+    coupling = MortarCoupling(D, M, seg, body.contact_nodes)
+    if coupling.uncovered.size:
+        f = coupling.uncovered
+        first = ", ".join(f"face of body nodes {faces[i, :FACE_CORNERS[ref.face_type]].tolist()} "
+                          f"({100 * (1 - seg.covered[i] / seg.slave_area[i]):.3g} % outside)" for i in f[:3])
+        raise ConfigError([f"{where}: {f.size} face(s) of the contact face do not lie wholly over the "
+                           f"foundation's top face (mortar partners integrate over them), first: {first}"])
+    Pi = coupling.Pi.tocoo()
+    log.info("mortar partners: %d cells of the segmentation of %d body faces against %d top faces",
+             seg.n_cells, faces.shape[0], top.shape[0])
+    return Pi.row, Pi.col, Pi.data
 
 
 def averaged_partners(body, fm, where: str):
