@@ -195,3 +195,18 @@ def test_non_matching_meshes_of_the_shaft_carry_lames_mean_pressure(tmp_path):
         st = problem.solve_state(problem.model.initial_design())
         means.append(st.lam.sum() / problem.model.contact_areas().sum() / p - 1)
     assert abs(means[1]) < 0.002 and abs(means[1]) < 0.3 * abs(means[0]), means
+
+
+def test_the_roller_example_peaks_at_its_end_and_its_subgradient_matches_central_differences():
+    from pathlib import Path
+    problem = ShapeProblem(str(Path(__file__).parents[1] / "examples" / "roller_crowning.toml"))
+    m = problem.model
+    alpha = m.initial_design()
+    st = problem.solve_state(alpha)
+    x = m.body.reference.points[m.contact_nodes]
+    p = st.lam / m.contact_areas()
+    line = np.abs(x[:, 1]) < 1e-9
+    mid, end = p[line & (x[:, 0] < 1e-9)][0], p[line & (x[:, 0] > 2 - 1e-9)][0]
+    assert end > 1.5 * mid and p.max() == end          # the free end's edge peak
+    rep = check_gradient(problem, alpha, seed=2, n_directions=2)
+    assert rep.n_degenerate == 0 and np.max(rep.rel_errors) <= 1e-6, rep.rel_errors
