@@ -210,3 +210,16 @@ def test_the_roller_example_peaks_at_its_end_and_its_subgradient_matches_central
     assert end > 1.5 * mid and p.max() == end          # the free end's edge peak
     rep = check_gradient(problem, alpha, seed=2, n_directions=2)
     assert rep.n_degenerate == 0 and np.max(rep.rel_errors) <= 1e-6, rep.rel_errors
+
+
+def test_the_exported_body_with_its_designed_bore_has_the_designs_state(tmp_path):
+    from contactopt.io.export import export_design
+    problem = ShapeProblem(validate(hub(tmp_path, friction=0.3), "lame"))
+    alpha = 1e-4 * (1.0 + np.sin(np.arange(problem.model.n_design)))
+    st = problem.solve_state(alpha)
+    export_design(problem.model, alpha, tmp_path / "export", formats=["mesh"])
+    again = ShapeProblem(load_config(tmp_path / "export" / "optimal_body.toml"))
+    assert again.model.body.chart.kind == "cylinder"
+    st2 = again.solve_state(again.model.initial_design())
+    assert np.array_equal(st.classes, st2.classes)
+    assert np.abs(st.lam - st2.lam).max() <= 1e-9 * st.lam.max()

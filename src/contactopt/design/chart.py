@@ -209,7 +209,9 @@ def resolve_chart(spec, points: np.ndarray, face, face_type: str, tol: float, so
         chart, _ = fit_plane(x, nf, origin, axis)
     elif kind == "cylinder":
         chart, res = fit_cylinder(x, nf, axis, origin)
-        if chart is None or res > tol:
+        # a cylinder given by its axis and a point on it is the chart of any face that is a graph
+        # over it (a designed bore); a fitted one must fit
+        if chart is None or (res > tol and (axis is None or origin is None)):
             raise ConfigError([f"{pre}design.chart = 'cylinder': the contact face {face.name} is not a circular "
                                "cylinder" + ("" if chart is None else
                                              f" (best fit: {chart.describe()}, a node {res:.3g} off it, tolerance "

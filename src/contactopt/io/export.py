@@ -176,7 +176,14 @@ def roundtrip_config(model, mesh_name: str, alpha) -> dict:
     out["body"]["mesh"] = mesh_name
     out["body"]["initial_gap"] = "mesh"
     (x1lo, x1hi), (x2lo, x2hi) = model.body.domain
-    out["design"]["domain"] = [[x1lo, x1hi], [x2lo, x2hi]]
+    # on a chart the moved face is fitted anew (its cylinder's radius moves with the design): its
+    # own bounding rectangle, not the reference face's
+    out["design"]["domain"] = [[x1lo, x1hi], [x2lo, x2hi]] if model.body.chart is None else []
+    chart = model.body.chart
+    if chart is not None:            # the same chart: the moved face is no plane or cylinder any more
+        out["design"]["chart"] = chart.kind
+        out["design"]["axis"] = [float(v) for v in (chart.axis if chart.kind == "cylinder" else chart.normal)]
+        out["design"]["origin"] = [float(v) for v in chart.origin]
     out["design"]["initial"] = 0.0
     out["design"]["C2"] = 0.0
     C0 = float(model.config.design.C0)
