@@ -472,7 +472,11 @@ def write_contact_surface(path, model, alpha, *, unit: str = "mm", trim: bool = 
 
     Trimmed to the contact face's outline where that is not the design rectangle (``trim``).
     ``unit``: the unit of the model's coordinates (mm, cm, m, in, um); the file is in millimetres.
-    Returns ``{"trimmed": bool, "scale": factor to mm, "degrees": (d1, d2)}``."""
+    Returns ``{"trimmed": bool, "scale": factor to mm, "degrees": (d1, d2)}``. A face on a chart
+    other than (x1, x2) (design.chart) is refused: its surface is the chart's, not a graph ϑ_α."""
+    if model.body.chart is not None:
+        raise ExportError(f"STEP/IGES: the contact face lies on a {model.body.chart.kind} chart, whose designed "
+                          "surface is not the graph of ϑ_α over (x1, x2); export the mesh or STL of the body")
     path = Path(path)
     if unit not in UNITS:
         raise ExportError(f"unit {unit!r}: choose from {', '.join(UNITS)}")
