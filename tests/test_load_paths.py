@@ -286,8 +286,8 @@ def test_contexts_of_every_step_round_trip_bit_for_bit():
     a1 = wavy(first)
     a2 = a1 + 0.001 * np.cos(np.arange(a1.size))
     first.evaluate(a1)
-    arrays = first.export_contexts()
-    assert {"step1_warm", "step3_zone", "step2_jacobian_alpha"} <= set(arrays)
+    arrays = first.export_contexts()          # [case][step] -> the step's arrays
+    assert "warm" in arrays[0][1] and "zone" in arrays[0][3] and "jacobian_alpha" in arrays[0][2]
     resumed.import_contexts(arrays, "test")
     (j1, g1), (j2, g2) = first.evaluate(a2), resumed.evaluate(a2)
     assert j1 == j2 and np.array_equal(g1, g2)

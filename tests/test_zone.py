@@ -341,7 +341,8 @@ def test_restored_delassus_repeats_the_solve_bit_for_bit():
     pr.contexts[0].jacobian = None
     st = pr.solve_state(path[2])
     assert st.info["zone_misses"] >= 1 and st.info["delassus"] == "formed"
-    saved = {k: np.array(v) for k, v in pr.export_contexts().items()}     # what a checkpoint holds
+    saved = [[{k: np.array(v) for k, v in step.items()} for step in case]     # what a checkpoint holds
+             for case in pr.export_contexts()]
     a = pr.solve_state(path[3])
     again = small_problem(zone_margin=0.0)
     again.import_contexts(saved, "a checkpoint")

@@ -160,7 +160,8 @@ SCHEMA = {
                   "plane when the face is planar, else the cylinder when it is cylindrical, else the best-fit "
                   "plane when the face is a graph over it; any other face is refused"),
         "axis": ([], lambda x: x == [] or _unit3(x),
-                 "[] (fitted) or a unit vector [a1, a2, a3] (|a| = 1 to 1e-9): the axis of a cylindrical chart"),
+                 "[] (fitted) or a unit vector [a1, a2, a3] (|a| = 1 to 1e-9): the axis of a cylindrical chart, "
+                 "the normal of a plane chart"),
         "origin": ([], lambda x: x == [] or _vec3(x),
                    "[] (fitted) or [x1, x2, x3]: a point on the axis of a cylindrical chart, or the origin of a "
                    "plane chart"),

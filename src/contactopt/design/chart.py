@@ -127,12 +127,16 @@ def _plane_axes(normal):
     return e1, np.cross(inward, e1)
 
 
-def fit_plane(x: np.ndarray, n_faces: np.ndarray, origin=None) -> tuple[PlaneChart, float]:
-    """The best-fit plane of points x (least squares, through ``origin`` when given), its normal
-    oriented along the mean outward face normal; returns (chart, largest distance of a point)."""
+def fit_plane(x: np.ndarray, n_faces: np.ndarray, origin=None, normal=None) -> tuple[PlaneChart, float]:
+    """The best-fit plane of points x (least squares, through ``origin`` when given, normal to
+    ``normal`` when given), its normal oriented along the mean outward face normal; returns
+    (chart, largest distance of a point)."""
     c = x.mean(axis=0) if origin is None else np.asarray(origin, float)
-    _, _, vt = np.linalg.svd(x - x.mean(axis=0), full_matrices=False)
-    n = vt[-1]
+    if normal is None:
+        _, _, vt = np.linalg.svd(x - x.mean(axis=0), full_matrices=False)
+        n = vt[-1]
+    else:
+        n = np.asarray(normal, float) / np.linalg.norm(normal)
     if n @ n_faces.mean(axis=0) < 0:
         n = -n
     e1, e2 = _plane_axes(n)
@@ -203,10 +207,12 @@ def resolve_chart(spec, points: np.ndarray, face, face_type: str, tol: float, so
     origin = None if not spec.origin else np.asarray(spec.origin, float)
     kind = spec.chart
     if kind == "plane":
-        chart, _ = fit_plane(x, nf, origin)
+        chart, _ = fit_plane(x, nf, origin, axis)
     elif kind == "cylinder":
         chart, res = fit_cylinder(x, nf, axis, origin)
-        if chart is None or res > tol:
+        # a cylinder given by its axis and a point on it is the chart of any face that is a graph
+        # over it (a designed bore); a fitted one must fit
+        if chart is None or (res > tol and (axis is None or origin is None)):
             raise ConfigError([f"{pre}design.chart = 'cylinder': the contact face {face.name} is not a circular "
                                "cylinder" + ("" if chart is None else
                                              f" (best fit: {chart.describe()}, a node {res:.3g} off it, tolerance "

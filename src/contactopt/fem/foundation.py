@@ -89,9 +89,12 @@ class Foundation:
             if self.partner in ("average", "mortar"):
                 raise ConfigError([f"{where}: foundation.partner = {self.partner!r} takes a contact face on x3 = 0; "
                                    "a curved face's partners are points along its normals (partner = 'point')"])
-            faces, weights, self.gap0 = ray_partners(ref.points, fm.top.faces, ref.face_type,
-                                                     body.reference.points[contact_nodes], normals, contact_nodes,
-                                                     where)
+            x = body.reference.points[contact_nodes]
+            faces, weights, self.gap0 = ray_partners(ref.points, fm.top.faces, ref.face_type, x, normals,
+                                                     contact_nodes, where)
+            smooth = smooth_gaps(ref.points, fm.top, ref.face_type, x, normals, fm.tol)
+            if smooth is not None:
+                self.gap0 = smooth
             self.partner = "point"
         self._check_pinned(body, fm, faces, weights, source)
         if self.partner == "auto":
@@ -342,6 +345,32 @@ def ray_partners(points: np.ndarray, faces: np.ndarray, ftype: str, x: np.ndarra
                            f"top face, first: {first}"])
     N, _ = ft.shape(xi[best])
     return f[best], N, best_g
+
+
+def smooth_gaps(points, top, ftype: str, x: np.ndarray, n: np.ndarray, tol: float):
+    """The gaps along the contact normals n_m to the plane or circular cylinder the top face's nodes
+    lie on (to ``tol``), or None when they lie on neither: surface smoothing, as for interference
+    fits in Abaqus. A faceted cylinder's chords lie inside it by ρ(1 − cos(Δθ/2)), which on a
+    mesh that does not match the body's is of the order of an interference itself; its nodes lie on
+    the cylinder, so the smooth surface is the one the mesh approximates. The partners' weights
+    stay those of the faceted face."""
+    from ..design.chart import face_normals, fit_cylinder, fit_plane
+    y = points[np.unique(top.faces)]
+    nf, _ = face_normals(points, top.faces, ftype)
+    plane, res = fit_plane(y, nf)
+    if res <= tol:
+        return ((x - plane.origin) @ plane.normal) / np.einsum("ij,j->i", n, plane.normal)
+    cyl, res = fit_cylinder(y, nf)
+    if cyl is None or res > tol:
+        return None
+    a = cyl.axis
+    w = x - cyl.origin
+    w -= np.outer(w @ a, a)
+    nt = n - np.outer(n @ a, a)
+    A, B, C = np.sum(nt * nt, axis=1), np.sum(w * nt, axis=1), np.sum(w * w, axis=1) - cyl.radius ** 2
+    disc = np.sqrt(np.maximum(B * B - A * C, 0.0))
+    roots = np.stack([(B - disc) / A, (B + disc) / A])
+    return roots[np.argmin(np.abs(roots), axis=0), np.arange(x.shape[0])]
 
 
 def _reference_point(X: np.ndarray, x: np.ndarray, nc: int):

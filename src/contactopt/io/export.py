@@ -175,7 +175,14 @@ def roundtrip_config(model, mesh_name: str, alpha) -> dict:
     out["body"]["mesh"] = mesh_name
     out["body"]["initial_gap"] = "mesh"
     (x1lo, x1hi), (x2lo, x2hi) = model.body.domain
-    out["design"]["domain"] = [[x1lo, x1hi], [x2lo, x2hi]]
+    # on a chart the moved face is fitted anew (its cylinder's radius moves with the design): its
+    # own bounding rectangle, not the reference face's
+    out["design"]["domain"] = [[x1lo, x1hi], [x2lo, x2hi]] if model.body.chart is None else []
+    chart = model.body.chart
+    if chart is not None:            # the same chart: the moved face is no plane or cylinder any more
+        out["design"]["chart"] = chart.kind
+        out["design"]["axis"] = [float(v) for v in (chart.axis if chart.kind == "cylinder" else chart.normal)]
+        out["design"]["origin"] = [float(v) for v in chart.origin]
     out["design"]["initial"] = 0.0
     out["design"]["C2"] = 0.0
     C0 = float(model.config.design.C0)
@@ -462,7 +469,11 @@ def write_contact_surface(path, model, alpha, *, unit: str = "mm", trim: bool = 
 
     Trimmed to the contact face's outline where that is not the design rectangle (``trim``).
     ``unit``: the unit of the model's coordinates (mm, cm, m, in, um); the file is in millimetres.
-    Returns ``{"trimmed": bool, "scale": factor to mm, "degrees": (d1, d2)}``."""
+    Returns ``{"trimmed": bool, "scale": factor to mm, "degrees": (d1, d2)}``. A face on a chart
+    other than (x1, x2) (design.chart) is refused: its surface is the chart's, not a graph ϑ_α."""
+    if model.body.chart is not None:
+        raise ExportError(f"STEP/IGES: the contact face lies on a {model.body.chart.kind} chart, whose designed "
+                          "surface is not the graph of ϑ_α over (x1, x2); export the mesh or STL of the body")
     path = Path(path)
     if unit not in UNITS:
         raise ExportError(f"unit {unit!r}: choose from {', '.join(UNITS)}")

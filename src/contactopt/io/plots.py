@@ -387,7 +387,7 @@ def plot_surface(path, model, alpha, *, resolution=(81, 41), title="Contact surf
         corners = np.asarray(model.body.contact_face.faces)
         corners = corners[:, :4] if corners.shape[1] == 4 else corners[:, :3]
         tris = np.vstack([corners[:, [0, 1, 2]], corners[:, [0, 2, 3]]]) if corners.shape[1] == 4 else corners
-        xy = model.body.reference.points[:, :2]
+        xy = model.mesh.chart_points(model.body.reference.points)     # the face unrolled on its chart
         inside = Triangulation(xy[:, 0], xy[:, 1], tris).get_trifinder()(G1, G2) >= 0
         Z = np.where(inside, Z, np.nan)
     c1 = x1lo + surf.a * np.arange(surf.d1 + 1) / max(surf.d1, 1)
