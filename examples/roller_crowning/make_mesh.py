@@ -4,9 +4,9 @@ radius R = 5 and length L = 20 (axis along x1 at x3 = R) standing on the plane x
     python examples/roller_crowning/make_mesh.py     # writes examples/roller_crowning/roller.msh
 
 The body is the lower half of the cylinder, x1 in [0, L/2], x2 in [0, R], between its face
-x3 = R - sqrt(R² - x2²) and the axial plane x3 = R. Its cross-section is mapped from a square by
-transfinite interpolation (corners: the contact line (0, 0), the point of the face at 45°, (R, R) and
-(0, R)); the mesh is graded towards the contact line x2 = 0, the face and the roller's end x1 = L/2.
+x3 = R - sqrt(R² - x2²) and the axial plane x3 = R. Its cross-section is made of three patches mapped
+by transfinite interpolation (see cross_section), extruded along x1; the mesh is graded towards the
+contact line x2 = 0, the face and the roller's end x1 = L/2.
 Groups: ``mid`` (x1 = 0, the roller's mid-plane), ``sym`` (x2 = 0), ``top`` (x3 = R), ``contact``
 (the strip x2 <= 1.2 of the face), ``roller`` (the volume).
 """
@@ -17,7 +17,8 @@ import meshio
 import numpy as np
 
 R, L, STRIP = 5.0, 20.0, 1.2
-N_STRIP, N_REST, N_UP, N_AX = 10, 6, 10, 30
+N_STRIP, N_REST, N_SIDE, N_UP, N_AX = 10, 4, 6, 7, 24
+SQUARE = 0.45 * R      # the square [0, SQUARE] x [R - SQUARE, R] around the axis
 
 
 def graded(n, ratio):
@@ -31,42 +32,75 @@ def face(phi):
     return np.c_[R * np.sin(phi), R - R * np.cos(phi)]
 
 
-def cross_section():
-    """Nodes (nu, nv, 2) of the cross-section: u along the face, v from the face to the axis."""
-    pc, pb = np.arcsin(STRIP / R), np.pi / 4
-    phi = np.r_[pc * graded(N_STRIP, 1.08), pc + (pb - pc) * graded(N_REST, 1.25)[1:]]
-    s = phi / pb                                  # the parameter u of each node along the face
-    v = graded(N_UP, 1.15)
-    bottom = face(phi)                                           # A -> B
-    right = face(pb + (np.pi / 2 - pb) * v)                      # B -> C
-    topl = np.c_[R * s, np.full_like(s, R)]                      # D -> C
-    left = np.c_[np.zeros_like(v), R * v]                        # A -> D
-    A, B, C, D = bottom[0], bottom[-1], topl[-1], topl[0]
-    U, V = s[:, None, None], v[None, :, None]
-    return ((1 - V) * bottom[:, None] + V * topl[:, None] + (1 - U) * left[None] + U * right[None]
+def segment(p, q, t):
+    return p + (q - p) * t[:, None]
+
+
+def tfi(bottom, top, left, right):
+    """Transfinite interpolation of a four-sided patch: (nu, nv, 2) from its sides (bottom, top
+    along u; left, right along v, all oriented with increasing u and v)."""
+    nu, nv = len(bottom), len(left)
+    U, V = np.linspace(0, 1, nu)[:, None, None], np.linspace(0, 1, nv)[None, :, None]
+    if nu > 1:     # arc-length parameters of the sides keep the grading
+        lb = np.r_[0, np.cumsum(np.hypot(*np.diff(bottom, axis=0).T))]
+        U = (lb / lb[-1])[:, None, None]
+    ll = np.r_[0, np.cumsum(np.hypot(*np.diff(left, axis=0).T))]
+    V = (ll / ll[-1])[None, :, None]
+    A, B, C, D = bottom[0], bottom[-1], top[-1], top[0]
+    return ((1 - V) * bottom[:, None] + V * top[:, None] + (1 - U) * left[None] + U * right[None]
             - ((1 - U) * (1 - V) * A + U * (1 - V) * B + U * V * C + (1 - U) * V * D))
+
+
+def cross_section():
+    """Points (m, 2) and quadrilaterals (k, 4) of the cross-section in (x2, x3).
+
+    Three patches: a square around the axis, and between it and the face a lower patch (the face
+    from the contact line to 45°, graded towards the contact line, with the strip's edge x2 = STRIP
+    a node line) and a side patch (the face from 45° to the axial plane)."""
+    pc, pb = np.arcsin(STRIP / R), np.pi / 4
+    phi1 = np.r_[pc * graded(N_STRIP, 1.08), pc + (pb - pc) * graded(N_REST, 1.15)[1:]]
+    phi2 = pb + (np.pi / 2 - pb) * np.linspace(0, 1, N_SIDE + 1)
+    v = graded(N_UP, 1.15)
+    s = SQUARE
+    P, Q, T, D = np.array([0, R - s]), np.array([s, R - s]), np.array([s, R]), np.array([0, R])
+    u1 = phi1 / pb                                  # the square's edges follow the face's grading
+    u2 = (phi2 - pb) / (np.pi / 2 - pb)
+    lower = tfi(face(phi1), segment(P, Q, u1), segment(face(phi1[:1])[0], P, v), segment(face(phi1[-1:])[0], Q, v))
+    side = tfi(face(phi2), segment(Q, T, u2), segment(face(phi2[:1])[0], Q, v), segment(face(phi2[-1:])[0], T, v))
+    square = tfi(segment(P, Q, u1), segment(D, T, u1), segment(P, D, u2), segment(Q, T, u2))
+    pts, quads = [], []
+    for g in (lower, side, square):
+        base = sum(len(p) for p in pts)
+        nu, nv = g.shape[:2]
+        i = base + np.arange(nu * nv).reshape(nu, nv)
+        pts.append(g.reshape(-1, 2))
+        quads.append(np.c_[i[:-1, :-1].ravel(), i[1:, :-1].ravel(), i[1:, 1:].ravel(), i[:-1, 1:].ravel()])
+    pts, quads = np.vstack(pts), np.vstack(quads)
+    key = np.round(pts / R, 9)
+    _, first, inverse = np.unique(key, axis=0, return_index=True, return_inverse=True)
+    return pts[first], inverse.reshape(-1)[quads]
 
 
 def main(path=None):
     path = path or Path(__file__).with_name("roller.msh")
-    xs = cross_section()
-    nu, nv = xs.shape[:2]
+    xy, quads = cross_section()
+    m = len(xy)
     x1 = (L / 2) * (1.0 - graded(N_AX, 1.06)[::-1])           # finer towards the end x1 = L/2
-    nx = x1.size
-    pts = np.empty((nx, nu, nv, 3))
-    pts[..., 0] = x1[:, None, None]
-    pts[..., 1:] = xs[None]
-    pts[:, 0, :, 1] = 0.0                                      # exact symmetry plane
-    idx = np.arange(pts[..., 0].size).reshape(nx, nu, nv)
-    a, b, c = (g.ravel() for g in np.meshgrid(np.arange(nx - 1), np.arange(nu - 1), np.arange(nv - 1),
-                                             indexing="ij"))
-    hexes = np.c_[idx[a, b, c], idx[a + 1, b, c], idx[a + 1, b + 1, c], idx[a, b + 1, c],
-                  idx[a, b, c + 1], idx[a + 1, b, c + 1], idx[a + 1, b + 1, c + 1], idx[a, b + 1, c + 1]]
-
-    def quads(q):
-        return np.c_[q[:-1, :-1].ravel(), q[1:, :-1].ravel(), q[1:, 1:].ravel(), q[:-1, 1:].ravel()]
-    groups = {"mid": quads(idx[0]), "sym": quads(idx[:, 0, :]), "top": quads(idx[:, :, -1]),
-              "contact": quads(idx[:, :N_STRIP + 1, 0])}
+    pts = np.c_[np.repeat(x1, m), np.tile(xy, (x1.size, 1))]
+    layer = (np.arange(N_AX) * m)[:, None, None]
+    hexes = np.concatenate([layer + quads, layer + m + quads], axis=2).reshape(-1, 8)
+    # boundary faces: the hexahedra's faces that occur once, named by where they lie
+    local = np.array([[0, 3, 2, 1], [4, 5, 6, 7], [0, 1, 5, 4], [1, 2, 6, 5], [2, 3, 7, 6], [3, 0, 4, 7]])
+    faces = hexes[:, local].reshape(-1, 4)
+    _, first, count = np.unique(np.sort(faces, axis=1), axis=0, return_index=True, return_counts=True)
+    bnd = faces[first[count == 1]]
+    c = pts[bnd]                                               # (k, 4, 3)
+    tol = 1e-9 * R
+    on_face = np.all(np.abs(np.hypot(c[..., 1], c[..., 2] - R) - R) < 1e-6 * R, axis=1)
+    groups = {"mid": bnd[np.all(c[..., 0] < tol, axis=1)],
+              "sym": bnd[np.all(c[..., 1] < tol, axis=1)],
+              "top": bnd[np.all(c[..., 2] > R - tol, axis=1)],
+              "contact": bnd[on_face & np.all(c[..., 1] < STRIP + tol, axis=1)]}
     blocks, phys, fd = [], [], {}
     for tag, (name, q) in enumerate(groups.items(), start=1):
         blocks.append(("quad", q))
@@ -75,8 +109,7 @@ def main(path=None):
     blocks.append(("hexahedron", hexes))
     phys.append(np.full(len(hexes), 9))
     fd["roller"] = np.array([9, 3])
-    meshio.write(path, meshio.Mesh(pts.reshape(-1, 3), blocks,
-                                   cell_data={"gmsh:physical": phys, "gmsh:geometrical": phys},
+    meshio.write(path, meshio.Mesh(pts, blocks, cell_data={"gmsh:physical": phys, "gmsh:geometrical": phys},
                                    field_data=fd), file_format="gmsh22", binary=False)
     return path
 
