@@ -173,7 +173,7 @@ class ZonePath(SolverPath):
         matrix and exact products W_Z r (:meth:`ZoneProblem.product`), so the state is exact
         either way; W_Z is formed (and kept for later designs) when that solve fails, and the kept
         block is dropped when it needed more than REUSE_MAX_STEPS steps."""
-        from ..contact.local import solve_local
+        from ..contact.fallback import solve_with_fallbacks
         from ..contact.newton import solve_newton
         s = self.settings
         q = zp.q0.copy()
@@ -207,7 +207,8 @@ class ZonePath(SolverPath):
         self.n_delassus += 1
         if keep:
             ctx.jacobian = KeptBlock(alpha, zp.zone, W.astype(JACOBIAN_DTYPE))
-        res = solve_local(W, q, s.friction, method=method, tol=tol, max_iter=s.max_iter, r0=r0)
+        res = solve_with_fallbacks(W, q, s.friction, method=method, tol=tol, max_iter=s.max_iter, r0=r0,
+                                   gap=system.gap[zp.zone])
         return res, t_inv, "formed"
 
     def _zone_warm(self, r_loc: np.ndarray, zone: np.ndarray) -> np.ndarray:
