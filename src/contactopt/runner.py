@@ -51,6 +51,7 @@ from .errors import CheckpointError, ConfigError, ContactOptError, SolverError
 from .io.atomic import WriteError, atomic_savez, atomic_write_json, atomic_write_text, write_error
 from .io.lock import LockedError, describe, held_by
 from .io.rundir import claim_output_dir
+from .optimize._trials import FailedTrials
 
 log = logging.getLogger(__name__)
 
@@ -164,6 +165,7 @@ class _Oracle:
         self.iteration = 0
         self.last_good = None
         self.time = {"state": 0.0, "adjoint": 0.0, "design_terms": 0.0}
+        self.trials = FailedTrials(history_path.parent)
 
     def __call__(self, x):
         from .sensitivity.adjoint import subgradient
@@ -172,7 +174,10 @@ class _Oracle:
             # [[constraints]]: each response and its subgradient from the same state
             cons = self.problem.constraint_subgradients(x) if self.problem.constraints else []
         except SolverError as exc:
-            raise RunAborted(f"state/subgradient failed at evaluation {self.count + 1}: {exc}") from exc
+            if self.count == 0:       # the initial design: the current iterate itself
+                raise RunAborted(f"state/subgradient failed at evaluation {self.count + 1}: {exc}") from exc
+            # a trial design (optimize/_trials.py): a failed trial, the run goes on
+            return self.trials.answer(self, x, exc, len(history_fields(self.problem)), len(self.problem.constraints))
         for r in [res] + cons:
             for k in self.time:
                 self.time[k] += r.timings.get(k, 0.0)
@@ -480,6 +485,7 @@ def run_optimization(config, outdir=None, *, eps=None, max_iter=None, resume=Fal
         state_kw = {}
         if resume:
             _truncate_history(hist, n_eval, history_fields(problem))
+            oracle.trials.start(n_eval)
             oracle.count = n_eval
             oracle.iteration = bstate.nit + (pstate.nit if pstate is not None else 0)   # rows before a callback
             oracle.t_start -= elapsed0
@@ -491,6 +497,7 @@ def run_optimization(config, outdir=None, *, eps=None, max_iter=None, resume=Fal
                      "; the optimization had finished, its results are written again" if finished else "")
         else:
             atomic_write_text(hist, ",".join(history_fields(problem)) + "\n")
+            oracle.trials.start()
             log.info("run %s in %s", cfg.name, out)
             theta0 = problem.evaluate_value(alpha0)
             if not np.isfinite(theta0):
@@ -549,6 +556,8 @@ def run_optimization(config, outdir=None, *, eps=None, max_iter=None, resume=Fal
             res.x = red.expand(res.x)
         summary = _finish(out, problem, alpha0, res, oracle, t_start)
         summary["warnings"] = run_warnings
+        if oracle.trials.rows():
+            summary["failed_trials"] = oracle.trials.summary()
         if red is not None:
             summary["design_variables"] = {"alpha": red.n_alpha, "optimized": red.n_beta}
         atomic_write_json(out / "summary.json", summary)
