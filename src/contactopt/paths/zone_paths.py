@@ -142,7 +142,8 @@ class ZonePath(SolverPath):
             warm = self._zone_warm(res.r, zone)
             zone = zp.zone
         stats = {"backend": self.library_of(system), "zone_nodes": int(zone.size), "zone_misses": misses,
-                "delassus": reused[-1], **self.solve_counts(zp)}
+                "delassus": reused[-1], **self.solve_counts(zp),
+                **({"fallback": res.stats["fallback"]} if "fallback" in res.stats else {})}
         state = self.finish_state(ctx, alpha=alpha, coords=system.assembled.coords, u=u, u_c=u3, r=r,
                                   gap=system.gap, load=self.load_scale(system), method=method,
                                   outcome=(res.iterations, res.error, res.converged),
