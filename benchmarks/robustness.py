@@ -23,54 +23,10 @@ import tempfile
 import time
 from pathlib import Path
 
-import numpy as np
+from contactopt.verification.robustness import box_designs, random_design_solves
 
 ROOT = Path(__file__).resolve().parents[1]
 SHIPPED = ["example1", "example2", "example3"] + sorted(str(p.relative_to(ROOT)) for p in (ROOT / "examples").glob("*.toml"))
-
-
-def box_designs(model, n: int, seed: int) -> list[np.ndarray]:
-    """``n`` designs drawn uniformly from the box [lb, ub] of the model's control points."""
-    A = model.admissible
-    a0 = model.initial_design()
-    lb = np.broadcast_to(np.asarray(A.lb, float), a0.shape)
-    ub = np.broadcast_to(np.asarray(A.ub, float), a0.shape)
-    if model.n_design != A.size:      # a reduced design (symmetry): the box of its free values
-        lb, ub = np.full(a0.shape, float(np.min(A.lb))), np.full(a0.shape, float(np.max(A.ub)))
-    rng = np.random.default_rng(seed)
-    return [lb + (ub - lb) * rng.random(a0.size) for _ in range(n)]
-
-
-def solve_at(problem, alpha) -> dict:
-    """One state solve from nothing (no warm start): converged, Newton steps, fallbacks, time."""
-    t0 = time.perf_counter()
-    try:
-        states = problem.solve_states(alpha, warm_start=False)
-    except Exception as exc:            # noqa: BLE001 - a failure is what this script counts
-        return {"converged": False, "error": f"{type(exc).__name__}: {exc}", "time_s": time.perf_counter() - t0}
-    return {"converged": all(s.converged for s in states),
-            "newton_steps": int(sum(s.iterations for s in states)),
-            "fallbacks": [s.stats.extra["fallback"] for s in states if "fallback" in s.stats.extra],
-            "time_s": time.perf_counter() - t0}
-
-
-def run_config(name: str, n: int, seed: int) -> dict:
-    from contactopt.problem import ShapeProblem
-    problem = ShapeProblem(name)
-    model = problem.model
-    base = solve_at(problem, model.initial_design())
-    problem.clear_cache()
-    rows = []
-    for alpha in box_designs(model, n, seed):
-        rows.append(solve_at(problem, alpha))
-        problem.clear_cache()
-    ok = [r for r in rows if r["converged"]]
-    return {"config": name, "designs": n, "converged": len(ok), "alpha0_converged": base["converged"],
-            "fallbacks": sum(len(r.get("fallbacks", ())) for r in rows),
-            "fallbacks_used": sorted({f for r in rows for f in r.get("fallbacks", ())}),
-            "newton_steps_max": max((r["newton_steps"] for r in ok), default=None),
-            "time_alpha0_s": base["time_s"], "time_mean_s": float(np.mean([r["time_s"] for r in rows])) if rows else None,
-            "failures": [r["error"] for r in rows if not r["converged"]][:3]}
 
 
 def run_cli(name: str, n: int, seed: int) -> list[dict]:
@@ -113,7 +69,7 @@ def main(argv=None) -> int:
         if args.cli:
             rows += run_cli(name, args.designs, args.seed)
             continue
-        row = run_config(name, args.designs, args.seed)
+        row = random_design_solves(name, args.designs, args.seed)
         rows.append(row)
         print(f"{name:40s} {row['converged']:3d}/{row['designs']:<3d} converged, fallbacks {row['fallbacks']} "
               f"{row['fallbacks_used']}, Newton steps <= {row['newton_steps_max']}, "
