@@ -16,6 +16,7 @@ from .checks import (
     _check_value,
     _finite,
     _material_spec,
+    _natint,
     _nonneg,
     _pos,
     _posint,
@@ -464,7 +465,7 @@ def resolve(raw: dict, source: str = "<dict>") -> dict:
         # absent means 'auto': a configuration that does not name it resolves as it did before the key
         data["material"].pop("formulation", None)
     deg = data["design"]["degree"]
-    d1d2 = deg if isinstance(deg, list) and len(deg) == 2 and all(_posint(v) for v in deg) else None
+    d1d2 = deg if isinstance(deg, list) and len(deg) == 2 and all(_natint(v) for v in deg) else None
     _check_matrix(data["design"]["initial"], d1d2, "design.initial", problems)
     _check_design_constraints(data["design"], d1d2, problems)
     if isinstance(data["objective"]["target"], dict):

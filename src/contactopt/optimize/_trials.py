@@ -79,8 +79,7 @@ class FailedTrials:
         row = [oracle.count, oracle.iteration, "nan", "nan", "", "", "", "",
                f"{time.perf_counter() - oracle.t_start:.3f}"]
         row += [""] * (n_fields - len(row))
-        with open(oracle.history_path, "a", newline="") as fh:
-            csv.writer(fh).writerow(row)
+        oracle.run_dir.append_history(row)
         g = np.full(np.size(x), np.nan)
         if n_constraints:
             return np.nan, g, np.full(n_constraints, np.nan), np.full((n_constraints, np.size(x)), np.nan)

@@ -53,12 +53,15 @@ def library_for(name: str, library: str) -> str:
     return "pardiso" if pardiso_available() else "scipy"
 
 
-def needs(config, pinned: int = 0, ranks: int = 1, rigid=None) -> dict:
+def needs(config, pinned: int = 0, ranks: int = 1, rigid=None, pinned_held: bool = False) -> dict:
     """What a configuration needs of a path: {feature of :class:`Capabilities`: what needs it}.
 
     ``pinned``: the number of clamped tangential components of contact nodes (a symmetry plane
     through the contact face, :mod:`contactopt.mesh.body`); ``ranks``: the MPI ranks of the run;
-    ``rigid``: the rigid motions the clamps leave free (:mod:`contactopt.mesh.rigid`), or None."""
+    ``rigid``: the rigid motions the clamps leave free (:mod:`contactopt.mesh.rigid`), or None;
+    ``pinned_held``: the pinned components are clamped at their partners on an elastic foundation
+    too (the symmetry planes run through both bodies, :class:`contactopt.fem.foundation.Foundation`
+    refuses them otherwise), so that the foundation adds no compliance to the clamped directions."""
     from ..sensitivity.objectives import FULL_SPACE, constraint_types, objective_types
     out, foundation = {}, config.foundation is not None
     types = objective_types(config) | constraint_types(config)     # [[constraints]] are objectives too
@@ -80,7 +83,7 @@ def needs(config, pinned: int = 0, ranks: int = 1, rigid=None) -> dict:
             out["held_on_foundation"] = out["held_by_contact"]
     if pinned:
         out["pinned"] = str(pinned)
-        if foundation:
+        if foundation and not pinned_held:
             out["pinned_on_foundation"] = str(pinned)
     if "compliance" in types or config.objective.type == "compliance":
         out["compliance"] = "the compliance objective"
@@ -96,7 +99,7 @@ def needs(config, pinned: int = 0, ranks: int = 1, rigid=None) -> dict:
     return out
 
 
-def select_path(config, n_free: int, pinned: int = 0, rigid=None) -> tuple[str, str]:
+def select_path(config, n_free: int, pinned: int = 0, rigid=None, pinned_held: bool = False) -> tuple[str, str]:
     """(path, library) of a configuration for a body of ``n_free`` free DOFs.
 
     The paths that take what the configuration needs (:func:`needs`, each path's
@@ -111,7 +114,7 @@ def select_path(config, n_free: int, pinned: int = 0, rigid=None) -> tuple[str, 
     from .._mpi import world_size
     ls = config.linear_solver
     name, ranks = ls.path, world_size()
-    need = needs(config, pinned, ranks, rigid)
+    need = needs(config, pinned, ranks, rigid, pinned_held)
     fit = [cls for cls in PATHS.values() if not cls.capabilities.lacks(need)]
     if name == "auto":
         chosen = _auto(fit, n_free, ls.crossover, ranks, need)

@@ -225,11 +225,11 @@ class CondensationPath(ForceControl, ZonePath):
         obstacle u_c is in the nodes' frames: the body's is Q u_c."""
         if system.shift is not None:
             u_c = np.ravel(u_c) + system.shift
+        if system.coupling is not None:      # (in the nodes' frames on a curved face)
+            u_c = system.coupling.body_displacement(u_c, r)
         if self.frames is not None:
             return from_frames(np.ravel(u_c), self.frames)
-        if system.coupling is None:
-            return np.ravel(u_c)
-        return system.coupling.body_displacement(u_c, r)
+        return np.ravel(u_c)
 
     def foundation_state(self, system, u_c, r, u_body):
         """On a foundation: the body's contact displacement and its partners' (p, 3) per node
@@ -237,7 +237,7 @@ class CondensationPath(ForceControl, ZonePath):
         if system.coupling is None:
             return None
         from ..contact.state import FoundationState
-        body = u_body.reshape(-1, 3)
+        body = (u_body if self.frames is None else to_frames(np.ravel(u_body), self.frames)).reshape(-1, 3)
         return FoundationState(u_body_c=body, u_partner=body - u_c, displacement=self.foundation.displacement(r))
 
     def load_scale(self, system):
