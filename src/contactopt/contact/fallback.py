@@ -15,7 +15,8 @@ The chain, tried in this order until one converges to the same tolerance:
 4. ``friction continuation``: Newton along F = 0 (a convex QP, always solvable with W positive
    definite), F/4, F/2, 3F/4, F, each step warm-started from the one before.
 
-A solve that needs no fallback is exactly the first attempt (the same numbers, bit for bit). A
+Each path is bounded by the same ``max_iter`` (Newton steps, Tresca solves; per friction step of the
+continuation). A solve that needs no fallback is exactly the first attempt (the same numbers, bit for bit). A
 converged fallback sets ``stats["fallback"]`` to its name. When every path fails,
 :func:`diagnose` inspects the problem: a singular W (a rigid motion that contact does not hold),
 a load that pushes along that motion (an unbalanced load), a negative initial gap (a penetrating
@@ -51,7 +52,7 @@ def _attempts(W, q, mu, method, tol, max_iter, r0):
         yield "cold restart", lambda: solve_local(W, q, mu, **newton)
     if method == "newton":
         def fixed_point():
-            fp = solve_local(W, q, mu, method="fixed-point", tol=tol, raise_on_failure=False)
+            fp = solve_local(W, q, mu, method="fixed-point", tol=tol, max_iter=max_iter, raise_on_failure=False)
             if fp.converged or not np.all(np.isfinite(fp.r)):
                 return fp
             polished = solve_local(W, q, mu, r0=fp.r, **newton)
@@ -102,7 +103,8 @@ def solve_with_fallbacks(W, q, mu, *, method: str = "newton", tol: float = 1e-8,
     best = min((t for _, t in tried), key=lambda t: t.error)
     verdict = diagnose(W, q, mu, gap=gap, r=best.r)
     attempts = "; ".join(f"{n}: error {t.error:.2e} after {t.iterations} steps" for n, t in tried)
-    exc = ContactNotConverged(f"no state: {attempts}. {verdict}", best.history)
+    exc = ContactNotConverged(f"not converged: no path reached the tolerance {tol:.1e} ({attempts}). {verdict}",
+                              best.history)
     exc.diagnosis = verdict
     raise exc
 
