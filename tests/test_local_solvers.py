@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import functools
 import logging
+import warnings
 
 import numpy as np
 import pytest
@@ -194,6 +195,40 @@ def test_siconos_error_vanishes_only_at_solutions():
     r = np.array([1.0, 0.3, 0.0])
     assert siconos_error(r, W @ r + q, q, mu) == 0.0
     assert siconos_error(r + 0.01, W @ (r + 0.01) + q, q, mu) > 1e-3
+
+
+def test_frictionless_cone_projects_a_separated_point_with_no_tangential_part_to_zero():
+    # mu = 0: the cone is the half-line {r_T = 0, r_N >= 0}; (-1, 0, 0) lies in its polar cone
+    assert np.array_equal(project_cone(np.array([-1.0, 0.0, 0.0]), 0.0), np.zeros(3))
+    # one separated contact (u = (1, 0, 0), r = 0) and one in contact: an exact solution
+    W, q = np.eye(6), np.array([1.0, 0.0, 0.0, -1.0, 0.0, 0.0])
+    r = np.array([0.0, 0.0, 0.0, 1.0, 0.0, 0.0])
+    assert siconos_error(r, W @ r + q, q, 0.0) == 0.0
+
+
+def test_frictionless_newton_converges_with_a_separated_contact_held_tangentially():
+    # A contact node on two symmetry planes has u_T = 0 exactly; separated, it is solved
+    # (r = 0, u_N > 0), and plain Newton must stop there, not run the proximal rounds into overflow.
+    W, q = np.eye(6), np.array([1.0, 0.0, 0.0, -1.0, 0.0, 0.0])
+    for dtype in (np.float64, np.float32):
+        with warnings.catch_warnings():
+            warnings.simplefilter("error")
+            res = solve_newton(W.astype(dtype), q, 0.0, tol=1e-12)
+        assert res.converged and res.stats["phase"] == "plain"
+        np.testing.assert_allclose(res.r, [0, 0, 0, 1, 0, 0], atol=1e-12)
+
+
+def test_proximal_parameter_stays_bounded_on_a_problem_without_solution():
+    # W_NN < 0: u_N = -r_N - 1 < 0 for every r_N >= 0, no solution. The proximal rounds must stop
+    # at the bound of alpha with that reason, without overflow.
+    W = np.diag([-1.0, 1e-30, 1e-30])
+    q = np.array([-1.0, 0.5, 0.0])
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        res = solve_newton(W, q, 0.3, tol=1e-10, max_iter=2000, raise_on_failure=False)
+    assert not res.converged and res.stats["last_status"] == "alpha"
+    assert max(res.stats["alphas"]) <= 1e8 * np.mean(np.abs(np.diag(W)))
+    assert "proximal parameter reached its bound" in res.message
 
 
 # ---------------------------------------------------------------- Tresca vs Clarabel

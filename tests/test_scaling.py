@@ -111,13 +111,14 @@ def test_a_copy_scaled_by_powers_of_two_is_solved_bit_for_bit_as_the_original(na
     assert np.array_equal(res.x, ref.x * e)
 
 
-@pytest.mark.parametrize("name, factor", [("MAXQUAD-U32", 1.5), ("Dembo3", 1.0), ("HS106", 1.25)])
-def test_a_copy_scaled_by_1e_minus3_to_1e3_is_solved_in_about_the_evaluations_of_the_original(
-        name, factor):
+@pytest.mark.parametrize("name", ["MAXQUAD-U32", "Dembo3", "HS106"])
+def test_a_copy_scaled_by_1e_minus3_to_1e3_is_solved_in_about_the_evaluations_of_the_original(name):
     """e = 10^s, s evenly from −3 to 3 (not powers of two: d recovers e to within √2 per
-    variable): f within 1e-6 of the original's in at most ``factor`` times its evaluations
-    (measured 22/19, 69/92, 114/123; unscaled, the copies ended 3.8e-3, 4.7e-2 and 3.4e-3
-    above it after 726, 516 and 1848 evaluations)."""
+    variable): the copy's run succeeds with f within 1e-6 of the original's, at a point of the
+    copy's U, in at most three times the original's evaluations. Unscaled, the copies ended
+    3.8e-3, 4.7e-2 and 3.4e-3 above it after 726, 516 and 1848 evaluations, 7 to 40 times the
+    original's; scaled, 1.0 to 1.3 times (the exact counts are trajectories and move with the
+    BLAS kernel: Dembo3 takes 76 with OpenBLAS' SkylakeX kernels, 96 with its Haswell ones)."""
     prob = max_quadratics_problem() if name == "MAXQUAD-U32" else PROBLEMS[name]
     rng = np.random.default_rng(0)
     e = rng.permutation(np.logspace(-3, 3, prob.n))
@@ -126,7 +127,8 @@ def test_a_copy_scaled_by_1e_minus3_to_1e3_is_solved_in_about_the_evaluations_of
     res = run(oracle, y0, cons)
     assert res.success, res.message
     assert rel_error(res.fun, ref.fun) <= 1e-6
-    assert res.nfev <= factor * ref.nfev
+    assert prob.max_violation(res.x / e) <= 1e-6 * max(1.0, float(np.max(np.abs(res.x / e))))
+    assert res.nfev <= 3 * ref.nfev
 
 
 # ------------------------------------------------------------------ the collection's problems

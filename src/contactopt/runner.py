@@ -63,6 +63,7 @@ from .io.outputs import write_outputs
 from .io.rundir import RunDirectory
 from .optimize import BundleResult, minimize
 from .optimize._scaling import variable_scaling
+from .optimize._trials import FailedTrials
 from .optimize.bundle import SUCCESS_STATUS
 from .problem import ShapeProblem
 from .sensitivity import adjoint
@@ -178,6 +179,7 @@ class _Oracle:
         self.count = 0
         self.iteration = 0
         self.time = {"state": 0.0, "adjoint": 0.0, "design_terms": 0.0}
+        self.trials = FailedTrials(run_dir.path)
 
     def __call__(self, x):
         try:
@@ -185,7 +187,10 @@ class _Oracle:
             # [[constraints]]: each response and its subgradient from the same state
             cons = self.problem.constraint_subgradients(x) if self.problem.constraints else []
         except SolverError as exc:
-            raise RunAborted(f"state/subgradient failed at evaluation {self.count + 1}: {exc}") from exc
+            if self.count == 0:       # the initial design: the current iterate itself
+                raise RunAborted(f"state/subgradient failed at evaluation {self.count + 1}: {exc}") from exc
+            # a trial design (optimize/_trials.py): a failed trial, the run goes on
+            return self.trials.answer(self, x, exc, len(history_fields(self.problem)), len(self.problem.constraints))
         for r in [res] + cons:
             for k in self.time:
                 self.time[k] += r.timings.get(k, 0.0)
@@ -437,12 +442,14 @@ def _start(oracle: _Oracle, setup: _SetUp, ckpt: Checkpoint | None, finished) ->
     run_dir, problem = oracle.run_dir, oracle.problem
     if ckpt is not None:
         run_dir.start_history(history_fields(problem), keep_rows=ckpt.evaluations)
+        oracle.trials.start(ckpt.evaluations)
         oracle.count, oracle.iteration, oracle.scale = ckpt.evaluations, ckpt.iteration, ckpt.scale
         oracle.t_start -= ckpt.elapsed
         log.info("resuming %s at iteration %d (%d evaluations)%s", run_dir.path, ckpt.bundle.nit, ckpt.evaluations,
                  "; the optimization had finished, its results are written again" if finished else "")
         return
     run_dir.start_history(history_fields(problem))
+    oracle.trials.start()
     log.info("run %s in %s", problem.config.name, run_dir.path)
     theta0 = problem.evaluate_value(setup.alpha0)
     if not np.isfinite(theta0):
@@ -513,6 +520,8 @@ def _finish(run_dir: RunDirectory, setup: _SetUp, res, oracle: _Oracle, run_warn
         res.x = red.expand(res.x)
     summary = write_outputs(run_dir.path, setup.problem, setup.alpha0, res, oracle, plots)
     summary["warnings"] = run_warnings
+    if oracle.trials.rows():
+        summary["failed_trials"] = oracle.trials.summary()
     if red is not None:
         summary["design_variables"] = {"alpha": red.n_alpha, "optimized": red.n_beta}
     run_dir.write_summary(summary)

@@ -48,7 +48,9 @@ def project_cone(x: np.ndarray, mu) -> np.ndarray:
     xn = X[:, 0]
     xt = X[:, 1:]
     nt = np.hypot(xt[:, 0], xt[:, 1])
-    inside = nt <= mu * xn
+    # x_N >= 0 too: with mu = 0 the cone is the half-line, and a point (x_N < 0, x_T = 0) lies in
+    # its polar cone (it projects to 0), not in the cone
+    inside = (nt <= mu * xn) & (xn >= 0.0)
     polar = mu * nt <= -xn
     # On the boundary part: a = (x_N + mu ||x_T||) / (1 + mu^2), result (a, mu a x_T/||x_T||).
     a = (xn + mu * nt) / (1.0 + mu * mu)

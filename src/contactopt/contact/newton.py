@@ -30,7 +30,8 @@ FCLIB problems have singular ``W`` — or stagnation), the solver switches to th
 method of Siconos' PROX: round ``k`` solves, by the same Newton iteration, the problem with
 ``W + alpha_k I`` and ``q - alpha_k r_k`` (same solution set at convergence, a nonsingular
 Jacobian for ``alpha_k > 0``), with ``alpha_k = sigma * error_k * mean(diag W)`` shrinking as the
-error falls and growing tenfold after a failed round.
+error falls and growing tenfold after a failed round, up to ``1e8 mean(diag W)`` (the rounds stop
+there: they would no longer move ``r``).
 
 Inexact W. Given the exact product ``v -> W v`` separately (``product``), ``W`` itself need only
 approximate the Delassus operator: the Newton matrices come from it, everything else from the
@@ -63,6 +64,8 @@ _PREDICTOR_STEPS = 20    # and its step budget
 _RCOND_MIN = 1e-13       # reciprocal condition below which a Newton matrix counts as singular
 _PIVOT_SCREEN = 1e-8     # LU pivot ratio above which the condition estimate is skipped
 _CHORD_RATE = 0.2        # a reused factorization must cut the error by this factor per step
+_ALPHA_MAX = 1e8        # proximal alpha_k at most this times mean(diag W): beyond it a round
+                         # hardly moves r (and a float32 Newton matrix would overflow)
 _FAST = 1e-3             # a fresh step that cut the error by more than 1/_FAST: W is nearly
                          # exact, Newton nearly quadratic, so the next step refactorizes too
 _REASONS = {
@@ -72,6 +75,7 @@ _REASONS = {
     "linesearch": "line search found no decrease of the merit 1/2 ||Phi||^2",
     "stagnation": "no progress over 10 Newton steps",
     "inner": "proximal round converged, outer tolerance not reached",
+    "alpha": "proximal parameter reached its bound (1e8 mean(diag W)) without progress",
 }
 
 
@@ -447,6 +451,9 @@ def solve_newton(W, q, mu, *, tol: float = 1e-8, max_iter: int = 200, r0=None,
                 r = rc if err_new > err else r
                 err = min(err, err_new)
                 alpha *= 10.0
+                if alpha > _ALPHA_MAX * S.wscale:
+                    status = "alpha"
+                    break
             log.debug("PROX round %d: status %s, error %.3e, next alpha %.2e",
                       prox_rounds, status, err, alpha)
     err, r, _ = S.best

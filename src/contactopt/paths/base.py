@@ -369,7 +369,7 @@ class SolverPath:
                       friction=self.settings.friction, method=method, iterations=outcome[0],
                       residual=outcome[1],
                       complementarity=contact_conditions_violation(law_u, lam, tau, gap, self.settings.friction),
-                      converged=outcome[2], timings=timings, stats=SolveStats(path=self.name, **stats), slip_ref=slip_ref,
+                      converged=outcome[2], timings=timings, stats=SolveStats.of({"path": self.name, **stats}), slip_ref=slip_ref,
                       foundation=foundation)
         if self.settings.use_zone:
             ctx.next_zone = zone_rules.near_nodes(lam, u_c[:, 2] + gap, displacement_scale(u_c, gap),

@@ -25,7 +25,7 @@ import numpy as np
 
 from .._threads import sequential_openblas
 from ..contact import zone as zone_rules
-from ..contact.local import solve_local
+from ..contact.fallback import solve_with_fallbacks
 from ..contact.newton import solve_newton
 from ..contact.state import FROM_FCLIB, displacement_scale
 from ..errors import CheckpointError, ContactOptError
@@ -144,7 +144,8 @@ class ZonePath(SolverPath):
             warm = self._zone_warm(res.r, zone)
             zone = zp.zone
         stats = {"backend": self.library_of(system), "zone_nodes": int(zone.size), "zone_misses": misses,
-                "delassus": reused[-1], **self.solve_counts(zp)}
+                "delassus": reused[-1], **self.solve_counts(zp),
+                **({"fallback": res.stats["fallback"]} if "fallback" in res.stats else {})}
         state = self.finish_state(ctx, alpha=alpha, coords=system.assembled.coords, u=u, u_c=u3, r=r,
                                   gap=system.gap, load=self.load_scale(system), method=method,
                                   outcome=(res.iterations, res.error, res.converged),
@@ -207,7 +208,8 @@ class ZonePath(SolverPath):
         self.n_delassus += 1
         if keep:
             ctx.jacobian = KeptBlock(alpha, zp.zone, W.astype(JACOBIAN_DTYPE))
-        res = solve_local(W, q, s.friction, method=method, tol=tol, max_iter=s.max_iter, r0=r0)
+        res = solve_with_fallbacks(W, q, s.friction, method=method, tol=tol, max_iter=s.max_iter, r0=r0,
+                                   gap=system.gap[zp.zone])
         return res, t_inv, "formed"
 
     def _zone_warm(self, r_loc: np.ndarray, zone: np.ndarray) -> np.ndarray:
