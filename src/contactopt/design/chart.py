@@ -152,6 +152,9 @@ def fit_cylinder(x: np.ndarray, n_faces: np.ndarray, axis=None, origin=None) -> 
     if axis is None:
         _, _, vt = np.linalg.svd(n_faces, full_matrices=False)
         a = vt[-1]
+        # a singular vector's sign is LAPACK's choice (it differs between BLAS kernels): fix it, so
+        # that the chart's coordinates (and a design on them) are the same on every CPU
+        a = a if a[np.argmax(np.abs(a))] > 0 else -a
     else:
         a = np.asarray(axis, float)
     a = a / np.linalg.norm(a)
