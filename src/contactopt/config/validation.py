@@ -422,6 +422,27 @@ def _check_obstacle(given, data, problems) -> dict:
 
 
 
+def check_interactions(config, *, pinned: int = 0, rigid: str | None = None) -> None:
+    """Rules between features of a configuration that hold whatever solver path runs it: raise
+    ConfigError naming each pair that excludes the other.
+
+    ``pinned``: the number of clamped tangential components of contact nodes (a symmetry plane through
+    the contact face); ``rigid``: the names of the rigid motions the clamps leave free (a body held
+    only by contact), or None. Both are properties of the body built from ``config``. An elastic
+    ``[foundation]`` takes neither: a body held only by contact rests on a rigid support, and the
+    foundation's compliance would add to a clamped direction."""
+    problems = []
+    if config.foundation is not None and rigid is not None:
+        problems.append(f"body.clamped leaves rigid motions free ({rigid}): a body held only by contact rests on "
+                        "the rigid foundation or an [obstacle], not on an elastic [foundation]")
+    if config.foundation is not None and pinned:
+        problems.append(f"body.clamped: {pinned} tangential component(s) of contact nodes are clamped (a symmetry "
+                        "plane through the contact face), which an elastic [foundation] does not take (its "
+                        "compliance would add to the clamped direction); the rigid foundation does")
+    if problems:
+        raise ConfigError(problems)
+
+
 def _check_table(given: dict, keys: dict, sec: str, problems: list) -> dict:
     """The keys of table ``sec`` with their defaults filled in; unknown keys and values that fail
     their check are appended to ``problems`` (an integer where a float is expected becomes one)."""

@@ -24,6 +24,7 @@ from __future__ import annotations
 import logging
 from types import MappingProxyType
 
+from ..config.validation import check_interactions
 from ..errors import ConfigError
 from .base import Capabilities, Context, Settings, SolverPath, Start
 from .condensation import CondensationPath
@@ -72,16 +73,10 @@ def needs(config, pinned: int = 0, ranks: int = 1, rigid=None) -> dict:
         obstacle = f"{obstacle} moved tangentially"
     if obstacle != "plane":             # the contact frames rotate the system (paths/condensation.py, ...)
         out["obstacle"] = obstacle
-    if obst is not None and obst.control == "force":   # the translation balancing the force (paths/force.py)
-        out["force_obstacle"] = obstacle
     if rigid is not None:               # clamps that leave rigid motions free (paths/rigid.py)
         out["held_by_contact"] = ", ".join(rigid.names())
-        if foundation:
-            out["held_on_foundation"] = out["held_by_contact"]
     if pinned:
         out["pinned"] = str(pinned)
-        if foundation:
-            out["pinned_on_foundation"] = str(pinned)
     if "compliance" in types or config.objective.type == "compliance":
         out["compliance"] = "the compliance objective"
     full = sorted(types & FULL_SPACE)
@@ -107,8 +102,11 @@ def select_path(config, n_free: int, pinned: int = 0, rigid=None) -> tuple[str, 
     condensed load ℓ on every contact DOF), an elastic ``[foundation]`` and a body held only by
     contact stay on the condensation, and "auto" keeps any rigid obstacle there too, force-controlled
     or not (the Delassus and full-space paths take it when asked). A path asked for that lacks a feature is
-    refused with what it lacks and the paths that take it; so is one whose libraries are missing."""
+    refused with what it lacks and the paths that take it; so is one whose libraries are missing.
+    Features that exclude each other on every path are refused first
+    (:func:`~contactopt.config.validation.check_interactions`)."""
     from .._mpi import world_size
+    check_interactions(config, pinned=pinned, rigid=None if rigid is None else ", ".join(rigid.names()))
     ls = config.linear_solver
     name, ranks = ls.path, world_size()
     need = needs(config, pinned, ranks, rigid)

@@ -62,17 +62,19 @@ class Capabilities:
     ``path = "auto"`` gives it ("small": below ``crossover``, "large": from there, first the
     lowest ``auto_order`` whose ``libraries`` and ``auto_libraries`` are installed, "ranks": under
     mpiexec with more than one rank; "" never); ``auto_avoids``: features for which "auto" takes
-    another path that has them where one fits (a path that takes them, but not as the first choice)."""
+    another path that has them where one fits (a path that takes them, but not as the first choice).
+
+    Only what a path's linear algebra can do is a feature here: a force-controlled obstacle is an
+    outer search over the translation of an obstacle (:mod:`.force`), taken wherever the obstacle
+    is, and rules between features of a configuration that no path takes (a body held only by
+    contact, or clamped contact nodes, on an elastic foundation) are refused by
+    :func:`contactopt.config.validation.check_interactions` before any path is asked."""
 
     foundation: bool = _feature(
         "an elastic [foundation]",
         "linear_solver.path = '{path}': {detail} is solved on {on} only; use path {takers} or 'auto'")
     obstacle: bool = _feature(
         "a rigid [obstacle] other than the fixed plane",
-        "linear_solver.path = '{path}': a {detail} [obstacle] is solved on {on} only (one process); "
-        "use path {takers} or 'auto'")
-    force_obstacle: bool = _feature(
-        "a force-controlled [obstacle]",
         "linear_solver.path = '{path}': a {detail} [obstacle] is solved on {on} only (one process); "
         "use path {takers} or 'auto'")
     obstacle_steps: bool = _feature(
@@ -83,19 +85,10 @@ class Capabilities:
         "a body held only by contact",
         "linear_solver.path = '{path}': body.clamped leaves rigid motions free ({detail}); a body held only "
         "by contact is solved on {on} only; use path {takers} or 'auto'")
-    held_on_foundation: bool = _feature(
-        "a body held only by contact on an elastic [foundation]",
-        "body.clamped leaves rigid motions free ({detail}): a body held only by contact rests on the rigid "
-        "foundation or an [obstacle], not on an elastic [foundation]")
     pinned: bool = _feature(
         "clamped tangential components of contact nodes",
         "linear_solver.path = '{path}': {detail} tangential component(s) of contact nodes are clamped (a "
         "symmetry plane through the contact face), which it does not take; use path {takers}")
-    pinned_on_foundation: bool = _feature(
-        "clamped contact nodes on an elastic [foundation]",
-        "body.clamped: {detail} tangential component(s) of contact nodes are clamped (a symmetry plane "
-        "through the contact face), which an elastic [foundation] does not take (its compliance would add "
-        "to the clamped direction); the rigid foundation does")
     compliance: bool = _feature(
         "the compliance objective",
         "linear_solver.path = '{path}': the compliance objective needs the condensed load on every contact "

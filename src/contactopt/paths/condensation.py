@@ -112,7 +112,7 @@ class CondensationPath(ForceControl, ZonePath):
     """``[linear_solver] path = "condensation"`` (module docstring)."""
 
     name = "condensation"
-    capabilities = Capabilities(foundation=True, obstacle=True, force_obstacle=True, obstacle_steps=True,
+    capabilities = Capabilities(foundation=True, obstacle=True, obstacle_steps=True,
                                 held_by_contact=True, pinned=True,
                                 compliance=True,
                                 whole_displacement=True, load_steps=True, auto="small")

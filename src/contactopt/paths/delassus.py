@@ -62,7 +62,7 @@ class DelassusPath(ForceControl, ZonePath):
     """``[linear_solver] path = "delassus"`` (module docstring)."""
 
     name = "delassus"
-    capabilities = Capabilities(obstacle=True, force_obstacle=True, pinned=True, whole_displacement=True,
+    capabilities = Capabilities(obstacle=True, pinned=True, whole_displacement=True,
                                 load_steps=True, auto="large", auto_order=1, auto_libraries=("pardiso",), auto_avoids=("obstacle",))
     reuse_tol_factor = 1.0    # each Newton step costs a sparse solve here: to tol itself
     accept_at_tol = True      # forming W_Z costs more than a factorization

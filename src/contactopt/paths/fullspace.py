@@ -165,7 +165,7 @@ class FullSpacePath(ForceControl, FullSpaceCommon):
     """``[linear_solver] path = "fullspace"`` (module docstring)."""
 
     name = "fullspace"
-    capabilities = Capabilities(obstacle=True, force_obstacle=True, pinned=True, whole_displacement=True,
+    capabilities = Capabilities(obstacle=True, pinned=True, whole_displacement=True,
                                 load_steps=True, libraries=("pyamg",), sparse="pyamg", auto="large", auto_order=0,
                                 auto_avoids=("obstacle",))
 
