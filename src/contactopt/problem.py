@@ -272,7 +272,7 @@ class ShapeProblem:
         """Compute the targets of the cases' objectives now: a 'design' target solves a state at
         its own design, which must not come between a state and its adjoint."""
         for case in self.cases:
-            getattr(case.objective, "target", None)
+            case.objective.target  # noqa: B018 (read for its computation)
 
     def evaluate_cases(self, alpha, **kw):
         """Θ_k of every load case and their combination at α: a

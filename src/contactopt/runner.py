@@ -163,6 +163,7 @@ class _Oracle:
         self.count = 0
         self.iteration = 0
         self.last_good = None
+        self.reduction = None     # [design] symmetry / fixed: the bundle works on β (design.reduction)
         self.time = {"state": 0.0, "adjoint": 0.0, "design_terms": 0.0}
 
     def __call__(self, x):
@@ -239,7 +240,7 @@ def _write_checkpoint(path: Path, bstate, oracle: _Oracle, fingerprint: str, ela
     arrays.update(meta_fingerprint=np.array(fingerprint), meta_evaluations=np.array(oracle.count),
                   meta_elapsed=np.array(elapsed), meta_scale=np.array(oracle.scale), meta_eps=np.array(opt.eps),
                   meta_max_iter=np.array(opt.max_iter))
-    if getattr(oracle, "reduction", None) is not None:     # the bundle works on β: the design in α
+    if oracle.reduction is not None:     # the bundle works on β: the design in α
         arrays["meta_alpha"] = oracle.reduction.expand(d["x"])
     if result is not None:
         arrays.update(meta_result_status=np.array(int(result.status)), meta_result_message=np.array(result.message),
@@ -505,7 +506,7 @@ def run_optimization(config, outdir=None, *, eps=None, max_iter=None, resume=Fal
 
         def callback(inter):
             st = inter.state
-            pen = getattr(inter, "penalty", None)       # [[constraints]]: σ and the earlier bundle runs
+            pen = inter.get("penalty")       # [[constraints]]: σ and the earlier bundle runs
             nit = st.nit + (pen.nit if pen is not None else 0)
             oracle.iteration = nit
             h = st.history[-1] if st.history else {}
@@ -621,7 +622,7 @@ def _finish(out: Path, problem, alpha0, res, oracle, t_start) -> dict:
     c1 = problem.evaluate_cases(x, warm_start=False)
     states1, J, steps1 = problem.solve_states(x), c1.value, _step_outputs(out, problem, "optimal")
     s0, s1 = states0[c1.case], states1[c1.case]      # the load case active at the optimum
-    target = getattr(problem.cases[c1.case].objective, "target", None)
+    target = problem.cases[c1.case].objective.target
     write_body_vtu(out / "initial.vtu", model, s0)
     write_body_vtu(out / "optimal.vtu", model, s1)
     pvd = [(0, "initial.vtu"), (1, "optimal.vtu")]

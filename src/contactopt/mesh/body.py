@@ -56,6 +56,8 @@ class Body(HasParts):
     # full DOF indices of the clamped tangential components of contact nodes: free DOFs of A
     # with u = 0 held by the contact law (module docstring)
     rigid: object = None          # mesh.rigid.RigidModes the clamps leave free (held by contact), or None
+    sizes: tuple | None = field(default=None, compare=False, repr=False)
+    # (free DOFs, entries of the stiffness on them), counted once by contactopt.fem.memory
 
 
 def reference_mesh(cfg):

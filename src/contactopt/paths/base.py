@@ -143,6 +143,18 @@ class _Takes:
         return getattr(owner.capabilities, self.feature)
 
 
+class SystemParts:
+    """The optional parts the system of a design and load case may carry on any path, None where
+    it has none (a path's system class declares those it can hold as fields): ``coupling`` the
+    :class:`~contactopt.fem.foundation.Coupling` of an elastic foundation (S_eff, ℓ_eff), ``product``
+    x ↦ A(α) x on the free DOFs where A(α) is not formed on this process, ``force`` a load step's
+    |f| of a force-controlled obstacle (None: the model's)."""
+
+    coupling = None
+    product = None
+    force = None
+
+
 class Adjoint(NamedTuple):
     """What :meth:`SolverPath.adjoint` computes: ``v_u`` (3p, per node (t1, t2, ν)), ``v_lam``
     (p,), ``v`` ṽ on all DOFs, and ``krylov`` the GMRES iterations it took (None where it was

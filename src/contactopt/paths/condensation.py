@@ -46,15 +46,15 @@ import numpy as np
 
 from ..contact import zone as zone_rules
 from ..fem import memory
-from ..fem.model import Assembled
-from .base import Adjoint, Capabilities
+from ..fem.model import Assembled, ElasticModel
+from .base import Adjoint, Capabilities, SystemParts
 from .force import ForceControl
 from .rigid import anchor, with_contact_diagonal
 from .zone_paths import ZonePath
 
 
 @dataclass
-class CondensedSystem:
+class CondensedSystem(SystemParts):
     """One design's condensed system: ``factor`` the condensation (S, ℓ and the recovery of
     the interior DOFs), ``S`` (3p, 3p) and ``ell`` (3p,) per node (t1, t2, ν), ``gap`` (p,)."""
 
@@ -124,7 +124,8 @@ class CondensationPath(ForceControl, ZonePath):
     @classmethod
     def memory_estimate(cls, body, **kw):
         est = memory.estimate_evaluation(body, memory.condensation_parts)
-        foundation = getattr(body, "foundation", None)       # a model's elastic foundation
+        # a model's elastic foundation (a body alone: the foundation's part is checked beside it)
+        foundation = body.foundation if isinstance(body, ElasticModel) else None
         return est if foundation is None else est.with_parts(foundation.memory_parts)
 
     def prepare(self, asm) -> CondensedSystem:
@@ -164,17 +165,17 @@ class CondensationPath(ForceControl, ZonePath):
 
     @property
     def foundation(self):
-        return getattr(self.model, "foundation", None)
+        return self.model.foundation
 
     @property
     def rigid_modes(self):
         """The rigid motions the clamps leave free (:class:`contactopt.mesh.rigid.RigidModes`), or None."""
-        return getattr(self.model.body, "rigid", None)
+        return self.model.body.rigid
 
     @property
     def frames(self):
         """(p, 3, 3) contact frames on an obstacle other than the plane, else None (module docstring)."""
-        return getattr(self.model, "frames", None)
+        return self.model.frames
 
     def for_load(self, system, asm) -> CondensedSystem:
         t1 = time.perf_counter()

@@ -31,7 +31,7 @@ from ..contact import zone as zone_rules
 from ..contact.state import CLASS_CODES, FROM_FCLIB, displacement_scale
 from ..fem import memory
 from ..fem.model import Assembled
-from .base import Adjoint, Capabilities
+from .base import Adjoint, Capabilities, SystemParts
 from .force import ForceControl, normal_stiffness
 from .zone_paths import ZonePath
 
@@ -45,7 +45,7 @@ ADJOINT_MAX_NEW = 0.1   # the adjoint's preconditioner takes exact columns for a
 
 
 @dataclass
-class FactorizedSystem:
+class FactorizedSystem(SystemParts):
     """One design's system on the Delassus path: ``factor`` the slot holding the sparse
     factorization of A(α) (free DOFs), ``x0`` = A(α)⁻¹L(α) the displacement without contact
     forces, ``gap`` (p,)."""
@@ -56,6 +56,7 @@ class FactorizedSystem:
     gap: np.ndarray
     timings: dict
     shift: np.ndarray | None = None    # an obstacle's tangential translation (3p, per node frame), or None
+    force: float | None = None         # a load step's |f| of a force-controlled obstacle (None: the model's)
 
 
 class DelassusPath(ForceControl, ZonePath):
@@ -93,7 +94,7 @@ class DelassusPath(ForceControl, ZonePath):
         self._slot.set(fac)       # releases the last design's zone condensation, if any
         t1 = time.perf_counter()
         x0 = fac.solve(asm.L)
-        s = getattr(self.model, "slip_shift", None)
+        s = self.model.slip_shift
         return FactorizedSystem(asm, self._slot, x0, asm.gap,
                                 {"factor": t1 - t0, "load_solve": time.perf_counter() - t1},
                                 None if s is None else s.ravel())
@@ -130,7 +131,7 @@ class DelassusPath(ForceControl, ZonePath):
         """(p, 3, 3) contact frames on an obstacle other than the plane (columns (t1, t2, n)), else None:
         W, forces and contact displacements are then per node in its frame (:class:`~contactopt.contact.
         zone.FramedDelassusZoneProblem`)."""
-        return getattr(self.model, "frames", None)
+        return self.model.frames
 
     def law_frames(self, system):
         """The frames of the zone problems: :attr:`frames`, or the axes on the plane translated

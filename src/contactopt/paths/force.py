@@ -78,12 +78,12 @@ class ForceControl:
         found by Brent's method (module docstring): the state's ``obstacle`` holds s, the resultant and the solves."""
         kw = dict(method=method, warm_start=warm_start, tol=tol, shared=shared, label=label, slip_ref=slip_ref)
         m = self.model
-        if getattr(m, "force", None) is None:
+        if m.obstacle_force is None:
             return self.fixed_state(system, ctx, alpha, **kw)
         from scipy.optimize import brentq
 
-        c, b, f = m.force_gap, m.force_b, m.force
-        if getattr(system, "force", None) is not None:      # a load step's own force (sensitivity/steps.py)
+        c, b, f = m.obstacle_force.gap_rate, m.obstacle_force.b, m.obstacle_force.magnitude
+        if system.force is not None:      # a load step's own force (sensitivity/steps.py)
             f = system.force
         e = (b * TANGENTIAL).ravel()
         states = {}
@@ -137,7 +137,7 @@ class ForceControl:
     def controlled_subgradient(self, system, ctx, state, v_u, v_lam, xi, loads=None, *, v=None, y_u=None):
         """ξ with the translation of a force-controlled obstacle following α (module docstring);
         ``v`` ṽ of the objective's adjoint on every DOF, ``y_u`` its ∂J/∂u (:meth:`adjoint`)."""
-        if getattr(self.model, "force", None) is None:
+        if self.model.obstacle_force is None:
             return xi
         t = self.force_terms(system, ctx, state, v_lam, loads, v=v, y_u=y_u)
         if t.dF_ds == 0:
@@ -149,10 +149,10 @@ class ForceControl:
         objective's adjoint on every DOF, ``y_u`` the objective's own ∂J/∂u (on every DOF, it moves
         with s at fixed w; on a load path without what later steps pass down)."""
         m = self.model
-        c, b = m.force_gap, m.force_b
+        c, b = m.obstacle_force.gap_rate, m.obstacle_force.b
         e = (b * TANGENTIAL).ravel()
         A, asm = system.assembled.A, m.assembler
-        frames = getattr(m, "frames", None)
+        frames = m.frames
         dT_ds = -float(v_lam @ c)
         if np.any(e):
             force = (A @ np.asarray(v)[asm.free])[m.contact_dofs]       # (A ṽ)_c

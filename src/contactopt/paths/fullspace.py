@@ -37,7 +37,7 @@ from .._threads import sequential_openblas
 from ..errors import CheckpointError
 from ..fem import memory
 from ..fem.model import Assembled
-from .base import Adjoint, Capabilities, Context, SolverPath, check_design
+from .base import Adjoint, Capabilities, Context, SolverPath, SystemParts, check_design
 from .force import ForceControl, normal_stiffness
 
 log = logging.getLogger(__name__)
@@ -48,7 +48,7 @@ HIERARCHY_SEED = 20090101  # NumPy's global generator while pyamg builds a hiera
 
 
 @dataclass
-class FullSystem:
+class FullSystem(SystemParts):
     """One design's system in full space: A(α), L(α) in ``assembled`` as they are, ``gap`` (p,);
     on an obstacle other than the plane also ``T`` and the rotated ``A``, ``L`` (:class:`Frames`)."""
 
@@ -59,6 +59,7 @@ class FullSystem:
     A: object = None
     L: np.ndarray | None = None
     shift: np.ndarray | None = None    # an obstacle's tangential translation (p, 2) per node frame, or None
+    force: float | None = None         # a load step's |f| of a force-controlled obstacle (None: the model's)
 
     @property
     def law_A(self):
@@ -183,10 +184,10 @@ class FullSpacePath(ForceControl, FullSpaceCommon):
     @property
     def frames(self):
         """(p, 3, 3) contact frames on an obstacle other than the plane, else None."""
-        return getattr(self.model, "frames", None)
+        return self.model.frames
 
     def prepare(self, asm) -> FullSystem:
-        s = getattr(self.model, "slip_shift", None)
+        s = self.model.slip_shift
         shift = None if s is None else s[:, :2]
         if self.frames is None:
             return FullSystem(asm, asm.gap, {}, shift=shift)

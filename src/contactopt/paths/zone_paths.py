@@ -235,7 +235,7 @@ class ZonePath(SolverPath):
         if not self.settings.reuse_delassus:
             return
         for other in others:
-            j = getattr(other, "jacobian", None)
+            j = other.jacobian
             if j is not None and np.array_equal(j.alpha, alpha) and np.array_equal(j.zone, zone):
                 ctx.jacobian = j
                 return

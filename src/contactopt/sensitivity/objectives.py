@@ -32,6 +32,7 @@ class Objective:
     full_space = False       # True: ∂J/∂u is on every DOF (3·n_nodes), not on the contact DOFs only
     accumulates = False      # True: on a load path J sums over the solves (:meth:`evaluate_path`)
     loads = None             # the load set of the objective's load case (None: the configuration's)
+    target = None            # the prescribed normal forces λ̄ of a target_normal_force term, else None
 
     def __init__(self, model, scale: float = 1.0):
         self.model = model
@@ -172,7 +173,7 @@ class FrictionalDissipation(Objective):
     accumulates = True           # on a load path: the work of every solve's slip increment
 
     def evaluate(self, state, cond):
-        return self._work(state, cond, getattr(self, "loads", None))[:4]
+        return self._work(state, cond, self.loads)[:4]
 
     def _work(self, state, cond, loads):
         """(τ·Δu_t, ∂/∂u, 0 (p,), ∂/∂α at fixed u, ∂/∂u of the previous solve (every DOF)) of one
@@ -188,7 +189,7 @@ class FrictionalDissipation(Objective):
         full = (3 * model.contact_nodes[:, None] + np.arange(2)).ravel()
         u_t = np.zeros(asm.n_full)
         u_t[full] = ut.ravel()
-        coupling = getattr(cond, "coupling", None)
+        coupling = None if cond is None else cond.coupling
         if coupling is not None:                  # an elastic foundation (class docstring)
             tau3 = np.zeros((p, 3))
             tau3[:, :2] = state.tau
@@ -223,7 +224,7 @@ def stiffness_product(cond, asm, coords, x) -> np.ndarray:
     """A(α) x on the free DOFs: by the system's own ``product`` where A(α) is not formed on this
     process (the PETSc path multiplies on its ranks), else with the system's A(α), else with A
     assembled at ``coords``."""
-    product = getattr(cond, "product", None)
+    product = None if cond is None else cond.product
     if product is not None:
         return product(x)
     A = cond.assembled.A if cond is not None and hasattr(cond, "assembled") else asm.stiffness(coords)
@@ -316,7 +317,7 @@ class Compliance(Objective):
         dc = model.design_contraction
         dalpha = -dc(asm.coords, zhat, state.u) - dc(asm.coords, np.zeros_like(zhat), zhat)
         dw = cond.ell.copy()
-        coupling = getattr(cond, "coupling", None)
+        coupling = cond.coupling
         if coupling is not None:                  # an elastic foundation (class docstring)
             dw = coupling.to_eff(cond.ell)
             z = -coupling.adjoint_z(coupling.foundation.C @ cond.ell)
@@ -357,7 +358,7 @@ class WeightedSum(Objective):
         its adjoint (:meth:`contactopt.problem.ShapeProblem.prepare_objectives`)."""
         out = None
         for _, _, o in self.terms:
-            t = getattr(o, "target", None)
+            t = o.target
             out = t if out is None else out
         return out
 
@@ -379,7 +380,7 @@ class WeightedSum(Objective):
         self.last_terms = {}
         # on an elastic foundation ∂J/∂u_c of a contact-only term is on the state's w, not on the
         # body's u_c: compliance (the one such term with ∂J/∂u_c ≠ 0) joins in its whole-body form
-        coupled = self.full_space and getattr(cond, "coupling", None) is not None
+        coupled = self.full_space and cond is not None and cond.coupling is not None
         for name, w, obj in self.terms:
             full = coupled and hasattr(obj, "evaluate_full")
             v, y_u, y_lam, y_a = obj.evaluate_full(state, cond) if full else obj.evaluate(state, cond)
