@@ -37,6 +37,7 @@ from ..contact.state import (
     displacement_scale,
 )
 from ..errors import CheckpointError
+from .transforms import Mechanics
 
 log = logging.getLogger(__name__)
 
@@ -221,6 +222,7 @@ class SolverPath:
 
     def __init__(self, model, settings: Settings, start: Start | None = None):
         self.model = model
+        self.mechanics = Mechanics.of(model)     # the transforms of the model's contact system
         self.settings = settings
         self.start = start if start is not None else Start()
         self.library = settings.library
@@ -269,7 +271,30 @@ class SolverPath:
     def solve_state(self, system, ctx, alpha, *, method, warm_start, tol, shared, label="",
                     slip_ref=None) -> State:
         """The contact state of one load case; ``shared`` is a dict the cases of one design share;
-        ``slip_ref`` (p, 2) u_t at the end of the previous load step (paths with load steps)."""
+        ``slip_ref`` (p, 2) u_t at the end of the previous load step (paths with load steps).
+        A path that takes an obstacle returns :meth:`transformed_state`."""
+        raise NotImplementedError
+
+    def transformed_state(self, system, ctx, alpha, **kw) -> State:
+        """The state through the outer transforms of the contact system (:mod:`.transforms`): the
+        force search of a force-controlled obstacle around :meth:`fixed_state`, else that itself."""
+        search = self.mechanics.search
+        if search is None:
+            return self.fixed_state(system, ctx, alpha, **kw)
+        return search.solve(self, system, ctx, alpha, **kw)
+
+    # ------------------------------------------------------------------ hooks of the transforms
+    def fixed_state(self, system, ctx, alpha, *, method, warm_start, tol, shared, label="", slip_ref=None) -> State:
+        """The state with the obstacle where ``system`` puts it: the path's own solve."""
+        raise NotImplementedError
+
+    def translated(self, system, s: float, c: np.ndarray, e: np.ndarray):
+        """``system`` with the obstacle translated by s f̂ (:mod:`.force`): gap g − s c, tangential
+        shift s e (3p per node frame, normal parts 0) added to the law's."""
+        raise NotImplementedError
+
+    def normal_stiffness(self, system) -> np.ndarray:
+        """(p,) a stiffness per contact node along its normal (the force search's first step only)."""
         raise NotImplementedError
 
     def adjoint(self, system, ctx, state, y_u, y_lam, choices=None) -> Adjoint:
@@ -286,9 +311,17 @@ class SolverPath:
     def controlled_subgradient(self, system, ctx, state, v_u, v_lam, xi, loads=None, *, v=None,
                                y_u=None) -> np.ndarray:
         """ξ of a state with a force-controlled obstacle, whose translation depends on α
-        (:mod:`.force`; ``v`` ṽ of the objective's adjoint, ``y_u`` its ∂J/∂u); ``xi`` itself on
-        the paths without one."""
-        return xi
+        (:mod:`.force`; ``v`` ṽ of the objective's adjoint, ``y_u`` its ∂J/∂u); ``xi`` itself
+        without one."""
+        search = self.mechanics.search
+        if search is None:
+            return xi
+        return search.subgradient(self, system, ctx, state, v_u, v_lam, xi, loads, v=v, y_u=y_u)
+
+    def force_terms(self, system, ctx, state, v_lam, loads=None, *, v=None, y_u=None):
+        """∂Θ/∂s, ∂F/∂s, ∂F/∂α and the adjoint of F of a force-controlled obstacle at a state
+        (:meth:`.force.ForceSearch.terms`)."""
+        return self.mechanics.search.terms(self, system, ctx, state, v_lam, loads, v=v, y_u=y_u)
 
     def is_full(self, y_u) -> bool:
         """Whether ``y_u`` is ∂J/∂u on every DOF (:meth:`adjoint`), not on the contact DOFs."""

@@ -32,7 +32,8 @@ from ..contact.state import CLASS_CODES, FROM_FCLIB, displacement_scale
 from ..fem import memory
 from ..fem.model import Assembled
 from .base import Adjoint, Capabilities, SystemParts
-from .force import ForceControl, normal_stiffness
+from .force import normal_stiffness
+from .transforms import from_frames, to_frames
 from .zone_paths import ZonePath
 
 log = logging.getLogger(__name__)
@@ -59,7 +60,7 @@ class FactorizedSystem(SystemParts):
     force: float | None = None         # a load step's |f| of a force-controlled obstacle (None: the model's)
 
 
-class DelassusPath(ForceControl, ZonePath):
+class DelassusPath(ZonePath):
     """``[linear_solver] path = "delassus"`` (module docstring)."""
 
     name = "delassus"
@@ -94,10 +95,10 @@ class DelassusPath(ForceControl, ZonePath):
         self._slot.set(fac)       # releases the last design's zone condensation, if any
         t1 = time.perf_counter()
         x0 = fac.solve(asm.L)
-        s = self.model.slip_shift
+        shift = self.mechanics.shift
         return FactorizedSystem(asm, self._slot, x0, asm.gap,
                                 {"factor": t1 - t0, "load_solve": time.perf_counter() - t1},
-                                None if s is None else s.ravel())
+                                None if shift is None else shift.vector)
 
     def for_load(self, system, asm) -> FactorizedSystem:
         t1 = time.perf_counter()
@@ -131,7 +132,7 @@ class DelassusPath(ForceControl, ZonePath):
         """(p, 3, 3) contact frames on an obstacle other than the plane (columns (t1, t2, n)), else None:
         W, forces and contact displacements are then per node in its frame (:class:`~contactopt.contact.
         zone.FramedDelassusZoneProblem`)."""
-        return self.model.frames
+        return self.mechanics.frames
 
     def law_frames(self, system):
         """The frames of the zone problems: :attr:`frames`, or the axes on the plane translated
@@ -154,14 +155,10 @@ class DelassusPath(ForceControl, ZonePath):
         R = self.law_frames(system)
         if R is None:
             return np.ravel(u_c)
-        from .condensation import from_frames
         u = np.ravel(u_c) if system.shift is None else np.ravel(u_c) + system.shift
         return from_frames(u, R)
 
     # ------------------------------------------------------------------ a force-controlled obstacle (.force)
-    def fixed_state(self, system, ctx, alpha, **kw):
-        return ZonePath.solve_state(self, system, ctx, alpha, **kw)
-
     def translated(self, system, s, c, e):
         shift = system.shift
         if np.any(e):
@@ -189,7 +186,6 @@ class DelassusPath(ForceControl, ZonePath):
         u0 = system.x0[self.model.contact_dofs]
         R = self.law_frames(system)
         if R is not None:
-            from .condensation import to_frames
             u0 = to_frames(u0, R) - (0.0 if system.shift is None else system.shift)
         u0 = u0.reshape(-1, 3)
         clearance = u0[:, 2] + system.gap
@@ -226,7 +222,6 @@ class DelassusPath(ForceControl, ZonePath):
         contact = self.model.contact_dofs
         n = system.x0.size
         R = self.frames
-        from .condensation import from_frames, to_frames
         rot, back = (lambda v: v, lambda v: v) if R is None else (lambda v: to_frames(v, R), lambda v: from_frames(v, R))
 
         def apply(s):

@@ -38,7 +38,8 @@ from ..errors import CheckpointError
 from ..fem import memory
 from ..fem.model import Assembled
 from .base import Adjoint, Capabilities, Context, SolverPath, SystemParts, check_design
-from .force import ForceControl, normal_stiffness
+from .force import normal_stiffness
+from .transforms import frame_rotation
 
 log = logging.getLogger(__name__)
 
@@ -69,18 +70,6 @@ class FullSystem(SystemParts):
     @property
     def law_L(self):
         return self.assembled.L if self.T is None else self.L
-
-
-def frame_rotation(contact_dofs: np.ndarray, frames: np.ndarray, n_free: int):
-    """T (n_free × n_free, orthogonal, sparse): the identity but at each contact node, whose free DOFs
-    (x1, x2, x3) it maps from the node's frame (t1, t2, n): u = T u_loc (module docstring)."""
-    import scipy.sparse as sp
-    cd = np.asarray(contact_dofs).reshape(-1, 3)
-    other = np.setdiff1d(np.arange(n_free), cd.ravel())
-    rows = np.concatenate([other, np.repeat(cd, 3, axis=1).ravel()])
-    cols = np.concatenate([other, np.tile(cd, (1, 3)).ravel()])
-    vals = np.concatenate([np.ones(other.size), frames.reshape(-1)])
-    return sp.csr_matrix((vals, (rows, cols)), shape=(n_free, n_free))
 
 
 @dataclass
@@ -162,7 +151,7 @@ class FullSpaceCommon(SolverPath):
         self.restore(ctx, arrays, u, alpha, where)
 
 
-class FullSpacePath(ForceControl, FullSpaceCommon):
+class FullSpacePath(FullSpaceCommon):
     """``[linear_solver] path = "fullspace"`` (module docstring)."""
 
     name = "fullspace"
@@ -184,11 +173,10 @@ class FullSpacePath(ForceControl, FullSpaceCommon):
     @property
     def frames(self):
         """(p, 3, 3) contact frames on an obstacle other than the plane, else None."""
-        return self.model.frames
+        return self.mechanics.frames
 
     def prepare(self, asm) -> FullSystem:
-        s = self.model.slip_shift
-        shift = None if s is None else s[:, :2]
+        shift = None if self.mechanics.shift is None else self.mechanics.shift.tangential
         if self.frames is None:
             return FullSystem(asm, asm.gap, {}, shift=shift)
         import scipy.sparse as sp
@@ -234,6 +222,11 @@ class FullSpacePath(ForceControl, FullSpaceCommon):
                 return ContactHierarchy(A, modes, contact_dofs=self.model.contact_dofs)
         finally:
             np.random.set_state(saved)
+
+    def solve_state(self, system, ctx, alpha, *, method, warm_start, tol, shared, label="", slip_ref=None):
+        """The state through the transforms of the contact system (:meth:`transformed_state`)."""
+        return self.transformed_state(system, ctx, alpha, method=method, warm_start=warm_start, tol=tol,
+                                      shared=shared, label=label, slip_ref=slip_ref)
 
     def fixed_state(self, system, ctx, alpha, *, method, warm_start, tol, shared, label="", slip_ref=None):
         """The state with the obstacle where ``system`` puts it (:meth:`solve_state`, :mod:`.force`),
