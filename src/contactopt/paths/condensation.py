@@ -50,7 +50,7 @@ from ..fem import memory
 from ..fem.foundation import Coupling
 from ..fem.model import Assembled, ElasticModel
 from .base import Adjoint, Capabilities, SystemParts
-from .rigid import anchor, held_state, with_contact_diagonal
+from .rigid import Anchor, anchor, held_state, with_contact_diagonal
 from .zone_paths import ZonePath
 
 
@@ -65,10 +65,10 @@ class CondensedSystem(SystemParts):
     ell: np.ndarray
     gap: np.ndarray
     timings: dict
-    coupling: object = None            # on an elastic foundation: fem.foundation.Coupling, S_eff ...
+    coupling: Coupling | None = None   # on an elastic foundation: S_eff ...
     ell_eff: np.ndarray | None = None  # ... and ℓ_eff = S_eff (S⁻¹ℓ − Π q_f) (module docstring)
     shift: np.ndarray | None = None    # an obstacle's tangential translation (3p,) per node frame: ℓ_eff = ℓ − S shift
-    rigid: object = None               # a body held only by contact: its Anchor (the kernel of S, module docstring)
+    rigid: Anchor | None = None        # a body held only by contact: the kernel of S (module docstring)
     beta: np.ndarray | None = None     # ... and the anchor's position β of this solve
     force: float | None = None         # a load step's |f| of a force-controlled obstacle (None: the model's)
 
