@@ -23,6 +23,7 @@ from __future__ import annotations
 import logging
 from contextlib import nullcontext
 from dataclasses import dataclass, field, fields
+from functools import cached_property
 from typing import NamedTuple
 
 import numpy as np
@@ -222,13 +223,17 @@ class SolverPath:
 
     def __init__(self, model, settings: Settings, start: Start | None = None):
         self.model = model
-        self.mechanics = Mechanics.of(model)     # the transforms of the model's contact system
         self.settings = settings
         self.start = start if start is not None else Start()
         self.library = settings.library
         self.all_nodes = np.arange(model.n_contact)
         self.n_zone_misses = 0     # zone problems solved again on a grown zone
         self.n_delassus = 0        # Delassus blocks W_Z formed (the others were reused)
+
+    @cached_property
+    def mechanics(self) -> Mechanics:
+        """The transforms of the model's contact system (:mod:`.transforms`), built on first use."""
+        return Mechanics.of(self.model)
 
     @property
     def first_loads(self):
