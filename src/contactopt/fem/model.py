@@ -66,7 +66,7 @@ class Assembled:
 @dataclass(frozen=True)
 class ObstacleForce:
     """A force-controlled obstacle (``[obstacle] control = "force"``) seen from the contact nodes: it
-    translates by s f̂ along its force f, ``magnitude`` = |f|; per contact node m ``b`` (p, 3) =
+    translates by s f̂ along its force f of length ``magnitude``; per contact node m ``b`` (p, 3) =
     R_mᵀ f̂ in the node's frame (t1, t2, n), so that the resultant along f̂ is Σ_m b_m·r_m (r_m the
     force on the body in that frame), and ``gap_rate`` (p,) = f̂·n_m, by which the gap g_m falls per
     unit of s (:mod:`contactopt.paths.force`)."""

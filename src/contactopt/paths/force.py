@@ -60,7 +60,8 @@ TANGENTIAL = np.array([1.0, 1.0, 0.0])
 class ForceSearch:
     """The translation of a force-controlled obstacle and its subgradient (module docstring): an
     outer search around the state solve of any path that takes an obstacle. ``force`` the
-    obstacle's :class:`~contactopt.fem.model.ObstacleForce` (|f|, b_m, c_m per contact node). The
+    obstacle's :class:`~contactopt.fem.model.ObstacleForce` (the force's magnitude, b_m and c_m per
+    contact node). The
     path gives three hooks: ``fixed_state`` (its own solve with the obstacle where a system puts
     it), ``translated`` (a system with the obstacle moved by s f̂) and ``normal_stiffness``."""
 
