@@ -31,7 +31,7 @@ import numpy as np
 
 from contactopt.optimize import minimize_bundle
 from contactopt.optimize._bundle_qp import Polyhedron
-from contactopt.optimize.testproblems import (
+from contactopt.optimize.gallery import (
     PROBLEMS,
     goffin_problem,
     max_linear_problem,

@@ -2,7 +2,7 @@
 
 Run:  OPENBLAS_CORETYPE=<kernel> OPENBLAS_NUM_THREADS=1 python benchmarks/bench_constrained.py [--sigma0 S]
 
-Prints one row per problem of ``contactopt.optimize.testproblems.CONSTRAINED`` (n, number of
+Prints one row per problem of ``contactopt.optimize.gallery.CONSTRAINED`` (n, number of
 constraints m, f*, f found, relative error of f — of max(1, |f*|) —, the largest c(x), oracle
 evaluations, iterations, the final σ and how often it was raised, the stop) with
 ``minimize_constrained``'s defaults but ctol = 1e-8 and eps = 1e-7 (as the tests), and the
@@ -18,7 +18,7 @@ import time
 import numpy as np
 
 from contactopt.optimize.constrained import minimize_constrained
-from contactopt.optimize.testproblems import CONSTRAINED
+from contactopt.optimize.gallery import CONSTRAINED
 
 
 def main() -> None:

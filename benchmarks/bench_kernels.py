@@ -31,7 +31,7 @@ PROBLEMS_CODE = """
 import json
 from threadpoolctl import threadpool_info
 from contactopt.optimize import minimize_bundle
-from contactopt.optimize.testproblems import PROBLEMS, goffin_problem, max_linear_problem
+from contactopt.optimize.gallery import PROBLEMS, goffin_problem, max_linear_problem
 probs = dict(PROBLEMS)
 probs["GOFFIN-50"] = goffin_problem()
 probs["MAXLIN-60"] = max_linear_problem(60)

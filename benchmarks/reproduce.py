@@ -75,7 +75,7 @@ def case_result(name: str, out: Path, timing: dict) -> dict:
     res = {"case": name, "J0": s["J0"], "J": s["J"], "ratio": s["ratio"], "iterations": s["iterations"],
            "evaluations": s["evaluations"], "serious": s["serious_steps"], "null": s["null_steps"],
            "success": s["success"], "status": s.get("status"), "stopping": s.get("stopping"),
-           "message": s["message"], "feasible": s["feasible"],
+           "message": s["message"], "admissible": s["admissible"],
            "wall_time_run_s": s["wall_time_s"], **timing}
     for eps in (1e-3, 1e-4):
         hit = first_below(rows, eps)

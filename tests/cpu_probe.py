@@ -18,7 +18,7 @@ def main(outdir: Path) -> dict:
 
     from contactopt.config import load_config
     from contactopt.optimize import minimize_bundle
-    from contactopt.optimize.testproblems import goffin_problem, max_linear_problem
+    from contactopt.optimize.gallery import goffin_problem, max_linear_problem
     from contactopt.runner import run_optimization
 
     out = {}

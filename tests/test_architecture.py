@@ -326,6 +326,90 @@ def test_the_info_detector_passes_named_fields_and_own_attributes():
     assert not _info_uses(ast.parse(ok))
 
 
+# ------------------------------------------------------------------ the run and the optimizer
+MAX_FUNCTION_LINES = 60
+
+SHORT_FUNCTIONS = [("runner.py", "run_optimization"), ("optimize/bundle.py", "minimize_bundle"),
+                   ("optimize/constrained.py", "minimize_constrained")]
+
+
+def _function(path: Path, name: str) -> ast.FunctionDef:
+    return next(n for n in ast.walk(ast.parse(path.read_text())) if isinstance(n, ast.FunctionDef) and n.name == name)
+
+
+def code_lines(fn: ast.FunctionDef) -> int:
+    """Lines of a function from its signature to its end, its docstring left out (a numpydoc
+    docstring is documentation, not the story the code tells)."""
+    body = fn.body
+    doc = body[0] if body and isinstance(body[0], ast.Expr) and isinstance(body[0].value, ast.Constant) \
+        and isinstance(body[0].value.value, str) else None
+    total = fn.end_lineno - fn.lineno + 1
+    return total - (doc.end_lineno - doc.lineno + 1 if doc is not None else 0)
+
+
+@pytest.mark.parametrize("rel, name", SHORT_FUNCTIONS)
+def test_the_run_and_the_optimizers_read_in_a_screen(rel, name):
+    """The run and the two optimizers read top to bottom: each at most 60 lines of code."""
+    n = code_lines(_function(SRC / rel, name))
+    assert n <= MAX_FUNCTION_LINES, f"{rel}:{name} has {n} lines of code (at most {MAX_FUNCTION_LINES})"
+
+
+def test_the_line_counter_leaves_out_only_the_docstring():
+    fn = ast.parse('def f(x):\n    """Doc\n    string."""\n    y = x\n    return y\n').body[0]
+    assert code_lines(fn) == 3
+
+
+# numpy's archive functions: the calls that read or write an .npz/.npy file
+_ARCHIVE_CALLS = {"load", "save", "savez", "savez_compressed", "atomic_savez", "atomic_savez_compressed"}
+# the modules that read or write other archives: state files, arrays given on the command line,
+# and the atomic writer itself
+_OTHER_ARCHIVES = {"io/statefiles.py", "cli.py", "io/atomic.py"}
+
+
+def archive_calls(tree) -> list:
+    """(line, name) of every call of numpy's archive functions (and their atomic forms) in ``tree``."""
+    found = []
+    for n in ast.walk(tree):
+        if not isinstance(n, ast.Call):
+            continue
+        f = n.func
+        if isinstance(f, ast.Attribute) and isinstance(f.value, ast.Name) and f.value.id in ("np", "numpy"):
+            name = f.attr                                   # np.load, np.savez, ...
+        else:
+            name = f.attr if isinstance(f, ast.Attribute) else f.id if isinstance(f, ast.Name) else None
+            name = name if name in ("atomic_savez", "atomic_savez_compressed") else None
+        if name in _ARCHIVE_CALLS:
+            found.append((n.lineno, name))
+    return found
+
+
+def test_one_module_writes_and_reads_checkpoints():
+    """io/checkpoint.py alone writes and reads checkpoint.npz: every other call of np.load,
+    np.savez or atomic_savez is in a module of another archive, and none of those speaks of
+    checkpoints."""
+    found = []
+    for f in sorted(SRC.rglob("*.py")):
+        rel = f.relative_to(SRC).as_posix()
+        if rel == "io/checkpoint.py":
+            continue
+        text = f.read_text()
+        calls = archive_calls(ast.parse(text))
+        if calls and (rel not in _OTHER_ARCHIVES or "checkpoint.npz" in text or "CHECKPOINT_NAME" in text):
+            found += [f"{rel}:{line} {name}" for line, name in calls]
+    assert not found, "checkpoint archives read or written outside io/checkpoint.py: " + ", ".join(found)
+    assert archive_calls(ast.parse((SRC / "io" / "checkpoint.py").read_text()))
+
+
+@pytest.mark.parametrize("snippet", ["np.load(path)", "with numpy.load(p) as z:\n    pass",
+                                     "atomic_savez(path, **arrays)", "np.savez(f, a=a)"])
+def test_the_archive_detector_sees_a_call(snippet):
+    assert archive_calls(ast.parse(snippet))
+
+
+def test_the_archive_detector_passes_other_saves():
+    assert not archive_calls(ast.parse("oracle.save(state)\nself.load(x)\npickle.load(f)"))
+
+
 # ------------------------------------------------------------------ typed model data
 MAX_PROBES = 5
 

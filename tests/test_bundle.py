@@ -12,7 +12,7 @@ from contactopt.errors import ContactOptError, OptimizerError
 from contactopt.optimize import BundleResult, BundleState, minimize_bundle
 from contactopt.optimize._bundle_control import direction, update_metric
 from contactopt.optimize._bundle_qp import Polyhedron
-from contactopt.optimize.testproblems import (
+from contactopt.optimize.gallery import (
     PROBLEMS,
     goffin_problem,
     max_linear_problem,

@@ -9,7 +9,7 @@ import pytest
 
 from contactopt.config.schema import SCHEMA
 from contactopt.optimize import BTOptions, minimize_bundle
-from contactopt.optimize.testproblems import PROBLEMS
+from contactopt.optimize.gallery import PROBLEMS
 
 # the defaults the entry points do not share (docs/stopping.md): Θ's practical stop and its
 # metric, both measured to cost the collection its verdicts (Maxquad 42 % above f* at ftol 5e-4;

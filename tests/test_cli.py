@@ -93,7 +93,7 @@ def test_run_small_example_end_to_end(tmp_path, capsys, config_file):
     for k in ("J0", "J", "iterations", "evaluations", "serious_steps", "null_steps", "success", "message",
               "alpha", "wall_time_s", "time_breakdown_s"):
         assert k in s
-    assert s["J"] <= s["J0"] and s["feasible"]
+    assert s["J"] <= s["J0"] and s["admissible"]
     rows = (out / "history.csv").read_text().strip().splitlines()
     assert len(rows) == 1 + s["evaluations"]
     its = (out / "iterations.csv").read_text().strip().splitlines()
@@ -198,8 +198,8 @@ def test_resume_with_an_unusable_delassus_design_touches_nothing(tmp_path, capsy
     ckpt = out / "checkpoint.npz"
     with np.load(ckpt, allow_pickle=False) as z:
         data = {k: z[k] for k in z.files}
-    assert data["jacobian_alpha"].size                       # the run kept a Delassus block
-    data["jacobian_alpha"] = data["jacobian_alpha"] + 50.0   # the surface above the top face
+    assert data["case0/step0/jacobian_alpha"].size                       # the run kept a Delassus block
+    data["case0/step0/jacobian_alpha"] = data["case0/step0/jacobian_alpha"] + 50.0   # the surface above the top face
     np.savez(ckpt, **data)
     before = {p.name: p.read_bytes() for p in out.iterdir() if p.is_file()}
     capsys.readouterr()

@@ -114,7 +114,7 @@ def test_run(runs, path, cases):
     assert s["iterations"] == 3 and s["evaluations"] >= 3
     assert finite(s["J0"]) and finite(s["J"]) and s["J0"] > 0
     assert s["ratio"] == s["J"] / s["J0"]
-    assert s["feasible"] and np.isfinite(s["alpha"]).all()
+    assert s["admissible"] and np.isfinite(s["alpha"]).all()
     assert alpha["alpha"] == s["alpha"] and list(np.shape(alpha["alpha"])) == alpha["shape"]
     history = read_csv(out / "history.csv")
     assert [int(r["evaluation"]) for r in history] == list(range(1, s["evaluations"] + 1))

@@ -18,7 +18,7 @@ import pytest
 from contactopt.cli import main
 from contactopt.config import load_config
 from contactopt.optimize.constrained import PenaltyState, minimize_constrained
-from contactopt.optimize.testproblems import CONSTRAINED
+from contactopt.optimize.gallery import CONSTRAINED
 from contactopt.problem import ShapeProblem
 from contactopt.sensitivity.check import check_gradient
 
@@ -72,7 +72,7 @@ def test_the_multiplier_estimate_is_above_the_multiplier():
     prob = CONSTRAINED["C-Rosen-Suzuki"]
     x = np.array([0.0, 1.0, 2.0, -1.0])
     _, g, _, _ = prob(x)
-    from contactopt.optimize.testproblems import _rosen_suzuki_pieces
+    from contactopt.optimize.gallery import _rosen_suzuki_pieces
     z = x[None, :] + 1j * 1e-30 * np.eye(4)
     P = np.asarray(_rosen_suzuki_pieces(z)).imag.T / 1e-30          # ∇f, ∇f + 10∇g_i
     J = (P[1:] - P[0]) / 10
@@ -331,7 +331,7 @@ def test_a_killed_constrained_run_resumes_bit_for_bit(tmp_path, iteration):
 KERNEL_PROBE = """
 import json, numpy as np
 from contactopt.optimize.constrained import minimize_constrained
-from contactopt.optimize.testproblems import CONSTRAINED
+from contactopt.optimize.gallery import CONSTRAINED
 out = {}
 for name, p in CONSTRAINED.items():
     r = minimize_constrained(p, p.x0, ctol=1e-8, eps=1e-7, max_iter=3000, **p.constraints())

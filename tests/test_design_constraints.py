@@ -11,6 +11,7 @@ from contactopt.cli import main
 from contactopt.config import load_config
 from contactopt.design.reduction import DesignReduction, reduction_of
 from contactopt.errors import ConfigError
+from contactopt.io.checkpoint import Checkpoint
 from contactopt.problem import ShapeProblem
 from contactopt.runner import run_optimization
 
@@ -138,7 +139,7 @@ def test_grow_keeps_every_iterate_above_the_initial_design(tmp_path, monkeypatch
     assert all(np.all(x >= 0.01) for x in seen)
     x = np.array(rr.summary["alpha"]).ravel()
     assert x.sum() <= 0.012 * 32 * (1 + 1e-9) and np.any(x > 0.01 + 1e-6)
-    assert rr.summary["feasible"]
+    assert rr.summary["admissible"]
 
 
 @pytest.mark.integration
@@ -148,7 +149,7 @@ def test_linear_row_holds_at_the_optimum(tmp_path):
     rr = run_optimization(small(linear=[{"coefficients": c.tolist(), "upper": 0.16}]), tmp_path / "run",
                           max_iter=3)
     assert np.sum(np.array(rr.summary["alpha"])[:4]) <= 0.16 + 1e-9
-    assert rr.summary["feasible"]
+    assert rr.summary["admissible"]
 
 
 def test_no_keys_no_reduction():
@@ -225,8 +226,8 @@ def test_resumed_symmetric_run_continues_bit_for_bit(tmp_path):
     cfg = small(symmetry=["x2"], fixed=[[3, 1]])
     whole = run_optimization(cfg, tmp_path / "whole", max_iter=4)
     run_optimization(cfg, tmp_path / "part", max_iter=2)
-    with np.load(tmp_path / "part" / "checkpoint.npz") as z:
-        beta, alpha = z["bundle_x"], z["meta_alpha"]
+    ckpt = Checkpoint.read(tmp_path / "part" / "checkpoint.npz")
+    beta, alpha = ckpt.bundle.x, ckpt.alpha
     assert beta.size == 15 and alpha.size == 32 and np.array_equal(alpha.reshape(8, 4), alpha.reshape(8, 4)[:, ::-1])
     resumed = run_optimization(cfg, tmp_path / "part", max_iter=4, resume=True)
     assert resumed.summary["alpha"] == whole.summary["alpha"]

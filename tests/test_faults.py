@@ -39,6 +39,7 @@ import contactopt
 from contactopt.cli import main
 from contactopt.config import load_config
 from contactopt.io import atomic, lock
+from contactopt.io.checkpoint import Checkpoint
 from contactopt.io.lock import LOCK_NAME
 
 MAX_ITER = 8
@@ -112,8 +113,8 @@ def assert_readable(out: Path) -> None:
 def checkpoint_position(out: Path):
     if not (out / "checkpoint.npz").exists():
         return None
-    with np.load(out / "checkpoint.npz", allow_pickle=False) as z:
-        return int(z["bundle_nit"]), int(z["meta_evaluations"])
+    ckpt = Checkpoint.read(out / "checkpoint.npz")
+    return ckpt.bundle.nit, ckpt.evaluations
 
 
 @pytest.fixture(scope="module", autouse=True)
@@ -152,7 +153,7 @@ def enospc(monkeypatch, name: str, nth: int = 1, code: int = errno.ENOSPC) -> di
     """The ``nth`` write of file ``name`` fails (ENOSPC or ``code``); returns what happened."""
     seen = {"n": 0, "failed": False}
     if name == "history.csv row":
-        from contactopt import runner
+        from contactopt.io import rundir
         real_open = open
 
         class HalfWritten:
@@ -179,7 +180,7 @@ def enospc(monkeypatch, name: str, nth: int = 1, code: int = errno.ENOSPC) -> di
                     return HalfWritten(fh)
             return fh
 
-        monkeypatch.setattr(runner, "open", failing_open, raising=False)
+        monkeypatch.setattr(rundir, "open", failing_open, raising=False)
         return seen
     real = atomic._finish
 
@@ -268,7 +269,7 @@ def test_read_only_or_forbidden_checkpoint(small, reference, tmp_path, monkeypat
 def test_a_directory_in_the_way_of_the_summary(small, reference, tmp_path, monkeypatch):
     from contactopt import runner
     out = tmp_path / "run"
-    real = runner._finish
+    real = runner.write_outputs
 
     def blocked(out_, *a, **kw):
         (out_ / "summary.json").mkdir()
@@ -276,7 +277,7 @@ def test_a_directory_in_the_way_of_the_summary(small, reference, tmp_path, monke
         return real(out_, *a, **kw)
 
     with quick_figures(), monkeypatch.context() as mp:
-        mp.setattr(runner, "_finish", blocked)
+        mp.setattr(runner, "write_outputs", blocked)
         code, text = cli("run", small, "--out", out, "--max-iter", MAX_ITER)
     assert code == 74, text
     assert f"cannot write {out / 'summary.json'}: a directory is in the way" in text, text

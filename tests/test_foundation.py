@@ -180,16 +180,16 @@ def _write_foundation_msh(path, ref, parts=("top", "bottom")):
 @pytest.mark.parametrize("kind", ["hex block", "tet file", "loaded hex block"])
 def test_subgradient_matches_central_differences(kind, tmp_path):
     """Non-matching meshes (the foundation coarser, wider): ξ·d against Richardson central
-    differences to 1e-6 in random directions; point partners on the hex block, 'auto' (averaged)
+    differences to 1e-6 in random directions; point partners on the hex block, averaged partners
     on the others, and the foundation's own loads on the last."""
     if kind == "hex block":
         f = {"block": _block(cells=(9, 5, 3)), "partner": "point"}
     elif kind == "loaded hex block":
-        f = {"block": _block(cells=(9, 5, 3)),
+        f = {"block": _block(cells=(9, 5, 3)), "partner": "average",
              "loads": {"body_force": [0.0, 0.0, -0.02], "pressure": [{"on": "top", "value": 0.005}]}}
     else:
         ref = foundation_block([3.0, 2.0, 1.0], [9, 5, 3], [-0.5, -0.5], "tetra")
-        f = {"mesh": str(_write_foundation_msh(tmp_path / "slab.msh", ref))}
+        f = {"mesh": str(_write_foundation_msh(tmp_path / "slab.msh", ref)), "partner": "average"}
     f["material"] = {"E": E_BODY / 10}
     pb = ShapeProblem(_config(f))
     assert pb.model.foundation.mesh.reference.cell_type == ("tetra" if kind == "tet file" else "hexahedron")

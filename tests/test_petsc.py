@@ -30,6 +30,7 @@ import tomli_w
 from contactopt._mpi import petsc_missing
 from contactopt.cli import main
 from contactopt.config import load_config
+from contactopt.io.checkpoint import Checkpoint
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "tests" / "mpi"))
@@ -360,8 +361,8 @@ def checkpoint_position(out):
     """(iteration, evaluations) of a run directory's checkpoint, or None without one."""
     if not (out / "checkpoint.npz").exists():
         return None
-    with np.load(out / "checkpoint.npz", allow_pickle=False) as z:
-        return int(z["bundle_nit"]), int(z["meta_evaluations"])
+    ckpt = Checkpoint.read(out / "checkpoint.npz")
+    return ckpt.bundle.nit, ckpt.evaluations
 
 
 def killed_at(seconds, *args):

@@ -36,6 +36,7 @@ import tomli_w
 
 import contactopt
 from contactopt.config import load_config
+from contactopt.io.checkpoint import Checkpoint
 
 pytestmark = pytest.mark.slow
 
@@ -125,8 +126,8 @@ def checkpoint_position(out: Path):
     ckpt = out / "checkpoint.npz"
     if not ckpt.exists():
         return None
-    with np.load(ckpt, allow_pickle=False) as z:
-        return int(z["bundle_nit"]), int(z["meta_evaluations"])
+    ckpt = Checkpoint.read(ckpt)
+    return ckpt.bundle.nit, ckpt.evaluations
 
 
 def read_rows(file: Path) -> list[list[str]]:

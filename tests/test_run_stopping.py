@@ -60,9 +60,10 @@ def test_examples_stop_by_themselves_near_the_best_known_optimum(name, tmp_path)
 def test_a_finished_run_restored_from_its_checkpoint_keeps_its_verdict(tmp_path, status):
     """A resumed finished run reports the success of the uninterrupted one: statuses 0, 4 and 5
     are successes (minimize_bundle's SUCCESS_STATUS), 1 (max_iter) is not."""
+    from contactopt.io.checkpoint import Checkpoint, SavedResult
     from contactopt.optimize import BundleState
     from contactopt.optimize.bundle import SUCCESS_STATUS
-    from contactopt.optimize.testproblems import PROBLEMS
+    from contactopt.optimize.gallery import PROBLEMS
     from contactopt.runner import _saved_result
     prob = PROBLEMS["Mifflin1"]
     saved = {}
@@ -71,8 +72,8 @@ def test_a_finished_run_restored_from_its_checkpoint_keeps_its_verdict(tmp_path,
         saved["state"] = r.state
 
     minimize_bundle(prob, prob.x0, max_iter=3, callback=keep)
-    np.savez(tmp_path / "c.npz", meta_result_status=status, meta_result_message="m", meta_max_iter=3,
-             meta_result_criterion="c", meta_result_relative_decrease=np.nan)
-    res = _saved_result(tmp_path / "c.npz", saved["state"], 3)
+    Checkpoint(bundle=saved["state"], evaluations=1, elapsed=0.0, scale=1.0, eps=1e-7, max_iter=3, config={},
+               result=SavedResult(status, "m", "c", np.nan)).write(tmp_path / "c.npz")
+    res = _saved_result(Checkpoint.read(tmp_path / "c.npz"), 3)
     assert isinstance(saved["state"], BundleState) and res.status == status
     assert res.success == (status in SUCCESS_STATUS) == (status != 1)

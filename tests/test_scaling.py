@@ -15,7 +15,7 @@ from contactopt.errors import OptimizerError
 from contactopt.optimize import minimize_bundle
 from contactopt.optimize._scaling import variable_scaling
 from contactopt.optimize.constrained import minimize_constrained
-from contactopt.optimize.testproblems import (
+from contactopt.optimize.gallery import (
     CONSTRAINED,
     PROBLEMS,
     max_quadratics_problem,
@@ -177,7 +177,7 @@ def test_the_exact_penalty_reports_c_at_the_users_x_with_a_scaled_box():
 PROBE = """
 import json
 from contactopt.optimize import minimize_bundle
-from contactopt.optimize.testproblems import PROBLEMS
+from contactopt.optimize.gallery import PROBLEMS
 out = {}
 for name in ("HS114", "Dembo7", "Dembo3", "HS106"):
     p = PROBLEMS[name]
@@ -212,7 +212,7 @@ def test_the_optimizer_table_chooses_the_scaling_of_a_run(tmp_path, monkeypatch)
         seen.update(kw)
         raise Stop
 
-    monkeypatch.setattr(optimize, "minimize_bundle", record)
+    monkeypatch.setitem(optimize.METHODS, "bundle", record)
     small = {"mesh": {"nx": 8, "ny": 4, "nz": 3}}
     for scale in ("bounds", "none"):
         cfg = load_config("example1").with_updates({**small, "optimizer": {"scale": scale}})

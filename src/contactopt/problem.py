@@ -62,8 +62,10 @@ class ShapeProblem:
     def __init__(self, config, *, method: str | None = None):
         self.config = config if isinstance(config, Config) else load_config(config)
         body = build_body(self.config)
+        # pinned components on an elastic foundation: the foundation checks that they are clamped at
+        # their partners too (fem.foundation), where the condensation takes them
         name, library = select_path(self.config, memory.free_dofs(body), pinned=int(body.pinned_dofs.size),
-                                    rigid=body.rigid)
+                                    rigid=body.rigid, pinned_held=True)
         with PATHS[name].library_threads(self.config.linear_solver.threads):   # the morph weight's solve
             self.model = ElasticModel(self.config, body=body, memory_estimate=PATHS[name].memory_estimate)
         self.n_state_solves = 0    # designs solved (all cases at once)
@@ -239,29 +241,18 @@ class ShapeProblem:
         return float("nan") if bound is None else bound
 
     # ------------------------------------------------------------------ checkpoints
-    def export_contexts(self) -> dict:
-        """What the cases carry from design to design, as arrays (case k ≥ 1 prefixed ``case{k}_``)."""
-        out = {}
-        for k, ctx in enumerate(self.contexts):
-            out.update({(f"case{k}_" if k else "") + name: v for name, v in self.path.export_context(ctx).items()})
-            for j, ctx_j in enumerate(self.step_contexts[k][1:], 1):    # a load path's later solves
-                out.update({f"step{j}_" + (f"case{k}_" if k else "") + name: v
-                            for name, v in self.path.export_context(ctx_j).items()})
-        return out
+    def export_contexts(self) -> list:
+        """What the cases carry from design to design: ``[k][j]`` the arrays of load case k at
+        load step j (a checkpoint holds them)."""
+        return [[self.path.export_context(ctx) for ctx in row] for row in self.step_contexts]
 
-    def import_contexts(self, arrays: dict, where: str) -> None:
+    def import_contexts(self, arrays: list, where: str) -> None:
         """Put back :meth:`export_contexts` (read from a checkpoint ``where``)."""
-        for k, ctx in enumerate(self.contexts):
-            prefix = f"case{k}_" if k else ""
-            own = {name[len(prefix):]: v for name, v in arrays.items()
-                   if name.startswith(prefix) and (k or not name.startswith("case"))}
-            self.path.import_context(ctx, own, where, others=self.contexts[:k])
-            for j, ctx_j in enumerate(self.step_contexts[k][1:], 1):
-                pj = f"step{j}_" + prefix
-                own = {name[len(pj):]: v for name, v in arrays.items()
-                       if name.startswith(pj) and (k or not name[len(pj):].startswith("case"))}
-                self.path.import_context(ctx_j, own, where, others=self.contexts + [
-                    c for row in self.step_contexts for c in row[1:] if c is not ctx_j])
+        for k, row in enumerate(self.step_contexts):
+            self.path.import_context(row[0], arrays[k][0], where, others=self.contexts[:k])
+            for j, ctx_j in enumerate(row[1:], 1):
+                self.path.import_context(ctx_j, arrays[k][j], where, others=self.contexts + [
+                    c for r in self.step_contexts for c in r[1:] if c is not ctx_j])
 
     # ------------------------------------------------------------------ oracle
     def evaluate_value(self, alpha) -> float:
@@ -346,7 +337,7 @@ class ShapeProblem:
             for i, (yu, yl, dJ_da) in parts.items():
                 add_terms(rhs, i, c * yu, c * yl, c * dJ_da)
         last = max(rhs)
-        pinned = self.model.contact_pinned.ravel()
+        pinned = self.model.contact_pinned_global.ravel()
         contact = (3 * self.model.contact_nodes[:, None] + np.arange(3)).ravel()
         xi, carry, nd, out = 0.0, None, 0, None
         for j in range(last, -1, -1):

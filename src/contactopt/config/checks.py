@@ -23,6 +23,14 @@ def _posint(x):
     return isinstance(x, int) and not isinstance(x, bool) and x >= 1
 
 
+def _natint(x):
+    return isinstance(x, int) and not isinstance(x, bool) and x >= 0
+
+
+def _unit3(x):
+    return _vec3(x) and abs(math.sqrt(sum(float(v) ** 2 for v in x)) - 1.0) <= 1e-9
+
+
 def _vec3(x):
     return isinstance(x, (list, tuple)) and len(x) == 3 and all(_finite(v) for v in x)
 

@@ -65,7 +65,7 @@ _FORMS = {
     ("body", "fixed_shape"): {"anyOf": [{"const": "auto"}, {"type": "array", "items": _PART}]},
     ("loads", "traction"): _part_loads(_VEC3),
     ("loads", "pressure"): _part_loads(_NUMBER),
-    ("design", "degree"): {"type": "array", "items": {"type": "integer", "minimum": 1}, "minItems": 2, "maxItems": 2},
+    ("design", "degree"): {"type": "array", "items": {"type": "integer", "minimum": 0}, "minItems": 2, "maxItems": 2},
     ("design", "initial"): {"anyOf": [_NUMBER, _MATRIX]},
     ("design", "domain"): {"type": "array", "items": _INTERVAL, "maxItems": 2},
     ("design", "symmetry"): {"type": "array", "items": {"enum": ["x1", "x2"]}, "uniqueItems": True},

@@ -13,11 +13,13 @@ from .checks import (
                      _finite,
                      _load_list,
                      _material_spec,
+                     _natint,
                      _nonneg,
                      _oneof,
                      _part_spec,
                      _pos,
                      _posint,
+                     _unit3,
                      _vec3,
 )
 
@@ -53,6 +55,19 @@ SCHEMA = {
                         "'zero' (the contact face lies on the foundation plane x3 = 0: the gap is ϑ_α) or 'mesh' "
                         "(the contact face may lie above it, e.g. an exported optimal body: the gap is its "
                         "height x3 in the mesh plus ϑ_α)"),
+        "graph_tolerance": (0.0, lambda x: _nonneg(x) and x < 0.5,
+                            "a number in [0, 0.5): two nodes of the contact face closer than this (relative to "
+                            "the median boundary edge length) in chart coordinates make it no graph over its "
+                            "chart, and a face within it of a plane or cylinder is that plane or cylinder; 0: "
+                            "body.tolerance"),
+        "penetration_tolerance": (0.0, lambda x: _nonneg(x) and x < 0.5,
+                                  "a number in [0, 0.5): how deep (relative to the median boundary edge length) a "
+                                  "node of the body may lie inside the counterpart in the reference mesh without "
+                                  "body.interference; 0: body.tolerance"),
+        "interference": (False, lambda x: isinstance(x, bool),
+                         "true or false: allow the contact face to overlap its counterpart in the reference mesh "
+                         "(a negative initial gap: press and shrink fits); false refuses an overlap deeper than "
+                         "the penetration tolerance, naming the nodes"),
     },
     "geometry": {
         "a": (2.0, _pos, "a number > 0 (length in x1)"),
@@ -97,8 +112,9 @@ SCHEMA = {
                      "follows the face as it moves)"),
     },
     "design": {
-        "degree": ([7, 3], lambda x: isinstance(x, list) and len(x) == 2 and all(_posint(v) for v in x),
-                   "a list of 2 integers ≥ 1 (Bézier degrees d1, d2)"),
+        "degree": ([7, 3], lambda x: isinstance(x, list) and len(x) == 2 and all(_natint(v) for v in x),
+                   "a list of 2 integers ≥ 0 (Bézier degrees d1, d2 along the chart's directions ξ1, ξ2; 0: "
+                   "a profile along the other direction only)"),
         "C0": (0.75, _pos, "a number > 0 (upper bound of the control points)"),
         "lower": (0.0, _finite, "a number ≤ C0 (lower bound of the control points; 0 is the paper's U, a negative "
                   "bound admits crowned faces such as a paraboloid, whose Bézier net dips below 0)"),
@@ -132,6 +148,22 @@ SCHEMA = {
                 _finite(r[k]) for k in ("upper", "equal") if k in r) for r in x),
                    "a list of tables { coefficients = (d1+1)×(d2+1) nested list, upper = u } (Σ c·α ≤ u) or "
                    "{ coefficients = …, equal = e } (Σ c·α = e)"),
+        "motion": ("vertical", _oneof("vertical", "normal"),
+                   "'vertical' (the paper's map: ϑ_α lifts the face along e3) or 'normal' (ϑ_α moves each node "
+                   "of the face along the face's inward unit normal in the reference mesh; ϑ_α > 0 removes "
+                   "material)"),
+        "chart": ("auto", _oneof("auto", "plane", "cylinder"),
+                  "'auto', 'plane' or 'cylinder': the coordinates ξ the design surface ϑ_α(ξ) lives on. 'plane': "
+                  "the best-fit plane of the contact face (x3 = 0: ξ = (x1, x2)); 'cylinder': the best-fit "
+                  "circular cylinder, ξ = (arc length around the axis, position along it); 'auto': (x1, x2) when "
+                  "the face is a graph over them with the body above it (the paper's case), else the best-fit "
+                  "plane when the face is planar, else the cylinder when it is cylindrical, else the best-fit "
+                  "plane when the face is a graph over it; any other face is refused"),
+        "axis": ([], lambda x: x == [] or _unit3(x),
+                 "[] (fitted) or a unit vector [a1, a2, a3] (|a| = 1 to 1e-9): the axis of a cylindrical chart"),
+        "origin": ([], lambda x: x == [] or _vec3(x),
+                   "[] (fitted) or [x1, x2, x3]: a point on the axis of a cylindrical chart, or the origin of a "
+                   "plane chart"),
     },
     "objective": {
         "type": ("target_normal_force",
@@ -269,12 +301,14 @@ FOUNDATION = {
         "a table with any of traction, pressure (lists of { on = <part of the foundation>, value = … }, as "
         "in [loads]) and body_force = [f1, f2, f3] (per unit volume): the foundation's own loads, the same "
         "in every load case"),
-    "partner": ("auto", _oneof("auto", "point", "average"),
+    "partner": ("auto", _oneof("auto", "point", "average", "mortar"),
                 "'point' (a contact node's partner is the point of the top face directly below it: exact "
                 "node-to-node coupling on matching meshes), 'average' (the mean of the foundation's "
                 "displacement over the node's tributary area: a foundation finer than the body then "
-                "converges; linear body elements only) or 'auto' ('point' where every partner is a node of "
-                "the top face or the body's faces are quadratic, else 'average')"),
+                "converges; linear body elements only), 'mortar' (the relative displacement weighted by "
+                "the node's dual basis function over the segmented faces: the contact patch test passes "
+                "on non-matching meshes; linear body elements only) or 'auto' ('point' where every partner "
+                "is a node of the top face or the body's faces are quadratic, else 'mortar')"),
     "tolerance": (1e-3, lambda x: _pos(x) and x < 0.5,
                   "a number in (0, 0.5) (geometric tolerance of the checks of the foundation's mesh, "
                   "relative to its median boundary edge length)"),

@@ -68,6 +68,9 @@ class Body:
     tolerance: float
     min_jacobian_ratio: float
     initial_gap: str
+    graph_tolerance: float
+    penetration_tolerance: float
+    interference: bool
 
     @classmethod
     def from_dict(cls, d: dict) -> "Body":
@@ -199,6 +202,10 @@ class Design:
     fixed: list
     direction: str
     linear: tuple[LinearConstraint, ...]
+    motion: str
+    chart: str
+    axis: list
+    origin: list
 
     @classmethod
     def from_dict(cls, d: dict) -> "Design":

@@ -16,6 +16,7 @@ from .checks import (
     _check_value,
     _finite,
     _material_spec,
+    _natint,
     _nonneg,
     _pos,
     _posint,
@@ -422,20 +423,22 @@ def _check_obstacle(given, data, problems) -> dict:
 
 
 
-def check_interactions(config, *, pinned: int = 0, rigid: str | None = None) -> None:
+def check_interactions(config, *, pinned: int = 0, rigid: str | None = None, pinned_held: bool = False) -> None:
     """Rules between features of a configuration that hold whatever solver path runs it: raise
     ConfigError naming each pair that excludes the other.
 
     ``pinned``: the number of clamped tangential components of contact nodes (a symmetry plane through
     the contact face); ``rigid``: the names of the rigid motions the clamps leave free (a body held
-    only by contact), or None. Both are properties of the body built from ``config``. An elastic
-    ``[foundation]`` takes neither: a body held only by contact rests on a rigid support, and the
-    foundation's compliance would add to a clamped direction."""
+    only by contact), or None; ``pinned_held``: the pinned components are clamped at their partners
+    on an elastic foundation too (symmetry planes through both bodies). These are properties of the
+    bodies built from ``config``. An elastic ``[foundation]`` takes neither a body held only by
+    contact (it rests on a rigid support) nor pinned components its partners do not hold (the
+    foundation's compliance would add to a clamped direction)."""
     problems = []
     if config.foundation is not None and rigid is not None:
         problems.append(f"body.clamped leaves rigid motions free ({rigid}): a body held only by contact rests on "
                         "the rigid foundation or an [obstacle], not on an elastic [foundation]")
-    if config.foundation is not None and pinned:
+    if config.foundation is not None and pinned and not pinned_held:
         problems.append(f"body.clamped: {pinned} tangential component(s) of contact nodes are clamped (a symmetry "
                         "plane through the contact face), which an elastic [foundation] does not take (its "
                         "compliance would add to the clamped direction); the rigid foundation does")
@@ -485,7 +488,7 @@ def resolve(raw: dict, source: str = "<dict>") -> dict:
         # absent means 'auto': a configuration that does not name it resolves as it did before the key
         data["material"].pop("formulation", None)
     deg = data["design"]["degree"]
-    d1d2 = deg if isinstance(deg, list) and len(deg) == 2 and all(_posint(v) for v in deg) else None
+    d1d2 = deg if isinstance(deg, list) and len(deg) == 2 and all(_natint(v) for v in deg) else None
     _check_matrix(data["design"]["initial"], d1d2, "design.initial", problems)
     _check_design_constraints(data["design"], d1d2, problems)
     if isinstance(data["objective"]["target"], dict):

@@ -197,6 +197,6 @@ class DistributedBody:
         old = self.old_of[nodes]
         uu, vv = u_full.reshape(-1, 3)[old].ravel(), v_full.reshape(-1, 3)[old].ravel()
         d = sub.stiffness_shape_contraction(coords[old], uu, vv)
-        d3 = np.zeros(self.n_nodes)
-        d3[old] = d[:, 2]
-        return model.mesh.contract_dx3(d3)
+        dx = np.zeros((self.n_nodes, 3))
+        dx[old] = d
+        return model.mesh.contract_dx(dx)

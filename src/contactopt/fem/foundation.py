@@ -13,7 +13,14 @@ that carry partners (clamped components fixed) and q_f = (K_f⁻¹ f_f) there,
 
     Π u_f = Π q_f − C r,     C = Π W_f Πᵀ   (3p × 3p, symmetric positive semidefinite),
 
-independent of the design α: computed once per run. Condensed with the body's S(α) u_c = ℓ + r,
+independent of the design α: computed once per run.
+
+A curved contact face (a chart other than x3 = 0, :mod:`contactopt.design.chart`) meets a curved top
+face of any shape: contact node m's partner is where the line through the node along its contact
+normal n_m (the body's inward face normal, from the foundation to the body) meets the top face,
+and its initial gap g_m the signed distance along n_m (negative: an interference). The coupling
+then acts in the nodes' frames R_m = (t1, t2, n_m): Π → Rᵀ Π, C → Rᵀ C R, q_f → Rᵀ q_f
+(:meth:`Foundation.rotate`). Condensed with the body's S(α) u_c = ℓ + r,
 
     w = W r + S⁻¹ℓ − Π q_f,   W = S⁻¹ + C
 
@@ -35,6 +42,7 @@ from .dense import spd_inverse
 from .elasticity import ElasticityAssembler
 from .elements import element_type, face_type
 from .loadset import load_set
+from .mortar import MortarCoupling, mortar_matrices
 
 log = logging.getLogger(__name__)
 
@@ -47,19 +55,21 @@ class Foundation:
 
     Attributes: ``mesh`` (:class:`~contactopt.mesh.foundation.FoundationMesh`), ``assembler`` (on
     its free DOFs), ``support`` (top-face nodes carrying partners), ``Pi`` (3p × 3n_s sparse, per
-    contact node (t1, t2, ν) and support node (x1, x2, x3)), ``partner`` ('point' or 'average'), ``W_f``
+    contact node (t1, t2, ν) and support node (x1, x2, x3)), ``partner`` ('point', 'average' or 'mortar'), ``W_f``
     (on the free support DOFs), ``C`` (3p × 3p), ``q_f`` (3p,), ``condensation`` (of K_f onto the
     free support DOFs: the foundation's displacement for outputs)."""
 
-    def __init__(self, spec, body, source: str = "<dict>", backend: str = "auto", check=None):
+    def __init__(self, spec, body, source: str = "<dict>", backend: str = "auto", check=None, normals=None):
         """``spec`` the ``[foundation]`` section of the configuration read from ``source``;
         ``check(parts)``: called with :attr:`memory_parts` before K_f is assembled and
-        condensed (the model's memory check), so that a foundation too large is refused first."""
+        condensed (the model's memory check), so that a foundation too large is refused first.
+        ``normals`` (p, 3): the contact normals of a curved contact face (module docstring), whose
+        partners lie along them; None: the face on x3 = 0, partners below the nodes."""
         from .linsolve import condense
         from .memory import foundation_parts, matrix_entries
         contact_nodes = body.contact_nodes
         contact_xy = body.reference.points[contact_nodes, :2]
-        self.mesh = fm = build_foundation_mesh(spec, contact_xy, source)
+        self.mesh = fm = build_foundation_mesh(spec, contact_xy, source, curved=normals is not None)
         ref = fm.reference
         self.partner = spec.partner
         self.loads = load_set(fm, spec.loads, where=f"{source}: foundation.loads")
@@ -67,12 +77,26 @@ class Foundation:
                                              element=element_type(ref.cell_type))
         where = f"{source}: foundation.top"
         p = contact_xy.shape[0]
-        faces, weights = locate_partners(ref.points, fm.top.faces, ref.face_type, contact_xy, contact_nodes, where)
+        self.gap0 = None            # a curved face: the initial gaps along the contact normals
+        if normals is None:
+            faces, weights = locate_partners(ref.points, fm.top.faces, ref.face_type, contact_xy, contact_nodes,
+                                             where)
+        else:
+            if self.partner == "average":
+                raise ConfigError([f"{where}: foundation.partner = 'average' takes a contact face on x3 = 0; a "
+                                   "curved face's partners are points along its normals (partner = 'point')"])
+            faces, weights, self.gap0 = ray_partners(ref.points, fm.top.faces, ref.face_type,
+                                                     body.reference.points[contact_nodes], normals, contact_nodes,
+                                                     where)
+            self.partner = "point"
+        self._check_pinned(body, fm, faces, weights, source)
         if self.partner == "auto":
             self.partner = auto_partner(weights, face_type(body.reference.face_type).degree)
             log.info("foundation.partner = 'auto': %r", self.partner)
         if self.partner == "point":
             rows, cols, vals = np.repeat(np.arange(p), weights.shape[1]), fm.top.faces[faces].ravel(), weights.ravel()
+        elif self.partner == "mortar":
+            rows, cols, vals = mortar_partners(body, fm, where)
         else:
             rows, cols, vals = averaged_partners(body, fm, where)
         Pn = sp.csr_matrix((vals, (rows, cols)), shape=(p, ref.n_nodes))
@@ -109,6 +133,37 @@ class Foundation:
         log.info("elastic foundation %s: %d nodes, %d free DOFs, E = %g, nu = %g; %d top-face nodes carry "
                  "the partners of %d contact nodes", ref.source, ref.n_nodes, self.assembler.n_free, fm.E, fm.nu,
                  self.support.size, p)
+
+    def _check_pinned(self, body, fm, faces, weights, source) -> None:
+        """A clamped component of a contact node (a symmetry plane through the contact face) must be
+        clamped at its partners too: the plane runs through both bodies, so that the foundation's
+        compliance adds nothing to the clamped direction."""
+        if body.pinned_dofs.size == 0:
+            return
+        fixed = np.zeros(3 * fm.reference.n_nodes, bool)
+        fixed[fm.fixed_dofs] = True
+        node, comp = np.divmod(body.pinned_dofs, 3)
+        m = np.searchsorted(body.contact_nodes, node)
+        partners = fm.top.faces[faces[m]]
+        w = np.abs(weights[m]) > 1e-12
+        bad = np.flatnonzero(np.any(w & ~fixed[3 * partners + comp[:, None]], axis=1))
+        if bad.size:
+            i = bad[0]
+            raise ConfigError([f"{source}: body.clamped: {bad.size} tangential component(s) of contact nodes are "
+                               f"clamped (a symmetry plane through the contact face) but free at their partners on "
+                               f"the foundation, first u{int(comp[i]) + 1} of body node {int(node[i])}: clamp the "
+                               "same plane of the foundation (foundation.clamped), else its compliance would add "
+                               "to the clamped direction"])
+
+    def rotate(self, R: np.ndarray) -> None:
+        """Express the coupling in the contact nodes' frames R (p, 3, 3), columns (t1, t2, n):
+        Π → Rᵀ Π, C → Rᵀ C R, q_f → Rᵀ q_f (per node (t1, t2, ν))."""
+        Q = sp.block_diag([np.asarray(r).T for r in R], format="csr")
+        self.Pi = sp.csr_matrix(Q @ self.Pi)
+        self.P = sp.csr_matrix(Q @ self.P)
+        C = np.asarray(Q @ (Q @ self.C).T)
+        self.C = 0.5 * (C + C.T)
+        self.q_f = Q @ self.q_f
 
     @property
     def n_nodes(self) -> int:
@@ -243,6 +298,53 @@ def locate_partners(points: np.ndarray, faces: np.ndarray, ftype: str, xy: np.nd
     return face, N
 
 
+def ray_partners(points: np.ndarray, faces: np.ndarray, ftype: str, x: np.ndarray, n: np.ndarray, contact_nodes,
+                 where: str):
+    """(face (p,), weights (p, k), gap (p,)): where the line x_m − g n_m through each contact node
+    along its unit contact normal n_m meets the top face (the nearest meeting, |g| smallest), the
+    face's shape functions there and the signed distance g (negative where the node lies inside
+    the foundation). Newton on x_f(ξ) + g n_m = x_m per candidate face. ConfigError naming the
+    nodes whose lines miss the face."""
+    ft = face_type(ftype)
+    X = points[faces]                                               # (F, k, 3)
+    nc = FACE_CORNERS[ftype]
+    centre = X[:, :nc].mean(axis=1)
+    diam = np.linalg.norm(X[:, :nc] - centre[:, None], axis=2).max(axis=1)
+    v = centre[None] - x[:, None]                                   # (p, F, 3)
+    off = np.linalg.norm(v - np.einsum("pfj,pj->pf", v, n)[..., None] * n[:, None], axis=2)
+    m, f = np.nonzero(off <= 1.5 * diam[None])
+    quad = ft.name.startswith("quad")
+    xi = np.zeros((m.size, 2)) if quad else np.full((m.size, 2), 1.0 / 3.0)
+    g = np.zeros(m.size)
+    for _ in range(NEWTON_STEPS):
+        N, dN = ft.shape(xi)
+        res = np.einsum("qa,qaj->qj", N, X[f]) + g[:, None] * n[m] - x[m]
+        J = np.stack([np.einsum("qa,qaj->qj", dN[..., 0], X[f]), np.einsum("qa,qaj->qj", dN[..., 1], X[f]), n[m]],
+                     axis=2)
+        step = np.linalg.solve(J, res[..., None])[..., 0]
+        xi -= step[:, :2]
+        g -= step[:, 2]
+        if np.abs(step).max(initial=0.0) < 1e-14 * max(1.0, float(np.abs(x).max())):
+            break
+    if quad:
+        inside = np.all(np.abs(xi) <= 1 + INSIDE_TOL, axis=1)
+    else:
+        inside = (xi.min(axis=1) >= -INSIDE_TOL) & (xi.sum(axis=1) <= 1 + INSIDE_TOL)
+    p = x.shape[0]
+    best = np.full(p, -1)
+    best_g = np.full(p, np.inf)
+    for i in np.flatnonzero(inside):
+        if abs(g[i]) < abs(best_g[m[i]]):
+            best[m[i]], best_g[m[i]] = i, g[i]
+    miss = np.flatnonzero(best < 0)
+    if miss.size:
+        first = ", ".join(f"contact node {k} (body node {int(contact_nodes[k])}) at {_fmt(x[k])}" for k in miss[:5])
+        raise ConfigError([f"{where}: the normal lines of {miss.size} of {p} contact node(s) miss the foundation's "
+                           f"top face, first: {first}"])
+    N, _ = ft.shape(xi[best])
+    return f[best], N, best_g
+
+
 def _reference_point(X: np.ndarray, x: np.ndarray, nc: int):
     """(ξ, inside) of the point x in the face of corners X (nc, 2): barycentric (η, ζ) of the
     triangle 0-1-2, or the inverse of the bilinear map of the quadrilateral on [−1, 1]²."""
@@ -267,10 +369,43 @@ def _reference_point(X: np.ndarray, x: np.ndarray, nc: int):
 def auto_partner(weights: np.ndarray, body_degree: int, tol: float = 1e-9) -> str:
     """``partner = "auto"``: 'point' where every point partner is a node of the top face (one
     weight 1: matching meshes, where point partners are exact node-to-node contact) or the body's
-    faces are quadratic (averaging needs linear faces), else 'average' — point partners do not
-    converge as the foundation alone is refined (docs/foundation.md)."""
+    faces are quadratic (the dual basis is built for linear faces), else 'mortar' — point partners
+    do not converge as the foundation alone is refined, and mortar partners pass the contact patch
+    test on non-matching meshes (docs/foundation.md, docs/mortar.md)."""
     on_nodes = bool(np.all(np.abs(weights).max(axis=1) >= 1.0 - tol))
-    return "point" if on_nodes or body_degree != 1 else "average"
+    return "point" if on_nodes or body_degree != 1 else "mortar"
+
+
+def mortar_partners(body, fm, where: str):
+    """(rows, cols, values) of Π = D⁻¹M for ``partner = "mortar"`` (:mod:`contactopt.fem.mortar`):
+    the body's contact face projected along x3 on the top face x3 = 0, segmented against the top
+    faces, the relative displacement of contact node m weighted by its dual basis function Φ_m,
+
+        w_m = u_m − (Π u_f)_m = D_mm⁻¹ ∫ Φ_m (u − u_f) dA,
+
+    so that a uniform pressure and a uniform strain pass across non-matching meshes exactly. Per
+    node the order is (t1, t2, ν) = (x1, x2, x3), ν = +x3 into the body. Rows are contact nodes,
+    columns foundation nodes. The body's face must lie over the top face and be linear."""
+    ref = body.reference
+    ftype = face_type(ref.face_type)
+    if ftype.degree != 1:
+        raise ConfigError([f"{where}: foundation.partner = 'mortar' needs a body of linear elements "
+                           f"(its contact face has {ftype.name} faces); use partner = 'point'"])
+    faces = body.contact_face.faces
+    top = fm.top.faces
+    D, M, seg = mortar_matrices(ftype.name, faces, ref.points[:, :2], fm.reference.face_type, top,
+                                fm.reference.points[:, :2])
+    coupling = MortarCoupling(D, M, seg, body.contact_nodes)
+    if coupling.uncovered.size:
+        f = coupling.uncovered
+        first = ", ".join(f"face of body nodes {faces[i, :FACE_CORNERS[ref.face_type]].tolist()} "
+                          f"({100 * (1 - seg.covered[i] / seg.slave_area[i]):.3g} % outside)" for i in f[:3])
+        raise ConfigError([f"{where}: {f.size} face(s) of the contact face do not lie wholly over the "
+                           f"foundation's top face (mortar partners integrate over them), first: {first}"])
+    Pi = coupling.Pi.tocoo()
+    log.info("mortar partners: %d cells of the segmentation of %d body faces against %d top faces",
+             seg.n_cells, faces.shape[0], top.shape[0])
+    return Pi.row, Pi.col, Pi.data
 
 
 def averaged_partners(body, fm, where: str):

@@ -34,12 +34,13 @@ from .._threads import sequential_openblas
 from ..config import Config, load_config
 from ..design.admissible import AdmissibleSet
 from ..design.bezier import BezierSurface
+from ..design.chart import motion_directions
 from ..errors import ConfigError
 from ..mesh.block import block_axes
 from ..mesh.body import Body, build_body
 from ..mesh.hexmesh import HexMesh
 from ..mesh.morph import JacobianRatio, MorphedMesh
-from ..mesh.obstacle import Obstacle, contact_frames, make_obstacle
+from ..mesh.obstacle import Obstacle, contact_frames, make_obstacle, tangent_frames
 from .elasticity import BBAR_AUTO_NU, ElasticityAssembler, element_geometry, resolve_formulation
 from .elements import element_type
 from .foundation import Foundation
@@ -103,7 +104,9 @@ class ElasticModel:
     contact_dofs: np.ndarray         # (3p,) their free DOFs, per node (t1, t2, ν)
     pinned_dofs: np.ndarray          # full DOF indices of the clamped tangential components
     pinned_free: np.ndarray          # ... as free DOFs
+    pinned_columns: np.ndarray | None   # per pinned DOF its frame column, where a pinned u3 is a tangent
     contact_pinned: np.ndarray       # (p, 3) True on the pinned components (t1, t2, ν)
+    contact_pinned_global: np.ndarray   # ... in global components (u1, u2, u3)
     gap_matrix: object               # g = gap_matrix α + gap0 at the contact nodes
     gap0: np.ndarray
     loads: LoadSet
@@ -139,16 +142,25 @@ class ElasticModel:
         self._check_reference(ref)
         zero = np.concatenate([np.asarray(v, np.int64) for v in body.fixed_shape.values()] or [np.zeros(0, np.int64)])
         self.weight = harmonic_weight(self.assembler, ref.points, body.contact_face.nodes, zero)
+        chart = {}            # a chart of the face and normal motion (design.chart); none: the paper's map
+        if body.chart is not None:
+            chart["chart"] = body.chart
+        if cfg.design.motion == "normal":
+            chart["directions"] = motion_directions(ref.points, body.contact_face, ref.face_type, body.chart)
         if cfg.body.mesh:
             self.mesh = MorphedMesh(ref, self.surface, self.weight, body.contact_nodes,
-                                    fixed_shape=tuple(body.fixed_shape))
+                                    fixed_shape=tuple(body.fixed_shape), **chart)
         else:
             nx, ny, nz = (x.size - 1 for x in block_axes(cfg.geometry, cfg.mesh))
             self.mesh = HexMesh(nx, ny, nz, self.surface, cfg.geometry.c, reference=ref,
                                 weight=self.weight, contact_nodes=body.contact_nodes,
-                                fixed_shape=tuple(body.fixed_shape))
+                                fixed_shape=tuple(body.fixed_shape), **chart)
         self.obstacle = self.frames = self.slip_shift = self.obstacle_force = None     # set by _obstacle*
+        self.pinned_columns = None  # per pinned DOF its frame column, where a pinned u3 is a tangent
         face_frames = self._obstacle(cfg.obstacle, ref, body)
+        self.foundation = None      # [foundation]: the elastic foundation under the contact face
+        if cfg.foundation is not None and body.chart is not None:
+            self._curved_foundation(cfg, ref, body, check)
         self.admissible = self._admissible_set(ref, body, face_frames)
         self.mesh.ratio = self._jacobian_ratio(ref, body)
         self.contact_nodes = body.contact_nodes
@@ -157,8 +169,14 @@ class ElasticModel:
         assert np.all(self.contact_dofs >= 0)
         self.pinned_dofs = np.asarray(body.pinned_dofs, np.int64)       # full DOF indices
         self.pinned_free = self.assembler.full_to_free[self.pinned_dofs]
-        # (p, 3) per contact node (t1, t2, ν): True on the pinned components
-        self.contact_pinned = np.isin(full, self.pinned_dofs).reshape(-1, 3)
+        # (p, 3) per contact node (t1, t2, ν): True on the pinned components; in global components
+        # (u1, u2, u3) for what is held per DOF of the body (they differ only where a pinned u3 is a tangent)
+        self.contact_pinned_global = np.isin(full, self.pinned_dofs).reshape(-1, 3)
+        self.contact_pinned = self.contact_pinned_global
+        if self.pinned_columns is not None:
+            node, _ = np.divmod(self.pinned_dofs, 3)
+            self.contact_pinned = np.zeros_like(self.contact_pinned_global)
+            self.contact_pinned[np.searchsorted(self.contact_nodes, node), self.pinned_columns] = True
         self._pin_mask = None       # ((shape, nnz) of A's pattern, the CSR entries pinning zeroes)
         self.gap_matrix = self.mesh.gap_matrix()
         # initial gap of a contact face above x3 = 0 (body.initial_gap = "mesh"); 0 on the plane
@@ -166,10 +184,14 @@ class ElasticModel:
                      else np.zeros(self.contact_nodes.size))
         if face_frames is not None:
             self._obstacle_gap(cfg.obstacle, face_frames)
+        if self.foundation is not None:          # a curved face: gaps along the contact normals
+            n = self.frames[:, :, 2]
+            self.gap_matrix = self._gap_factor(n, self.contact_nodes)[:, None] * self.gap_matrix
+            self.gap0 = self.foundation.gap0.copy()
         self.loads = load_set(body, cfg.loads)
         self.body_force = self.loads.body_force
-        self.foundation = (None if cfg.foundation is None
-                           else Foundation(cfg.foundation, body, source=cfg.source, check=check))
+        if cfg.foundation is not None and self.foundation is None:
+            self.foundation = Foundation(cfg.foundation, body, source=cfg.source, check=check)
 
     @property
     def force(self) -> float | None:
@@ -205,7 +227,8 @@ class ElasticModel:
         if spec is None:
             return None
         self.obstacle = make_obstacle(spec)
-        fr = contact_frames(self.obstacle, ref.points, body.contact_face.nodes, body.tol, self.config.source)
+        fr = contact_frames(self.obstacle, ref.points, body.contact_face.nodes, body.penetration_tol,
+                            self.config.source, interference=self.config.body.interference)
         if spec.shape == "plane":
             return fr
         where = np.searchsorted(body.contact_face.nodes, body.contact_nodes)
@@ -216,6 +239,9 @@ class ElasticModel:
             node, comp = np.divmod(body.pinned_dofs, 3)
             m = np.searchsorted(body.contact_nodes, node)
             R = R.copy()
+            if np.any(comp == 2):               # a tangent e3 (a face on a chart, not the plane)
+                self._pinned_frames(f"{spec.shape} obstacle", ref, body, R, m, comp)
+                return fr
             for mm, k in zip(m, comp):
                 n = R[mm, :, 2]
                 if abs(n[k]) < 1e-12 and np.abs(R[mm, :, k] - np.eye(3)[k]).max() > 1e-12:
@@ -231,6 +257,62 @@ class ElasticModel:
                                    "obstacle's normal there)"])
         self.frames = R
         return fr
+
+    def _pinned_frames(self, what, ref, body, R, m, comp):
+        """Frames of contact nodes with clamped components on a face of any chart: each clamped
+        component e_k (⟂ n) becomes a tangent column of the node's frame (t1 first), the frame
+        right-handed; ``pinned_columns`` maps the pinned DOFs to those columns (t1, t2). Sets
+        ``frames``; ``what`` names the counterpart in messages."""
+        cols = {}
+        for mm, k in zip(m, comp):
+            cols.setdefault(int(mm), []).append(int(k))
+        self.pinned_columns = np.zeros(comp.size, np.int64)
+        for mm, ks in cols.items():
+            n = R[mm, :, 2]
+            bad = [k for k in ks if abs(n[k]) > 1e-9]
+            if bad or len(ks) > 2:
+                nn = int(body.contact_nodes[mm])
+                raise ConfigError([f"{self.config.source}: body.clamped: contact node {nn} at {_fmt(ref.points[nn])} "
+                                   f"has its component u{(bad or ks)[0] + 1} clamped, which is not a tangent of its "
+                                   f"frame on the {what} (the symmetry plane must contain the contact normal "
+                                   "there)"])
+            t1 = np.eye(3)[ks[0]]
+            t2 = np.eye(3)[ks[1]] if len(ks) == 2 else np.cross(n, t1)
+            order = list(ks)
+            if np.cross(t1, t2) @ n < 0:
+                t1, t2, order = t2, t1, order[::-1]
+            R[mm, :, 0], R[mm, :, 1] = t1 - (t1 @ n) * n, t2 - (t2 @ n) * n
+            R[mm, :, 0] /= np.linalg.norm(R[mm, :, 0])
+            R[mm, :, 1] /= np.linalg.norm(R[mm, :, 1])
+            for i in np.flatnonzero(m == mm):
+                self.pinned_columns[i] = order.index(int(comp[i])) if len(ks) == 2 else 0
+        self.frames = R
+
+    def _curved_foundation(self, cfg, ref, body, check) -> None:
+        """An elastic foundation under a curved contact face (fem.foundation): contact normals
+        n_m = the chart's inward normal at the node (from the foundation to the body), frames
+        (t1, t2, n_m) with the clamped components as tangents, the partners and initial gaps along
+        n_m; an overlap deeper than the penetration tolerance needs ``body.interference``."""
+        x = ref.points[body.contact_nodes]
+        n = -body.chart.outward(x)
+        R = tangent_frames(n)
+        if body.pinned_dofs.size:
+            node, comp = np.divmod(body.pinned_dofs, 3)
+            self._pinned_frames("elastic foundation", ref, body, R.copy(), np.searchsorted(body.contact_nodes, node),
+                                comp)
+        else:
+            self.frames = R
+        self.foundation = Foundation(cfg.foundation, body, source=cfg.source, check=check, normals=n)
+        self.foundation.rotate(self.frames)
+        g = self.foundation.gap0
+        deep = np.flatnonzero(g < -body.penetration_tol)
+        if deep.size and not cfg.body.interference:
+            deep = deep[np.argsort(g[deep], kind="stable")]
+            raise ConfigError([f"{cfg.source}: foundation: {deep.size} contact node(s) of the body lie inside the "
+                               f"foundation deeper than the tolerance {body.penetration_tol:.3g}, deepest first: "
+                               + ", ".join(f"node {int(body.contact_nodes[k])} at {_fmt(x[k])} (depth {-g[k]:.3g})"
+                                           for k in deep[:5])
+                               + " (an intended overlap, a press or shrink fit: body.interference = true)"])
 
     def _obstacle_gap(self, spec, fr) -> None:
         """Gap on an obstacle: g_m = d_m + (n_m·e3) ϑ_α(x'_m) − d·n_m (mesh.obstacle); the plane
@@ -257,8 +339,14 @@ class ElasticModel:
             if shift[2] != 0.0:
                 self.gap0 = self.gap0 - shift[2]
             return
-        self.gap_matrix = n[:, 2:3] * self.gap_matrix
+        self.gap_matrix = self._gap_factor(n, self.contact_nodes)[:, None] * self.gap_matrix
         self.gap0 = fr.distance[where] - n @ shift
+
+    def _gap_factor(self, n, nodes) -> np.ndarray:
+        """n_m·d_m per node: the counterpart's normal n_m (towards the body) against the motion's
+        direction d_m (e3 on the paper's map, whose factor is n_m3 itself)."""
+        d = self.mesh.directions
+        return n[:, 2].copy() if d is None else np.einsum("ij,ij->i", n, d[nodes])
 
     def _admissible_set(self, ref, body, frames=None) -> AdmissibleSet:
         """U of ``[design]``; with ``nonnegative_gap`` ϑ_α + g0 ≥ 0 at the nodes of the contact face
@@ -266,14 +354,14 @@ class ElasticModel:
         other than the plane (n_m·e3) ϑ_α + d_m ≥ 0, d_m the node's distance to it (mesh.obstacle)."""
         d, s = self.config.design, self.surface
         gap = {}
-        if d.nonnegative_gap:
+        if d.nonnegative_gap and not self.config.body.interference:
             nodes = body.contact_face.nodes
-            xy = self.mesh._in_domain(ref.points[nodes, :2])
+            xy = self.mesh._in_domain(self.mesh.chart_points(ref.points[nodes]))
             g0 = (ref.points[nodes, 2].copy() if self.config.body.initial_gap == "mesh"
                   else np.zeros(nodes.size))
             B = s.basis_matrix(xy[:, 0], xy[:, 1])
             if frames is not None and self.frames is not None:
-                B, g0 = frames.normal[:, 2:3] * B, frames.distance.copy()
+                B, g0 = self._gap_factor(frames.normal, nodes)[:, None] * B, frames.distance.copy()
             gap = dict(gap_basis=B, gap_offset=g0, gap_nodes=nodes,
                        gap_points=ref.points[nodes, :2])
         elif d.lower < 0:
@@ -298,7 +386,7 @@ class ElasticModel:
         G, _ = element_geometry(ref.points[ref.cells], self.assembler.dN)
         centroids = ref.points[ref.cells].mean(axis=1)
         thr = self.config.body.min_jacobian_ratio
-        jr = JacobianRatio(ref.cells, G[..., 2], self.mesh.dx3_dalpha(), thr, qpoints=centroids,
+        jr = JacobianRatio(ref.cells, self.mesh.ratio_gradient(G), self.mesh.dx3_dalpha(), thr, qpoints=centroids,
                            fixed_parts={name: nodes for name, nodes in body.fixed_shape.items()})
         C0, lower = self.config.design.C0, self.config.design.lower
         worst, e, _, _ = jr.worst_on_box(C0, lower)
@@ -401,7 +489,7 @@ class ElasticModel:
         u_full, v_full = self.unpin(u_full), self.unpin(v_full)
         d = self.assembler.stiffness_shape_contraction(coords, u_full, v_full)
         d -= (loads or self.loads).shape_contraction(coords, v_full, self.assembler)
-        return self.mesh.contract_dx3(d[:, 2])
+        return self.mesh.contract_dx(d)
 
 
 def _formulation(mat, cell_type, source: str) -> str:

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import csv
 import logging
 import os
 import shutil
@@ -9,7 +10,9 @@ import tempfile
 from pathlib import Path
 
 from ..errors import ContactOptError
-from .lock import LOCK_NAME, DirLock, acquire, describe, live_holders
+from .atomic import atomic_write_json, atomic_write_text, write_error
+from .checkpoint import CHECKPOINT_NAME
+from .lock import LOCK_NAME, DirLock, LockedError, acquire, describe, held_by, live_holders
 
 log = logging.getLogger(__name__)
 
@@ -111,3 +114,119 @@ def claim_output_dir(path, *, overwrite: bool = False, resume: bool = False, wha
         lock.release()
         raise
     return lock
+
+
+class _RunLog(logging.FileHandler):
+    """run.log; a write that fails (a full disk) silences it instead of printing a traceback:
+    the write of a file that matters fails soon after and says why."""
+
+    def handleError(self, record):
+        self.setLevel(logging.CRITICAL + 1)
+
+
+class RunDirectory:
+    """The directory of one optimization run and the files it owns: its lock, run.log,
+    config.toml, history.csv, checkpoint.npz (:mod:`contactopt.io.checkpoint`), summary.json and
+    the result files (:mod:`contactopt.io.outputs`).
+
+    :meth:`claim` takes the lock (one writer per directory), :meth:`start_log` starts run.log,
+    :meth:`close` undoes both. A stale lock left by a killed writer is taken over and noted in run.log at
+    INFO level (nothing is printed: the takeover is what a resume after ``kill -9`` expects)."""
+
+    LOG_FORMAT = "%(asctime)s %(levelname)s %(name)s: %(message)s"
+
+    def __init__(self, path):
+        self.path = Path(path)
+        self.lock = None
+        self._handler = None
+        self._level = None
+
+    @property
+    def checkpoint(self) -> Path:
+        return self.path / CHECKPOINT_NAME
+
+    @property
+    def history(self) -> Path:
+        return self.path / "history.csv"
+
+    @property
+    def summary(self) -> Path:
+        return self.path / "summary.json"
+
+    def refuse_if_held(self) -> None:
+        """:class:`~contactopt.io.lock.LockedError` when a live process holds the directory
+        (checked before a run's set-up, not only once it is done)."""
+        holder = held_by(self.path) if self.path.is_dir() else None
+        if holder is not None:
+            raise LockedError(self.path, holder, "run directory")
+
+    def claim(self, *, overwrite: bool = False, resume: bool = False) -> None:
+        """Take the lock (:func:`claim_output_dir`: nothing is written or removed before)."""
+        self.lock = claim_output_dir(self.path, overwrite=overwrite, resume=resume)
+
+    def start_log(self) -> None:
+        """Start run.log (INFO and above of the ``contactopt`` loggers) and note a taken-over lock."""
+        root = logging.getLogger("contactopt")
+        try:
+            self._handler = _RunLog(self.path / "run.log")
+        except OSError as exc:
+            raise write_error(self.path / "run.log", exc) from exc
+        self._level = root.level
+        self._handler.setFormatter(logging.Formatter(self.LOG_FORMAT))
+        self._handler.setLevel(logging.INFO)
+        root.addHandler(self._handler)
+        if root.getEffectiveLevel() > logging.INFO:
+            root.setLevel(logging.INFO)
+        if self.lock is not None and self.lock.previous:
+            log.info("took over the lock of %s from a writer that no longer runs (%s)", self.path,
+                     describe(self.lock.previous))
+
+    def close(self) -> None:
+        """Stop run.log and release the lock (whichever of them was started)."""
+        root = logging.getLogger("contactopt")
+        if self._handler is not None:
+            root.removeHandler(self._handler)
+            self._handler.close()
+            self._handler = None
+        if self._level is not None:
+            root.setLevel(self._level)
+            self._level = None
+        if self.lock is not None:
+            self.lock.release()
+            self.lock = None
+
+    # ------------------------------------------------------------------ files
+    def write_config(self, text: str, versions: dict) -> None:
+        """config.toml: the resolved configuration ``text`` under a line of package versions."""
+        atomic_write_text(self.path / "config.toml", "# resolved configuration of this run\n# versions: "
+                          + ", ".join(f"{k} {v}" for k, v in versions.items()) + "\n" + text)
+
+    def start_history(self, fields: list, keep_rows: int | None = None) -> None:
+        """history.csv with its header; ``keep_rows``: keep that many rows of the file there is
+        (a resume: the rows after its checkpoint, perhaps cut short by a full disk, are dropped)."""
+        rows = []
+        if keep_rows and self.history.exists():
+            text = self.history.read_bytes().decode("utf-8", errors="replace").replace("\0", "")
+            rows = list(csv.reader(text.splitlines()))[1:1 + keep_rows]
+        atomic_write_text(self.history, ",".join(fields) + "\n" + "".join(",".join(r) + "\n" for r in rows))
+
+    def append_history(self, row: list) -> None:
+        """One row of history.csv (appended: rows after the checkpoint are dropped on resume)."""
+        try:
+            with open(self.history, "a", newline="") as fh:
+                csv.writer(fh).writerow(row)
+        except OSError as exc:
+            raise write_error(self.history, exc) from exc
+
+    def sync_history(self) -> None:
+        """history.csv on disk before a checkpoint that counts its rows."""
+        try:
+            with open(self.history, "rb+") as fh:
+                os.fsync(fh.fileno())
+        except FileNotFoundError:
+            pass
+        except OSError as exc:
+            raise write_error(self.history, exc) from exc
+
+    def write_summary(self, summary: dict) -> None:
+        atomic_write_json(self.summary, summary)

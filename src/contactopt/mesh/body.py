@@ -56,6 +56,8 @@ class Body(HasParts):
     # full DOF indices of the clamped tangential components of contact nodes: free DOFs of A
     # with u = 0 held by the contact law (module docstring)
     rigid: object = None          # mesh.rigid.RigidModes the clamps leave free (held by contact), or None
+    chart: object = None          # design.chart.PlaneChart | CylinderChart of the face; None: ξ = (x1, x2)
+    penetration_tol: float = 0.0  # absolute depth a node may lie inside the counterpart (no interference)
     sizes: tuple | None = field(default=None, compare=False, repr=False)
     # (free DOFs, entries of the stiffness on them), counted once by contactopt.fem.memory
 
@@ -86,7 +88,10 @@ def build_body(cfg) -> Body:
         raise ConfigError([f"{cfg.source}: body.mesh: {ref.source}: the mesh is inverted as given: {bad.size} of "
                            f"{ref.n_cells} cell(s) have a negative orientation, first cell {e} at "
                            f"{_fmt(ref.points[ref.cells[e]].mean(axis=0))} (node order of the cells: meshio/VTK)"])
-    tol = float(spec.tolerance) * ref.typical_size()
+    h = ref.typical_size()
+    tol = float(spec.tolerance) * h
+    gtol = float(spec.graph_tolerance or spec.tolerance) * h
+    ptol = float(spec.penetration_tolerance or spec.tolerance) * h
     problems = []
     part = part_selector(ref, tol, "body", problems)
 
@@ -101,35 +106,48 @@ def build_body(cfg) -> Body:
     fixed = np.zeros((ref.n_nodes, 3), bool)
     for p, comps in clamped:
         fixed[np.ix_(p.nodes, comps)] = True
-    face = _check_contact_face(ref, face, tol, on_plane=spec.initial_gap == "zero")
-    contact_nodes, pinned, warnings = _contact_nodes(face, fixed, spec.contact, cfg.source)
+    chart = _chart(cfg, ref, face, gtol)
+    if chart is None:
+        face = _check_contact_face(ref, face, ptol, on_plane=spec.initial_gap == "zero", graph_tol=gtol,
+                                   interference=spec.interference)
+    else:
+        face = Part(face.name, np.unique(face.faces), face.faces, face.origin)
+    normal_comp = None
+    if chart is not None:
+        # on a chart the components clamped along the face's normal take a node out, those in its
+        # tangent plane (a symmetry plane or an end face through the face) are pinned tangents
+        normal_comp = np.abs(chart.outward(ref.points[face.nodes])) > 1e-9
+    contact_nodes, pinned, warnings = _contact_nodes(face, fixed, spec.contact, cfg.source, normal_comp)
     from .rigid import free_modes
     rigid = free_modes(ref.points, fixed)
     if rigid.count:
         log.info("body.clamped leaves %d rigid-body motion(s) free: %s; contact must hold them", rigid.count,
                  ", ".join(rigid.names()))
     fixed_shape = _fixed_shape(ref, spec.fixed_shape, face, tol, cfg.source)
-    domain = _domain(cfg.design.domain, ref, face, tol, cfg.source)
+    xi = ref.points[face.nodes, :2] if chart is None else chart.parameters(ref.points[face.nodes])
+    domain = _domain(cfg.design.domain, xi, face, tol, cfg.source)
     eliminated = fixed.copy()
     eliminated.ravel()[pinned] = False
     body = Body(ref, tol, np.flatnonzero(eliminated.ravel()), clamped, face, contact_nodes, fixed_shape, domain,
-                pinned_dofs=pinned, rigid=rigid if rigid.count else None)
+                pinned_dofs=pinned, rigid=rigid if rigid.count else None, chart=chart, penetration_tol=ptol)
     body.warnings += warnings + _thin_tetrahedra(ref) + _poor_cells(ref)
     for w in body.warnings:
         log.warning("%s", w)
     return body
 
 
-def _contact_nodes(face: Part, fixed: np.ndarray, contact, source: str):
+def _contact_nodes(face: Part, fixed: np.ndarray, contact, source: str, normal_comp=None):
     """(contact nodes, pinned DOFs, warnings) of the contact face (the part ``contact``) under the
     clamps ``fixed``.
 
     A node whose normal component u3 is clamped is no contact node (a warning names those clamped
     in u3 but not in every component); a clamped u1 or u2 of a contact node is pinned (module
-    docstring). ConfigError when no node is left, or when u3 is clamped on more than half of the face."""
+    docstring). ConfigError when no node is left, or when u3 is clamped on more than half of the face.
+    ``normal_comp`` (face nodes × 3, on a chart): the global components with a part along the face's
+    normal; a clamp of one of them takes the node out, the other clamped components are pinned."""
     name = describe_part(contact)
     f = fixed[face.nodes]
-    normal = f[:, 2]
+    normal = f[:, 2] if normal_comp is None else np.any(f & normal_comp, axis=1)
     contact_nodes = face.nodes[~normal]
     if contact_nodes.size == 0:
         raise ConfigError([f"{source}: body.contact = {name}: every node of the contact face is clamped in its "
@@ -145,8 +163,11 @@ def _contact_nodes(face: Part, fixed: np.ndarray, contact, source: str):
         warnings.append(f"body.clamped: {partly.size} node(s) of the contact face {name} have their normal "
                         f"component u3 clamped and are no contact nodes: nodes "
                         + ", ".join(str(int(n)) for n in partly[:10]) + (", …" if partly.size > 10 else ""))
-    tangential = fixed[contact_nodes, :2]
-    pinned = (3 * contact_nodes[:, None] + np.arange(2))[tangential].astype(np.int64)
+    if normal_comp is None:
+        tangential = fixed[contact_nodes, :2]
+        pinned = (3 * contact_nodes[:, None] + np.arange(2))[tangential].astype(np.int64)
+    else:
+        pinned = (3 * contact_nodes[:, None] + np.arange(3))[fixed[contact_nodes]].astype(np.int64)
     return contact_nodes, np.sort(pinned), warnings
 
 
@@ -154,17 +175,48 @@ def _as_list(x):
     return x if isinstance(x, list) else [x]
 
 
-def _check_contact_face(ref: ReferenceMesh, face: Part, tol: float, on_plane: bool = True) -> Part:
+def _chart(cfg, ref: ReferenceMesh, face: Part, gtol: float):
+    """The chart of the contact face (:mod:`contactopt.design.chart`), or None for the paper's
+    ξ = (x1, x2): ``design.chart = "auto"`` on a face whose outward normals all point down (−x3),
+    or whose counterpart is the plane x3 = 0, which :func:`_check_contact_face` then checks as before.
+
+    A chart other than a plane with outward normal −e3 needs a counterpart that gives each contact
+    node its frame: a rigid ``[obstacle]`` other than the plane x3 = 0."""
+    from ..design.chart import face_normals, resolve_chart
+    d = cfg.design
+    if face.faces.shape[0] == 0:
+        return None                       # _check_contact_face names it
+    obstacle = getattr(cfg, "obstacle", None)
+    if d.chart == "auto" and not d.axis and not d.origin:
+        nf, _ = face_normals(ref.points, face.faces, ref.face_type)
+        rigid_plane = obstacle is None or obstacle.shape == "plane"
+        if np.all(nf[:, 2] < 0) or (rigid_plane and getattr(cfg, "foundation", None) is None):
+            return None
+    chart = resolve_chart(d, ref.points, face, ref.face_type, gtol, cfg.source)
+    flat = chart.kind == "plane" and np.abs(chart.normal - [0.0, 0.0, -1.0]).max() <= 1e-12
+    foundation = getattr(cfg, "foundation", None) is not None
+    if not flat and (obstacle is None or obstacle.shape == "plane") and not foundation:
+        raise ConfigError([f"{cfg.source}: body.contact = {face.name}: the face lies on a {chart.describe()}, "
+                           "not on the foundation plane x3 = 0: its counterpart must be a rigid [obstacle] "
+                           "(sphere, cylinder or surface) or an elastic [foundation] whose top face it touches"])
+    return chart
+
+
+def _check_contact_face(ref: ReferenceMesh, face: Part, tol: float, on_plane: bool = True, graph_tol=None,
+                        interference: bool = False) -> Part:
     """The contact face lies on x3 = 0 (snapped there), the body above it, and is a graph over (x1, x2).
 
     ``on_plane=False`` (``initial_gap = "mesh"``): the face may lie above the plane, x3 ≥ 0, and
-    keeps its coordinates as they are (they are its initial gap)."""
+    keeps its coordinates as they are (they are its initial gap); with ``interference`` also below
+    it (a negative initial gap). ``tol`` is the penetration tolerance, ``graph_tol`` (default
+    ``tol``) that of the graph check."""
+    graph_tol = tol if graph_tol is None else graph_tol
     name = face.name
     if face.faces.shape[0] == 0:
         raise ConfigError([f"body.contact = {name}: has no boundary faces (it must be a surface of the body "
                            "lying on the foundation plane x3 = 0)"])
     nodes = np.unique(face.faces)
-    off = np.abs(ref.points[nodes, 2]) > tol if on_plane else ref.points[nodes, 2] < -tol
+    off = np.abs(ref.points[nodes, 2]) > tol if on_plane else ref.points[nodes, 2] < (-np.inf if interference else -tol)
     if np.any(off):
         bad = nodes[off][:5]
         where = "do not lie on the foundation plane x3 = 0" if on_plane else "lie below the foundation plane x3 = 0"
@@ -172,7 +224,7 @@ def _check_contact_face(ref: ReferenceMesh, face: Part, tol: float, on_plane: bo
                            + ", ".join(f"node {n} at {_fmt(ref.points[n])}" for n in bad)])
     if on_plane:
         ref.points[nodes, 2] = 0.0          # rounded coordinates of the file: exactly on the plane
-    else:
+    elif not interference:
         ref.points[nodes, 2] = np.maximum(ref.points[nodes, 2], 0.0)
     nc = FACE_CORNERS[ref.face_type]
     X = ref.points[face.faces[:, :nc]]
@@ -183,7 +235,7 @@ def _check_contact_face(ref: ReferenceMesh, face: Part, tol: float, on_plane: bo
                            f"(outward normal +x3; the body must lie in x3 ≥ 0 above the foundation), first with "
                            f"nodes {up.tolist()}"])
     from scipy.spatial import cKDTree
-    pairs = cKDTree(ref.points[nodes, :2]).query_pairs(tol, output_type="ndarray")
+    pairs = cKDTree(ref.points[nodes, :2]).query_pairs(graph_tol, output_type="ndarray")
     if len(pairs):
         a, b = nodes[pairs[0, 0]], nodes[pairs[0, 1]]
         raise ConfigError([f"body.contact = {name}: is not a graph over (x1, x2): {len(pairs)} pair(s) of nodes "
@@ -232,9 +284,9 @@ def _fixed_shape(ref, spec, face: Part, tol: float, source: str) -> dict:
     return out
 
 
-def _domain(given, ref, face: Part, tol: float, source: str):
-    """The design rectangle: ``design.domain`` or the bounding rectangle of the contact face."""
-    xy = ref.points[face.nodes, :2]
+def _domain(given, xy, face: Part, tol: float, source: str):
+    """The design rectangle: ``design.domain`` or the bounding rectangle of the contact face's chart
+    coordinates ``xy`` (x1, x2 on the paper's plane)."""
     lo, hi = xy.min(axis=0), xy.max(axis=0)
     if not given:
         if np.any(hi - lo <= tol):
@@ -245,7 +297,7 @@ def _domain(given, ref, face: Part, tol: float, source: str):
     if np.any(out):
         n = face.nodes[out][0]
         raise ConfigError([f"{source}: design.domain = {given}: {int(out.sum())} node(s) of the contact face "
-                           f"lie outside it, first node {n} at {_fmt(ref.points[n, :2])}"])
+                           f"lie outside it, first node {n} at {_fmt(xy[out][0])}"])
     return ((float(a0), float(a1)), (float(b0), float(b1)))
 
 

@@ -60,10 +60,11 @@ def foundation_block(size, cells, origin=(0.0, 0.0), element: str = "hexahedron"
     return mesh
 
 
-def build_foundation_mesh(spec, contact_xy: np.ndarray, source: str) -> FoundationMesh:
+def build_foundation_mesh(spec, contact_xy: np.ndarray, source: str, curved: bool = False) -> FoundationMesh:
     """Resolve ``[foundation]`` (``spec``, of the configuration read from ``source``) against the
     body's contact face, given by the (x1, x2) of its nodes ``contact_xy`` (p, 2). ConfigError
-    names every problem."""
+    names every problem. ``curved``: the contact face lies on a chart other than x3 = 0 and the top
+    face may be any boundary face (its partners and gaps are found along the contact normals)."""
     where = f"{source}: foundation"
     try:
         if spec.mesh:
@@ -90,8 +91,14 @@ def build_foundation_mesh(spec, contact_xy: np.ndarray, source: str) -> Foundati
             fixed[np.ix_(p.nodes, sorted({COMPONENTS[c] for c in clamp.components}))] = True
     if problems:
         raise ConfigError(problems)
-    top = _check_top(ref, top, tol, describe_part(spec.top), where)
-    _check_overlap(ref, contact_xy, tol, where)
+    if curved:
+        if top.faces.shape[0] == 0:
+            raise ConfigError([f"{where}.top = {describe_part(spec.top)}: has no boundary faces (it must be the "
+                               "foundation's face the contact face touches)"])
+        top = Part(top.name, np.unique(top.faces), top.faces, top.origin)
+    else:
+        top = _check_top(ref, top, tol, describe_part(spec.top), where)
+        _check_overlap(ref, contact_xy, tol, where)
     try:
         _check_rigid_modes(ref, fixed, source, key="foundation.clamped")
     except ConfigError as exc:

@@ -39,11 +39,11 @@ class HexMesh(MorphedMesh):
     """
 
     def __init__(self, nx, ny, nz, surface, c, *, weight, reference=None, contact_nodes=None,
-                 fixed_shape=("top",)):
+                 fixed_shape=("top",), **chart):
         ref = reference if reference is not None else block_mesh(surface.a, surface.b, c, nx, ny, nz)
         if contact_nodes is None:
             contact_nodes = np.setdiff1d(ref.parts["contact"].nodes, ref.parts["clamped"].nodes)
-        super().__init__(ref, surface, weight, contact_nodes, fixed_shape=fixed_shape)
+        super().__init__(ref, surface, weight, contact_nodes, fixed_shape=fixed_shape, **chart)
         self.nx, self.ny, self.nz, self.c = nx, ny, nz, c
 
     @property

@@ -8,9 +8,19 @@ shape; :func:`contactopt.fem.weight.harmonic_weight`). Node coordinates are affi
 On the contact face w = 1: a contact node at (x1, x2, 0) moves to (x1, x2, ϑ_α(x1, x2)), its gap
 to the foundation x3 ≤ 0 (outward normal e3 of the foundation) is g = ϑ_α(x1, x2).
 
-ϑ_α is evaluated at the node's (x1, x2) clamped to the design rectangle: nodes of the body that
+ϑ_α is evaluated at the node's (x1, x2) (its chart coordinates ξ) clamped to the design rectangle: nodes of the body that
 lie beyond the rectangle (they have w < 1) move like its nearest point, so the Bernstein
 polynomials are never extrapolated and the lift stays within [lower, C0]·w on U.
+
+On a face of any shape (:mod:`contactopt.design.chart`) the design surface lives on the face's
+chart ξ(x) and, with ``[design] motion = "normal"``, moves each node along a unit direction d(x)
+instead of e3 — the face's inward unit normal at its nodes, that of the nearest face node
+elsewhere:
+
+    x(α) = x_ref + ϑ_α(ξ(x_ref))·w(x_ref)·d(x_ref),    ∂x/∂α_k = β_k(ξ)·w·d,
+
+still affine in α. The design derivatives contract the per-node coordinate derivative with d
+(:meth:`MorphedMesh.contract_dx`); on the paper's map d = e3 and ξ = (x1, x2).
 
 Element quality (docs/theory.md): with h = ϑ_α w the lift, the Jacobian of a morphed element is
 J = J_ref + e3 ⊗ ∇_ξ h, so det J / det J_ref = 1 + ∂h/∂x3 (the derivative on the reference
@@ -18,7 +28,9 @@ element) — exactly, for every element type, and affine in α: ratio = 1 + R α
 :class:`JacobianRatio` checks it per design before assembly and bounds it over U: on U every
 control point lies in [lower, C0] (lower = 0 in the paper), so
 min_U (Rα)_q ≥ C0·Σ_k min(0, R_qk) + lower·Σ_k max(0, R_qk) — exact for the block (R ≤ 0
-there: ratio = 1 − ϑ_α/c, which a negative ϑ_α only raises).
+there: ratio = 1 − ϑ_α/c, which a negative ϑ_α only raises). With a direction field d that
+varies (normal motion on a curved face) the ratio is det(I + Σ_a h_a d_a ⊗ ∇N_a); :class:`JacobianRatio`
+then holds its part of first order, 1 + Σ_a h_a d_a·∇N_a, exact where d is constant (a plane).
 """
 
 from __future__ import annotations
@@ -40,20 +52,27 @@ class MorphedMesh:
     ``fixed_shape`` the names of the parts with w = 0 (for messages).
     """
 
-    def __init__(self, reference, surface, weight, contact_nodes, *, fixed_shape=()):
+    def __init__(self, reference, surface, weight, contact_nodes, *, fixed_shape=(), chart=None, directions=None):
         self.reference = reference
         self.surface = surface
         self.weight = np.asarray(weight, float)
         self.contact_nodes = np.asarray(contact_nodes, np.int64)
         self.fixed_shape = tuple(fixed_shape)
         self.elements = reference.cells
+        self.chart = chart                # None: ξ = (x1, x2)
+        # (n_nodes, 3) unit directions d of the motion, None: e3 (the paper's vertical map)
+        self.directions = None if directions is None else np.asarray(directions, float)
         x = reference.points
         self.moving = np.flatnonzero(self.weight != 0.0)
-        xy = self._in_domain(x[self.moving, :2])
+        xy = self._in_domain(self.chart_points(x[self.moving]))
         # ∂x3/∂α on the moving nodes: β_k(x1, x2)·w; constant in α
         self._basis = surface.basis_matrix(xy[:, 0], xy[:, 1])
         self._dx3 = self._basis * self.weight[self.moving, None]
         self.ratio = None          # JacobianRatio, attached by the model (needs the element type)
+
+    def chart_points(self, x) -> np.ndarray:
+        """(k, 2) chart coordinates ξ of points x (k, 3): (x1, x2) without a chart."""
+        return x[:, :2] if self.chart is None else self.chart.parameters(x)
 
     def _in_domain(self, xy):
         s = self.surface
@@ -91,11 +110,15 @@ class MorphedMesh:
         if self.ratio is not None:
             self.ratio.check(alpha)
         x = self.reference.points.copy()
-        x[self.moving, 2] += self.lift(alpha)
+        if self.directions is None:
+            x[self.moving, 2] += self.lift(alpha)
+        else:
+            x[self.moving] += self.lift(alpha)[:, None] * self.directions[self.moving]
         return x
 
     def dx3_dalpha(self) -> np.ndarray:
-        """∂x3/∂α for every node: (n_nodes, n_design) = β_k(x1, x2)·w. Constant in α."""
+        """∂x3/∂α for every node: (n_nodes, n_design) = β_k(x1, x2)·w. Constant in α. With a
+        direction field d (normal motion) the amplitude of ∂x/∂α = β_k(ξ)·w·d along d."""
         out = np.zeros((self.n_nodes, self.surface.size))
         out[self.moving] = self._dx3
         return out
@@ -104,9 +127,25 @@ class MorphedMesh:
         """Σ_n (∂x3_n/∂α) d3_n for a per-node array d3: the chain rule of the design derivatives."""
         return self._dx3.T @ d3[self.moving]
 
+    def contract_dx(self, d: np.ndarray) -> np.ndarray:
+        """Σ_n (∂x_n/∂α)·d_n for a per-node array d (n_nodes, 3): the chain rule of the design
+        derivatives along the motion's directions (e3 on the paper's map)."""
+        if self.directions is None:
+            return self.contract_dx3(d[:, 2])
+        m = self.moving
+        return self._dx3.T @ np.einsum("ij,ij->i", d[m], self.directions[m])
+
+    def ratio_gradient(self, G: np.ndarray) -> np.ndarray:
+        """(E, Q, n) ∇N_a·d_a from the reference shape-function gradients G (E, Q, n, 3): what
+        :class:`JacobianRatio` contracts with the lift amplitudes (∂N_a/∂x3 on the paper's map)."""
+        if self.directions is None:
+            return G[..., 2]
+        return np.einsum("eqaj,eaj->eqa", G, self.directions[self.elements])
+
     def contact_points(self) -> np.ndarray:
-        """(x1, x2) of the contact nodes, in contact-node order."""
-        return self.reference.points[self.contact_nodes, :2]
+        """Chart coordinates ξ of the contact nodes ((x1, x2) on the paper's plane), in contact-node
+        order: the unrolled face of plots and maps."""
+        return self.chart_points(self.reference.points[self.contact_nodes])
 
     def gap_matrix(self) -> np.ndarray:
         """G with gap g = G α: the initial gap of contact node i is ϑ_α(x'_i) (foundation x3 ≤ 0)."""

@@ -287,19 +287,25 @@ def make_obstacle(spec) -> Obstacle:
 
 
 def contact_frames(obstacle: Obstacle, points: np.ndarray, face_nodes: np.ndarray, tol: float,
-                   source: str = "") -> Frames:
+                   source: str = "", interference: bool = False) -> Frames:
     """The frames of the contact face's nodes, after the checks of the reference configuration:
-    no node of the body lies inside the obstacle deeper than ``tol``, and (surface) the closest
-    point of each face node is unique. ConfigError naming the first offending nodes."""
+    no node of the body lies inside the obstacle deeper than ``tol`` (with ``interference`` the
+    overlap is intended: a press or shrink fit, whose contact nodes start with a negative gap), and
+    (surface) the closest point of each face node is unique. ConfigError naming the first
+    offending nodes."""
     pre = f"{source}: " if source else ""
     problems = []
     d = obstacle.signed_distance(points)
     inside = np.flatnonzero(d < -tol)
     inside = inside[np.argsort(d[inside], kind="stable")]
-    if inside.size:
+    if inside.size and interference:
+        log.info("obstacle: %d node(s) of the body overlap the %s (body.interference), deepest %.3g",
+                 inside.size, obstacle.shape, -d[inside[0]])
+    elif inside.size:
         problems.append(f"{pre}obstacle: {inside.size} node(s) of the body lie inside the {obstacle.shape} "
                         f"deeper than the tolerance {tol:.3g}, deepest first: "
-                        + ", ".join(f"node {n} at {_fmt(points[n])} (depth {-d[n]:.3g})" for n in inside[:5]))
+                        + ", ".join(f"node {n} at {_fmt(points[n])} (depth {-d[n]:.3g})" for n in inside[:5])
+                        + " (an intended overlap, a press or shrink fit: body.interference = true)")
     if isinstance(obstacle, Surface):
         amb = obstacle.ambiguous(points[face_nodes], tol)
         if amb.size:

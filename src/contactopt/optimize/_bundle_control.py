@@ -127,7 +127,7 @@ def next_t(st, step, f_old: float, o) -> float:
     """Kiwiel's (1990) safeguarded update of t after a serious or null step; updates i_t, ε_v.
 
     ρ = (f(y) − f(x))/v is the share of the predicted decrease that was realised and
-    t_int = t/(2(1 − ρ)) the quadratic interpolation (module docstring).
+    t_int = t/(2(1 − ρ)) the quadratic interpolation (docs/bundle_method.md).
     """
     t, v = step.t, step.qp.v
     if not o.adapt_t:

@@ -6,167 +6,18 @@ nonsmooth function: conceptual idea, convergence analysis, numerical results*, S
 the admissible set U of designs — with the linear constraints of U put into the
 direction-finding QP so that every iterate (and every trial point) lies in U.
 
-Notation (current serious iterate x, bundle elements j):
+At a serious iterate x the bundle holds cuts (``fhat_j``, ``g_j``, distance ``s_j``) with the
+subgradient locality measures ``α_j = max(|f(x) − fhat_j|, γ s_j²)``; an iteration solves the
+QP ``min_d max_j (g_jᵀd − α_j) + dᵀW d/(2t)`` subject to ``x + d ∈ U`` (:mod:`._bundle_qp`),
+evaluates f at ``y = x + d`` (:func:`_evaluate`, the one place the loop calls the oracle) and
+takes a serious step (descent ``f(y) − f(x) ≤ m1·v``) or a null step (the cut enriches the
+model); the trust parameter t follows Kiwiel's proximity control and the metric W the serious
+steps' curvature (:mod:`._bundle_control`). The stopping tests: certified stationarity
+(status 0), the f-change and predicted-decrease tests (4), the round-off of f (5), stalled (3).
 
-* ``f_j``, ``g_j`` value and one Clarke subgradient at a trial point ``y_j``; an element is
-  stored by its linearisation value at x, ``fhat_j = f_j + g_jᵀ(x − y_j)``, and a distance
-  measure ``s_j ≥ ‖x − y_j‖`` (updated by the triangle inequality after serious steps, which
-  also serves the aggregate element, as in Kiwiel's aggregation);
-* the subgradient locality measure of Lemaréchal–Zowe / Schramm–Zowe, made safe for a
-  nonconvex f: ``α_j = max(|f(x) − fhat_j|, γ s_j²)``.  By default γ is the run's own
-  (docs/stopping.md): ``γ = max(gamma_t0/t, γ_m)`` with t the current trust parameter (the
-  weight of the proximal term, so γ is in the units of f per x² whatever the scaling of f and
-  x, and shrinks where the run takes long steps) and γ_m ``gamma_factor`` (2) times the largest
-  ``max(−e_j, r_j)/s_j²`` that a cut of the *present* bundle shows — a negative linearisation
-  error e_j = f(x) − fhat_j, or a trial point y where the cut lies above f
-  (r_j = f(x) − f(y) + g_jᵀ(y − x) > α_j), both beyond round-off — recomputed after every
-  serious step, so that one strongly curved region does not blunt the model for the rest of the
-  run (a γ that only grew took HS78 and Gill past 2000 evaluations, and Maxquad, convex, failed
-  with the start-based γ = gamma_t0/t0: its first gradient is 10⁴); 0 for the cuts of an affine
-  piece of f (a subgradient returned bit for bit at two points), whose linearisation is exact
-  at any distance;
-* **restart before a certificate of a nonconvex f**: once a cut has shown that f is not convex,
-  a certificate (or a model that predicts no decrease above round-off) is accepted only from a
-  bundle rebuilt at x — the bundle is cut to the element with the smallest α and the run goes
-  on with null steps near x; without it Crescent and MAD6 stopped at false certificates;
-* the BT QP with trust parameter t and a metric W (solved by DAQP in the variables e = Lᵀd,
-  W = LLᵀ; for a diagonal W the box stays a box, see :mod:`._bundle_qp`)::
-
-      min_d  max_j (g_jᵀd − α_j) + dᵀW d/(2t)   subject to x + d ∈ U,
-
-  with solution d, convex weights λ, model decrease ``v = Σλ_j (g_jᵀd − α_j) < 0``, aggregate
-  subgradient ``ξ = Σλ_j g_j``, aggregate error ``α_p = Σλ_j α_j``, aggregate subgradient of
-  f + indicator(U) ``p = −W d/t = ξ + Cᵀμ`` (μ the multipliers of the constraints) and
-  complementarity gap ``σ = μᵀ(b − Cx) ≥ 0`` of those multipliers at x;
-* inner loop on t (one *iteration* = one serious or one null step): the trial point
-  ``y = x + d(t)`` gives a **serious step** when ``f(y) − f(x) ≤ m1·v``.  With
-  ``extrapolation`` > 1 (off by default), where the slope there is still steep,
-  ``g(y)ᵀd < m2·v``, a **line search** extrapolates along the same d (as PBUN's and BT's line
-  searches go beyond the QP step): ``x + τd`` for τ = 2, 4, … up to ``extrapolation``, each
-  kept while it passes the descent test for τ·v and lowers f, until the slope flattens; every
-  point it evaluates adds its cut to the bundle.  At 4 it saved 2–9 % of the evaluations over
-  Lukšan & Vlček's U1–U20 (Rosenbrock 93 → 63 under every BLAS kernel) and never fired on Θ of
-  the paper's examples, but with the certificate alone EQUIL and MAXLIN-60 (eps = 1e-8)
-  stalled at f* under one kernel (docs/stopping.md).  With ``extend`` (off by default) a steep
-  slope instead enlarges t and re-solves the QP within the iteration, as in BT.  Without
-  descent the step is a **null step** when the new cut changes the model,
-  ``g(y)ᵀd − α(x, y) ≥ m3·v``, and y is local, ``α(x, y) ≤ locality·|v|`` (or t has reached
-  t_min); otherwise t is reduced and the QP re-solved (the safeguard of BT for a nonconvex f);
-* **proximity control between iterations** (K. C. Kiwiel, *Proximity control in bundle
-  methods for convex nondifferentiable minimization*, Math. Programming 46 (1990) 105–122,
-  the weight u = 1/t of its Algorithm 2.1 and its safeguarded update, as in the proximal
-  bundle code PBUN of Lukšan & Vlček): with the decrease ratio ``ρ = (f(y) − f(x))/v`` and
-  Kiwiel's quadratic interpolation ``t_int = t/(2(1 − ρ))`` (the t at which a quadratic
-  model of f along d, fitted to f(x), the model slope and f(y), would be minimal),
-
-  - after a serious step with ``ρ ≥ m_r`` (the decrease matches the model) that follows
-    another serious step, ``t ← t_int``; after more than three serious steps at the same t,
-    ``t ← 2t``; t grows by at most ``t_factor`` per step, up to t_max;
-  - with ``t_secant`` (off by default), after a serious step x → x⁺, t is capped by the
-    secant step ``sᵀs/sᵀ(p⁺ − p)`` of the aggregate subgradients at both ends (where
-    sᵀ(p⁺ − p) > 0; not below t/t_factor), solved for at the start of the next iteration: the
-    scalar quasi-Newton condition on the weight 1/t, one of PBUN's weight updates, applied only
-    to lower t.  Over U1–U20 of Lukšan & Vlček's collection 1733/1881/1990 evaluations instead
-    of 2050/2057/2049 (Prescott/Haswell/SkylakeX kernels), the same verdicts, slower on
-    polyhedral problems (L1HILB 66 → 108) (docs/stopping.md);
-  - after a null step whose cut shows the model far off, ``t ← t_int`` (``≤ t/2``): either
-    Kiwiel's test, a linearisation error ``α(x, y) > max(ε_v, −10·v)`` (ε_v the smallest
-    ``‖p‖ + α̃_p`` of the null steps since the last serious step, an estimate of the
-    variation of f) after more than three null steps at the same t, or — our addition, the
-    case of a t far too large for a piecewise smooth f such as Θ, where Kiwiel's test never
-    fires because ε_v mixes units of f and of f per unit of x — f *rose* at y although the
-    model predicted a decrease (ρ < 0), at the ``rise_patience``-th (3rd) null step after a
-    serious step (once per run of null steps: a polyhedral f needs long runs of null steps
-    at a fixed t).  t shrinks by at most ``t_factor`` per step, down to t_min;
-* **variable metric** (``metric``; the variable-metric bundle methods of Lemaréchal &
-  Sagastizábal, Math. Programming 76 (1997) 393–410, and Lukšan & Vlček, JOTA 102 (1999)
-  593–613): after every serious step x → x⁺ the pair ``s = x⁺ − x``, ``y = g(x⁺) − g(x)`` is
-  kept (the last ``metric_memory``, 20).
-
-  - ``"auto"``: the method chooses between W = I and
-    the BFGS metric below from what its serious steps show.  A pair is a *curvature pair* when
-    f along the step is a quadratic to within 10 % of sᵀy — the trapezoidal rule
-    ``f(x⁺) − f(x) = ½(g(x) + g(x⁺))ᵀs``, exact for a quadratic, holds to ``0.1·sᵀy`` and
-    sᵀy > 0 — while a jump of the subgradient across a kink fails it by a share of sᵀy near
-    one.  While at least three quarters of the kept pairs (and at least four) are curvature
-    pairs, W is the BFGS metric of all kept pairs; otherwise W = I, the exact cutting-plane
-    model of a polyhedral f.  On the paper's examples it costs what BFGS from the start costs
-    (86–118 evaluations to the practical stop under three BLAS kernels, J within 0.4 % of the
-    best known), the manufactured case certified after 211 evaluations instead of 264
-    (docs/stopping.md); it is not a default yet;
-  - ``"none"`` (the default here): W = I.  The variable metrics blunt the cutting-plane model
-    of a polyhedral f (Maxquad 137 evaluations with W = I, 375 with the diagonal, 1500+ with
-    BFGS), and ``"auto"`` with the f-change test let HS78, smooth and slow, stop 7e-6 above f*
-    under one BLAS kernel (docs/stopping.md);
-  - ``"diagonal"``: ``W_ii = Σ|y_i s_i| / Σ s_i²``, a componentwise secant
-    estimate of the curvature.  On Example 1, whose design variables differ in curvature by an
-    order of magnitude, J ≤ 8.77e-8 took 96 evaluations instead of 139 with W = I.  It is the
-    metric for polyhedral f, whose subgradient changes are jumps, not curvature;
-  - ``"bfgs"`` (the default of ``contactopt run``): damped BFGS
-    updates with the kept pairs, oldest first, from that diagonal (Powell's damping
-    sᵀy ≥ 0.2 sᵀWs keeps W positive definite where f is not convex).  Θ is piecewise smooth
-    with curvature coupling the control points; on Examples 1–3 under four OpenBLAS kernels
-    the runs end within 0.2 % of the best known J after 94–117 evaluations, where the diagonal
-    needed 101–176 to end within 0.8 % (docs/stopping.md).  On polyhedral problems it is slower (L1HILB 33 → 871
-    evaluations, MAXLIN-60 301 → 943);
-
-  either is normalised to geometric mean 1 of its eigenvalues (t keeps its scale) and its
-  eigenvalues clipped to [1/metric_range, metric_range] = [1e-2, 1e2];
-* **bundle management** (Kiwiel, *Methods of descent for nondifferentiable optimization*,
-  LNM 1133, 1985, Ch. 2): at most ``max_bundle`` elements (default n + 3, room for the n + 1
-  cuts of a polyhedral f in dimension n, the aggregate and the new cut).  When the bundle is
-  full, the elements inactive in the last QP (λ_j = 0) go first, oldest first; only when
-  the active ones alone do not leave room, the older active ones are replaced by the
-  aggregate element ``(ξ, Σλ fhat, Σλ s)``.  The element with the smallest α (the cut at x)
-  always stays.
-
-Stopping tests (what ``eps``, ``tolf`` and ``ftol`` mean).
-
-* **certified** (status 0): at the start of an iteration, with the current bundle,
-
-      stationarity = max(‖p‖, α_p + σ) / max(1, |f(x)|) ≤ eps,
-
-  i.e. the aggregate subgradient of f + indicator(U) is shorter than eps and it is an
-  eps-subgradient at x: for every z ∈ U (exactly so for a convex f, approximately otherwise)
-  ``f(z) ≥ f(x) − (α_p + σ) + pᵀ(z − x)``, hence ``f(x) − f(z) ≤ eps·(1 + ‖z − x‖)``.
-  ``eps`` is relative to max(1, |f|) (absolute for |f| ≤ 1, as for contactopt's Θ/Θ(α0)).  In double precision ``‖p‖`` cannot go much below
-  ``sqrt(1e-16·|f|·curvature)``.
-* **f-change** (status 4, a success; on by default, ``tolf = 1e-8``, ``tolf_steps = 2``): at the
-  start of an iteration right after a serious step, f changed by at most ``tolf·max(1, |f|)`` in
-  each of the last ``tolf_steps`` serious steps (the test of PBUN, Lukšan & Vlček's proximal
-  bundle code, with its default tolerance), the model predicts no larger decrease at the
-  present t (``−v ≤ tolf·max(1, |f|)``: on a crawl the steps are small because the model is
-  poor, not because there is nothing left — HS78 stopped 1.8e-6 above f* under one BLAS kernel
-  without it, once serious steps were extrapolated), and the stationarity measure is at most
-  ``sqrt(tolf)`` (the pairing of an f-change tolerance τ with a first-order test at a root of τ
-  of Gill, Murray & Wright, *Practical Optimization*, 8.2.3).  So x is certified at
-  ``sqrt(tolf)`` = 1e-4 (for a convex f, ``f(x) − f(z) ≤ 1e-4·max(1, |f|)·(1 + ‖z − x‖)``) and
-  f has stopped moving at 1e-8.  The second condition is what makes the test safe: f alone also
-  stops changing on a slow crawl far from x* (measured: Maxquad, Steiner2 and Wong3 stopped
-  1e-6 to 1e-4 above f*; a first-order test relative to its value at x0 let HS78 stop 2e-6
-  above f* under one BLAS kernel).  On Lukšan & Vlček's collection the runs keep the
-  certificate's verdicts on every kernel in about 30 % fewer evaluations; it never ends a run
-  whose ``eps`` is 1e-4 or more, where the certificate comes first (docs/stopping.md).
-  ``tolf = 0`` switches it off.
-* **predicted decrease** (status 4, also a success; off by default here, ``ftol = 0``, and
-  ``ftol = 5e-4`` in ``contactopt run``): right after a
-  serious step (and after at least
-  ``ftol_window`` of them), the decrease the bundle model predicts, ``−v/|f|`` for a step with the
-  largest trust parameter of the last ``ftol_window`` serious steps, is below ``ftol``, at this
-  iteration's start and at the last one's, and f fell by at most ``ftol_window·ftol`` relative
-  over those serious steps: the model sees no step of the size the
-  run is taking that would lower f by more than ``ftol·|f|``.  It measures how far from
-  stationarity x is (at that scale), not how much f happened to fall over a window, so the run
-  stops near a stationary point whatever the trajectory; on the paper's examples the J at the
-  stop was within 1 % of the best known J at ftol = 5e-4 (docs/stopping.md), in fewer
-  evaluations than the f-change test; on Maxquad the same ftol stopped 42 % above f*, hence off
-  by default.
-
-* **round-off** (status 5, a success): the model predicts no decrease above the round-off of
-  f, from a bundle that f's convexity, or a restart at x, makes trustworthy.
-
-A run that can certify neither stops as *stalled* (status 3) with its best point when f no
-longer decreases (module ``no_progress``) or null steps keep returning known cuts.
+docs/bundle_method.md describes each ingredient, the options and the measurements behind their
+defaults; docs/stopping.md the stopping tests on Lukšan & Vlček's collection
+(:mod:`contactopt.optimize.gallery`) and on the paper's examples.
 """
 
 from __future__ import annotations
@@ -240,7 +91,7 @@ class BTOptions:
     for the line search beyond a serious step (or for enlarging t with ``extend``); m3:
     null-step test (the new cut must lift the model at d to at least m3·v);
     gamma: weight of ‖x − y‖² in the locality measure α (0 is exact for convex f); None
-    (default): set by the run (module docstring) — gamma_t0/t (in the units of f per x², the
+    (default): set by the run (docs/bundle_method.md) — gamma_t0/t (in the units of f per x², the
     weight of the proximal term times gamma_t0) or gamma_factor times the nonconvexity the
     present bundle shows, whichever is larger, and 0 for the cuts of an affine piece of f;
     locality: a null step needs α(x, y) ≤ locality·|v|, else t is reduced (far trial point);
@@ -249,12 +100,12 @@ class BTOptions:
     t_decrease: factor of t in the inner loop (far or useless trial point);
     t_increase: factor of t in the inner loop with ``extend`` (bisection once bracketed);
     extrapolation: largest multiple τ of a serious step's direction that the line search tries
-    (τ doubles from 1 while the slope stays steep; 1 switches it off; module docstring);
+    (τ doubles from 1 while the slope stays steep; 1 switches it off; docs/bundle_method.md);
     t_secant: after a serious step x → x⁺, t is at most the secant step sᵀs/sᵀ(p⁺ − p) of the
-    aggregate subgradients (module docstring; off by default);
+    aggregate subgradients (docs/bundle_method.md; off by default);
     extend: enlarge t within an iteration after a serious-step candidate with a steep slope
     (BT's inner loop; costs evaluations);
-    adapt_t: Kiwiel's update of t between iterations (module docstring); m_r: decrease ratio
+    adapt_t: Kiwiel's update of t between iterations (docs/bundle_method.md); m_r: decrease ratio
     above which a serious step counts as predicted by the model; t_factor: largest change of
     t per iteration; rise_patience: the null step (counted from the last serious step) at
     which a rise of f (ρ < 0) shrinks t;
@@ -262,16 +113,16 @@ class BTOptions:
     the last metric_memory (20) serious steps, "none" (default, W = I), "auto" (BFGS while three
     quarters of the kept pairs show curvature, else W = I), "diagonal" or "bfgs" (a full matrix,
     the default of ``contactopt run``), its
-    eigenvalues within [1/metric_range, metric_range] (module docstring); "none" (or False)
+    eigenvalues within [1/metric_range, metric_range] (docs/bundle_method.md); "none" (or False)
     gives ‖d‖²/(2t), True is "bfgs";
     max_bundle: bundle size including the aggregate (default n + 3, at least 5);
     max_inner: trial points per iteration;
     ftol, ftol_window: practical stop (status 4) when the model predicts a relative decrease
-    below ftol after at least ftol_window serious steps (module docstring; ftol = 0, the
+    below ftol after at least ftol_window serious steps (docs/bundle_method.md; ftol = 0, the
     default: off);
     tolf, tolf_steps: the f-change stop (status 4): f changed by at most tolf·max(1, |f|) in
     each of the last tolf_steps serious steps and the stationarity measure is at most
-    sqrt(tolf) (module docstring; default 1e-8 and 2, in every run; tolf = 0: off);
+    sqrt(tolf) (docs/bundle_method.md; default 1e-8 and 2, in every run; tolf = 0: off);
     stall_window: stop (status 3) when over this many iterations (at least 2(n + 1), the null
     steps a polyhedral f may need at one x) f did not decrease and the stationarity measure did
     not halve (eps below the reachable precision);
@@ -916,7 +767,7 @@ def minimize_bundle(oracle, x0, *, lb=None, ub=None, A_ub=None, b_ub=None, A_eq=
         Parameters of the method, see :class:`BTOptions`; among them the practical stop
         (status 4): the f-change test ``tolf`` (default 1e-8) over ``tolf_steps`` (2) serious
         steps, and the predicted decrease ``ftol`` (default 0: off) with ``ftol_window`` (5),
-        see the module docstring.
+        see docs/bundle_method.md.
 
     Returns
     -------
@@ -932,106 +783,121 @@ def minimize_bundle(oracle, x0, *, lb=None, ub=None, A_ub=None, b_ub=None, A_eq=
         Empty feasible set, invalid input, a failed QP subproblem or a non-finite oracle value.
     """
     o = BTOptions.from_kwargs(options)
-    if state is not None:
-        st = state.copy()
-        n = st.x.size
-    else:
-        n = np.asarray(x0).size
-    # the method works in z = x/d (the state too); the user's x, f, g and U are wrapped here
-    scaling = variable_scaling(n, lb, ub, o.scale)
-    if scaling is not None:
-        oracle, callback = scaling.oracle(oracle), scaling.callback(callback)
-        x0 = scaling.inner(x0) if state is None else x0
-        lb, ub, A_ub, b_ub, A_eq, b_eq = scaling.constraints(lb, ub, A_ub, b_ub, A_eq,
-                                                             b_eq).values()
-    poly = Polyhedron(n, lb, ub, A_ub, b_ub, A_eq, b_eq)
-    if state is None:
-        st = _initial_state(oracle, poly, x0, o)
-    elif poly.violation(st.x) > o.feas_tol:
-        raise OptimizerError("the restored state's x violates the constraints")
-    max_bundle = o.max_bundle if o.max_bundle is not None else max(5, n + 3)
+    oracle, callback, poly, scaling, st = _start(oracle, x0, (lb, ub, A_ub, b_ub, A_eq, b_eq), callback, state, o)
+    max_bundle = o.max_bundle if o.max_bundle is not None else max(5, poly.n + 3)
     logger.info("bundle start: n=%d f=%.10g eps=%.1e ftol=%.1e/%d t=%.3e bundle<=%d "
-                "(iteration %d)", n, st.f, eps, o.ftol, o.ftol_window, st.t, max_bundle, st.nit)
+                "(iteration %d)", poly.n, st.f, eps, o.ftol, o.ftol_window, st.t, max_bundle, st.nit)
     rel = relative_decrease(st.history, o.ftol_window)
-    criterion = None
     while True:
         if st.nit >= max_iter:
-            status, criterion = 1, "max_iter"
-            message = f"max_iter reached ({max_iter} iterations)"   # measures: in the result
+            stop = (1, "max_iter", f"max_iter reached ({max_iter} iterations)")   # measures: in the result
             break
         step = _iteration(oracle, poly, st, o, eps)
         if step.kind == "restart":
-            k = int(np.argmin(_alpha(st, o.gamma)))
-            st.G, st.fhat, st.s = st.G[k:k + 1].copy(), st.fhat[k:k + 1].copy(), st.s[k:k + 1].copy()
-            st.verified = 1
-            logger.debug("restart at f=%.10g: bundle reduced to the cut at x", st.f)
+            _restart(st, o.gamma)
             continue
-        if step.kind == "converged":
-            status, criterion = 0, "stationarity"
-            cmp = "<" if st.stationarity < eps else "<="
-            message = f"converged: stationarity {st.stationarity:.1e} {cmp} eps {eps:.0e}"
+        stop = _converged(step, st, o, eps)
+        if stop is not None:
             break
-        if step.kind == "practical":
-            status, criterion = 4, "predicted_decrease"
-            message = (f"converged: the model predicts a relative decrease {st.predicted:.1e} < ftol "
-                       f"{o.ftol:.0e} (stationarity {st.stationarity:.1e}, eps {eps:.0e})")
-            break
-        if step.kind == "fchange":
-            status, criterion = 4, "f_change"
-            message = (f"converged: f changed by at most tolf {o.tolf:.0e} (relative) in "
-                       f"{o.tolf_steps} serious steps in a row, stationarity "
-                       f"{st.stationarity:.1e} <= sqrt(tolf) (eps {eps:.0e})")
-            break
-        if step.kind == "roundoff":
-            status, criterion = 5, "roundoff"
-            message = (f"converged: the model predicts a decrease {-step.qp.v:.2e} at the round-off "
-                       f"of f (stationarity {st.stationarity:.2e}, eps {eps:.0e})")
-            break
-        f_old = st.f
-        if o.t_secant and step.kind == "serious":
-            st.pending_s, st.pending_p = step.y - st.x, step.qp.p.copy()
-        if o.metric != "none" and step.kind == "serious":
-            g_x = st.G[int(np.argmin(_alpha(st, o.gamma)))]
-            s_k, y_k = step.y - st.x, step.gy - g_x
-            update_metric(st, s_k, y_k, o.metric_memory, o.metric_range, o.metric,
-                          o.metric == "auto" and is_curvature_pair(s_k, y_k, st.f, step.fy, g_x,
-                                                                   step.gy))
-        _update_bundle(st, step, max_bundle, o.gamma)
-        if o.gamma is None:
-            _measure_gamma(st, o.gamma_factor, anew=step.kind == "serious")
-        st.t = next_t(st, step, f_old, o)
-        st.n_stuck = st.n_stuck + 1 if step.stalled else 0
-        st.nit += 1
-        if step.kind == "serious":
-            st.n_serious += 1
-            st.verified = 0
-        else:
-            st.n_null += 1
-        st.history.append({"iteration": st.nit, "f": st.f, "step": step.kind, "t": step.t,
-                           "stationarity": st.stationarity, "nfev": st.nfev})
-        logger.debug("it %d %s f=%.10g t=%.3e stat=%.3e nfev=%d", st.nit, step.kind, st.f,
-                     step.t, st.stationarity, st.nfev)
+        _advance(st, step, o, max_bundle)
         rel = relative_decrease(st.history, o.ftol_window)
         if callback is not None:
             try:
                 callback(_result(st, -1, f"iteration {st.nit}", relative_decrease=rel))
             except StopIteration:
-                status, criterion = 2, "callback"
-                message = f"stopped by the callback after iteration {st.nit}"
+                stop = (2, "callback", f"stopped by the callback after iteration {st.nit}")
                 break
-        if st.n_stuck >= 3:
-            status, criterion = 3, "stalled"
-            message = (f"stalled: {st.n_stuck} null steps in a row returned cuts already in the "
-                       f"bundle (the QP resolution is reached; stationarity "
-                       f"{st.stationarity:.2e} > eps {eps:.0e})")
+        stop = _stalled(st, o, eps, poly.n)
+        if stop is not None:
             break
-        # a polyhedral f may need n + 1 null steps at one x: a shorter window is no evidence
-        window = max(o.stall_window, 2 * (n + 1))
-        if no_progress(st.history, window):
-            status, criterion = 3, "stalled"
-            message = (f"stalled: f did not decrease in the last {window} iterations and the "
-                       f"stationarity measure did not halve ({st.stationarity:.2e} > eps {eps:.0e})")
-            break
+    status, criterion, message = stop
     logger.info("bundle end: %s; f=%.10g nit=%d nfev=%d", message, st.f, st.nit, st.nfev)
     res = _result(st, status, message, criterion, rel)
     return res if scaling is None else scaling.result(res)
+
+
+def _start(oracle, x0, U: tuple, callback, state, o: BTOptions):
+    """The run's oracle and callback (wrapped when the variables are scaled: the method works in
+    z = x/d, the state too), U as a :class:`Polyhedron`, the scaling (or None) and the state,
+    restored or built at x0."""
+    n = state.x.size if state is not None else np.asarray(x0).size
+    scaling = variable_scaling(n, U[0], U[1], o.scale)
+    if scaling is not None:
+        oracle, callback = scaling.oracle(oracle), scaling.callback(callback)
+        x0 = scaling.inner(x0) if state is None else x0
+        U = tuple(scaling.constraints(*U).values())
+    poly = Polyhedron(n, *U)
+    if state is None:
+        st = _initial_state(oracle, poly, x0, o)
+    else:
+        st = state.copy()
+        if poly.violation(st.x) > o.feas_tol:
+            raise OptimizerError("the restored state's x violates the constraints")
+    return oracle, callback, poly, scaling, st
+
+
+def _restart(st: BundleState, gamma) -> None:
+    """Cut the bundle to the element with the smallest α (restart before a certificate)."""
+    k = int(np.argmin(_alpha(st, gamma)))
+    st.G, st.fhat, st.s = st.G[k:k + 1].copy(), st.fhat[k:k + 1].copy(), st.s[k:k + 1].copy()
+    st.verified = 1
+    logger.debug("restart at f=%.10g: bundle reduced to the cut at x", st.f)
+
+
+def _converged(step: _Step, st: BundleState, o: BTOptions, eps: float):
+    """(status, criterion, message) when the iteration's step is a stop, else None."""
+    if step.kind == "converged":
+        cmp = "<" if st.stationarity < eps else "<="
+        return 0, "stationarity", f"converged: stationarity {st.stationarity:.1e} {cmp} eps {eps:.0e}"
+    if step.kind == "practical":
+        return 4, "predicted_decrease", (f"converged: the model predicts a relative decrease {st.predicted:.1e} "
+                                         f"< ftol {o.ftol:.0e} (stationarity {st.stationarity:.1e}, eps {eps:.0e})")
+    if step.kind == "fchange":
+        return 4, "f_change", (f"converged: f changed by at most tolf {o.tolf:.0e} (relative) in "
+                               f"{o.tolf_steps} serious steps in a row, stationarity "
+                               f"{st.stationarity:.1e} <= sqrt(tolf) (eps {eps:.0e})")
+    if step.kind == "roundoff":
+        return 5, "roundoff", (f"converged: the model predicts a decrease {-step.qp.v:.2e} at the round-off "
+                               f"of f (stationarity {st.stationarity:.2e}, eps {eps:.0e})")
+    return None
+
+
+def _advance(st: BundleState, step: _Step, o: BTOptions, max_bundle: int) -> None:
+    """The state after a serious or null step: metric, bundle, γ, t, counts and history."""
+    f_old = st.f
+    if o.t_secant and step.kind == "serious":
+        st.pending_s, st.pending_p = step.y - st.x, step.qp.p.copy()
+    if o.metric != "none" and step.kind == "serious":
+        g_x = st.G[int(np.argmin(_alpha(st, o.gamma)))]
+        s_k, y_k = step.y - st.x, step.gy - g_x
+        update_metric(st, s_k, y_k, o.metric_memory, o.metric_range, o.metric,
+                      o.metric == "auto" and is_curvature_pair(s_k, y_k, st.f, step.fy, g_x, step.gy))
+    _update_bundle(st, step, max_bundle, o.gamma)
+    if o.gamma is None:
+        _measure_gamma(st, o.gamma_factor, anew=step.kind == "serious")
+    st.t = next_t(st, step, f_old, o)
+    st.n_stuck = st.n_stuck + 1 if step.stalled else 0
+    st.nit += 1
+    if step.kind == "serious":
+        st.n_serious += 1
+        st.verified = 0
+    else:
+        st.n_null += 1
+    st.history.append({"iteration": st.nit, "f": st.f, "step": step.kind, "t": step.t,
+                       "stationarity": st.stationarity, "nfev": st.nfev})
+    logger.debug("it %d %s f=%.10g t=%.3e stat=%.3e nfev=%d", st.nit, step.kind, st.f,
+                 step.t, st.stationarity, st.nfev)
+
+
+def _stalled(st: BundleState, o: BTOptions, eps: float, n: int):
+    """(3, "stalled", message) when the run makes no progress, else None."""
+    if st.n_stuck >= 3:
+        return 3, "stalled", (f"stalled: {st.n_stuck} null steps in a row returned cuts already in the "
+                              f"bundle (the QP resolution is reached; stationarity "
+                              f"{st.stationarity:.2e} > eps {eps:.0e})")
+    # a polyhedral f may need n + 1 null steps at one x: a shorter window is no evidence
+    window = max(o.stall_window, 2 * (n + 1))
+    if no_progress(st.history, window):
+        return 3, "stalled", (f"stalled: f did not decrease in the last {window} iterations and the "
+                              f"stationarity measure did not halve ({st.stationarity:.2e} > eps {eps:.0e})")
+    return None

@@ -36,6 +36,7 @@ import numpy as np
 from scipy.optimize import nnls
 
 from ..errors import OptimizerError
+from ._bundle_control import relative_decrease
 from ._scaling import variable_scaling
 from .bundle import BundleResult, minimize_bundle
 
@@ -68,7 +69,7 @@ class PenaltyState:
                             [dict(r) for r in self.history], at, self.finished)
 
     def to_dict(self) -> dict:
-        """Plain arrays (for ``np.savez``; the runner prefixes them ``penalty_``)."""
+        """Plain arrays (a checkpoint stores them, :mod:`contactopt.io.checkpoint`)."""
         d = {"sigma": float(self.sigma), "counts": np.array([self.outer, self.nit, self.nfev, self.n_serious,
                                                              self.n_null], dtype=np.int64)}
         d["history"] = np.array([[r["iteration"], r["f"], r["step"] == "serious", r["t"], r["stationarity"],
@@ -173,8 +174,7 @@ def minimize_constrained(oracle, x0, *, ctol=1e-6, sigma0=None, sigma_factor=10.
         x0 = np.array(x0, dtype=float).reshape(-1)
         first = _call(oracle, x0)
         sigma = float(sigma0) if sigma0 is not None else multiplier_estimate(first[1], first[3])
-        pen = PenaltyState(sigma, nfev=1, at_x=first)
-        start, bstate = x0, None
+        pen, start, bstate = PenaltyState(sigma, nfev=1, at_x=first), x0, None
     else:
         pen, bstate = state.copy(), bundle_state
         start = bstate.x
@@ -186,29 +186,7 @@ def minimize_constrained(oracle, x0, *, ctol=1e-6, sigma0=None, sigma_factor=10.
     if not (math.isfinite(pen.sigma) and pen.sigma > 0):
         raise OptimizerError(f"penalty weight σ = {pen.sigma}: must be a positive number")
     ctol = np.broadcast_to(np.asarray(ctol, float), pen.at_x[2].shape)
-    seen = {np.asarray(start, float).tobytes(): pen.at_x}   # answers since the last iteration
-
-    def phi(x):
-        ans = seen.get(x.tobytes())
-        if ans is None:
-            ans = _call(oracle, x)
-            seen[x.tobytes()] = ans
-        return penalty(*ans, pen.sigma)
-
-    def report(inter, finished=None):
-        pen.at_x = seen.get(inter.x.tobytes(), pen.at_x)      # x in the user's variables
-        p = pen.copy()
-        p.finished = finished
-        inter.penalty = p
-        return inter
-
-    def inner_callback(inter):
-        report(inter)
-        seen.clear()
-        seen[inter.x.tobytes()] = pen.at_x          # only x's answer is needed later
-        if callback is not None:
-            callback(inter)
-
+    phi = _Penalty(oracle, pen, start)
     while True:
         fin = pen.finished
         if fin is not None and not (fin[0] == 1 and max_iter > pen.nit + bstate.nit):
@@ -216,19 +194,14 @@ def minimize_constrained(oracle, x0, *, ctol=1e-6, sigma0=None, sigma_factor=10.
             res = res if scaling is None else scaling.result(res)
         else:
             res = minimize_bundle(phi, start, eps=eps, max_iter=max(max_iter - pen.nit, 0),
-                                  callback=inner_callback, state=bstate, **kwargs)
-        pen.at_x = seen.get(res.x.tobytes(), pen.at_x)
-        pen.finished = (int(res.status), str(res.message), res.criterion)
-        c = pen.at_x[2]
-        viol = float(np.max(c - ctol, initial=-math.inf))
-        logger.info("penalty run %d (σ = %.3e): %s; f = %.10g, largest c = %.3e", pen.outer, pen.sigma,
-                    res.message, pen.at_x[0], float(np.max(c, initial=-math.inf)))
+                                  callback=phi.callback(callback), state=bstate, **kwargs)
+        viol = _ended(pen, phi, res, ctol)
         if viol <= 0 or res.status in (1, 2) or pen.outer >= max_outer:
             return _combined(res, pen, viol <= 0, max_outer)
         # infeasible: σ is below this point's multipliers
         if callback is not None:
             try:
-                callback(report(res, pen.finished))
+                callback(phi.report(res, pen.finished))
             except StopIteration:
                 res.status, res.message, res.criterion = 2, "stopped by the callback", "callback"
                 return _combined(res, pen, False, max_outer)
@@ -237,10 +210,61 @@ def minimize_constrained(oracle, x0, *, ctol=1e-6, sigma0=None, sigma_factor=10.
         pen.outer += 1
         pen.finished = None
         start, bstate = res.x, None
-        seen.clear()
-        seen[res.x.tobytes()] = pen.at_x
+        phi.keep(res.x)
         logger.info("a constraint is violated by %.3e beyond ctol: σ raised to %.3e, restart from there",
                     viol, pen.sigma)
+
+
+class _Penalty:
+    """φ_σ (σ of the :class:`PenaltyState` ``pen``) of the oracle's answers, which it keeps from
+    one iteration's start on: the answer at the iterate x is then known without a call."""
+
+    def __init__(self, oracle, pen: PenaltyState, start):
+        self.oracle, self.pen = oracle, pen
+        self.seen = {np.asarray(start, float).tobytes(): pen.at_x}   # answers since the last iteration
+
+    def __call__(self, x):
+        ans = self.seen.get(x.tobytes())
+        if ans is None:
+            ans = _call(self.oracle, x)
+            self.seen[x.tobytes()] = ans
+        return penalty(*ans, self.pen.sigma)
+
+    def answer(self, x):
+        """The oracle's answer at x if it was asked, else that of the last iterate."""
+        return self.seen.get(x.tobytes(), self.pen.at_x)
+
+    def keep(self, x) -> None:
+        """Forget every answer but x's, the iterate's (only that one is needed later)."""
+        self.seen.clear()
+        self.seen[x.tobytes()] = self.pen.at_x
+
+    def report(self, inter, finished=None):
+        """``inter`` with ``penalty``: a copy of the penalty state at its x (user's variables)."""
+        self.pen.at_x = self.answer(inter.x)
+        p = self.pen.copy()
+        p.finished = finished
+        inter.penalty = p
+        return inter
+
+    def callback(self, callback):
+        """The bundle run's callback: the penalty state into the result, then ``callback``."""
+        def inner(inter):
+            self.report(inter)
+            self.keep(inter.x)
+            if callback is not None:
+                callback(inter)
+        return inner
+
+
+def _ended(pen: PenaltyState, phi: _Penalty, res, ctol) -> float:
+    """Note a finished bundle run in ``pen``; the largest violation c_i − ctol_i at its end."""
+    pen.at_x = phi.answer(res.x)
+    pen.finished = (int(res.status), str(res.message), res.criterion)
+    c = pen.at_x[2]
+    logger.info("penalty run %d (σ = %.3e): %s; f = %.10g, largest c = %.3e", pen.outer, pen.sigma,
+                res.message, pen.at_x[0], float(np.max(c, initial=-math.inf)))
+    return float(np.max(c - ctol, initial=-math.inf))
 
 
 def _absorb(pen: PenaltyState, res) -> None:
@@ -256,7 +280,6 @@ def _absorb(pen: PenaltyState, res) -> None:
 
 def _bundle_result(st, status, message, criterion, ftol_window) -> BundleResult:
     """The result of a bundle run that had ended in state ``st`` (as minimize_bundle returned it)."""
-    from ._bundle_control import relative_decrease
     s = st.copy()
     return BundleResult(x=s.x.copy(), fun=s.f, jac=s.xi.copy(), nit=s.nit, nfev=s.nfev, n_serious=s.n_serious,
                         n_null=s.n_null, success=status in (0, 4, 5), status=status, message=message,

@@ -91,7 +91,7 @@ def needs(config, pinned: int = 0, ranks: int = 1, rigid=None) -> dict:
     return out
 
 
-def select_path(config, n_free: int, pinned: int = 0, rigid=None) -> tuple[str, str]:
+def select_path(config, n_free: int, pinned: int = 0, rigid=None, pinned_held: bool = False) -> tuple[str, str]:
     """(path, library) of a configuration for a body of ``n_free`` free DOFs.
 
     The paths that take what the configuration needs (:func:`needs`, each path's
@@ -104,9 +104,11 @@ def select_path(config, n_free: int, pinned: int = 0, rigid=None) -> tuple[str, 
     or not (the Delassus and full-space paths take it when asked). A path asked for that lacks a feature is
     refused with what it lacks and the paths that take it; so is one whose libraries are missing.
     Features that exclude each other on every path are refused first
-    (:func:`~contactopt.config.validation.check_interactions`)."""
+    (:func:`~contactopt.config.validation.check_interactions`; ``pinned_held``: the pinned
+    components are clamped at their partners on an elastic foundation too)."""
     from .._mpi import world_size
-    check_interactions(config, pinned=pinned, rigid=None if rigid is None else ", ".join(rigid.names()))
+    check_interactions(config, pinned=pinned, rigid=None if rigid is None else ", ".join(rigid.names()),
+                       pinned_held=pinned_held)
     ls = config.linear_solver
     name, ranks = ls.path, world_size()
     need = needs(config, pinned, ranks, rigid)

@@ -214,18 +214,19 @@ class CondensationPath(ZonePath):
         obstacle u_c is in the nodes' frames: the body's is Q u_c."""
         if system.shift is not None:
             u_c = np.ravel(u_c) + system.shift
+        if system.coupling is not None:      # (in the nodes' frames on a curved face)
+            u_c = system.coupling.body_displacement(u_c, r)
         if self.mechanics.rotate is not None:
             return self.mechanics.rotate.back(np.ravel(u_c))
-        if system.coupling is None:
-            return np.ravel(u_c)
-        return system.coupling.body_displacement(u_c, r)
+        return np.ravel(u_c)
 
     def foundation_state(self, system, u_c, r, u_body):
         """On a foundation: the body's contact displacement and its partners' (p, 3) per node
         (t1, t2, ν) — w = u_c − partner is the state's ``u_c`` — and the foundation's own."""
         if system.coupling is None:
             return None
-        body = u_body.reshape(-1, 3)
+        rot = self.mechanics.rotate
+        body = (u_body if rot is None else rot.vector(np.ravel(u_body))).reshape(-1, 3)
         return FoundationState(u_body_c=body, u_partner=body - u_c, displacement=self.foundation.displacement(r))
 
     def load_scale(self, system):

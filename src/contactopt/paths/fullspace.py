@@ -182,6 +182,14 @@ class FullSpacePath(FullSpaceCommon):
         import scipy.sparse as sp
         T = frame_rotation(self.model.contact_dofs, self.frames, self.model.assembler.n_free)
         A = sp.csr_matrix(T.T @ asm.A @ T)
+        if self.model.pinned_dofs.size:
+            # the product drops the exact zeros of pinned rows: keep every contact node's 3×3 block
+            # in the pattern (the Robin blocks are added there)
+            cd = self.model.contact_dofs.reshape(-1, 3)
+            r, c = np.repeat(cd, 3, axis=1).ravel(), np.tile(cd, (1, 3)).ravel()
+            A = A.tocoo()
+            A = sp.coo_matrix((np.r_[A.data, np.zeros(r.size)], (np.r_[A.row, r], np.r_[A.col, c])),
+                              shape=A.shape).tocsr()
         A.sort_indices()
         return FullSystem(asm, asm.gap, {}, T, A, T.T @ asm.L, shift)
 

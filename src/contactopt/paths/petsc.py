@@ -292,7 +292,7 @@ class PetscPath(FullSpaceCommon):
         m = self.model
         coords = system.assembled.coords
         v_full = m.unpin(v_full)            # the pinned DOFs are clamped (fem.model)
-        return part - m.mesh.contract_dx3((loads or m.loads).shape_contraction(coords, v_full, m.assembler)[:, 2])
+        return part - m.mesh.contract_dx((loads or m.loads).shape_contraction(coords, v_full, m.assembler))
 
     def _contraction(self, skey):
         from mpi4py import MPI

@@ -51,7 +51,7 @@ from ..config import load_config, validate
 from ..errors import ConfigError
 from ..io.atomic import WriteError, atomic_write_json, atomic_write_text, write_error
 from ..io.lock import DirLock, LockedError, describe, held_by
-from ..io.rundir import claim_output_dir
+from ..io.rundir import RunDirectory, claim_output_dir
 from .settings import SweepTask, build_tasks, format_value
 
 log = logging.getLogger(__name__)
@@ -148,7 +148,7 @@ def run_task(spec: TaskSpec) -> dict:
             log.info("task %s: reusing the finished run in %s", task.label, out)
             return dict(_summary_row(task, rel, summary, "reused"), worker=worker)
         resume = overwrite = False
-        if (out / "checkpoint.npz").exists():
+        if RunDirectory(out).checkpoint.exists():
             resume, status = True, "resumed"
         elif out.exists() and any(out.iterdir()):
             overwrite, status = True, "restarted"     # died before its first checkpoint

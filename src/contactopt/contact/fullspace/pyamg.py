@@ -246,7 +246,10 @@ def _solve_fullspace(A, L, contact_dofs, gap, friction, coords, free, r0, u0, to
                                f"and {p} contact nodes")
     st = start(friction, p, tol, krylov_rtol, zone)
     timings = st.timings
-    Lnorm = float(np.linalg.norm(L)) or 1.0
+    # the force scale of the residuals; without a load (a press fit, driven by negative gaps only)
+    # that of the forces that close the overlaps, diag(A)_ν·g⁻
+    Lnorm = (float(np.linalg.norm(L))
+             or float(np.linalg.norm(A.diagonal()[cd[:, 2]] * np.minimum(gap, 0.0))) or 1.0)
 
     # -- the hierarchy (reused when given)
     if hierarchy is None:

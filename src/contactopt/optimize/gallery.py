@@ -1,30 +1,53 @@
-"""Nonsmooth test problems of Lukšan & Vlček for the bundle method.
+"""A gallery of nonsmooth test problems for the optimizers of :mod:`contactopt.optimize`.
 
-Source: L. Lukšan, J. Vlček, *Test problems for nonsmooth unconstrained and linearly
-constrained optimization*, Technical report 798, ICS AS CR, Prague, 2000: its unconstrained
-problems 1–25 (``group == "unconstrained"``; TR48, problem 21, is left out: its data are not
-part of the formulas) and its linearly constrained problems 1–15 (``"linearly constrained"``),
-each with the report's starting point, and f* the best value the authors' codes reach (the
-published runs of ACM TOMS Algorithm 811), ``number`` the problem's number in its chapter.
+Like ``pyamg.gallery`` or ``scipy.optimize``'s test functions, the problems are built when
+asked for, not when the module is imported:
+
+* :data:`PROBLEMS` — the collection of L. Lukšan, J. Vlček, *Test problems for nonsmooth
+  unconstrained and linearly constrained optimization*, Technical report 798, ICS AS CR,
+  Prague, 2000: its unconstrained problems 1–25 (``group == "unconstrained"``; TR48, problem
+  21, is left out: its data are not part of the formulas) and its linearly constrained problems
+  1–15 (``"linearly constrained"``), each with the report's starting point, and f* the best
+  value the authors' codes reach (the published runs of ACM TOMS Algorithm 811), ``number``
+  the problem's number in its chapter; :func:`get_problem` and :func:`problem_names` look
+  them up.
+* :data:`CONSTRAINED` — problems min f(x) over U ∩ {c(x) ≤ 0} with nonlinear, nonsmooth
+  constraints, for :func:`~contactopt.optimize.constrained.minimize_constrained`
+  (:class:`ConstrainedProblem`).
+* Families with a parameter: :func:`goffin_problem` (a maximum of n linear functions),
+  :func:`max_linear_problem` (a polyhedral f with a known sharp minimum),
+  :func:`max_quadratics_problem` over :func:`paper_admissible_set` (a design set with the
+  structure of U in Beremlijski et al. 2009) and its reference optimum
+  :func:`max_quadratics_reference`.
 
 Every problem is a :class:`NonsmoothProblem`: calling it returns ``(f, g)`` with ``g`` one
 Clarke subgradient (for a maximum the gradient of the first active piece, for ``|h|`` the
 vector ``sign(h)·∇h`` with ``sign(0) = +1``, as the reference code chooses).  The linear
 constraints use the keyword names of :func:`contactopt.optimize.minimize_bundle`
 (``lb``, ``ub``, ``A_ub x <= b_ub``, ``A_eq x == b_eq``), see :meth:`NonsmoothProblem.constraints`.
+
+Examples
+--------
+>>> from contactopt.optimize import minimize_bundle
+>>> from contactopt.optimize.gallery import get_problem
+>>> prob = get_problem("CB2")
+>>> res = minimize_bundle(prob, prob.x0, **prob.constraints())
+>>> bool(res.success), abs(res.fun - prob.f_star) < 1e-6 * max(1.0, abs(prob.f_star))
+(True, True)
 """
 
 from __future__ import annotations
 
 import dataclasses
+import functools
 from dataclasses import dataclass, field
 from typing import Callable
 
 import numpy as np
 
-__all__ = ["NonsmoothProblem", "PROBLEMS", "get_problem", "problem_names",
-           "paper_admissible_set", "max_quadratics_problem", "goffin_problem",
-           "max_linear_problem"]
+__all__ = ["NonsmoothProblem", "ConstrainedProblem", "PROBLEMS", "CONSTRAINED", "get_problem",
+           "problem_names", "paper_admissible_set", "max_quadratics_problem", "max_quadratics_reference",
+           "goffin_problem", "max_linear_problem"]
 
 
 @dataclass(frozen=True)
@@ -683,20 +706,22 @@ def _build() -> dict[str, NonsmoothProblem]:
     return {p.name: p for p in u + lc}
 
 
-PROBLEMS: dict[str, NonsmoothProblem] = _build()
+@functools.cache
+def _problems() -> dict[str, NonsmoothProblem]:
+    return _build()
 
 
 def problem_names() -> list[str]:
     """Names of the test problems in the order of the report's tables."""
-    return list(PROBLEMS)
+    return list(_problems())
 
 
 def get_problem(name: str) -> NonsmoothProblem:
     """The test problem called ``name`` (case-insensitive)."""
-    for key, prob in PROBLEMS.items():
+    for key, prob in _problems().items():
         if key.lower() == name.lower():
             return prob
-    raise KeyError(f"unknown test problem {name!r}; known: {', '.join(PROBLEMS)}")
+    raise KeyError(f"unknown test problem {name!r}; known: {', '.join(_problems())}")
 
 
 # ---------------------------------------------------------------- polyhedral, n >= 50
@@ -918,8 +943,8 @@ def _build_constrained() -> dict[str, ConstrainedProblem]:
         return (p[..., 1:] - p[..., :1]) / 10
 
     w = np.array([1.0, 2.0, 3.0])
-    lin2 = dict(A_ub=PROBLEMS["Wong2"].A_ub, b_ub=PROBLEMS["Wong2"].b_ub)
-    lin3 = dict(A_ub=PROBLEMS["Wong3"].A_ub, b_ub=PROBLEMS["Wong3"].b_ub)
+    lin2 = dict(A_ub=_problems()["Wong2"].A_ub, b_ub=_problems()["Wong2"].b_ub)
+    lin3 = dict(A_ub=_problems()["Wong3"].A_ub, b_ub=_problems()["Wong3"].b_ub)
     lv = "Lukšan & Vlček, TR 798 (2000)"
     probs = [
         C("C-Mifflin1", _constrained(lambda z: -z[..., :1], lambda z: (z[..., 0]**2 + z[..., 1]**2 - 1)[..., None]),
@@ -950,4 +975,22 @@ def _build_constrained() -> dict[str, ConstrainedProblem]:
     return {p.name: p for p in probs}
 
 
-CONSTRAINED: dict[str, ConstrainedProblem] = _build_constrained()
+@functools.cache
+def _constrained_problems() -> dict[str, ConstrainedProblem]:
+    return _build_constrained()
+
+
+def __getattr__(name: str):
+    """:data:`PROBLEMS` and :data:`CONSTRAINED`, built on first use."""
+    if name == "PROBLEMS":
+        return _problems()
+    if name == "CONSTRAINED":
+        return _constrained_problems()
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+
+
+PROBLEMS: dict[str, NonsmoothProblem]
+"""The problems of Lukšan & Vlček's report by name, in the order of its tables (built on first use)."""
+
+CONSTRAINED: dict[str, ConstrainedProblem]
+"""The problems with nonlinear constraints c(x) ≤ 0 by name (built on first use)."""

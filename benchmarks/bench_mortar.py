@@ -1,0 +1,175 @@
+"""Mortar partners on the elastic foundation: the contact patch test, convergence, cost.
+
+    python benchmarks/bench_mortar.py [--part patch|meshes|hertz|cost|all] [--steps 6]
+
+patch   The contact patch test of contactopt.verification.patch (overlap loading) with point,
+        averaged and mortar partners, F = 0 and 0.3: max and rms of (λ/a − p)/p, max ‖τ‖/(a p).
+meshes  The body 12×6×4 of the tests on the slab [−0.5, 2.5]×[−0.5, 1.5]×[−1, 0] (E_f = E/10),
+        the slab 0.5, 1, 1.5, 2 times as fine as the body, against a slab 3 times as fine with the
+        same partners: max |λ − λ_ref| / max λ_ref and ‖λ − λ_ref‖₂ / ‖λ_ref‖₂, averaged and mortar.
+hertz   Two bodies of one material in Hertz contact (E = 1, ν = 0.3, R = 2: the paraboloidal pad
+        [0, 2]²×[0, 1] on the slab [0, 2]²×[−1, 0], pressed by a body force, F = 0): the pad n×n on
+        a slab 0.7 n and 1.5 n, averaged and mortar partners, against the matching slab (point
+        partners, node-to-node): rms of (p − p_match)/p0 over the face (the non-matching bias),
+        and rms of (p − p_Hertz)/p0, p = λ/a per node, p_Hertz = p0 √(1 − r²/a²) from Σλ.
+cost    examples/example1_elastic.toml (body 32×15×9, slab 24×16×8: non-matching): the time to
+        build the partners (segmentation and mortar matrices once per run) and the median time of
+        one evaluation (state + subgradient) along a path of small design steps, mortar against
+        averaged partners, the two problems taking turns at every design (ratio in one run).
+"""
+
+from __future__ import annotations
+
+import argparse
+import statistics
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+from contactopt.config import load_config
+from contactopt.fem.foundation import averaged_partners, mortar_partners
+from contactopt.problem import ShapeProblem
+from contactopt.verification.patch import patch_config, patch_errors
+
+ROOT = Path(__file__).resolve().parents[1]
+ELASTIC = ROOT / "examples" / "example1_elastic.toml"
+E = 21.19
+
+PATCH = [("7×7 on 7×7, matching", 7, 7, "hexahedron", "hexahedron"),
+         ("7×7 on 10×10", 7, 10, "hexahedron", "hexahedron"),
+         ("10×10 on 7×7", 10, 7, "hexahedron", "hexahedron"),
+         ("8×8 on an offset 8×8", 8, 8, "hexahedron", "offset"),
+         ("hexahedra 7×7 on tetrahedra 10×10", 7, 10, "hexahedron", "tetra"),
+         ("tetrahedra 7×7 on hexahedra 10×10", 7, 10, "tetra", "hexahedron"),
+         ("tetrahedra 10×10 on tetrahedra 7×7", 10, 7, "tetra", "tetra"),
+         ("hexahedra 7×7 on tet10 5×5", 7, 5, "hexahedron", "tetra10")]
+
+
+def patch() -> None:
+    print("| body on foundation | partner | F = 0: max / rms | F = 0.3: max / rms | F = 0.3: max ‖τ‖/(a p) |")
+    print("|---|---|---|---|---|")
+    with tempfile.TemporaryDirectory() as tmp:
+        for label, nb, nf, body, found in PATCH:
+            for partner in ("point", "average", "mortar"):
+                row = []
+                for friction in (0.0, 0.3):
+                    pb = ShapeProblem(patch_config(nb, nf, friction, tmp, body=body, foundation=found,
+                                                   partner=partner))
+                    row.append(patch_errors(pb, pb.solve_state(pb.model.initial_design())))
+                print(f"| {label} | {partner} | {row[0]['max']:.1e} / {row[0]['rms']:.1e} | "
+                      f"{row[1]['max']:.1e} / {row[1]['rms']:.1e} | {row[1]['shear']:.1e} |", flush=True)
+
+
+def meshes() -> None:
+    base = load_config("example1").with_updates({"mesh": {"nx": 12, "ny": 6, "nz": 4}})
+    same = np.array([18, 12, 4])
+
+    def lam(f, partner):
+        cells = [max(1, int(round(v))) for v in f * same]
+        pb = ShapeProblem(base.with_updates({"foundation": {
+            "block": {"size": [3.0, 2.0, 1.0], "cells": cells, "origin": [-0.5, -0.5]},
+            "material": {"E": E / 10}, "partner": partner}}))
+        return pb.solve_state(pb.model.initial_design()).lam
+
+    print("slab/body   averaged: max, 2-norm        mortar: max, 2-norm")
+    refs = {p: lam(3.0, p) for p in ("average", "mortar")}
+    for f in (0.5, 1.0, 1.5, 2.0):
+        out = []
+        for p, ref in refs.items():
+            d = lam(f, p) - ref
+            out.append(f"{np.abs(d).max() / ref.max():.3e}, {np.linalg.norm(d) / np.linalg.norm(ref):.3e}")
+        print(f"{f:6.1f}      {out[0]}        {out[1]}", flush=True)
+
+
+def _pad(n: int, slab: int, partner: str) -> dict:
+    b = np.array([0.25, -0.25, 0.25])            # (x − 1)²/2R on [0, 2] in the Bernstein basis, R = 2
+    return {"name": f"pad{n}", "geometry": {"a": 2.0, "b": 2.0, "c": 1.0},
+            "mesh": {"nx": n, "ny": n, "nz": max(4, n // 2)}, "body": {"clamped": "top"},
+            "material": {"E": 1.0, "nu": 0.3}, "friction": {"coefficient": 0.0},
+            "loads": {"top_traction": [0.0] * 3, "right_traction": [0.0] * 3, "body_force": [0.0, 0.0, -0.08]},
+            "design": {"degree": [2, 2], "C0": 0.6, "lower": -0.6,
+                       "initial": (b[:, None] + b[None, :]).tolist()},
+            "objective": {"type": "compliance"}, "state": {"method": "newton", "tol": 1e-12},
+            "foundation": {"block": {"size": [2.0, 2.0, 1.0], "cells": [slab, slab, max(4, slab // 2)]},
+                           "top": "top", "clamped": "bottom", "partner": partner}}
+
+
+def hertz(sizes=(12, 16, 24)) -> None:
+    from contactopt.io.pressure import contact_areas
+    estar = 1.0 / (2 * (1 - 0.3 ** 2))
+    print("| pad n | slab | partner | rms (p − p_match)/p0 | rms (p − p_Hertz)/p0 |")
+    print("|---|---|---|---|---|")
+    for n in sizes:
+        def pressure(slab, partner):
+            pb = ShapeProblem(load_config(_pad(n, slab, partner)))
+            st = pb.solve_state(pb.model.initial_design())
+            b = pb.model.body
+            x = b.reference.points[b.contact_nodes, :2]
+            p = st.lam / contact_areas(b.reference.points, b.contact_face.faces, b.contact_nodes)
+            P = st.lam.sum()
+            a = (3 * P * 2.0 / (4 * estar)) ** (1 / 3)
+            p0 = 3 * P / (2 * np.pi * a * a)
+            r2 = ((x - 1.0) ** 2).sum(axis=1)
+            return p, p0 * np.sqrt(np.clip(1 - r2 / a ** 2, 0, None)), p0
+        pm, ph, p0 = pressure(n, "point")
+        print(f"| {n} | {n} (matching) | point | 0 | {np.sqrt(np.mean((pm - ph) ** 2)) / p0:.2e} |", flush=True)
+        for slab in (int(round(0.7 * n)), int(round(1.5 * n))):
+            for partner in ("average", "mortar"):
+                p, ph, p0 = pressure(slab, partner)
+                print(f"| {n} | {slab} | {partner} | {np.sqrt(np.mean((p - pm) ** 2)) / p0:.2e} | "
+                      f"{np.sqrt(np.mean((p - ph) ** 2)) / p0:.2e} |", flush=True)
+
+
+def cost(steps: int) -> None:
+    el = load_config(ELASTIC)
+    pbs = {p: ShapeProblem(el.with_updates({"foundation": {**el["foundation"], "partner": p}}))
+           for p in ("average", "mortar")}
+    body, fm = pbs["mortar"].model.body, pbs["mortar"].model.foundation.mesh
+    build = {}
+    for name, fn in (("average", averaged_partners), ("mortar", mortar_partners)):
+        ts = []
+        for _ in range(3):
+            t = time.perf_counter()
+            fn(body, fm, "bench")
+            ts.append(time.perf_counter() - t)
+        build[name] = min(ts)
+    a = pbs["mortar"].model.initial_design()
+    rng = np.random.default_rng(0)
+    times = {k: [] for k in pbs}
+    for pb in pbs.values():
+        pb.evaluate(a)                           # cold
+    for _ in range(steps):
+        d = rng.standard_normal(a.size)
+        a = a + 1e-4 * (d - d.mean())
+        for name, pb in pbs.items():
+            t = time.perf_counter()
+            pb.evaluate(a)
+            times[name].append(time.perf_counter() - t)
+    med = {k: statistics.median(v) for k, v in times.items()}
+    for name in pbs:
+        f = pbs[name].model.foundation
+        print(f"{name:8s} partners built in {build[name]:.3f} s (once per run), Π {f.Pi.nnz} nonzeros, "
+              f"{f.support.size} support nodes; {med[name]:.3f} s per evaluation")
+    print(f"mortar / averaged: evaluation ×{med['mortar'] / med['average']:.3f}, "
+          f"partners ×{build['mortar'] / build['average']:.2f}")
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--part", default="all", choices=["patch", "meshes", "hertz", "cost", "all"])
+    ap.add_argument("--steps", type=int, default=6)
+    args = ap.parse_args()
+    if args.part in ("patch", "all"):
+        patch()
+    if args.part in ("meshes", "all"):
+        meshes()
+    if args.part in ("hertz", "all"):
+        hertz()
+    if args.part in ("cost", "all"):
+        cost(args.steps)
+
+
+if __name__ == "__main__":
+    main()

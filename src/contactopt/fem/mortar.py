@@ -1,0 +1,136 @@
+"""Dual mortar coupling of the body's contact face with a counterpart's face (Popp, Gee & Wall).
+
+The contact constraints are integrated over the body's face Γ (the "slave" side, carrying the
+multipliers) against the counterpart's face (the "master" side) on their common segmentation
+(:mod:`contactopt.mesh.segmentation`). The multipliers are interpolated with the dual basis Φ_j,
+biorthogonal to the body's face shape functions N_k on every face e:
+
+    ∫_e Φ_j N_k dΓ = δ_jk ∫_e N_j dΓ,   Φ = A_e N,   A_e = D_e M_e⁻¹,
+
+D_e = diag(∫_e N_j), M_e = (∫_e N_j N_k) (Wohlmuth). The mortar matrices
+
+    D_jj = ∫_Γ Φ_j N_j dΓ   (diagonal, > 0),     M_jk = ∫_Γ Φ_j N̄_k dΓ
+
+(N̄_k the counterpart's shape functions) give the weighted relative displacement of body node j
+and the counterpart, divided by D_jj:
+
+    w_j = u_j − Σ_k (D⁻¹M)_jk ū_k = D_jj⁻¹ ∫_Γ Φ_j (u − ū) dΓ,
+
+so Π = D⁻¹M takes the place of point partners: one cone per node, as in node-wise contact, and
+the force r_j on body node j puts −Πᵀ r on the counterpart's nodes (work-conjugate). Each row
+of Π sums to one where the counterpart covers the body's face, and Π reproduces every field
+linear on the face: a uniform pressure and a uniform strain pass across non-matching meshes
+exactly (the contact patch test), where averaged partners (standard shape functions in place of
+Φ) do not.
+
+Sign and ordering convention: per contact node (t1, t2, ν) = (x1, x2, x3) — the common plane is
+the counterpart's face x3 = 0 and ν its normal, pointing into the body; w_ν = u_ν − (Πū)_ν
+opens the gap, the normal force λ = r_ν ≥ 0 pushes the body away from the counterpart, and the
+weighted slip increment is the tangential part of the increment of w.
+
+The design moves the body's face along ν: its projection on the common plane, hence the
+segmentation, Φ, D and M, do not depend on α, and Π is computed once per run.
+
+The six-node triangle is not offered here: its standard dual basis has zero weight at the corners
+and the transformed basis that cures it (Popp et al.) acts on transformed displacements, not on
+the nodal ones that the body's condensation keeps.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import scipy.sparse as sp
+
+from ..mesh.segmentation import Segmentation, is_affine, reference_coordinates, segment
+from .elements import face_type, tri_rule
+
+__all__ = ["MortarCoupling", "dual_coefficients", "mortar_coupling", "mortar_matrices"]
+
+QUAD_EXTRA = 6    # degree added on quadrilaterals that are not parallelograms (Φ, N not polynomial in the plane)
+_G3 = np.array([-np.sqrt(0.6), 0.0, np.sqrt(0.6)])
+_W3 = np.array([5.0, 8.0, 5.0]) / 9.0
+
+
+def _mass_rule(ftype):
+    """A rule of the reference face exact for N_j N_k det J (the face mass matrix)."""
+    if ftype.name == "quad":
+        q = np.array([(a, b) for b in _G3 for a in _G3])
+        return q, np.outer(_W3, _W3).ravel()
+    return tri_rule(2 * ftype.degree + 2)
+
+
+def dual_coefficients(ftype, X: np.ndarray) -> np.ndarray:
+    """A (F, n, n) with Φ = A N on every face (module docstring): A_e = D_e M_e⁻¹ for the faces
+    of type ``ftype`` with nodes at X (F, n, 2) in the common plane. Linear faces only."""
+    ft = face_type(ftype)
+    if ft.degree != 1:
+        raise ValueError(f"the dual basis is built for linear faces only, not {ft.name}")
+    q, w = _mass_rule(ft)
+    N, dN = ft.shape(q)
+    J = np.einsum("qaj,fai->fqij", dN, X)
+    dA = np.abs(np.linalg.det(J)) * w                             # (F, Q)
+    Me = np.einsum("fq,qa,qb->fab", dA, N, N)
+    De = Me.sum(axis=2)                                           # ∫ N_j (Σ_k N_k = 1)
+    return De[:, :, None] * np.linalg.inv(Me)                     # D_e M_e⁻¹ (M_e symmetric)
+
+
+def mortar_matrices(s_type, s_faces: np.ndarray, s_xy: np.ndarray, m_type, m_faces: np.ndarray,
+                    m_xy: np.ndarray, seg: Segmentation | None = None, n_slave: int | None = None,
+                    n_master: int | None = None):
+    """(D (n_slave,), M (n_slave × n_master, CSR), seg): the mortar matrices (module docstring)
+    of the body's faces ``s_faces`` (F_s, n_s) of type ``s_type`` against the counterpart's
+    ``m_faces`` (F_m, n_m), with node coordinates ``s_xy``, ``m_xy`` (·, 2) in the common plane.
+    ``seg`` is computed from the faces' corner polygons unless given."""
+    st, mt = face_type(s_type), face_type(m_type)
+    ncs, ncm = (4 if st.name == "quad" else 3), (4 if mt.name == "quad" else 3)
+    Xs, Xm = s_xy[s_faces], m_xy[m_faces]
+    if seg is None:
+        seg = segment(Xs[:, :ncs], Xm[:, :ncm])
+    n_slave = int(s_xy.shape[0]) if n_slave is None else n_slave
+    n_master = int(m_xy.shape[0]) if n_master is None else n_master
+    A = dual_coefficients(st, Xs)
+    affine = is_affine(Xs[:, :ncs]) and is_affine(Xm[:, :ncm])
+    degree = 2 * (st.degree + mt.degree) + (0 if affine else QUAD_EXTRA)
+    x, dA = seg.quadrature(tri_rule(degree))                      # (T, Q, 2), (T, Q)
+    T, Q = dA.shape
+    s_of, m_of = np.repeat(seg.slave, Q), np.repeat(seg.master, Q)
+    xs = x.reshape(-1, 2)
+    Ns, _ = st.shape(reference_coordinates(Xs[s_of, :ncs], xs))   # (TQ, n_s)
+    Nm, _ = mt.shape(reference_coordinates(Xm[m_of, :ncm], xs))   # (TQ, n_m)
+    Phi = np.einsum("kab,kb->ka", A[s_of], Ns) * dA.reshape(-1)[:, None]      # Φ_j dA
+    D = np.bincount(s_faces[s_of].ravel(), weights=(Phi * Ns).ravel(), minlength=n_slave)
+    rows = np.repeat(s_faces[s_of], Nm.shape[1], axis=1).ravel()
+    cols = np.repeat(m_faces[m_of][:, None, :], Ns.shape[1], axis=1).ravel()
+    vals = (Phi[:, :, None] * Nm[:, None, :]).ravel()
+    M = sp.csr_matrix((vals, (rows, cols)), shape=(n_slave, n_master))
+    M.sum_duplicates()
+    return D, M, seg
+
+
+class MortarCoupling:
+    """Π = D⁻¹M on the rows of the body's contact nodes (module docstring), with the segmentation,
+    D and M it comes from. ``uncovered`` lists the body faces the counterpart does not cover
+    (relative area ``cover_tol``)."""
+
+    def __init__(self, D, M, seg: Segmentation, rows: np.ndarray, cover_tol: float = 1e-9):
+        self.D, self.M, self.segmentation = D, M, seg
+        self.rows = np.asarray(rows)
+        self.uncovered = np.flatnonzero(np.abs(seg.covered - seg.slave_area) > cover_tol * np.abs(seg.slave_area))
+        Dr = D[self.rows]
+        self.Pi = sp.diags(1.0 / Dr) @ M[self.rows]
+        self.Pi = sp.csr_matrix(self.Pi)
+        self.Pi.eliminate_zeros()
+
+    def weighted_gap(self, g_body: np.ndarray, g_counterpart: np.ndarray) -> np.ndarray:
+        """g̃_j / D_jj = g_j − (Π ḡ)_j on the contact nodes: a nodal field of the body and one of
+        the counterpart (any trailing components, e.g. (t1, t2, ν)) to the weighted relative
+        field, the quantity the node's cone acts on."""
+        return g_body[self.rows] - self.Pi @ g_counterpart
+
+
+def mortar_coupling(s_type, s_faces, s_xy, m_type, m_faces, m_xy, rows) -> MortarCoupling:
+    """The :class:`MortarCoupling` of the body's faces against the counterpart's (arguments of
+    :func:`mortar_matrices`), on the body nodes ``rows`` (its contact nodes)."""
+    D, M, seg = mortar_matrices(s_type, s_faces, s_xy, m_type, m_faces, m_xy)
+    return MortarCoupling(D, M, seg, rows)
+

@@ -1,0 +1,193 @@
+"""Mortar coupling: the segmentation, the dual basis, Π = D⁻¹M, the contact patch test on an
+elastic foundation, and subgradients with mortar partners.
+
+Conventions: per contact node (t1, t2, ν) = (x1, x2, x3); r the contact force on the body,
+λ = r_ν ≥ 0, τ = −r_t; the foundation carries −Πᵀr; w = u_body − Π u_f.
+"""
+
+import meshio
+import numpy as np
+import pytest
+
+from contactopt.config import load_config
+from contactopt.errors import ConfigError
+from contactopt.fem.elements import face_type
+from contactopt.fem.mortar import dual_coefficients, mortar_matrices
+from contactopt.mesh.block import block_mesh
+from contactopt.mesh.segmentation import clip_convex, segment, signed_area
+from contactopt.mesh.tetsplit import hex_to_tets, tet4_to_tet10
+from contactopt.problem import ShapeProblem
+from contactopt.sensitivity.check import check_gradient
+from contactopt.verification.patch import H_BODY, patch_config, patch_errors
+
+E, NU = 21.19, 0.277
+
+
+def grid(xs, ys, tri=False):
+    """Nodes (n, 2) and faces (quadrilaterals, or each split in two triangles) of a tensor grid."""
+    X, Y = np.meshgrid(xs, ys, indexing="xy")
+    P = np.column_stack([X.ravel(), Y.ravel()])
+    n = len(xs)
+    F = np.array([[j * n + i, j * n + i + 1, (j + 1) * n + i + 1, (j + 1) * n + i]
+                  for j in range(len(ys) - 1) for i in range(n - 1)])
+    return P, (np.vstack([F[:, [0, 1, 2]], F[:, [0, 2, 3]]]) if tri else F)
+
+
+def jittered(P, h, amp, seed):
+    r = np.random.default_rng(seed)
+    lo, hi = P.min(axis=0), P.max(axis=0)
+    inner = np.all((P > lo + 1e-12) & (P < hi - 1e-12), axis=1)
+    P = P.copy()
+    P[inner] += amp * h * r.uniform(-1, 1, (int(inner.sum()), 2))
+    return P
+
+
+# ------------------------------------------------------------------ segmentation
+def test_clipping_two_squares_gives_their_intersection():
+    sq = np.array([[0, 0], [1, 0], [1, 1], [0, 1]], float)
+    around = np.array([[0.5, -0.5], [1.5, 0.5], [0.5, 1.5], [-0.5, 0.5]])           # the square inscribed
+    assert np.isclose(signed_area(clip_convex(sq, around)), 1.0, atol=1e-15)
+    diamond = np.array([[1.0, 0.0], [2.0, 1.0], [1.0, 2.0], [0.0, 1.0]])            # x1 + x2 ≥ 1 in the square
+    assert np.isclose(signed_area(clip_convex(sq, diamond)), 0.5, atol=1e-15)
+    assert np.isclose(signed_area(clip_convex(sq, sq + [0.25, 0.5])), 0.375, atol=1e-15)
+    assert clip_convex(sq, sq + [2.0, 0.0]).shape[0] == 0
+    tri = np.array([[0, 0], [2, 0], [0, 2]], float)
+    assert np.isclose(signed_area(clip_convex(sq, tri)), 1.0, atol=1e-15)
+
+
+@pytest.mark.parametrize("tri_s,tri_m", [(False, False), (True, False), (False, True), (True, True)])
+def test_segmentation_covers_each_face_once(tri_s, tri_m):
+    Ps, Fs = grid(np.linspace(0, 1, 8), np.linspace(0, 1, 8), tri_s)
+    Ps = jittered(Ps, 1 / 7, 0.2, 0)
+    Pm, Fm = grid(np.linspace(-0.05, 1.05, 11), np.linspace(-0.05, 1.05, 11), tri_m)
+    Pm = jittered(Pm, 0.11, 0.2, 1)
+    nc = 3 if tri_s else 4
+    seg = segment(Ps[Fs[:, :nc]], Pm[Fm])
+    assert np.allclose(seg.covered, seg.slave_area, rtol=1e-13, atol=0)
+    _, w = seg.quadrature((np.array([[1 / 3, 1 / 3]]), np.array([0.5])))
+    assert np.isclose(w.sum(), 1.0, rtol=1e-13)
+
+
+# ------------------------------------------------------------------ dual basis and Π = D⁻¹M
+@pytest.mark.parametrize("name,X", [
+    ("quad", np.array([[[0.0, 0.0], [1.2, 0.1], [1.0, 0.9], [-0.1, 1.1]]])),
+    ("triangle", np.array([[[0.0, 0.0], [1.2, 0.1], [0.3, 0.9]]]))])
+def test_dual_basis_is_biorthogonal(name, X):
+    """∫ Φ_j N_k = δ_jk ∫ N_j on a distorted face (a Gauss rule of the reference face)."""
+    ft = face_type(name)
+    A = dual_coefficients(ft, X)[0]
+    from contactopt.fem.mortar import _mass_rule
+    q, w = _mass_rule(ft)
+    N, dN = ft.shape(q)
+    dA = np.abs(np.linalg.det(np.einsum("qaj,ai->qij", dN, X[0]))) * w
+    Phi = N @ A.T
+    B = np.einsum("q,qj,qk->jk", dA, Phi, N)
+    assert np.allclose(B, np.diag(np.einsum("q,qj->j", dA, N)), atol=1e-14)
+
+
+CASES = {"7x7 on 10x10": ((8, 8), (11, 11), False, False),
+         "10x10 on 7x7": ((11, 11), (8, 8), False, False),
+         "triangles on quadrilaterals": ((8, 8), (11, 11), True, False),
+         "quadrilaterals on triangles": ((11, 11), (8, 8), False, True),
+         "triangles on triangles": ((6, 9), (8, 5), True, True)}
+
+
+@pytest.mark.parametrize("case", CASES)
+def test_projection_reproduces_linear_fields_on_non_matching_faces(case):
+    """Π = D⁻¹M: rows sum to 1, and a field linear in the plane passes exactly (the reason for
+    the patch test); averaged shape functions in place of Φ would not reproduce it at the edge."""
+    (ns, ms), (nm, mm), tri_s, tri_m = CASES[case]
+    Ps, Fs = grid(np.linspace(0, 1, ns), np.linspace(0, 1, ms), tri_s)
+    Pm, Fm = grid(np.linspace(0, 1, nm) ** 1.3, np.linspace(0, 1, mm), tri_m)    # graded, offset lines
+    D, M, _ = mortar_matrices("triangle" if tri_s else "quad", Fs, Ps, "triangle" if tri_m else "quad", Fm, Pm)
+    Pi = M.multiply(1.0 / D[:, None]).tocsr()
+    assert np.abs(np.asarray(Pi.sum(axis=1)).ravel() - 1.0).max() < 1e-13
+    for lin in (lambda P: P[:, 0], lambda P: P[:, 1], lambda P: 2.0 * P[:, 0] - 3.0 * P[:, 1] + 0.5):
+        assert np.abs(Pi @ lin(Pm) - lin(Ps)).max() < 1e-13
+    assert np.isclose(D.sum(), 1.0, rtol=1e-13)                  # Σ_j D_jj = the face's area
+    assert D.min() > 0
+
+
+# ------------------------------------------------------------------ the contact patch test
+PATCH = {"7x7 on 7x7 (matching)": (7, 7, "hexahedron", "hexahedron", "point"),
+         "7x7 on 10x10": (7, 10, "hexahedron", "hexahedron", "mortar"),
+         "10x10 on 7x7": (10, 7, "hexahedron", "hexahedron", "mortar"),
+         "8x8 on an offset 8x8": (8, 8, "hexahedron", "offset", "mortar"),
+         "hexahedra on tetrahedra": (7, 10, "hexahedron", "tetra", "mortar"),
+         "tetrahedra on hexahedra": (7, 10, "tetra", "hexahedron", "mortar"),
+         "tetrahedra on tetrahedra": (10, 7, "tetra", "tetra", "mortar"),
+         "hexahedra on tet10": (7, 5, "hexahedron", "tetra10", "mortar")}
+
+
+@pytest.mark.parametrize("friction", [0.0, 0.3])
+@pytest.mark.parametrize("case", PATCH)
+def test_contact_patch_test_on_an_elastic_foundation(case, friction, tmp_path):
+    """The overlap loading (:mod:`contactopt.verification.patch`): uniform pressure to 1e-8 relative, ‖τ‖ ≤ 1e-8 a p ('auto' partners:
+    point on matching meshes, mortar on the others)."""
+    nb, nf, body, found, partner = PATCH[case]
+    pb = ShapeProblem(patch_config(nb, nf, friction, tmp_path, body=body, foundation=found))
+    assert pb.model.foundation.partner == partner
+    st = pb.solve_state(pb.model.initial_design())
+    assert st.converged
+    err = patch_errors(pb, st)
+    assert err["max"] <= 1e-8 and err["shear"] <= 1e-8, err
+
+
+def test_averaged_partners_fail_the_patch_test_with_friction(tmp_path):
+    """What the mortar partners cure: averaged partners on matching meshes with friction carry a
+    false shear at the face's edge (and a pressure error)."""
+    pb = ShapeProblem(patch_config(7, 7, 0.3, tmp_path, partner="average"))
+    err = patch_errors(pb, pb.solve_state(pb.model.initial_design()))
+    assert err["shear"] > 0.05 and err["max"] > 1e-3, err
+
+
+def test_mortar_refuses_quadratic_body_faces(tmp_path):
+    ref = block_mesh(1.0, 1.0, H_BODY, 4, 4, 2)
+    p10, c10 = tet4_to_tet10(ref.points, hex_to_tets(ref.cells, ref.points))
+    meshio.write(tmp_path / "b10.vtu", meshio.Mesh(p10, [("tetra10", c10)]))
+    cfg = patch_config(4, 5, 0.3, tmp_path, body="tetra", partner="mortar").with_updates(
+        {"body": {"mesh": str(tmp_path / "b10.vtu")}})
+    with pytest.raises(ConfigError, match="partner = 'mortar' needs a body of linear elements"):
+        ShapeProblem(cfg)
+    assert ShapeProblem(cfg.with_updates({"foundation": {"partner": "auto"}})).model.foundation.partner == "point"
+
+
+# ------------------------------------------------------------------ subgradients
+COARSE = {"mesh": {"nx": 12, "ny": 6, "nz": 4}}
+
+
+def _design(model, seed=1, amp=0.003):
+    a = model.initial_design()
+    d = np.random.default_rng(seed).standard_normal(a.size)
+    a = a + amp * (d - d.mean())
+    assert model.admissible.is_feasible(a)
+    return a
+
+
+@pytest.mark.parametrize("element", ["hexahedron", "tetra"])
+def test_subgradient_with_mortar_partners_matches_central_differences(element):
+    """Example 1's body (F = 0.3: sliding, sticking and free nodes) on a coarser, wider, non-matching
+    foundation with mortar partners: ξ·d against central differences to 1e-6."""
+    f = {"block": {"size": [3.0, 2.0, 1.0], "cells": [9, 5, 3], "origin": [-0.5, -0.5], "element": element},
+         "material": {"E": E / 10}}
+    pb = ShapeProblem(load_config("example1").with_updates({**COARSE, "foundation": f}))
+    assert pb.model.foundation.partner == "mortar"
+    gc = check_gradient(pb, _design(pb.model), n_directions=3, seed=0)
+    assert gc.n_degenerate == 0
+    assert gc.passed, gc.rel_errors
+    assert gc.counts["M1"] > 0 and gc.counts["M3+"] > 0 and gc.counts["L"] > 0
+
+
+def test_subgradient_on_a_tetrahedral_body_with_mortar_partners(tmp_path):
+    """A tetrahedral body 6×6 on hexahedra 8×8 (the patch test's blocks), a crowned design and a
+    sideways pull on the top: free, sliding and sticking nodes; ξ·d against central differences."""
+    cfg = patch_config(6, 8, 0.3, tmp_path, body="tetra").with_updates(
+        {"design": {"degree": [2, 2], "initial": 0.0},
+         "loads": {"traction": [{"on": {"x3": H_BODY}, "value": [0.02, 0.01, 0.0]}]}})
+    pb = ShapeProblem(cfg)
+    assert pb.model.foundation.partner == "mortar"
+    a = pb.model.initial_design() + 0.004 * np.random.default_rng(0).standard_normal(9) - 0.003
+    gc = check_gradient(pb, a, n_directions=3, seed=0)
+    assert gc.n_degenerate == 0
+    assert gc.passed, gc.rel_errors
+    assert gc.counts["M1"] > 0 and gc.counts["M3+"] > 0 and gc.counts["L"] > 0
