@@ -104,6 +104,18 @@ def test_run_small_example_end_to_end(tmp_path, capsys, config_file):
     assert "not empty" in capsys.readouterr().err
 
 
+def test_run_without_plots_writes_every_other_output(tmp_path, capsys, config_file):
+    """--no-plots (sweeps): the same run, summary and files, no PNG."""
+    cfg = config_file()
+    with_plots, without = tmp_path / "a", tmp_path / "b"
+    assert main(["run", str(cfg), "--out", str(with_plots), "--max-iter", "2"]) == 0
+    assert main(["run", str(cfg), "--out", str(without), "--max-iter", "2", "--no-plots"]) == 0
+    assert not list(without.glob("*.png")) and len(list(with_plots.glob("*.png"))) >= 7
+    assert {p.name for p in with_plots.iterdir() if p.suffix != ".png"} == {p.name for p in without.iterdir()}
+    a, b = (json.loads((d / "summary.json").read_text()) for d in (with_plots, without))
+    assert a["J"] == b["J"] and a["evaluations"] == b["evaluations"] and a["alpha"] == b["alpha"]
+
+
 def test_corrupt_checkpoint_is_refused(tmp_path, capsys, config_file):
     cfg = config_file()
     out = tmp_path / "run"

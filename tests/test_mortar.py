@@ -191,3 +191,40 @@ def test_subgradient_on_a_tetrahedral_body_with_mortar_partners(tmp_path):
     assert gc.n_degenerate == 0
     assert gc.passed, gc.rel_errors
     assert gc.counts["M1"] > 0 and gc.counts["M3+"] > 0 and gc.counts["L"] > 0
+
+
+@pytest.mark.parametrize("friction", [0.0, 0.3])
+def test_patch_test_with_symmetry_planes_through_both_bodies(friction, tmp_path):
+    """The overlap loading with rollers u1 = 0 on x1 = 0 and u2 = 0 on x2 = 0 through the contact face
+    of the body and the foundation alike, 7×7 on 10×10 with mortar partners: still exact."""
+    raw = patch_config(7, 10, friction, tmp_path).to_dict()
+    raw["body"]["clamped"] = [{"on": {"x1": 0.0}, "components": [1]}, {"on": {"x2": 0.0}, "components": [2]},
+                              {"on": {"x3": H_BODY}, "components": [3]}]
+    pb = ShapeProblem(load_config(raw))
+    assert pb.model.foundation.partner == "mortar" and pb.model.body.pinned_dofs.size > 0
+    err = patch_errors(pb, pb.solve_state(pb.model.initial_design()))
+    assert err["max"] <= 1e-8 and err["shear"] <= 1e-8, err
+
+
+def test_the_segmentation_is_built_once_per_run_not_per_evaluation(monkeypatch, tmp_path):
+    """Π = D⁻¹M does not depend on α (design moves are normal to the common plane): evaluations of
+    new designs never segment again."""
+    import contactopt.fem.mortar as mortar
+    pb = ShapeProblem(patch_config(7, 10, 0.3, tmp_path))
+    calls = []
+    monkeypatch.setattr(mortar, "segment", lambda *a, **k: calls.append(1))
+    a = pb.model.initial_design()
+    for k in range(2):
+        pb.evaluate(a - 0.001 * k)
+    assert not calls
+
+
+def test_mortar_partners_on_a_curved_face_are_refused(tmp_path, state_refused):
+    """Mortar partners segment on the plane x3 = 0; a face on a cylinder (a hub on a shaft) is refused
+    by name, exit 2."""
+    from contactopt.verification import lame
+    h = lame.quarter_hub_mesh(tmp_path / "hub.msh", 4, 8, 1)
+    s = lame.quarter_shaft_mesh(tmp_path / "shaft.msh", 3, 8, 1, radius=lame.B + lame.DELTA)
+    data = lame.shaft_config(h, s)
+    data["foundation"]["partner"] = "mortar"
+    state_refused(data, "foundation.partner = 'mortar' takes a contact face on x3 = 0")

@@ -14,6 +14,7 @@ import argparse
 import contextlib
 import json
 import logging
+import os
 import signal
 import sys
 import threading
@@ -22,6 +23,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ._progress import LiveLine
 from .errors import ConfigError, ContactOptError, MeshError
 
 log = logging.getLogger("contactopt")
@@ -303,11 +305,26 @@ def _cmd_sweep(args) -> int:
 
     res = run_sweep(args.config, settings, out, workers=args.workers, scheduler=args.scheduler,
                     threads=args.threads, max_iter=args.max_iter, eps=args.eps, resume=args.resume,
-                    overwrite=args.overwrite, progress=progress, on_client=connected)
+                    overwrite=args.overwrite, progress=progress, on_client=connected, plots=not args.no_plots)
     print(f"{len(res.rows) - res.n_failed} of {len(res.rows)} tasks finished, {res.n_failed} failed, "
           f"{res.wall_time_s:.1f}s; results in {res.outdir}/ (sweep.csv, sweep.json"
           + "".join(f", {p.name}" for p in res.plots) + ")")
     return 1 if res.n_failed else 0
+
+
+def _cmd_examples(args) -> int:
+    """Copy the shipped example configurations (and their meshes) into a directory, or list them."""
+    from .io.examples import copy_examples, list_examples
+    if args.list:
+        for ex in list_examples():
+            text = " ".join(ex.description.split())
+            print(f"{ex.name:28s} {text if len(text) <= 90 else text[:89] + '…'}")
+        return 0
+    written = copy_examples(args.dir, overwrite=args.overwrite)
+    tomls = sorted(p.name for p in written if p.suffix == ".toml")
+    print(f"{len(tomls)} configurations and {len(written) - len(tomls)} mesh and geometry files in {args.dir}/; "
+          f"run one with: contactopt run {Path(args.dir) / 'bracket.toml'}")
+    return 0
 
 
 def _cmd_schema(args) -> int:
@@ -337,6 +354,8 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--eps", type=float, help="BT stopping parameter ε")
     r.add_argument("--resume", action="store_true", help="continue the run in --out from its checkpoint")
     r.add_argument("--overwrite", action="store_true", help="replace the contents of a non-empty --out")
+    r.add_argument("--no-plots", action="store_true",
+                   help="write every output but the PNG figures (the summary, history, VTU and exports)")
     r.set_defaults(func=_cmd_run)
 
     s = sub.add_parser("state", help="solve the contact problem for one design")
@@ -380,6 +399,8 @@ def build_parser() -> argparse.ArgumentParser:
     w.add_argument("--resume", action="store_true",
                    help="reuse finished runs in --out and continue unfinished ones")
     w.add_argument("--overwrite", action="store_true", help="replace the contents of a non-empty --out")
+    w.add_argument("--no-plots", action="store_true",
+                   help="no PNG figures: neither each run's nor the sweep's comparison plots")
     w.set_defaults(func=_cmd_sweep)
 
     f = sub.add_parser("solve-fclib", help="solve an FCLIB local frictional-contact problem")
@@ -387,6 +408,13 @@ def build_parser() -> argparse.ArgumentParser:
     f.add_argument("--method", default="newton", choices=["newton", "fixed-point"])
     f.add_argument("--tol", type=float, default=1e-8)
     f.set_defaults(func=_cmd_solve_fclib)
+
+    x = sub.add_parser("examples", help="copy the example configurations and their meshes into a directory")
+    x.add_argument("dir", nargs="?", default="contactopt-examples",
+                   help="directory to copy them into (default contactopt-examples)")
+    x.add_argument("--list", action="store_true", help="list the examples with their descriptions, copy nothing")
+    x.add_argument("--overwrite", action="store_true", help="replace files of the same name in DIR")
+    x.set_defaults(func=_cmd_examples)
 
     j = sub.add_parser("schema", help="the JSON Schema of a configuration file (for TOML editors)")
     j.add_argument("-o", "--out", help="write it to this file (default: print it)")
@@ -414,6 +442,14 @@ def _main(argv=None) -> int:
     console.setFormatter(logging.Formatter("%(levelname)s %(name)s: %(message)s"))
     logging.getLogger().addHandler(console)
     logging.getLogger("contactopt").setLevel(min(level, logging.INFO))
+    # on a terminal, a long set-up (a factorization, a foundation's compliance) shows one line
+    # that counts its seconds; piped or redirected, nothing of it
+    live = LiveLine(sys.stderr) if _interactive(sys.stderr) else None
+    progress_logger = logging.getLogger("contactopt.progress")
+    old_progress_level = progress_logger.level
+    if live is not None:
+        progress_logger.addHandler(live)
+        progress_logger.setLevel(logging.DEBUG)
     from .io.atomic import WriteError
     try:
         with _signals_interrupt():
@@ -429,6 +465,18 @@ def _main(argv=None) -> int:
         return 128 + getattr(exc, "signum", signal.SIGINT)
     finally:      # the next command in this process (tests, a notebook) has its own
         logging.getLogger().removeHandler(console)
+        if live is not None:
+            progress_logger.removeHandler(live)
+            progress_logger.setLevel(old_progress_level)
+            live.close()
+
+
+def _interactive(stream) -> bool:
+    """Whether ``stream`` is a terminal a person watches (not a pipe, a file or a CI log)."""
+    try:
+        return stream.isatty() and os.environ.get("TERM", "") != "dumb"
+    except (AttributeError, ValueError):
+        return False
 
 
 @contextlib.contextmanager

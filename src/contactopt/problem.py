@@ -55,7 +55,7 @@ class ShapeProblem:
     """Discrete shape optimization problem (P̃) of a configuration.
 
     ``solve_state(alpha)`` returns the :class:`~contactopt.contact.state.State`;
-    ``evaluate(alpha)`` returns (Θ(α), one Clarke subgradient) (:meth:`subgradient`).
+    ``evaluate(alpha)`` returns (Θ(α), one Clarke subgradient) (:meth:`evaluate`).
     ``path``: the :class:`~contactopt.paths.base.SolverPath` the configuration runs on.
     """
 

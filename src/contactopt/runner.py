@@ -1,12 +1,21 @@
 """One optimization run = one output directory (resolved config, log, history, checkpoint, results).
 
+The story of a run (:func:`run_optimization`): the configuration is resolved and the problem set up;
+a resume reads its :class:`~contactopt.io.checkpoint.Checkpoint`, checks it against the
+configuration and puts the solver's contexts back, before the directory is touched; the
+:class:`~contactopt.io.rundir.RunDirectory` is claimed (lock, run.log, config.toml,
+history.csv); the optimizer runs through :func:`contactopt.optimize.minimize` (``method``
+"bundle", or "constrained" with [[constraints]]), checkpointing after every iteration; the
+result files are written at the optimum (:mod:`contactopt.io.outputs`).
+
 Layout of a run directory::
 
     config.toml        the resolved configuration, with package versions
     run.log            the log of the run
     history.csv        one row per evaluation of Θ
     iterations.csv     one row per bundle-trust iteration: Θ, step kind, t, stationarity measure
-    checkpoint.npz     optimizer + oracle state after the last iteration (written atomically)
+    checkpoint.npz     optimizer + oracle state after the last iteration (written atomically;
+                       :mod:`contactopt.io.checkpoint`, the one module that reads and writes it)
     summary.json       J0, J, iterations, evaluations, serious/null steps, success, message, alpha, times,
                        admissible (α in U) and constraints_satisfied ([[constraints]]; null without)
     alpha.json         optimal control points;  surface.csv  ϑ_α on a grid
@@ -328,8 +337,9 @@ class _Position:
 
 
 def run_optimization(config, outdir=None, *, eps=None, max_iter=None, resume=False, overwrite=False,
-                     progress=None) -> RunResult:
+                     progress=None, plots=True) -> RunResult:
     """Optimize the contact surface of a configuration; see the module docstring for the outputs.
+    ``plots=False`` writes every output but the PNG figures (sweeps, scripted studies).
 
     One writer per run directory: its lock is taken before anything is written
     (:class:`~contactopt.io.lock.LockedError` if another live process holds it). A failed write
@@ -356,7 +366,7 @@ def run_optimization(config, outdir=None, *, eps=None, max_iter=None, resume=Fal
         _start(oracle, setup, ckpt, finished)
         run_warnings = _warnings(setup, resume)
         res = finished if finished is not None else _optimize(oracle, setup, ckpt, progress)
-        summary = _finish(run_dir, setup, res, oracle, run_warnings)
+        summary = _finish(run_dir, setup, res, oracle, run_warnings, plots)
     except WriteError as exc:
         position = _Position.on_disk(run_dir.checkpoint)
         exc.args = (f"{exc.args[0]}; {position.describe()}" + position.hint(config, run_dir.path),)
@@ -495,12 +505,13 @@ def _callback(oracle: _Oracle, progress):
     return callback
 
 
-def _finish(run_dir: RunDirectory, setup: _SetUp, res, oracle: _Oracle, run_warnings: list) -> dict:
+def _finish(run_dir: RunDirectory, setup: _SetUp, res, oracle: _Oracle, run_warnings: list,
+            plots: bool = True) -> dict:
     """The result files and summary.json at the optimum (in α)."""
     red = setup.reduction
     if red is not None:
         res.x = red.expand(res.x)
-    summary = write_outputs(run_dir.path, setup.problem, setup.alpha0, res, oracle)
+    summary = write_outputs(run_dir.path, setup.problem, setup.alpha0, res, oracle, plots)
     summary["warnings"] = run_warnings
     if red is not None:
         summary["design_variables"] = {"alpha": red.n_alpha, "optimized": red.n_beta}
@@ -541,7 +552,8 @@ def run_from_cli(args) -> int:
         raise ConfigError([f"--eps {args.eps}: must be in (0, 1)"])
     try:
         rr = run_optimization(args.config, args.out, eps=args.eps, max_iter=args.max_iter,
-                              resume=args.resume, overwrite=args.overwrite, progress=progress)
+                              resume=args.resume, overwrite=args.overwrite, progress=progress,
+                              plots=not args.no_plots)
     except RunAborted as exc:
         print(f"contactopt: run stopped: {exc}", flush=True)
         raise

@@ -2,11 +2,11 @@
 record per table of an array of tables (load cases, load steps, objective terms, linear design
 constraints, part loads, targets).
 
-The dataclasses declare names and types only; every default lives in :mod:`.schema` and the
+The dataclasses declare names and types only; every default lives in ``contactopt.config.schema`` and the
 validator fills it in, so a section is built from the resolved dict (``from_dict``) and a key the
 validator leaves out on purpose (a block key of a body from a file, the count of a graded
 direction) is ``None``. Values that are tables or lists in the TOML (part predicates, nested
-control-point lists) stay lists and dicts, as :mod:`tomllib` gives them.
+control-point lists) stay lists and dicts, as ``tomllib`` gives them.
 """
 
 from __future__ import annotations
@@ -291,7 +291,7 @@ class Objective:
 
     @property
     def types(self) -> set:
-        """The objective types used: the terms' types, or the one type."""
+        """The objective types in use (the terms' types, or the one type)."""
         return {t.type for t in self.terms} or {self.type}
 
 

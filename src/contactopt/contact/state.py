@@ -129,7 +129,7 @@ class SolveStats:
 
 @dataclass(frozen=True)
 class ObstacleControl:
-    """A force-controlled obstacle (:mod:`contactopt.paths.force`): its translation s along the
+    """A force-controlled obstacle (``contactopt.paths.force``): its translation s along the
     force's direction, the resultant of the contact forces at s, and the state solves it took."""
 
     translation: float
@@ -139,7 +139,7 @@ class ObstacleControl:
 
 @dataclass(frozen=True)
 class RigidAnchor:
-    """The anchor of a body held by no Dirichlet condition (:mod:`contactopt.paths.rigid`): the
+    """The anchor of a body held by no Dirichlet condition (``contactopt.paths.rigid``): the
     iterations of its rigid-motion loop and the loop's final residual ratio."""
 
     iterations: int
@@ -221,8 +221,8 @@ class State:
 
     @property
     def slip_increment(self) -> np.ndarray:
-        """(p, 2) the tangential displacement the friction law acts on: u_t − u_t^(k−1) in a load
-        step, u_t itself in the static problem (sensitivity/steps.py)."""
+        """The tangential displacement the friction law acts on, (p, 2) — u_t − u_t^(k−1) in a
+        load step, u_t itself in the static problem (sensitivity/steps.py)."""
         ut = self.u_c[:, :2]
         return ut if self.slip_ref is None else ut - self.slip_ref
 

@@ -35,6 +35,7 @@ import logging
 import numpy as np
 import scipy.sparse as sp
 
+from .._progress import task
 from ..errors import ConfigError
 from ..mesh.foundation import build_foundation_mesh
 from ..mesh.reference import FACE_CORNERS
@@ -82,9 +83,9 @@ class Foundation:
             faces, weights = locate_partners(ref.points, fm.top.faces, ref.face_type, contact_xy, contact_nodes,
                                              where)
         else:
-            if self.partner == "average":
-                raise ConfigError([f"{where}: foundation.partner = 'average' takes a contact face on x3 = 0; a "
-                                   "curved face's partners are points along its normals (partner = 'point')"])
+            if self.partner in ("average", "mortar"):
+                raise ConfigError([f"{where}: foundation.partner = {self.partner!r} takes a contact face on x3 = 0; "
+                                   "a curved face's partners are points along its normals (partner = 'point')"])
             faces, weights, self.gap0 = ray_partners(ref.points, fm.top.faces, ref.face_type,
                                                      body.reference.points[contact_nodes], normals, contact_nodes,
                                                      where)
@@ -114,16 +115,17 @@ class Foundation:
             self._support_free.size, 3 * p)
         if check is not None:
             check(self.memory_parts)
-        K = self.assembler.stiffness(ref.points)
-        if self._support_free.size < K.shape[0]:
-            self.condensation = condense(K, self._support_free, backend=backend)
-        else:                       # a slab one cell thick: every free DOF carries a partner
-            self.condensation = _WholeMatrix(K, self._support_free)
-        self.W_f = spd_inverse(self.condensation.S)
-        P = self.Pi.tocsc()[:, np.flatnonzero(keep)]
-        PW = (P @ self.W_f)                                      # (3p, n) dense
-        C = np.asarray((P @ PW.T).T)
-        self.C = 0.5 * (C + C.T)
+        with task(f"the foundation's compliance at {3 * p} contact unknowns"):
+            K = self.assembler.stiffness(ref.points)
+            if self._support_free.size < K.shape[0]:
+                self.condensation = condense(K, self._support_free, backend=backend)
+            else:                       # a slab one cell thick: every free DOF carries a partner
+                self.condensation = _WholeMatrix(K, self._support_free)
+            self.W_f = spd_inverse(self.condensation.S)
+            P = self.Pi.tocsc()[:, np.flatnonzero(keep)]
+            PW = (P @ self.W_f)                                      # (3p, n) dense
+            C = np.asarray((P @ PW.T).T)
+            self.C = 0.5 * (C + C.T)
         self.P = P                # Π on the free support DOFs (the clamped ones do not move)
         f_full = self.loads.vector(ref.points, self.assembler)
         self.load_resultant = f_full.reshape(-1, 3).sum(axis=0)

@@ -39,6 +39,7 @@ import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as sla
 
+from .._progress import task
 from ..errors import SolverError
 from . import _pardiso
 
@@ -541,18 +542,19 @@ class Factorization:
         self.n = A.shape[0]
         self.backend = _pick_backend(backend)
         t0 = time.perf_counter()
-        if self.backend == "pardiso":
-            self._ps = _pardiso.PardisoSPD(sp.triu(A, format="csr"))
-            self._ps.analyze()
-            t1 = time.perf_counter()
-            self._ps.factor()
-            self.stats = {"nnz_factor": self._ps.nnz_factor, "mflop": self._ps.mflops_factor}
-        else:
-            self._order = _supervariable_order(A)
-            B = A[self._order][:, self._order]
-            t1 = time.perf_counter()
-            self._lu = _splu_natural(B, check_spd=False)
-            self.stats = {"nnz_factor": self._lu.nnz}
+        with task(f"factorizing a matrix of {self.n:,} unknowns".replace(",", " ")):
+            if self.backend == "pardiso":
+                self._ps = _pardiso.PardisoSPD(sp.triu(A, format="csr"))
+                self._ps.analyze()
+                t1 = time.perf_counter()
+                self._ps.factor()
+                self.stats = {"nnz_factor": self._ps.nnz_factor, "mflop": self._ps.mflops_factor}
+            else:
+                self._order = _supervariable_order(A)
+                B = A[self._order][:, self._order]
+                t1 = time.perf_counter()
+                self._lu = _splu_natural(B, check_spd=False)
+                self.stats = {"nnz_factor": self._lu.nnz}
         self.timings = {"analyze": t1 - t0, "factor": time.perf_counter() - t1}
 
     def refactor(self, A) -> "Factorization":

@@ -41,7 +41,7 @@ class WriteError(ContactOptError):
     """A file could not be written: ``path`` is the file, ``cause`` the OSError (``errno``).
 
     Raised by the writers of this module (the file then keeps its previous content, or stays
-    absent) and by the other writers of a run through :func:`write_error`."""
+    absent) and by the other writers of a run through :func:`~contactopt.io.atomic.write_error`."""
 
     def __init__(self, path, cause: OSError):
         self.path = Path(path)

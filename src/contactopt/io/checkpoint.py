@@ -4,7 +4,7 @@ This module alone writes and reads ``checkpoint.npz``. A checkpoint is one npz a
 keys name a part and a field, ``<part>/<field>``:
 
 ``format/version``
-    :data:`VERSION`, the one version number of the whole file; a checkpoint of another version
+    ``VERSION``, the one version number of the whole file; a checkpoint of another version
     is refused with a message (start the run again with ``--overwrite``).
 ``run/…``
     the evaluations, the elapsed time, the scale Θ(α0) of the objective the optimizer sees,
@@ -15,7 +15,7 @@ keys name a part and a field, ``<part>/<field>``:
     resume may change): a resume with another configuration is refused naming the keys that
     differ.
 ``bundle/…``
-    the :class:`~contactopt.optimize.BundleState` (its fields, without a version of their own).
+    the :class:`~contactopt.optimize.bundle.BundleState` (its fields, without a version of their own).
 ``penalty/…``
     the :class:`~contactopt.optimize.constrained.PenaltyState` of a run with [[constraints]].
 ``result/…``
@@ -25,8 +25,11 @@ keys name a part and a field, ``<part>/<field>``:
     what the state solver of load case k carries from design to design at load step j (warm
     starts, a kept Delassus block, the design of an AMG hierarchy), as the solver path exports
     it; k and j count from 0, and a run without load cases or load path has case0/step0 only.
+    The warm start ``warm`` is the contact force r, shape (p, 3): one row per contact node in
+    the model's order, components (t1, t2, ν) — ν the normal force, positive in compression
+    (λ ≥ 0) — and ``zone`` the contact nodes (indices into that order) of the next solve.
 
-Writes are atomic (:func:`~contactopt.io.atomic.atomic_savez`): a killed writer leaves the
+Writes are atomic (``contactopt.io.atomic.atomic_savez``): a killed writer leaves the
 previous checkpoint whole.
 """
 
@@ -86,7 +89,7 @@ class Checkpoint:
 
     ``contexts[k][j]``: the arrays of load case k at load step j (``len(contexts)`` is the
     number of load cases); ``alpha`` the design α when the optimizer works on β (else None);
-    ``config`` the flattened configuration (:func:`flatten_config`)."""
+    ``config`` the flattened configuration (``flatten_config``)."""
 
     bundle: BundleState
     evaluations: int

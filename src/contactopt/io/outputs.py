@@ -54,17 +54,17 @@ def _stopping(res, opt) -> dict:
             "ftol": float(opt.ftol), "ftol_window": int(opt.ftol_window)}
 
 
-def write_outputs(out: Path, problem, alpha0, res, oracle) -> dict:
+def write_outputs(out: Path, problem, alpha0, res, oracle, plots: bool = True) -> dict:
     """Every result file of a finished optimization at its optimum ``res.x`` (the module
     docstring of :mod:`contactopt.runner` lists them) and summary.json; ``oracle`` the run's
-    counts (``count``, ``scale``, ``time``, ``t_start``)."""
+    counts (``count``, ``scale``, ``time``, ``t_start``). ``plots=False``: all but the PNG figures."""
     model = problem.model
     x = np.asarray(res.x)
     t0 = time.perf_counter()
     c0 = problem.evaluate_cases(alpha0, warm_start=False)      # Θ of the combined load cases
-    states0, J0, steps0 = problem.solve_states(alpha0), c0.value, _step_outputs(out, problem, "initial")
+    states0, J0, steps0 = problem.solve_states(alpha0), c0.value, _step_outputs(out, problem, "initial", plots)
     c1 = problem.evaluate_cases(x, warm_start=False)
-    states1, J, steps1 = problem.solve_states(x), c1.value, _step_outputs(out, problem, "optimal")
+    states1, J, steps1 = problem.solve_states(x), c1.value, _step_outputs(out, problem, "optimal", plots)
     s0, s1 = states0[c1.case], states1[c1.case]      # the load case active at the optimum
     target = problem.cases[c1.case].objective.target
     write_body_vtu(out / "initial.vtu", model, s0)
@@ -75,18 +75,8 @@ def write_outputs(out: Path, problem, alpha0, res, oracle) -> dict:
         write_foundation_vtu(out / "optimal_foundation.vtu", model.foundation, s1)
         pvd += [(0, "initial_foundation.vtu", 1), (1, "optimal_foundation.vtu", 1)]
     write_pvd(out / "bodies.pvd", pvd)
-    plot_stress_comparison(out / "stress.png", model, target if target is not None else np.zeros_like(s0.lam),
-                           s0.lam, s1.lam)
-    p0, p1 = contact_pressure(model, s0.lam, s0.coords), contact_pressure(model, s1.lam, s1.coords)
-    # the target in the same units: λ̄ over the optimal design's areas, as the optimal λ
-    p_target = (contact_pressure(model, target, s1.coords) if target is not None else np.zeros_like(p0))
-    plot_stress_comparison(out / "pressure.png", model, p_target, p0, p1, zlabel="contact pressure $p = \\lambda/a$")
-    plot_surface(out / "surface.png", model, x)
-    plot_node_classes(out / "classes.png", model, s1.classes)
-    plot_contact_response(out / "contact.png", model, p1, s1.tau, s1.u_c[:, :2], s1.classes,
-                          title="optimal design")
-    plot_peak_stress(out / "von_mises.png", model, s1.coords, s1.u, title="optimal design")
-    plot_history(out / "history.png", [{**r, "kind": r.get("step")} for r in res.history])
+    if plots:
+        _figures(out, model, x, target, s0, s1, res)
     atomic_write_text(out / "iterations.csv", "iteration,J,step,t,stationarity,evaluations\n" + "".join(
         f"{r['iteration']},{r['f'] * oracle.scale!r},{r['step']},{r['t']:.6e},{r['stationarity']:.6e},"
         f"{r['nfev']}\n" for r in res.history))
@@ -119,7 +109,7 @@ def write_outputs(out: Path, problem, alpha0, res, oracle) -> dict:
     else:
         summary["constraints_satisfied"] = None
     if problem.has_load_cases:
-        summary["load_cases"] = _load_case_outputs(out, problem, (c0, states0), (c1, states1))
+        summary["load_cases"] = _load_case_outputs(out, problem, (c0, states0), (c1, states1), plots)
     if steps1:
         summary["load_steps"] = {"names": list(steps1), "J0": steps0, "J": steps1, "objective_steps":
                                  problem.config.objective.steps}
@@ -127,6 +117,24 @@ def write_outputs(out: Path, problem, alpha0, res, oracle) -> dict:
     summary["time_breakdown_s"]["outputs"] = time.perf_counter() - t0
     atomic_write_json(out / "summary.json", summary)
     return summary
+
+
+def _figures(out: Path, model, x, target, s0, s1, res) -> None:
+    """The run's figures: λ and the contact pressure p = λ/a of the target, α0 and the optimum,
+    the optimal surface, its node classes, contact response and von Mises stress, and the
+    convergence history."""
+    plot_stress_comparison(out / "stress.png", model, target if target is not None else np.zeros_like(s0.lam),
+                           s0.lam, s1.lam)
+    p0, p1 = contact_pressure(model, s0.lam, s0.coords), contact_pressure(model, s1.lam, s1.coords)
+    # the target in the same units: λ̄ over the optimal design's areas, as the optimal λ
+    p_target = (contact_pressure(model, target, s1.coords) if target is not None else np.zeros_like(p0))
+    plot_stress_comparison(out / "pressure.png", model, p_target, p0, p1, zlabel="contact pressure $p = \\lambda/a$")
+    plot_surface(out / "surface.png", model, x)
+    plot_node_classes(out / "classes.png", model, s1.classes)
+    plot_contact_response(out / "contact.png", model, p1, s1.tau, s1.u_c[:, :2], s1.classes,
+                          title="optimal design")
+    plot_peak_stress(out / "von_mises.png", model, s1.coords, s1.u, title="optimal design")
+    plot_history(out / "history.png", [{**r, "kind": r.get("step")} for r in res.history])
 
 
 def _constraint_outputs(problem, alpha0, x, res) -> dict:
@@ -141,12 +149,12 @@ def _constraint_outputs(problem, alpha0, x, res) -> dict:
     return {"responses": out, "sigma": float(res.get("sigma", float("nan"))), "sigma_raised": int(res.get("outer", 0))}
 
 
-def _step_outputs(out: Path, problem, which: str) -> dict:
+def _step_outputs(out: Path, problem, which: str, plots: bool = True) -> dict:
     """Load paths: J at each step's end at the design just evaluated, and (at the optimum) a
     stick/slip map per step, classes-<step>.png."""
     if not problem.has_load_steps:
         return {}
-    if which == "optimal":
+    if which == "optimal" and plots:
         for k in range(len(problem.cases)):
             pre = f"{problem.cases[k].name}." if problem.has_load_cases else ""
             for name, sub, state in problem.step_results(k) or []:
@@ -167,13 +175,14 @@ def _export(out: Path, model, x) -> dict:
         return {"files": {}, "error": str(exc)}
 
 
-def _load_case_outputs(out: Path, problem, initial, optimal) -> dict:
+def _load_case_outputs(out: Path, problem, initial, optimal, plots: bool = True) -> dict:
     """Per-case λ maps (cases.png) and the summary's ``load_cases``: Θ_k at α0 and at the
     optimum, the active cases there and the case whose state the other plots show."""
     names = problem.case_names
     (c0, states0), (c1, states1) = initial, optimal
-    plot_load_cases(out / "cases.png", problem.model, names, [s.lam for s in states0], [s.lam for s in states1],
-                    c0.values, c1.values)
+    if plots:
+        plot_load_cases(out / "cases.png", problem.model, names, [s.lam for s in states0],
+                        [s.lam for s in states1], c0.values, c1.values)
     return {"combine": problem.combination.kind, "names": list(names),
             "weights": dict(zip(names, problem.combination.weights.tolist())),
             "J0": dict(zip(names, c0.values.tolist())), "J": dict(zip(names, c1.values.tolist())),

@@ -47,8 +47,15 @@ CLASS_DESCRIPTIONS = ("no contact", "sliding, contact", "sliding, weak contact",
 DPI = 120
 
 
-def _new_figure(figsize) -> Figure:
-    fig = Figure(figsize=figsize, layout="constrained")
+# zlib level of the PNG files: 1 encodes several times faster than the default 6, the pixels are
+# the same and the files about a third larger
+PNG_COMPRESSION = 1
+
+
+def _new_figure(figsize, layout="constrained") -> Figure:
+    """A figure on an Agg canvas. ``layout=None`` for figures placed by hand (the 3D plots: the
+    constrained layout measures every tick label of a 3D axes twice more per figure)."""
+    fig = Figure(figsize=figsize, layout=layout)
     FigureCanvasAgg(fig)
     return fig
 
@@ -56,9 +63,28 @@ def _new_figure(figsize) -> Figure:
 def _save(fig: Figure, path) -> Path:
     path = Path(path)
     with atomic_output(path) as tmp:
-        fig.savefig(tmp, format="png", dpi=DPI)
+        fig.savefig(tmp, format="png", dpi=DPI, pil_kwargs={"compress_level": PNG_COMPRESSION})
     log.info("wrote %s", path)
     return path
+
+
+def _bars(ax, x0, y0, dx, dy, dz, colors) -> None:
+    """3D bars from (x0, y0, 0) to (x0 + dx, y0 + dy, dz), shaded like ``Axes3D.bar3d``, drawn with
+    the faces that the view of :func:`plot_stress_comparison` (azimuth −60°, from above) can see:
+    the top, the face at x1 = x0 + dx and the face at x2 = y0 (half of bar3d's six faces; a bar
+    of height 0 its top only). The colours are one RGBA row per bar."""
+    from mpl_toolkits.mplot3d.art3d import Poly3DCollection
+    x1, y1, z0 = x0 + dx, y0 + dy, np.zeros_like(dz)
+    top = np.stack([np.stack(c, axis=-1) for c in ((x0, y0, dz), (x1, y0, dz), (x1, y1, dz), (x0, y1, dz))], axis=1)
+    east = np.stack([np.stack(c, axis=-1) for c in ((x1, y0, z0), (x1, y1, z0), (x1, y1, dz), (x1, y0, dz))], axis=1)
+    south = np.stack([np.stack(c, axis=-1) for c in ((x0, y0, z0), (x1, y0, z0), (x1, y0, dz), (x0, y0, dz))], axis=1)
+    polys = np.stack([top, east, south], axis=1)
+    facecolors = np.repeat(np.asarray(colors, float)[:, None, :], 3, axis=1)
+    # a bar of height 0 (a node out of contact) has side faces of no area: its top alone is drawn
+    keep = np.ones(polys.shape[:2], bool)
+    keep[:, 1:] = (dz != 0)[:, None]
+    polys, facecolors = polys[keep], facecolors[keep]
+    ax.add_collection(Poly3DCollection(polys, facecolors=facecolors, shade=True, linewidth=0.0))
 
 
 def contact_grid(model, values=None):
@@ -210,7 +236,9 @@ def plot_node_classes(path, model, classes, title="Contact node classes (Table 4
                          f"got {codes.min()}..{codes.max()}")
     cmap = ListedColormap(CLASS_COLORS, name="node_classes")
     norm = BoundaryNorm(np.arange(-0.5, len(CLASS_NAMES) + 0.5), cmap.N)
-    fig = _new_figure(_figsize_map(model, extra_width=2.6))
+    size = _figsize_map(model, extra_width=2.6)
+    fig = _new_figure(size, layout=None)
+    fig.subplots_adjust(left=0.9 / size[0], right=1.0 - 2.9 / size[0], bottom=0.6 / size[1], top=1.0 - 0.5 / size[1])
     ax = _map_axes(fig, model)
     _categories(ax, model, codes, cmap, norm)
     handles = [Patch(facecolor=CLASS_COLORS[k], edgecolor="0.4",
@@ -251,12 +279,12 @@ def plot_stress_comparison(path, model, target, initial, optimal, *,
         zmax = zmin + 1.0
     pad = 0.05 * (zmax - zmin)
     cm = colormaps["viridis"]
-    fig = _new_figure((15.5, 4.8))
+    fig = _new_figure((15.5, 4.8), layout=None)
+    fig.subplots_adjust(left=0.0, right=0.97, bottom=0.03, top=0.84 if suptitle else 0.9, wspace=0.08)
     for n, (g, title) in enumerate(zip(grids, titles)):
         ax = fig.add_subplot(1, 3, n + 1, projection="3d")
         colors = cm((g.ravel() - zmin) / (zmax - zmin))
-        ax.bar3d(x0.ravel(), y0.ravel(), np.zeros(g.size), DX.ravel(), DY.ravel(), g.ravel(),
-                 color=colors, shade=True, linewidth=0.0)
+        _bars(ax, x0.ravel(), y0.ravel(), DX.ravel(), DY.ravel(), g.ravel(), colors)
         ax.set_xlim(0.0, model.surface.a)
         ax.set_ylim(0.0, model.surface.b)
         ax.set_zlim(zmin - (pad if zmin < 0 else 0.0), zmax + pad)
@@ -280,7 +308,8 @@ def _stress_maps(path, model, fields, titles, zlabel, suptitle) -> Path:
     if hi == lo:
         hi = lo + 1.0
     w, h = _figsize_map(model, extra_width=0.0)
-    fig = _new_figure((3 * w * 0.8 + 1.5, h * 0.8 + 0.6))
+    fig = _new_figure((3 * w * 0.8 + 1.5, h * 0.8 + 0.6), layout=None)
+    fig.subplots_adjust(left=0.05, right=0.98, bottom=0.12, top=0.78 if suptitle else 0.82, wspace=0.3)
     tri = face_triangulation(model)
     for n, (g, title) in enumerate(zip(fields, titles)):
         ax = _map_axes(fig, model, (1, 3, n + 1))
@@ -364,8 +393,8 @@ def plot_surface(path, model, alpha, *, resolution=(81, 41), title="Contact surf
     c1 = x1lo + surf.a * np.arange(surf.d1 + 1) / max(surf.d1, 1)
     c2 = x2lo + surf.b * np.arange(surf.d2 + 1) / max(surf.d2, 1)
     C1, C2 = np.meshgrid(c1, c2, indexing="ij")
-    fig = _new_figure((9.0, 6.0))
-    ax = fig.add_subplot(projection="3d")
+    fig = _new_figure((9.0, 6.0), layout=None)
+    ax = fig.add_axes((0.0, 0.02, 0.84, 0.9), projection="3d")
     sm = ax.plot_surface(G1, G2, Z, cmap="terrain", linewidth=0, antialiased=True, alpha=0.85)
     ax.plot_wireframe(C1, C2, A, color="0.25", linewidth=0.6)
     ax.scatter(C1.ravel(), C2.ravel(), A.ravel(), color="crimson", s=14, depthshade=False,
@@ -377,7 +406,7 @@ def plot_surface(path, model, alpha, *, resolution=(81, 41), title="Contact surf
     ax.set_zlim(lo, hi + 0.05 * (hi - lo) if hi > lo else lo + 1.0)
     ax.set_box_aspect((surf.a, surf.b, 0.6 * max(surf.a, surf.b)))
     ax.legend(loc="upper left", fontsize=8)
-    fig.colorbar(sm, ax=ax, shrink=0.6, label="$\\vartheta_\\alpha$")
+    fig.colorbar(sm, cax=fig.add_axes((0.86, 0.22, 0.025, 0.56)), label="$\\vartheta_\\alpha$")
     ax.set_title(f"{title}\nmin {np.nanmin(Z):.4g}, max {np.nanmax(Z):.4g}", fontsize=10)
     ax.view_init(elev=25, azim=-60)
     return _save(fig, path)
@@ -392,7 +421,8 @@ def plot_history(path, history_rows, *, title="Convergence history") -> Path:
     log axis when every value is positive, on a linear axis otherwise (logged).
     """
     rows = list(history_rows)
-    fig = _new_figure((8.0, 4.8))
+    fig = _new_figure((8.0, 4.8), layout=None)
+    fig.subplots_adjust(left=0.11, right=0.88, bottom=0.11, top=0.93)
     ax = fig.add_subplot()
     ax.set_xlabel("iteration")
     ax.set_ylabel("$\\Theta$")
@@ -456,7 +486,8 @@ def plot_contact_response(path, model, pressure, tau, u_t, classes, *, title=Non
         raise ValueError("plot_contact_response: a field has non-finite values")
     status = SLIP_STATUS[np.asarray(_contact_values(model, classes), int)]
     w, h = _figsize_map(model, extra_width=0.0)
-    fig = _new_figure((2 * w * 0.8 + 2.8, 2 * (h * 0.8 + 0.6)))
+    fig = _new_figure((2 * w * 0.8 + 2.8, 2 * (h * 0.8 + 0.6)), layout=None)
+    fig.subplots_adjust(left=0.07, right=0.84, bottom=0.07, top=0.86 if title else 0.9, wspace=0.3, hspace=0.45)
     names = ("contact pressure $p = \\lambda / a$", "tangential force $\\|\\tau\\|$", "slip $\\|u_t\\|$")
     for n, (g, what) in enumerate(zip(fields, names)):
         ax = _map_axes(fig, model, (2, 2, n + 1))
@@ -494,7 +525,8 @@ def plot_peak_stress(path, model, coords, u_full, *, cells=None, fraction: float
     pts, vals = x[keep][order], vm[keep][order]
     lo, hi = coords.min(axis=0), coords.max(axis=0)
     span = hi - lo
-    fig = _new_figure((12.5, 4.6))
+    fig = _new_figure((12.5, 4.6), layout=None)
+    fig.subplots_adjust(left=0.06, right=0.9, bottom=0.12, top=0.84, wspace=0.2)
     for n, (i, j, name) in enumerate(((0, 1, "from below: $x_1$, $x_2$"), (0, 2, "from the side: $x_1$, $x_3$"))):
         ax = fig.add_subplot(1, 2, n + 1)
         sc = ax.scatter(pts[:, i], pts[:, j], c=vals, cmap="inferno_r", s=10, vmin=fraction * vm[top], vmax=vm[top])

@@ -127,7 +127,7 @@ class _RunLog(logging.FileHandler):
 class RunDirectory:
     """The directory of one optimization run and the files it owns: its lock, run.log,
     config.toml, history.csv, checkpoint.npz (:mod:`contactopt.io.checkpoint`), summary.json and
-    the result files (:mod:`contactopt.io.outputs`).
+    the result files (``contactopt.io.outputs``).
 
     :meth:`claim` takes the lock (one writer per directory), :meth:`start_log` starts run.log,
     :meth:`close` undoes both. A stale lock left by a killed writer is taken over and noted in run.log at
@@ -161,7 +161,7 @@ class RunDirectory:
             raise LockedError(self.path, holder, "run directory")
 
     def claim(self, *, overwrite: bool = False, resume: bool = False) -> None:
-        """Take the lock (:func:`claim_output_dir`: nothing is written or removed before)."""
+        """Take the lock (``claim_output_dir``: nothing is written or removed before)."""
         self.lock = claim_output_dir(self.path, overwrite=overwrite, resume=resume)
 
     def start_log(self) -> None:

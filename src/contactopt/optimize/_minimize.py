@@ -1,4 +1,4 @@
-"""One entry to the optimizers of :mod:`contactopt.optimize`: ``minimize(fun, x0, method=…)``."""
+"""One entry to the optimizers of ``contactopt.optimize``: ``minimize(fun, x0, method=…)``."""
 
 from __future__ import annotations
 
@@ -15,7 +15,7 @@ def minimize(fun, x0, *, method: str = "bundle", **options) -> BundleResult:
 
     ``"bundle"``
         :func:`~contactopt.optimize.minimize_bundle`: ``fun(x) -> (f, g)`` with g one Clarke
-        subgradient; ``state`` (a :class:`~contactopt.optimize.BundleState`) resumes.
+        subgradient; ``state`` (a :class:`~contactopt.optimize.bundle.BundleState`) resumes.
     ``"constrained"``
         :func:`~contactopt.optimize.constrained.minimize_constrained`: ``fun(x) -> (f, g, c, J)``
         with the constraints c(x) ≤ 0 and one subgradient of each c_i in the rows of J, by an

@@ -66,11 +66,11 @@ SUCCESS_STATUS = (0, 4, 5)
 
 
 class BundleResult(OptimizeResult):
-    """Result of :func:`minimize_bundle` (a scipy ``OptimizeResult``).
+    """Result of :func:`~contactopt.optimize.minimize_bundle` (a scipy ``OptimizeResult``).
 
     Attributes: ``x``, ``fun``, ``jac`` (last aggregate subgradient ξ), ``nit``, ``nfev``,
     ``n_serious``, ``n_null``, ``success`` (status 0, 4 or 5), ``status`` (see
-    :data:`STATUS_MESSAGES`: 0 converged by the certified test, 4 by the f-change test or the
+    :data:`~contactopt.optimize.bundle.STATUS_MESSAGES`: 0 converged by the certified test, 4 by the f-change test or the
     predicted decrease,
     5 by the round-off of f, 1 max_iter, 2 stopped by the callback, 3 stalled; −1 in the
     callback's intermediate result), ``message`` (names the criterion and its value),
@@ -79,13 +79,13 @@ class BundleResult(OptimizeResult):
     ``stationarity`` (the certified measure at x), ``relative_decrease`` (of f over the last
     ``ftol_window`` serious steps; inf before there are that many), ``t``, ``history`` (list
     of dicts with keys iteration, f, step ('serious'/'null'), t, stationarity, nfev) and
-    ``state`` (the :class:`BundleState` from which a run resumes).
+    ``state`` (the :class:`~contactopt.optimize.bundle.BundleState` from which a run resumes).
     """
 
 
 @dataclass
 class BTOptions:
-    """Parameters of the method (keyword ``**options`` of :func:`minimize_bundle`).
+    """Parameters of the method (keyword ``**options`` of :func:`~contactopt.optimize.minimize_bundle`).
 
     m1: serious-step (descent) test f(y) − f(x) ≤ m1·v; m2 (> m1): slope test g(y)ᵀd < m2·v
     for the line search beyond a serious step (or for enlarging t with ``extend``); m3:
@@ -94,7 +94,7 @@ class BTOptions:
     (default): set by the run (docs/bundle_method.md) — gamma_t0/t (in the units of f per x², the
     weight of the proximal term times gamma_t0) or gamma_factor times the nonconvexity the
     present bundle shows, whichever is larger, and 0 for the cuts of an affine piece of f;
-    locality: a null step needs α(x, y) ≤ locality·|v|, else t is reduced (far trial point);
+    locality: a null step needs α(x, y) ≤ ``locality·|v|``, else t is reduced (far trial point);
     t0: initial t (default max(1, ‖x0‖∞)/‖g(x0)‖, a first step of length max(1, ‖x0‖∞));
     t_min, t_max: bounds of t (default 1e-8·t0 and 1e4·t0);
     t_decrease: factor of t in the inner loop (far or useless trial point);
@@ -120,14 +120,14 @@ class BTOptions:
     ftol, ftol_window: practical stop (status 4) when the model predicts a relative decrease
     below ftol after at least ftol_window serious steps (docs/bundle_method.md; ftol = 0, the
     default: off);
-    tolf, tolf_steps: the f-change stop (status 4): f changed by at most tolf·max(1, |f|) in
+    tolf, tolf_steps: the f-change stop (status 4): f changed by at most ``tolf·max(1, |f|)`` in
     each of the last tolf_steps serious steps and the stationarity measure is at most
     sqrt(tolf) (docs/bundle_method.md; default 1e-8 and 2, in every run; tolf = 0: off);
     stall_window: stop (status 3) when over this many iterations (at least 2(n + 1), the null
     steps a polyhedral f may need at one x) f did not decrease and the stationarity measure did
     not halve (eps below the reachable precision);
     feas_tol: scaled feasibility tolerance of iterates;
-    scale: the variables the method works in (:mod:`._scaling`): "bounds" (default) x = D z with
+    scale: the variables the method works in (``contactopt.optimize._scaling``): "bounds" (default) x = D z with
     D_ii the width ub_i − lb_i of each finite box relative to the geometric mean of those widths
     (as a power of two; D = I where the widths are equal or no box is finite, so such a run is
     bit for bit the unscaled one), "none" the user's variables.
@@ -757,14 +757,14 @@ def minimize_bundle(oracle, x0, *, lb=None, ub=None, A_ub=None, b_ub=None, A_eq=
         run including iterations done before a restored ``state``.
     callback : callable, optional
         ``callback(intermediate_result)`` after every iteration; the argument is a
-        :class:`BundleResult` with a ``state`` copy.  Raising ``StopIteration`` stops the run
+        :class:`~contactopt.optimize.bundle.BundleResult` with a ``state`` copy.  Raising ``StopIteration`` stops the run
         (``success`` False, status 2).
     state : BundleState, optional
         Resume from a saved state (``x0`` is then ignored); the iterates that follow are
         bit-identical to those of the uninterrupted run with the same options and U.  A state is
         in the method's variables z = x/d (``scale``); results and callbacks are in the user's.
     **options
-        Parameters of the method, see :class:`BTOptions`; among them the practical stop
+        Parameters of the method, see :class:`~contactopt.optimize.bundle.BTOptions`; among them the practical stop
         (status 4): the f-change test ``tolf`` (default 1e-8) over ``tolf_steps`` (2) serious
         steps, and the predicted decrease ``ftol`` (default 0: off) with ``ftol_window`` (5),
         see docs/bundle_method.md.

@@ -21,7 +21,7 @@ point (one *outer* iteration). An infeasible x0 is allowed (it must lie in U; th
 projects it otherwise). The returned x satisfies ``c_i(x) ≤ ctol_i`` for every i when
 ``success`` holds; ``constraints`` gives c(x).
 
-Resuming: :class:`PenaltyState` holds σ, the outer iteration, the counts and history of the
+Resuming: :class:`~contactopt.optimize.constrained.PenaltyState` holds σ, the outer iteration, the counts and history of the
 finished bundle runs and the oracle's answer at the current iterate; with the bundle's own
 :class:`~contactopt.optimize.BundleState` it makes a run continue bit for bit.
 """
@@ -150,15 +150,15 @@ def minimize_constrained(oracle, x0, *, ctol=1e-6, sigma0=None, sigma_factor=10.
     ctol : float or array (m,)
         A run ends successfully only at a point with c_i ≤ ctol_i.
     sigma0 : float, optional
-        First penalty weight; default :func:`multiplier_estimate` at x0.
+        First penalty weight; default :func:`~contactopt.optimize.constrained.multiplier_estimate` at x0.
     sigma_factor, max_outer :
         σ grows by this factor after a bundle run that ends infeasible, at most ``max_outer`` times.
     eps, max_iter, **kwargs :
-        Of :func:`minimize_bundle` (linear constraints of U and options); ``max_iter`` counts the
+        Of :func:`~contactopt.optimize.minimize_bundle` (linear constraints of U and options); ``max_iter`` counts the
         iterations of every bundle run together.
     callback : callable, optional
         ``callback(intermediate_result)`` after every iteration and when a bundle run ends
-        before σ grows; the result carries ``penalty`` (a :class:`PenaltyState` without the
+        before σ grows; the result carries ``penalty`` (a :class:`~contactopt.optimize.constrained.PenaltyState` without the
         bundle state, which is ``intermediate_result.state``). ``StopIteration`` stops.
     state, bundle_state : PenaltyState, BundleState, optional
         Resume from a checkpoint (``x0`` is then ignored).

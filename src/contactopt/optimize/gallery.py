@@ -1,9 +1,9 @@
-"""A gallery of nonsmooth test problems for the optimizers of :mod:`contactopt.optimize`.
+"""A gallery of nonsmooth test problems for the optimizers of ``contactopt.optimize``.
 
 Like ``pyamg.gallery`` or ``scipy.optimize``'s test functions, the problems are built when
 asked for, not when the module is imported:
 
-* :data:`PROBLEMS` — the collection of L. Lukšan, J. Vlček, *Test problems for nonsmooth
+* ``PROBLEMS`` — the collection of L. Lukšan, J. Vlček, *Test problems for nonsmooth
   unconstrained and linearly constrained optimization*, Technical report 798, ICS AS CR,
   Prague, 2000: its unconstrained problems 1–25 (``group == "unconstrained"``; TR48, problem
   21, is left out: its data are not part of the formulas) and its linearly constrained problems
@@ -11,7 +11,7 @@ asked for, not when the module is imported:
   value the authors' codes reach (the published runs of ACM TOMS Algorithm 811), ``number``
   the problem's number in its chapter; :func:`get_problem` and :func:`problem_names` look
   them up.
-* :data:`CONSTRAINED` — problems min f(x) over U ∩ {c(x) ≤ 0} with nonlinear, nonsmooth
+* ``CONSTRAINED`` — problems min f(x) over U ∩ {c(x) ≤ 0} with nonlinear, nonsmooth
   constraints, for :func:`~contactopt.optimize.constrained.minimize_constrained`
   (:class:`ConstrainedProblem`).
 * Families with a parameter: :func:`goffin_problem` (a maximum of n linear functions),
@@ -981,7 +981,7 @@ def _constrained_problems() -> dict[str, ConstrainedProblem]:
 
 
 def __getattr__(name: str):
-    """:data:`PROBLEMS` and :data:`CONSTRAINED`, built on first use."""
+    """``PROBLEMS`` and ``CONSTRAINED``, built on first use."""
     if name == "PROBLEMS":
         return _problems()
     if name == "CONSTRAINED":

@@ -55,11 +55,11 @@ def library_for(name: str, library: str) -> str:
 
 
 def needs(config, pinned: int = 0, ranks: int = 1, rigid=None) -> dict:
-    """What a configuration needs of a path: {feature of :class:`Capabilities`: what needs it}.
+    """What a configuration needs of a path: {feature of :class:`~contactopt.paths.base.Capabilities`: what needs it}.
 
     ``pinned``: the number of clamped tangential components of contact nodes (a symmetry plane
-    through the contact face, :mod:`contactopt.mesh.body`); ``ranks``: the MPI ranks of the run;
-    ``rigid``: the rigid motions the clamps leave free (:mod:`contactopt.mesh.rigid`), or None."""
+    through the contact face, ``contactopt.mesh.body``); ``ranks``: the MPI ranks of the run;
+    ``rigid``: the rigid motions the clamps leave free (``contactopt.mesh.rigid``), or None."""
     from ..sensitivity.objectives import FULL_SPACE, constraint_types, objective_types
     out, foundation = {}, config.foundation is not None
     types = objective_types(config) | constraint_types(config)     # [[constraints]] are objectives too
@@ -95,7 +95,7 @@ def select_path(config, n_free: int, pinned: int = 0, rigid=None, pinned_held: b
     """(path, library) of a configuration for a body of ``n_free`` free DOFs.
 
     The paths that take what the configuration needs (:func:`needs`, each path's
-    :class:`Capabilities`) qualify; ``path = "auto"`` takes among them the PETSc path under
+    :class:`~contactopt.paths.base.Capabilities`) qualify; ``path = "auto"`` takes among them the PETSc path under
     ``mpiexec`` with more than one rank, else the full-space path from ``crossover`` free DOFs on
     (the measured crossover, docs/large_meshes.md; the Delassus path where pyamg is missing and
     PARDISO is installed), else the condensation. So the compliance objective (it needs the

@@ -213,9 +213,9 @@ class SolverPath:
 
     Subclasses set ``name`` (the value of ``[linear_solver] path``) and ``capabilities`` (what
     they take: :class:`Capabilities`), and implement :meth:`prepare`, :meth:`for_load`,
-    :meth:`solve_state`, :meth:`adjoint` and :meth:`memory_estimate`; those that keep more than
-    the warm start and the zone extend :meth:`new_context`, :meth:`export_context` and
-    :meth:`import_context`. Every method has the signature given here, on every path."""
+    :meth:`solve_state`, :meth:`adjoint` and ``memory_estimate``; those that keep more than
+    the warm start and the zone extend ``new_context``, ``export_context`` and
+    ``import_context``. Every method has the signature given here, on every path."""
 
     name = ""
     capabilities = Capabilities()

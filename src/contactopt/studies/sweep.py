@@ -89,6 +89,7 @@ class TaskSpec:
     max_iter: int | None
     eps: float | None
     threads: dict            # {host: threads per task}; see contactopt.studies.cluster
+    plots: bool = True       # each run's PNG figures
 
 
 def _same_config(run_dir: Path, cfg) -> bool:
@@ -154,7 +155,7 @@ def run_task(spec: TaskSpec) -> dict:
             overwrite, status = True, "restarted"     # died before its first checkpoint
         log.info("task %s: %s run in %s (%d threads, worker %s)", task.label, status, out, n_threads, worker)
         rr = run_optimization(cfg, out, eps=spec.eps, max_iter=spec.max_iter, resume=resume,
-                              overwrite=overwrite)
+                              overwrite=overwrite, plots=spec.plots)
         return dict(_summary_row(task, rel, rr.summary, status), worker=worker)
     except Exception as exc:     # a failed task is a result too; the sweep goes on
         log.warning("task %s failed: %s", task.label, exc)
@@ -326,7 +327,7 @@ def run_sweep(config, settings, outdir, *, workers: int | None = None, scheduler
                 on_client(client, dash)
             budget = thread_budget(client, threads)
             log.info("threads per task by host: %s", budget)
-            rows = _run_tasks(client, tasks, out, keys, budget, max_iter, eps, progress, again)
+            rows = _run_tasks(client, tasks, out, keys, budget, max_iter, eps, progress, again, plots)
         result = SweepResult(out, keys, rows, time.perf_counter() - t0, dash)
         if plots:
             from .plots import plot_sweep
@@ -344,8 +345,9 @@ def run_sweep(config, settings, outdir, *, workers: int | None = None, scheduler
     return result
 
 
-def _run_tasks(client, tasks, out: Path, keys, budget, max_iter, eps, progress, again: str) -> list:
-    specs = [TaskSpec(t, str((out / RUNS / t.name).resolve()), str(out.resolve()), max_iter, eps, budget)
+def _run_tasks(client, tasks, out: Path, keys, budget, max_iter, eps, progress, again: str,
+               plots: bool = True) -> list:
+    specs = [TaskSpec(t, str((out / RUNS / t.name).resolve()), str(out.resolve()), max_iter, eps, budget, plots)
              for t in tasks]
     rows = []
     try:

@@ -1,12 +1,12 @@
 """Independent checks of contactopt: set-ups whose answer is known without contactopt.
 
-- :mod:`.brick`: Q1 elasticity on a clamped box, assembled apart from :mod:`contactopt.fem`, for
+- ``brick``: Q1 elasticity on a clamped box, assembled apart from ``contactopt.fem``, for
   checking the factorizations and the condensation on matrices contactopt did not make;
-- :mod:`.hertz`: a rigid sphere, cylinder and flat punch pressed into a block through
+- ``hertz``: a rigid sphere, cylinder and flat punch pressed into a block through
   ``[obstacle]``, measured against Hertz, Mindlin and Boussinesq;
-- :mod:`.hertz_stress`: a paraboloid pressed onto the rigid plane, its peak von Mises stress
+- ``hertz_stress``: a paraboloid pressed onto the rigid plane, its peak von Mises stress
   against Hertz's subsurface field;
-- :mod:`.spence`: the rigid flat punch and the rigid paraboloid pressed with friction, from the
+- ``spence``: the rigid flat punch and the rigid paraboloid pressed with friction, from the
   half-space's axisymmetric integral equations: the stick ratio c/a of the monotonic frictional
   Hertz indentation, and that indentation solved step by step (its pressure against Hertz's).
 

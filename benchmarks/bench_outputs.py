@@ -1,0 +1,80 @@
+"""The cost of a run's figures against one state solve, measured in one process.
+
+``MKL_NUM_THREADS=1 PYTHONPATH=src python benchmarks/bench_outputs.py [--repeat 3]`` solves
+Example 1's state at α0 and at a nearby design (cold starts, as the run's outputs do), then draws
+the seven figures of a run (contactopt.runner's figures: stress, pressure, surface, classes,
+contact, von Mises, history of 120 iterations) into a temporary directory. It prints, per figure
+and in total, the wall and CPU seconds and the total as a multiple of one state solve (in wall
+and in CPU time: on a busy machine the CPU ratio is the one to read), the median over
+``--repeat`` rounds. Ratios, not seconds, are what carry over between machines.
+"""
+
+from __future__ import annotations
+
+import argparse
+import statistics
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+from contactopt.config import load_config
+from contactopt.io import plots
+from contactopt.io.pressure import contact_pressure
+from contactopt.problem import ShapeProblem
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--repeat", type=int, default=3)
+    args = ap.parse_args()
+    pb = ShapeProblem(load_config("example1"))
+    m = pb.model
+    a0 = m.initial_design()
+    a1 = a0 + 0.002 * np.linspace(-1.0, 1.0, a0.size)
+    pb.solve_state(a0)                       # the first solve sets up the mesh and the factorization
+    solves, solves_cpu = [], []
+    for _ in range(args.repeat):
+        t, c = time.perf_counter(), time.process_time()
+        s0 = pb.solve_state(a0, warm_start=False)
+        s1 = pb.solve_state(a1, warm_start=False)
+        solves.append((time.perf_counter() - t) / 2)
+        solves_cpu.append((time.process_time() - c) / 2)
+    solve, solve_cpu = statistics.median(solves), statistics.median(solves_cpu)
+    p0, p1 = contact_pressure(m, s0.lam, s0.coords), contact_pressure(m, s1.lam, s1.coords)
+    hist = [{"iteration": i, "f": 1.0 / (i + 1), "kind": "serious" if i % 2 else "null",
+             "stationarity": 0.1 / (i + 1)} for i in range(120)]
+    with tempfile.TemporaryDirectory() as tmp:
+        out = Path(tmp)
+        figures = {
+            "stress": lambda: plots.plot_stress_comparison(out / "stress.png", m, np.zeros_like(s0.lam), s0.lam, s1.lam),
+            "pressure": lambda: plots.plot_stress_comparison(out / "pressure.png", m, p1, p0, p1),
+            "surface": lambda: plots.plot_surface(out / "surface.png", m, a1),
+            "classes": lambda: plots.plot_node_classes(out / "classes.png", m, s1.classes),
+            "contact": lambda: plots.plot_contact_response(out / "contact.png", m, p1, s1.tau, s1.u_c[:, :2],
+                                                           s1.classes, title="optimal design"),
+            "von_mises": lambda: plots.plot_peak_stress(out / "von_mises.png", m, s1.coords, s1.u, title="optimal design"),
+            "history": lambda: plots.plot_history(out / "history.png", hist),
+        }
+        plots.plot_history(out / "warm-up.png", hist)       # fonts and mathtext loaded once per process
+        wall = {k: [] for k in figures}
+        cpu = {k: [] for k in figures}
+        for _ in range(args.repeat):
+            for name, draw in figures.items():
+                t, c = time.perf_counter(), time.process_time()
+                draw()
+                wall[name].append(time.perf_counter() - t)
+                cpu[name].append(time.process_time() - c)
+    print(f"one state solve (cold start, median of {2 * args.repeat}): {solve:.3f} s wall, {solve_cpu:.3f} s cpu")
+    print(f"{'figure':10s} {'wall s':>8s} {'cpu s':>8s}")
+    for name in figures:
+        print(f"{name:10s} {statistics.median(wall[name]):8.3f} {statistics.median(cpu[name]):8.3f}")
+    total = sum(statistics.median(v) for v in wall.values())
+    total_cpu = sum(statistics.median(v) for v in cpu.values())
+    print(f"{'all':10s} {total:8.3f} {total_cpu:8.3f}   = {total / solve:.2f} state solves (wall), "
+          f"{total_cpu / solve_cpu:.2f} (cpu)")
+
+
+if __name__ == "__main__":
+    main()

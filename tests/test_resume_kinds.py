@@ -1,0 +1,104 @@
+"""kill -9 at seeded random moments, then ``--resume``: every kind of run ends bit for bit as the
+uninterrupted one, with the checkpoint format of contactopt.io.checkpoint.
+
+The kinds: a run over two load cases (each case's warm start and zone in the checkpoint), a load
+path (each step's context), a run with [[constraints]] (the penalty state beside the bundle's)
+and a force-controlled obstacle (the translation of its last solve rides in the warm start).
+Each is killed three times, a random delay of up to a third of one iteration's share of the wall time after
+the progress line of a random iteration (so mostly mid-evaluation), and resumed as a user would
+(no ``--max-iter``: the checkpoint's is kept). J, α, iterations.csv and the counts must equal the
+uninterrupted run's; a run killed before its first checkpoint is refused by ``--resume`` and
+started again with ``--overwrite``. ``pytest -m integration tests/test_resume_kinds.py -s`` prints
+the moments.
+"""
+
+import random
+from pathlib import Path
+
+import pytest
+import tomli_w
+
+from contactopt.config import load_config
+from contactopt.io.checkpoint import Checkpoint
+from test_resume_paths import checkpoint_position, command, compare, environment, finish, kill_when, result
+
+pytestmark = pytest.mark.integration
+
+ROOT = Path(__file__).resolve().parents[1]
+SMALL = {"mesh": {"nx": 8, "ny": 4, "nz": 3}}
+N_KILLS = 3
+
+
+def load_cases():
+    return load_config(ROOT / "examples" / "example1_two_cases.toml").with_updates(SMALL).to_dict()
+
+
+def load_path():
+    data = load_config(ROOT / "examples" / "preload_shear.toml").with_updates(SMALL).to_dict()
+    return data
+
+
+def constrained():
+    return load_config("example1").with_updates({**SMALL, "constraints": [{"type": "max_pressure", "max": 0.02}]}
+                                                ).to_dict()
+
+
+def force_obstacle():
+    """The block pressed by a sphere whose resultant force is given (tests/test_obstacles.py)."""
+    return load_config("example1").with_updates({
+        "friction": {"coefficient": 0.3}, "material": {"nu": 0.3}, "state": {"method": "newton", "tol": 1e-12},
+        "loads": {"top_traction": [0.0, 0.0, 0.0], "right_traction": [0.0, 0.0, 0.0]},
+        "design": {"degree": [3, 2], "initial": 0.01}, "geometry": {"a": 2.0, "b": 2.0, "c": 1.0},
+        "mesh": {"nx": 8, "ny": 8, "nz": 3}, "body": {"clamped": "top"},
+        "obstacle": {"shape": "sphere", "center": [1.0, 1.0, -5.0], "radius": 5.0, "control": "force",
+                     "force": [0.0, 0.0, 1.2]}}).to_dict()
+
+
+KINDS = {"load_cases": (load_cases, 14), "load_path": (load_path, 12), "constrained": (constrained, 14),
+         "force_obstacle": (force_obstacle, 12)}
+
+
+def what_the_checkpoint_holds(ckpt: Checkpoint) -> dict:
+    return {"cases": len(ckpt.contexts), "steps": [len(c) for c in ckpt.contexts],
+            "penalty": ckpt.penalty is not None}
+
+
+@pytest.mark.parametrize("kind", list(KINDS))
+def test_a_run_killed_at_random_moments_resumes_bit_for_bit(tmp_path, kind):
+    build, max_iter = KINDS[kind]
+    data = {**build(), "name": f"kill-{kind}"}
+    data["optimizer"] = {**data.get("optimizer", {}), "ftol": 0.0, "eps": 1e-8}    # on to --max-iter
+    cfg_file = tmp_path / f"{kind}.toml"
+    cfg_file.write_text(tomli_w.dumps(load_config(data).to_dict()))
+    env = environment()
+    ref_dir = tmp_path / "uninterrupted"
+    code, text, ref_wall = finish(command(cfg_file, ref_dir, "--max-iter", max_iter), env, tmp_path / "ref.log")
+    assert code == 0 and "Traceback" not in text, text
+    ref = result(ref_dir)
+    holds = what_the_checkpoint_holds(Checkpoint.read(ref_dir / "checkpoint.npz"))
+    assert {"load_cases": holds["cases"] == 2, "load_path": len(holds["steps"]) == 1 and holds["steps"][0] >= 2,
+            "constrained": holds["penalty"], "force_obstacle": holds["steps"] == [1]}[kind], holds
+    print(f"\n[{kind}] uninterrupted: {ref['iterations']} iterations, {ref['evaluations']} evaluations, "
+          f"{ref_wall:.1f} s; the checkpoint holds {holds}")
+    rng = random.Random(f"kill -9 a {kind} run")
+    # the wall time holds the set-up and the outputs too: a third of its share per iteration
+    per_iteration = ref_wall / max(3 * ref["iterations"], 1)
+    failures = []
+    for n in range(N_KILLS):
+        when = (rng.randint(1, max(ref["iterations"] - 2, 1)), round(rng.uniform(0.0, per_iteration), 3))
+        out = tmp_path / f"kill{n}"
+        start = command(cfg_file, out, "--max-iter", max_iter)
+        what = kill_when(start, env, tmp_path / f"kill{n}.log", iteration=when[0], delay=when[1])
+        position = checkpoint_position(out)
+        code, text, _ = finish(command(cfg_file, out, "--resume"), env, tmp_path / f"resume{n}.log")
+        assert "Traceback" not in text, text
+        if position is None:
+            assert code == 2 and "no checkpoint" in text, text
+            code, text, _ = finish(start + ["--overwrite"], env, tmp_path / f"restart{n}.log")
+        assert code == 0, text
+        bad = compare(ref, result(out))
+        print(f"[{kind}] {what} after iteration {when[0]} + {when[1]} s; checkpoint {position}: "
+              f"{'bit for bit' if not bad else bad}")
+        if bad:
+            failures.append(f"kill {n} ({when}): {bad}")
+    assert not failures, failures
