@@ -491,3 +491,39 @@ def test_imports_sit_at_module_level():
 def test_the_import_counter_sees_imports_in_functions():
     tree = ast.parse("import os\ndef f():\n    import json\n    def g():\n        from .a import b\n")
     assert [t for _, t in function_imports(tree)] == ["import json", "from .a import b"]
+# ------------------------------------------------------------------ typed model data
+MAX_PROBES = 5
+
+
+def _attribute_probes(tree) -> list:
+    """(line, text) of every ``getattr(x, "name", None)`` in ``tree``: an attribute that may or may
+    not exist, read as None where it does not."""
+    return [(n.lineno, ast.unparse(n)) for n in ast.walk(tree)
+            if isinstance(n, ast.Call) and isinstance(n.func, ast.Name) and n.func.id == "getattr"
+            and len(n.args) == 3 and isinstance(n.args[1], ast.Constant) and isinstance(n.args[2], ast.Constant)
+            and n.args[2].value is None]
+
+
+def test_optional_parts_are_declared_not_probed():
+    """The model, the paths' systems and the objectives declare their optional parts (None where
+    absent): at most a few ``getattr(x, "name", None)`` remain in the package, for objects of
+    other libraries (a meshio mesh, the MKL runtime) and plain functions."""
+    found = [f"{f.relative_to(SRC).as_posix()}:{line} {text}" for _, f, _ in _modules()
+             for line, text in _attribute_probes(ast.parse(f.read_text()))]
+    assert len(found) <= MAX_PROBES, f"{len(found)} attribute probes: " + "; ".join(found)
+
+
+def test_the_probe_detector_sees_a_probe():
+    snippet = 'f = getattr(model, "foundation", None)\ng = getattr(m, "x", 0)\nh = m.frames\n'
+    assert _attribute_probes(ast.parse(snippet)) == [(1, "getattr(model, 'foundation', None)")]
+
+
+def test_the_model_declares_its_optional_parts():
+    """ElasticModel is a dataclass whose optional parts are typed ``… | None`` fields."""
+    from dataclasses import fields, is_dataclass
+
+    from contactopt.fem.model import ElasticModel
+    assert is_dataclass(ElasticModel)
+    types = {f.name: str(f.type) for f in fields(ElasticModel)}
+    for name in ("obstacle", "frames", "slip_shift", "obstacle_force", "foundation"):
+        assert types[name].endswith("| None"), (name, types[name])

@@ -89,3 +89,31 @@ def test_the_ranks_calls_are_typed_messages_and_every_command_has_its_handler():
     with pytest.raises(KeyError):
         follower.make(Call("other", Command.SOLVE, (3, 1e-10)))
     assert Problem("a1", None).path_id == "a1" and Stop() == Stop()
+
+
+def test_the_feature_table_is_what_the_paths_linear_algebra_takes():
+    """The features each path declares, as a table: every feature is taken by some path (a rule
+    that no path takes belongs to the configuration's validation), and a force-controlled obstacle
+    is an obstacle (the translation's search runs on whatever solves the obstacle)."""
+    table = {f: [n for n, cls in paths.PATHS.items() if getattr(cls.capabilities, f)] for f in Capabilities.features()}
+    every = ["condensation", "delassus", "fullspace", "petsc"]
+    assert table == {"foundation": ["condensation"], "obstacle": ["condensation", "delassus", "fullspace"],
+                     "obstacle_steps": ["condensation"], "held_by_contact": ["condensation"], "pinned": every,
+                     "compliance": ["condensation"], "whole_displacement": every, "load_steps": every,
+                     "many_ranks": ["petsc"]}
+    forced = example1(obstacle={"shape": "sphere", "center": [1.5, 0.5, -5.0], "radius": 5.0, "control": "force",
+                                "force": [0.0, 0.0, 1.0]})
+    assert needs(forced) == {"obstacle": "force-controlled sphere"}
+
+
+def test_features_that_exclude_each_other_on_every_path_are_refused_by_the_configuration():
+    from contactopt.config.validation import check_interactions
+    on_foundation = example1(foundation={"block": {"size": [3.0, 2.0, 1.0], "cells": [6, 4, 2],
+                                                   "origin": [-0.5, -0.5]}})
+    check_interactions(on_foundation)
+    check_interactions(example1(), pinned=4, rigid="the translation along x1")
+    with pytest.raises(ConfigError) as err:
+        check_interactions(on_foundation, pinned=4, rigid="the translation along x1")
+    held, pinned = err.value.problems
+    assert "(the translation along x1)" in held and "not on an elastic [foundation]" in held
+    assert pinned.startswith("body.clamped: 4 tangential component(s)") and "elastic [foundation] does not take" in pinned

@@ -423,6 +423,29 @@ def _check_obstacle(given, data, problems) -> dict:
 
 
 
+def check_interactions(config, *, pinned: int = 0, rigid: str | None = None, pinned_held: bool = False) -> None:
+    """Rules between features of a configuration that hold whatever solver path runs it: raise
+    ConfigError naming each pair that excludes the other.
+
+    ``pinned``: the number of clamped tangential components of contact nodes (a symmetry plane through
+    the contact face); ``rigid``: the names of the rigid motions the clamps leave free (a body held
+    only by contact), or None; ``pinned_held``: the pinned components are clamped at their partners
+    on an elastic foundation too (symmetry planes through both bodies). These are properties of the
+    bodies built from ``config``. An elastic ``[foundation]`` takes neither a body held only by
+    contact (it rests on a rigid support) nor pinned components its partners do not hold (the
+    foundation's compliance would add to a clamped direction)."""
+    problems = []
+    if config.foundation is not None and rigid is not None:
+        problems.append(f"body.clamped leaves rigid motions free ({rigid}): a body held only by contact rests on "
+                        "the rigid foundation or an [obstacle], not on an elastic [foundation]")
+    if config.foundation is not None and pinned and not pinned_held:
+        problems.append(f"body.clamped: {pinned} tangential component(s) of contact nodes are clamped (a symmetry "
+                        "plane through the contact face), which an elastic [foundation] does not take (its "
+                        "compliance would add to the clamped direction); the rigid foundation does")
+    if problems:
+        raise ConfigError(problems)
+
+
 def _check_table(given: dict, keys: dict, sec: str, problems: list) -> dict:
     """The keys of table ``sec`` with their defaults filled in; unknown keys and values that fail
     their check are appended to ``problems`` (an integer where a float is expected becomes one)."""

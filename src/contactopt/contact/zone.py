@@ -34,6 +34,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..fem.dense import cholesky_lower, cholesky_solve, inverse_from_cholesky, spd_inverse
+from ..fem.linsolve import Condensation, SolverSlot
 from .state import CLASS_RTOL, TO_FCLIB
 
 CLEARANCE_RTOL = CLASS_RTOL  # a gap closes exactly where classify_nodes calls it closed
@@ -264,8 +265,8 @@ class DelassusZoneProblem(ZoneProblem):
     def _zone_inverse(self) -> np.ndarray:
         S = self._zone_block(self._contact[self._dof_z])
         W = spd_inverse(S)
-        current = getattr(self._factor, "current", None)
-        if current is not None and getattr(current, "S", None) is S:
+        current = self._factor.current if isinstance(self._factor, SolverSlot) else None
+        if isinstance(current, Condensation) and current.S is S:
             # the zone's condensation now serves this design's solves: it takes W = S⁻¹ for
             # them and drops S (one dense (3z)² array less at the peak of the design)
             current.S_inverse, current.S = W, None

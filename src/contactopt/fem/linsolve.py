@@ -141,7 +141,7 @@ def _upper_triangle(owner, A, hint=""):
     ``owner``); for a matrix with the same full pattern (a new design on the same mesh) the upper
     triangle is then a gather of A.data.
     """
-    pat = getattr(owner, "_full_pattern", None)
+    pat = owner._full_pattern
     if pat is not None and A.nnz == pat[0].size and np.array_equal(A.indices, pat[0]) \
             and np.array_equal(A.indptr, pat[1]):
         return sp.csr_matrix((A.data[pat[2]], owner._ps.ja, owner._ps.ia), shape=A.shape, copy=False)
@@ -176,6 +176,8 @@ class Condensation:
 
     backend = ""
     S_inverse = None      # S⁻¹ when the caller has it: solve() then needs no factor of S
+    _chol_S = None        # (S, its Cholesky factor) once solve() needed it
+    _full_pattern = None  # (indices, indptr, upper-triangle positions) of A's CSR pattern (_upper_triangle)
 
     def __init__(self, A, c):
         self.n = A.shape[0]
@@ -213,7 +215,7 @@ class Condensation:
         ell = self.condense_load(b)
         if self.S_inverse is not None:          # S⁻¹ given (the Delassus block of a zone)
             return self.recover(b, self.S_inverse @ ell)
-        if getattr(self, "_chol_S", None) is None or self._chol_S[0] is not self.S:
+        if self._chol_S is None or self._chol_S[0] is not self.S:
             self._chol_S = (self.S, cholesky_lower(np.array(self.S, dtype=np.float64, order="C")))
         return self.recover(b, cholesky_solve(self._chol_S[1], ell))
 
@@ -532,6 +534,8 @@ class Factorization:
     PARDISO (Cholesky) rejects an indefinite A; SciPy's SuperLU (LU without pivoting) only
     fails on a zero pivot and otherwise solves a nonsingular indefinite A correctly.
     """
+
+    _full_pattern = None  # (indices, indptr, upper-triangle positions) of A's CSR pattern (_upper_triangle)
 
     def __init__(self, A, backend="auto"):
         A = _check_matrix(A)

@@ -191,13 +191,13 @@ def free_dofs(body) -> int:
 def _sizes(body) -> tuple:
     """(free DOFs, entries of the stiffness on them) of a body, from its mesh; counted once per
     body (the path choice, the memory check and the run log all ask)."""
-    out = getattr(body, "_memory_sizes", None)
+    out = body.sizes
     if out is None:
         ref = body.reference
         free = np.ones(3 * ref.n_nodes, dtype=bool)
         free[np.asarray(body.fixed_dofs, dtype=np.int64)] = False
         out = (int(free.sum()), matrix_entries(ref.cells, ref.n_nodes, free.reshape(-1, 3).sum(axis=1)))
-        object.__setattr__(body, "_memory_sizes", out)      # kept on the body itself
+        body.sizes = out              # kept on the body itself
     return out
 
 

@@ -37,15 +37,15 @@ from ..design.bezier import BezierSurface
 from ..design.chart import motion_directions
 from ..errors import ConfigError
 from ..mesh.block import block_axes
-from ..mesh.body import build_body
+from ..mesh.body import Body, build_body
 from ..mesh.hexmesh import HexMesh
 from ..mesh.morph import JacobianRatio, MorphedMesh
-from ..mesh.obstacle import contact_frames, make_obstacle, tangent_frames
+from ..mesh.obstacle import Obstacle, contact_frames, make_obstacle, tangent_frames
 from .elasticity import BBAR_AUTO_NU, ElasticityAssembler, element_geometry, resolve_formulation
 from .elements import element_type
 from .foundation import Foundation
 from .loads import face_areas_nodal
-from .loadset import load_set
+from .loadset import LoadSet, load_set
 from .memory import check_memory
 from .weight import harmonic_weight
 
@@ -64,8 +64,56 @@ class Assembled:
     gap: np.ndarray        # g = ϑ_α (+ the height of the face in the mesh) at the contact nodes
 
 
+@dataclass(frozen=True)
+class ObstacleForce:
+    """A force-controlled obstacle (``[obstacle] control = "force"``) seen from the contact nodes: it
+    translates by s f̂ along its force f of length ``magnitude``; per contact node m ``b`` (p, 3) =
+    R_mᵀ f̂ in the node's frame (t1, t2, n), so that the resultant along f̂ is Σ_m b_m·r_m (r_m the
+    force on the body in that frame), and ``gap_rate`` (p,) = f̂·n_m, by which the gap g_m falls per
+    unit of s (:mod:`contactopt.paths.force`)."""
+
+    magnitude: float
+    b: np.ndarray
+    gap_rate: np.ndarray
+
+
+@dataclass(init=False, eq=False, repr=False)
 class ElasticModel:
-    """Design-independent part of the discrete problem of a configuration."""
+    """Design-independent part of the discrete problem of a configuration.
+
+    The optional parts are None where the configuration has none: ``obstacle`` (absent: the fixed
+    plane x3 = 0), ``frames`` (p, 3, 3) per contact node with columns (t1, t2, n) on an obstacle
+    other than the plane (absent: the axes (e1, e2, e3)), ``slip_shift`` (p, 3) the tangential part
+    of an obstacle's prescribed translation per node frame (normal parts 0), ``obstacle_force`` a
+    force-controlled obstacle's :class:`ObstacleForce`, ``foundation`` an elastic ``[foundation]``
+    under the contact face."""
+
+    config: Config
+    body: Body
+    surface: BezierSurface
+    assembler: ElasticityAssembler
+    weight: np.ndarray
+    mesh: MorphedMesh
+    obstacle: Obstacle | None
+    frames: np.ndarray | None
+    slip_shift: np.ndarray | None
+    obstacle_force: ObstacleForce | None
+    admissible: AdmissibleSet
+    safe_C0: float
+    contact_nodes: np.ndarray        # (p,) node numbers of the contact nodes
+    contact_dofs: np.ndarray         # (3p,) their free DOFs, per node (t1, t2, ν)
+    pinned_dofs: np.ndarray          # full DOF indices of the clamped tangential components
+    pinned_free: np.ndarray          # ... as free DOFs
+    pinned_columns: np.ndarray | None   # per pinned DOF its frame column, where a pinned u3 is a tangent
+    contact_pinned: np.ndarray       # (p, 3) True on the pinned components (t1, t2, ν)
+    contact_pinned_global: np.ndarray   # ... in global components (u1, u2, u3)
+    gap_matrix: object               # g = gap_matrix α + gap0 at the contact nodes
+    gap0: np.ndarray
+    loads: LoadSet
+    body_force: object
+    foundation: Foundation | None
+    _det_ref: np.ndarray             # det J of the reference mesh at its quadrature points
+    _pin_mask: tuple | None          # ((shape, nnz) of A's pattern, the CSR entries pinning zeroes)
 
     def __init__(self, config, *, body=None, memory_estimate=None):
         """``body``: the configuration's body if already built; ``memory_estimate``: the peak
@@ -107,9 +155,7 @@ class ElasticModel:
             self.mesh = HexMesh(nx, ny, nz, self.surface, cfg.geometry.c, reference=ref,
                                 weight=self.weight, contact_nodes=body.contact_nodes,
                                 fixed_shape=tuple(body.fixed_shape), **chart)
-        self.obstacle, self.frames = None, None     # [obstacle] (absent: the plane x3 = 0, fixed)
-        self.force = None       # control = "force": |f|, and per contact node force_b, force_gap (_obstacle_gap)
-        self.slip_shift = None  # (p, 3) the tangential part of a prescribed translation, per node frame
+        self.obstacle = self.frames = self.slip_shift = self.obstacle_force = None     # set by _obstacle*
         self.pinned_columns = None  # per pinned DOF its frame column, where a pinned u3 is a tangent
         face_frames = self._obstacle(cfg.obstacle, ref, body)
         self.foundation = None      # [foundation]: the elastic foundation under the contact face
@@ -146,6 +192,21 @@ class ElasticModel:
         self.body_force = self.loads.body_force
         if cfg.foundation is not None and self.foundation is None:
             self.foundation = Foundation(cfg.foundation, body, source=cfg.source, check=check)
+
+    @property
+    def force(self) -> float | None:
+        """|f| of a force-controlled obstacle, else None."""
+        return None if self.obstacle_force is None else self.obstacle_force.magnitude
+
+    @property
+    def force_b(self) -> np.ndarray | None:
+        """(p, 3) b_m = R_mᵀ f̂ of a force-controlled obstacle (:class:`ObstacleForce`), else None."""
+        return None if self.obstacle_force is None else self.obstacle_force.b
+
+    @property
+    def force_gap(self) -> np.ndarray | None:
+        """(p,) f̂·n_m of a force-controlled obstacle (:class:`ObstacleForce`), else None."""
+        return None if self.obstacle_force is None else self.obstacle_force.gap_rate
 
     # ------------------------------------------------------------------ checks
     def _check_reference(self, ref) -> None:
@@ -269,10 +330,8 @@ class ElasticModel:
             fhat = f / np.linalg.norm(f)
             # the obstacle translates by s·f̂: the gap falls by s (f̂·n_m); the resultant along f̂ is
             # Σ_m b_m·r_m with b_m = R_mᵀ f̂ (r_m per node (t1, t2, n) in its frame)
-            self.force = float(np.linalg.norm(f))
-            self.force_b = np.einsum("mij,i->mj", R, fhat)
-            self.force_gap = n @ fhat
-            if not np.any(self.force_gap > 0):
+            self.obstacle_force = ObstacleForce(float(np.linalg.norm(f)), np.einsum("mij,i->mj", R, fhat), n @ fhat)
+            if not np.any(self.obstacle_force.gap_rate > 0):
                 raise ConfigError([f"{self.config.source}: obstacle.force = {spec.force}: no contact node's "
                                    "normal has a component along the force: the obstacle cannot press the body "
                                    "(a force with no component along any free direction)"])

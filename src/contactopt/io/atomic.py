@@ -46,7 +46,7 @@ class WriteError(ContactOptError):
     def __init__(self, path, cause: OSError):
         self.path = Path(path)
         self.cause = cause
-        self.errno = getattr(cause, "errno", None)
+        self.errno = cause.errno if isinstance(cause, OSError) else None
         super().__init__(f"cannot write {self.path}: {describe_os_error(cause)}")
 
 
@@ -65,7 +65,7 @@ _CAUSES = {
 
 def describe_os_error(exc: OSError) -> str:
     """The cause of a failed write in words, with the system's own message."""
-    code = getattr(exc, "errno", None)
+    code = exc.errno if isinstance(exc, OSError) else None
     system = exc.strerror or str(exc)
     words = _CAUSES.get(code)
     return f"{words} ({system})" if words else system

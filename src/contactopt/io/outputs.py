@@ -66,7 +66,7 @@ def write_outputs(out: Path, problem, alpha0, res, oracle, plots: bool = True) -
     c1 = problem.evaluate_cases(x, warm_start=False)
     states1, J, steps1 = problem.solve_states(x), c1.value, _step_outputs(out, problem, "optimal", plots)
     s0, s1 = states0[c1.case], states1[c1.case]      # the load case active at the optimum
-    target = getattr(problem.cases[c1.case].objective, "target", None)
+    target = problem.cases[c1.case].objective.target
     write_body_vtu(out / "initial.vtu", model, s0)
     write_body_vtu(out / "optimal.vtu", model, s1)
     pvd = [(0, "initial.vtu"), (1, "optimal.vtu")]

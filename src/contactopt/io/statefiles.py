@@ -98,7 +98,7 @@ def state_json(model, state: State, config=None, warnings=None, objective=None, 
     if state.slip_ref is not None:            # a load step: the law's slip increment, the accumulated slip
         doc["contact"]["slip_increment"] = np.asarray(state.slip_increment, float).tolist()
         doc["contact"]["slip"] = np.asarray(state.slip_increment if state.slip is None else state.slip, float).tolist()
-    if getattr(model, "foundation", None) is not None:
+    if model.foundation is not None:
         doc["foundation"] = model.foundation.summary()
     if warnings is not None:
         doc["warnings"] = list(warnings)
@@ -153,7 +153,7 @@ def _check_finite(state: State) -> None:
 
 def state_files(model) -> tuple:
     """The files :func:`write_state` writes for ``model``'s states."""
-    return STATE_FILES + (FOUNDATION_FILES if getattr(model, "foundation", None) is not None else ())
+    return STATE_FILES + (FOUNDATION_FILES if model.foundation is not None else ())
 
 
 def _move_into(tmpdir: Path, outdir: Path, names=STATE_FILES) -> None:
@@ -206,7 +206,7 @@ def write_state(outdir, model, state: State, *, config=None, warnings=None, obje
                                     state.tau, np.asarray(state.u_c)[:, :2], state.classes)
         plots.plot_peak_stress(tmpdir / "von_mises.png", model, np.asarray(state.coords, float),
                                np.asarray(state.u, float))
-        if getattr(model, "foundation", None) is not None:
+        if model.foundation is not None:
             vtk.write_foundation_vtu(tmpdir / "foundation.vtu", model.foundation, state)
             plots.plot_contact_field(tmpdir / "foundation.png", model, -np.asarray(state.foundation.u_partner)[:, 2],
                                      "Indentation of the foundation $-(\\Pi u_f)_3$ under the contact nodes",

@@ -116,7 +116,7 @@ def body_point_data(model, state, extra_point_data=None) -> dict:
     if state.foundation is not None:            # an elastic foundation (module docstring)
         data["foundation_displacement"] = _on_nodes("foundation_displacement", state.foundation.u_partner, n, cn)
         data["relative_displacement"] = _on_nodes("relative_displacement", np.asarray(state.u_c, float), n, cn)
-    frames = getattr(model, "frames", None)
+    frames = model.frames
     if frames is not None:                      # a rigid obstacle: tangential_force is in (t1, t2) of each node
         r = np.c_[-np.asarray(state.tau, float), np.asarray(state.lam, float)]
         data["obstacle_normal"] = _on_nodes("obstacle_normal", frames[:, :, 2], n, cn)

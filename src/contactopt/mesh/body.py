@@ -63,6 +63,8 @@ class Body(HasParts):
     rigid: object = None          # mesh.rigid.RigidModes the clamps leave free (held by contact), or None
     chart: object = None          # design.chart.PlaneChart | CylinderChart of the face; None: ξ = (x1, x2)
     penetration_tol: float = 0.0  # absolute depth a node may lie inside the counterpart (no interference)
+    sizes: tuple | None = field(default=None, compare=False, repr=False)
+    # (free DOFs, entries of the stiffness on them), counted once by contactopt.fem.memory
 
 
 def reference_mesh(cfg):
@@ -185,15 +187,15 @@ def _chart(cfg, ref: ReferenceMesh, face: Part, gtol: float):
     d = cfg.design
     if face.faces.shape[0] == 0:
         return None                       # _check_contact_face names it
-    obstacle = getattr(cfg, "obstacle", None)
+    obstacle = cfg.obstacle
     if d.chart == "auto" and not d.axis and not d.origin:
         nf, _ = face_normals(ref.points, face.faces, ref.face_type)
         rigid_plane = obstacle is None or obstacle.shape == "plane"
-        if np.all(nf[:, 2] < 0) or (rigid_plane and getattr(cfg, "foundation", None) is None):
+        if np.all(nf[:, 2] < 0) or (rigid_plane and cfg.foundation is None):
             return None
     chart = resolve_chart(d, ref.points, face, ref.face_type, gtol, cfg.source)
     flat = chart.kind == "plane" and np.abs(chart.normal - [0.0, 0.0, -1.0]).max() <= 1e-12
-    foundation = getattr(cfg, "foundation", None) is not None
+    foundation = cfg.foundation is not None
     if not flat and (obstacle is None or obstacle.shape == "plane") and not foundation:
         raise ConfigError([f"{cfg.source}: body.contact = {face.name}: the face lies on a {chart.describe()}, "
                            "not on the foundation plane x3 = 0: its counterpart must be a rigid [obstacle] "

@@ -25,6 +25,7 @@ import logging
 from types import MappingProxyType
 
 from .. import _mpi
+from ..config.validation import check_interactions
 from ..errors import ConfigError
 from ..fem.linsolve import pardiso_available
 from ..sensitivity.objectives import FULL_SPACE, constraint_types, objective_types
@@ -55,15 +56,12 @@ def library_for(name: str, library: str) -> str:
     return "pardiso" if pardiso_available() else "scipy"
 
 
-def needs(config, pinned: int = 0, ranks: int = 1, rigid=None, pinned_held: bool = False) -> dict:
+def needs(config, pinned: int = 0, ranks: int = 1, rigid=None) -> dict:
     """What a configuration needs of a path: {feature of :class:`~contactopt.paths.base.Capabilities`: what needs it}.
 
     ``pinned``: the number of clamped tangential components of contact nodes (a symmetry plane
     through the contact face, ``contactopt.mesh.body``); ``ranks``: the MPI ranks of the run;
-    ``rigid``: the rigid motions the clamps leave free (``contactopt.mesh.rigid``), or None;
-    ``pinned_held``: the pinned components are clamped at their partners on an elastic foundation
-    too (the symmetry planes run through both bodies, ``contactopt.fem.foundation.Foundation``
-    refuses them otherwise), so that the foundation adds no compliance to the clamped directions."""
+    ``rigid``: the rigid motions the clamps leave free (``contactopt.mesh.rigid``), or None."""
     out, foundation = {}, config.foundation is not None
     types = objective_types(config) | constraint_types(config)     # [[constraints]] are objectives too
     if foundation:
@@ -76,16 +74,10 @@ def needs(config, pinned: int = 0, ranks: int = 1, rigid=None, pinned_held: bool
         obstacle = f"{obstacle} moved tangentially"
     if obstacle != "plane":             # the contact frames rotate the system (paths/condensation.py, ...)
         out["obstacle"] = obstacle
-    if obst is not None and obst.control == "force":   # the translation balancing the force (paths/force.py)
-        out["force_obstacle"] = obstacle
     if rigid is not None:               # clamps that leave rigid motions free (paths/rigid.py)
         out["held_by_contact"] = ", ".join(rigid.names())
-        if foundation:
-            out["held_on_foundation"] = out["held_by_contact"]
     if pinned:
         out["pinned"] = str(pinned)
-        if foundation and not pinned_held:
-            out["pinned_on_foundation"] = str(pinned)
     if "compliance" in types or config.objective.type == "compliance":
         out["compliance"] = "the compliance objective"
     full = sorted(types & FULL_SPACE)
@@ -111,11 +103,16 @@ def select_path(config, n_free: int, pinned: int = 0, rigid=None, pinned_held: b
     condensed load ℓ on every contact DOF), an elastic ``[foundation]`` and a body held only by
     contact stay on the condensation, and "auto" keeps any rigid obstacle there too, force-controlled
     or not (the Delassus and full-space paths take it when asked). A path asked for that lacks a feature is
-    refused with what it lacks and the paths that take it; so is one whose libraries are missing."""
+    refused with what it lacks and the paths that take it; so is one whose libraries are missing.
+    Features that exclude each other on every path are refused first
+    (:func:`~contactopt.config.validation.check_interactions`; ``pinned_held``: the pinned
+    components are clamped at their partners on an elastic foundation too)."""
     from .._mpi import world_size
+    check_interactions(config, pinned=pinned, rigid=None if rigid is None else ", ".join(rigid.names()),
+                       pinned_held=pinned_held)
     ls = config.linear_solver
     name, ranks = ls.path, world_size()
-    need = needs(config, pinned, ranks, rigid, pinned_held)
+    need = needs(config, pinned, ranks, rigid)
     fit = [cls for cls in PATHS.values() if not cls.capabilities.lacks(need)]
     if name == "auto":
         chosen = _auto(fit, n_free, ls.crossover, ranks, need)
@@ -198,7 +195,7 @@ def missing_library(library: str) -> str | None:
     if library == "pyamg":
         return None if _have_pyamg() else "pyamg: it is not installed (pip install pyamg)"
     if library == "pardiso":
-        return None if pardiso_available() else "MKL PARDISO: the mkl wheel is not installed"
+            return None if pardiso_available() else "MKL PARDISO: the mkl wheel is not installed"
     raise ValueError(f"unknown library {library!r}")
 
 

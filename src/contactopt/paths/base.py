@@ -23,6 +23,7 @@ from __future__ import annotations
 import logging
 from contextlib import nullcontext
 from dataclasses import dataclass, field, fields
+from functools import cached_property
 from typing import NamedTuple
 
 import numpy as np
@@ -37,6 +38,7 @@ from ..contact.state import (
     displacement_scale,
 )
 from ..errors import CheckpointError
+from .transforms import Mechanics
 
 log = logging.getLogger(__name__)
 
@@ -62,17 +64,19 @@ class Capabilities:
     ``path = "auto"`` gives it ("small": below ``crossover``, "large": from there, first the
     lowest ``auto_order`` whose ``libraries`` and ``auto_libraries`` are installed, "ranks": under
     mpiexec with more than one rank; "" never); ``auto_avoids``: features for which "auto" takes
-    another path that has them where one fits (a path that takes them, but not as the first choice)."""
+    another path that has them where one fits (a path that takes them, but not as the first choice).
+
+    Only what a path's linear algebra can do is a feature here: a force-controlled obstacle is an
+    outer search over the translation of an obstacle (:mod:`.force`), taken wherever the obstacle
+    is, and rules between features of a configuration that no path takes (a body held only by
+    contact, or clamped contact nodes, on an elastic foundation) are refused by
+    :func:`contactopt.config.validation.check_interactions` before any path is asked."""
 
     foundation: bool = _feature(
         "an elastic [foundation]",
         "linear_solver.path = '{path}': {detail} is solved on {on} only; use path {takers} or 'auto'")
     obstacle: bool = _feature(
         "a rigid [obstacle] other than the fixed plane",
-        "linear_solver.path = '{path}': a {detail} [obstacle] is solved on {on} only (one process); "
-        "use path {takers} or 'auto'")
-    force_obstacle: bool = _feature(
-        "a force-controlled [obstacle]",
         "linear_solver.path = '{path}': a {detail} [obstacle] is solved on {on} only (one process); "
         "use path {takers} or 'auto'")
     obstacle_steps: bool = _feature(
@@ -83,19 +87,10 @@ class Capabilities:
         "a body held only by contact",
         "linear_solver.path = '{path}': body.clamped leaves rigid motions free ({detail}); a body held only "
         "by contact is solved on {on} only; use path {takers} or 'auto'")
-    held_on_foundation: bool = _feature(
-        "a body held only by contact on an elastic [foundation]",
-        "body.clamped leaves rigid motions free ({detail}): a body held only by contact rests on the rigid "
-        "foundation or an [obstacle], not on an elastic [foundation]")
     pinned: bool = _feature(
         "clamped tangential components of contact nodes",
         "linear_solver.path = '{path}': {detail} tangential component(s) of contact nodes are clamped (a "
         "symmetry plane through the contact face), which it does not take; use path {takers}")
-    pinned_on_foundation: bool = _feature(
-        "clamped contact nodes on an elastic [foundation]",
-        "body.clamped: {detail} tangential component(s) of contact nodes are clamped (a symmetry plane "
-        "through the contact face), which an elastic [foundation] does not take (its compliance would add "
-        "to the clamped direction); the rigid foundation does")
     compliance: bool = _feature(
         "the compliance objective",
         "linear_solver.path = '{path}': the compliance objective needs the condensed load on every contact "
@@ -148,6 +143,18 @@ class _Takes:
 
     def __get__(self, obj, owner):
         return getattr(owner.capabilities, self.feature)
+
+
+class SystemParts:
+    """The optional parts the system of a design and load case may carry on any path, None where
+    it has none (a path's system class declares those it can hold as fields): ``coupling`` the
+    :class:`~contactopt.fem.foundation.Coupling` of an elastic foundation (S_eff, ℓ_eff), ``product``
+    x ↦ A(α) x on the free DOFs where A(α) is not formed on this process, ``force`` a load step's
+    |f| of a force-controlled obstacle (None: the model's)."""
+
+    coupling = None
+    product = None
+    force = None
 
 
 class Adjoint(NamedTuple):
@@ -223,6 +230,11 @@ class SolverPath:
         self.n_zone_misses = 0     # zone problems solved again on a grown zone
         self.n_delassus = 0        # Delassus blocks W_Z formed (the others were reused)
 
+    @cached_property
+    def mechanics(self) -> Mechanics:
+        """The transforms of the model's contact system (:mod:`.transforms`), built on first use."""
+        return Mechanics.of(self.model)
+
     @property
     def first_loads(self):
         """The loads of the first load case: a checkpoint's design is assembled with them."""
@@ -264,7 +276,30 @@ class SolverPath:
     def solve_state(self, system, ctx, alpha, *, method, warm_start, tol, shared, label="",
                     slip_ref=None) -> State:
         """The contact state of one load case; ``shared`` is a dict the cases of one design share;
-        ``slip_ref`` (p, 2) u_t at the end of the previous load step (paths with load steps)."""
+        ``slip_ref`` (p, 2) u_t at the end of the previous load step (paths with load steps).
+        A path that takes an obstacle returns :meth:`transformed_state`."""
+        raise NotImplementedError
+
+    def transformed_state(self, system, ctx, alpha, **kw) -> State:
+        """The state through the outer transforms of the contact system (:mod:`.transforms`): the
+        force search of a force-controlled obstacle around :meth:`fixed_state`, else that itself."""
+        search = self.mechanics.search
+        if search is None:
+            return self.fixed_state(system, ctx, alpha, **kw)
+        return search.solve(self, system, ctx, alpha, **kw)
+
+    # ------------------------------------------------------------------ hooks of the transforms
+    def fixed_state(self, system, ctx, alpha, *, method, warm_start, tol, shared, label="", slip_ref=None) -> State:
+        """The state with the obstacle where ``system`` puts it: the path's own solve."""
+        raise NotImplementedError
+
+    def translated(self, system, s: float, c: np.ndarray, e: np.ndarray):
+        """``system`` with the obstacle translated by s f̂ (:mod:`.force`): gap g − s c, tangential
+        shift s e (3p per node frame, normal parts 0) added to the law's."""
+        raise NotImplementedError
+
+    def normal_stiffness(self, system) -> np.ndarray:
+        """(p,) a stiffness per contact node along its normal (the force search's first step only)."""
         raise NotImplementedError
 
     def adjoint(self, system, ctx, state, y_u, y_lam, choices=None) -> Adjoint:
@@ -278,12 +313,10 @@ class SolverPath:
         satisfies (A ṽ)_i = −g_i — so the design term ṽᵀ(∂A u − ∂L) needs no other change."""
         raise NotImplementedError
 
-    def controlled_subgradient(self, system, ctx, state, v_u, v_lam, xi, loads=None, *, v=None,
-                               y_u=None) -> np.ndarray:
-        """ξ of a state with a force-controlled obstacle, whose translation depends on α
-        (:mod:`.force`; ``v`` ṽ of the objective's adjoint, ``y_u`` its ∂J/∂u); ``xi`` itself on
-        the paths without one."""
-        return xi
+    def force_terms(self, system, ctx, state, v_lam, loads=None, *, v=None, y_u=None):
+        """∂Θ/∂s, ∂F/∂s, ∂F/∂α and the adjoint of F of a force-controlled obstacle at a state
+        (:meth:`.force.ForceSearch.terms`)."""
+        return self.mechanics.search.terms(self, system, ctx, state, v_lam, loads, v=v, y_u=y_u)
 
     def is_full(self, y_u) -> bool:
         """Whether ``y_u`` is ∂J/∂u on every DOF (:meth:`adjoint`), not on the contact DOFs."""

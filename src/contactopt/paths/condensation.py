@@ -50,16 +50,15 @@ from ..contact.state import FoundationState
 from ..fem import memory
 from ..fem.dense import mkl_threads, spd_inverse
 from ..fem.foundation import Coupling
-from ..fem.model import Assembled
+from ..fem.model import Assembled, ElasticModel
 from ..sensitivity.adjoint import solve_adjoint
-from .base import Adjoint, Capabilities
-from .force import ForceControl
-from .rigid import anchor, held_state, with_contact_diagonal
+from .base import Adjoint, Capabilities, SystemParts
+from .rigid import Anchor, anchor, held_state, with_contact_diagonal
 from .zone_paths import ZonePath
 
 
 @dataclass
-class CondensedSystem:
+class CondensedSystem(SystemParts):
     """One design's condensed system: ``factor`` the condensation (S, ℓ and the recovery of
     the interior DOFs), ``S`` (3p, 3p) and ``ell`` (3p,) per node (t1, t2, ν), ``gap`` (p,)."""
 
@@ -69,10 +68,10 @@ class CondensedSystem:
     ell: np.ndarray
     gap: np.ndarray
     timings: dict
-    coupling: object = None            # on an elastic foundation: fem.foundation.Coupling, S_eff ...
+    coupling: Coupling | None = None   # on an elastic foundation: S_eff ...
     ell_eff: np.ndarray | None = None  # ... and ℓ_eff = S_eff (S⁻¹ℓ − Π q_f) (module docstring)
     shift: np.ndarray | None = None    # an obstacle's tangential translation (3p,) per node frame: ℓ_eff = ℓ − S shift
-    rigid: object = None               # a body held only by contact: its Anchor (the kernel of S, module docstring)
+    rigid: Anchor | None = None        # a body held only by contact: the kernel of S (module docstring)
     beta: np.ndarray | None = None     # ... and the anchor's position β of this solve
     force: float | None = None         # a load step's |f| of a force-controlled obstacle (None: the model's)
 
@@ -113,11 +112,11 @@ def on_factor(zp, ell: np.ndarray, zone: np.ndarray):
     return out
 
 
-class CondensationPath(ForceControl, ZonePath):
+class CondensationPath(ZonePath):
     """``[linear_solver] path = "condensation"`` (module docstring)."""
 
     name = "condensation"
-    capabilities = Capabilities(foundation=True, obstacle=True, force_obstacle=True, obstacle_steps=True,
+    capabilities = Capabilities(foundation=True, obstacle=True, obstacle_steps=True,
                                 held_by_contact=True, pinned=True,
                                 compliance=True,
                                 whole_displacement=True, load_steps=True, auto="small")
@@ -129,7 +128,8 @@ class CondensationPath(ForceControl, ZonePath):
     @classmethod
     def memory_estimate(cls, body, **kw):
         est = memory.estimate_evaluation(body, memory.condensation_parts)
-        foundation = getattr(body, "foundation", None)       # a model's elastic foundation
+        # a model's elastic foundation (a body alone: the foundation's part is checked beside it)
+        foundation = body.foundation if isinstance(body, ElasticModel) else None
         return est if foundation is None else est.with_parts(foundation.memory_parts)
 
     def prepare(self, asm) -> CondensedSystem:
@@ -137,7 +137,8 @@ class CondensationPath(ForceControl, ZonePath):
         t1 = time.perf_counter()
         fac = self._factor
         A, shift_c = asm.A, 0.0
-        if self.rigid_modes is not None:          # A singular: condense A + γ_A I_c (rigid.py)
+        mech = self.mechanics
+        if mech.anchor is not None:          # A singular: condense A + γ_A I_c (rigid.py)
             A, shift_c = with_contact_diagonal(A, self.model.contact_dofs)
         if fac is not None and hasattr(fac, "refactor"):
             fac.refactor(A, trusted=True)     # symmetric, positive diagonal: assembled
@@ -146,16 +147,16 @@ class CondensationPath(ForceControl, ZonePath):
         S, ell = fac.S, fac.condense_load(asm.L)
         if shift_c:
             S = S - shift_c * np.eye(S.shape[0])
-        if self.frames is not None:
-            S, ell = to_frames_matrix(S, self.frames), to_frames(ell, self.frames)
+        if mech.rotate is not None:
+            S, ell = mech.rotate.matrix(S), mech.rotate.vector(ell)
         system = CondensedSystem(asm, fac, S, ell, asm.gap, {})
-        if self.model.slip_shift is not None:
-            system = shifted(system, self.model.slip_shift.ravel())
-        if self.foundation is not None:
-            system.coupling = Coupling(system.S, self.foundation)
+        if mech.shift is not None:
+            system = shifted(system, mech.shift.vector)
+        if mech.couple is not None:
+            system.coupling = Coupling(system.S, mech.couple)
             system.ell_eff = system.coupling.ell_eff(system.ell)
-        if self.rigid_modes is not None:
-            system.rigid = anchor(self.model, self.rigid_modes, asm, system.S, self.frames)
+        if mech.anchor is not None:
+            system.rigid = anchor(self.model, mech.anchor, asm, system.S, mech.frames)
         system.timings["schur"] = time.perf_counter() - t1
         return system
 
@@ -167,23 +168,14 @@ class CondensationPath(ForceControl, ZonePath):
 
     @property
     def foundation(self):
-        return getattr(self.model, "foundation", None)
-
-    @property
-    def rigid_modes(self):
-        """The rigid motions the clamps leave free (:class:`contactopt.mesh.rigid.RigidModes`), or None."""
-        return getattr(self.model.body, "rigid", None)
-
-    @property
-    def frames(self):
-        """(p, 3, 3) contact frames on an obstacle other than the plane, else None (module docstring)."""
-        return getattr(self.model, "frames", None)
+        """The elastic foundation of the model (the couple of :mod:`.transforms`), or None."""
+        return self.mechanics.couple
 
     def for_load(self, system, asm) -> CondensedSystem:
         t1 = time.perf_counter()
         ell = system.factor.condense_load(asm.L)
-        if self.frames is not None:
-            ell = to_frames(ell, self.frames)
+        if self.mechanics.rotate is not None:
+            ell = self.mechanics.rotate.vector(ell)
         out = replace(system, assembled=asm, ell=ell, timings={})
         if out.coupling is not None:
             out.ell_eff = out.coupling.ell_eff(ell)
@@ -202,13 +194,10 @@ class CondensationPath(ForceControl, ZonePath):
         return np.diag(system.contact_S)[2::3]
 
     def fixed_state(self, system, ctx, alpha, **kw):
-        return self.held_state(system, ctx, alpha, **kw)
-
-    def held_state(self, system, ctx, alpha, **kw):
-        """The state; of a body held only by contact, by the anchor's iteration (:mod:`.rigid`)."""
+        """The zone's state; of a body held only by contact, by the anchor's iteration (:mod:`.rigid`)."""
         if system.rigid is None:
-            return ZonePath.solve_state(self, system, ctx, alpha, **kw)
-        return held_state(lambda sys: ZonePath.solve_state(self, sys, ctx, alpha, **kw), system,
+            return self.zone_state(system, ctx, alpha, **kw)
+        return held_state(lambda sys: self.zone_state(sys, ctx, alpha, **kw), system,
                           kw.get("tol") or self.settings.tol, kw.get("method", self.settings.method))
 
     def zone_problem(self, system, zone, warm, reuse, shared):
@@ -229,8 +218,8 @@ class CondensationPath(ForceControl, ZonePath):
             u_c = np.ravel(u_c) + system.shift
         if system.coupling is not None:      # (in the nodes' frames on a curved face)
             u_c = system.coupling.body_displacement(u_c, r)
-        if self.frames is not None:
-            return from_frames(np.ravel(u_c), self.frames)
+        if self.mechanics.rotate is not None:
+            return self.mechanics.rotate.back(np.ravel(u_c))
         return np.ravel(u_c)
 
     def foundation_state(self, system, u_c, r, u_body):
@@ -238,7 +227,8 @@ class CondensationPath(ForceControl, ZonePath):
         (t1, t2, ν) — w = u_c − partner is the state's ``u_c`` — and the foundation's own."""
         if system.coupling is None:
             return None
-        body = (u_body if self.frames is None else to_frames(np.ravel(u_body), self.frames)).reshape(-1, 3)
+        rot = self.mechanics.rotate
+        body = (u_body if rot is None else rot.vector(np.ravel(u_body))).reshape(-1, 3)
         return FoundationState(u_body_c=body, u_partner=body - u_c, displacement=self.foundation.displacement(r))
 
     def load_scale(self, system):
@@ -263,8 +253,8 @@ class CondensationPath(ForceControl, ZonePath):
             zhat = np.zeros(g.size)
             zhat[fac.interior] = fac.solve_interior(g[fac.interior])
             y_u = g[fac.c] - (system.assembled.A @ zhat)[fac.c]
-            if self.frames is not None:     # global components at the contact nodes: into their frames
-                y_u = to_frames(y_u, self.frames)
+            if self.mechanics.rotate is not None:   # global components at the contact nodes: into their frames
+                y_u = self.mechanics.rotate.vector(y_u)
             if system.coupling is not None:  # ∂J/∂w of the body's contact displacement
                 y_c, y_u = y_u, system.coupling.to_eff(y_u)
         v_u, v_lam = solve_adjoint(system.contact_S, state, y_u, y_lam, choices)
@@ -272,8 +262,8 @@ class CondensationPath(ForceControl, ZonePath):
             z = v_u
         else:
             z = system.coupling.adjoint_z(v_u if y_c is None else v_u - self.foundation.C @ y_c)
-        if self.frames is not None:
-            z = from_frames(z, self.frames)
+        if self.mechanics.rotate is not None:
+            z = self.mechanics.rotate.back(z)
         v = system.factor.extend(z)
         if zhat is not None:
             v = v - zhat
@@ -283,14 +273,15 @@ class CondensationPath(ForceControl, ZonePath):
         return system.contact_S @ v_u
 
     def global_contact(self, v):
-        return v if self.frames is None else from_frames(np.asarray(v), self.frames)
+        rot = self.mechanics.rotate
+        return v if rot is None else rot.back(np.asarray(v))
 
     def adjoint_carry(self, system, ctx, v_u, v_full, y_u):
         """As :meth:`SolverPath.adjoint_carry`, in the nodes' frames on an obstacle (the load
         steps' tangential reference is per node frame)."""
         out = super().adjoint_carry(system, ctx, v_u, v_full, y_u)
-        if self.frames is not None and self.is_full(y_u):
-            out = to_frames(out, self.frames)
+        if self.mechanics.rotate is not None and self.is_full(y_u):
+            out = self.mechanics.rotate.vector(out)
         return out
 
     def uniqueness_bound(self, system):
@@ -307,24 +298,6 @@ class CondensationPath(ForceControl, ZonePath):
         lmax = eigsh(S, k=1, which="LA", return_eigenvectors=False, tol=1e-6)[0]
         wmax = eigsh(spd_inverse(S), k=1, which="LA", return_eigenvectors=False, tol=1e-6)[0]
         return float((1.0 / wmax) / lmax), None
-
-
-def to_frames(v: np.ndarray, R: np.ndarray) -> np.ndarray:
-    """Qᵀ v: a (3p,) vector of global components per contact node into the nodes' frames R (p, 3, 3)."""
-    return np.einsum("mij,mi->mj", R, v.reshape(-1, 3)).ravel()
-
-
-def from_frames(v: np.ndarray, R: np.ndarray) -> np.ndarray:
-    """Q v: a (3p,) vector in the nodes' frames back to global components."""
-    return np.einsum("mij,mj->mi", R, v.reshape(-1, 3)).ravel()
-
-
-def to_frames_matrix(S: np.ndarray, R: np.ndarray) -> np.ndarray:
-    """Qᵀ S Q of a (3p, 3p) matrix on the contact DOFs, symmetric as S is."""
-    p = R.shape[0]
-    S4 = S.reshape(p, 3, p, 3)
-    out = np.einsum("mai,makb,kbj->mikj", R, S4, R, optimize=True).reshape(3 * p, 3 * p)
-    return np.ascontiguousarray(0.5 * (out + out.T))
 
 
 def shifted(system: CondensedSystem, shift: np.ndarray) -> CondensedSystem:

@@ -33,9 +33,9 @@ from ..fem import memory
 from ..fem.linsolve import Factorization, SolverSlot
 from ..fem.model import Assembled
 from ..sensitivity.adjoint import check_choices, effective_classes, solve_adjoint_delassus
-from .base import Adjoint, Capabilities
-from .condensation import from_frames, to_frames
-from .force import ForceControl, normal_stiffness
+from .base import Adjoint, Capabilities, SystemParts
+from .force import normal_stiffness
+from .transforms import from_frames, to_frames
 from .zone_paths import ZonePath
 
 log = logging.getLogger(__name__)
@@ -48,7 +48,7 @@ ADJOINT_MAX_NEW = 0.1   # the adjoint's preconditioner takes exact columns for a
 
 
 @dataclass
-class FactorizedSystem:
+class FactorizedSystem(SystemParts):
     """One design's system on the Delassus path: ``factor`` the slot holding the sparse
     factorization of A(α) (free DOFs), ``x0`` = A(α)⁻¹L(α) the displacement without contact
     forces, ``gap`` (p,)."""
@@ -59,13 +59,14 @@ class FactorizedSystem:
     gap: np.ndarray
     timings: dict
     shift: np.ndarray | None = None    # an obstacle's tangential translation (3p, per node frame), or None
+    force: float | None = None         # a load step's |f| of a force-controlled obstacle (None: the model's)
 
 
-class DelassusPath(ForceControl, ZonePath):
+class DelassusPath(ZonePath):
     """``[linear_solver] path = "delassus"`` (module docstring)."""
 
     name = "delassus"
-    capabilities = Capabilities(obstacle=True, force_obstacle=True, pinned=True, whole_displacement=True,
+    capabilities = Capabilities(obstacle=True, pinned=True, whole_displacement=True,
                                 load_steps=True, auto="large", auto_order=1, auto_libraries=("pardiso",), auto_avoids=("obstacle",))
     reuse_tol_factor = 1.0    # each Newton step costs a sparse solve here: to tol itself
     accept_at_tol = True      # forming W_Z costs more than a factorization
@@ -95,10 +96,10 @@ class DelassusPath(ForceControl, ZonePath):
         self._slot.set(fac)       # releases the last design's zone condensation, if any
         t1 = time.perf_counter()
         x0 = fac.solve(asm.L)
-        s = getattr(self.model, "slip_shift", None)
+        shift = self.mechanics.shift
         return FactorizedSystem(asm, self._slot, x0, asm.gap,
                                 {"factor": t1 - t0, "load_solve": time.perf_counter() - t1},
-                                None if s is None else s.ravel())
+                                None if shift is None else shift.vector)
 
     def for_load(self, system, asm) -> FactorizedSystem:
         t1 = time.perf_counter()
@@ -132,7 +133,7 @@ class DelassusPath(ForceControl, ZonePath):
         """(p, 3, 3) contact frames on an obstacle other than the plane (columns (t1, t2, n)), else None:
         W, forces and contact displacements are then per node in its frame (:class:`~contactopt.contact.
         zone.FramedDelassusZoneProblem`)."""
-        return getattr(self.model, "frames", None)
+        return self.mechanics.frames
 
     def law_frames(self, system):
         """The frames of the zone problems: :attr:`frames`, or the axes on the plane translated
@@ -159,9 +160,6 @@ class DelassusPath(ForceControl, ZonePath):
         return from_frames(u, R)
 
     # ------------------------------------------------------------------ a force-controlled obstacle (.force)
-    def fixed_state(self, system, ctx, alpha, **kw):
-        return ZonePath.solve_state(self, system, ctx, alpha, **kw)
-
     def translated(self, system, s, c, e):
         shift = system.shift
         if np.any(e):

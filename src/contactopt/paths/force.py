@@ -8,9 +8,9 @@ under the node by s e_m, e_m = (b_m)_t the tangential part of b_m = R_mᵀ f̂ (
     F(s) = Σ_m b_m·r_m − |f| = 0        (r_m = (−τ_m, λ_m), the force on the body in the node's frame),
 
 the resultant along f̂ the obstacle exerts on the body, by Brent's method on a bracket from the
-first touch, one state solve per step. A path gives only the system moved by s
-(:meth:`ForceControl.translated`), the state of a fixed obstacle (:meth:`ForceControl.fixed_state`)
-and a normal stiffness per node for the bracket's first step (:meth:`ForceControl.normal_stiffness`).
+first touch, one state solve per step (:meth:`ForceSearch.solve`). A path gives only the system
+moved by s (``translated``), the state of a fixed obstacle (``fixed_state``) and a normal stiffness
+per node for the bracket's first step (``normal_stiffness``; :class:`~.base.SolverPath`).
 On a load path (condensation path, :mod:`contactopt.sensitivity.steps`) every solve has its own |f|
 (the system's ``force``: a step's ``obstacle_force``, ramped over its substeps) and its own s.
 
@@ -35,13 +35,14 @@ displacement u_c = w + s e moves with s also at fixed w: y*_u·e with y*_u = g_c
 
 Through a load path's solves s_k depends also on the previous solve's slip w_(k−1) (the reference
 of the law): with μ_k = (∂Θ/∂s_k)/(∂F_k/∂s_k), ξ gains −μ_k ∂F_k/∂α and what solve k passes to
-solve k − 1 gains −μ_k P_t(S w_u + ∂F_k/∂u_c), F_k's own carry (:meth:`ForceControl.force_terms`,
+solve k − 1 gains −μ_k P_t(S w_u + ∂F_k/∂u_c), F_k's own carry (:meth:`ForceSearch.terms`,
 :func:`contactopt.sensitivity.subgradient.case_subgradient`; docs/load_paths.md).
 """
 
 from __future__ import annotations
 
 import logging
+from dataclasses import dataclass
 from typing import NamedTuple
 
 import numpy as np
@@ -55,43 +56,32 @@ log = logging.getLogger(__name__)
 TANGENTIAL = np.array([1.0, 1.0, 0.0])
 
 
-class ForceControl:
-    """The translation of a force-controlled obstacle and its subgradient (module docstring), for a
-    :class:`~contactopt.paths.base.SolverPath` that implements the three hooks below."""
+@dataclass(frozen=True)
+class ForceSearch:
+    """The translation of a force-controlled obstacle and its subgradient (module docstring): an
+    outer search around the state solve of any path that takes an obstacle. ``force`` the
+    obstacle's :class:`~contactopt.fem.model.ObstacleForce` (the force's magnitude, b_m and c_m per
+    contact node). The
+    path gives three hooks: ``fixed_state`` (its own solve with the obstacle where a system puts
+    it), ``translated`` (a system with the obstacle moved by s f̂) and ``normal_stiffness``."""
 
-    # ------------------------------------------------------------------ hooks
-    def fixed_state(self, system, ctx, alpha, **kw):
-        """The state with the obstacle where ``system`` puts it (the path's own solve)."""
-        raise NotImplementedError
-
-    def translated(self, system, s: float, c: np.ndarray, e: np.ndarray):
-        """``system`` with the obstacle translated by s f̂: gap g − s c, tangential shift s e
-        (3p per node frame, normal parts 0) added to the law's."""
-        raise NotImplementedError
-
-    def normal_stiffness(self, system) -> np.ndarray:
-        """(p,) a stiffness per contact node along its normal (the bracket's first step only)."""
-        raise NotImplementedError
+    force: object
 
     # ------------------------------------------------------------------ state
-    def solve_state(self, system, ctx, alpha, *, method, warm_start, tol, shared, label="", slip_ref=None):
-        """The state; with a force-controlled obstacle the translation s that balances the force,
-        found by Brent's method (module docstring): the state's ``obstacle`` holds s, the resultant and the solves."""
+    def solve(self, path, system, ctx, alpha, *, method, warm_start, tol, shared, label="", slip_ref=None):
+        """The state with the translation s that balances the force, found by Brent's method
+        (module docstring): the state's ``obstacle`` holds s, the resultant and the solves."""
         kw = dict(method=method, warm_start=warm_start, tol=tol, shared=shared, label=label, slip_ref=slip_ref)
-        m = self.model
-        if getattr(m, "force", None) is None:
-            return self.fixed_state(system, ctx, alpha, **kw)
-
-        c, b, f = m.force_gap, m.force_b, m.force
-        if getattr(system, "force", None) is not None:      # a load step's own force (sensitivity/steps.py)
+        c, b, f = self.force.gap_rate, self.force.b, self.force.magnitude
+        if system.force is not None:      # a load step's own force (sensitivity/steps.py)
             f = system.force
         e = (b * TANGENTIAL).ravel()
         states = {}
 
         def excess(s):
-            moved = self.translated(system, s, c, e)
+            moved = path.translated(system, s, c, e)
             try:
-                st = self.fixed_state(moved, ctx, alpha, **kw)
+                st = path.fixed_state(moved, ctx, alpha, **kw)
             except ContactNotConverged:
                 if not warm_start and ctx.warm is None:
                     raise
@@ -100,12 +90,12 @@ class ForceControl:
                 # state, to its tolerance)
                 log.debug("no state at the translation %.6e %s: solved again %s", s,
                           *(("warm-started", "from nothing") if warm_start else ("from nothing", "warm-started")))
-                st = self.fixed_state(moved, ctx, alpha, **{**kw, "warm_start": not warm_start})
+                st = path.fixed_state(moved, ctx, alpha, **{**kw, "warm_start": not warm_start})
             states[s] = st
             return excess_of(st, b, f)
 
         touch = float(np.min(system.gap[c > 0] / c[c > 0]))
-        step = f / float(np.max(self.normal_stiffness(system)[c > 0] * c[c > 0] ** 2))
+        step = f / float(np.max(path.normal_stiffness(system)[c > 0] * c[c > 0] ** 2))
         # lo just past the first touch: with every gap open and no load the frictionless local
         # solver does not converge on r = 0 (it does not on the plane either)
         lo, hi = touch + 1e-3 * step, touch + step
@@ -134,29 +124,19 @@ class ForceControl:
         return st
 
     # ------------------------------------------------------------------ subgradient
-    def controlled_subgradient(self, system, ctx, state, v_u, v_lam, xi, loads=None, *, v=None, y_u=None):
-        """ξ with the translation of a force-controlled obstacle following α (module docstring);
-        ``v`` ṽ of the objective's adjoint on every DOF, ``y_u`` its ∂J/∂u (:meth:`adjoint`)."""
-        if getattr(self.model, "force", None) is None:
-            return xi
-        t = self.force_terms(system, ctx, state, v_lam, loads, v=v, y_u=y_u)
-        if t.dF_ds == 0:
-            return xi
-        return xi - t.dT_ds * t.dF_da / t.dF_ds
-
-    def force_terms(self, system, ctx, state, v_lam, loads=None, *, v=None, y_u=None) -> "ForceTerms":
+    def terms(self, path, system, ctx, state, v_lam, loads=None, *, v=None, y_u=None) -> "ForceTerms":
         """∂Θ/∂s, ∂F/∂s, ∂F/∂α and the adjoint of F (module docstring) at a state; ``v`` ṽ of the
         objective's adjoint on every DOF, ``y_u`` the objective's own ∂J/∂u (on every DOF, it moves
         with s at fixed w; on a load path without what later steps pass down)."""
-        m = self.model
-        c, b = m.force_gap, m.force_b
+        m = path.model
+        c, b = self.force.gap_rate, self.force.b
         e = (b * TANGENTIAL).ravel()
         A, asm = system.assembled.A, m.assembler
-        frames = getattr(m, "frames", None)
+        frames = m.frames
         dT_ds = -float(v_lam @ c)
         if np.any(e):
             force = (A @ np.asarray(v)[asm.free])[m.contact_dofs]       # (A ṽ)_c
-            if y_u is not None and self.is_full(y_u):                    # J of the body's u = w + s e
+            if y_u is not None and path.is_full(y_u):                    # J of the body's u = w + s e
                 force = force + np.asarray(y_u, float)[asm.free][m.contact_dofs]
             if frames is not None:
                 force = np.einsum("mij,mi->mj", frames, force.reshape(-1, 3)).ravel()
@@ -165,18 +145,18 @@ class ForceControl:
         e_free = np.zeros(asm.n_free)
         e_free[m.contact_dofs] = bg
         y_F = asm.to_full(A @ e_free)                 # ∂F/∂u on every DOF
-        w = self.adjoint(system, ctx, state, y_F, np.zeros(c.size))
+        w = path.adjoint(system, ctx, state, y_F, np.zeros(c.size))
         z = w.v + asm.to_full(e_free)                 # the A-harmonic extension of Q(b + w_u)
         Sz = (A @ z[asm.free])[m.contact_dofs]
         if frames is not None:
             Sz = np.einsum("mij,mi->mj", frames, Sz.reshape(-1, 3)).ravel()
-        dF_da = self.design_contraction(system, state.u, z, loads) + m.gap_matrix.T @ w.v_lam
+        dF_da = path.design_contraction(system, state.u, z, loads) + m.gap_matrix.T @ w.v_lam
         dF_ds = float(Sz @ e - w.v_lam @ c)
         return ForceTerms(dT_ds, dF_ds, dF_da, w, y_F)
 
 
 class ForceTerms(NamedTuple):
-    """What :meth:`ForceControl.force_terms` gives: ∂Θ/∂s, ∂F/∂s, ∂F/∂α, the adjoint of F
+    """What :meth:`ForceSearch.terms` gives: ∂Θ/∂s, ∂F/∂s, ∂F/∂α, the adjoint of F
     (:class:`~contactopt.paths.base.Adjoint`) and its right-hand side ∂F/∂u on every DOF (what a
     load step passes to the previous one is that adjoint's :meth:`adjoint_carry`)."""
 

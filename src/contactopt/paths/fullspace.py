@@ -42,8 +42,9 @@ from ..fem import memory
 from ..fem.amg import ContactHierarchy, rigid_body_modes
 from ..fem.model import Assembled
 from ..sensitivity.adjoint_fullspace import solve_adjoint_fullspace
-from .base import Adjoint, Capabilities, Context, SolverPath, check_design
-from .force import ForceControl, normal_stiffness
+from .base import Adjoint, Capabilities, Context, SolverPath, SystemParts, check_design
+from .force import normal_stiffness
+from .transforms import frame_rotation
 
 log = logging.getLogger(__name__)
 
@@ -53,7 +54,7 @@ HIERARCHY_SEED = 20090101  # NumPy's global generator while pyamg builds a hiera
 
 
 @dataclass
-class FullSystem:
+class FullSystem(SystemParts):
     """One design's system in full space: A(α), L(α) in ``assembled`` as they are, ``gap`` (p,);
     on an obstacle other than the plane also ``T`` and the rotated ``A``, ``L`` (:class:`Frames`)."""
 
@@ -64,6 +65,7 @@ class FullSystem:
     A: object = None
     L: np.ndarray | None = None
     shift: np.ndarray | None = None    # an obstacle's tangential translation (p, 2) per node frame, or None
+    force: float | None = None         # a load step's |f| of a force-controlled obstacle (None: the model's)
 
     @property
     def law_A(self):
@@ -73,17 +75,6 @@ class FullSystem:
     @property
     def law_L(self):
         return self.assembled.L if self.T is None else self.L
-
-
-def frame_rotation(contact_dofs: np.ndarray, frames: np.ndarray, n_free: int):
-    """T (n_free × n_free, orthogonal, sparse): the identity but at each contact node, whose free DOFs
-    (x1, x2, x3) it maps from the node's frame (t1, t2, n): u = T u_loc (module docstring)."""
-    cd = np.asarray(contact_dofs).reshape(-1, 3)
-    other = np.setdiff1d(np.arange(n_free), cd.ravel())
-    rows = np.concatenate([other, np.repeat(cd, 3, axis=1).ravel()])
-    cols = np.concatenate([other, np.tile(cd, (1, 3)).ravel()])
-    vals = np.concatenate([np.ones(other.size), frames.reshape(-1)])
-    return sp.csr_matrix((vals, (rows, cols)), shape=(n_free, n_free))
 
 
 @dataclass
@@ -165,11 +156,11 @@ class FullSpaceCommon(SolverPath):
         self.restore(ctx, arrays, u, alpha, where)
 
 
-class FullSpacePath(ForceControl, FullSpaceCommon):
+class FullSpacePath(FullSpaceCommon):
     """``[linear_solver] path = "fullspace"`` (module docstring)."""
 
     name = "fullspace"
-    capabilities = Capabilities(obstacle=True, force_obstacle=True, pinned=True, whole_displacement=True,
+    capabilities = Capabilities(obstacle=True, pinned=True, whole_displacement=True,
                                 load_steps=True, libraries=("pyamg",), sparse="pyamg", auto="large", auto_order=0,
                                 auto_avoids=("obstacle",))
 
@@ -187,11 +178,10 @@ class FullSpacePath(ForceControl, FullSpaceCommon):
     @property
     def frames(self):
         """(p, 3, 3) contact frames on an obstacle other than the plane, else None."""
-        return getattr(self.model, "frames", None)
+        return self.mechanics.frames
 
     def prepare(self, asm) -> FullSystem:
-        s = getattr(self.model, "slip_shift", None)
-        shift = None if s is None else s[:, :2]
+        shift = None if self.mechanics.shift is None else self.mechanics.shift.tangential
         if self.frames is None:
             return FullSystem(asm, asm.gap, {}, shift=shift)
         T = frame_rotation(self.model.contact_dofs, self.frames, self.model.assembler.n_free)
@@ -242,6 +232,11 @@ class FullSpacePath(ForceControl, FullSpaceCommon):
                 return ContactHierarchy(A, modes, contact_dofs=self.model.contact_dofs)
         finally:
             np.random.set_state(saved)
+
+    def solve_state(self, system, ctx, alpha, *, method, warm_start, tol, shared, label="", slip_ref=None):
+        """The state through the transforms of the contact system (:meth:`transformed_state`)."""
+        return self.transformed_state(system, ctx, alpha, method=method, warm_start=warm_start, tol=tol,
+                                      shared=shared, label=label, slip_ref=slip_ref)
 
     def fixed_state(self, system, ctx, alpha, *, method, warm_start, tol, shared, label="", slip_ref=None):
         """The state with the obstacle where ``system`` puts it (:meth:`solve_state`, :mod:`.force`),

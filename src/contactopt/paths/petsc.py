@@ -42,7 +42,7 @@ import numpy as np
 from ..errors import ConfigError
 from ..fem.model import Assembled
 from ..sensitivity.adjoint_fullspace import ADJOINT_RTOL, adjoint_classes, check_default_choices
-from .base import Adjoint, Capabilities, Context, SolverPath
+from .base import Adjoint, Capabilities, Context, SolverPath, SystemParts
 from .fullspace import FullSpaceCommon
 from .protocol import Call, Command, Problem, new_path_id, send
 
@@ -55,7 +55,7 @@ def _world():
 
 
 @dataclass
-class PetscSystem:
+class PetscSystem(SystemParts):
     """One design's system of one load case: ``assembled`` (A(α) not formed: ``A`` is None), the
     load ``L`` as a PETSc Vec, the last state's u and adjoint ṽ on all PETSc DOFs (every rank);
     on rank 0 ``product``, x ↦ A(α) x on the free DOFs computed on the ranks (what an objective

@@ -98,6 +98,14 @@ class ZonePath(SolverPath):
 
     # ------------------------------------------------------------------ state
     def solve_state(self, system, ctx, alpha, *, method, warm_start, tol, shared, label="", slip_ref=None):
+        """The state through the transforms of the contact system (:meth:`transformed_state`)."""
+        return self.transformed_state(system, ctx, alpha, method=method, warm_start=warm_start, tol=tol,
+                                      shared=shared, label=label, slip_ref=slip_ref)
+
+    def fixed_state(self, system, ctx, alpha, **kw):
+        return self.zone_state(system, ctx, alpha, **kw)
+
+    def zone_state(self, system, ctx, alpha, *, method, warm_start, tol, shared, label="", slip_ref=None):
         """The zone's Coulomb state; ``slip_ref`` (p, 2): in a load step, u_t at the end of the
         previous step (q shifted by −slip_ref, sensitivity/steps.py)."""
         s = self.settings
@@ -237,7 +245,7 @@ class ZonePath(SolverPath):
         if not self.settings.reuse_delassus:
             return
         for other in others:
-            j = getattr(other, "jacobian", None)
+            j = other.jacobian
             if j is not None and np.array_equal(j.alpha, alpha) and np.array_equal(j.zone, zone):
                 ctx.jacobian = j
                 return

@@ -38,6 +38,7 @@ class Objective:
     full_space = False       # True: ∂J/∂u is on every DOF (3·n_nodes), not on the contact DOFs only
     accumulates = False      # True: on a load path J sums over the solves (:meth:`evaluate_path`)
     loads = None             # the load set of the objective's load case (None: the configuration's)
+    target = None            # the prescribed normal forces λ̄ of a target_normal_force term, else None
 
     def __init__(self, model, scale: float = 1.0):
         self.model = model
@@ -203,7 +204,7 @@ class FrictionalDissipation(Objective):
         full = (3 * model.contact_nodes[:, None] + np.arange(2)).ravel()
         u_t = np.zeros(asm.n_full)
         u_t[full] = ut.ravel()
-        coupling = getattr(cond, "coupling", None)
+        coupling = None if cond is None else cond.coupling
         if coupling is not None:                  # an elastic foundation (class docstring)
             tau3 = np.zeros((p, 3))
             tau3[:, :2] = state.tau
@@ -238,7 +239,7 @@ def stiffness_product(cond, asm, coords, x) -> np.ndarray:
     """A(α) x on the free DOFs: by the system's own ``product`` where A(α) is not formed on this
     process (the PETSc path multiplies on its ranks), else with the system's A(α), else with A
     assembled at ``coords``."""
-    product = getattr(cond, "product", None)
+    product = None if cond is None else cond.product
     if product is not None:
         return product(x)
     A = cond.assembled.A if cond is not None and hasattr(cond, "assembled") else asm.stiffness(coords)
@@ -320,7 +321,7 @@ class Compliance(Objective):
         dc = model.design_contraction
         dalpha = -dc(asm.coords, zhat, state.u) - dc(asm.coords, np.zeros_like(zhat), zhat)
         dw = cond.ell.copy()
-        coupling = getattr(cond, "coupling", None)
+        coupling = cond.coupling
         if coupling is not None:                  # an elastic foundation (class docstring)
             dw = coupling.to_eff(cond.ell)
             z = -coupling.adjoint_z(coupling.foundation.C @ cond.ell)
@@ -384,7 +385,7 @@ class WeightedSum(Objective):
         terms = {}
         # on an elastic foundation ∂J/∂u_c of a contact-only term is on the state's w, not on the
         # body's u_c: compliance (the one such term with ∂J/∂u_c ≠ 0) joins in its whole-body form
-        coupled = self.full_space and getattr(cond, "coupling", None) is not None
+        coupled = self.full_space and cond is not None and cond.coupling is not None
         for name, w, obj in self.terms:
             full = coupled and isinstance(obj, Compliance)
             part = obj.evaluate_full(state, cond) if full else obj.evaluate(state, cond)

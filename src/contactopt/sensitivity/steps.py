@@ -65,7 +65,7 @@ def build_path(model, base_loads, tables, where: str) -> list[Step] | None:
         return None
     base = base_loads if base_loads is not None else model.loads
     out, previous = [], LoadSet()
-    force = getattr(model, "force", None)          # |f| of a force-controlled obstacle, else None
+    force = model.force          # |f| of a force-controlled obstacle, else None
     f_prev = 0.0
     for n, table in enumerate(tables):
         loads = base + load_set(model.body, table.loads, where=f"{where}[{n}]")
