@@ -600,7 +600,9 @@ def test_max_linear_60_to_1e6():
     f0, _ = prob(prob.x0)
     assert f0 > prob.f_star + 1 and prob(prob.data["x_star"])[0] == prob.f_star
     res = minimize_bundle(prob, prob.x0, eps=1e-8, ftol=0.0, max_iter=2000)    # defaults
-    assert res.status == 0, res.message
+    # which test certifies the stop (eps: status 0, or f's change: status 4) is a trajectory detail
+    # that moves with the BLAS kernel (Prescott stops by f's change at |f − f*| = 5e-15)
+    assert res.success, res.message
     assert abs(res.fun - prob.f_star) <= 1e-6
     assert np.abs(res.x - prob.data["x_star"]).max() <= 1e-6
 
@@ -622,10 +624,14 @@ def test_the_run_sets_gamma_from_what_the_cuts_show():
     res = minimize_bundle(prob, prob.x0, eps=1e-6, max_iter=2000)
     assert res.status == 0 and res.fun <= 1e-6 and res.state.affine is not None
     prob = PROBLEMS["Crescent"]
-    res = minimize_bundle(prob, prob.x0, eps=1e-6, max_iter=2000, tolf=0.0, metric="none")
+    gammas = []
+    res = minimize_bundle(prob, prob.x0, eps=1e-6, max_iter=2000, tolf=0.0, metric="none",
+                          callback=lambda r: gammas.append(r.gamma))
     # certified, or (status 5) no decrease above round-off from a bundle rebuilt at x
     assert res.status in (0, 5) and res.success and rel_error(res.fun, prob.f_star) <= 1e-6
-    assert res.state.nonconvex == 1 and res.gamma > 0.0       # the cuts showed nonconvexity
+    # the cuts showed nonconvexity and γ rose above its floor; whether it is still there when the
+    # run stops is a trajectory detail that moves with the BLAS kernel (back at 0 under Prescott)
+    assert res.state.nonconvex == 1 and gammas[0] == 0.0 and max(gammas) > 1.0
     with pytest.raises(OptimizerError) as info:
         minimize_bundle(prob, prob.x0, gamma=-1.0, gamma_t0=float("nan"), gamma_factor=0.5)
     for key in ("gamma >= 0", "gamma_t0", "gamma_factor"):
