@@ -3,7 +3,7 @@
 Data flow (docs/architecture.md): α → mesh → A(α), L(α) → a solver path (:mod:`contactopt.paths`)
 → a :class:`~contactopt.sensitivity.solution.Solution` (the contact state of every load case and
 step) → responses, Θ and the constraints (:mod:`contactopt.sensitivity.responses`) → the adjoint
-(4.15) → subgradient (:mod:`contactopt.sensitivity.subgradient`). :class:`ShapeProblem` builds
+(4.15) → subgradient (``contactopt.sensitivity.subgradient``). :class:`ShapeProblem` builds
 the parts and keeps the last design's solve; what it computes are functions of values.
 
 Contact conventions, on every path: per contact node m the order (t1, t2, ν) = (x1, x2, x3),
@@ -119,7 +119,7 @@ class ShapeProblem:
 
     def for_constraint(self, j: int) -> ShapeProblem:
         """This problem with constraint j's response (its worst load case) in place of Θ: its
-        :meth:`evaluate`, :meth:`subgradient` and :meth:`evaluate_value` answer for the constraint,
+        :meth:`evaluate`, :meth:`subgradient` and ``evaluate_value`` answer for the constraint,
         sharing this problem's parts and its last design's solve."""
         con = self.constraints[j]
         out = copy.copy(self)
@@ -212,7 +212,7 @@ class ShapeProblem:
 
     def evaluate_cases(self, alpha, **kw):
         """Θ_k of every load case and their combination at α: a
-        :class:`~contactopt.sensitivity.cases.Combined` (``kw`` go to :meth:`solve_state`)."""
+        ``contactopt.sensitivity.cases.Combined`` (``kw`` go to :meth:`solve_state`)."""
         return self.response_value(alpha, **kw).combined
 
     def evaluate(self, alpha):
@@ -223,10 +223,10 @@ class ShapeProblem:
 
     def subgradient(self, alpha, *, choices=None):
         """Θ(α) and one Clarke subgradient of the combined load cases
-        (:class:`~contactopt.sensitivity.adjoint.SubgradientResult`; paper Theorem 4.1,
-        :mod:`contactopt.sensitivity.subgradient`).
+        (``contactopt.sensitivity.adjoint.SubgradientResult``; paper Theorem 4.1,
+        ``contactopt.sensitivity.subgradient``).
 
-        OpenBLAS runs on one thread throughout, as in the state solve (:mod:`contactopt._threads`):
+        OpenBLAS runs on one thread throughout, as in the state solve (``contactopt._threads``):
         its spinning threads would otherwise slow the next design's PARDISO factorization; MKL on
         the path's evaluation threads (``[linear_solver] threads``)."""
         with sequential_openblas(), self.path.evaluation_threads():
@@ -238,7 +238,7 @@ class ShapeProblem:
 
     # ------------------------------------------------------------------ [[constraints]]
     def constraint_subgradients(self, alpha, *, choices=None) -> list:
-        """One :class:`~contactopt.sensitivity.adjoint.SubgradientResult` per constraint at α:
+        """One ``contactopt.sensitivity.adjoint.SubgradientResult`` per constraint at α:
         the response's value (the worst load case) and one Clarke subgradient, by the adjoint of
         the state solved for Θ (no other state solve)."""
         return [self.for_constraint(j).subgradient(alpha, choices=choices) for j in range(len(self.constraints))]

@@ -67,7 +67,7 @@ class Capabilities:
     another path that has them where one fits (a path that takes them, but not as the first choice).
 
     Only what a path's linear algebra can do is a feature here: a force-controlled obstacle is an
-    outer search over the translation of an obstacle (:mod:`.force`), taken wherever the obstacle
+    outer search over the translation of an obstacle (``contactopt.paths.force``), taken wherever the obstacle
     is, and rules between features of a configuration that no path takes (a body held only by
     contact, or clamped contact nodes, on an elastic foundation) are refused by
     :func:`contactopt.config.validation.check_interactions` before any path is asked."""
@@ -277,7 +277,7 @@ class SolverPath:
                     slip_ref=None) -> State:
         """The contact state of one load case; ``shared`` is a dict the cases of one design share;
         ``slip_ref`` (p, 2) u_t at the end of the previous load step (paths with load steps).
-        A path that takes an obstacle returns :meth:`transformed_state`."""
+        A path that takes an obstacle returns ``transformed_state``."""
         raise NotImplementedError
 
     def transformed_state(self, system, ctx, alpha, **kw) -> State:
@@ -294,7 +294,7 @@ class SolverPath:
         raise NotImplementedError
 
     def translated(self, system, s: float, c: np.ndarray, e: np.ndarray):
-        """``system`` with the obstacle translated by s f̂ (:mod:`.force`): gap g − s c, tangential
+        """``system`` with the obstacle translated by s f̂ (``contactopt.paths.force``): gap g − s c, tangential
         shift s e (3p per node frame, normal parts 0) added to the law's."""
         raise NotImplementedError
 

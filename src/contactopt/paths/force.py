@@ -11,7 +11,7 @@ the resultant along f̂ the obstacle exerts on the body, by Brent's method on a 
 first touch, one state solve per step (:meth:`ForceSearch.solve`). A path gives only the system
 moved by s (``translated``), the state of a fixed obstacle (``fixed_state``) and a normal stiffness
 per node for the bracket's first step (``normal_stiffness``; :class:`~.base.SolverPath`).
-On a load path (condensation path, :mod:`contactopt.sensitivity.steps`) every solve has its own |f|
+On a load path (condensation path, ``contactopt.sensitivity.steps``) every solve has its own |f|
 (the system's ``force``: a step's ``obstacle_force``, ramped over its substeps) and its own s.
 
 The subgradient adds the dependence of s on α (implicit function theorem on F(α, s) = 0):
@@ -60,7 +60,7 @@ TANGENTIAL = np.array([1.0, 1.0, 0.0])
 class ForceSearch:
     """The translation of a force-controlled obstacle and its subgradient (module docstring): an
     outer search around the state solve of any path that takes an obstacle. ``force`` the
-    obstacle's :class:`~contactopt.fem.model.ObstacleForce` (the force's magnitude, b_m and c_m per
+    obstacle's ``contactopt.fem.model.ObstacleForce`` (the force's magnitude, b_m and c_m per
     contact node). The
     path gives three hooks: ``fixed_state`` (its own solve with the obstacle where a system puts
     it), ``translated`` (a system with the obstacle moved by s f̂) and ``normal_stiffness``."""

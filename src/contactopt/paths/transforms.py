@@ -8,9 +8,9 @@ configuration is a small object applied to these contact data, not a mode of a p
 ==============  ==========================================================  =====================
 transform       what it does to the contact data                            object
 ==============  ==========================================================  =====================
-rotate          per node frame R_m = (t1, t2, n): u_loc = R_mᵀ u_c, the     :class:`Rotate`
+rotate          per node frame R_m = (t1, t2, n): u_loc = R_mᵀ u_c, the     ``Rotate``
                 system Qᵀ S Q, Qᵀ ℓ (Q = diag(R_m)); on an obstacle
-shift           an obstacle's tangential translation per node frame: the    :class:`Shift`
+shift           an obstacle's tangential translation per node frame: the    ``Shift``
                 law sees w = u_c − shift (its normal part is in the gap)
 couple          an elastic counterpart: W = S⁻¹ + C on the relative         :class:`~contactopt.fem.foundation.Foundation`
                 displacement (:mod:`.condensation`)
@@ -111,7 +111,7 @@ class Shift:
 @dataclass(frozen=True)
 class Mechanics:
     """The transforms of a model's contact system (module docstring), None where it has none:
-    ``rotate`` (:class:`Rotate`), ``shift`` (:class:`Shift`), ``couple`` an elastic foundation,
+    ``rotate`` (``Rotate``), ``shift`` (``Shift``), ``couple`` an elastic foundation,
     ``anchor`` the rigid motions that contact alone holds, ``search`` a force-controlled obstacle's
     :class:`~.force.ForceSearch`."""
 

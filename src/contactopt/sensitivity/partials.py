@@ -5,7 +5,7 @@ the normal contact force, τ = −r_t, paper (3.17)); on every DOF it is (3·n_n
 Which of the two a record holds is its ``space`` field, never guessed from an array's length.
 ∂J/∂α is taken at fixed (u, λ) and ∂J/∂λ is (p,).
 
-A load path has several solves (:mod:`contactopt.sensitivity.steps`); J at a step's end may
+A load path has several solves (``contactopt.sensitivity.steps``); J at a step's end may
 depend on every solve up to it (the friction work), so :class:`Partials` maps a solve's index
 along the path to that solve's :class:`Derivatives` (a static problem: the one solve 0).
 """

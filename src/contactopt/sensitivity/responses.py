@@ -1,8 +1,8 @@
 """Responses: scalar functions of a :class:`~contactopt.sensitivity.solution.Solution`.
 
-A response is data: per load case an objective (:mod:`contactopt.sensitivity.objectives`), the
-cases joined by a :class:`~contactopt.sensitivity.cases.Combination` and, on a load path, the
-steps' values joined by a :class:`~contactopt.sensitivity.steps.StepChoice`. Θ of ``[objective]``
+A response is data: per load case an objective (``contactopt.sensitivity.objectives``), the
+cases joined by a ``contactopt.sensitivity.cases.Combination`` and, on a load path, the
+steps' values joined by a ``contactopt.sensitivity.steps.StepChoice``. Θ of ``[objective]``
 is one; each ``[[constraints]]`` entry is another (its objectives of the constraint's type, the
 cases joined by the max, its own ``steps``). :func:`evaluate_response` gives the value and, per
 case, the partial derivatives with respect to every solve, which
@@ -54,7 +54,7 @@ class CaseValue:
 @dataclass(frozen=True)
 class ResponseValue:
     """A response at one :class:`~contactopt.sensitivity.solution.Solution`: ``combined`` over the
-    cases (:class:`~contactopt.sensitivity.cases.Combined`) and each case's :class:`CaseValue`."""
+    cases (``contactopt.sensitivity.cases.Combined``) and each case's :class:`CaseValue`."""
 
     combined: Combined
     cases: tuple

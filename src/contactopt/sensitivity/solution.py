@@ -1,7 +1,7 @@
 """The solve of one design as a value: the systems and contact states of every load case and step.
 
 A design α is assembled once; the path prepares A(α) once and each load case adds its load vector
-(:mod:`contactopt.sensitivity.cases`); on a load path (:mod:`contactopt.sensitivity.steps`) each
+(``contactopt.sensitivity.cases``); on a load path (``contactopt.sensitivity.steps``) each
 solve starts from the end of the one before. :func:`solve_design` returns a :class:`Solution`,
 built once and never changed by what reads it: objectives, constraints and the subgradient are
 functions of it. :class:`LastDesign` keeps the last one (as scipy's ``MemoizeJac`` keeps the last
@@ -79,7 +79,7 @@ class Solution:
 
     @property
     def states(self) -> list:
-        """The state of every load case (a load path's: its last solve's)."""
+        """The state of every load case (on a load path, that of its last solve)."""
         return [c.state for c in self.cases]
 
     @property

@@ -1,8 +1,8 @@
 """One Clarke subgradient of a response from a solution and the response's partial derivatives.
 
-For each load case of nonzero coefficient c_k (:mod:`contactopt.sensitivity.cases`) the adjoint
+For each load case of nonzero coefficient c_k (``contactopt.sensitivity.cases``) the adjoint
 runs backward through the case's solves (a static problem: its one solve; a load path:
-:mod:`contactopt.sensitivity.steps`), each solve's adjoint (4.15) with the response's right-hand
+``contactopt.sensitivity.steps``), each solve's adjoint (4.15) with the response's right-hand
 side at that solve plus what the solve after it passes down, P_t(S v + y*_u) (with y*_u on every
 DOF, P_t((A ṽ)_c + y*_c): :meth:`~contactopt.paths.base.SolverPath.adjoint_carry`), and
 
@@ -34,7 +34,7 @@ def subgradient(parts, solution, value, choices=None, timings=None) -> Subgradie
     """Θ and one Clarke subgradient of the response ``value`` (a
     :class:`~contactopt.sensitivity.responses.ResponseValue` at ``solution``); ``parts`` the
     problem's :class:`~contactopt.sensitivity.solution.Parts`, ``choices`` those of the degenerate
-    classes (:mod:`contactopt.sensitivity.adjoint`), ``timings`` more timings to report."""
+    classes (``contactopt.sensitivity.adjoint``), ``timings`` more timings to report."""
     for k, case in enumerate(value.cases):
         if not np.isfinite(case.value):
             raise SolverError(f"objective{parts.label(k)} is not finite at this design ({case.value})")
