@@ -19,6 +19,7 @@ from contactopt.mesh.tetsplit import hex_to_tets, tet4_to_tet10
 from contactopt.problem import ShapeProblem
 from contactopt.sensitivity.check import check_gradient
 from contactopt.verification.patch import H_BODY, patch_config, patch_errors
+from test_foundation import _design
 
 E, NU = 21.19, 0.277
 
@@ -156,14 +157,6 @@ def test_mortar_refuses_quadratic_body_faces(tmp_path):
 
 # ------------------------------------------------------------------ subgradients
 COARSE = {"mesh": {"nx": 12, "ny": 6, "nz": 4}}
-
-
-def _design(model, seed=1, amp=0.003):
-    a = model.initial_design()
-    d = np.random.default_rng(seed).standard_normal(a.size)
-    a = a + amp * (d - d.mean())
-    assert model.admissible.is_feasible(a)
-    return a
 
 
 @pytest.mark.parametrize("element", ["hexahedron", "tetra"])
