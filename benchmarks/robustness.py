@@ -70,18 +70,19 @@ def main(argv=None) -> int:
     rows = []
     if args.generated:
         with tempfile.TemporaryDirectory() as tmp:
-            configs = [(c, name) for seed in args.generated for name, c in generated_variants(seed, tmp)]
-            return report(args, [(c, name) for c, name in configs], rows)
-    return report(args, [(name, None) for name in args.configs], rows)
+            # each variant's designs drawn with its own seed, as the robustness tier does
+            return report(args, [(c, name, seed) for seed in args.generated for name, c in generated_variants(seed, tmp)],
+                          rows)
+    return report(args, [(name, None, args.seed) for name in args.configs], rows)
 
 
 def report(args, configs, rows) -> int:
-    """Solve each configuration (``(config, name)``), print its row, write --json; the exit status."""
-    for name, label in configs:
+    """Solve each configuration (``(config, name, seed)``), print its row, write --json; the exit status."""
+    for name, label, seed in configs:
         if args.cli:
             rows += run_cli(name, args.designs, args.seed)
             continue
-        row = random_design_solves(name, args.designs, args.seed, label)
+        row = random_design_solves(name, args.designs, seed, label)
         rows.append(row)
         print(f"{row['config']:40s} {row['converged']:3d}/{row['designs']:<3d} converged, fallbacks {row['fallbacks']} "
               f"{row['fallbacks_used']}, Newton steps <= {row['newton_steps_max']}, "

@@ -68,7 +68,8 @@ def random_design_solves(config, n: int, seed: int = 0, name: str | None = None)
 
 
 # ----------------------------------------------------------------------------- generated variants
-GENERATED = ("crowned face", "crowned face, force control", "symmetry plane", "load steps", "elastic foundation")
+GENERATED = ("crowned face", "crowned face, force control", "symmetry plane", "load steps", "elastic foundation",
+             "full-space path")
 
 
 def generated_variants(seed: int, folder) -> list:
@@ -80,7 +81,9 @@ def generated_variants(seed: int, folder) -> list:
     * ``crowned face, force control``: that face pressed by a force-controlled plane of random force;
     * ``symmetry plane``: the block clamped on its top and in u2 on its face x2 = 0;
     * ``load steps``: pressed, then sheared by a random traction below F × the normal load;
-    * ``elastic foundation``: on a slab of random stiffness, clamped at its bottom.
+    * ``elastic foundation``: on a slab of random stiffness, clamped at its bottom;
+    * ``full-space path``: the block with a symmetry plane solved by the full-space Newton method
+      (:mod:`contactopt.contact.fullspace`, its own fallback chain).
 
     Returns [(name, Config)]. Convention: the plane x3 = 0, normal e3, the body above it."""
     rng = np.random.default_rng(seed)
@@ -130,13 +133,16 @@ def generated_variants(seed: int, folder) -> list:
                 "foundation": {"block": {"size": [3.0, 2.0, 1.0], "cells": [6, 4, 2], "origin": [-0.5, -0.5]},
                                "top": "top", "clamped": "bottom",
                                "material": {"E": float(rng.uniform(0.2, 2.0)), "nu": 0.3}}})
+    out.append({**base, "body": {"clamped": ["clamped", {"on": {"x2": 0.0}, "components": [2]}]},
+                "friction": friction(), "loads": loads(), "linear_solver": {"path": "fullspace"},
+                "objective": {"type": "max_pressure"}})
     configs = []
     for name, upd in zip(GENERATED, out):
         data = {"name": name.replace(" ", "_").replace(",", ""), "material": {"E": 2.0, "nu": 0.3},
                 "objective": {"type": "compliance"}, "state": {"method": "newton", "tol": 1e-12, "max_iter": 200},
                 **({} if "mesh" in upd.get("body", {}) else {k: base[k] for k in ("geometry", "mesh")}),
                 "design": base["design"], **upd}
-        if "steps" in data["objective"]:
+        if "type" not in data["objective"]:
             data["objective"] = {"type": "compliance", **data["objective"]}
         configs.append((f"{name} (seed {seed})", validate(data, f"generated: {name} (seed {seed})")))
     return configs
