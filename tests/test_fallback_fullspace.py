@@ -66,7 +66,7 @@ def test_an_injected_newton_failure_is_completed_by_a_fallback_that_the_result_n
     if warm:                              # a warm start far from this state: twice its forces
         kw = dict(kw, r0=2 * ref.r, u0=2 * ref.u)
     res = solve_fullspace_with_fallbacks(asm.A, asm.L, cd, asm.gap, friction, **kw)
-    assert fail_first.calls >= 2 and res.info["fallback"] == path and res.info["fallback_iterations"] >= 1
+    assert fail_first.calls >= 2 and res.fallback == path and res.fallback_iterations >= 1
     same_state(res, ref)
 
 
@@ -78,7 +78,7 @@ def test_a_solve_that_needs_no_fallback_is_the_methods_own():
     np.random.seed(5)
     b = solve_fullspace_with_fallbacks(asm.A, asm.L, cd, asm.gap, 0.3, **kw)
     assert np.array_equal(a.r, b.r) and np.array_equal(a.u, b.u) and a.history == b.history
-    assert "fallback" not in b.info
+    assert b.fallback is None
 
 
 def test_no_state_is_reported_with_what_in_the_model_to_check():

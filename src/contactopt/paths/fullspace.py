@@ -268,8 +268,8 @@ class FullSpacePath(FullSpaceCommon):
             u_c = res.u_c.copy()
             u_c[:, :2] -= system.shift
         return self.state_of(ctx, system, alpha, res, u_free=u_free, u_c=u_c, t0=t0, t_setup=t_setup,
-                             stats={"backend": "pyamg", **({"fallback": res.info["fallback"]} if "fallback" in res.info
-                                                           else {})}, label=label, slip_ref=slip_ref)
+                             stats={"backend": "pyamg", **({"fallback": res.fallback} if res.fallback else {})},
+                             label=label, slip_ref=slip_ref)
 
     def adjoint(self, system, ctx, state, y_u, y_lam, choices=None):
         if self.is_full(y_u):          # ∂J/∂u on every DOF: the free DOFs' part

@@ -363,10 +363,10 @@ class FullSpaceProblem:
         return result.newton_steps
 
     def stop(self, result) -> str:
-        return result.info.get("reason") or f"Siconos error {result.error:.2e}, equilibrium {result.equilibrium:.2e}"
+        return result.reason or f"Siconos error {result.error:.2e}, equilibrium {result.equilibrium:.2e}"
 
     def converged_by(self, result, name, spent):
-        result.info = {**result.info, "fallback": name, "fallback_iterations": spent}
+        result.fallback, result.fallback_iterations = name, spent
         return result
 
     def diagnose(self, best) -> str:
@@ -399,7 +399,7 @@ class FullSpaceProblem:
 
 def solve_fullspace_with_fallbacks(A, L, contact_dofs, gap, friction, **options) -> FullSpaceResult:
     """:func:`solve_fullspace` and, where it does not converge, the fallback chain of
-    :class:`FullSpaceProblem`: a converged state (``info["fallback"]`` names the path that reached
-    it, absent when the first did) or :class:`~contactopt.errors.ContactNotConverged` with the
+    :class:`FullSpaceProblem`: a converged state (``fallback`` names the path that reached it,
+    None when the first did) or :class:`~contactopt.errors.ContactNotConverged` with the
     diagnosis of the model. A solve that converges at once is :func:`solve_fullspace`'s, bit for bit."""
     return run_chain(FullSpaceProblem(A, L, contact_dofs, gap, friction, **options))
