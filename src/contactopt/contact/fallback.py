@@ -175,7 +175,7 @@ class LocalProblem:
         return result
 
     def diagnose(self, best) -> str:
-        return diagnose(self.W, self.q, self.mu, gap=self.gap, r=None if best is None else best.r)
+        return diagnose(self.W, self.q, self.mu, gap=self.gap)
 
 
 def solve_with_fallbacks(W, q, mu, *, method: str = "newton", tol: float = 1e-8, max_iter=None,
@@ -203,7 +203,7 @@ def penetrating_start(gap, scale: float = 0.0) -> list:
             "contact face and the obstacle's position"]
 
 
-def diagnose(W, q, mu, *, gap=None, r=None) -> str:
+def diagnose(W, q, mu, *, gap=None) -> str:
     """What in the model keeps the local problem from a solution, in words, with what to check.
 
     Looks for, in order: a penetrating start (a negative gap), a rigid motion (``sym(W)``
@@ -239,12 +239,12 @@ def diagnose(W, q, mu, *, gap=None, r=None) -> str:
                            f"smallest {w[0]:.3g} against {top:.3g}), so the body is not held in some "
                            "direction of the contact forces; check body.clamped (a support or a "
                            "symmetry plane missing)")
-        elif r is not None and np.all(np.isfinite(r)):
+        else:
             out.append(f"no defect found in the model (W positive definite, condition {top / w[0]:.3g}, "
                        f"no penetrating start); with friction coefficient {float(np.max(mu)):g} the "
                        "Coulomb problem may have no solution the solvers reach: try a smaller "
                        "friction coefficient, or a finer mesh of the contact face")
-    if not out:
+    if not out:          # W too large for the eigenvalue check
         out.append("no defect found in the model (the local problem has "
                    f"{p} contacts, too many for the eigenvalue check of W); check body.clamped, the "
                    "loads and the initial gap")

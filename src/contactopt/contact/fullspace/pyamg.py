@@ -301,7 +301,8 @@ def _solve_fullspace(A, L, contact_dofs, gap, friction, coords, free, r0, u0, to
 
 
 # ----------------------------------------------------------------------------- the fallback chain
-DIAGNOSIS_MAX_DOFS = 60000      # largest A factorized to form W for a diagnosis (no fallback converged)
+DIAGNOSIS_MAX_DOFS = 30000      # largest A factorized to form W for a diagnosis (no fallback converged)
+_DIAGNOSIS_BLOCK = 256          # columns of W per block of solves (n × 256 doubles at a time)
 LOAD_CONTINUATION = (0.25, 0.5, 0.75, 1.0)
 
 
@@ -320,7 +321,8 @@ class FullSpaceProblem:
     is bounded by the same ``max_steps`` (per step of a continuation) and reuses the AMG hierarchy
     of the first. The diagnosis names a penetrating start and, on at most
     :data:`DIAGNOSIS_MAX_DOFS` free DOFs, forms W = B A⁻¹ Bᵀ (FCLIB order) from a factorization
-    of A for :func:`contactopt.contact.fallback.diagnose`."""
+    of A for :func:`contactopt.contact.fallback.diagnose` (which checks its eigenvalues on up to
+    2000 contact nodes)."""
 
     def __init__(self, A, L, contact_dofs, gap, friction, *, what: str = "the contact state (full space)", **options):
         self.A, self.L, self.contact_dofs, self.gap, self.friction = A, L, contact_dofs, gap, friction
@@ -385,8 +387,12 @@ class FullSpaceProblem:
                 "a rigid motion: the stiffness A is singular, so the body is not held in some direction; check "
                 "body.clamped (a support or a symmetry plane missing)"]) + ".")
         order = cd[:, [2, 0, 1]].ravel()                    # FCLIB order (ν, t1, t2) per node
-        E = sp.csc_matrix((np.ones(order.size), (order, np.arange(order.size))), shape=(A.shape[0], order.size))
-        W = E.T @ lu.solve(E.toarray())
+        W = np.empty((order.size, order.size))
+        for j in range(0, order.size, _DIAGNOSIS_BLOCK):     # W = B A⁻¹ Bᵀ, a block of columns at a time
+            cols = order[j:j + _DIAGNOSIS_BLOCK]
+            E = np.zeros((A.shape[0], cols.size))
+            E[cols, np.arange(cols.size)] = 1.0
+            W[:, j:j + cols.size] = lu.solve(E)[order]
         q = lu.solve(np.asarray(self.L, dtype=float))[order]
         q[0::3] += gap
         shift = self.options.get("slip_ref")
@@ -394,7 +400,7 @@ class FullSpaceProblem:
             s = np.asarray(shift, dtype=float).reshape(-1, 2)
             q[1::3] -= s[:, 0]
             q[2::3] -= s[:, 1]
-        return diagnose(W, q, self.friction, gap=gap, r=None if best is None else best.r.ravel())
+        return diagnose(W, q, self.friction, gap=gap)
 
 
 def solve_fullspace_with_fallbacks(A, L, contact_dofs, gap, friction, **options) -> FullSpaceResult:
