@@ -101,7 +101,7 @@ class ShapeProblem:
                  for c in self.cases]
         c = self.config
         # a load path's steps have loads and obstacle forces of their own: the obstacle's force is checked without them
-        steps = bool(c.load_steps) or any(getattr(case, "steps", None) for case in c.load_cases)
+        steps = bool(c.load_steps) or any(case.steps for case in c.load_cases)
         check_held(m.body.rigid, coords, m.contact_nodes, m.frames, self.friction, loads, c.source,
                    obstacle_force=None if steps else m.obstacle_force)
 
