@@ -389,14 +389,15 @@ def _check_foundation(given, data, problems) -> dict:
 
 
 def _check_foundation_control(given, out, problems) -> None:
-    """[foundation] control: `force` only with 'force' (and not zero), `displacement` only with
-    'displacement', `loaded` only with either."""
+    """[foundation] control: a `force` other than zero only with 'force' (and there not zero), a
+    `displacement` other than zero only with 'displacement', a `loaded` part other than the default
+    only with either (a resolved configuration, written back, holds every key at its default)."""
     control = out["control"]
     for key, needs in (("force", "force"), ("displacement", "displacement")):
-        if key in given and control != needs:
-            problems.append(f"foundation.{key}: given with foundation.control = {control!r}; it is read only with "
-                            f"control = {needs!r}")
-    if "loaded" in given and control == "fixed":
+        if key in given and control != needs and given[key] != FOUNDATION[key][0]:
+            problems.append(f"foundation.{key} = {given[key]!r}: given with foundation.control = {control!r}; it is "
+                            f"read only with control = {needs!r}")
+    if "loaded" in given and control == "fixed" and given["loaded"] != FOUNDATION["loaded"][0]:
         problems.append("foundation.loaded: given with foundation.control = 'fixed'; it names the part moved or "
                         "loaded with control = 'displacement' or 'force'")
     if control == "force" and "force" not in given:
