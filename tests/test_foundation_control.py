@@ -125,3 +125,26 @@ def test_bad_foundation_control_exits_2_and_writes_nothing(case, tmp_path, capsy
 def test_a_foundation_loaded_and_pulled_away_is_refused():
     with pytest.raises(ConfigError, match="pull it away from the body"):
         _problem(control="force", force=[0.0, 0.0, 0.1], loads={"body_force": [0.0, 0.0, -1.0]})
+
+
+def test_a_curved_seat_pressed_by_a_force_balances_it_and_its_subgradient_matches(tmp_path):
+    """The spherical pad on the elastic seat (contactopt.verification.two_spheres, the contact
+    nodes' frames from the pad's chart), the seat pressed by a force on its bottom face instead of
+    its clamps: the contact forces, rotated to the axes, sum to the force; ξ·d against central
+    differences to 1e-6."""
+    from contactopt.config import validate
+    from contactopt.verification import two_spheres
+    cfg = two_spheres.two_spheres_config(tmp_path, 0.5)
+    sym = [{"on": {"x1": 0.0}, "components": [1]}, {"on": {"x2": 0.0}, "components": [2]}]
+    cfg["foundation"].update(control="force", force=[0.0, 0.0, 0.0036], clamped=sym, loaded="bottom")
+    cfg["objective"] = {"type": "pressure_uniformity"}
+    pb = ShapeProblem(validate(cfg, "hertz"))
+    m = pb.model
+    assert m.frames is not None
+    st = pb.solve_state(m.initial_design())
+    resultant = np.einsum("mij,mj->i", m.frames, np.c_[-np.reshape(st.tau, (-1, 2)), st.lam])
+    assert np.allclose(resultant, [0.0, 0.0, 0.0036], rtol=0, atol=1e-8 * 0.0036)
+    alpha = m.initial_design() + 1e-3 * np.random.default_rng(0).standard_normal(m.n_design)
+    gc = check_gradient(pb, alpha, n_directions=3, seed=0)
+    assert gc.n_degenerate == 0
+    assert np.max(gc.rel_errors) <= 1e-6, gc.rel_errors
