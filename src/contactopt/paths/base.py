@@ -75,10 +75,6 @@ class Capabilities:
     foundation: bool = _feature(
         "an elastic [foundation]",
         "linear_solver.path = '{path}': {detail} is solved on {on} only; use path {takers} or 'auto'")
-    foundation_control: bool = _feature(
-        "an elastic [foundation] moved or pressed by its loaded part",
-        "linear_solver.path = '{path}': foundation.control = {detail} (the foundation translated with its "
-        "loaded part) is solved on {on} only; use path {takers} or 'auto'")
     obstacle: bool = _feature(
         "a rigid [obstacle] other than the fixed plane",
         "linear_solver.path = '{path}': a {detail} [obstacle] is solved on {on} only (one process); "

@@ -141,7 +141,7 @@ class ForceSearch:
             if frames is not None:
                 force = np.einsum("mij,mi->mj", frames, force.reshape(-1, 3)).ravel()
             dT_ds += float(force @ e)
-        if getattr(system, "coupling", None) is not None:
+        if path.mechanics.couple is not None:
             # an elastic foundation pressed by the force: F = bᵀ(S_eff w − ℓ_eff) of the law's w
             # relative to the partners; its adjoint on the law, its design term through the
             # body's contact displacement S⁻¹S_eff (b + w_u) extended (paths/condensation.py)
