@@ -177,6 +177,24 @@ def test_the_subgradient_on_an_elastic_curved_counterpart_matches_central_differ
     assert np.max(rep.rel_errors) <= 1e-6, rep.rel_errors
 
 
+def test_the_hub_pushed_along_its_shaft_slides_as_a_whole_at_the_push_out_force(tmp_path):
+    # friction 0.3, the fit, then the hub's end faces moved along x3 (displacement control): the force
+    # grows while part of the interface sticks and stays at μΣλ once every node slides; against
+    # 2πbLμp/4 within 2 %: the discretisation (-1.37 % here, -0.59 % and -0.32 % at 2× and 3× the
+    # refinement, docs/charts.md), mostly the contact face's end rings free along x3
+    h = lame.quarter_hub_mesh(tmp_path / "hub.msh", 4, 8, 2, ends=True)
+    s = lame.quarter_shaft_mesh(tmp_path / "shaft.msh", 3, 8, 2, radius=lame.B + lame.DELTA, ends=True)
+    pushes = [2e-4 * k for k in range(1, 9)]
+    pr = ShapeProblem(validate(lame.push_out_config(h, s, len(pushes)), "push-out"))
+    rows = lame.push_out(pr, pushes)
+    force = np.array([r["force"] for r in rows])
+    assert abs(force[0]) <= 1e-12 * force[-1]                  # the fit alone: no axial force
+    assert rows[1]["stick"] > 0 and rows[-1]["slide"] == 1.0
+    assert np.all(np.diff(force) >= -1e-9 * force[-1])
+    assert force[-1] == pytest.approx(0.3 * rows[-1]["normal"], rel=1e-9)
+    assert force[-1] == pytest.approx(2 * np.pi * lame.B * 0.25 * 0.3 * lame.pressure_equal_materials() / 4, rel=0.02)
+
+
 def test_an_overlap_with_the_foundation_without_interference_is_refused(tmp_path, state_refused):
     data = shaft(tmp_path)
     data["body"]["interference"] = False
