@@ -77,4 +77,4 @@ def test_the_vgroove_example_lowers_the_tip_peak_by_removing_material_there(tmp_
     summary = run_optimization(EXAMPLES / "vgroove.toml", tmp_path / "run", plots=False).summary
     assert summary["ratio"] <= 0.45
     alpha = np.ravel(summary["alpha"])
-    assert alpha[0] > 0 > alpha[-1]          # ϑ at the tip (ξ1 lowest) removes material, at the top adds it
+    assert alpha[0] > 0.005 > alpha[-1]      # ϑ at the tip (ξ1 lowest) above the mean offset, at the top below it
