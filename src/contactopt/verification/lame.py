@@ -154,12 +154,13 @@ def shrink_fit_config(mesh_path, *, delta=DELTA, b=B, length=0.25, degree=(2, 1)
     return cfg
 
 
-def shaft_config(hub_path, shaft_path, *, delta=DELTA, b=B, length=0.25, **kw) -> dict:
+def shaft_config(hub_path, shaft_path, *, delta=DELTA, b=B, length=0.25, foundation_clamped=None, **kw) -> dict:
     """The quarter hub (bore radius b) on an elastic quarter shaft of radius b + δ of the same
-    material (``[foundation]``), both in plane strain with the symmetry planes through both."""
+    material (``[foundation]``), both in plane strain with the symmetry planes through both
+    (``foundation_clamped``: the shaft's clamps in place of those)."""
     hub = shrink_fit_config(hub_path, delta=delta, b=b, length=length, **kw)
-    clamps = [{"on": {"x1": 0.0}, "components": [1]}, {"on": {"x2": 0.0}, "components": [2]},
-              {"on": {"x3": 0.0}, "components": [3]}, {"on": {"x3": length}, "components": [3]}]
+    clamps = foundation_clamped or [{"on": {"x1": 0.0}, "components": [1]}, {"on": {"x2": 0.0}, "components": [2]},
+                                    {"on": {"x3": 0.0}, "components": [3]}, {"on": {"x3": length}, "components": [3]}]
     return {**{k: v for k, v in hub.items() if k != "obstacle"},
             "foundation": {"mesh": str(shaft_path), "top": "surface", "partner": "point", "clamped": clamps}}
 
@@ -188,14 +189,11 @@ def push_out_config(hub_path, shaft_path, pushes: int, *, friction=0.3, delta=DE
     :func:`push_out` moves the hub's end faces along x3. u3 is clamped on both end faces of both
     bodies but on the contact face's two end rings, whose nodes slide along x3 with the rest of
     the interface (a clamped u3 there would carry part of the push by the clamps, not by friction)."""
-    cfg = shaft_config(hub_path, shaft_path, delta=delta, b=b, length=length, friction=friction, path=path,
-                       design={"degree": [2, 1]})
     clamps = [{"on": {"x1": 0.0}, "components": [1]}, {"on": {"x2": 0.0}, "components": [2]},
               {"on": "ends", "components": [3]}]
-    cfg["body"]["clamped"] = clamps
-    cfg["foundation"]["clamped"] = clamps
-    cfg["load_steps"] = [{"name": "fit"}] + [{"name": f"push{k}"} for k in range(1, pushes + 1)]
-    return cfg
+    cfg = shaft_config(hub_path, shaft_path, delta=delta, b=b, length=length, friction=friction, path=path,
+                       body={"clamped": clamps}, foundation_clamped=clamps)
+    return {**cfg, "load_steps": [{"name": "fit"}] + [{"name": f"push{k}"} for k in range(1, pushes + 1)]}
 
 
 class _WithNodal(LoadSet):
