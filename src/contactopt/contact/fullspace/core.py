@@ -299,6 +299,17 @@ def rho_of(diag_c: np.ndarray, compliance, rho_scale: float) -> np.ndarray:
     return rho_scale / (W_DIAG_FACTOR / diag_c.mean(axis=1) + compliance)
 
 
+def overlap_force(diag_c: np.ndarray, gap: np.ndarray) -> float | None:
+    """‖A_νν min(g, 0)‖ over the contact nodes: the scale of the forces an initial overlap makes
+    (a press or shrink fit without load), or None without overlap. ``diag_c`` (p, 3) is the
+    diagonal of A at the contact DOFs in the order (t1, t2, ν), ``gap`` (p,) the initial gaps,
+    negative where a node starts inside its counterpart. A node's own stiffness times its overlap
+    bounds its contact force from above, by about the inverse of the node's share of the body's
+    stiffness."""
+    f = diag_c[:, 2] * np.minimum(np.asarray(gap, dtype=np.float64), 0.0)
+    return float(np.linalg.norm(f)) or None
+
+
 def start_forces(r0, zone: np.ndarray, p: int) -> np.ndarray:
     """The warm start's contact forces (p, 3) per node (t1, t2, ν), zero outside the zone, from
     ``r0`` in FCLIB order (N, T1, T2)."""

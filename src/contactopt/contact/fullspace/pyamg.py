@@ -186,7 +186,7 @@ def solve_fullspace(A, L, contact_dofs, gap, friction, *, coords, free, r0=None,
                     rho_scale: float = 0.5, max_steps: int = 50, krylov_rtol: float | None = None,
                     eta_max: float = 1e-2, eta_factor: float = 0.1, restart: int = 60,
                     max_krylov: int = 400, zone_margin: float = 0.1, amg: dict | None = None,
-                    raise_on_failure: bool = True, slip_ref=None) -> FullSpaceResult:
+                    raise_on_failure: bool = True, slip_ref=None, force_scale: float | None = None) -> FullSpaceResult:
     """Solve the discrete Coulomb problem A u = L + Bᵀ r with the contact law on the contact nodes
     (module docstring) by a full-space semismooth Newton method with AMG-preconditioned GMRES.
 
@@ -212,6 +212,9 @@ def solve_fullspace(A, L, contact_dofs, gap, friction, *, coords, free, r0=None,
     raise_on_failure : raise ContactNotConverged on a Newton failure (else return converged=False).
     slip_ref : (p, 2) in a load step, u_t at the end of the previous step (the tangential law on
         u_t − slip_ref, :mod:`contactopt.sensitivity.steps`); None: the static problem.
+    force_scale : the force the equilibrium residual and the Krylov tolerances are measured
+        against when L = 0 (a press fit: :func:`~contactopt.contact.fullspace.core.overlap_force`);
+        None: 1. With a load it is ‖L‖.
 
     OpenBLAS runs sequentially inside (:func:`contactopt._threads.sequential_openblas`): the dense
     work here is the GMRES basis products, memory-bound, and its threads competed with the sparse
@@ -220,7 +223,7 @@ def solve_fullspace(A, L, contact_dofs, gap, friction, *, coords, free, r0=None,
     with sequential_openblas():
         return _solve_fullspace(A, L, contact_dofs, gap, friction, coords, free, r0, u0, tol, hierarchy,
                                 zone, rho_scale, max_steps, krylov_rtol, eta_max, eta_factor, restart,
-                                max_krylov, zone_margin, amg, raise_on_failure, slip_ref)
+                                max_krylov, zone_margin, amg, raise_on_failure, slip_ref, force_scale)
 
 
 def sorted_csr(A):
@@ -235,7 +238,7 @@ def sorted_csr(A):
 
 def _solve_fullspace(A, L, contact_dofs, gap, friction, coords, free, r0, u0, tol, hierarchy, zone,
                      rho_scale, max_steps, krylov_rtol, eta_max, eta_factor, restart, max_krylov,
-                     zone_margin, amg, raise_on_failure, slip_ref=None):
+                     zone_margin, amg, raise_on_failure, slip_ref=None, force_scale=None):
     t_start = time.perf_counter()
     A = sorted_csr(A)
     n = A.shape[0]
@@ -248,7 +251,7 @@ def _solve_fullspace(A, L, contact_dofs, gap, friction, coords, free, r0, u0, to
                                f"and {p} contact nodes")
     st = start(friction, p, tol, krylov_rtol, zone)
     timings = st.timings
-    Lnorm = float(np.linalg.norm(L)) or 1.0
+    Lnorm = float(np.linalg.norm(L)) or force_scale or 1.0
 
     # -- the hierarchy (reused when given)
     if hierarchy is None:
