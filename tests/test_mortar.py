@@ -13,6 +13,7 @@ from contactopt.config import load_config
 from contactopt.errors import ConfigError
 from contactopt.fem.elements import face_type
 from contactopt.fem.mortar import dual_coefficients, mortar_matrices
+from contactopt.io.pressure import contact_areas
 from contactopt.mesh.block import block_mesh
 from contactopt.mesh.segmentation import clip_convex, segment, signed_area
 from contactopt.mesh.tetsplit import hex_to_tets, tet4_to_tet10
@@ -223,3 +224,47 @@ def test_mortar_partners_on_a_curved_face_are_refused(tmp_path, state_refused):
     data = lame.shaft_config(h, s)
     data["foundation"]["partner"] = "mortar"
     state_refused(data, "foundation.partner = 'mortar' takes a contact face on x3 = 0")
+
+
+def classic_config(nb, nf, friction, tmp_path, body="hexahedron", foundation="hexahedron"):
+    """The classic loading: the patch test's blocks at the design 0, a pressure 0.1 on the body's
+    top, the body held in x3 by the contact alone (rollers in x1, x2 away from the contact face)."""
+    raw = patch_config(nb, nf, friction, tmp_path, body=body, foundation=foundation).to_dict()
+    raw["body"]["clamped"] = raw["body"]["clamped"][:2]
+    raw["design"]["initial"] = 0.0
+    raw["loads"] = {"traction": [{"on": {"x3": H_BODY}, "value": [0.0, 0.0, -0.1]}]}
+    if body != "tetra":
+        raw["loads"].update(top_traction=[0.0, 0.0, 0.0], right_traction=[0.0, 0.0, 0.0])
+    return load_config(raw)
+
+
+@pytest.mark.parametrize("friction", [0.0, 0.3])
+@pytest.mark.parametrize("case", ["7x7 on 7x7 (matching)", "7x7 on 10x10", "tetrahedra on tetrahedra",
+                                  "hexahedra on tet10"])
+def test_classic_patch_test_a_body_held_only_by_contact_on_the_foundation(case, friction, tmp_path):
+    """A pressure p = 0.1 on the body's top, the body held in x3 only by the contact on the elastic
+    foundation: λ_m = p a_m to 1e-8 and ‖τ‖ ≤ 1e-8 a p."""
+    nb, nf, body, found, partner = PATCH[case]
+    pb = ShapeProblem(classic_config(nb, nf, friction, tmp_path, body=body, foundation=found))
+    assert pb.model.foundation.partner == partner and pb.model.body.rigid is not None
+    st = pb.solve_state(pb.model.initial_design())
+    assert st.converged and st.rigid is not None
+    b = pb.model.body
+    area = contact_areas(b.reference.points, b.contact_face.faces, b.contact_nodes)
+    assert np.abs(st.lam / area / 0.1 - 1.0).max() <= 1e-8
+    assert np.linalg.norm(st.tau, axis=1).max() <= 1e-8 * 0.1 * area.max()
+
+
+def test_subgradient_of_a_body_held_only_by_contact_on_the_foundation(tmp_path):
+    """Tetrahedra 6×6 on hexahedra 8×8, held in x3 by the contact alone, a crowned design and a
+    sideways pull: sliding and sticking nodes; ξ·d against central differences."""
+    raw = classic_config(6, 8, 0.3, tmp_path, body="tetra").to_dict()
+    raw["design"]["degree"] = [2, 2]
+    raw["loads"] = {"traction": [{"on": {"x3": H_BODY}, "value": [0.01, 0.005, -0.1]}]}
+    pb = ShapeProblem(load_config(raw))
+    a = pb.model.initial_design() + 0.004 * np.random.default_rng(0).standard_normal(9)
+    a -= a.min()
+    gc = check_gradient(pb, a, n_directions=3, seed=0)
+    assert gc.n_degenerate == 0
+    assert gc.passed, gc.rel_errors
+    assert gc.counts["M1"] > 0 and gc.counts["M3+"] > 0

@@ -156,7 +156,7 @@ class CondensationPath(ZonePath):
             system.coupling = Coupling(system.S, mech.couple)
             system.ell_eff = system.coupling.ell_eff(system.ell)
         if mech.anchor is not None:
-            system.rigid = anchor(self.model, mech.anchor, asm, system.S, mech.frames)
+            system.rigid = anchor(self.model, mech.anchor, asm, system.contact_S, mech.frames)
         system.timings["schur"] = time.perf_counter() - t1
         return system
 
