@@ -239,8 +239,7 @@ def classic_config(nb, nf, friction, tmp_path, body="hexahedron", foundation="he
 
 
 @pytest.mark.parametrize("friction", [0.0, 0.3])
-@pytest.mark.parametrize("case", ["7x7 on 7x7 (matching)", "7x7 on 10x10", "tetrahedra on tetrahedra",
-                                  "hexahedra on tet10"])
+@pytest.mark.parametrize("case", PATCH)
 def test_classic_patch_test_a_body_held_only_by_contact_on_the_foundation(case, friction, tmp_path):
     """A pressure p = 0.1 on the body's top, the body held in x3 only by the contact on the elastic
     foundation: λ_m = p a_m to 1e-8 and ‖τ‖ ≤ 1e-8 a p."""
@@ -268,3 +267,20 @@ def test_subgradient_of_a_body_held_only_by_contact_on_the_foundation(tmp_path):
     assert gc.n_degenerate == 0
     assert gc.passed, gc.rel_errors
     assert gc.counts["M1"] > 0 and gc.counts["M3+"] > 0
+
+
+@pytest.mark.parametrize("friction", [0.0, 0.3])
+@pytest.mark.parametrize("case", ["7x7 on 10x10", "8x8 on an offset 8x8", "tetrahedra on hexahedra"])
+def test_classic_patch_test_with_symmetry_planes_through_both_bodies(case, friction, tmp_path):
+    """The textbook form: a pressure on the body's top, symmetry rollers through the contact face of
+    both bodies, the body held in x3 by the contact alone; mortar partners."""
+    nb, nf, body, found, partner = PATCH[case]
+    raw = classic_config(nb, nf, friction, tmp_path, body=body, foundation=found).to_dict()
+    raw["body"]["clamped"] = [{"on": {"x1": 0.0}, "components": [1]}, {"on": {"x2": 0.0}, "components": [2]}]
+    pb = ShapeProblem(load_config(raw))
+    assert pb.model.foundation.partner == partner and pb.model.body.rigid is not None
+    st = pb.solve_state(pb.model.initial_design())
+    b = pb.model.body
+    area = contact_areas(b.reference.points, b.contact_face.faces, b.contact_nodes)
+    assert np.abs(st.lam / area / 0.1 - 1.0).max() <= 1e-8
+    assert np.linalg.norm(st.tau, axis=1).max() <= 1e-8 * 0.1 * area.max()
