@@ -86,16 +86,16 @@ class Foundation:
             faces, weights = locate_partners(ref.points, fm.top.faces, ref.face_type, contact_xy, contact_nodes,
                                              where)
         else:
-            if self.partner in ("average", "mortar"):
-                raise ConfigError([f"{where}: foundation.partner = {self.partner!r} takes a contact face on x3 = 0; "
-                                   "a curved face's partners are points along its normals (partner = 'point')"])
+            if self.partner == "average":
+                raise ConfigError([f"{where}: foundation.partner = 'average' takes a contact face on x3 = 0; "
+                                   "a curved face's partners are points along its normals (partner = 'point') "
+                                   "or its mortar partners on the face's chart (partner = 'mortar')"])
             x = body.reference.points[contact_nodes]
             faces, weights, self.gap0 = ray_partners(ref.points, fm.top.faces, ref.face_type, x, normals,
                                                      contact_nodes, where)
             smooth = smooth_gaps(ref.points, fm.top, ref.face_type, x, normals, fm.tol)
             if smooth is not None:
                 self.gap0 = smooth
-            self.partner = "point"
         self._check_pinned(body, fm, faces, weights, source)
         if self.partner == "auto":
             self.partner = auto_partner(weights, face_type(body.reference.face_type).degree)
@@ -103,7 +103,7 @@ class Foundation:
         if self.partner == "point":
             rows, cols, vals = np.repeat(np.arange(p), weights.shape[1]), fm.top.faces[faces].ravel(), weights.ravel()
         elif self.partner == "mortar":
-            rows, cols, vals = mortar_partners(body, fm, where)
+            rows, cols, vals = mortar_partners(body, fm, where, chart=None if normals is None else body.chart)
         else:
             rows, cols, vals = averaged_partners(body, fm, where)
         Pn = sp.csr_matrix((vals, (rows, cols)), shape=(p, ref.n_nodes))
@@ -404,7 +404,7 @@ def auto_partner(weights: np.ndarray, body_degree: int, tol: float = 1e-9) -> st
     return "point" if on_nodes or body_degree != 1 else "mortar"
 
 
-def mortar_partners(body, fm, where: str):
+def mortar_partners(body, fm, where: str, chart=None):
     """(rows, cols, values) of Π = D⁻¹M for ``partner = "mortar"`` (:mod:`contactopt.fem.mortar`):
     the body's contact face projected along x3 on the top face x3 = 0, segmented against the top
     faces, the relative displacement of contact node m weighted by its dual basis function Φ_m,
@@ -413,7 +413,16 @@ def mortar_partners(body, fm, where: str):
 
     so that a uniform pressure and a uniform strain pass across non-matching meshes exactly. Per
     node the order is (t1, t2, ν) = (x1, x2, x3), ν = +x3 into the body. Rows are contact nodes,
-    columns foundation nodes. The body's face must lie over the top face and be linear."""
+    columns foundation nodes. The body's face must lie over the top face and be linear.
+
+    A curved contact face (``chart``, :mod:`contactopt.design.chart`) is segmented on its chart:
+    both faces are mapped to the chart's coordinates ξ — on a cylinder (ρθ, axial position), the
+    top face's nodes at the same angle as the body's whatever their radius — and clipped and
+    integrated there. Π's rows still sum to one and reproduce fields linear in ξ, so the
+    relative displacement keeps the form of the flat face's; Π acts on the nodes' global
+    components, rotated into the contact frames (t1, t2, n_m) afterwards (:meth:`Foundation.rotate`).
+    Top faces that straddle the cylinder's cut θ = ±π (the side opposite the body's face) are
+    left out."""
     ref = body.reference
     ftype = face_type(ref.face_type)
     if ftype.degree != 1:
@@ -421,8 +430,17 @@ def mortar_partners(body, fm, where: str):
                            f"(its contact face has {ftype.name} faces); use partner = 'point'"])
     faces = body.contact_face.faces
     top = fm.top.faces
-    D, M, seg = mortar_matrices(ftype.name, faces, ref.points[:, :2], fm.reference.face_type, top,
-                                fm.reference.points[:, :2])
+    if chart is None:
+        s_xy, m_xy = ref.points[:, :2], fm.reference.points[:, :2]
+    else:
+        s_xy = np.zeros((ref.n_nodes, 2))
+        used = np.unique(faces)
+        s_xy[used] = chart.parameters(ref.points[used])
+        m_xy = chart.parameters(fm.reference.points)
+        if chart.kind == "cylinder":
+            span = np.ptp(m_xy[top][:, :, 0], axis=1)
+            top = top[span < np.pi * chart.radius]
+    D, M, seg = mortar_matrices(ftype.name, faces, s_xy, fm.reference.face_type, top, m_xy)
     coupling = MortarCoupling(D, M, seg, body.contact_nodes)
     if coupling.uncovered.size:
         f = coupling.uncovered
