@@ -13,13 +13,12 @@ from contactopt.config import load_config, validate
 from contactopt.errors import ConfigError
 from contactopt.fem.elements import face_type
 from contactopt.fem.mortar import dual_coefficients, mortar_matrices
-from contactopt.io.pressure import contact_areas
 from contactopt.mesh.block import block_mesh
 from contactopt.mesh.segmentation import clip_convex, segment, signed_area
 from contactopt.mesh.tetsplit import hex_to_tets, tet4_to_tet10
 from contactopt.problem import ShapeProblem
 from contactopt.sensitivity.check import check_gradient
-from contactopt.verification.patch import H_BODY, patch_config, patch_errors
+from contactopt.verification.patch import H_BODY, node_areas, patch_config, patch_errors
 from test_foundation import _design
 
 E, NU = 21.19, 0.277
@@ -120,7 +119,10 @@ PATCH = {"7x7 on 7x7 (matching)": (7, 7, "hexahedron", "hexahedron", "point"),
          "hexahedra on tetrahedra": (7, 10, "hexahedron", "tetra", "mortar"),
          "tetrahedra on hexahedra": (7, 10, "tetra", "hexahedron", "mortar"),
          "tetrahedra on tetrahedra": (10, 7, "tetra", "tetra", "mortar"),
-         "hexahedra on tet10": (7, 5, "hexahedron", "tetra10", "mortar")}
+         "hexahedra on tet10": (7, 5, "hexahedron", "tetra10", "mortar"),
+         "tet10 on hexahedra": (4, 5, "tetra10", "hexahedron", "mortar"),
+         "tet10 on tetrahedra": (5, 4, "tetra10", "tetra", "mortar"),
+         "tet10 on tet10": (4, 3, "tetra10", "tetra10", "mortar")}
 
 
 @pytest.mark.parametrize("friction", [0.0, 0.3])
@@ -145,15 +147,20 @@ def test_averaged_partners_fail_the_patch_test_with_friction(tmp_path):
     assert err["shear"] > 0.05 and err["max"] > 1e-3, err
 
 
-def test_mortar_refuses_quadratic_body_faces(tmp_path):
-    ref = block_mesh(1.0, 1.0, H_BODY, 4, 4, 2)
-    p10, c10 = tet4_to_tet10(ref.points, hex_to_tets(ref.cells, ref.points))
-    meshio.write(tmp_path / "b10.vtu", meshio.Mesh(p10, [("tetra10", c10)]))
-    cfg = patch_config(4, 5, 0.3, tmp_path, body="tetra", partner="mortar").with_updates(
-        {"body": {"mesh": str(tmp_path / "b10.vtu")}})
-    with pytest.raises(ConfigError, match="partner = 'mortar' needs a body of linear elements"):
-        ShapeProblem(cfg)
-    assert ShapeProblem(cfg.with_updates({"foundation": {"partner": "auto"}})).model.foundation.partner == "point"
+def test_quadratic_body_faces_take_the_transformed_dual_basis(tmp_path):
+    """Six-node triangles with mortar partners: T keeps the resultant (its columns sum to one), every
+    node of the face is in contact under the patch test's pressure (the corners too, which carry no
+    force in the standard basis), and the pressure output is the uniform p at every node."""
+    from contactopt.io.pressure import contact_pressure
+    from contactopt.verification.patch import exact_pressure
+    pb = ShapeProblem(patch_config(4, 5, 0.3, tmp_path, body="tetra10", partner="mortar"))
+    T = pb.model.foundation.basis
+    assert T is not None and np.allclose(np.asarray(T.sum(axis=0)).ravel(), 1.0, rtol=0, atol=1e-15)
+    st = pb.solve_state(pb.model.initial_design())
+    assert st.counts["L"] == 0 and st.counts["M3+"] == pb.model.contact_nodes.size
+    p = contact_pressure(pb.model, st.lam, st.coords)
+    assert np.abs(p / exact_pressure(st.coords, pb.model.contact_nodes) - 1.0).max() <= 1e-8
+    assert np.all(pb.model.contact_areas() > 0)
 
 
 # ------------------------------------------------------------------ subgradients
@@ -182,6 +189,21 @@ def test_subgradient_on_a_tetrahedral_body_with_mortar_partners(tmp_path):
          "loads": {"traction": [{"on": {"x3": H_BODY}, "value": [0.02, 0.01, 0.0]}]}})
     pb = ShapeProblem(cfg)
     assert pb.model.foundation.partner == "mortar"
+    a = pb.model.initial_design() + 0.004 * np.random.default_rng(0).standard_normal(9) - 0.003
+    gc = check_gradient(pb, a, n_directions=3, seed=0)
+    assert gc.n_degenerate == 0
+    assert gc.passed, gc.rel_errors
+    assert gc.counts["M1"] > 0 and gc.counts["M3+"] > 0 and gc.counts["L"] > 0
+
+
+def test_subgradient_on_a_tet10_body_with_mortar_partners(tmp_path):
+    """The transformed dual basis: a tet10 body 4×4 on hexahedra 5×5, a crowned design and a sideways
+    pull: free, sliding and sticking nodes; ξ·d of the compliance against central differences."""
+    cfg = patch_config(4, 5, 0.3, tmp_path, body="tetra10").with_updates(
+        {"design": {"degree": [2, 2], "initial": 0.0},
+         "loads": {"traction": [{"on": {"x3": H_BODY}, "value": [0.02, 0.01, 0.0]}]}})
+    pb = ShapeProblem(cfg)
+    assert pb.model.foundation.partner == "mortar" and pb.model.foundation.basis is not None
     a = pb.model.initial_design() + 0.004 * np.random.default_rng(0).standard_normal(9) - 0.003
     gc = check_gradient(pb, a, n_directions=3, seed=0)
     assert gc.n_degenerate == 0
@@ -265,7 +287,7 @@ def classic_config(nb, nf, friction, tmp_path, body="hexahedron", foundation="he
     raw["body"]["clamped"] = raw["body"]["clamped"][:2]
     raw["design"]["initial"] = 0.0
     raw["loads"] = {"traction": [{"on": {"x3": H_BODY}, "value": [0.0, 0.0, -0.1]}]}
-    if body != "tetra":
+    if body not in ("tetra", "tetra10"):
         raw["loads"].update(top_traction=[0.0, 0.0, 0.0], right_traction=[0.0, 0.0, 0.0])
     return load_config(raw)
 
@@ -280,16 +302,16 @@ def test_classic_patch_test_a_body_held_only_by_contact_on_the_foundation(case, 
     assert pb.model.foundation.partner == partner and pb.model.body.rigid is not None
     st = pb.solve_state(pb.model.initial_design())
     assert st.converged and st.rigid is not None
-    b = pb.model.body
-    area = contact_areas(b.reference.points, b.contact_face.faces, b.contact_nodes)
+    area = node_areas(pb)
     assert np.abs(st.lam / area / 0.1 - 1.0).max() <= 1e-8
     assert np.linalg.norm(st.tau, axis=1).max() <= 1e-8 * 0.1 * area.max()
 
 
-def test_subgradient_of_a_body_held_only_by_contact_on_the_foundation(tmp_path):
-    """Tetrahedra 6×6 on hexahedra 8×8, held in x3 by the contact alone, a crowned design and a
-    sideways pull: sliding and sticking nodes; ξ·d against central differences."""
-    raw = classic_config(6, 8, 0.3, tmp_path, body="tetra").to_dict()
+@pytest.mark.parametrize("body, nb", [("tetra", 6), ("tetra10", 4)])
+def test_subgradient_of_a_body_held_only_by_contact_on_the_foundation(body, nb, tmp_path):
+    """Tetrahedra 6×6 (or tet10 4×4) on hexahedra 8×8, held in x3 by the contact alone, a crowned
+    design and a sideways pull: sliding and sticking nodes; ξ·d against central differences."""
+    raw = classic_config(nb, 8, 0.3, tmp_path, body=body).to_dict()
     raw["design"]["degree"] = [2, 2]
     raw["loads"] = {"traction": [{"on": {"x3": H_BODY}, "value": [0.01, 0.005, -0.1]}]}
     pb = ShapeProblem(load_config(raw))
@@ -312,7 +334,6 @@ def test_classic_patch_test_with_symmetry_planes_through_both_bodies(case, frict
     pb = ShapeProblem(load_config(raw))
     assert pb.model.foundation.partner == partner and pb.model.body.rigid is not None
     st = pb.solve_state(pb.model.initial_design())
-    b = pb.model.body
-    area = contact_areas(b.reference.points, b.contact_face.faces, b.contact_nodes)
+    area = node_areas(pb)
     assert np.abs(st.lam / area / 0.1 - 1.0).max() <= 1e-8
     assert np.linalg.norm(st.tau, axis=1).max() <= 1e-8 * 0.1 * area.max()

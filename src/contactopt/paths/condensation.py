@@ -74,6 +74,7 @@ class CondensedSystem(SystemParts):
     rigid: Anchor | None = None        # a body held only by contact: the kernel of S (module docstring)
     beta: np.ndarray | None = None     # ... and the anchor's position β of this solve
     force: float | None = None         # a load step's |f| of a force-controlled obstacle (None: the model's)
+    basis: object = None               # the transformed basis of quadratic faces (transforms.Basis): u_c = Vᵀ û
 
     @property
     def law_S(self) -> np.ndarray:
@@ -149,14 +150,16 @@ class CondensationPath(ZonePath):
             S = S - shift_c * np.eye(S.shape[0])
         if mech.rotate is not None:
             S, ell = mech.rotate.matrix(S), mech.rotate.vector(ell)
-        system = CondensedSystem(asm, fac, S, ell, asm.gap, {})
+        if mech.basis is not None:
+            S, ell = mech.basis.matrix(S), mech.basis.vector(ell)
+        system = CondensedSystem(asm, fac, S, ell, asm.gap, {}, basis=mech.basis)
         if mech.shift is not None:
             system = shifted(system, mech.shift.vector)
         if mech.couple is not None:
             system.coupling = Coupling(system.S, mech.couple)
             system.ell_eff = system.coupling.ell_eff(system.ell)
         if mech.anchor is not None:
-            system.rigid = anchor(self.model, mech.anchor, asm, system.contact_S, mech.frames)
+            system.rigid = anchor(self.model, mech.anchor, asm, system.contact_S, mech.frames, mech.basis)
         system.timings["schur"] = time.perf_counter() - t1
         return system
 
@@ -176,6 +179,8 @@ class CondensationPath(ZonePath):
         ell = system.factor.condense_load(asm.L)
         if self.mechanics.rotate is not None:
             ell = self.mechanics.rotate.vector(ell)
+        if self.mechanics.basis is not None:
+            ell = self.mechanics.basis.vector(ell)
         out = replace(system, assembled=asm, ell=ell, timings={})
         if out.coupling is not None:
             out.ell_eff = out.coupling.ell_eff(ell)
@@ -218,6 +223,8 @@ class CondensationPath(ZonePath):
             u_c = np.ravel(u_c) + system.shift
         if system.coupling is not None:      # (in the nodes' frames on a curved face)
             u_c = system.coupling.body_displacement(u_c, r)
+        if self.mechanics.basis is not None:
+            return self.mechanics.basis.back(u_c)
         if self.mechanics.rotate is not None:
             return self.mechanics.rotate.back(np.ravel(u_c))
         return np.ravel(u_c)
@@ -227,8 +234,10 @@ class CondensationPath(ZonePath):
         (t1, t2, ν) — w = u_c − partner is the state's ``u_c`` — and the foundation's own."""
         if system.coupling is None:
             return None
-        rot = self.mechanics.rotate
+        rot, basis = self.mechanics.rotate, self.mechanics.basis
         body = (u_body if rot is None else rot.vector(np.ravel(u_body))).reshape(-1, 3)
+        if basis is not None:
+            body = basis.displacement(body).reshape(-1, 3)
         return FoundationState(u_body_c=body, u_partner=body - u_c, displacement=self.foundation.displacement(r))
 
     def load_scale(self, system):
@@ -255,6 +264,8 @@ class CondensationPath(ZonePath):
             y_u = g[fac.c] - (system.assembled.A @ zhat)[fac.c]
             if self.mechanics.rotate is not None:   # global components at the contact nodes: into their frames
                 y_u = self.mechanics.rotate.vector(y_u)
+            if self.mechanics.basis is not None:    # ... and into the transformed basis
+                y_u = self.mechanics.basis.vector(y_u)
             if system.coupling is not None:  # ∂J/∂w of the body's contact displacement
                 y_c, y_u = y_u, system.coupling.to_eff(y_u)
         v_u, v_lam = solve_adjoint(system.contact_S, state, y_u, y_lam, choices)
@@ -262,6 +273,8 @@ class CondensationPath(ZonePath):
             z = v_u
         else:
             z = system.coupling.adjoint_z(v_u if y_c is None else v_u - self.foundation.C @ y_c)
+        if self.mechanics.basis is not None:
+            z = self.mechanics.basis.back(z)
         if self.mechanics.rotate is not None:
             z = self.mechanics.rotate.back(z)
         v = system.factor.extend(z)
@@ -273,6 +286,10 @@ class CondensationPath(ZonePath):
         return system.contact_S @ v_u
 
     def global_contact(self, v):
+        """A contact vector conjugate to u_c (a force, ∂J/∂u_c) in global components: Q v in the
+        nodes' frames, V⁻¹ v in the transformed basis."""
+        if self.mechanics.basis is not None:
+            v = self.mechanics.basis.force(v)
         rot = self.mechanics.rotate
         return v if rot is None else rot.back(np.asarray(v))
 
@@ -282,6 +299,8 @@ class CondensationPath(ZonePath):
         out = super().adjoint_carry(system, ctx, v_u, v_full, y_u)
         if self.mechanics.rotate is not None and self.is_full(y_u):
             out = self.mechanics.rotate.vector(out)
+        if self.mechanics.basis is not None and self.is_full(y_u):
+            out = self.mechanics.basis.vector(out)
         return out
 
     def uniqueness_bound(self, system):
