@@ -5,17 +5,13 @@ Conventions: per contact node (t1, t2, ν) = (x1, x2, x3); r the contact force o
 λ = r_ν ≥ 0, τ = −r_t; the foundation carries −Πᵀr; w = u_body − Π u_f.
 """
 
-import meshio
 import numpy as np
 import pytest
 
 from contactopt.config import load_config, validate
-from contactopt.errors import ConfigError
 from contactopt.fem.elements import face_type
 from contactopt.fem.mortar import dual_coefficients, mortar_matrices
-from contactopt.mesh.block import block_mesh
 from contactopt.mesh.segmentation import clip_convex, segment, signed_area
-from contactopt.mesh.tetsplit import hex_to_tets, tet4_to_tet10
 from contactopt.problem import ShapeProblem
 from contactopt.sensitivity.check import check_gradient
 from contactopt.verification.patch import H_BODY, node_areas, patch_config, patch_errors
