@@ -320,7 +320,8 @@ def test_subgradient_of_a_body_held_only_by_contact_on_the_foundation(body, nb, 
 
 
 @pytest.mark.parametrize("friction", [0.0, 0.3])
-@pytest.mark.parametrize("case", ["7x7 on 10x10", "8x8 on an offset 8x8", "tetrahedra on hexahedra"])
+@pytest.mark.parametrize("case", ["7x7 on 10x10", "8x8 on an offset 8x8", "tetrahedra on hexahedra",
+                                  "tet10 on hexahedra"])
 def test_classic_patch_test_with_symmetry_planes_through_both_bodies(case, friction, tmp_path):
     """The textbook form: a pressure on the body's top, symmetry rollers through the contact face of
     both bodies, the body held in x3 by the contact alone; mortar partners."""
