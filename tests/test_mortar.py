@@ -107,6 +107,50 @@ def test_projection_reproduces_linear_fields_on_non_matching_faces(case):
     assert D.min() > 0
 
 
+def tri6_grid(nx, ny):
+    """Six-node triangles on the unit square (nx × ny squares, each cut into two), the mid-side nodes
+    at the edges' mid-points."""
+    P, F = grid(np.linspace(0, 1, nx + 1), np.linspace(0, 1, ny + 1), True)
+    P, edges, faces = list(map(tuple, P)), {}, []
+    for f in F:
+        mids = []
+        for a, b in ((f[0], f[1]), (f[1], f[2]), (f[2], f[0])):
+            key = (min(a, b), max(a, b))
+            if key not in edges:
+                edges[key] = len(P)
+                P.append(tuple((np.array(P[a]) + np.array(P[b])) / 2))
+            mids.append(edges[key])
+        faces.append([*f, *mids])
+    return np.array(P), np.array(faces)
+
+
+def test_the_transformed_dual_basis_of_six_node_triangles():
+    """N̂ = T N (α = 1/5): T's columns sum to one (Σ N̂ = 1), the dual basis on N̂ is biorthogonal
+    to it, D_jj = ∫ N̂_j > 0 at corners and mid-side nodes alike, and Π = D⁻¹M maps a linear field
+    of the counterpart to the transformed nodal values T⁻ᵀ f of the body's."""
+    from contactopt.fem.mortar import _mass_rule, face_transform, transformed_basis
+    Ps, Fs = tri6_grid(3, 4)
+    T = transformed_basis("triangle6", Fs, Ps.shape[0])
+    assert np.allclose(np.asarray(T.sum(axis=0)).ravel(), 1.0, rtol=0, atol=1e-15)
+    ft = face_type("triangle6")
+    X = Ps[Fs[:1]]
+    A = dual_coefficients(ft, X)[0]
+    q, w = _mass_rule(ft)
+    N, dN = ft.shape(q)
+    Nh = N @ face_transform(ft).T
+    dA = np.abs(np.linalg.det(np.einsum("qaj,ai->qij", dN, X[0]))) * w
+    B = np.einsum("q,qj,qk->jk", dA, Nh @ A.T, Nh)
+    assert np.allclose(B, np.diag(np.einsum("q,qj->j", dA, Nh)), atol=1e-14)
+    Pm, Fm = grid(np.linspace(0, 1, 6) ** 1.3, np.linspace(0, 1, 5), False)
+    D, M, _ = mortar_matrices("triangle6", Fs, Ps, "quad", Fm, Pm)
+    assert D.min() > 0 and np.isclose(D.sum(), 1.0, rtol=1e-13)
+    Pi = M.multiply(1.0 / D[:, None]).tocsr()
+    assert np.abs(np.asarray(Pi.sum(axis=1)).ravel() - 1.0).max() < 1e-13
+    Tt = T.toarray().T
+    for lin in (lambda P: P[:, 0], lambda P: 2.0 * P[:, 0] - 3.0 * P[:, 1] + 0.5):
+        assert np.abs(Pi @ lin(Pm) - np.linalg.solve(Tt, lin(Ps))).max() < 1e-13
+
+
 # ------------------------------------------------------------------ the contact patch test
 PATCH = {"7x7 on 7x7 (matching)": (7, 7, "hexahedron", "hexahedron", "point"),
          "7x7 on 10x10": (7, 10, "hexahedron", "hexahedron", "mortar"),

@@ -18,7 +18,8 @@ independent of the design α: computed once per run.
 A curved contact face (a chart other than x3 = 0, :mod:`contactopt.design.chart`) meets a curved top
 face of any shape: contact node m's partner is where the line through the node along its contact
 normal n_m (the body's inward face normal, from the foundation to the body) meets the top face,
-and its initial gap g_m the signed distance along n_m (negative: an interference). The coupling
+and its initial gap g_m the signed distance along n_m (negative: an interference); with mortar
+partners both faces are segmented on the body's chart instead (:func:`mortar_partners`). The coupling
 then acts in the nodes' frames R_m = (t1, t2, n_m): Π → Rᵀ Π, C → Rᵀ C R, q_f → Rᵀ q_f
 (:meth:`Foundation.rotate`). Condensed with the body's S(α) u_c = ℓ + r,
 

@@ -24,7 +24,8 @@ exactly (the contact patch test), where averaged partners (standard shape functi
 Φ) do not.
 
 Sign and ordering convention: per contact node (t1, t2, ν) = (x1, x2, x3) — the common plane is
-the counterpart's face x3 = 0 and ν its normal, pointing into the body; w_ν = u_ν − (Πū)_ν
+the counterpart's face x3 = 0 (or the chart of a curved face, whose frames rotate the coupling
+afterwards) and ν its normal, pointing into the body; w_ν = u_ν − (Πū)_ν
 opens the gap, the normal force λ = r_ν ≥ 0 pushes the body away from the counterpart, and the
 weighted slip increment is the tangential part of the increment of w.
 
