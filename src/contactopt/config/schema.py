@@ -308,8 +308,9 @@ FOUNDATION = {
                 "displacement over the node's tributary area: a foundation finer than the body then "
                 "converges; linear body elements only), 'mortar' (the relative displacement weighted by "
                 "the node's dual basis function over the segmented faces: the contact patch test passes "
-                "on non-matching meshes; linear body elements only) or 'auto' ('point' where every partner "
-                "is a node of the top face or the body's faces are quadratic, else 'mortar')"),
+                "on non-matching meshes; the transformed dual basis on six-node triangles, on a flat face) "
+                "or 'auto' ('point' where every partner is a node of the top face or the body's faces are "
+                "quadratic on a curved face, else 'mortar')"),
     "tolerance": (1e-3, lambda x: _pos(x) and x < 0.5,
                   "a number in (0, 0.5) (geometric tolerance of the checks of the foundation's mesh, "
                   "relative to its median boundary edge length)"),

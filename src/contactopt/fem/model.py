@@ -29,6 +29,7 @@ from dataclasses import dataclass
 
 import numpy as np
 import scipy.sparse as sp
+import scipy.sparse.linalg as spla
 
 from .._threads import sequential_openblas
 from ..config import Config, load_config
@@ -205,6 +206,10 @@ class ElasticModel:
         self.body_force = self.loads.body_force
         if cfg.foundation is not None and self.foundation is None:
             self.foundation = Foundation(cfg.foundation, body, source=cfg.source, check=check)
+            if self.foundation.basis is not None:   # six-node triangles, mortar partners: ĝ = T⁻ᵀ g (fem.mortar)
+                lu = spla.splu(sp.csc_matrix(self.foundation.basis.transpose()))
+                self.gap_matrix = lu.solve(np.asarray(self.gap_matrix, float))
+                self.gap0 = lu.solve(np.asarray(self.gap0, float))
         if cfg.foundation is not None and cfg.foundation.control == "force":
             self._foundation_force(cfg.foundation)
 
@@ -456,10 +461,15 @@ class ElasticModel:
         """Tributary areas ∫N_m dS of the contact nodes on the (flat) reference contact face, which
         turn a contact stress σ into nodal forces λ_m ≈ σ(x'_m)·A_m: the consistent nodal forces
         of a uniform stress (on six-node triangles they vanish at the corners, as do the nodal
-        forces of a uniform pressure)."""
+        forces of a uniform pressure). With mortar partners on six-node triangles the forces are
+        those of the transformed basis N̂ = T N (:mod:`contactopt.fem.mortar`), and the areas
+        ∫N̂_m dS = (T a)_m, positive at every node."""
         ref = self.body.reference
         areas = face_areas_nodal(ref.points, self.body.contact_face.faces, face=self.assembler.element.face)
-        return areas[self.contact_nodes]
+        areas = areas[self.contact_nodes]
+        if self.foundation is not None and self.foundation.basis is not None:
+            return self.foundation.basis @ areas
+        return areas
 
     # ------------------------------------------------------------------ A(α), L(α)
     def load_vector(self, coords: np.ndarray, loads=None) -> np.ndarray:

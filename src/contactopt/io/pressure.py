@@ -16,7 +16,10 @@ On six-node triangles (P2) ∫ N_m dS vanishes at the corners of a flat face, an
 nodal forces of a uniform pressure vanish there too: λ/a is 0/0. There the pressure is the
 L²-projection instead, the solution of M p = λ with the consistent face mass matrix restricted to
 the contact nodes, which recovers a uniform p̄ exactly when no node of the face is clamped (next to
-clamped nodes the missing rows make it an approximation).
+clamped nodes the missing rows make it an approximation). With mortar partners on an elastic
+foundation the forces are those of the transformed basis N̂ = T N (``contactopt.fem.mortar``),
+whose areas ∫ N̂_m dS = (T a)_m are positive at every node: p_m = λ_m / (T a)_m, the dual
+pressure, uniform under a uniform pressure.
 """
 
 from __future__ import annotations
@@ -74,4 +77,7 @@ def contact_pressure(model, lam, coords) -> np.ndarray:
     coords = np.asarray(coords, float)
     if face_for(faces).degree == 1:
         return lam / contact_areas(coords, faces, nodes)
+    basis = getattr(getattr(model, "foundation", None), "basis", None)
+    if basis is not None:       # mortar partners: forces of the transformed basis, areas ∫ N̂_m = T a
+        return lam / (basis @ contact_areas(coords, faces, nodes))
     return spla.spsolve(face_mass(coords, faces, nodes).tocsc(), lam)

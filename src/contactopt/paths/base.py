@@ -68,8 +68,8 @@ class Capabilities:
 
     Only what a path's linear algebra can do is a feature here: a force-controlled obstacle is an
     outer search over the translation of an obstacle (``contactopt.paths.force``), taken wherever the obstacle
-    is, and rules between features of a configuration that no path takes (a body held only by
-    contact, or clamped contact nodes, on an elastic foundation) are refused by
+    is, and rules between features of a configuration that no path takes (clamped contact nodes
+    on an elastic foundation whose partners are free) are refused by
     :func:`contactopt.config.validation.check_interactions` before any path is asked."""
 
     foundation: bool = _feature(
