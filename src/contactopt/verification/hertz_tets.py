@@ -23,13 +23,15 @@ import math
 import time
 from pathlib import Path
 
+import meshio
 import numpy as np
 
 from contactopt.config import load_config, validate
 from contactopt.io.pressure import contact_pressure
+from contactopt.mesh.tetsplit import hex_to_tets, tet_boundary_faces
 from contactopt.problem import ShapeProblem
 
-from .hertz import A_TARGET, E_STAR, P_SPHERE, R, common, resultant
+from .hertz import A_TARGET, E_STAR, P_SPHERE, R, common, graded_axis, resultant
 
 L = 10 * A_TARGET
 
@@ -66,6 +68,31 @@ def quarter_mesh(path: str | Path, h: float, order: int = 1, growth: float = 0.2
         gmsh.write(str(path))
     finally:
         gmsh.finalize()
+    return str(path)
+
+
+def split_mesh(path: str | Path, h: float) -> str:
+    """The quarter block as the graded grid of :func:`contactopt.verification.hertz.graded_axis`
+    (h up to 1.6 a, then growing by 1.25) with every hexahedron split into six linear tetrahedra:
+    a structured contact face of equal node areas in the fine zone. Groups as :func:`quarter_mesh`."""
+    x = np.asarray(graded_axis(h, 1.6 * A_TARGET, L))
+    n = x.size
+    X, Y, Z = np.meshgrid(x, x, x, indexing="ij")
+    pts = np.c_[X.ravel(), Y.ravel(), Z.ravel()]
+    idx = np.arange(n ** 3).reshape(n, n, n)
+
+    def corner(i, j, k):
+        return idx[i:n - 1 + i, j:n - 1 + j, k:n - 1 + k].ravel()
+    hexes = np.stack([corner(*o) for o in ((0, 0, 0), (1, 0, 0), (1, 1, 0), (0, 1, 0),
+                                            (0, 0, 1), (1, 0, 1), (1, 1, 1), (0, 1, 1))], axis=1)
+    tets = hex_to_tets(hexes, pts)
+    bf = tet_boundary_faces(tets)
+    bottom, top = bf[np.all(pts[bf, 2] == 0.0, axis=1)], bf[np.all(pts[bf, 2] == x[-1], axis=1)]
+    cells = [("tetra", tets), ("triangle", bottom), ("triangle", top)]
+    tags = [np.full(len(c), t) for (_, c), t in zip(cells, (3, 1, 2))]
+    meshio.write(path, meshio.Mesh(pts, cells, cell_data={"gmsh:physical": tags, "gmsh:geometrical": tags},
+                                   field_data={"contact": np.array([1, 2]), "top": np.array([2, 2]),
+                                               "body": np.array([3, 3])}), file_format="gmsh22", binary=True)
     return str(path)
 
 
