@@ -352,6 +352,10 @@ OBSTACLE = {
                      "gap of contact node m as −d·n_m)"),
     "force": ([0.0, 0.0, 0.0], _vec3, "control = 'force': the resultant [f1, f2, f3] the obstacle exerts on the "
               "body"),
+    "weighting": ("node", _oneof("node", "mortar"),
+                  "'node' (each contact node's gap is its own distance to the obstacle) or 'mortar' (the "
+                  "dual-weighted gap D_jj⁻¹ ∫ Φ_j g dA over the faces around the node, Φ_j the dual basis of the "
+                  "face: linear faces on the paper's map or a normal motion without a chart; docs/mortar.md)"),
 }
 
 TOP_LEVEL = {"name": ("custom", lambda x: isinstance(x, str) and x != "", "a non-empty string"),

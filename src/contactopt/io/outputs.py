@@ -26,7 +26,7 @@ from .plots import (
     plot_stress_comparison,
     plot_surface,
 )
-from .pressure import contact_pressure
+from .pressure import contact_pressure, face_classes
 from .vtk import write_body_vtu, write_foundation_vtu, write_pvd
 
 log = logging.getLogger(__name__)
@@ -130,8 +130,8 @@ def _figures(out: Path, model, x, target, s0, s1, res) -> None:
     p_target = (contact_pressure(model, target, s1.coords) if target is not None else np.zeros_like(p0))
     plot_stress_comparison(out / "pressure.png", model, p_target, p0, p1, zlabel="contact pressure $p = \\lambda/a$")
     plot_surface(out / "surface.png", model, x)
-    plot_node_classes(out / "classes.png", model, s1.classes)
-    plot_contact_response(out / "contact.png", model, p1, s1.tau, s1.u_c[:, :2], s1.classes,
+    plot_node_classes(out / "classes.png", model, face_classes(model, s1))
+    plot_contact_response(out / "contact.png", model, p1, s1.tau, s1.u_c[:, :2], face_classes(model, s1),
                           title="optimal design")
     plot_peak_stress(out / "von_mises.png", model, s1.coords, s1.u, title="optimal design")
     plot_history(out / "history.png", [{**r, "kind": r.get("step")} for r in res.history])
@@ -159,7 +159,7 @@ def _step_outputs(out: Path, problem, which: str, plots: bool = True) -> dict:
             pre = f"{problem.cases[k].name}." if problem.has_load_cases else ""
             for name, sub, state in problem.step_results(k) or []:
                 if sub == max(s.substep for s in problem.steps[k] if s.name == name):
-                    plot_node_classes(out / f"classes-{pre}{name}.png", problem.model, state.classes)
+                    plot_node_classes(out / f"classes-{pre}{name}.png", problem.model, face_classes(problem.model, state))
     return dict(zip(problem.step_columns(), problem.step_values()))
 
 
