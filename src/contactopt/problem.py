@@ -31,7 +31,7 @@ from .paths import PATHS, Start, make_path, select_path
 from .sensitivity.cases import build_cases
 from .sensitivity.objectives import make_constraints
 from .sensitivity.responses import Response, evaluate_response, max_combination
-from .sensitivity.solution import LastDesign, Parts, export_contexts, import_contexts
+from .sensitivity.solution import KeptDesign, LastDesign, Parts, export_contexts, import_contexts
 from .sensitivity.steps import build_path, step_choice, step_tables
 from .sensitivity.subgradient import subgradient
 
@@ -150,6 +150,28 @@ class ShapeProblem:
     def clear_cache(self) -> None:
         """Forget the last design's states (the next solve_state solves anew)."""
         self._last.clear()
+
+    def keep_design(self) -> KeptDesign:
+        """The last design's solve without its systems, and the responses' values evaluated on it
+        (a run keeps those of its initial design and of its iterate for its outputs)."""
+        return self._last.keep()
+
+    def use_design(self, kept: KeptDesign) -> None:
+        """Make ``kept`` the last design solved: the states, Θ, the reports and the step values at
+        its α read it, no state is solved. A response not evaluated before needs the systems,
+        which a kept design does not hold: read only what was evaluated when it was kept."""
+        self._objective.resolve()        # the 'design' targets first: they solve states of their own
+        self._last.restore(kept)
+
+    def repeat_design(self, alpha, start: list, where: str) -> KeptDesign:
+        """The solve of α repeated from the contexts ``start`` it began from
+        (:attr:`~contactopt.sensitivity.solution.Solution.start`, read from ``where``), on a
+        problem of its own: bit for bit the solve that recorded them, this problem's warm starts
+        untouched."""
+        other = self.detached()
+        other.import_contexts(start, where)
+        solution = other.solution(alpha)
+        return KeptDesign(solution, {})
 
     def cached_system(self, alpha, case: int = 0):
         """The path's system of load case ``case`` at α (solving the states if needed)."""
