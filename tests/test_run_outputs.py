@@ -103,3 +103,47 @@ def test_a_resumed_run_repeats_the_recorded_solves_bit_for_bit(tmp_path, monkeyp
         assert other.keys() == arrays.keys()
         for k, v in arrays.items():
             assert np.array_equal(other[k], v), k
+
+
+def _write(path: Path, text: str):
+    from contactopt.io.atomic import atomic_write_text
+    return lambda: atomic_write_text(path, text)
+
+
+@pytest.mark.parametrize("fork", [True, False])
+def test_forked_jobs_write_their_files_and_carry_their_errors(tmp_path, fork):
+    from contactopt.io.atomic import WriteError
+    from contactopt.io.forked import Forked
+    with Forked([_write(tmp_path / "a.txt", "a"), _write(tmp_path / "b.txt", "b")], fork=fork) as jobs:
+        assert (jobs.pid is not None) == fork
+        jobs.join()
+    assert (tmp_path / "a.txt").read_text() + (tmp_path / "b.txt").read_text() == "ab"
+    # a write that fails in the child is the parent's WriteError, naming the file
+    with pytest.raises(WriteError, match="nowhere"):
+        with Forked([_write(tmp_path / "nowhere" / "c.txt", "c")], fork=fork) as jobs:
+            jobs.join()
+
+    def boom():
+        raise ValueError("plot_history: rows [0] lack one of 'iteration'")
+    with pytest.raises(ValueError, match="lack one of"):
+        with Forked([boom], fork=fork) as jobs:
+            jobs.join()
+
+
+def test_a_cancelled_child_leaves_no_temporary_file(tmp_path):
+    import time
+
+    from contactopt.io.atomic import atomic_output
+    from contactopt.io.forked import Forked
+
+    def slow():
+        with atomic_output(tmp_path / "slow.png") as tmp:
+            tmp.write_bytes(b"x")
+            time.sleep(30)
+    t = time.perf_counter()
+    with pytest.raises(RuntimeError):
+        with Forked([slow], fork=True):
+            time.sleep(0.5)
+            raise RuntimeError("the parent fails")
+    assert time.perf_counter() - t < 10
+    assert list(tmp_path.iterdir()) == []

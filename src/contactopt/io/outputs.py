@@ -18,6 +18,7 @@ from ..errors import ContactOptError
 from ..sensitivity.solution import KeptDesign
 from .atomic import WriteError, atomic_write_json, atomic_write_text
 from .export import export_design
+from .forked import Forked
 from .plots import (
     plot_contact_response,
     plot_history,
@@ -73,10 +74,25 @@ def write_outputs(out: Path, problem, alpha0, res, oracle, plots: bool = True, d
         at1 = _at_design(out, problem, designs[1], "optimal", plots)
     finally:
         problem.clear_cache()        # a kept design holds no systems: the next request solves
+    c1 = at1["combined"]
+    s0, s1 = at0["states"][c1.case], at1["states"][c1.case]      # the load case active at the optimum
+    target = problem.cases[c1.case].objective.target
+    forked, here = _figures(out, model, x, target, s0, s1, res) if plots else ([], [])
+    with Forked(forked) as figures:             # drawn beside the other files (io/forked.py)
+        summary = _write_files(out, problem, x, res, oracle, t0, (at0, at1, s0, s1), here, plots)
+        figures.join()
+    summary["time_breakdown_s"]["outputs"] = time.perf_counter() - t0
+    atomic_write_json(out / "summary.json", summary)
+    return summary
+
+
+def _write_files(out: Path, problem, x, res, oracle, t0, at, figures, plots) -> dict:
+    """The result files but the forked figures, and the summary (not yet written); ``figures``
+    the figures drawn here."""
+    model = problem.model
+    at0, at1, s0, s1 = at
     c0, states0, J0, steps0 = at0["combined"], at0["states"], at0["combined"].value, at0["steps"]
     c1, states1, J, steps1 = at1["combined"], at1["states"], at1["combined"].value, at1["steps"]
-    s0, s1 = states0[c1.case], states1[c1.case]      # the load case active at the optimum
-    target = problem.cases[c1.case].objective.target
     write_body_vtu(out / "initial.vtu", model, s0)
     write_body_vtu(out / "optimal.vtu", model, s1)
     pvd = [(0, "initial.vtu"), (1, "optimal.vtu")]
@@ -85,8 +101,8 @@ def write_outputs(out: Path, problem, alpha0, res, oracle, plots: bool = True, d
         write_foundation_vtu(out / "optimal_foundation.vtu", model.foundation, s1)
         pvd += [(0, "initial_foundation.vtu", 1), (1, "optimal_foundation.vtu", 1)]
     write_pvd(out / "bodies.pvd", pvd)
-    if plots:
-        _figures(out, model, x, target, s0, s1, res)
+    for draw in figures:
+        draw()
     atomic_write_text(out / "iterations.csv", "iteration,J,step,t,stationarity,evaluations\n" + "".join(
         f"{r['iteration']},{r['f'] * oracle.scale!r},{r['step']},{r['t']:.6e},{r['stationarity']:.6e},"
         f"{r['nfev']}\n" for r in res.history))
@@ -123,8 +139,6 @@ def write_outputs(out: Path, problem, alpha0, res, oracle, plots: bool = True, d
         summary["load_steps"] = {"names": list(steps1), "J0": steps0, "J": steps1, "objective_steps":
                                  problem.config.objective.steps}
     summary["export"] = _export(out, model, x)
-    summary["time_breakdown_s"]["outputs"] = time.perf_counter() - t0
-    atomic_write_json(out / "summary.json", summary)
     return summary
 
 
@@ -146,22 +160,29 @@ def _at_design(out: Path, problem, design, which: str, plots: bool) -> dict:
             "constraints": problem.constraint_report(alpha) if problem.constraints else None}
 
 
-def _figures(out: Path, model, x, target, s0, s1, res) -> None:
-    """The run's figures: λ and the contact pressure p = λ/a of the target, α0 and the optimum,
-    the optimal surface, its node classes, contact response and von Mises stress, and the
-    convergence history."""
-    plot_stress_comparison(out / "stress.png", model, target if target is not None else np.zeros_like(s0.lam),
-                           s0.lam, s1.lam)
-    p0, p1 = contact_pressure(model, s0.lam, s0.coords), contact_pressure(model, s1.lam, s1.coords)
-    # the target in the same units: λ̄ over the optimal design's areas, as the optimal λ
-    p_target = (contact_pressure(model, target, s1.coords) if target is not None else np.zeros_like(p0))
-    plot_stress_comparison(out / "pressure.png", model, p_target, p0, p1, zlabel="contact pressure $p = \\lambda/a$")
-    plot_surface(out / "surface.png", model, x)
-    plot_node_classes(out / "classes.png", model, s1.classes)
-    plot_contact_response(out / "contact.png", model, p1, s1.tau, s1.u_c[:, :2], s1.classes,
-                          title="optimal design")
-    plot_peak_stress(out / "von_mises.png", model, s1.coords, s1.u, title="optimal design")
-    plot_history(out / "history.png", [{**r, "kind": r.get("step")} for r in res.history])
+def _figures(out: Path, model, x, target, s0, s1, res) -> tuple[list, list]:
+    """The run's figures as two lists of jobs of about equal time, one for a forked process
+    and one drawn here: λ and the contact pressure p = λ/a of the target, α0 and the optimum, the
+    optimal surface and the convergence history; the optimum's node classes, contact response and
+    von Mises stress."""
+    def pressure():
+        p0, p1 = contact_pressure(model, s0.lam, s0.coords), contact_pressure(model, s1.lam, s1.coords)
+        # the target in the same units: λ̄ over the optimal design's areas, as the optimal λ
+        p_target = (contact_pressure(model, target, s1.coords) if target is not None else np.zeros_like(p0))
+        plot_stress_comparison(out / "pressure.png", model, p_target, p0, p1,
+                               zlabel="contact pressure $p = \\lambda/a$")
+
+    def contact():
+        plot_contact_response(out / "contact.png", model, contact_pressure(model, s1.lam, s1.coords), s1.tau,
+                              s1.u_c[:, :2], s1.classes, title="optimal design")
+
+    forked = [lambda: plot_stress_comparison(out / "stress.png", model,
+                                             target if target is not None else np.zeros_like(s0.lam), s0.lam, s1.lam),
+              pressure, lambda: plot_surface(out / "surface.png", model, x),
+              lambda: plot_history(out / "history.png", [{**r, "kind": r.get("step")} for r in res.history])]
+    here = [lambda: plot_node_classes(out / "classes.png", model, s1.classes), contact,
+            lambda: plot_peak_stress(out / "von_mises.png", model, s1.coords, s1.u, title="optimal design")]
+    return forked, here
 
 
 def _constraint_outputs(problem, initial: dict, optimal: dict, res) -> dict:
