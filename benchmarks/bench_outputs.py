@@ -13,13 +13,15 @@ temporary directory, figures included) and prints the run's wall time, the time 
 evaluation (``runner._finish``: the result files, figures and summary) in wall and CPU seconds,
 one evaluation's median wall and CPU time (state solve, adjoint and subgradient, timed around
 each call of the run's oracle), and their ratio: what the outputs cost in evaluations of the same
-run. The script reads nothing but ``runner._finish`` and ``runner._Oracle``, so that it measures
-an older checkout as well (``PYTHONPATH=<checkout>/src``).
+run; the CPU time counts the process that draws figures beside the run's own (io/forked.py).
+The script reads nothing but ``runner._finish`` and ``runner._Oracle``, so that it measures an
+older checkout as well (``PYTHONPATH=<checkout>/src``).
 """
 
 from __future__ import annotations
 
 import argparse
+import resource
 import statistics
 import tempfile
 import time
@@ -47,12 +49,17 @@ def run_phases(max_iter: int | None) -> None:
         finally:
             evals.append((time.perf_counter() - t, time.process_time() - c))
 
+    def children() -> float:
+        use = resource.getrusage(resource.RUSAGE_CHILDREN)
+        return use.ru_utime + use.ru_stime
+
     def timed_finish(*args, **kwargs):
-        t, c = time.perf_counter(), time.process_time()
+        t, c, k = time.perf_counter(), time.process_time(), children()
         try:
             return real_finish(*args, **kwargs)
         finally:
             finish["wall"], finish["cpu"] = time.perf_counter() - t, time.process_time() - c
+            finish["children"] = children() - k
 
     runner._Oracle.__call__, runner._finish = call, timed_finish
     with tempfile.TemporaryDirectory() as tmp:
@@ -65,8 +72,10 @@ def run_phases(max_iter: int | None) -> None:
           f"evaluations, J = {s['J']!r}")
     print(f"total wall {total:.2f} s; one evaluation (median of {len(evals)}): {ev_wall:.3f} s wall, "
           f"{ev_cpu:.3f} s cpu")
+    cpu = finish["cpu"] + finish["children"]
     print(f"after the last evaluation: {finish['wall']:.2f} s wall = {finish['wall'] / ev_wall:.2f} evaluations, "
-          f"{finish['cpu']:.2f} s cpu = {finish['cpu'] / ev_cpu:.2f} evaluations")
+          f"{cpu:.2f} s cpu = {cpu / ev_cpu:.2f} evaluations (of which {finish['children']:.2f} s in a "
+          "child process)")
 
 
 def main() -> None:

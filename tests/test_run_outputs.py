@@ -147,3 +147,14 @@ def test_a_cancelled_child_leaves_no_temporary_file(tmp_path):
             raise RuntimeError("the parent fails")
     assert time.perf_counter() - t < 10
     assert list(tmp_path.iterdir()) == []
+
+
+def test_the_block_is_exported_with_the_bytes_of_meshios_gmsh_writer(tmp_path):
+    from contactopt.fem.model import ElasticModel
+    from contactopt.io import export
+    model = ElasticModel(load_config("example1").with_updates({"mesh": SMALL}))
+    mesh, fmt, binary, _ = export.body_meshio(model, model.mesh.coordinates(model.initial_design() + 0.003))
+    assert (fmt, binary) == ("gmsh22", False) and export._plain_gmsh(mesh)
+    meshio.write(tmp_path / "meshio.msh", mesh, file_format="gmsh22", binary=False)
+    export._write_gmsh22_ascii(tmp_path / "own.msh", mesh)
+    assert (tmp_path / "own.msh").read_bytes() == (tmp_path / "meshio.msh").read_bytes()
