@@ -2,6 +2,7 @@
 evaluation, the summary's J0 and J are the history's values at α0 and at the returned design,
 and a resumed run repeats the recorded solves bit for bit."""
 
+import time
 from pathlib import Path
 
 import meshio
@@ -10,6 +11,10 @@ import pytest
 
 from contactopt import runner
 from contactopt.config import load_config
+from contactopt.fem.model import ElasticModel
+from contactopt.io import export
+from contactopt.io.atomic import WriteError, atomic_output, atomic_write_text
+from contactopt.io.forked import Forked
 from contactopt.sensitivity import solution as solution_module
 
 ROOT = Path(__file__).parent.parent
@@ -106,14 +111,11 @@ def test_a_resumed_run_repeats_the_recorded_solves_bit_for_bit(tmp_path, monkeyp
 
 
 def _write(path: Path, text: str):
-    from contactopt.io.atomic import atomic_write_text
     return lambda: atomic_write_text(path, text)
 
 
 @pytest.mark.parametrize("fork", [True, False])
 def test_forked_jobs_write_their_files_and_carry_their_errors(tmp_path, fork):
-    from contactopt.io.atomic import WriteError
-    from contactopt.io.forked import Forked
     with Forked([_write(tmp_path / "a.txt", "a"), _write(tmp_path / "b.txt", "b")], fork=fork) as jobs:
         assert (jobs.pid is not None) == fork
         jobs.join()
@@ -131,11 +133,6 @@ def test_forked_jobs_write_their_files_and_carry_their_errors(tmp_path, fork):
 
 
 def test_a_cancelled_child_leaves_no_temporary_file(tmp_path):
-    import time
-
-    from contactopt.io.atomic import atomic_output
-    from contactopt.io.forked import Forked
-
     def slow():
         with atomic_output(tmp_path / "slow.png") as tmp:
             tmp.write_bytes(b"x")
@@ -150,8 +147,6 @@ def test_a_cancelled_child_leaves_no_temporary_file(tmp_path):
 
 
 def test_the_block_is_exported_with_the_bytes_of_meshios_gmsh_writer(tmp_path):
-    from contactopt.fem.model import ElasticModel
-    from contactopt.io import export
     model = ElasticModel(load_config("example1").with_updates({"mesh": SMALL}))
     mesh, fmt, binary, _ = export.body_meshio(model, model.mesh.coordinates(model.initial_design() + 0.003))
     assert (fmt, binary) == ("gmsh22", False) and export._plain_gmsh(mesh)

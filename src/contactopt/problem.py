@@ -152,26 +152,13 @@ class ShapeProblem:
         self._last.clear()
 
     def keep_design(self) -> KeptDesign:
-        """The last design's solve without its systems, and the responses' values evaluated on it
-        (a run keeps those of its initial design and of its iterate for its outputs)."""
+        """The last design's solve, its systems dropped, and the values evaluated on it."""
         return self._last.keep()
 
     def use_design(self, kept: KeptDesign) -> None:
-        """Make ``kept`` the last design solved: the states, Θ, the reports and the step values at
-        its α read it, no state is solved. A response not evaluated before needs the systems,
-        which a kept design does not hold: read only what was evaluated when it was kept."""
+        """Make ``kept`` the last design (its values answer; no state is solved)."""
         self._objective.resolve()        # the 'design' targets first: they solve states of their own
         self._last.restore(kept)
-
-    def repeat_design(self, alpha, start: list, where: str) -> KeptDesign:
-        """The solve of α repeated from the contexts ``start`` it began from
-        (:attr:`~contactopt.sensitivity.solution.Solution.start`, read from ``where``), on a
-        problem of its own: bit for bit the solve that recorded them, this problem's warm starts
-        untouched."""
-        other = self.detached()
-        other.import_contexts(start, where)
-        solution = other.solution(alpha)
-        return KeptDesign(solution, {})
 
     def cached_system(self, alpha, case: int = 0):
         """The path's system of load case ``case`` at α (solving the states if needed)."""

@@ -278,15 +278,17 @@ class _Oracle:
             return self.initial
         if key in self.kept:
             return self.kept[key]
-        where = f"checkpoint {self.run_dir.checkpoint}"
-        if which == "initial" and self.start_initial is not None:
-            log.info("the solve of the initial design repeated from the checkpoint")
-            return self.problem.repeat_design(alpha, self.start_initial, where)
-        if self.start_iterate is not None and self.start_iterate[0].tobytes() == key:
-            log.info("the solve of the optimal design repeated from the checkpoint")
-            return self.problem.repeat_design(alpha, self.start_iterate[1], where)
-        log.warning("the %s design's solve was not recorded: solved again without warm start", which)
-        return KeptDesign(self.problem.detached().solution(alpha, warm_start=False), {})
+        start = (self.start_initial if which == "initial" else
+                 self.start_iterate[1] if self.start_iterate is not None and
+                 self.start_iterate[0].tobytes() == key else None)
+        other = self.problem.detached()        # this problem's warm starts stay as they are
+        if start is None:
+            log.warning("the %s design's solve was not recorded: solved again without warm start", which)
+            return KeptDesign(other.solution(alpha, warm_start=False), {})
+        # the contexts the solve began from: bit for bit the solve that recorded them
+        log.info("the solve of the %s design repeated from the checkpoint", which)
+        other.import_contexts(start, f"checkpoint {self.run_dir.checkpoint}")
+        return KeptDesign(other.solution(alpha), {})
 
     def save(self, state, result=None, penalty=None) -> None:
         """Write the checkpoint (atomically, after history.csv is on disk)."""

@@ -43,6 +43,7 @@ from pathlib import Path
 import meshio
 import numpy as np
 from meshio._helpers import _writer_map
+from meshio.gmsh.common import _meshio_to_gmsh_type
 
 from ..errors import ContactOptError
 from ..fem.elasticity import element_geometry
@@ -167,7 +168,6 @@ def write_body_mesh(path, model, coords) -> Path:
 def _plain_gmsh(m) -> bool:
     """Whether :func:`_write_gmsh22_ascii` writes ``m``: 3D points, cells of a type whose Gmsh node
     order is VTK's, no data but the physical and geometrical tags, no periodic section."""
-    from meshio.gmsh.common import _meshio_to_gmsh_type
     return (m.points.ndim == 2 and m.points.shape[1] == 3 and not m.point_data and m.gmsh_periodic is None
             and set(m.cell_data) == {"gmsh:physical", "gmsh:geometrical"}
             and all(c.type in _meshio_to_gmsh_type and c.type not in _GMSH_REORDERED for c in m.cells))
@@ -179,7 +179,6 @@ _GMSH_REORDERED = ("tetra10", "hexahedron20", "hexahedron27", "wedge15", "pyrami
 def _write_gmsh22_ascii(path, m) -> None:
     """The bytes of meshio's Gmsh 2.2 ASCII writer (nodes as ``%.16e``, one line per element with
     its physical and geometrical tag), formatted from lists at once instead of line by line."""
-    from meshio.gmsh.common import _meshio_to_gmsh_type
     out = ["$MeshFormat\n2.2 0 8\n$EndMeshFormat\n"]
     names = sorted((int(dim), int(num), name) for name, (num, dim) in m.field_data.items())
     if names:
