@@ -6,7 +6,9 @@ configuration and puts the solver's contexts back, before the directory is touch
 :class:`~contactopt.io.rundir.RunDirectory` is claimed (lock, run.log, config.toml,
 history.csv); the optimizer runs through :func:`contactopt.optimize.minimize` (``method``
 "bundle", or "constrained" with [[constraints]]), checkpointing after every iteration; the
-result files are written at the optimum (:mod:`contactopt.io.outputs`).
+result files are written at the optimum (:mod:`contactopt.io.outputs`) from the optimization's
+own solves of α0 and of the returned design, which the run keeps (a resumed run repeats them
+from the contexts its checkpoint recorded), so that no state is solved after the last evaluation.
 
 Layout of a run directory::
 

@@ -10,8 +10,9 @@ stops the child (an exception or a signal in the parent): it ends by an exceptio
 that a file it was writing leaves no temporary behind.
 
 Forking is used only where it is safe and pays: on Linux, with more than one CPU available to
-the process, a single thread in it, and no MPI loaded (a forked MPI process may hang). Elsewhere
-the jobs run in the parent, at :meth:`Forked.join`: the files are the same either way.
+the process, no thread in it but the main one and the idle workers of the assembly's pool, and
+no MPI loaded (a forked MPI process may hang). Elsewhere the jobs run in the parent, at
+:meth:`Forked.join`: the files are the same either way.
 """
 
 from __future__ import annotations
@@ -39,7 +40,13 @@ def can_fork() -> bool:
         cpus = len(os.sched_getaffinity(0))
     except (AttributeError, OSError):
         cpus = os.cpu_count() or 1
-    return cpus > 1 and threading.active_count() == 1 and "mpi4py.MPI" not in sys.modules
+    others = [t for t in threading.enumerate() if t is not threading.main_thread()]
+    return cpus > 1 and all(t.name.startswith(IDLE_THREADS) for t in others) and "mpi4py.MPI" not in sys.modules
+
+
+IDLE_THREADS = ("contactopt-assembly",)
+"""Threads that may live in a process that forks: the assembly's pool, whose workers wait
+between the solves (the outputs solve nothing) and which a forked child makes anew."""
 
 
 class _Stop(BaseException):
