@@ -86,7 +86,7 @@ def contact_pressure(model, lam, coords) -> np.ndarray:
     coords = np.asarray(coords, float)
     if face_for(faces).degree == 1:
         return lam / contact_areas(coords, faces, nodes)
-    basis = getattr(getattr(model, "foundation", None), "basis", None)
+    basis = None if model.foundation is None else model.foundation.basis
     T = transformed_weights(faces, nodes)
     if basis is not None:       # mortar partners: forces of the transformed basis, areas ∫ N̂_m = T a
         return _ratio(lam, T @ contact_areas(coords, faces, nodes))
