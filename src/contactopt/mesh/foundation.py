@@ -91,7 +91,7 @@ def build_foundation_mesh(spec, contact_xy: np.ndarray, source: str, curved: boo
         if p is not None:
             fixed[np.ix_(p.nodes, sorted({COMPONENTS[c] for c in clamp.components}))] = True
     loaded = None
-    direction = getattr(spec, "translation", None)
+    direction = spec.translation
     if direction is not None:
         p = part("loaded", spec.loaded)
         if p is not None:
