@@ -308,8 +308,9 @@ FOUNDATION = {
                 "displacement over the node's tributary area: a foundation finer than the body then "
                 "converges; linear body elements only), 'mortar' (the relative displacement weighted by "
                 "the node's dual basis function over the segmented faces: the contact patch test passes "
-                "on non-matching meshes; linear body elements only) or 'auto' ('point' where every partner "
-                "is a node of the top face or the body's faces are quadratic, else 'mortar')"),
+                "on non-matching meshes; the transformed dual basis on six-node triangles, on a flat face) "
+                "or 'auto' ('point' where every partner is a node of the top face or the body's faces are "
+                "quadratic on a curved face, else 'mortar')"),
     "tolerance": (1e-3, lambda x: _pos(x) and x < 0.5,
                   "a number in (0, 0.5) (geometric tolerance of the checks of the foundation's mesh, "
                   "relative to its median boundary edge length)"),
@@ -351,6 +352,10 @@ OBSTACLE = {
                      "gap of contact node m as −d·n_m)"),
     "force": ([0.0, 0.0, 0.0], _vec3, "control = 'force': the resultant [f1, f2, f3] the obstacle exerts on the "
               "body"),
+    "weighting": ("node", _oneof("node", "mortar"),
+                  "'node' (each contact node's gap is its own distance to the obstacle) or 'mortar' (the "
+                  "dual-weighted gap D_jj⁻¹ ∫ Φ_j g dA over the faces around the node, Φ_j the dual basis of the "
+                  "face: linear faces on the paper's map or a normal motion without a chart; docs/mortar.md)"),
 }
 
 TOP_LEVEL = {"name": ("custom", lambda x: isinstance(x, str) and x != "", "a non-empty string"),

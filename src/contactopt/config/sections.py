@@ -414,6 +414,7 @@ class Obstacle:
     control: str
     displacement: list
     force: list
+    weighting: str = "node"
 
     @classmethod
     def from_dict(cls, d: dict) -> "Obstacle":

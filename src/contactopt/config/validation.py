@@ -456,13 +456,11 @@ def check_interactions(config, *, pinned: int = 0, rigid: str | None = None, pin
     the contact face); ``rigid``: the names of the rigid motions the clamps leave free (a body held
     only by contact), or None; ``pinned_held``: the pinned components are clamped at their partners
     on an elastic foundation too (symmetry planes through both bodies). These are properties of the
-    bodies built from ``config``. An elastic ``[foundation]`` takes neither a body held only by
-    contact (it rests on a rigid support) nor pinned components its partners do not hold (the
-    foundation's compliance would add to a clamped direction)."""
+    bodies built from ``config``. An elastic ``[foundation]`` does not take pinned components its
+    partners do not hold (the foundation's compliance would add to a clamped direction). No rule
+    reads ``rigid`` today: a body held only by contact rests on an elastic foundation as on a rigid
+    support (the anchor acts on the coupled stiffness, ``contactopt.paths.rigid``)."""
     problems = []
-    if config.foundation is not None and rigid is not None:
-        problems.append(f"body.clamped leaves rigid motions free ({rigid}): a body held only by contact rests on "
-                        "the rigid foundation or an [obstacle], not on an elastic [foundation]")
     if config.foundation is not None and pinned and not pinned_held:
         problems.append(f"body.clamped: {pinned} tangential component(s) of contact nodes are clamped (a symmetry "
                         "plane through the contact face), which an elastic [foundation] does not take (its "

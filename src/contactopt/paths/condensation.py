@@ -75,6 +75,7 @@ class CondensedSystem(SystemParts):
     beta: np.ndarray | None = None     # ... and the anchor's position β of this solve
     force: float | None = None         # a load step's |f| of a force-controlled obstacle (None: the model's)
     moved: float = 0.0                 # the force search's translation s of the counterpart (.force)
+    basis: object = None               # the transformed basis of quadratic faces (transforms.Basis): u_c = Vᵀ û
 
     @property
     def law_S(self) -> np.ndarray:
@@ -150,14 +151,16 @@ class CondensationPath(ZonePath):
             S = S - shift_c * np.eye(S.shape[0])
         if mech.rotate is not None:
             S, ell = mech.rotate.matrix(S), mech.rotate.vector(ell)
-        system = CondensedSystem(asm, fac, S, ell, asm.gap, {})
+        if mech.basis is not None:
+            S, ell = mech.basis.matrix(S), mech.basis.vector(ell)
+        system = CondensedSystem(asm, fac, S, ell, asm.gap, {}, basis=mech.basis)
         if mech.shift is not None:
             system = shifted(system, mech.shift.vector)
         if mech.couple is not None:
             system.coupling = Coupling(system.S, mech.couple)
             system.ell_eff = system.coupling.ell_eff(system.ell)
         if mech.anchor is not None:
-            system.rigid = anchor(self.model, mech.anchor, asm, system.S, mech.frames)
+            system.rigid = anchor(self.model, mech.anchor, asm, system.contact_S, mech.frames, mech.basis)
         system.timings["schur"] = time.perf_counter() - t1
         return system
 
@@ -177,6 +180,8 @@ class CondensationPath(ZonePath):
         ell = system.factor.condense_load(asm.L)
         if self.mechanics.rotate is not None:
             ell = self.mechanics.rotate.vector(ell)
+        if self.mechanics.basis is not None:
+            ell = self.mechanics.basis.vector(ell)
         out = replace(system, assembled=asm, ell=ell, timings={})
         if out.coupling is not None:
             out.ell_eff = out.coupling.ell_eff(ell)
@@ -219,6 +224,8 @@ class CondensationPath(ZonePath):
             u_c = np.ravel(u_c) + system.shift
         if system.coupling is not None:      # (in the nodes' frames on a curved face)
             u_c = system.coupling.body_displacement(u_c, r)
+        if self.mechanics.basis is not None:
+            return self.mechanics.basis.back(u_c)
         if self.mechanics.rotate is not None:
             return self.mechanics.rotate.back(np.ravel(u_c))
         return np.ravel(u_c)
@@ -228,8 +235,10 @@ class CondensationPath(ZonePath):
         (t1, t2, ν) — w = u_c − partner is the state's ``u_c`` — and the foundation's own."""
         if system.coupling is None:
             return None
-        rot = self.mechanics.rotate
+        rot, basis = self.mechanics.rotate, self.mechanics.basis
         body = (u_body if rot is None else rot.vector(np.ravel(u_body))).reshape(-1, 3)
+        if basis is not None:
+            body = basis.displacement(body).reshape(-1, 3)
         partner = body - np.reshape(u_c, (-1, 3))
         if system.moved:         # a force-controlled foundation: u_c's normal part omits the translation's
             partner = partner + system.moved * self.model.obstacle_force.gap_rate[:, None] * [0.0, 0.0, 1.0]
@@ -260,6 +269,8 @@ class CondensationPath(ZonePath):
             y_u = g[fac.c] - (system.assembled.A @ zhat)[fac.c]
             if self.mechanics.rotate is not None:   # global components at the contact nodes: into their frames
                 y_u = self.mechanics.rotate.vector(y_u)
+            if self.mechanics.basis is not None:    # ... and into the transformed basis
+                y_u = self.mechanics.basis.vector(y_u)
             if system.coupling is not None:  # ∂J/∂w of the body's contact displacement
                 y_c, y_u = y_u, system.coupling.to_eff(y_u)
         v_u, v_lam = solve_adjoint(system.contact_S, state, y_u, y_lam, choices)
@@ -267,6 +278,8 @@ class CondensationPath(ZonePath):
             z = v_u
         else:
             z = system.coupling.adjoint_z(v_u if y_c is None else v_u - self.foundation.C @ y_c)
+        if self.mechanics.basis is not None:
+            z = self.mechanics.basis.back(z)
         if self.mechanics.rotate is not None:
             z = self.mechanics.rotate.back(z)
         v = system.factor.extend(z)
@@ -287,6 +300,10 @@ class CondensationPath(ZonePath):
         return system.contact_S @ v_u
 
     def global_contact(self, v):
+        """A contact vector conjugate to u_c (a force, ∂J/∂u_c) in global components: Q v in the
+        nodes' frames, V⁻¹ v in the transformed basis."""
+        if self.mechanics.basis is not None:
+            v = self.mechanics.basis.force(v)
         rot = self.mechanics.rotate
         return v if rot is None else rot.back(np.asarray(v))
 
@@ -296,6 +313,8 @@ class CondensationPath(ZonePath):
         out = super().adjoint_carry(system, ctx, v_u, v_full, y_u)
         if self.mechanics.rotate is not None and self.is_full(y_u):
             out = self.mechanics.rotate.vector(out)
+        if self.mechanics.basis is not None and self.is_full(y_u):
+            out = self.mechanics.basis.vector(out)
         return out
 
     def uniqueness_bound(self, system):
