@@ -148,3 +148,19 @@ def test_a_curved_seat_pressed_by_a_force_balances_it_and_its_subgradient_matche
     gc = check_gradient(pb, alpha, n_directions=3, seed=0)
     assert gc.n_degenerate == 0
     assert np.max(gc.rel_errors) <= 1e-6, gc.rel_errors
+
+
+@pytest.mark.slow
+def test_two_load_cases_on_a_foundation_pressed_by_a_force():
+    """Each load case has its own translation of the foundation; ξ of the cases' objective
+    against central differences to 1e-6."""
+    f = {"block": BLOCK, "material": {"E": 2.0}, "control": "force", "force": [0.0, 0.0, FORCE]}
+    cfg = load_config(Path(__file__).parents[1] / "examples" / "example1_two_cases.toml").with_updates(
+        {**COARSE, "foundation": f})
+    pb = ShapeProblem(cfg)
+    alpha = _design(pb.model)
+    states = pb.solve_states(alpha)
+    assert len(states) == 2 and states[0].obstacle.translation != states[1].obstacle.translation
+    assert all(abs(st.lam.sum() - FORCE) <= 1e-8 * FORCE for st in states)
+    gc = check_gradient(pb, alpha, n_directions=3, seed=0)
+    assert gc.n_degenerate == 0 and np.max(gc.rel_errors) <= 1e-6, gc.rel_errors

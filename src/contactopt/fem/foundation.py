@@ -208,7 +208,16 @@ class Foundation:
         return u
 
     def summary(self) -> dict:
+        """The foundation as summary.json and state.json write it; with control = 'displacement'
+        or 'force' the translation d or the force's direction f̂ (the state's
+        ``obstacle_translation`` is then s, the translation along f̂)."""
         fm = self.mesh
+        control = {} if self.translation is None else {
+            "control": self.control, ("displacement" if self.control == "displacement" else "direction"):
+            self.translation.tolist(), "loaded_nodes": int(fm.loaded.size)}
+        return {**self._summary(fm), **control}
+
+    def _summary(self, fm) -> dict:
         return {"source": fm.reference.source, "cell_type": fm.reference.cell_type, "nodes": int(self.n_nodes),
                 "cells": int(fm.reference.n_cells), "free_dofs": int(self.assembler.n_free), "E": fm.E,
                 "nu": fm.nu, "support_nodes": int(self.support.size), "partner": self.partner,
