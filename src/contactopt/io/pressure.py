@@ -77,7 +77,7 @@ def contact_pressure(model, lam, coords) -> np.ndarray:
     coords = np.asarray(coords, float)
     if face_for(faces).degree == 1:
         return lam / contact_areas(coords, faces, nodes)
-    basis = getattr(getattr(model, "foundation", None), "basis", None)
-    if basis is not None:       # mortar partners: forces of the transformed basis, areas ∫ N̂_m = T a
-        return lam / (basis @ contact_areas(coords, faces, nodes))
+    if model.foundation is not None and model.foundation.basis is not None:
+        # mortar partners: forces of the transformed basis, areas ∫ N̂_m = T a
+        return lam / (model.foundation.basis @ contact_areas(coords, faces, nodes))
     return spla.spsolve(face_mass(coords, faces, nodes).tocsc(), lam)
