@@ -143,6 +143,15 @@ class Foundation:
         self.f_f = f_full[self.assembler.free]                    # K_f u_f0 = f_f
         self._u0 = self.condensation.solve(self.f_f) if np.any(self.f_f) else np.zeros_like(self.f_f)
         self.q_f = P @ self._u0[self._support_free]               # Π K_f⁻¹ f_f (3p,)
+        # control = 'displacement' | 'force': the part `loaded` and the foundation with it translate
+        # rigidly by d (mesh.foundation checks that the clamps allow it): the partners move by Π d
+        self.control = spec.control
+        self.translation = None if fm.loaded is None else np.asarray(spec.translation, float)
+        self.motion = None          # (3p,) Π d per contact node, d the translation (per unit s with 'force')
+        if self.translation is not None:
+            self.motion = np.asarray(self.Pi @ np.tile(self.translation, self.support.size))
+            if spec.control == "displacement":
+                self.q_f = self.q_f + self.motion
         log.info("elastic foundation %s: %d nodes, %d free DOFs, E = %g, nu = %g; %d top-face nodes carry "
                  "the partners of %d contact nodes", ref.source, ref.n_nodes, self.assembler.n_free, fm.E, fm.nu,
                  self.support.size, p)
@@ -177,6 +186,8 @@ class Foundation:
         C = np.asarray(Q @ (Q @ self.C).T)
         self.C = 0.5 * (C + C.T)
         self.q_f = Q @ self.q_f
+        if self.motion is not None:
+            self.motion = Q @ self.motion
 
     @property
     def n_nodes(self) -> int:
@@ -186,12 +197,17 @@ class Foundation:
         """Π u_f = Π q_f − C r (3p,) for the contact forces r on the body (3p, per node (t1, t2, ν))."""
         return self.q_f - self.C @ np.ravel(r)
 
-    def displacement(self, r: np.ndarray) -> np.ndarray:
+    def displacement(self, r: np.ndarray, s: float = 0.0) -> np.ndarray:
         """The foundation's full displacement (3·n_f,) under its own loads f_f and −Πᵀ r (zero on
-        its clamped DOFs)."""
+        its clamped DOFs), plus its rigid translation: d with control = 'displacement', s f̂ with
+        control = 'force' (``s`` the state's translation)."""
         f = np.zeros(self.assembler.n_free)
         f[self._support_free] = -(self.P.T @ np.ravel(r))
-        return self.assembler.to_full(self.condensation.solve(f) + self._u0)
+        u = self.assembler.to_full(self.condensation.solve(f) + self._u0)
+        if self.translation is not None:
+            scale = 1.0 if self.control == "displacement" else s
+            u = u + scale * np.tile(self.translation, self.n_nodes)
+        return u
 
     def summary(self) -> dict:
         fm = self.mesh

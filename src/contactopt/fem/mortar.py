@@ -58,7 +58,8 @@ import scipy.sparse as sp
 from ..mesh.segmentation import Segmentation, is_affine, reference_coordinates, segment
 from .elements import face_type, tri_rule
 
-__all__ = ["MortarCoupling", "dual_coefficients", "mortar_coupling", "mortar_matrices", "transformed_basis"]
+__all__ = ["MortarCoupling", "dual_coefficients", "dual_weighted", "mortar_coupling", "mortar_matrices",
+           "transformed_basis"]
 
 QUAD_EXTRA = 6    # degree added on quadrilaterals that are not parallelograms (Φ, N not polynomial in the plane)
 ALPHA = 0.2       # the share of a mid-side function a corner of a six-node triangle takes (module docstring)
@@ -123,6 +124,53 @@ def dual_coefficients(ftype, X: np.ndarray) -> np.ndarray:
     Me = np.einsum("fq,qa,qb->fab", dA, N, N)
     De = Me.sum(axis=2)                                           # ∫ N_j (Σ_k N_k = 1)
     return De[:, :, None] * np.linalg.inv(Me)                     # D_e M_e⁻¹ (M_e symmetric)
+
+
+def _face_rule(ft, degree: int):
+    """Points and weights of the reference face exact to ``degree`` (a Gauss product on the square)."""
+    if ft.name == "quad":
+        g, w = np.polynomial.legendre.leggauss(degree // 2 + 1)
+        return np.array([(a, b) for b in g for a in g]), np.outer(w, w).ravel()
+    return tri_rule(degree)
+
+
+def dual_weighted(ftype, faces: np.ndarray, points: np.ndarray, nodes: np.ndarray, values, degree: int = 8):
+    """Dual-weighted nodal values of fields given at points of the body's face (a rigid counterpart:
+    the gap to an obstacle, the design's lift): for every node j of ``nodes``
+
+        D_jj = ∫_Γ Φ_j N_j dA,   v_j = D_jj⁻¹ ∫_Γ Φ_j f dA,
+
+    Φ_j the dual basis of the faces (module docstring) on their own geometry (``points`` (n, 3), the
+    flat facets of the face ``faces`` (F, k) of type ``ftype``), integrated with a rule exact to
+    ``degree`` on each face. ``values(x)`` gives the fields f at points x (K, 3): (K, c). Returns
+    (D (len(nodes),), v (len(nodes), c)). Biorthogonality makes v_j = f(x_j) for every f linear on
+    each face (∫ Φ_j N_k = δ_jk D_jj): node-wise values are kept where the field is the face's own
+    interpolant, and a field curved within a face is weighted by its integral over the node's
+    faces instead of read at the node. Linear faces only.
+
+    Sign convention: v has the sign of f (a gap g ≥ 0 open, < 0 overlapping), D_jj > 0; the order of
+    the rows is the order of ``nodes``."""
+    ft = face_type(ftype)
+    if ft.degree != 1:
+        raise ValueError(f"dual-weighted values are built for linear faces only, not {ft.name}")
+    faces = np.asarray(faces, np.int64)
+    q, w = _face_rule(ft, degree)
+    N, dN = ft.shape(q)
+    X = np.asarray(points, float)[faces]                                   # (F, k, 3)
+    T1, T2 = np.einsum("fam,qa->fqm", X, dN[:, :, 0]), np.einsum("fam,qa->fqm", X, dN[:, :, 1])
+    dA = np.linalg.norm(np.cross(T1, T2), axis=2) * w                      # (F, Q)
+    Me = np.einsum("fq,qa,qb->fab", dA, N, N)
+    A = Me.sum(axis=2)[:, :, None] * np.linalg.inv(Me)                     # D_e M_e⁻¹
+    Phi = np.einsum("fab,qb->fqa", A, N) * dA[:, :, None]                  # Φ_j dA  (F, Q, k)
+    xq = np.einsum("qa,fam->fqm", N, X).reshape(-1, 3)
+    f = np.asarray(values(xq), float).reshape(faces.shape[0], q.shape[0], -1)
+    n_all = int(max(faces.max(initial=-1), np.max(nodes, initial=-1))) + 1
+    D = np.bincount(faces.ravel(), weights=np.einsum("fqa,qa->fa", Phi, N).ravel(), minlength=n_all)
+    Wf = np.einsum("fqa,fqc->fac", Phi, f)
+    V = np.stack([np.bincount(faces.ravel(), weights=Wf[:, :, c].ravel(), minlength=n_all)
+                  for c in range(f.shape[2])], axis=1)
+    nodes = np.asarray(nodes, np.int64)
+    return D[nodes], V[nodes] / D[nodes, None]
 
 
 def mortar_matrices(s_type, s_faces: np.ndarray, s_xy: np.ndarray, m_type, m_faces: np.ndarray,

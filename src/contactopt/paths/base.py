@@ -150,11 +150,13 @@ class SystemParts:
     it has none (a path's system class declares those it can hold as fields): ``coupling`` the
     :class:`~contactopt.fem.foundation.Coupling` of an elastic foundation (S_eff, ℓ_eff), ``product``
     x ↦ A(α) x on the free DOFs where A(α) is not formed on this process, ``force`` a load step's
-    |f| of a force-controlled obstacle (None: the model's)."""
+    |f| of a force-controlled obstacle (None: the model's), ``basis`` the transformed basis of
+    six-node triangles with mortar partners (:class:`~contactopt.paths.transforms.Basis`)."""
 
     coupling = None
     product = None
     force = None
+    basis = None
 
 
 class Adjoint(NamedTuple):

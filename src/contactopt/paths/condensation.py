@@ -74,6 +74,7 @@ class CondensedSystem(SystemParts):
     rigid: Anchor | None = None        # a body held only by contact: the kernel of S (module docstring)
     beta: np.ndarray | None = None     # ... and the anchor's position β of this solve
     force: float | None = None         # a load step's |f| of a force-controlled obstacle (None: the model's)
+    moved: float = 0.0                 # the force search's translation s of the counterpart (.force)
     basis: object = None               # the transformed basis of quadratic faces (transforms.Basis): u_c = Vᵀ û
 
     @property
@@ -192,7 +193,7 @@ class CondensationPath(ZonePath):
     def translated(self, system, s, c, e):
         """The obstacle translated by s f̂ (:mod:`.force`): the gap falls by s c, the law's load
         by S s e (:func:`shifted`)."""
-        moved = replace(system, gap=system.gap - s * c)
+        moved = replace(system, gap=system.gap - s * c, moved=s)
         return shifted(moved, s * e) if np.any(e) else moved
 
     def normal_stiffness(self, system):
@@ -238,7 +239,11 @@ class CondensationPath(ZonePath):
         body = (u_body if rot is None else rot.vector(np.ravel(u_body))).reshape(-1, 3)
         if basis is not None:
             body = basis.displacement(body).reshape(-1, 3)
-        return FoundationState(u_body_c=body, u_partner=body - u_c, displacement=self.foundation.displacement(r))
+        partner = body - np.reshape(u_c, (-1, 3))
+        if system.moved:         # a force-controlled foundation: u_c's normal part omits the translation's
+            partner = partner + system.moved * self.model.obstacle_force.gap_rate[:, None] * [0.0, 0.0, 1.0]
+        return FoundationState(u_body_c=body, u_partner=partner,
+                               displacement=self.foundation.displacement(r, system.moved))
 
     def load_scale(self, system):
         return system.contact_ell
@@ -282,6 +287,15 @@ class CondensationPath(ZonePath):
             v = v - zhat
         return Adjoint(v_u, v_lam, self.model.assembler.to_full(v))
 
+    def law_extension(self, system, x: np.ndarray) -> np.ndarray:
+        """The A-harmonic extension, on every DOF, of the body's contact displacement that the
+        law's displacement x (3p, per node frame) gives at fixed forces: S⁻¹ S_eff x on a
+        foundation (:meth:`~contactopt.fem.foundation.Coupling.adjoint_z`), x itself elsewhere."""
+        z = x if system.coupling is None else system.coupling.adjoint_z(x)
+        if self.mechanics.rotate is not None:
+            z = self.mechanics.rotate.back(z)
+        return self.model.assembler.to_full(system.factor.extend(z))
+
     def adjoint_force(self, system, ctx, v_u):
         return system.contact_S @ v_u
 
@@ -322,5 +336,9 @@ class CondensationPath(ZonePath):
 def shifted(system: CondensedSystem, shift: np.ndarray) -> CondensedSystem:
     """The system whose contact law sees the displacement relative to an obstacle translated
     tangentially by ``shift`` (3p, per node frame, normal parts 0): w = u_c − shift, so
-    S w − ℓ_eff = r with ℓ_eff = ℓ − S shift; the body's own u_c is w + shift."""
-    return replace(system, shift=shift, ell_eff=system.ell - system.S @ shift)
+    S w − ℓ_eff = r with ℓ_eff = ℓ − S shift; the body's own u_c is w + shift. On an elastic
+    foundation translated by a force (:mod:`.force`) the law's w is relative to the partners and
+    its stiffness S_eff: ℓ_eff = S_eff (S⁻¹ℓ − Π q_f) − S_eff shift."""
+    if system.coupling is None:
+        return replace(system, shift=shift, ell_eff=system.ell - system.S @ shift)
+    return replace(system, shift=shift, ell_eff=system.coupling.ell_eff(system.ell) - system.S_eff @ shift)

@@ -137,7 +137,8 @@ def held_state(solve, system, tol: float, method: str = "newton"):
         k = int(np.argmax(np.abs(worst) / np.linalg.norm(an.R, axis=0)))
         raise SolverError(f"{an.names[k]} is not held: after {MAX_ANCHOR_STEPS} anchor steps the contact forces "
                           f"still leave {history[-1]:.3g} of the load unbalanced on the free rigid motions "
-                          "(a load near the limit of what friction holds?)")
+                          "(the load has a component along a rigid motion that nothing holds, or lies near the "
+                          "limit of what friction holds; check body.clamped and the loads)")
     st.rigid = RigidAnchor(iterations=len(history), residual=history[-1])
     log.debug("body held only by contact: %d anchor step(s), unbalanced %.2e", len(history), history[-1])
     return st

@@ -174,8 +174,7 @@ class Mechanics:
                    shift=None if model.slip_shift is None else Shift(model.slip_shift),
                    couple=model.foundation, anchor=model.body.rigid,
                    search=None if model.obstacle_force is None else ForceSearch(model.obstacle_force),
-                   basis=None if model.foundation is None or model.foundation.basis is None
-                   else Basis(model.foundation.basis))
+                   basis=None if model.foundation is None or model.foundation.basis is None else Basis(model.foundation.basis))
 
     @property
     def frames(self) -> np.ndarray | None:
