@@ -1,6 +1,6 @@
 """Mortar partners on the elastic foundation: the contact patch test, convergence, cost.
 
-    python benchmarks/bench_mortar.py [--part patch|meshes|hertz|tets|cost|all] [--steps 6]
+    python benchmarks/bench_mortar.py [--part patch|meshes|hertz|tets|cost|cost10|all] [--steps 6]
 
 patch   The contact patch test of contactopt.verification.patch (overlap loading) with point,
         averaged and mortar partners, F = 0 and 0.3: max and rms of (λ/a − p)/p, max ‖τ‖/(a p).
@@ -23,6 +23,9 @@ cost    examples/example1_elastic.toml (body 32×15×9, slab 24×16×8: non-matc
         build the partners (segmentation and mortar matrices once per run) and the median time of
         one evaluation (state + subgradient) along a path of small design steps, mortar against
         averaged partners, the two problems taking turns at every design (ratio in one run).
+cost10  A tet10 body 8×8×2 on hexahedra 10×10×2 (the patch test's blocks, a sideways pull): the
+        median time of one evaluation with mortar partners in the transformed basis against point
+        partners, taking turns at every design (ratio in one run).
 """
 
 from __future__ import annotations
@@ -215,9 +218,35 @@ def cost(steps: int) -> None:
           f"partners ×{build['mortar'] / build['average']:.2f}")
 
 
+def cost10(steps: int) -> None:
+    with tempfile.TemporaryDirectory() as tmp:
+        pbs = {}
+        for partner in ("point", "mortar"):
+            Path(tmp, partner).mkdir()
+            cfg = patch_config(8, 10, 0.3, Path(tmp, partner), body="tetra10", partner=partner)
+            pbs[partner] = ShapeProblem(cfg.with_updates(
+                {"design": {"degree": [2, 2], "initial": -0.002},
+                 "loads": {"traction": [{"on": {"x3": 1.0}, "value": [0.02, 0.01, 0.0]}]}}))
+        a = pbs["mortar"].model.initial_design()
+        for pb in pbs.values():
+            pb.evaluate(a)                           # cold
+        rng = np.random.default_rng(0)
+        times = {k: [] for k in pbs}
+        for _ in range(steps):
+            a = a + 1e-4 * rng.standard_normal(a.size)
+            for name, pb in pbs.items():
+                t = time.perf_counter()
+                pb.evaluate(a)
+                times[name].append(time.perf_counter() - t)
+    med = {k: statistics.median(v) for k, v in times.items()}
+    for name, t in med.items():
+        print(f"tet10 body, {name:6s} partners: {t:.3f} s per evaluation")
+    print(f"mortar (transformed basis) / point: evaluation ×{med['mortar'] / med['point']:.3f}")
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--part", default="all", choices=["patch", "meshes", "hertz", "tets", "cost", "all"])
+    ap.add_argument("--part", default="all", choices=["patch", "meshes", "hertz", "tets", "cost", "cost10", "all"])
     ap.add_argument("--steps", type=int, default=6)
     ap.add_argument("--sizes", type=int, nargs="+", default=[6, 8, 10], help="tets: element sizes a/k")
     args = ap.parse_args()
@@ -231,6 +260,8 @@ def main() -> None:
         tets(tuple(args.sizes))
     if args.part in ("cost", "all"):
         cost(args.steps)
+    if args.part in ("cost10", "all"):
+        cost10(args.steps)
 
 
 if __name__ == "__main__":

@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 
 from contactopt.config import load_config, validate
+from contactopt.errors import ConfigError
 from contactopt.fem.elements import face_type
 from contactopt.fem.mortar import dual_coefficients, mortar_matrices
 from contactopt.mesh.segmentation import clip_convex, segment, signed_area
@@ -201,6 +202,17 @@ def test_quadratic_body_faces_take_the_transformed_dual_basis(tmp_path):
     p = contact_pressure(pb.model, st.lam, st.coords)
     assert np.abs(p / exact_pressure(st.coords, pb.model.contact_nodes) - 1.0).max() <= 1e-8
     assert np.all(pb.model.contact_areas() > 0)
+
+
+def test_the_transformed_basis_needs_whole_edges_in_contact(tmp_path):
+    """A corner of the tet10 face with u3 clamped (no contact node) leaves edges half in contact:
+    'mortar' is refused by name, 'auto' keeps point partners."""
+    raw = patch_config(4, 5, 0.3, tmp_path, body="tetra10", partner="mortar").to_dict()
+    raw["body"]["clamped"].append({"on": {"box": [[-1e-6, 0.13], [-1e-6, 0.13], [-1e-6, 1e-6]]}, "components": [3]})
+    with pytest.raises(ConfigError, match="needs every node of an edge of the contact face in contact"):
+        ShapeProblem(load_config(raw))
+    raw["foundation"]["partner"] = "auto"
+    assert ShapeProblem(load_config(raw)).model.foundation.partner == "point"
 
 
 # ------------------------------------------------------------------ subgradients

@@ -101,6 +101,8 @@ class Foundation:
         self._check_pinned(body, fm, faces, weights, source)
         if self.partner == "auto":
             self.partner = auto_partner(weights, face_type(body.reference.face_type).degree, curved=normals is not None)
+            if self.partner == "mortar" and open_edges(body).size:
+                self.partner = "point"      # the transformed basis needs whole edges in contact
             log.info("foundation.partner = 'auto': %r", self.partner)
         if self.partner == "point":
             rows, cols, vals = np.repeat(np.arange(p), weights.shape[1]), fm.top.faces[faces].ravel(), weights.ravel()
@@ -485,16 +487,31 @@ def mortar_partners(body, fm, where: str, chart=None):
              seg.n_cells, faces.shape[0], top.shape[0])
     basis = None
     if ftype.degree != 1:
-        T = transformed_basis(ftype, faces, ref.n_nodes)
-        nodes = body.contact_nodes
-        off = np.setdiff1d(np.unique(faces), nodes)
-        if off.size and (T[off][:, nodes].nnz or T[nodes][:, off].nnz):
+        off = open_edges(body)
+        if off.size:
             raise ConfigError([f"{where}: foundation.partner = 'mortar' on six-node triangles needs every node of "
                                f"an edge of the contact face in contact (the transformed basis mixes an edge's "
-                               f"nodes), and {off.size} node(s) of the face are not, first: body node "
+                               f"nodes), and {off.size} node(s) on such edges are not, first: body node "
                                f"{int(off[0])}"])
-        basis = sp.csr_matrix(T[nodes][:, nodes])
+        nodes = body.contact_nodes
+        basis = sp.csr_matrix(transformed_basis(ftype, faces, ref.n_nodes)[nodes][:, nodes])
     return Pi.row, Pi.col, Pi.data, basis
+
+
+def open_edges(body) -> np.ndarray:
+    """The nodes of the contact face outside the contact set that share an edge of a six-node
+    triangle with a contact node (empty on linear faces): the transformed basis (fem.mortar) mixes
+    an edge's nodes, so it needs whole edges in contact."""
+    ref = body.reference
+    ftype = face_type(ref.face_type)
+    faces = body.contact_face.faces
+    off = np.setdiff1d(np.unique(faces), body.contact_nodes)
+    if ftype.degree == 1 or off.size == 0:
+        return np.zeros(0, int)
+    T = transformed_basis(ftype, faces, ref.n_nodes)
+    nodes = body.contact_nodes
+    mixed = (abs(T[off][:, nodes]).sum(axis=1).A1 > 0) | (abs(T[nodes][:, off]).sum(axis=0).A1 > 0)
+    return off[mixed]
 
 
 def averaged_partners(body, fm, where: str):
