@@ -155,6 +155,21 @@ def test_force_control_with_weighted_gaps_balances_the_force_and_matches_central
     assert np.max(rep.rel_errors) <= 1e-6, rep.rel_errors
 
 
+@pytest.mark.slow
+def test_a_load_path_with_weighted_gaps_matches_central_differences(tmp_path):
+    # a force-controlled sphere pressed in two steps (the second of two substeps) on tetrahedra,
+    # with friction: Θ and ξ summed over the steps
+    obstacle = {**FORCED["sphere"], "weighting": "mortar"}
+    steps = [{"name": "a", "obstacle_force": [0.0, 0.0, 0.6]},
+             {"name": "b", "obstacle_force": [0.0, 0.0, 1.2], "substeps": 2}]
+    problem = ShapeProblem(tet_block(tmp_path, obstacle).with_updates({"load_steps": steps}))
+    assert problem.has_load_steps
+    alpha = 0.002 * np.sin(np.arange(problem.model.n_design)) + 0.001
+    rep = check_gradient(problem, alpha, seed=3, n_directions=3)
+    assert rep.n_degenerate == 0
+    assert np.max(rep.rel_errors) <= 1e-6, rep.rel_errors
+
+
 def test_quadratic_faces_and_unknown_weightings_are_refused(tmp_path):
     hexes = block_mesh(2.0, 2.0, 1.0, 4, 4, 2)
     pts, cells = tet4_to_tet10(hexes.points, hex_to_tets(hexes.cells))
