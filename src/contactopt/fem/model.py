@@ -29,6 +29,7 @@ from dataclasses import dataclass
 
 import numpy as np
 import scipy.sparse as sp
+import scipy.sparse.linalg as spla
 
 from .._threads import sequential_openblas
 from ..config import Config, load_config
@@ -71,11 +72,24 @@ class ObstacleForce:
     translates by s f̂ along its force f of length ``magnitude``; per contact node m ``b`` (p, 3) =
     R_mᵀ f̂ in the node's frame (t1, t2, n), so that the resultant along f̂ is Σ_m b_m·r_m (r_m the
     force on the body in that frame), and ``gap_rate`` (p,) = f̂·n_m, by which the gap g_m falls per
-    unit of s (:mod:`contactopt.paths.force`)."""
+    unit of s (:mod:`contactopt.paths.force`).
+
+    A force-controlled elastic foundation (``[foundation] control = "force"``) translates the same
+    way: its partners move by ``motion`` (p, 3) per unit s (Π f̂ per node frame, b_m where the
+    partner weights sum to one); ``gap_rate`` is then motion's normal part. None: the counterpart
+    is rigid and moves by b_m under every node."""
 
     magnitude: float
     b: np.ndarray
     gap_rate: np.ndarray
+    motion: np.ndarray | None = None
+
+    @property
+    def slip(self) -> np.ndarray:
+        """(3p,) the tangential translation under each contact node per unit s (per node (t1, t2, n),
+        normal parts 0): the law sees w = u_c − s·slip."""
+        m = self.b if self.motion is None else self.motion
+        return (m * [1.0, 1.0, 0.0]).ravel()
 
 
 @dataclass(init=False, eq=False, repr=False)
@@ -195,6 +209,32 @@ class ElasticModel:
         self.body_force = self.loads.body_force
         if cfg.foundation is not None and self.foundation is None:
             self.foundation = Foundation(cfg.foundation, body, source=cfg.source, check=check)
+            if self.foundation.basis is not None:   # six-node triangles, mortar partners: ĝ = T⁻ᵀ g (fem.mortar)
+                lu = spla.splu(sp.csc_matrix(self.foundation.basis.transpose()))
+                self.gap_matrix = lu.solve(np.asarray(self.gap_matrix, float))
+                self.gap0 = lu.solve(np.asarray(self.gap0, float))
+        if cfg.foundation is not None and cfg.foundation.control == "force":
+            self._foundation_force(cfg.foundation)
+
+    def _foundation_force(self, spec) -> None:
+        """A force-controlled foundation: its loaded part, and the foundation with it, translate by
+        s f̂ (:class:`ObstacleForce`); the contact forces on the body balance the force on the part
+        and the foundation's own loads along f̂: Σ_m b_m·r_m = |f| + f̂·(their resultant)."""
+        fnd = self.foundation
+        f = np.asarray(spec.force, float)
+        fhat = f / np.linalg.norm(f)
+        p = self.contact_nodes.size
+        R = self.frames if self.frames is not None else np.broadcast_to(np.eye(3), (p, 3, 3))
+        motion = fnd.motion.reshape(-1, 3)
+        total = float(np.linalg.norm(f) + fhat @ fnd.load_resultant)
+        if not total > 0:
+            raise ConfigError([f"{self.config.source}: foundation.force = {spec.force}: the foundation's own loads "
+                               f"pull it away from the body by more than the force (the contact resultant along "
+                               f"the force would be {total:.6g} ≤ 0)"])
+        self.obstacle_force = ObstacleForce(total, np.einsum("mij,i->mj", R, fhat), motion[:, 2].copy(), motion)
+        if not np.any(self.obstacle_force.gap_rate > 0):
+            raise ConfigError([f"{self.config.source}: foundation.force = {spec.force}: no contact node's normal has "
+                               "a component along the force: the foundation cannot press the body"])
 
     @property
     def force(self) -> float | None:
@@ -468,10 +508,15 @@ class ElasticModel:
         """Tributary areas ∫N_m dS of the contact nodes on the (flat) reference contact face, which
         turn a contact stress σ into nodal forces λ_m ≈ σ(x'_m)·A_m: the consistent nodal forces
         of a uniform stress (on six-node triangles they vanish at the corners, as do the nodal
-        forces of a uniform pressure)."""
+        forces of a uniform pressure). With mortar partners on six-node triangles the forces are
+        those of the transformed basis N̂ = T N (:mod:`contactopt.fem.mortar`), and the areas
+        ∫N̂_m dS = (T a)_m, positive at every node."""
         ref = self.body.reference
         areas = face_areas_nodal(ref.points, self.body.contact_face.faces, face=self.assembler.element.face)
-        return areas[self.contact_nodes]
+        areas = areas[self.contact_nodes]
+        if self.foundation is not None and self.foundation.basis is not None:
+            return self.foundation.basis @ areas
+        return areas
 
     # ------------------------------------------------------------------ A(α), L(α)
     def load_vector(self, coords: np.ndarray, loads=None) -> np.ndarray:

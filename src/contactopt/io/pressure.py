@@ -15,15 +15,18 @@ p_m = p̄ to round-off.
 On six-node triangles (P2) ∫ N_m dS vanishes at the corners of a flat face, and the consistent
 nodal forces of a uniform pressure vanish there too: λ/a is 0/0 (and the L²-projection M p = λ
 overshoots: negative at the edge of the contact, nonzero outside it). There the pressure is read
-in the transformed basis of Popp et al., N̂_c = N_c + β Σ N_m over the edges (c, m) at corner c,
-N̂_m = (1 − 2β) N_m at midside node m, β = 1/5, whose integrals are all positive:
+in the transformed basis of Popp et al. (``contactopt.fem.mortar.transformed_basis``),
+N̂_c = N_c + β Σ N_m over the edges (c, m) at corner c, N̂_m = (1 − 2β) N_m at midside node m,
+β = 1/5, whose integrals are all positive:
 
     p_j = (T λ)_j / (T a)_j,   (T v)_c = v_c + β Σ_(c,m) v_m,   (T v)_m = (1 − 2β) v_m,
 
 the forces and areas the transformed functions gather. A midside node keeps λ_m / a_m, a corner
 node takes its own force with those of the midside nodes of its edges. Every p_j ≥ 0 where λ ≥ 0,
 p_j = 0 more than one element away from the forces, and a uniform p̄ is recovered exactly
-(λ_m = p̄ a_m). :func:`face_classes` classes the corner nodes with the same weights.
+(λ_m = p̄ a_m). :func:`face_classes` classes the corner nodes with the same weights. With mortar
+partners on an elastic foundation the forces are already those of the transformed basis: there
+p_m = λ_m / (T a)_m, the dual pressure.
 """
 
 from __future__ import annotations
@@ -33,11 +36,10 @@ import scipy.sparse as sp
 
 from ..contact.state import classify_nodes
 from ..fem.elements import face_for
+from ..fem.mortar import transformed_basis
 
 __all__ = ["contact_areas", "contact_pressure", "face_classes", "face_mass", "transformed_weights"]
 
-BETA = 0.2          # the corner weight of the transformed basis of six-node triangles (Popp et al.)
-_TRI6_CORNER_EDGES = ((0, 3), (0, 5), (1, 3), (1, 4), (2, 4), (2, 5))     # (corner, midside) pairs
 
 
 def _face_jacobians(coords: np.ndarray, faces: np.ndarray):
@@ -84,7 +86,10 @@ def contact_pressure(model, lam, coords) -> np.ndarray:
     coords = np.asarray(coords, float)
     if face_for(faces).degree == 1:
         return lam / contact_areas(coords, faces, nodes)
+    basis = None if model.foundation is None else model.foundation.basis
     T = transformed_weights(faces, nodes)
+    if basis is not None:       # mortar partners: forces of the transformed basis, areas ∫ N̂_m = T a
+        return _ratio(lam, T @ contact_areas(coords, faces, nodes))
     return _ratio(T @ lam, T @ contact_areas(coords, faces, nodes))
 
 
@@ -97,23 +102,12 @@ def _ratio(num, den):
 def transformed_weights(faces: np.ndarray, nodes: np.ndarray) -> sp.csr_matrix:
     """T of the module docstring on six-node triangles ``faces`` (F, 6; corners, then the
     midpoints of the edges 01, 12, 20), restricted to ``nodes`` (rows and columns in their order):
-    (T v)_c = v_c + β Σ v_m over the distinct edges (c, m) of the face at corner c, (T v)_m =
-    (1 − 2β) v_m. Nodal forces and areas pass through T as the transformed functions gather them."""
+    ``contactopt.fem.mortar.transformed_basis`` on the face's nodes. Nodal forces and areas pass
+    through T as the transformed functions gather them."""
     faces = np.asarray(faces, np.int64)
     nodes = np.asarray(nodes, np.int64)
-    index = np.full(max(int(faces.max(initial=-1)), int(nodes.max(initial=-1))) + 1, -1, np.int64)
-    index[nodes] = np.arange(nodes.size)
-    pairs = np.unique(np.concatenate([faces[:, [c, m]] for c, m in _TRI6_CORNER_EDGES]), axis=0)
-    pairs = index[pairs]
-    pairs = pairs[np.all(pairs >= 0, axis=1)]
-    corners = index[np.unique(faces[:, :3])]
-    corner = np.zeros(nodes.size, bool)
-    corner[corners[corners >= 0]] = True
-    diag = np.where(corner, 1.0, 1.0 - 2.0 * BETA)
-    T = sp.coo_matrix((np.r_[diag, np.full(len(pairs), BETA)],
-                       (np.r_[np.arange(nodes.size), pairs[:, 0]], np.r_[np.arange(nodes.size), pairs[:, 1]])),
-                      shape=(nodes.size, nodes.size))
-    return T.tocsr()
+    n = max(int(faces.max(initial=-1)), int(nodes.max(initial=-1))) + 1
+    return transformed_basis(face_for(faces), faces, n)[nodes][:, nodes].tocsr()
 
 
 def face_classes(model, state) -> np.ndarray:
@@ -121,12 +115,14 @@ def face_classes(model, state) -> np.ndarray:
     state's own on linear faces; on six-node triangles each node classed by the forces T λ, T τ
     and the clearance T(a (u_ν + g)) / (T a) of the transformed functions (module docstring), so that
     a corner node inside the contact, which carries no force of its own, is classed by the forces
-    around it. The state's classes (the ones its subgradient takes) are not changed.
+    around it. The state's classes (the ones its subgradient takes) are not changed. With mortar
+    partners on an elastic foundation the state's law already acts on the transformed forces and
+    displacements: its own classes are those of the maps.
 
     Sign convention: as the state's, per contact node (t1, t2, ν): λ ≥ 0 pushes the body off its
     counterpart, τ = −r_t, u_ν + g ≥ 0 the clearance."""
     faces = np.asarray(model.body.contact_face.faces, np.int64)
-    if face_for(faces).degree == 1:
+    if face_for(faces).degree == 1 or (model.foundation is not None and model.foundation.basis is not None):
         return np.asarray(state.classes)
     nodes = np.asarray(model.contact_nodes, np.int64)
     T = transformed_weights(faces, nodes)
