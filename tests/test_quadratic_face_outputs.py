@@ -78,3 +78,18 @@ def test_the_transformed_weights_recover_a_uniform_pressure_and_keep_the_total_f
     # Σ_j N̂_j = Σ_k N_k = 1: every column of T sums to one (every face node is a contact node here)
     assert np.all(np.isin(np.unique(faces), nodes))
     assert np.abs(np.asarray(T.sum(axis=0)).ravel() - 1.0).max() <= 1e-15
+
+
+def test_with_the_foundations_transformed_basis_the_maps_read_the_state_as_it_is(tmp_path):
+    # mortar partners on a tet10 body: the state's forces and classes are those of the transformed
+    # basis already; the maps do not transform them again (the patch test's uniform pressure)
+    from contactopt.problem import ShapeProblem
+    from contactopt.verification.patch import exact_pressure, patch_config
+
+    pb = ShapeProblem(patch_config(4, 5, 0.3, tmp_path, body="tetra10", partner="mortar"))
+    assert pb.model.foundation.basis is not None
+    st = pb.solve_state(pb.model.initial_design())
+    assert np.array_equal(face_classes(pb.model, st), st.classes)
+    p = contact_pressure(pb.model, st.lam, st.coords)
+    p_exact = exact_pressure(np.asarray(st.coords, float), pb.model.contact_nodes)
+    assert np.abs(p / p_exact - 1.0).max() <= 1e-8
