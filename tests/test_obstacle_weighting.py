@@ -11,6 +11,7 @@ import meshio
 import numpy as np
 import pytest
 
+from contactopt._mpi import petsc_missing
 from contactopt.config import validate
 from contactopt.errors import ConfigError
 from contactopt.fem.mortar import dual_weighted
@@ -126,6 +127,22 @@ def test_the_other_paths_with_weighted_gaps_equal_the_condensation_and_match_cen
     assert np.max(rep.rel_errors) <= 1e-6, rep.rel_errors
 
 
+@pytest.mark.skipif(petsc_missing() is not None, reason="petsc4py and mpi4py are not installed")
+def test_the_petsc_path_takes_the_weighted_gaps_of_the_plane():
+    # the PETSc path takes the fixed plane: the weighted gaps reach it through gap0 and gap_matrix
+    obstacle = {"shape": "plane", "control": "displacement", "displacement": [0.0, 0.0, 0.002], "weighting": "mortar"}
+    loads = {"top_traction": [0.0, 0.0, 0.0], "right_traction": [0.01, 0.0, 0.0]}
+    cond = ShapeProblem(block(obstacle, path="condensation", loads=loads))
+    prob = ShapeProblem(block(obstacle, path="petsc", loads=loads))
+    assert prob.path.name == "petsc"
+    alpha = 0.002 * np.sin(np.arange(cond.model.n_design)) + 0.001
+    (vc, xc), (vp, xp) = cond.evaluate(alpha), prob.evaluate(alpha)
+    sc, sp_ = cond.solve_state(alpha), prob.solve_state(alpha)
+    assert np.array_equal(sc.classes, sp_.classes) and sp_.counts["M1"] > 0 and sp_.counts["M3+"] > 0
+    assert abs(vp - vc) <= 1e-10 * abs(vc) and np.abs(xp - xc).max() <= 1e-8 * np.abs(xc).max()
+    assert np.abs(sp_.lam - sc.lam).max() <= 1e-10 * sc.lam.max()
+
+
 def test_force_control_with_weighted_gaps_balances_the_force_and_matches_central_differences(tmp_path):
     obstacle = {**FORCED["sphere"], "weighting": "mortar"}
     problem = ShapeProblem(tet_block(tmp_path, obstacle))
@@ -134,6 +151,21 @@ def test_force_control_with_weighted_gaps_balances_the_force_and_matches_central
     assert st.info["obstacle_resultant"] == pytest.approx(np.linalg.norm(obstacle["force"]), rel=1e-12)
     assert st.counts["M1"] > 0 and st.counts["M3+"] > 0
     rep = check_gradient(problem, alpha, seed=2, n_directions=3)
+    assert rep.n_degenerate == 0
+    assert np.max(rep.rel_errors) <= 1e-6, rep.rel_errors
+
+
+@pytest.mark.slow
+def test_a_load_path_with_weighted_gaps_matches_central_differences(tmp_path):
+    # a force-controlled sphere pressed in two steps (the second of two substeps) on tetrahedra,
+    # with friction: Θ and ξ summed over the steps
+    obstacle = {**FORCED["sphere"], "weighting": "mortar"}
+    steps = [{"name": "a", "obstacle_force": [0.0, 0.0, 0.6]},
+             {"name": "b", "obstacle_force": [0.0, 0.0, 1.2], "substeps": 2}]
+    problem = ShapeProblem(tet_block(tmp_path, obstacle).with_updates({"load_steps": steps}))
+    assert problem.has_load_steps
+    alpha = 0.002 * np.sin(np.arange(problem.model.n_design)) + 0.001
+    rep = check_gradient(problem, alpha, seed=3, n_directions=3)
     assert rep.n_degenerate == 0
     assert np.max(rep.rel_errors) <= 1e-6, rep.rel_errors
 

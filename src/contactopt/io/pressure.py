@@ -115,12 +115,14 @@ def face_classes(model, state) -> np.ndarray:
     state's own on linear faces; on six-node triangles each node classed by the forces T λ, T τ
     and the clearance T(a (u_ν + g)) / (T a) of the transformed functions (module docstring), so that
     a corner node inside the contact, which carries no force of its own, is classed by the forces
-    around it. The state's classes (the ones its subgradient takes) are not changed.
+    around it. The state's classes (the ones its subgradient takes) are not changed. With mortar
+    partners on an elastic foundation the state's law already acts on the transformed forces and
+    displacements: its own classes are those of the maps.
 
     Sign convention: as the state's, per contact node (t1, t2, ν): λ ≥ 0 pushes the body off its
     counterpart, τ = −r_t, u_ν + g ≥ 0 the clearance."""
     faces = np.asarray(model.body.contact_face.faces, np.int64)
-    if face_for(faces).degree == 1:
+    if face_for(faces).degree == 1 or (model.foundation is not None and model.foundation.basis is not None):
         return np.asarray(state.classes)
     nodes = np.asarray(model.contact_nodes, np.int64)
     T = transformed_weights(faces, nodes)

@@ -9,11 +9,14 @@ contact surface the contact fields are 0 (``node_class`` −1), never NaN:
 * ``normal_force`` λ: λ_m = (S u_c − ℓ)_ν ≥ 0, the normal contact force on the body (paper (3.17)).
 * ``contact_pressure`` p: p_m = λ_m / a_m with a_m the node's lumped contact area on Ω(α)
   (force per unit area in the model's units, :mod:`contactopt.io.pressure`); smooth where the
-  nodal forces follow the uneven nodal spacing of an unstructured face.
+  nodal forces follow the uneven nodal spacing of an unstructured face. On six-node faces the
+  transformed reading of that module (no negative pressure, zero outside the contact).
 * ``tangential_force`` (τ1, τ2, 0): τ_m = −(S u_c − ℓ)_t, the paper's tangential contact force,
   so that ‖τ_m‖ ≤ F λ_m and u_t ≠ 0 ⇒ τ_m = F λ_m u_t/‖u_t‖. The friction force acting on the
   body is −τ_m, opposite to the slip.
-* ``node_class``: index into ("L", "M1", "M2", "M3+", "M3-", "M4") of Table 4.1, −1 off contact.
+* ``node_class``: index into ("L", "M1", "M2", "M3+", "M3-", "M4") of Table 4.1, −1 off contact
+  (on six-node faces the classes of :func:`contactopt.io.pressure.face_classes`, which class the
+  corner nodes by the forces around them).
 * ``gap`` g_m = ϑ_α(x'_m): initial distance to the foundation x3 ≤ 0; non-penetration u_ν + g ≥ 0
   with u_ν = u3.
 * ``contact_node``: 1 on contact nodes, 0 elsewhere (to threshold the contact surface).
@@ -53,7 +56,7 @@ import numpy as np
 
 from ..fem.stress import von_mises_points
 from .atomic import atomic_output, atomic_write_text
-from .pressure import contact_pressure
+from .pressure import contact_pressure, face_classes
 
 log = logging.getLogger(__name__)
 
@@ -109,7 +112,8 @@ def body_point_data(model, state, extra_point_data=None) -> dict:
         "normal_force": _on_nodes("normal_force", np.asarray(state.lam, float), n, cn),
         "contact_pressure": _on_nodes("contact_pressure", contact_pressure(model, state.lam, state.coords), n, cn),
         "tangential_force": _on_nodes("tangential_force", tau3, n, cn),
-        "node_class": _on_nodes("node_class", np.asarray(state.classes, np.int32), n, cn, fill=np.int32(-1)),
+        "node_class": _on_nodes("node_class", np.asarray(face_classes(model, state), np.int32), n, cn,
+                               fill=np.int32(-1)),
         "gap": _on_nodes("gap", np.asarray(state.gap, float), n, cn),
         "contact_node": _on_nodes("contact_node", np.ones(p, np.int8), n, cn, fill=np.int8(0)),
     }

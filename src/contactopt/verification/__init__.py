@@ -4,6 +4,8 @@
   checking the factorizations and the condensation on matrices contactopt did not make;
 - ``hertz``: a rigid sphere, cylinder and flat punch pressed into a block through
   ``[obstacle]``, measured against Hertz, Mindlin and Boussinesq;
+- ``hertz_tets``: the rigid sphere pressed into a quarter block of Gmsh tetrahedra (linear and
+  quadratic) or of a graded grid split into tetrahedra, its pressure against Hertz's;
 - ``hertz_stress``: a paraboloid pressed onto the rigid plane, its peak von Mises stress
   against Hertz's subsurface field;
 - ``spence``: the rigid flat punch and the rigid paraboloid pressed with friction, from the
