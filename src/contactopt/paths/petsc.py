@@ -39,6 +39,8 @@ from types import MappingProxyType
 
 import numpy as np
 
+from ..contact.fallback import run_chain
+from ..contact.fullspace.petsc import PetscProblem
 from ..errors import ConfigError
 from ..fem.model import Assembled
 from ..sensitivity.adjoint_fullspace import ADJOINT_RTOL, adjoint_classes, check_default_choices
@@ -244,11 +246,13 @@ class PetscPath(FullSpaceCommon):
             u0 = self.newton.A.createVecRight()
             u0.getArray()[:] = self.dist.owned(ctx.u_all)
         scale = self.fit_scale(system.L.norm(), self.newton._diag_at_contact, system.gap)   # collective: every rank
-        res = self.newton.solve(self._hier, system.L, system.gap, self.settings.friction, r0=warm, u0=u0,
-                                slip_ref=slip_ref, force_scale=scale, **self.newton_options(ctx, tol, warm_start))
+        res = run_chain(PetscProblem(self.newton, self._hier, system.L, system.gap, self.settings.friction, r0=warm,
+                                     u0=u0, slip_ref=slip_ref, force_scale=scale,
+                                     **self.newton_options(ctx, tol, warm_start)))
         system.u_all = ctx.u_all = res.u_all
         return self.state_of(ctx, system, alpha, res, u_free=self.dist.free_vector(res.u_all), t0=t0,
-                             t_setup=t_setup, stats={"backend": "petsc", "ranks": self.size}, label=label,
+                             t_setup=t_setup, stats={"backend": "petsc", "ranks": self.size,
+                                                         **({"fallback": res.fallback} if res.fallback else {})}, label=label,
                              slip_ref=slip_ref)
 
     # ------------------------------------------------------------------ adjoint and design terms

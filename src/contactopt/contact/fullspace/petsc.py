@@ -40,7 +40,9 @@ import scipy.sparse as sp
 
 from ...errors import SolverError
 from ...fem.krylov import KrylovNotConverged
+from ..fallback import penetrating_start
 from .core import FullSpaceResult, finish, known_adjoint_part, newton_loop, rho_of, sliding_frame, start, start_forces
+from .pyamg import FullSpaceProblem
 
 __all__ = ("PetscHierarchy", "PetscNewton", "PetscBackend")
 
@@ -345,7 +347,8 @@ class PetscNewton:
     # ------------------------------------------------------------------ the state
     def solve(self, hier: PetscHierarchy, L, gap, friction, *, r0=None, u0=None, tol=1e-10, zone=None,
               rho_scale=0.5, max_steps=50, krylov_rtol=None, eta_max=1e-2, eta_factor=0.1,
-              zone_margin=0.1, compliance=None, slip_ref=None, force_scale=None) -> FullSpaceResult:
+              zone_margin=0.1, compliance=None, slip_ref=None, force_scale=None,
+              raise_on_failure=True) -> FullSpaceResult:
         """The contact state of load ``L`` (PETSc Vec) and gaps ``gap`` (p,) from the warm start
         ``r0`` (p, 3; FCLIB order) or ``u0`` (a PETSc Vec); the arguments and the stopping rule as
         :func:`contactopt.contact.fullspace.solve_fullspace`, whose Newton loop
@@ -353,7 +356,9 @@ class PetscNewton:
         ``compliance`` (p,): the part of the Delassus diagonal estimate beyond the local
         W_DIAG_FACTOR / mean(A_mm). ``slip_ref`` (p, 2): in a load step, u_t at the end of the
         previous step (the tangential law on u_t − slip_ref, as on the pyamg backend); None: the
-        static problem. ``force_scale``: the residuals' scale when L = 0, as there."""
+        static problem. ``force_scale``: the residuals' scale when L = 0, as there. A failure raises
+        :class:`~contactopt.errors.ContactNotConverged` unless ``raise_on_failure`` is False
+        (:class:`PetscProblem` reads the result instead)."""
         t_start = time.perf_counter()
         p, cd = self.p, self.cd
         A = self.A
@@ -391,7 +396,7 @@ class PetscNewton:
                           timings=timings, t_start=t_start, shift=shift)
         u_all = self.everywhere(u)
         return finish(backend, out, u_c=u_all[cd], tol=tol, t_start=t_start, timings=timings,
-                      krylov_iterations=krylov_its, u_all=u_all)
+                      krylov_iterations=krylov_its, u_all=u_all, raise_on_failure=raise_on_failure)
 
     def _diag_at_contact(self) -> np.ndarray:
         d = self.A.getDiagonal()
@@ -454,6 +459,41 @@ class PetscNewton:
         x.getArray()[:] = self.dist.owned(np.asarray(x_all, dtype=np.float64))
         self.A.mult(x, y)
         return self.everywhere(y)
+
+
+class PetscProblem(FullSpaceProblem):
+    """The PETSc backend's Newton method as a :class:`contactopt.contact.fallback.FallbackProblem`:
+    the chain of :class:`FullSpaceProblem` (cold restart, continuation in F, continuation in the
+    load) run with :meth:`PetscNewton.solve` on every rank. Every decision of the chain reads the
+    converged flag and the error, which are global reductions, so all ranks take the same attempts.
+    W is not formed under MPI: the diagnosis names a penetrating start and points to the
+    full-space path's (one process) for the check of a rigid motion or an unbalanced load.
+
+    Sign convention as the full-space method's: per contact node (t1, t2, ν), g ≥ 0 the initial
+    clearance, λ ≥ 0 pressing the body off its counterpart."""
+
+    def __init__(self, newton: "PetscNewton", hierarchy: "PetscHierarchy", L, gap, friction, **options):
+        super().__init__(None, L, newton.cd, gap, friction, what="the contact state (PETSc)", **options)
+        self.newton, self.hierarchy = newton, hierarchy
+        self.first_name = self.first_name.replace("full-space Newton", "full-space Newton (PETSc)")
+
+    def _solve(self, *, L=None, friction=None, **over):
+        kw = {**self.options, **over, "raise_on_failure": False}
+        return self.newton.solve(self.hierarchy, self.L if L is None else L, self.gap,
+                                 self.friction if friction is None else friction, **kw)
+
+    def scaled_load(self, t: float):
+        """t·L as a new PETSc Vec (L itself is not changed)."""
+        v = self.L.copy()
+        v.scale(t)
+        return v
+
+    def diagnose(self, best) -> str:
+        found = penetrating_start(np.asarray(self.gap, dtype=float))
+        return "The model: " + "; ".join(found or [
+            "no penetrating start; the PETSc path does not form W for the check of a rigid motion or an "
+            "unbalanced load: solve the model with [linear_solver] path = \"fullspace\" in one process for that "
+            "diagnosis, or check body.clamped, the loads and the initial gap"]) + "."
 
 
 class PetscBackend:

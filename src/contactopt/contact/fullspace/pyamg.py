@@ -361,8 +361,11 @@ class FullSpaceProblem:
         if float(np.max(mu)) > 0:
             yield "friction continuation", lambda: continuation((0.0, 0.25, 0.5, 0.75, 1.0),
                                                                 of=lambda t: {"friction": mu * t})
-        L = np.asarray(self.L, dtype=float)
-        yield "load continuation", lambda: continuation(LOAD_CONTINUATION, of=lambda t: {"L": L * t})
+        yield "load continuation", lambda: continuation(LOAD_CONTINUATION, of=lambda t: {"L": self.scaled_load(t)})
+
+    def scaled_load(self, t: float):
+        """t·L, the load of a step of the load continuation."""
+        return np.asarray(self.L, dtype=float) * t
 
     def steps(self, result) -> int:
         return result.newton_steps
