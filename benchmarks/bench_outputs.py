@@ -7,11 +7,21 @@ contact, von Mises, history of 120 iterations) into a temporary directory. It pr
 and in total, the wall and CPU seconds and the total as a multiple of one state solve (in wall
 and in CPU time: on a busy machine the CPU ratio is the one to read), the median over
 ``--repeat`` rounds. Ratios, not seconds, are what carry over between machines.
+
+``--run [--max-iter N]`` instead runs ``contactopt run example1`` in this process (into a
+temporary directory, figures included) and prints the run's wall time, the time after its last
+evaluation (``runner._finish``: the result files, figures and summary) in wall and CPU seconds,
+one evaluation's median wall and CPU time (state solve, adjoint and subgradient, timed around
+each call of the run's oracle), and their ratio: what the outputs cost in evaluations of the same
+run; the CPU time counts the process that draws figures beside the run's own (io/forked.py).
+The script reads nothing but ``runner._finish`` and ``runner._Oracle``, so that it measures an
+older checkout as well (``PYTHONPATH=<checkout>/src``).
 """
 
 from __future__ import annotations
 
 import argparse
+import resource
 import statistics
 import tempfile
 import time
@@ -25,10 +35,58 @@ from contactopt.io.pressure import contact_pressure
 from contactopt.problem import ShapeProblem
 
 
+def run_phases(max_iter: int | None) -> None:
+    """A whole run of Example 1 with its phase after the last evaluation timed (module docstring)."""
+    from contactopt import runner
+
+    evals, finish = [], {}
+    real_call, real_finish = runner._Oracle.__call__, runner._finish
+
+    def call(self, x):
+        t, c = time.perf_counter(), time.process_time()
+        try:
+            return real_call(self, x)
+        finally:
+            evals.append((time.perf_counter() - t, time.process_time() - c))
+
+    def children() -> float:
+        use = resource.getrusage(resource.RUSAGE_CHILDREN)
+        return use.ru_utime + use.ru_stime
+
+    def timed_finish(*args, **kwargs):
+        t, c, k = time.perf_counter(), time.process_time(), children()
+        try:
+            return real_finish(*args, **kwargs)
+        finally:
+            finish["wall"], finish["cpu"] = time.perf_counter() - t, time.process_time() - c
+            finish["children"] = children() - k
+
+    runner._Oracle.__call__, runner._finish = call, timed_finish
+    with tempfile.TemporaryDirectory() as tmp:
+        t = time.perf_counter()
+        s = runner.run_optimization("example1", Path(tmp) / "run", max_iter=max_iter).summary
+        total = time.perf_counter() - t
+    ev_wall = statistics.median(e[0] for e in evals)
+    ev_cpu = statistics.median(e[1] for e in evals)
+    print(f"contactopt run example1{f' --max-iter {max_iter}' if max_iter else ''}: {s['evaluations']} "
+          f"evaluations, J = {s['J']!r}")
+    print(f"total wall {total:.2f} s; one evaluation (median of {len(evals)}): {ev_wall:.3f} s wall, "
+          f"{ev_cpu:.3f} s cpu")
+    cpu = finish["cpu"] + finish["children"]
+    print(f"after the last evaluation: {finish['wall']:.2f} s wall = {finish['wall'] / ev_wall:.2f} evaluations, "
+          f"{cpu:.2f} s cpu = {cpu / ev_cpu:.2f} evaluations (of which {finish['children']:.2f} s in a "
+          "child process)")
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--repeat", type=int, default=3)
+    ap.add_argument("--run", action="store_true", help="time a whole run's phase after its last evaluation")
+    ap.add_argument("--max-iter", type=int, default=None)
     args = ap.parse_args()
+    if args.run:
+        run_phases(args.max_iter)
+        return
     pb = ShapeProblem(load_config("example1"))
     m = pb.model
     a0 = m.initial_design()

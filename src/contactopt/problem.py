@@ -31,7 +31,7 @@ from .paths import PATHS, Start, make_path, select_path
 from .sensitivity.cases import build_cases
 from .sensitivity.objectives import make_constraints
 from .sensitivity.responses import Response, evaluate_response, max_combination
-from .sensitivity.solution import LastDesign, Parts, export_contexts, import_contexts
+from .sensitivity.solution import KeptDesign, LastDesign, Parts, export_contexts, import_contexts
 from .sensitivity.steps import build_path, step_choice, step_tables
 from .sensitivity.subgradient import subgradient
 
@@ -99,7 +99,11 @@ class ShapeProblem:
         coords = m.mesh.coordinates(m.initial_design())
         loads = [("loads" if len(self.cases) == 1 else f"load case {c.name!r}", m.load_vector(coords, c.loads))
                  for c in self.cases]
-        check_held(m.body.rigid, coords, m.contact_nodes, m.frames, self.friction, loads, self.config.source)
+        c = self.config
+        # a load path's steps have loads and obstacle forces of their own: the obstacle's force is checked without them
+        steps = bool(c.load_steps) or any(case.steps for case in c.load_cases)
+        check_held(m.body.rigid, coords, m.contact_nodes, m.frames, self.friction, loads, c.source,
+                   obstacle_force=None if steps else m.obstacle_force)
 
     def _design_lambda(self, alpha, case: int) -> np.ndarray:
         """λ of load case ``case`` at α, solved without warm start (a 'design' target)."""
@@ -150,6 +154,15 @@ class ShapeProblem:
     def clear_cache(self) -> None:
         """Forget the last design's states (the next solve_state solves anew)."""
         self._last.clear()
+
+    def keep_design(self) -> KeptDesign:
+        """The last design's solve, its systems dropped, and the values evaluated on it."""
+        return self._last.keep()
+
+    def use_design(self, kept: KeptDesign) -> None:
+        """Make ``kept`` the last design (its values answer; no state is solved)."""
+        self._objective.resolve()        # the 'design' targets first: they solve states of their own
+        self._last.restore(kept)
 
     def cached_system(self, alpha, case: int = 0):
         """The path's system of load case ``case`` at α (solving the states if needed)."""

@@ -6,7 +6,9 @@ configuration and puts the solver's contexts back, before the directory is touch
 :class:`~contactopt.io.rundir.RunDirectory` is claimed (lock, run.log, config.toml,
 history.csv); the optimizer runs through :func:`contactopt.optimize.minimize` (``method``
 "bundle", or "constrained" with [[constraints]]), checkpointing after every iteration; the
-result files are written at the optimum (:mod:`contactopt.io.outputs`).
+result files are written at the optimum (:mod:`contactopt.io.outputs`) from the optimization's
+own solves of α0 and of the returned design, which the run keeps (a resumed run repeats them
+from the contexts its checkpoint recorded), so that no state is solved after the last evaluation.
 
 Layout of a run directory::
 
@@ -67,6 +69,7 @@ from .optimize._trials import FailedTrials
 from .optimize.bundle import SUCCESS_STATUS
 from .problem import ShapeProblem
 from .sensitivity import adjoint
+from .sensitivity.solution import KeptDesign
 
 log = logging.getLogger(__name__)
 
@@ -180,6 +183,13 @@ class _Oracle:
         self.iteration = 0
         self.time = {"state": 0.0, "adjoint": 0.0, "design_terms": 0.0}
         self.trials = FailedTrials(run_dir.path)
+        # the solves the outputs read (:class:`~contactopt.sensitivity.solution.KeptDesign`): that of
+        # α0 and those of the evaluations since the last iteration, of which the iteration keeps
+        # its iterate's; a resumed run has the contexts to repeat them (``start_*``) instead
+        self.initial = None
+        self.kept: dict[bytes, object] = {}
+        self.start_initial = None          # contexts α0 was solved from
+        self.start_iterate = None          # (α, contexts) of the iterate's solve
 
     def __call__(self, x):
         try:
@@ -194,6 +204,10 @@ class _Oracle:
         for r in [res] + cons:
             for k in self.time:
                 self.time[k] += r.timings.get(k, 0.0)
+        kept = self.problem.keep_design()
+        self.kept[kept.alpha.tobytes()] = kept
+        if self.count == 0:
+            self.initial = kept
         self.count += 1
         _log_evaluation(self.count, res)
         self.run_dir.append_history(self._row(res, cons))
@@ -238,11 +252,45 @@ class _Oracle:
         if result is not None:
             saved = SavedResult(int(result.status), str(result.message), result.criterion,
                                 float(result.relative_decrease))
+        initial = self.initial.solution.start if self.initial is not None else self.start_initial
         return Checkpoint(bundle=state, evaluations=self.count, elapsed=elapsed, scale=self.scale, eps=opt.eps,
                           max_iter=opt.max_iter, config=flat_config(self.problem.config),
                           contexts=self.problem.export_contexts(),
                           alpha=self.reduction.expand(state.x) if self.reduction is not None else None,
-                          penalty=penalty, result=saved)
+                          penalty=penalty, result=saved, initial=initial, iterate=self.start_iterate)
+
+    def keep_iterate(self, x) -> None:
+        """After an iteration: of the kept solves, keep α0's and the iterate's (``x`` the
+        optimized variables), and the contexts that repeat the iterate's solve."""
+        alpha = self.problem.model.surface.as_vector(x if self.reduction is None else self.reduction.expand(x))
+        kept = self.kept.get(alpha.tobytes())
+        self.kept = {} if kept is None else {alpha.tobytes(): kept}
+        if kept is not None:
+            self.start_iterate = (kept.alpha, kept.solution.start)
+        elif self.start_iterate is not None and self.start_iterate[0].tobytes() != alpha.tobytes():
+            self.start_iterate = None       # an iterate whose solve was not recorded
+
+    def design(self, alpha, which: str):
+        """The :class:`~contactopt.sensitivity.solution.KeptDesign` of α for the outputs: the
+        run's own solve, else (a resumed run) that solve repeated from its recorded contexts,
+        else a solve of its own without warm start (``which`` names it in the log)."""
+        alpha = self.problem.model.surface.as_vector(alpha)
+        key = alpha.tobytes()
+        if self.initial is not None and self.initial.alpha.tobytes() == key:
+            return self.initial
+        if key in self.kept:
+            return self.kept[key]
+        start = (self.start_initial if which == "initial" else
+                 self.start_iterate[1] if self.start_iterate is not None and
+                 self.start_iterate[0].tobytes() == key else None)
+        other = self.problem.detached()        # this problem's warm starts stay as they are
+        if start is None:
+            log.warning("the %s design's solve was not recorded: solved again without warm start", which)
+            return KeptDesign(other.solution(alpha, warm_start=False), {})
+        # the contexts the solve began from: bit for bit the solve that recorded them
+        log.info("the solve of the %s design repeated from the checkpoint", which)
+        other.import_contexts(start, f"checkpoint {self.run_dir.checkpoint}")
+        return KeptDesign(other.solution(alpha), {})
 
     def save(self, state, result=None, penalty=None) -> None:
         """Write the checkpoint (atomically, after history.csv is on disk)."""
@@ -444,6 +492,7 @@ def _start(oracle: _Oracle, setup: _SetUp, ckpt: Checkpoint | None, finished) ->
         run_dir.start_history(history_fields(problem), keep_rows=ckpt.evaluations)
         oracle.trials.start(ckpt.evaluations)
         oracle.count, oracle.iteration, oracle.scale = ckpt.evaluations, ckpt.iteration, ckpt.scale
+        oracle.start_initial, oracle.start_iterate = ckpt.initial, ckpt.iterate
         oracle.t_start -= ckpt.elapsed
         log.info("resuming %s at iteration %d (%d evaluations)%s", run_dir.path, ckpt.bundle.nit, ckpt.evaluations,
                  "; the optimization had finished, its results are written again" if finished else "")
@@ -491,6 +540,7 @@ def _optimize(oracle: _Oracle, setup: _SetUp, ckpt: Checkpoint | None, progress)
         raise
     if res.status is not None and res.success:
         log.info("finished: %s", res.message)
+    oracle.keep_iterate(res.x)
     oracle.save(res.state, res, penalty=res.get("penalty"))
     return res
 
@@ -503,6 +553,7 @@ def _callback(oracle: _Oracle, progress):
         pen = inter.get("penalty")       # [[constraints]]: σ and the earlier bundle runs
         nit = st.nit + (pen.nit if pen is not None else 0)
         oracle.iteration = nit
+        oracle.keep_iterate(inter.x)
         h = st.history[-1] if st.history else {}
         oracle.save(st, penalty=pen)
         if progress:
@@ -518,7 +569,8 @@ def _finish(run_dir: RunDirectory, setup: _SetUp, res, oracle: _Oracle, run_warn
     red = setup.reduction
     if red is not None:
         res.x = red.expand(res.x)
-    summary = write_outputs(run_dir.path, setup.problem, setup.alpha0, res, oracle, plots)
+    designs = oracle.design(setup.alpha0, "initial"), oracle.design(res.x, "optimal")
+    summary = write_outputs(run_dir.path, setup.problem, setup.alpha0, res, oracle, plots, designs)
     summary["warnings"] = run_warnings
     if oracle.trials.rows():
         summary["failed_trials"] = oracle.trials.summary()

@@ -49,6 +49,9 @@ class WriteError(ContactOptError):
         self.errno = cause.errno if isinstance(cause, OSError) else None
         super().__init__(f"cannot write {self.path}: {describe_os_error(cause)}")
 
+    def __reduce__(self):
+        return type(self), (self.path, self.cause)
+
 
 _CAUSES = {
     errno.ENOSPC: "no space left on the device",

@@ -28,6 +28,12 @@ keys name a part and a field, ``<part>/<field>``:
     The warm start ``warm`` is the contact force r, shape (p, 3): one row per contact node in
     the model's order, components (t1, t2, ν) — ν the normal force, positive in compression
     (λ ≥ 0) — and ``zone`` the contact nodes (indices into that order) of the next solve.
+``initial/case<k>/step<j>/…``
+    the same arrays as they stood when the initial design α0 was solved, so that a resumed run
+    repeats that solve bit for bit for its outputs (absent when no solve at α0 was recorded).
+``iterate/alpha``, ``iterate/case<k>/step<j>/…``
+    the design α of the optimizer's current iterate and the arrays as they stood when it was
+    solved: where the run ends at that iterate, a resumed run repeats its solve for the outputs.
 
 Writes are atomic (``contactopt.io.atomic.atomic_savez``): a killed writer leaves the
 previous checkpoint whole.
@@ -51,8 +57,9 @@ log = logging.getLogger(__name__)
 
 __all__ = ["VERSION", "CHECKPOINT_NAME", "Checkpoint", "SavedResult", "flatten_config"]
 
-VERSION = 7
-"""The format of the file (the numbering goes on from the optimizer state's six earlier ones)."""
+VERSION = 8
+"""The format of the file (the numbering goes on from the optimizer state's six earlier ones;
+8 added the solves of the initial design and of the iterate)."""
 
 CHECKPOINT_NAME = "checkpoint.npz"
 
@@ -89,7 +96,9 @@ class Checkpoint:
 
     ``contexts[k][j]``: the arrays of load case k at load step j (``len(contexts)`` is the
     number of load cases); ``alpha`` the design α when the optimizer works on β (else None);
-    ``config`` the flattened configuration (``flatten_config``)."""
+    ``config`` the flattened configuration (``flatten_config``); ``initial`` the contexts of the
+    solve of α0 and ``iterate`` (α, contexts) of the solve of the current iterate, in the layout
+    of ``contexts`` (None: not recorded)."""
 
     bundle: BundleState
     evaluations: int
@@ -102,6 +111,8 @@ class Checkpoint:
     alpha: np.ndarray | None = None
     penalty: PenaltyState | None = None
     result: SavedResult | None = None
+    initial: list | None = None
+    iterate: tuple | None = None
 
     # ------------------------------------------------------------------ where the run stands
     @property
@@ -135,9 +146,12 @@ class Checkpoint:
             out.update({"result/status": np.array(int(r.status)), "result/message": np.array(r.message),
                         "result/criterion": np.array(r.criterion or ""),
                         "result/relative_decrease": np.array(float(r.relative_decrease))})
-        for k, steps in enumerate(self.contexts):
-            for j, arrays in enumerate(steps):
-                out.update({f"case{k}/step{j}/{name}": np.asarray(v) for name, v in arrays.items()})
+        out.update(_context_arrays("", self.contexts))
+        if self.initial is not None:
+            out.update(_context_arrays("initial/", self.initial))
+        if self.iterate is not None:
+            out["iterate/alpha"] = np.asarray(self.iterate[0], dtype=float)
+            out.update(_context_arrays("iterate/", self.iterate[1]))
         return out
 
     def write(self, path) -> Path:
@@ -188,11 +202,17 @@ class Checkpoint:
         if n_steps.size != int(run["n_cases"]):
             raise ValueError(f"{int(run['n_cases'])} load cases but the steps of {n_steps.size}")
         contexts = [[part.get(f"case{k}/step{j}", {}) for j in range(n)] for k, n in enumerate(n_steps)]
+
+        def recorded(prefix):
+            return [[part.get(f"{prefix}case{k}/step{j}", {}) for j in range(n)] for k, n in enumerate(n_steps)]
+        initial = recorded("initial/") if any(k.startswith("initial/") for k in part) else None
+        iterate = ((np.array(part["iterate"]["alpha"], dtype=float), recorded("iterate/"))
+                   if "iterate" in part else None)
         return cls(bundle=bundle, evaluations=int(run["evaluations"]), elapsed=float(run["elapsed"]),
                    scale=float(run["scale"]), eps=float(run["eps"]), max_iter=int(run["max_iter"]),
                    config=json.loads(str(part["config"]["json"])), contexts=contexts,
                    alpha=np.array(run["alpha"], dtype=float) if "alpha" in run else None, penalty=pen,
-                   result=res)
+                   result=res, initial=initial, iterate=iterate)
 
     # ------------------------------------------------------------------ checks of a resume
     def require_config(self, config: dict, path) -> None:
@@ -217,6 +237,12 @@ class Checkpoint:
     def saved_result(self, max_iter: int) -> SavedResult | None:
         """The verdict of a finished run resumed with the same ``max_iter`` (else None: it goes on)."""
         return self.result if self.result is not None and self.max_iter == max_iter else None
+
+
+def _context_arrays(prefix: str, contexts: list) -> dict:
+    """``{<prefix>case<k>/step<j>/<name>: array}`` of per-case, per-step context arrays."""
+    return {f"{prefix}case{k}/step{j}/{name}": np.asarray(v) for k, steps in enumerate(contexts)
+            for j, arrays in enumerate(steps) for name, v in arrays.items()}
 
 
 def _show(config: dict, key: str) -> str:

@@ -43,6 +43,7 @@ from pathlib import Path
 import meshio
 import numpy as np
 from meshio._helpers import _writer_map
+from meshio.gmsh.common import _meshio_to_gmsh_type
 
 from ..errors import ContactOptError
 from ..fem.elasticity import element_geometry
@@ -156,9 +157,49 @@ def write_body_mesh(path, model, coords) -> Path:
     kw = {"binary": binary} if fmt in ("gmsh", "gmsh22") else {}
     path = Path(path)
     with atomic_output(path) as tmp, _quiet():
-        meshio.write(tmp, m, file_format=fmt, **kw)
+        if fmt == "gmsh22" and not binary and _plain_gmsh(m):
+            _write_gmsh22_ascii(tmp, m)
+        else:
+            meshio.write(tmp, m, file_format=fmt, **kw)
     log.info("wrote %s (%s, %d nodes)", path, fmt, coords.shape[0])
     return path
+
+
+def _plain_gmsh(m) -> bool:
+    """Whether :func:`_write_gmsh22_ascii` writes ``m``: 3D points, cells of a type whose Gmsh node
+    order is VTK's, no data but the physical and geometrical tags, no periodic section."""
+    return (m.points.ndim == 2 and m.points.shape[1] == 3 and not m.point_data and m.gmsh_periodic is None
+            and set(m.cell_data) == {"gmsh:physical", "gmsh:geometrical"}
+            and all(c.type in _meshio_to_gmsh_type and c.type not in _GMSH_REORDERED for c in m.cells))
+
+
+_GMSH_REORDERED = ("tetra10", "hexahedron20", "hexahedron27", "wedge15", "pyramid13")
+
+
+def _write_gmsh22_ascii(path, m) -> None:
+    """The bytes of meshio's Gmsh 2.2 ASCII writer (nodes as ``%.16e``, one line per element with
+    its physical and geometrical tag), formatted from lists at once instead of line by line."""
+    out = ["$MeshFormat\n2.2 0 8\n$EndMeshFormat\n"]
+    names = sorted((int(dim), int(num), name) for name, (num, dim) in m.field_data.items())
+    if names:
+        out.append(f"$PhysicalNames\n{len(names)}\n" + "".join(f'{d} {n} "{name}"\n' for d, n, name in names)
+                   + "$EndPhysicalNames\n")
+    pts = m.points.tolist()
+    out.append(f"$Nodes\n{len(pts)}\n" + "".join(f"{k} {x:.16e} {y:.16e} {z:.16e}\n"
+                                                  for k, (x, y, z) in enumerate(pts, start=1)) + "$EndNodes\n")
+    out.append(f"$Elements\n{sum(len(c.data) for c in m.cells)}\n")
+    first = 1
+    for k, block in enumerate(m.cells):
+        head = f" {_meshio_to_gmsh_type[block.type]} 2 "
+        tags = np.stack([np.asarray(m.cell_data["gmsh:physical"][k]), np.asarray(m.cell_data["gmsh:geometrical"][k])],
+                        axis=1).astype(np.int32).tolist()
+        nodes = (np.asarray(block.data, dtype=np.int64) + 1).tolist()
+        out.append("".join(f"{first + i}{head}{t[0]} {t[1]} {' '.join(map(str, c))}\n"
+                           for i, (t, c) in enumerate(zip(tags, nodes))))
+        first += len(nodes)
+    out.append("$EndElements\n")
+    with open(path, "wb") as fh:
+        fh.write("".join(out).encode())
 
 
 def roundtrip_config(model, mesh_name: str, alpha) -> dict:

@@ -15,8 +15,10 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import ContactOptError
+from ..sensitivity.solution import KeptDesign
 from .atomic import WriteError, atomic_write_json, atomic_write_text
 from .export import export_design
+from .forked import Forked
 from .plots import (
     plot_contact_response,
     plot_history,
@@ -26,7 +28,7 @@ from .plots import (
     plot_stress_comparison,
     plot_surface,
 )
-from .pressure import contact_pressure
+from .pressure import contact_pressure, face_classes
 from .vtk import write_body_vtu, write_foundation_vtu, write_pvd
 
 log = logging.getLogger(__name__)
@@ -54,19 +56,43 @@ def _stopping(res, opt) -> dict:
             "ftol": float(opt.ftol), "ftol_window": int(opt.ftol_window)}
 
 
-def write_outputs(out: Path, problem, alpha0, res, oracle, plots: bool = True) -> dict:
+def write_outputs(out: Path, problem, alpha0, res, oracle, plots: bool = True, designs=None) -> dict:
     """Every result file of a finished optimization at its optimum ``res.x`` (the module
     docstring of :mod:`contactopt.runner` lists them) and summary.json; ``oracle`` the run's
-    counts (``count``, ``scale``, ``time``, ``t_start``). ``plots=False``: all but the PNG figures."""
+    counts (``count``, ``scale``, ``time``, ``t_start``). ``plots=False``: all but the PNG figures.
+
+    ``designs``: the :class:`~contactopt.sensitivity.solution.KeptDesign` of α0 and of the
+    optimum, the optimization's own solves, which the outputs read without solving a state
+    again; None: both solved here, without warm start."""
     model = problem.model
     x = np.asarray(res.x)
     t0 = time.perf_counter()
-    c0 = problem.evaluate_cases(alpha0, warm_start=False)      # Θ of the combined load cases
-    states0, J0, steps0 = problem.solve_states(alpha0), c0.value, _step_outputs(out, problem, "initial", plots)
-    c1 = problem.evaluate_cases(x, warm_start=False)
-    states1, J, steps1 = problem.solve_states(x), c1.value, _step_outputs(out, problem, "optimal", plots)
-    s0, s1 = states0[c1.case], states1[c1.case]      # the load case active at the optimum
+    if designs is None:
+        designs = [_solved(problem, a) for a in (alpha0, x)]
+    try:
+        at0 = _at_design(out, problem, designs[0], "initial", plots)
+        at1 = _at_design(out, problem, designs[1], "optimal", plots)
+    finally:
+        problem.clear_cache()        # a kept design holds no systems: the next request solves
+    c1 = at1["combined"]
+    s0, s1 = at0["states"][c1.case], at1["states"][c1.case]      # the load case active at the optimum
     target = problem.cases[c1.case].objective.target
+    forked, here = _figures(out, model, x, target, s0, s1, res) if plots else ([], [])
+    with Forked(forked) as figures:             # drawn beside the other files (io/forked.py)
+        summary = _write_files(out, problem, x, res, oracle, t0, (at0, at1, s0, s1), here, plots)
+        figures.join()
+    summary["time_breakdown_s"]["outputs"] = time.perf_counter() - t0
+    atomic_write_json(out / "summary.json", summary)
+    return summary
+
+
+def _write_files(out: Path, problem, x, res, oracle, t0, at, figures, plots) -> dict:
+    """The result files but the forked figures, and the summary (not yet written); ``figures``
+    the figures drawn here."""
+    model = problem.model
+    at0, at1, s0, s1 = at
+    c0, states0, J0, steps0 = at0["combined"], at0["states"], at0["combined"].value, at0["steps"]
+    c1, states1, J, steps1 = at1["combined"], at1["states"], at1["combined"].value, at1["steps"]
     write_body_vtu(out / "initial.vtu", model, s0)
     write_body_vtu(out / "optimal.vtu", model, s1)
     pvd = [(0, "initial.vtu"), (1, "optimal.vtu")]
@@ -75,8 +101,8 @@ def write_outputs(out: Path, problem, alpha0, res, oracle, plots: bool = True) -
         write_foundation_vtu(out / "optimal_foundation.vtu", model.foundation, s1)
         pvd += [(0, "initial_foundation.vtu", 1), (1, "optimal_foundation.vtu", 1)]
     write_pvd(out / "bodies.pvd", pvd)
-    if plots:
-        _figures(out, model, x, target, s0, s1, res)
+    for draw in figures:
+        draw()
     atomic_write_text(out / "iterations.csv", "iteration,J,step,t,stationarity,evaluations\n" + "".join(
         f"{r['iteration']},{r['f'] * oracle.scale!r},{r['step']},{r['t']:.6e},{r['stationarity']:.6e},"
         f"{r['nfev']}\n" for r in res.history))
@@ -101,10 +127,9 @@ def write_outputs(out: Path, problem, alpha0, res, oracle, plots: bool = True) -
     if model.foundation is not None:
         summary["foundation"] = model.foundation.summary()
     if problem.term_names():            # each term's value at α0 and at the optimum
-        summary["objective"] = {"J0": problem.objective_report(alpha0, warm_start=False),
-                                "J": problem.objective_report(x, warm_start=False)}
+        summary["objective"] = {"J0": at0["objective"], "J": at1["objective"]}
     if problem.constraints:             # each response at the optimum: value, limit, margin (≥ 0: met)
-        summary["constraints"] = _constraint_outputs(problem, alpha0, x, res)
+        summary["constraints"] = _constraint_outputs(problem, at0["constraints"], at1["constraints"], res)
         summary["constraints_satisfied"] = all(c["satisfied"] for c in summary["constraints"]["responses"].values())
     else:
         summary["constraints_satisfied"] = None
@@ -114,36 +139,58 @@ def write_outputs(out: Path, problem, alpha0, res, oracle, plots: bool = True) -
         summary["load_steps"] = {"names": list(steps1), "J0": steps0, "J": steps1, "objective_steps":
                                  problem.config.objective.steps}
     summary["export"] = _export(out, model, x)
-    summary["time_breakdown_s"]["outputs"] = time.perf_counter() - t0
-    atomic_write_json(out / "summary.json", summary)
     return summary
 
 
-def _figures(out: Path, model, x, target, s0, s1, res) -> None:
-    """The run's figures: λ and the contact pressure p = λ/a of the target, α0 and the optimum,
-    the optimal surface, its node classes, contact response and von Mises stress, and the
-    convergence history."""
-    plot_stress_comparison(out / "stress.png", model, target if target is not None else np.zeros_like(s0.lam),
-                           s0.lam, s1.lam)
-    p0, p1 = contact_pressure(model, s0.lam, s0.coords), contact_pressure(model, s1.lam, s1.coords)
-    # the target in the same units: λ̄ over the optimal design's areas, as the optimal λ
-    p_target = (contact_pressure(model, target, s1.coords) if target is not None else np.zeros_like(p0))
-    plot_stress_comparison(out / "pressure.png", model, p_target, p0, p1, zlabel="contact pressure $p = \\lambda/a$")
-    plot_surface(out / "surface.png", model, x)
-    plot_node_classes(out / "classes.png", model, s1.classes)
-    plot_contact_response(out / "contact.png", model, p1, s1.tau, s1.u_c[:, :2], s1.classes,
-                          title="optimal design")
-    plot_peak_stress(out / "von_mises.png", model, s1.coords, s1.u, title="optimal design")
-    plot_history(out / "history.png", [{**r, "kind": r.get("step")} for r in res.history])
+def _solved(problem, alpha):
+    """A :class:`~contactopt.sensitivity.solution.KeptDesign` of α solved here without warm start."""
+    return KeptDesign(problem.solution(alpha, warm_start=False), {})
 
 
-def _constraint_outputs(problem, alpha0, x, res) -> dict:
+def _at_design(out: Path, problem, design, which: str, plots: bool) -> dict:
+    """What the outputs read at one design (``which``: "initial" or "optimal"), with ``design``
+    the problem's last design: Θ of the combined load cases, every case's state, the load
+    steps' values (and at the optimum their stick/slip maps), the objective's terms and the
+    constraints' reports."""
+    problem.use_design(design)
+    alpha = design.alpha
+    return {"combined": problem.evaluate_cases(alpha), "states": problem.solve_states(alpha),
+            "steps": _step_outputs(out, problem, which, plots),
+            "objective": problem.objective_report(alpha) if problem.term_names() else None,
+            "constraints": problem.constraint_report(alpha) if problem.constraints else None}
+
+
+def _figures(out: Path, model, x, target, s0, s1, res) -> tuple[list, list]:
+    """The run's figures as two lists of jobs of about equal time, one for a forked process
+    and one drawn here: λ and the contact pressure p = λ/a of the target, α0 and the optimum, the
+    optimal surface and the convergence history; the optimum's node classes, contact response and
+    von Mises stress."""
+    def pressure():
+        p0, p1 = contact_pressure(model, s0.lam, s0.coords), contact_pressure(model, s1.lam, s1.coords)
+        # the target in the same units: λ̄ over the optimal design's areas, as the optimal λ
+        p_target = (contact_pressure(model, target, s1.coords) if target is not None else np.zeros_like(p0))
+        plot_stress_comparison(out / "pressure.png", model, p_target, p0, p1,
+                               zlabel="contact pressure $p = \\lambda/a$")
+
+    def contact():
+        plot_contact_response(out / "contact.png", model, contact_pressure(model, s1.lam, s1.coords), s1.tau,
+                              s1.u_c[:, :2], face_classes(model, s1), title="optimal design")
+
+    forked = [lambda: plot_stress_comparison(out / "stress.png", model,
+                                             target if target is not None else np.zeros_like(s0.lam), s0.lam, s1.lam),
+              pressure, lambda: plot_surface(out / "surface.png", model, x),
+              lambda: plot_history(out / "history.png", [{**r, "kind": r.get("step")} for r in res.history])]
+    here = [lambda: plot_node_classes(out / "classes.png", model, face_classes(model, s1)), contact,
+            lambda: plot_peak_stress(out / "von_mises.png", model, s1.coords, s1.u, title="optimal design")]
+    return forked, here
+
+
+def _constraint_outputs(problem, initial: dict, optimal: dict, res) -> dict:
     """summary.json's ``constraints``: per constraint its value, limit, margin (limit − value),
-    relative violation tolerance and whether it holds, at the optimum and at α0, and the penalty
-    weight σ the run ended with (optimize/constrained.py)."""
+    relative violation tolerance and whether it holds, at the optimum and at α0 (the reports
+    ``optimal`` and ``initial``), and the penalty weight σ the run ended with (optimize/constrained.py)."""
     out = {}
-    initial = problem.constraint_report(alpha0, warm_start=False)
-    for con, (name, rep) in zip(problem.constraints, problem.constraint_report(x, warm_start=False).items()):
+    for con, (name, rep) in zip(problem.constraints, optimal.items()):
         out[name] = {**rep, "tol": con.tol, "satisfied": bool(rep["value"] <= con.limit * (1 + con.tol)),
                      "initial": {k: initial[name][k] for k in ("value", "margin")}}
     return {"responses": out, "sigma": float(res.get("sigma", float("nan"))), "sigma_raised": int(res.get("outer", 0))}
@@ -159,7 +206,7 @@ def _step_outputs(out: Path, problem, which: str, plots: bool = True) -> dict:
             pre = f"{problem.cases[k].name}." if problem.has_load_cases else ""
             for name, sub, state in problem.step_results(k) or []:
                 if sub == max(s.substep for s in problem.steps[k] if s.name == name):
-                    plot_node_classes(out / f"classes-{pre}{name}.png", problem.model, state.classes)
+                    plot_node_classes(out / f"classes-{pre}{name}.png", problem.model, face_classes(problem.model, state))
     return dict(zip(problem.step_columns(), problem.step_values()))
 
 

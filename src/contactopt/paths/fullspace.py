@@ -35,7 +35,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from .._threads import sequential_openblas
-from ..contact.fullspace import solve_fullspace
+from ..contact.fullspace import solve_fullspace_with_fallbacks
 from ..contact.fullspace.core import overlap_force
 from ..contact.fullspace.pyamg import sorted_csr
 from ..errors import CheckpointError
@@ -272,7 +272,7 @@ class FullSpacePath(FullSpaceCommon):
         # on an obstacle: the contact DOFs in the nodes' frames (A → TᵀAT), and a tangential translation
         # as the reference of the slip (the law's displacement is w = u_c − shift, as on the condensation path)
         law_ref = slip_ref if system.shift is None else (system.shift if slip_ref is None else slip_ref + system.shift)
-        res = solve_fullspace(system.law_A, system.law_L, self.model.contact_dofs, system.gap, self.settings.friction,
+        res = solve_fullspace_with_fallbacks(system.law_A, system.law_L, self.model.contact_dofs, system.gap, self.settings.friction,
                               coords=asm.coords, free=self.model.assembler.free, r0=warm, u0=u0,
                               hierarchy=self._hierarchy, slip_ref=law_ref,
                               force_scale=self.fit_scale(float(np.linalg.norm(system.law_L)), lambda: self.contact_diagonal(system),
@@ -287,7 +287,8 @@ class FullSpacePath(FullSpaceCommon):
             u_c = res.u_c.copy()
             u_c[:, :2] -= system.shift
         return self.state_of(ctx, system, alpha, res, u_free=u_free, u_c=u_c, t0=t0, t_setup=t_setup,
-                             stats={"backend": "pyamg"}, label=label, slip_ref=slip_ref)
+                             stats={"backend": "pyamg", **({"fallback": res.fallback} if res.fallback else {})},
+                             label=label, slip_ref=slip_ref)
 
     def adjoint(self, system, ctx, state, y_u, y_lam, choices=None):
         if self.is_full(y_u):          # ∂J/∂u on every DOF: the free DOFs' part

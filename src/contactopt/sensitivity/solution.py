@@ -5,7 +5,11 @@ A design α is assembled once; the path prepares A(α) once and each load case a
 solve starts from the end of the one before. :func:`solve_design` returns a :class:`Solution`,
 built once and never changed by what reads it: objectives, constraints and the subgradient are
 functions of it. :class:`LastDesign` keeps the last one (as scipy's ``MemoizeJac`` keeps the last
-point), so that Θ, ξ and the constraints at one design share one solve.
+point), so that Θ, ξ and the constraints at one design share one solve. A solution records the
+contexts its solve started from (``start``), so that the same solve can be repeated bit for bit in
+another process (a resumed run's outputs), and :class:`KeptDesign` keeps a solution without its
+systems (the factorizations, the largest part) together with the responses' values evaluated on
+it: a run's outputs at its initial design and at its optimum read them instead of solving again.
 
 Contact conventions, on every path: per contact node m the order (t1, t2, ν) = (x1, x2, x3),
 r the contact force on the body, λ = r_ν ≥ 0, τ = −r_t (paper (3.17)).
@@ -76,6 +80,7 @@ class Solution:
     method: str
     cold: bool
     cases: tuple
+    start: list | None = None     # :func:`export_contexts` before the solve: the warm starts it began from
 
     @property
     def states(self) -> list:
@@ -89,6 +94,25 @@ class Solution:
     def answers(self, alpha: np.ndarray, method: str, warm_start: bool) -> bool:
         """Whether this solve is the one asked for (same α's bytes and method)."""
         return (self.alpha.tobytes(), self.method) == (alpha.tobytes(), method) and (warm_start or self.cold)
+
+    def without_systems(self) -> Solution:
+        """This solution with the states alone: the systems (factorizations, assembled matrices)
+        dropped, so that keeping it costs the states' arrays only."""
+        return replace(self, cases=tuple(replace(c, systems=()) for c in self.cases))
+
+
+@dataclass(frozen=True)
+class KeptDesign:
+    """A design's :class:`Solution` (its systems dropped, unless it was solved for the purpose)
+    and the values of the responses evaluated on it, by name; :meth:`LastDesign.restore` makes
+    it the last design again, so that what reads the responses there reads these values."""
+
+    solution: Solution
+    values: dict
+
+    @property
+    def alpha(self) -> np.ndarray:
+        return self.solution.alpha
 
 
 def solve_design(parts: Parts, alpha: np.ndarray, *, method: str, warm_start: bool, tol: float) -> Solution:
@@ -167,9 +191,20 @@ class LastDesign:
             raise SolverError("design contains NaN or infinite entries")
         if self.solution is None or not self.solution.answers(alpha, method, warm_start):
             self.clear()
-            self.solution = solve_design(self.parts, alpha, method=method, warm_start=warm_start, tol=tol)
+            start = [[{k: np.array(v, copy=True) for k, v in ctx.items()} for ctx in row]
+                     for row in export_contexts(self.parts)]
+            self.solution = replace(solve_design(self.parts, alpha, method=method, warm_start=warm_start, tol=tol),
+                                    start=start)
             self.n_solves += 1
         return self.solution
+
+    def keep(self) -> KeptDesign:
+        """The last design's solve, its systems dropped, with the values evaluated on it so far."""
+        return KeptDesign(self.solution.without_systems(), dict(self._values))
+
+    def restore(self, kept: KeptDesign) -> None:
+        """Make ``kept`` the last design: requests at its α and method answer from it."""
+        self.solution, self._values = kept.solution, dict(kept.values)
 
     def value(self, name: str, solution: Solution, evaluate):
         """The value of the response ``name`` at ``solution``: ``evaluate()`` once per solution."""

@@ -1,0 +1,145 @@
+"""Work of a run's outputs done in a forked child process beside the parent's own.
+
+A run's figures take most of the time after its last evaluation, and they only read arrays the
+parent already holds. :class:`Forked` runs a list of such jobs (callables without arguments
+that write their own files, atomically) in a child made by ``fork``, so that the child has every
+array without copying, while the parent writes its other files; :meth:`Forked.join` waits for the
+child and raises the child's exception in the parent (the exception itself where it can be
+pickled, else a :class:`~contactopt.errors.ContactOptError` with its text). :meth:`Forked.cancel`
+stops the child (an exception or a signal in the parent): it ends by an exception of its own, so
+that a file it was writing leaves no temporary behind.
+
+Forking is used only where it is safe and pays: on Linux, with more than one CPU available to
+the process, no thread in it but the main one and the idle workers of the assembly's pool, and
+no MPI loaded (a forked MPI process may hang). Elsewhere the jobs run in the parent, at
+:meth:`Forked.join`: the files are the same either way.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import logging
+import os
+import pickle
+import signal
+import sys
+import threading
+
+from ..errors import ContactOptError
+
+log = logging.getLogger(__name__)
+
+__all__ = ["Forked", "can_fork"]
+
+
+def can_fork() -> bool:
+    """Whether :class:`Forked` runs its jobs in a child process here (module docstring)."""
+    if not sys.platform.startswith("linux") or not hasattr(os, "fork"):
+        return False
+    try:
+        cpus = len(os.sched_getaffinity(0))
+    except (AttributeError, OSError):
+        cpus = os.cpu_count() or 1
+    others = [t for t in threading.enumerate() if t is not threading.main_thread()]
+    return cpus > 1 and all(t.name.startswith(IDLE_THREADS) for t in others) and "mpi4py.MPI" not in sys.modules
+
+
+IDLE_THREADS = ("contactopt-assembly",)
+"""Threads that may live in a process that forks: the assembly's pool, whose workers wait
+between the solves (the outputs solve nothing) and which a forked child makes anew."""
+
+
+class _Stop(BaseException):
+    """Raised in the child by SIGTERM or SIGINT: unwinds it through the writers' clean-up."""
+
+
+def _stop(signum, frame):
+    raise _Stop(signum)
+
+
+class Forked:
+    """``jobs`` run in a forked child (or, where :func:`can_fork` says no, in the parent at
+    :meth:`join`); use as a context manager, which cancels the child on an exception."""
+
+    def __init__(self, jobs, *, fork: bool | None = None):
+        self.jobs = list(jobs)
+        self.pid = None
+        self._read = None
+        if self.jobs and (can_fork() if fork is None else fork):
+            self._start()
+
+    def _start(self) -> None:
+        read, write = os.pipe()
+        for stream in (sys.stdout, sys.stderr):          # nothing buffered is written twice
+            with contextlib.suppress(Exception):
+                stream.flush()
+        pid = os.fork()
+        if pid == 0:                                       # the child: the jobs, then _exit
+            code = 1
+            try:
+                os.close(read)
+                signal.signal(signal.SIGTERM, _stop)
+                signal.signal(signal.SIGINT, _stop)
+                try:
+                    for job in self.jobs:
+                        job()
+                    code = 0
+                except BaseException as exc:              # noqa: BLE001 - carried to the parent
+                    with os.fdopen(write, "wb") as pipe:
+                        pipe.write(_payload(exc))
+            finally:
+                os._exit(code)
+        os.close(write)
+        self.pid, self._read = pid, read
+
+    def join(self) -> None:
+        """Wait for the jobs (run them here where no child was made); raise a child's exception."""
+        if self.pid is None:
+            jobs, self.jobs = self.jobs, []
+            for job in jobs:
+                job()
+            return
+        with os.fdopen(self._read, "rb") as pipe:
+            data = pipe.read()
+        _, status = os.waitpid(self.pid, 0)
+        self.pid = None
+        if data:
+            raise _exception(data)
+        if status != 0:
+            raise ContactOptError(f"the process writing the figures ended with status {status}")
+
+    def cancel(self) -> None:
+        """Stop the child (if any) and wait for it; its exception, if any, is dropped."""
+        if self.pid is None:
+            return
+        with contextlib.suppress(OSError):
+            os.kill(self.pid, signal.SIGTERM)
+        with contextlib.suppress(OSError):
+            os.close(self._read)
+        with contextlib.suppress(OSError):
+            os.waitpid(self.pid, 0)
+        self.pid = None
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, kind, value, tb):
+        if kind is not None:
+            self.cancel()
+        return False
+
+
+def _payload(exc: BaseException) -> bytes:
+    """The child's exception as bytes: pickled where it unpickles again, else its text."""
+    with contextlib.suppress(Exception):
+        data = pickle.dumps(exc)
+        pickle.loads(data)
+        return data
+    return pickle.dumps(f"{type(exc).__name__}: {exc}")
+
+
+def _exception(data: bytes) -> BaseException:
+    exc = pickle.loads(data)
+    if isinstance(exc, str):
+        return ContactOptError(f"writing the figures failed: {exc}")
+    return exc
