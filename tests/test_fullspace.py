@@ -13,15 +13,17 @@ from __future__ import annotations
 
 from pathlib import Path
 
+import meshio
 import numpy as np
 import pytest
 import scipy.sparse as sp
 
-from contactopt.config import load_config
+from contactopt.config import load_config, validate
 from contactopt.contact.fullspace import OPEN, SLIDE, STICK, solve_fullspace
 from contactopt.contact.state import CLASS_CODES, classify_nodes
 from contactopt.errors import ContactNotConverged, SolverError
 from contactopt.fem.krylov import KrylovNotConverged, gmres
+from contactopt.mesh.block import block_mesh
 from contactopt.problem import ShapeProblem
 from contactopt.sensitivity.adjoint import subgradient
 from contactopt.sensitivity.adjoint_fullspace import ADJOINT_RTOL, subgradient_fullspace
@@ -180,3 +182,32 @@ def test_gmres_on_a_nonsymmetric_system():
     with pytest.raises(KrylovNotConverged) as info:
         gmres(G.dot, b, atol=1e-14 * np.linalg.norm(b), restart=5, max_iter=7)
     assert len(info.value.history) == 8
+
+
+# ------------------------------------------------------------------ a press fit without load
+def plane_press_fit(tmp_path, path, friction):
+    """A block 2 × 1 × 1 (8 × 4 × 3 hexahedra) clamped on its top whose underside starts below the
+    plane x3 = 0 by about 1e-3 (``initial_gap = "mesh"``, ``interference = true``), E = 1, no load."""
+    m = block_mesh(2.0, 1.0, 1.0, 8, 4, 3)
+    pts = m.points.copy()
+    pts[:, 2] -= 1e-3 * (1.0 + 0.2 * np.sin(pts[:, 0]))
+    meshio.write(tmp_path / "fit.vtu", meshio.Mesh(pts, [("hexahedron", m.cells)]))
+    return validate({"name": "plane-fit", "material": {"E": 1.0, "nu": 0.3}, "friction": {"coefficient": friction},
+                     "body": {"mesh": str(tmp_path / "fit.vtu"), "contact": {"box": [[-1, 3], [-1, 2], [-0.01, 0.0]]},
+                              "clamped": {"box": [[-1, 3], [-1, 2], [0.9, 1.1]]}, "initial_gap": "mesh",
+                              "interference": True},
+                     "loads": {"body_force": [0.0, 0.0, 0.0]}, "design": {"degree": [2, 1], "initial": 0.0, "C2": 0.0},
+                     "state": {"method": "newton", "tol": 1e-12}, "linear_solver": {"path": path}}, "plane-fit")
+
+
+@pytest.mark.parametrize("friction", [0.0, 0.3])
+def test_a_press_fit_on_the_plane_without_load_equals_the_condensation(tmp_path, friction):
+    # L = 0: the residuals against the overlap's force (the fit's forces are ~1e-3, not 1)
+    cond, full = (ShapeProblem(plane_press_fit(tmp_path, path, friction)) for path in ("condensation", "fullspace"))
+    assert full.path.name == "fullspace"
+    alpha = cond.model.initial_design()
+    sc, sf = cond.solve_state(alpha), full.solve_state(alpha)
+    assert sf.converged and np.array_equal(sc.classes, sf.classes)
+    assert np.abs(sf.lam - sc.lam).max() <= TOL * sc.lam.max()
+    assert np.abs(sf.tau - sc.tau).max() <= TOL * sc.lam.max()
+    assert np.abs(sf.u - sc.u).max() <= TOL * np.abs(sc.u).max()
