@@ -140,6 +140,8 @@ def _payload(exc: BaseException) -> bytes:
 
 def _exception(data: bytes) -> BaseException:
     exc = pickle.loads(data)
+    if isinstance(exc, _Stop):
+        return ContactOptError(f"the process writing the figures was stopped by signal {exc.args[0]}")
     if isinstance(exc, str):
         return ContactOptError(f"writing the figures failed: {exc}")
     return exc
