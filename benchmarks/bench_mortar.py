@@ -1,6 +1,6 @@
 """Mortar partners on the elastic foundation: the contact patch test, convergence, cost.
 
-    python benchmarks/bench_mortar.py [--part patch|meshes|hertz|cost|all] [--steps 6]
+    python benchmarks/bench_mortar.py [--part patch|meshes|hertz|tets|cost|all] [--steps 6]
 
 patch   The contact patch test of contactopt.verification.patch (overlap loading) with point,
         averaged and mortar partners, F = 0 and 0.3: max and rms of (λ/a − p)/p, max ‖τ‖/(a p).
@@ -12,6 +12,13 @@ hertz   Two bodies of one material in Hertz contact (E = 1, ν = 0.3, R = 2: the
         a slab 0.7 n and 1.5 n, averaged and mortar partners, against the matching slab (point
         partners, node-to-node): rms of (p − p_match)/p0 over the face (the non-matching bias),
         and rms of (p − p_Hertz)/p0, p = λ/a per node, p_Hertz = p0 √(1 − r²/a²) from Σλ.
+tets    Hertz on Gmsh tetrahedra (contactopt.verification.hertz_tets): a rigid sphere pressed into a
+        quarter block of linear and quadratic tetrahedra of size a/6, a/8, a/10 (--sizes), and of
+        the graded grid split into six linear tetrahedra per hexahedron; the
+        gap node-wise and dual-weighted ([obstacle] weighting): rms and max of (p − p_Hertz)/p0
+        within 1.5 a, the rate of the rms between refinements, the rms within 0.8 a (the interior
+        of the contact); and the exact Hertz pressure read
+        as the nodal pressure reads λ (∫ N_m p_Hertz dA / a_m), the floor of the nodal reading.
 cost    examples/example1_elastic.toml (body 32×15×9, slab 24×16×8: non-matching): the time to
         build the partners (segmentation and mortar matrices once per run) and the median time of
         one evaluation (state + subgradient) along a path of small design steps, mortar against
@@ -21,6 +28,7 @@ cost    examples/example1_elastic.toml (body 32×15×9, slab 24×16×8: non-matc
 from __future__ import annotations
 
 import argparse
+import math
 import statistics
 import tempfile
 import time
@@ -29,6 +37,7 @@ from pathlib import Path
 import numpy as np
 
 from contactopt.config import load_config
+from contactopt.fem.elements import tri_rule
 from contactopt.fem.foundation import averaged_partners, mortar_partners
 from contactopt.problem import ShapeProblem
 from contactopt.verification.patch import patch_config, patch_errors
@@ -44,15 +53,20 @@ PATCH = [("7×7 on 7×7, matching", 7, 7, "hexahedron", "hexahedron"),
          ("hexahedra 7×7 on tetrahedra 10×10", 7, 10, "hexahedron", "tetra"),
          ("tetrahedra 7×7 on hexahedra 10×10", 7, 10, "tetra", "hexahedron"),
          ("tetrahedra 10×10 on tetrahedra 7×7", 10, 7, "tetra", "tetra"),
-         ("hexahedra 7×7 on tet10 5×5", 7, 5, "hexahedron", "tetra10")]
+         ("hexahedra 7×7 on tet10 5×5", 7, 5, "hexahedron", "tetra10"),
+         ("tet10 4×4 on hexahedra 5×5", 4, 5, "tetra10", "hexahedron"),
+         ("tet10 5×5 on tetrahedra 4×4", 5, 4, "tetra10", "tetra"),
+         ("tet10 4×4 on tet10 3×3", 4, 3, "tetra10", "tetra10")]
 
 
-def patch() -> None:
+def patch(only=None) -> None:
     print("| body on foundation | partner | F = 0: max / rms | F = 0.3: max / rms | F = 0.3: max ‖τ‖/(a p) |")
     print("|---|---|---|---|---|")
     with tempfile.TemporaryDirectory() as tmp:
-        for label, nb, nf, body, found in PATCH:
-            for partner in ("point", "average", "mortar"):
+        for label, nb, nf, body, found in PATCH if only is None else [c for c in PATCH if only in c[0]]:
+            # six-node triangles: ∫N_m = 0 at the corners, so λ/a is only defined in the transformed
+            # basis of mortar partners (averaged partners take linear faces only)
+            for partner in ("mortar",) if body == "tetra10" else ("point", "average", "mortar"):
                 row = []
                 for friction in (0.0, 0.3):
                     pb = ShapeProblem(patch_config(nb, nf, friction, tmp, body=body, foundation=found,
@@ -122,6 +136,51 @@ def hertz(sizes=(12, 16, 24)) -> None:
                       f"{np.sqrt(np.mean((p - ph) ** 2)) / p0:.2e} |", flush=True)
 
 
+def tets(sizes=(6, 8, 10)) -> None:
+    from contactopt.fem.elements import face_for
+    from contactopt.io.pressure import contact_areas
+    from contactopt.verification.hertz_tets import A_TARGET, measure, quarter_mesh, split_mesh
+
+    def floor(res):
+        """rms of (∫ N_m p_Hertz dA / a_m − p_Hertz(x_m))/p0 within 1.5 a (linear faces)."""
+        m = res["problem"].model
+        faces, pts = m.body.contact_face.faces, m.body.reference.points
+        ft = face_for(faces)
+        q, w = tri_rule(10)
+        N, dN = ft.shape(q)
+        X = pts[faces]
+        T1, T2 = np.einsum("fam,qa->fqm", X, dN[:, :, 0]), np.einsum("fam,qa->fqm", X, dN[:, :, 1])
+        dA = np.linalg.norm(np.cross(T1, T2), axis=2) * w
+        xq = np.einsum("qa,fam->fqm", N, X)
+        rq = np.hypot(xq[..., 0], xq[..., 1])
+        pq = res["p0"] * np.sqrt(np.clip(1 - (rq / res["a"]) ** 2, 0, None))
+        f = np.bincount(faces.ravel(), weights=np.einsum("fq,qa,fq->fa", dA, N, pq).ravel(), minlength=pts.shape[0])
+        pn = f[m.contact_nodes] / contact_areas(pts, faces, m.contact_nodes)
+        use = res["r"] < 1.5 * res["a"]
+        return float(np.sqrt(np.mean((pn[use] - res["p_hertz"][use]) ** 2)) / res["p0"])
+
+    print("| elements | h | contact nodes | gap | rms (p − p_Hertz)/p0 | max | rate | rms within 0.8 a "
+          "| nodal reading of p_Hertz: rms | time |")
+    print("|---|---|---|---|---|---|---|---|---|---|")
+    with tempfile.TemporaryDirectory() as tmp:
+        for order, kind in ((1, "tetra"), (0, "tetra, split grid"), (2, "tetra10")):
+            last = {}
+            for k in sizes:
+                mesh = (split_mesh(Path(tmp) / f"s{k}.msh", A_TARGET / k) if order == 0 else
+                        quarter_mesh(Path(tmp) / f"q{order}_{k}.msh", A_TARGET / k, order=order))
+                for weighting in (("node", "mortar") if order < 2 else ("node",)):
+                    res = measure(mesh, weighting)
+                    rate = (math.log(last[weighting][1] / res["rms"]) / math.log(k / last[weighting][0])
+                            if weighting in last else float("nan"))
+                    last[weighting] = (k, res["rms"])
+                    fl = f"{floor(res):.2e}" if order < 2 else "–"
+                    inner = res["r"] < 0.8 * res["a"]
+                    ri = np.sqrt(np.mean((res["p"] - res["p_hertz"])[inner] ** 2)) / res["p0"]
+                    print(f"| {kind} | a/{k} | {res['contact_nodes']} | {weighting} | {res['rms']:.2e} | "
+                          f"{res['max']:.2e} | {'' if math.isnan(rate) else f'{rate:.2f}'} | {ri:.2e} | {fl} | "
+                          f"{res['time']:.1f} s |", flush=True)
+
+
 def cost(steps: int) -> None:
     el = load_config(ELASTIC)
     pbs = {p: ShapeProblem(el.with_updates({"foundation": {**el["foundation"], "partner": p}}))
@@ -158,8 +217,9 @@ def cost(steps: int) -> None:
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--part", default="all", choices=["patch", "meshes", "hertz", "cost", "all"])
+    ap.add_argument("--part", default="all", choices=["patch", "meshes", "hertz", "tets", "cost", "all"])
     ap.add_argument("--steps", type=int, default=6)
+    ap.add_argument("--sizes", type=int, nargs="+", default=[6, 8, 10], help="tets: element sizes a/k")
     args = ap.parse_args()
     if args.part in ("patch", "all"):
         patch()
@@ -167,6 +227,8 @@ def main() -> None:
         meshes()
     if args.part in ("hertz", "all"):
         hertz()
+    if args.part in ("tets", "all"):
+        tets(tuple(args.sizes))
     if args.part in ("cost", "all"):
         cost(args.steps)
 

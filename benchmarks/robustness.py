@@ -5,6 +5,7 @@ against the solve at α0.
     python benchmarks/robustness.py                        # every shipped configuration, 5 designs
     python benchmarks/robustness.py examples/roller_rigid.toml --designs 50
     python benchmarks/robustness.py examples/roller_rigid.toml --designs 50 --cli   # via `contactopt state --alpha`
+    python benchmarks/robustness.py --generated 0 1 2 --designs 3   # generated variants (verification.robustness)
 
 Each design draws every control point uniformly from its box (the slope and volume rows of U are
 not imposed: any design of the box gives a valid mesh, and the state must exist there). Prints one
@@ -23,7 +24,7 @@ import tempfile
 import time
 from pathlib import Path
 
-from contactopt.verification.robustness import box_designs, random_design_solves
+from contactopt.verification.robustness import box_designs, generated_variants, random_design_solves
 
 ROOT = Path(__file__).resolve().parents[1]
 SHIPPED = ["example1", "example2", "example3"] + sorted(str(p.relative_to(ROOT)) for p in (ROOT / "examples").glob("*.toml"))
@@ -63,15 +64,27 @@ def main(argv=None) -> int:
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--cli", action="store_true", help="through `contactopt state --alpha`, one row per design")
     ap.add_argument("--json", help="write the rows to this file")
+    ap.add_argument("--generated", type=int, nargs="+", metavar="SEED",
+                    help="the generated variants of these seeds instead of the configurations")
     args = ap.parse_args(argv)
     rows = []
-    for name in args.configs:
+    if args.generated:
+        with tempfile.TemporaryDirectory() as tmp:
+            # each variant's designs drawn with its own seed, as the robustness tier does
+            return report(args, [(c, name, seed) for seed in args.generated for name, c in generated_variants(seed, tmp)],
+                          rows)
+    return report(args, [(name, None, args.seed) for name in args.configs], rows)
+
+
+def report(args, configs, rows) -> int:
+    """Solve each configuration (``(config, name, seed)``), print its row, write --json; the exit status."""
+    for name, label, seed in configs:
         if args.cli:
             rows += run_cli(name, args.designs, args.seed)
             continue
-        row = random_design_solves(name, args.designs, args.seed)
+        row = random_design_solves(name, args.designs, seed, label)
         rows.append(row)
-        print(f"{name:40s} {row['converged']:3d}/{row['designs']:<3d} converged, fallbacks {row['fallbacks']} "
+        print(f"{row['config']:40s} {row['converged']:3d}/{row['designs']:<3d} converged, fallbacks {row['fallbacks']} "
               f"{row['fallbacks_used']}, Newton steps <= {row['newton_steps_max']}, "
               f"{row['time_mean_s']:.2f} s per solve (α0 {row['time_alpha0_s']:.2f} s)"
               + (f"; failed: {row['failures']}" if row["failures"] else ""), flush=True)

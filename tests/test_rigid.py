@@ -228,14 +228,22 @@ def test_loads_that_pull_away_tip_over_or_meet_no_friction_are_refused():
         ShapeProblem(free_block(side=0.0, friction=0.0))
 
 
-def test_the_other_paths_and_an_elastic_foundation_refuse_a_body_held_only_by_contact():
+def test_the_other_paths_refuse_a_body_held_only_by_contact():
     for path in ("delassus", "fullspace"):
         with pytest.raises(ConfigError, match="a body held only by contact is solved on the 'condensation' path only"):
             ShapeProblem(free_block(linear_solver={"path": path}))
     assert ShapeProblem(free_block(linear_solver={"path": "auto", "crossover": 10})).path.name == "condensation"
-    with pytest.raises(ConfigError, match="not on an elastic"):
-        ShapeProblem(free_block(foundation={"block": {"size": [3.0, 2.0, 1.0], "cells": [3, 2, 1],
-                                                      "origin": [-0.5, -0.5]}}))
+
+
+def test_a_body_held_only_by_contact_rests_on_an_elastic_foundation():
+    """The free block on a foundation block 3 × 2 × 1 (mortar partners): the contact forces balance
+    the loads, N = 0.2 and the side load 0.02 along x1."""
+    pb = ShapeProblem(free_block(foundation={"block": {"size": [3.0, 2.0, 1.0], "cells": [3, 2, 1],
+                                                       "origin": [-0.5, -0.5]}}))
+    assert pb.path.name == "condensation" and pb.model.body.rigid is not None
+    st = pb.solve_state(pb.model.initial_design())
+    assert st.converged and st.rigid is not None
+    assert abs(st.lam.sum() - 0.2) <= 1e-10 and np.abs(np.abs(st.tau.sum(axis=0)) - [0.02, 0.0]).max() <= 1e-10
 
 
 @pytest.mark.slow

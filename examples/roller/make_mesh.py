@@ -1,11 +1,13 @@
 """The roller and the race of examples/roller_crowning.toml as Gmsh 2.2 files (hexahedra):
 
-    python examples/roller/make_mesh.py          # writes examples/roller/roller.msh and race.msh
+    python examples/roller/make_mesh.py   # writes examples/roller/roller.msh, roller_touch.msh and race.msh
 
 A quarter model of a roller of radius R = 1 and length 4 on a race of the same material: the
 roller's end region, x1 ∈ [0, 2] (x1 = 0 its middle, x1 = 2 its free end), x2 ∈ [0, 0.6] (x2 = 0
-the plane through its axis), its underside the cylinder x3 = R − √(R² − x2²) − δ lowered by the
-interference δ = 0.002 into the race, its top x3 = 0.6 held (the roller's core). The race
+the plane through its axis), its underside the cylinder x3 = R − √(R² − x2²) − δ, its top
+x3 = 0.6 held (the roller's core): roller.msh lowered by the interference δ = 0.002 into the race
+(examples/roller_crowning_interference.toml), roller_touch.msh touching it along the line x2 = 0
+(δ = 0: the race pressed by a force, examples/roller_crowning.toml). The race
 x1 ∈ [0, 3] × x2 ∈ [0, 1.5] × x3 ∈ [−1, 0], its top on x3 = 0; the two meshes match under the
 roller. Groups: roller: contact (underside), top, volume; race: top, bottom, volume. Both bodies
 are fine near x2 = 0 and near the roller's end, where its pressure peaks.
@@ -60,10 +62,11 @@ def write(path, pts, cells, groups):
 def main(directory=None):
     directory = Path(directory or Path(__file__).parent)
     x1, x2, s = np.meshgrid(X1_ROLLER, X2_ROLLER, X3_ROLLER, indexing="ij")
-    under = R - np.sqrt(R ** 2 - x2 ** 2) - DELTA
-    pts = np.c_[x1.ravel(), x2.ravel(), (under + s * (TOP - under)).ravel()]
     cells, idx = hexes(X1_ROLLER.size, X2_ROLLER.size, X3_ROLLER.size)
-    write(directory / "roller.msh", pts, cells, {"contact": faces_at(idx, 0), "top": faces_at(idx, -1)})
+    for name, delta in (("roller.msh", DELTA), ("roller_touch.msh", 0.0)):
+        under = R - np.sqrt(R ** 2 - x2 ** 2) - delta
+        pts = np.c_[x1.ravel(), x2.ravel(), (under + s * (TOP - under)).ravel()]
+        write(directory / name, pts, cells, {"contact": faces_at(idx, 0), "top": faces_at(idx, -1)})
     x1, x2, x3 = np.meshgrid(X1_RACE, X2_RACE, X3_RACE, indexing="ij")
     pts = np.c_[x1.ravel(), x2.ravel(), x3.ravel()]
     cells, idx = hexes(X1_RACE.size, X2_RACE.size, X3_RACE.size)

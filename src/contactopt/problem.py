@@ -99,7 +99,11 @@ class ShapeProblem:
         coords = m.mesh.coordinates(m.initial_design())
         loads = [("loads" if len(self.cases) == 1 else f"load case {c.name!r}", m.load_vector(coords, c.loads))
                  for c in self.cases]
-        check_held(m.body.rigid, coords, m.contact_nodes, m.frames, self.friction, loads, self.config.source)
+        c = self.config
+        # a load path's steps have loads and obstacle forces of their own: the obstacle's force is checked without them
+        steps = bool(c.load_steps) or any(case.steps for case in c.load_cases)
+        check_held(m.body.rigid, coords, m.contact_nodes, m.frames, self.friction, loads, c.source,
+                   obstacle_force=None if steps else m.obstacle_force)
 
     def _design_lambda(self, alpha, case: int) -> np.ndarray:
         """λ of load case ``case`` at α, solved without warm start (a 'design' target)."""

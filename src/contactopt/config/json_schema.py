@@ -86,6 +86,7 @@ _FORMS = {
         "origin": {"type": "array", "items": _NUMBER, "minItems": 2, "maxItems": 2},
         "element": {"enum": ["hexahedron", "tetra"]}}},
     ("foundation", "top"): _PART,
+    ("foundation", "loaded"): _PART,
     ("foundation", "clamped"): _CLAMP,
     ("foundation", "material"): {"type": "object", "additionalProperties": False,
                                  "properties": {"E": _NUMBER, "nu": _NUMBER}},

@@ -103,7 +103,10 @@ def reference_markdown() -> str:
     lines += ["", "## [foundation]", "",
               "Optional: an elastic foundation under the body ([foundation](guide/foundation.md)). Absent, "
               "the foundation is the rigid half-space x3 ≤ 0. Its top face lies on x3 = 0 under the contact "
-              "face; each contact node has a partner on that face (`partner`). Runs on the condensation path.",
+              "face; each contact node has a partner on that face (`partner`). Held by `clamped` (control = "
+              "'fixed'), or moved with its part `loaded` by a prescribed translation (control = 'displacement') "
+              "or by the translation that makes the force on that part equal `force` (control = 'force', as a "
+              "force-controlled [obstacle]). Runs on the condensation path.",
               ""] + _rows(FOUNDATION)
     lines += ["", "## [obstacle]", "",
               "Optional: a rigid obstacle of any shape ([obstacles](obstacles.md)). Absent, it is the plane "

@@ -308,11 +308,26 @@ FOUNDATION = {
                 "displacement over the node's tributary area: a foundation finer than the body then "
                 "converges; linear body elements only), 'mortar' (the relative displacement weighted by "
                 "the node's dual basis function over the segmented faces: the contact patch test passes "
-                "on non-matching meshes; linear body elements only) or 'auto' ('point' where every partner "
-                "is a node of the top face or the body's faces are quadratic, else 'mortar')"),
+                "on non-matching meshes; the transformed dual basis on six-node triangles, on a flat face) "
+                "or 'auto' ('point' where every partner is a node of the top face or the body's faces are "
+                "quadratic on a curved face, else 'mortar')"),
     "tolerance": (1e-3, lambda x: _pos(x) and x < 0.5,
                   "a number in (0, 0.5) (geometric tolerance of the checks of the foundation's mesh, "
                   "relative to its median boundary edge length)"),
+    "control": ("fixed", _oneof("fixed", "displacement", "force"),
+                "'fixed' (the foundation held by `clamped` alone), 'displacement' (the part `loaded` moved by "
+                "the rigid translation `displacement`) or 'force' (the part `loaded` pressed by the resultant "
+                "`force`: it translates along the force, its translation an unknown of the state); the "
+                "foundation translates rigidly with that part, so `clamped` may hold elsewhere only "
+                "components the translation leaves at zero (symmetry planes); condensation path"),
+    "loaded": ("bottom", _part_spec, _PART + " (control = 'displacement' or 'force': the part of the foundation "
+               "that is moved or loaded; all three components of its nodes follow the translation)"),
+    "displacement": ([0.0, 0.0, 0.0], _vec3,
+                     "control = 'displacement': the translation [d1, d2, d3] of the part `loaded` (and with it "
+                     "of the foundation)"),
+    "force": ([0.0, 0.0, 0.0], _vec3, "control = 'force': the resultant [f1, f2, f3] applied to the part `loaded`, "
+              "pressing the foundation onto the body (without foundation loads, the resultant of the contact "
+              "forces on the body)"),
 }
 
 # [obstacle]: optional — absent, the rigid counterpart is the plane x3 = 0, fixed (docs/obstacles.md)
@@ -337,6 +352,10 @@ OBSTACLE = {
                      "gap of contact node m as −d·n_m)"),
     "force": ([0.0, 0.0, 0.0], _vec3, "control = 'force': the resultant [f1, f2, f3] the obstacle exerts on the "
               "body"),
+    "weighting": ("node", _oneof("node", "mortar"),
+                  "'node' (each contact node's gap is its own distance to the obstacle) or 'mortar' (the "
+                  "dual-weighted gap D_jj⁻¹ ∫ Φ_j g dA over the faces around the node, Φ_j the dual basis of the "
+                  "face: linear faces on the paper's map or a normal motion without a chart; docs/mortar.md)"),
 }
 
 TOP_LEVEL = {"name": ("custom", lambda x: isinstance(x, str) and x != "", "a non-empty string"),

@@ -378,12 +378,27 @@ class Foundation:
     loads: Loads
     partner: str
     tolerance: float
+    control: str = "fixed"
+    loaded: Any = "bottom"
+    displacement: list = dataclasses.field(default_factory=lambda: [0.0, 0.0, 0.0])
+    force: list = dataclasses.field(default_factory=lambda: [0.0, 0.0, 0.0])
 
     @classmethod
     def from_dict(cls, d: dict) -> "Foundation":
         return _build(cls, d, FOUNDATION, clamped=Clamp.all_of(d["clamped"]), block=FoundationBlock.from_dict(d["block"]) if d["block"] else None,
                       material=FoundationMaterial(d["material"]["E"], d["material"]["nu"]),
                       loads=Loads.from_dict(d["loads"]))
+
+    @property
+    def translation(self) -> tuple | None:
+        """The direction the part ``loaded`` translates along: the displacement itself (control =
+        'displacement'), the force's unit vector (control = 'force'), None when fixed."""
+        if self.control == "displacement":
+            return tuple(float(v) for v in self.displacement)
+        if self.control == "force":
+            norm = sum(float(v) ** 2 for v in self.force) ** 0.5
+            return tuple(float(v) / norm for v in self.force)
+        return None
 
 
 @dataclass(frozen=True)
@@ -399,6 +414,7 @@ class Obstacle:
     control: str
     displacement: list
     force: list
+    weighting: str = "node"
 
     @classmethod
     def from_dict(cls, d: dict) -> "Obstacle":

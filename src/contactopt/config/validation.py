@@ -384,7 +384,32 @@ def _check_foundation(given, data, problems) -> dict:
         out["loads"] = {**{k: copy.deepcopy(v[0]) for k, v in FOUNDATION_LOADS.items()}, **out["loads"]}
     if isinstance(out["material"], dict) and _material_spec(out["material"]):
         out["material"] = {k: float(out["material"].get(k, data["material"][k])) for k in ("E", "nu")}
+    _check_foundation_control(given, out, problems)
     return out
+
+
+def _check_foundation_control(given, out, problems) -> None:
+    """[foundation] control: a `force` other than zero only with 'force' (and there not zero), a
+    `displacement` other than zero only with 'displacement', a `loaded` part other than the default
+    only with either (a resolved configuration, written back, holds every key at its default)."""
+    control = out["control"]
+    for key, needs in (("force", "force"), ("displacement", "displacement")):
+        if key in given and control != needs and given[key] != FOUNDATION[key][0]:
+            problems.append(f"foundation.{key} = {given[key]!r}: given with foundation.control = {control!r}; it is "
+                            f"read only with control = {needs!r}")
+    if "loaded" in given and control == "fixed" and given["loaded"] != FOUNDATION["loaded"][0]:
+        problems.append("foundation.loaded: given with foundation.control = 'fixed'; it names the part moved or "
+                        "loaded with control = 'displacement' or 'force'")
+    if control == "force" and "force" not in given:
+        problems.append("foundation.force: required with foundation.control = 'force'")
+    elif control == "force" and _vec3(out["force"]) and not any(v != 0 for v in out["force"]):
+        problems.append("foundation.force = [0, 0, 0]: with control = 'force' the foundation translates along the "
+                        "force, which has no direction")
+    if control == "displacement" and "displacement" not in given:
+        problems.append("foundation.displacement: required with foundation.control = 'displacement'")
+    for k in ("displacement", "force"):
+        if _vec3(out[k]):
+            out[k] = [float(v) for v in out[k]]
 
 
 def _check_obstacle(given, data, problems) -> dict:
@@ -431,17 +456,25 @@ def check_interactions(config, *, pinned: int = 0, rigid: str | None = None, pin
     the contact face); ``rigid``: the names of the rigid motions the clamps leave free (a body held
     only by contact), or None; ``pinned_held``: the pinned components are clamped at their partners
     on an elastic foundation too (symmetry planes through both bodies). These are properties of the
-    bodies built from ``config``. An elastic ``[foundation]`` takes neither a body held only by
-    contact (it rests on a rigid support) nor pinned components its partners do not hold (the
-    foundation's compliance would add to a clamped direction)."""
+    bodies built from ``config``. An elastic ``[foundation]`` does not take pinned components its
+    partners do not hold (the foundation's compliance would add to a clamped direction). No rule
+    reads ``rigid`` today: a body held only by contact rests on an elastic foundation as on a rigid
+    support (the anchor acts on the coupled stiffness, ``contactopt.paths.rigid``)."""
     problems = []
-    if config.foundation is not None and rigid is not None:
-        problems.append(f"body.clamped leaves rigid motions free ({rigid}): a body held only by contact rests on "
-                        "the rigid foundation or an [obstacle], not on an elastic [foundation]")
     if config.foundation is not None and pinned and not pinned_held:
         problems.append(f"body.clamped: {pinned} tangential component(s) of contact nodes are clamped (a symmetry "
                         "plane through the contact face), which an elastic [foundation] does not take (its "
                         "compliance would add to the clamped direction); the rigid foundation does")
+    if config.foundation is not None and config.foundation.control == "force":
+        if config.load_steps or any(case.steps for case in config.load_cases):
+            problems.append("[[load_steps]] with foundation.control = 'force': the force search runs on single "
+                            "load steps only; press the foundation by a force without load steps, or prescribe "
+                            "its displacement (control = 'displacement')")
+        types = config.objective.types | {t.type for t in config.constraints}
+        if "frictional_dissipation" in types:
+            problems.append("objective 'frictional_dissipation' with foundation.control = 'force': the objective "
+                            "takes the slip relative to the foundation without its translation; prescribe the "
+                            "foundation's displacement (control = 'displacement') instead")
     if problems:
         raise ConfigError(problems)
 

@@ -11,6 +11,11 @@ friction limit than 0.12 % passes on to the solver. A motion that the contact ca
 all (frictionless contact and a motion with no normal component at any contact node) cannot be
 held by any load either.
 
+With a force-controlled obstacle the contact forces have a prescribed resultant along its force as
+well; a load that, with it, no admissible contact force balances on the free motions (for example
+no load at all on a body that nothing but the contact holds along the obstacle's force) is refused
+too: "the load has a component along a rigid motion that nothing holds: the translation along x3 …".
+
 The message names the motion. On a flat contact face (every contact normal the same n) the
 translations are named by the resultants: the normal load N = −P·n (P the load's resultant), the
 tangential load T = |P − (P·n)n| against F·N.
@@ -27,9 +32,15 @@ from ..mesh.rigid import AXES, mode_name
 SIDES = 64
 
 
-def check_held(rigid, points, contact_nodes, frames, friction: float, loads: list, source: str) -> None:
+def check_held(rigid, points, contact_nodes, frames, friction: float, loads: list, source: str,
+               obstacle_force=None) -> None:
     """ConfigError naming the first free rigid motion of ``rigid`` that no admissible contact
-    force holds, for the load vectors ``loads`` (full length 3n, named: [(name, f)])."""
+    force holds, for the load vectors ``loads`` (full length 3n, named: [(name, f)]).
+
+    ``obstacle_force``: a force-controlled obstacle's (``contactopt.fem.model.ObstacleForce``: its
+    magnitude |f| and b_m = R_mᵀ f̂ per node frame (t1, t2, n)): the contact forces then also have
+    the resultant Σ_m b_m·r_m = |f| along f̂, and a load that does not balance it along a free
+    motion is refused by name (:func:`_check_force`)."""
     k = rigid.count
     p = contact_nodes.size
     R = np.broadcast_to(np.eye(3), (p, 3, 3)) if frames is None else frames        # columns (t1, t2, n)
@@ -57,6 +68,9 @@ def check_held(rigid, points, contact_nodes, frames, friction: float, loads: lis
                                "friction.coefficient > 0"])
     for name, f in loads:
         b = V.reshape(-1, k).T @ np.asarray(f, float) / scale                  # the load's work on y
+        if obstacle_force is not None:
+            _check_force(rigid, points, R, gen, work, b, f, obstacle_force, f"{source}: {name}")
+            continue
         if not np.any(b):
             continue
         res = linprog(-b, A_ub=-work, b_ub=np.zeros(work.shape[0]), bounds=[(-1.0, 1.0)] * k, method="highs")
@@ -64,6 +78,33 @@ def check_held(rigid, points, contact_nodes, frames, friction: float, loads: lis
             continue
         y = res.x / scale
         raise ConfigError([f"{source}: {name}: " + _message(rigid, y, points, contact_nodes, R, f, friction)])
+
+
+def _check_force(rigid, points, R, gen, work, b, f, force, where: str) -> None:
+    """ConfigError when no admissible contact forces (generator weights w ≥ 0 of the cones'
+    polygons, a superset: a refusal is never wrong) both balance the load on the free motions
+    (Σ w_j work_j = −b) and have the force-controlled obstacle's resultant Σ_m b_m·r_m = |f|:
+    then the load has a component along a rigid motion that nothing holds."""
+    along = np.einsum("jc,mc->mj", gen, np.asarray(force.b, float)).ravel() / force.magnitude
+    res = linprog(np.zeros(work.shape[0]), A_eq=np.vstack([work.T, along]), b_eq=np.r_[-b, 1.0],
+                  bounds=(0, None), method="highs")
+    if res.status != 2:                    # feasible (or undecided): the solver goes on
+        return
+    P = np.asarray(f, float).reshape(-1, 3).sum(axis=0)
+    fhat = R[0] @ np.asarray(force.b, float)[0]                                 # f̂ in the world frame
+    free_t = _free_translations(rigid)
+    if free_t.size and np.linalg.norm(free_t.T @ fhat) >= 1 - 1e-9:
+        along_f = float(P @ fhat)
+        raise ConfigError([f"{where}: the load has a component along a rigid motion that nothing holds: the "
+                           f"translation along {_axis(fhat)} — the force-controlled obstacle pushes the body by "
+                           f"{force.magnitude:.6g} along {_axis(fhat)}, the load's resultant along it is {along_f:.6g} "
+                           f"(it would have to be {-force.magnitude:.6g}) and no clamp takes the difference; clamp the "
+                           f"body along {_axis(fhat)} (body.clamped) or load it against the obstacle's force"])
+    names = ", ".join(rigid.names())
+    raise ConfigError([f"{where}: the load has a component along a rigid motion that nothing holds: with the "
+                       f"force-controlled obstacle's {force.magnitude:.6g} along {_axis(fhat)}, no contact force "
+                       f"admissible on the contact face balances the load's resultant {_fmt(P)} on the free motions "
+                       f"({names}); clamp them (body.clamped) or change the loads"])
 
 
 def _named(rigid, y, points) -> str:

@@ -18,7 +18,8 @@ independent of the design α: computed once per run.
 A curved contact face (a chart other than x3 = 0, :mod:`contactopt.design.chart`) meets a curved top
 face of any shape: contact node m's partner is where the line through the node along its contact
 normal n_m (the body's inward face normal, from the foundation to the body) meets the top face,
-and its initial gap g_m the signed distance along n_m (negative: an interference). The coupling
+and its initial gap g_m the signed distance along n_m (negative: an interference); with mortar
+partners both faces are segmented on the body's chart instead (:func:`mortar_partners`). The coupling
 then acts in the nodes' frames R_m = (t1, t2, n_m): Π → Rᵀ Π, C → Rᵀ C R, q_f → Rᵀ q_f
 (:meth:`Foundation.rotate`). Condensed with the body's S(α) u_c = ℓ + r,
 
@@ -47,7 +48,7 @@ from .elasticity import ElasticityAssembler
 from .elements import element_type, face_type, tri_rule
 from .loadset import load_set
 from .memory import foundation_parts, matrix_entries
-from .mortar import MortarCoupling, mortar_matrices
+from .mortar import MortarCoupling, mortar_matrices, transformed_basis
 
 log = logging.getLogger(__name__)
 
@@ -82,28 +83,30 @@ class Foundation:
         where = f"{source}: foundation.top"
         p = contact_xy.shape[0]
         self.gap0 = None            # a curved face: the initial gaps along the contact normals
+        self.basis = None           # mortar partners on six-node triangles: T on the contact nodes (fem.mortar)
         if normals is None:
             faces, weights = locate_partners(ref.points, fm.top.faces, ref.face_type, contact_xy, contact_nodes,
                                              where)
         else:
-            if self.partner in ("average", "mortar"):
-                raise ConfigError([f"{where}: foundation.partner = {self.partner!r} takes a contact face on x3 = 0; "
-                                   "a curved face's partners are points along its normals (partner = 'point')"])
+            if self.partner == "average":
+                raise ConfigError([f"{where}: foundation.partner = 'average' takes a contact face on x3 = 0; "
+                                   "a curved face's partners are points along its normals (partner = 'point') "
+                                   "or its mortar partners on the face's chart (partner = 'mortar')"])
             x = body.reference.points[contact_nodes]
             faces, weights, self.gap0 = ray_partners(ref.points, fm.top.faces, ref.face_type, x, normals,
                                                      contact_nodes, where)
             smooth = smooth_gaps(ref.points, fm.top, ref.face_type, x, normals, fm.tol)
             if smooth is not None:
                 self.gap0 = smooth
-            self.partner = "point"
         self._check_pinned(body, fm, faces, weights, source)
         if self.partner == "auto":
-            self.partner = auto_partner(weights, face_type(body.reference.face_type).degree)
+            self.partner = auto_partner(weights, face_type(body.reference.face_type).degree, curved=normals is not None)
             log.info("foundation.partner = 'auto': %r", self.partner)
         if self.partner == "point":
             rows, cols, vals = np.repeat(np.arange(p), weights.shape[1]), fm.top.faces[faces].ravel(), weights.ravel()
         elif self.partner == "mortar":
-            rows, cols, vals = mortar_partners(body, fm, where)
+            rows, cols, vals, self.basis = mortar_partners(body, fm, where,
+                                                           chart=None if normals is None else body.chart)
         else:
             rows, cols, vals = averaged_partners(body, fm, where)
         Pn = sp.csr_matrix((vals, (rows, cols)), shape=(p, ref.n_nodes))
@@ -138,6 +141,15 @@ class Foundation:
         self.f_f = f_full[self.assembler.free]                    # K_f u_f0 = f_f
         self._u0 = self.condensation.solve(self.f_f) if np.any(self.f_f) else np.zeros_like(self.f_f)
         self.q_f = P @ self._u0[self._support_free]               # Π K_f⁻¹ f_f (3p,)
+        # control = 'displacement' | 'force': the part `loaded` and the foundation with it translate
+        # rigidly by d (mesh.foundation checks that the clamps allow it): the partners move by Π d
+        self.control = spec.control
+        self.translation = None if fm.loaded is None else np.asarray(spec.translation, float)
+        self.motion = None          # (3p,) Π d per contact node, d the translation (per unit s with 'force')
+        if self.translation is not None:
+            self.motion = np.asarray(self.Pi @ np.tile(self.translation, self.support.size))
+            if spec.control == "displacement":
+                self.q_f = self.q_f + self.motion
         log.info("elastic foundation %s: %d nodes, %d free DOFs, E = %g, nu = %g; %d top-face nodes carry "
                  "the partners of %d contact nodes", ref.source, ref.n_nodes, self.assembler.n_free, fm.E, fm.nu,
                  self.support.size, p)
@@ -172,6 +184,8 @@ class Foundation:
         C = np.asarray(Q @ (Q @ self.C).T)
         self.C = 0.5 * (C + C.T)
         self.q_f = Q @ self.q_f
+        if self.motion is not None:
+            self.motion = Q @ self.motion
 
     @property
     def n_nodes(self) -> int:
@@ -181,12 +195,17 @@ class Foundation:
         """Π u_f = Π q_f − C r (3p,) for the contact forces r on the body (3p, per node (t1, t2, ν))."""
         return self.q_f - self.C @ np.ravel(r)
 
-    def displacement(self, r: np.ndarray) -> np.ndarray:
+    def displacement(self, r: np.ndarray, s: float = 0.0) -> np.ndarray:
         """The foundation's full displacement (3·n_f,) under its own loads f_f and −Πᵀ r (zero on
-        its clamped DOFs)."""
+        its clamped DOFs), plus its rigid translation: d with control = 'displacement', s f̂ with
+        control = 'force' (``s`` the state's translation)."""
         f = np.zeros(self.assembler.n_free)
         f[self._support_free] = -(self.P.T @ np.ravel(r))
-        return self.assembler.to_full(self.condensation.solve(f) + self._u0)
+        u = self.assembler.to_full(self.condensation.solve(f) + self._u0)
+        if self.translation is not None:
+            scale = 1.0 if self.control == "displacement" else s
+            u = u + scale * np.tile(self.translation, self.n_nodes)
+        return u
 
     def summary(self) -> dict:
         fm = self.mesh
@@ -394,18 +413,18 @@ def _reference_point(X: np.ndarray, x: np.ndarray, nc: int):
     return xi, bool(np.abs(xi).max() <= 1 + INSIDE_TOL)
 
 
-def auto_partner(weights: np.ndarray, body_degree: int, tol: float = 1e-9) -> str:
+def auto_partner(weights: np.ndarray, body_degree: int, tol: float = 1e-9, curved: bool = False) -> str:
     """``partner = "auto"``: 'point' where every point partner is a node of the top face (one
     weight 1: matching meshes, where point partners are exact node-to-node contact) or the body's
-    faces are quadratic (the dual basis is built for linear faces), else 'mortar' — point partners
-    do not converge as the foundation alone is refined, and mortar partners pass the contact patch
-    test on non-matching meshes (docs/foundation.md, docs/mortar.md)."""
+    faces are quadratic on a curved face (the transformed basis is built on the plane x3 = 0),
+    else 'mortar' — point partners do not converge as the foundation alone is refined, and mortar
+    partners pass the contact patch test on non-matching meshes (docs/foundation.md, docs/mortar.md)."""
     on_nodes = bool(np.all(np.abs(weights).max(axis=1) >= 1.0 - tol))
-    return "point" if on_nodes or body_degree != 1 else "mortar"
+    return "point" if on_nodes or (body_degree != 1 and curved) else "mortar"
 
 
-def mortar_partners(body, fm, where: str):
-    """(rows, cols, values) of Π = D⁻¹M for ``partner = "mortar"`` (:mod:`contactopt.fem.mortar`):
+def mortar_partners(body, fm, where: str, chart=None):
+    """(rows, cols, values, T) of Π = D⁻¹M for ``partner = "mortar"`` (:mod:`contactopt.fem.mortar`):
     the body's contact face projected along x3 on the top face x3 = 0, segmented against the top
     faces, the relative displacement of contact node m weighted by its dual basis function Φ_m,
 
@@ -413,16 +432,38 @@ def mortar_partners(body, fm, where: str):
 
     so that a uniform pressure and a uniform strain pass across non-matching meshes exactly. Per
     node the order is (t1, t2, ν) = (x1, x2, x3), ν = +x3 into the body. Rows are contact nodes,
-    columns foundation nodes. The body's face must lie over the top face and be linear."""
+    columns foundation nodes. The body's face must lie over the top face and be linear.
+
+    A curved contact face (``chart``, :mod:`contactopt.design.chart`) is segmented on its chart:
+    both faces are mapped to the chart's coordinates ξ — on a cylinder (ρθ, axial position), the
+    top face's nodes at the same angle as the body's whatever their radius — and clipped and
+    integrated there. Π's rows still sum to one and reproduce fields linear in ξ, so the
+    relative displacement keeps the form of the flat face's; Π acts on the nodes' global
+    components, rotated into the contact frames (t1, t2, n_m) afterwards (:meth:`Foundation.rotate`).
+    Top faces that straddle the cylinder's cut θ = ±π (the side opposite the body's face) are
+    left out.
+
+    Six-node triangles (a flat face only) take the transformed dual basis: T (p × p, on the
+    contact nodes; None on linear faces) is the change of basis N̂ = T N, and the rows of Π are
+    those of the transformed nodal values û = T⁻ᵀ u (:mod:`contactopt.fem.mortar`)."""
     ref = body.reference
     ftype = face_type(ref.face_type)
-    if ftype.degree != 1:
-        raise ConfigError([f"{where}: foundation.partner = 'mortar' needs a body of linear elements "
-                           f"(its contact face has {ftype.name} faces); use partner = 'point'"])
+    if ftype.degree != 1 and chart is not None:
+        raise ConfigError([f"{where}: foundation.partner = 'mortar' on a curved face needs a body of linear "
+                           f"elements (its contact face has {ftype.name} faces); use partner = 'point'"])
     faces = body.contact_face.faces
     top = fm.top.faces
-    D, M, seg = mortar_matrices(ftype.name, faces, ref.points[:, :2], fm.reference.face_type, top,
-                                fm.reference.points[:, :2])
+    if chart is None:
+        s_xy, m_xy = ref.points[:, :2], fm.reference.points[:, :2]
+    else:
+        s_xy = np.zeros((ref.n_nodes, 2))
+        used = np.unique(faces)
+        s_xy[used] = chart.parameters(ref.points[used])
+        m_xy = chart.parameters(fm.reference.points)
+        if chart.kind == "cylinder":
+            span = np.ptp(m_xy[top][:, :, 0], axis=1)
+            top = top[span < np.pi * chart.radius]
+    D, M, seg = mortar_matrices(ftype.name, faces, s_xy, fm.reference.face_type, top, m_xy)
     coupling = MortarCoupling(D, M, seg, body.contact_nodes)
     if coupling.uncovered.size:
         f = coupling.uncovered
@@ -433,7 +474,18 @@ def mortar_partners(body, fm, where: str):
     Pi = coupling.Pi.tocoo()
     log.info("mortar partners: %d cells of the segmentation of %d body faces against %d top faces",
              seg.n_cells, faces.shape[0], top.shape[0])
-    return Pi.row, Pi.col, Pi.data
+    basis = None
+    if ftype.degree != 1:
+        T = transformed_basis(ftype, faces, ref.n_nodes)
+        nodes = body.contact_nodes
+        off = np.setdiff1d(np.unique(faces), nodes)
+        if off.size and (T[off][:, nodes].nnz or T[nodes][:, off].nnz):
+            raise ConfigError([f"{where}: foundation.partner = 'mortar' on six-node triangles needs every node of "
+                               f"an edge of the contact face in contact (the transformed basis mixes an edge's "
+                               f"nodes), and {off.size} node(s) of the face are not, first: body node "
+                               f"{int(off[0])}"])
+        basis = sp.csr_matrix(T[nodes][:, nodes])
+    return Pi.row, Pi.col, Pi.data, basis
 
 
 def averaged_partners(body, fm, where: str):

@@ -29,6 +29,7 @@ from dataclasses import dataclass
 
 import numpy as np
 import scipy.sparse as sp
+import scipy.sparse.linalg as spla
 
 from .._threads import sequential_openblas
 from ..config import Config, load_config
@@ -42,11 +43,12 @@ from ..mesh.hexmesh import HexMesh
 from ..mesh.morph import JacobianRatio, MorphedMesh
 from ..mesh.obstacle import Obstacle, contact_frames, make_obstacle, tangent_frames
 from .elasticity import BBAR_AUTO_NU, ElasticityAssembler, element_geometry, resolve_formulation
-from .elements import element_type
+from .elements import element_type, face_type
 from .foundation import Foundation
 from .loads import face_areas_nodal
 from .loadset import LoadSet, load_set
 from .memory import check_memory
+from .mortar import dual_weighted
 from .weight import harmonic_weight
 
 log = logging.getLogger(__name__)
@@ -70,11 +72,24 @@ class ObstacleForce:
     translates by s f̂ along its force f of length ``magnitude``; per contact node m ``b`` (p, 3) =
     R_mᵀ f̂ in the node's frame (t1, t2, n), so that the resultant along f̂ is Σ_m b_m·r_m (r_m the
     force on the body in that frame), and ``gap_rate`` (p,) = f̂·n_m, by which the gap g_m falls per
-    unit of s (:mod:`contactopt.paths.force`)."""
+    unit of s (:mod:`contactopt.paths.force`).
+
+    A force-controlled elastic foundation (``[foundation] control = "force"``) translates the same
+    way: its partners move by ``motion`` (p, 3) per unit s (Π f̂ per node frame, b_m where the
+    partner weights sum to one); ``gap_rate`` is then motion's normal part. None: the counterpart
+    is rigid and moves by b_m under every node."""
 
     magnitude: float
     b: np.ndarray
     gap_rate: np.ndarray
+    motion: np.ndarray | None = None
+
+    @property
+    def slip(self) -> np.ndarray:
+        """(3p,) the tangential translation under each contact node per unit s (per node (t1, t2, n),
+        normal parts 0): the law sees w = u_c − s·slip."""
+        m = self.b if self.motion is None else self.motion
+        return (m * [1.0, 1.0, 0.0]).ravel()
 
 
 @dataclass(init=False, eq=False, repr=False)
@@ -184,6 +199,8 @@ class ElasticModel:
                      else np.zeros(self.contact_nodes.size))
         if face_frames is not None:
             self._obstacle_gap(cfg.obstacle, face_frames)
+        if cfg.obstacle is not None and cfg.obstacle.weighting == "mortar":
+            self._weighted_gap(cfg.obstacle, ref, body)
         if self.foundation is not None:          # a curved face: gaps along the contact normals
             n = self.frames[:, :, 2]
             self.gap_matrix = self._gap_factor(n, self.contact_nodes)[:, None] * self.gap_matrix
@@ -192,6 +209,32 @@ class ElasticModel:
         self.body_force = self.loads.body_force
         if cfg.foundation is not None and self.foundation is None:
             self.foundation = Foundation(cfg.foundation, body, source=cfg.source, check=check)
+            if self.foundation.basis is not None:   # six-node triangles, mortar partners: ĝ = T⁻ᵀ g (fem.mortar)
+                lu = spla.splu(sp.csc_matrix(self.foundation.basis.transpose()))
+                self.gap_matrix = lu.solve(np.asarray(self.gap_matrix, float))
+                self.gap0 = lu.solve(np.asarray(self.gap0, float))
+        if cfg.foundation is not None and cfg.foundation.control == "force":
+            self._foundation_force(cfg.foundation)
+
+    def _foundation_force(self, spec) -> None:
+        """A force-controlled foundation: its loaded part, and the foundation with it, translate by
+        s f̂ (:class:`ObstacleForce`); the contact forces on the body balance the force on the part
+        and the foundation's own loads along f̂: Σ_m b_m·r_m = |f| + f̂·(their resultant)."""
+        fnd = self.foundation
+        f = np.asarray(spec.force, float)
+        fhat = f / np.linalg.norm(f)
+        p = self.contact_nodes.size
+        R = self.frames if self.frames is not None else np.broadcast_to(np.eye(3), (p, 3, 3))
+        motion = fnd.motion.reshape(-1, 3)
+        total = float(np.linalg.norm(f) + fhat @ fnd.load_resultant)
+        if not total > 0:
+            raise ConfigError([f"{self.config.source}: foundation.force = {spec.force}: the foundation's own loads "
+                               f"pull it away from the body by more than the force (the contact resultant along "
+                               f"the force would be {total:.6g} ≤ 0)"])
+        self.obstacle_force = ObstacleForce(total, np.einsum("mij,i->mj", R, fhat), motion[:, 2].copy(), motion)
+        if not np.any(self.obstacle_force.gap_rate > 0):
+            raise ConfigError([f"{self.config.source}: foundation.force = {spec.force}: no contact node's normal has "
+                               "a component along the force: the foundation cannot press the body"])
 
     @property
     def force(self) -> float | None:
@@ -342,6 +385,50 @@ class ElasticModel:
         self.gap_matrix = self._gap_factor(n, self.contact_nodes)[:, None] * self.gap_matrix
         self.gap0 = fr.distance[where] - n @ shift
 
+    def _weighted_gap(self, spec, ref, body) -> None:
+        """``[obstacle] weighting = "mortar"``: the gap of contact node j becomes the dual-weighted
+        g̃_j = D_jj⁻¹ ∫_Γ Φ_j g dA of the gap g the node-wise rule reads at the node
+        (:func:`contactopt.fem.mortar.dual_weighted`), on the reference face: g0 from the distance to
+        the obstacle at each point (on the plane the face's height with ``initial_gap = "mesh"``,
+        less the obstacle's translation along n), the design's rows from n·e3 ϑ_α at each point, and a
+        force-controlled obstacle's gap rate f̂·n with them (the resultant's normal parts b_m·e_ν
+        alike, so that the force stays work-conjugate to the weighted gaps). The faces' projection
+        on the design's chart and the frames stay as they are; the weighted gap is affine in α like
+        the node-wise one, so every path's subgradient takes it through ``gap_matrix``.
+
+        Sign convention: g̃_j > 0 open, < 0 overlapping, as the node-wise gap; rows in contact-node
+        order, per node the frame (t1, t2, n) with n from the obstacle to the body."""
+        ft = face_type(ref.face_type)
+        src = self.config.source
+        if ft.degree != 1:
+            raise ConfigError([f"{src}: obstacle.weighting = 'mortar' needs linear contact faces (triangles of "
+                               f"linear tetrahedra, quadrilaterals of hexahedra), not {ft.name} (the six-node "
+                               "triangle's dual basis has no weight at its corners): use weighting = 'node'"])
+        if self.mesh.directions is not None:
+            raise ConfigError([f"{src}: obstacle.weighting = 'mortar' with design.motion = 'normal': the weighted "
+                               "gap is built for a design that lifts the face along x3; use weighting = 'node'"])
+        shift = np.asarray(spec.displacement, float) if spec.control == "displacement" else np.zeros(3)
+        fhat = np.asarray(spec.force, float) / max(np.linalg.norm(spec.force), 1e-300)
+        height = self.config.body.initial_gap == "mesh"
+        obstacle, surface, mesh = self.obstacle, self.surface, self.mesh
+
+        def values(x):
+            xi = mesh.chart_points(x)
+            B = surface.basis_matrix(xi[:, 0], xi[:, 1])
+            if obstacle is None or obstacle.shape == "plane":
+                g0 = (x[:, 2] if height else np.zeros(x.shape[0])) - shift[2]
+                return np.c_[g0, np.full(x.shape[0], fhat[2]), B]
+            fr = obstacle.frames(x)
+            n = fr.normal
+            return np.c_[fr.distance - n @ shift, n @ fhat, n[:, 2:3] * B]
+
+        _, v = dual_weighted(ft, body.contact_face.faces, ref.points, self.contact_nodes, values)
+        self.gap0, self.gap_matrix = v[:, 0].copy(), v[:, 2:].copy()
+        if self.obstacle_force is not None:
+            b = self.obstacle_force.b.copy()
+            b[:, 2] = v[:, 1]
+            self.obstacle_force = ObstacleForce(self.obstacle_force.magnitude, b, v[:, 1].copy())
+
     def _gap_factor(self, n, nodes) -> np.ndarray:
         """n_m·d_m per node: the counterpart's normal n_m (towards the body) against the motion's
         direction d_m (e3 on the paper's map, whose factor is n_m3 itself)."""
@@ -421,10 +508,15 @@ class ElasticModel:
         """Tributary areas ∫N_m dS of the contact nodes on the (flat) reference contact face, which
         turn a contact stress σ into nodal forces λ_m ≈ σ(x'_m)·A_m: the consistent nodal forces
         of a uniform stress (on six-node triangles they vanish at the corners, as do the nodal
-        forces of a uniform pressure)."""
+        forces of a uniform pressure). With mortar partners on six-node triangles the forces are
+        those of the transformed basis N̂ = T N (:mod:`contactopt.fem.mortar`), and the areas
+        ∫N̂_m dS = (T a)_m, positive at every node."""
         ref = self.body.reference
         areas = face_areas_nodal(ref.points, self.body.contact_face.faces, face=self.assembler.element.face)
-        return areas[self.contact_nodes]
+        areas = areas[self.contact_nodes]
+        if self.foundation is not None and self.foundation.basis is not None:
+            return self.foundation.basis @ areas
+        return areas
 
     # ------------------------------------------------------------------ A(α), L(α)
     def load_vector(self, coords: np.ndarray, loads=None) -> np.ndarray:

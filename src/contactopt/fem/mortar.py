@@ -24,16 +24,30 @@ exactly (the contact patch test), where averaged partners (standard shape functi
 Φ) do not.
 
 Sign and ordering convention: per contact node (t1, t2, ν) = (x1, x2, x3) — the common plane is
-the counterpart's face x3 = 0 and ν its normal, pointing into the body; w_ν = u_ν − (Πū)_ν
+the counterpart's face x3 = 0 (or the chart of a curved face, whose frames rotate the coupling
+afterwards) and ν its normal, pointing into the body; w_ν = u_ν − (Πū)_ν
 opens the gap, the normal force λ = r_ν ≥ 0 pushes the body away from the counterpart, and the
 weighted slip increment is the tangential part of the increment of w.
 
 The design moves the body's face along ν: its projection on the common plane, hence the
 segmentation, Φ, D and M, do not depend on α, and Π is computed once per run.
 
-The six-node triangle is not offered here: its standard dual basis has zero weight at the corners
-and the transformed basis that cures it (Popp et al.) acts on transformed displacements, not on
-the nodal ones that the body's condensation keeps.
+Six-node triangles (the faces of ten-node tetrahedra) take the transformed dual basis of Popp,
+Gee & Wall. Their standard shape functions integrate to zero at the corners, so a dual basis
+built on them would give the corners D_jj = 0. The face's basis is first changed so that every
+function has a positive integral: each corner takes a share α of the two mid-side functions of
+its edges, and each mid-side function keeps the rest,
+
+    N̂_c = N_c + α (N_m + N_m'),   N̂_m = (1 − 2α) N_m,   α = 1/5,
+
+(m, m' the mid-side nodes next to corner c), i.e. N̂ = T N with T the same on both faces of an
+edge, so that it is one matrix on the contact face's nodes; Σ N̂ = Σ N = 1, ∫ N̂_c = 2A/15 and
+∫ N̂_m = A/5 on a face of area A. The dual basis is then built on N̂ (Φ = A_e N̂, biorthogonal
+to N̂), and D, M with N̂ on the body's side. The displacement u_h = Σ N_k u_k = Σ N̂_j û_j has
+the transformed nodal values û = T⁻ᵀ u (a corner keeps its value, a mid-side node takes
+(u_m − α(u_a + u_b))/(1 − 2α) with a, b its edge's corners), and the forces conjugate to û are
+r̂ = T r: the cones act per node on (û − Π ū, r̂). T keeps the resultant and the moment of the
+forces on faces with straight edges. Linear faces use T = I.
 """
 
 from __future__ import annotations
@@ -44,9 +58,47 @@ import scipy.sparse as sp
 from ..mesh.segmentation import Segmentation, is_affine, reference_coordinates, segment
 from .elements import face_type, tri_rule
 
-__all__ = ["MortarCoupling", "dual_coefficients", "mortar_coupling", "mortar_matrices"]
+__all__ = ["MortarCoupling", "dual_coefficients", "dual_weighted", "mortar_coupling", "mortar_matrices",
+           "transformed_basis"]
 
 QUAD_EXTRA = 6    # degree added on quadrilaterals that are not parallelograms (Φ, N not polynomial in the plane)
+ALPHA = 0.2       # the share of a mid-side function a corner of a six-node triangle takes (module docstring)
+TRI6_MIDS = np.array([[3, 5], [3, 4], [4, 5]])     # the mid-side nodes next to corners 0, 1, 2
+TRI6_EDGE_CORNERS = np.array([[0, 1], [1, 2], [2, 0]])   # the corners of mid-side nodes 3, 4, 5
+
+
+def face_transform(ftype, alpha: float = ALPHA) -> np.ndarray:
+    """T_e (n, n) of one face, N̂ = T_e N (module docstring): the identity on linear faces."""
+    ft = face_type(ftype)
+    T = np.eye(ft.n_nodes)
+    if ft.degree == 2:
+        if ft.n_nodes != 6:
+            raise ValueError(f"the transformed dual basis is built for six-node triangles, not {ft.name}")
+        for c in range(3):
+            T[c, TRI6_MIDS[c]] = alpha
+        T[3:, 3:] *= 1.0 - 2.0 * alpha
+    return T
+
+
+def transformed_basis(ftype, faces: np.ndarray, n: int, alpha: float = ALPHA) -> sp.csr_matrix:
+    """T (n × n, sparse) on the nodes of a face of ``faces`` (F, 6) of six-node triangles: row c
+    of a corner has 1 at c and α at its edges' mid-side nodes, row m of a mid-side node 1 − 2α
+    (module docstring); the identity on linear faces and on nodes off the face."""
+    ft = face_type(ftype)
+    faces = np.asarray(faces)
+    rows, cols, vals = [np.arange(n)], [np.arange(n)], [np.ones(n)]
+    if ft.degree == 2:
+        face_transform(ft, alpha)                       # the check of the face type
+        mids = faces[:, 3:].ravel()
+        corners = faces[:, TRI6_EDGE_CORNERS].reshape(-1, 2)
+        edge = np.unique(np.c_[mids, np.sort(corners, axis=1)], axis=0)        # one row per edge
+        vals[0][np.unique(edge[:, 0])] = 1.0 - 2.0 * alpha
+        rows += [edge[:, 1], edge[:, 2]]
+        cols += [edge[:, 0], edge[:, 0]]
+        vals += [np.full(edge.shape[0], alpha)] * 2
+    return sp.csr_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))), shape=(n, n))
+
+
 _G3 = np.array([-np.sqrt(0.6), 0.0, np.sqrt(0.6)])
 _W3 = np.array([5.0, 8.0, 5.0]) / 9.0
 
@@ -60,18 +112,65 @@ def _mass_rule(ftype):
 
 
 def dual_coefficients(ftype, X: np.ndarray) -> np.ndarray:
-    """A (F, n, n) with Φ = A N on every face (module docstring): A_e = D_e M_e⁻¹ for the faces
-    of type ``ftype`` with nodes at X (F, n, 2) in the common plane. Linear faces only."""
+    """A (F, n, n) with Φ = A N̂ on every face (module docstring): A_e = D_e M_e⁻¹ for the faces
+    of type ``ftype`` with nodes at X (F, n, 2) in the common plane, D_e = diag(∫ N̂_j),
+    M_e = (∫ N̂_j N̂_k); N̂ = N on linear faces, the transformed basis on six-node triangles."""
     ft = face_type(ftype)
-    if ft.degree != 1:
-        raise ValueError(f"the dual basis is built for linear faces only, not {ft.name}")
     q, w = _mass_rule(ft)
     N, dN = ft.shape(q)
+    N = N @ face_transform(ft).T                                  # N̂ = T_e N at every point
     J = np.einsum("qaj,fai->fqij", dN, X)
     dA = np.abs(np.linalg.det(J)) * w                             # (F, Q)
     Me = np.einsum("fq,qa,qb->fab", dA, N, N)
     De = Me.sum(axis=2)                                           # ∫ N_j (Σ_k N_k = 1)
     return De[:, :, None] * np.linalg.inv(Me)                     # D_e M_e⁻¹ (M_e symmetric)
+
+
+def _face_rule(ft, degree: int):
+    """Points and weights of the reference face exact to ``degree`` (a Gauss product on the square)."""
+    if ft.name == "quad":
+        g, w = np.polynomial.legendre.leggauss(degree // 2 + 1)
+        return np.array([(a, b) for b in g for a in g]), np.outer(w, w).ravel()
+    return tri_rule(degree)
+
+
+def dual_weighted(ftype, faces: np.ndarray, points: np.ndarray, nodes: np.ndarray, values, degree: int = 8):
+    """Dual-weighted nodal values of fields given at points of the body's face (a rigid counterpart:
+    the gap to an obstacle, the design's lift): for every node j of ``nodes``
+
+        D_jj = ∫_Γ Φ_j N_j dA,   v_j = D_jj⁻¹ ∫_Γ Φ_j f dA,
+
+    Φ_j the dual basis of the faces (module docstring) on their own geometry (``points`` (n, 3), the
+    flat facets of the face ``faces`` (F, k) of type ``ftype``), integrated with a rule exact to
+    ``degree`` on each face. ``values(x)`` gives the fields f at points x (K, 3): (K, c). Returns
+    (D (len(nodes),), v (len(nodes), c)). Biorthogonality makes v_j = f(x_j) for every f linear on
+    each face (∫ Φ_j N_k = δ_jk D_jj): node-wise values are kept where the field is the face's own
+    interpolant, and a field curved within a face is weighted by its integral over the node's
+    faces instead of read at the node. Linear faces only.
+
+    Sign convention: v has the sign of f (a gap g ≥ 0 open, < 0 overlapping), D_jj > 0; the order of
+    the rows is the order of ``nodes``."""
+    ft = face_type(ftype)
+    if ft.degree != 1:
+        raise ValueError(f"dual-weighted values are built for linear faces only, not {ft.name}")
+    faces = np.asarray(faces, np.int64)
+    q, w = _face_rule(ft, degree)
+    N, dN = ft.shape(q)
+    X = np.asarray(points, float)[faces]                                   # (F, k, 3)
+    T1, T2 = np.einsum("fam,qa->fqm", X, dN[:, :, 0]), np.einsum("fam,qa->fqm", X, dN[:, :, 1])
+    dA = np.linalg.norm(np.cross(T1, T2), axis=2) * w                      # (F, Q)
+    Me = np.einsum("fq,qa,qb->fab", dA, N, N)
+    A = Me.sum(axis=2)[:, :, None] * np.linalg.inv(Me)                     # D_e M_e⁻¹
+    Phi = np.einsum("fab,qb->fqa", A, N) * dA[:, :, None]                  # Φ_j dA  (F, Q, k)
+    xq = np.einsum("qa,fam->fqm", N, X).reshape(-1, 3)
+    f = np.asarray(values(xq), float).reshape(faces.shape[0], q.shape[0], -1)
+    n_all = int(max(faces.max(initial=-1), np.max(nodes, initial=-1))) + 1
+    D = np.bincount(faces.ravel(), weights=np.einsum("fqa,qa->fa", Phi, N).ravel(), minlength=n_all)
+    Wf = np.einsum("fqa,fqc->fac", Phi, f)
+    V = np.stack([np.bincount(faces.ravel(), weights=Wf[:, :, c].ravel(), minlength=n_all)
+                  for c in range(f.shape[2])], axis=1)
+    nodes = np.asarray(nodes, np.int64)
+    return D[nodes], V[nodes] / D[nodes, None]
 
 
 def mortar_matrices(s_type, s_faces: np.ndarray, s_xy: np.ndarray, m_type, m_faces: np.ndarray,
@@ -96,6 +195,7 @@ def mortar_matrices(s_type, s_faces: np.ndarray, s_xy: np.ndarray, m_type, m_fac
     s_of, m_of = np.repeat(seg.slave, Q), np.repeat(seg.master, Q)
     xs = x.reshape(-1, 2)
     Ns, _ = st.shape(reference_coordinates(Xs[s_of, :ncs], xs))   # (TQ, n_s)
+    Ns = Ns @ face_transform(st).T                                  # N̂ on six-node triangles
     Nm, _ = mt.shape(reference_coordinates(Xm[m_of, :ncm], xs))   # (TQ, n_m)
     Phi = np.einsum("kab,kb->ka", A[s_of], Ns) * dA.reshape(-1)[:, None]      # Φ_j dA
     D = np.bincount(s_faces[s_of].ravel(), weights=(Phi * Ns).ravel(), minlength=n_slave)

@@ -17,7 +17,7 @@ from ..errors import ConfigError
 
 log = logging.getLogger(__name__)
 
-SUFFIXES = (".toml", ".geo", ".msh", ".py")
+SUFFIXES = (".toml", ".geo", ".msh", ".stl", ".py")      # .stl: an obstacle's surface
 
 
 @dataclass(frozen=True)

@@ -565,7 +565,8 @@ def export_design(model, alpha, outdir, formats=None, *, unit: str = "mm", stric
     """Write the export files of design ``alpha`` into ``outdir`` (created), all or nothing.
 
     ``formats``: a subset of FORMATS (None: all). Without a CAD kernel, STEP/IGES raise
-    ExportError when ``strict`` (asked for), else are left out with a warning. Returns
+    ExportError when ``strict`` (asked for), else are left out with a warning; for a contact face
+    on a chart (design.chart) they raise when ``strict``, else are left out. Returns
     ``{"files": {format: [file names]}, "skipped": {format: reason}, "unit": unit, ...}``."""
     formats = normalize_formats(formats)
     if unit not in UNITS:
@@ -579,6 +580,13 @@ def export_design(model, alpha, outdir, formats=None, *, unit: str = "mm", stric
                 formats.remove(f)
                 skipped[f] = "no CAD kernel: " + CAD_HINT
                 log.warning("export: %s skipped (no CAD kernel; %s)", f.upper(), CAD_HINT)
+    if model.body.chart is not None and not strict:
+        # ϑ_α on a chart is not a graph over (x1, x2): the body's mesh and STL carry the designed face
+        for f in ("step", "iges"):
+            if f in formats:
+                formats.remove(f)
+                skipped[f] = f"the contact face lies on a {model.body.chart.kind} chart (the mesh and STL carry it)"
+                log.info("export: %s skipped (%s)", f.upper(), skipped[f])
     coords = model.mesh.coordinates(alpha)        # MeshError for an invalid design, before any file
     outdir = Path(outdir)
     created = not outdir.exists()

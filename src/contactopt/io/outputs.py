@@ -28,7 +28,7 @@ from .plots import (
     plot_stress_comparison,
     plot_surface,
 )
-from .pressure import contact_pressure
+from .pressure import contact_pressure, face_classes
 from .vtk import write_body_vtu, write_foundation_vtu, write_pvd
 
 log = logging.getLogger(__name__)
@@ -174,13 +174,13 @@ def _figures(out: Path, model, x, target, s0, s1, res) -> tuple[list, list]:
 
     def contact():
         plot_contact_response(out / "contact.png", model, contact_pressure(model, s1.lam, s1.coords), s1.tau,
-                              s1.u_c[:, :2], s1.classes, title="optimal design")
+                              s1.u_c[:, :2], face_classes(model, s1), title="optimal design")
 
     forked = [lambda: plot_stress_comparison(out / "stress.png", model,
                                              target if target is not None else np.zeros_like(s0.lam), s0.lam, s1.lam),
               pressure, lambda: plot_surface(out / "surface.png", model, x),
               lambda: plot_history(out / "history.png", [{**r, "kind": r.get("step")} for r in res.history])]
-    here = [lambda: plot_node_classes(out / "classes.png", model, s1.classes), contact,
+    here = [lambda: plot_node_classes(out / "classes.png", model, face_classes(model, s1)), contact,
             lambda: plot_peak_stress(out / "von_mises.png", model, s1.coords, s1.u, title="optimal design")]
     return forked, here
 
@@ -206,7 +206,7 @@ def _step_outputs(out: Path, problem, which: str, plots: bool = True) -> dict:
             pre = f"{problem.cases[k].name}." if problem.has_load_cases else ""
             for name, sub, state in problem.step_results(k) or []:
                 if sub == max(s.substep for s in problem.steps[k] if s.name == name):
-                    plot_node_classes(out / f"classes-{pre}{name}.png", problem.model, state.classes)
+                    plot_node_classes(out / f"classes-{pre}{name}.png", problem.model, face_classes(problem.model, state))
     return dict(zip(problem.step_columns(), problem.step_values()))
 
 

@@ -13,21 +13,33 @@ consistent nodal forces are λ_m = p̄·a_m exactly on linear faces (triangles, 
 p_m = p̄ to round-off.
 
 On six-node triangles (P2) ∫ N_m dS vanishes at the corners of a flat face, and the consistent
-nodal forces of a uniform pressure vanish there too: λ/a is 0/0. There the pressure is the
-L²-projection instead, the solution of M p = λ with the consistent face mass matrix restricted to
-the contact nodes, which recovers a uniform p̄ exactly when no node of the face is clamped (next to
-clamped nodes the missing rows make it an approximation).
+nodal forces of a uniform pressure vanish there too: λ/a is 0/0 (and the L²-projection M p = λ
+overshoots: negative at the edge of the contact, nonzero outside it). There the pressure is read
+in the transformed basis of Popp et al. (``contactopt.fem.mortar.transformed_basis``),
+N̂_c = N_c + β Σ N_m over the edges (c, m) at corner c, N̂_m = (1 − 2β) N_m at midside node m,
+β = 1/5, whose integrals are all positive:
+
+    p_j = (T λ)_j / (T a)_j,   (T v)_c = v_c + β Σ_(c,m) v_m,   (T v)_m = (1 − 2β) v_m,
+
+the forces and areas the transformed functions gather. A midside node keeps λ_m / a_m, a corner
+node takes its own force with those of the midside nodes of its edges. Every p_j ≥ 0 where λ ≥ 0,
+p_j = 0 more than one element away from the forces, and a uniform p̄ is recovered exactly
+(λ_m = p̄ a_m). :func:`face_classes` classes the corner nodes with the same weights. With mortar
+partners on an elastic foundation the forces are already those of the transformed basis: there
+p_m = λ_m / (T a)_m, the dual pressure.
 """
 
 from __future__ import annotations
 
 import numpy as np
 import scipy.sparse as sp
-import scipy.sparse.linalg as spla
 
+from ..contact.state import classify_nodes
 from ..fem.elements import face_for
+from ..fem.mortar import transformed_basis
 
-__all__ = ["contact_areas", "contact_pressure", "face_mass"]
+__all__ = ["contact_areas", "contact_pressure", "face_classes", "face_mass", "transformed_weights"]
+
 
 
 def _face_jacobians(coords: np.ndarray, faces: np.ndarray):
@@ -74,4 +86,50 @@ def contact_pressure(model, lam, coords) -> np.ndarray:
     coords = np.asarray(coords, float)
     if face_for(faces).degree == 1:
         return lam / contact_areas(coords, faces, nodes)
-    return spla.spsolve(face_mass(coords, faces, nodes).tocsc(), lam)
+    basis = None if model.foundation is None else model.foundation.basis
+    T = transformed_weights(faces, nodes)
+    if basis is not None:       # mortar partners: forces of the transformed basis, areas ∫ N̂_m = T a
+        return _ratio(lam, T @ contact_areas(coords, faces, nodes))
+    return _ratio(T @ lam, T @ contact_areas(coords, faces, nodes))
+
+
+def _ratio(num, den):
+    out = np.zeros_like(num)
+    np.divide(num, den, out=out, where=den > 0)
+    return out
+
+
+def transformed_weights(faces: np.ndarray, nodes: np.ndarray) -> sp.csr_matrix:
+    """T of the module docstring on six-node triangles ``faces`` (F, 6; corners, then the
+    midpoints of the edges 01, 12, 20), restricted to ``nodes`` (rows and columns in their order):
+    ``contactopt.fem.mortar.transformed_basis`` on the face's nodes. Nodal forces and areas pass
+    through T as the transformed functions gather them."""
+    faces = np.asarray(faces, np.int64)
+    nodes = np.asarray(nodes, np.int64)
+    n = max(int(faces.max(initial=-1)), int(nodes.max(initial=-1))) + 1
+    return transformed_basis(face_for(faces), faces, n)[nodes][:, nodes].tocsr()
+
+
+def face_classes(model, state) -> np.ndarray:
+    """The node classes of a state's maps (codes into ``CLASS_NAMES``, contact-node order): the
+    state's own on linear faces; on six-node triangles each node classed by the forces T λ, T τ
+    and the clearance T(a (u_ν + g)) / (T a) of the transformed functions (module docstring), so that
+    a corner node inside the contact, which carries no force of its own, is classed by the forces
+    around it. The state's classes (the ones its subgradient takes) are not changed.
+
+    Sign convention: as the state's, per contact node (t1, t2, ν): λ ≥ 0 pushes the body off its
+    counterpart, τ = −r_t, u_ν + g ≥ 0 the clearance."""
+    faces = np.asarray(model.body.contact_face.faces, np.int64)
+    if face_for(faces).degree == 1:
+        return np.asarray(state.classes)
+    nodes = np.asarray(model.contact_nodes, np.int64)
+    T = transformed_weights(faces, nodes)
+    areas = contact_areas(np.asarray(state.coords, float), faces, nodes)
+    u_c = np.array(state.u_c, float).reshape(-1, 3)
+    gap = np.asarray(state.gap, float)
+    u_c[:, 2] = _ratio(T @ (areas * (u_c[:, 2] + gap)), T @ areas) - gap
+    if state.slip_ref is not None:
+        u_c[:, :2] -= state.slip_ref
+    lam = T @ np.asarray(state.lam, float)
+    tau = T @ np.asarray(state.tau, float).reshape(-1, 2)
+    return classify_nodes(u_c, lam, tau, gap, state.friction, u=state.u)

@@ -41,7 +41,7 @@ import numpy as np
 from ..contact.state import CLASS_NAMES, FoundationState, State
 from . import plots, vtk
 from .atomic import atomic_savez, atomic_write_json, fsync_dir, to_jsonable
-from .pressure import contact_pressure
+from .pressure import contact_pressure, face_classes
 
 log = logging.getLogger(__name__)
 
@@ -201,9 +201,9 @@ def write_state(outdir, model, state: State, *, config=None, warnings=None, obje
                                  "Normal contact force $\\lambda$", cmap="viridis", label="$\\lambda$")
         plots.plot_contact_field(tmpdir / "pressure.png", model, contact_pressure(model, state.lam, state.coords),
                                  "Contact pressure $p = \\lambda / a$", cmap="viridis", label="$p$")
-        plots.plot_node_classes(tmpdir / "classes.png", model, state.classes)
+        plots.plot_node_classes(tmpdir / "classes.png", model, face_classes(model, state))
         plots.plot_contact_response(tmpdir / "contact.png", model, contact_pressure(model, state.lam, state.coords),
-                                    state.tau, np.asarray(state.u_c)[:, :2], state.classes)
+                                    state.tau, np.asarray(state.u_c)[:, :2], face_classes(model, state))
         plots.plot_peak_stress(tmpdir / "von_mises.png", model, np.asarray(state.coords, float),
                                np.asarray(state.u, float))
         if model.foundation is not None:

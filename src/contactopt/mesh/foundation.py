@@ -37,6 +37,7 @@ class FoundationMesh(HasParts):
     tol: float
     E: float
     nu: float
+    loaded: np.ndarray | None = None     # control ≠ 'fixed': the nodes of the part `loaded` (all 3 DOFs fixed)
 
 
 def foundation_block(size, cells, origin=(0.0, 0.0), element: str = "hexahedron") -> ReferenceMesh:
@@ -89,8 +90,17 @@ def build_foundation_mesh(spec, contact_xy: np.ndarray, source: str, curved: boo
         p = part("clamped", clamp.on)
         if p is not None:
             fixed[np.ix_(p.nodes, sorted({COMPONENTS[c] for c in clamp.components}))] = True
+    loaded = None
+    direction = spec.translation
+    if direction is not None:
+        p = part("loaded", spec.loaded)
+        if p is not None:
+            loaded = np.asarray(p.nodes, np.int64)
     if problems:
         raise ConfigError(problems)
+    if loaded is not None:
+        _check_translation(ref, fixed, loaded, np.asarray(direction, float), where, spec)
+        fixed[loaded] = True
     if curved:
         if top.faces.shape[0] == 0:
             raise ConfigError([f"{where}.top = {describe_part(spec.top)}: has no boundary faces (it must be the "
@@ -106,7 +116,26 @@ def build_foundation_mesh(spec, contact_xy: np.ndarray, source: str, curved: boo
                                      "the foundation must be held in place by its own clamps")
                            for p in exc.problems]) from None
     mat = spec.material
-    return FoundationMesh(ref, top, np.flatnonzero(fixed.ravel()), tol, float(mat.E), float(mat.nu))
+    return FoundationMesh(ref, top, np.flatnonzero(fixed.ravel()), tol, float(mat.E), float(mat.nu), loaded)
+
+
+def _check_translation(ref: ReferenceMesh, fixed: np.ndarray, loaded: np.ndarray, direction: np.ndarray, where: str,
+                       spec) -> None:
+    """With control = 'displacement' or 'force' the part ``loaded`` (node numbers) translates along
+    ``direction`` and the foundation with it, rigidly: a clamped component of a node outside the
+    part must be one the translation leaves at zero (a symmetry plane), and the part must have nodes."""
+    if loaded.size == 0:
+        raise ConfigError([f"{where}.loaded = {describe_part(spec.loaded)}: has no nodes"])
+    held = fixed.copy()
+    held[loaded] = False
+    node, comp = np.nonzero(held & (np.abs(direction) > 0)[None, :])
+    if node.size:
+        what = "displacement" if spec.control == "displacement" else "force"
+        raise ConfigError([f"{where}.clamped: {node.size} clamped component(s) of nodes outside foundation.loaded "
+                           f"lie along the {what} {list(map(float, getattr(spec, what)))}, first u{int(comp[0]) + 1} "
+                           f"of node {int(node[0])} at {_fmt(ref.points[node[0]])}: the foundation translates "
+                           "rigidly with its loaded part, so elsewhere it may be held only across the translation "
+                           "(a symmetry plane containing it)"])
 
 
 def _check_top(ref: ReferenceMesh, top: Part, tol: float, name: str, where: str) -> Part:

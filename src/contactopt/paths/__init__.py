@@ -66,6 +66,8 @@ def needs(config, pinned: int = 0, ranks: int = 1, rigid=None) -> dict:
     types = objective_types(config) | constraint_types(config)     # [[constraints]] are objectives too
     if foundation:
         out["foundation"] = "an elastic [foundation]"
+        if config.foundation.control != "fixed":     # its translation's search runs where the foundation is
+            out["foundation"] = f"an elastic [foundation] with foundation.control = {config.foundation.control!r}"
     obst = config.obstacle
     obstacle = "plane" if obst is None else obst.shape
     if obst is not None and obst.control == "force":

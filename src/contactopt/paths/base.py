@@ -68,8 +68,8 @@ class Capabilities:
 
     Only what a path's linear algebra can do is a feature here: a force-controlled obstacle is an
     outer search over the translation of an obstacle (``contactopt.paths.force``), taken wherever the obstacle
-    is, and rules between features of a configuration that no path takes (a body held only by
-    contact, or clamped contact nodes, on an elastic foundation) are refused by
+    is, and rules between features of a configuration that no path takes (clamped contact nodes
+    on an elastic foundation whose partners are free) are refused by
     :func:`contactopt.config.validation.check_interactions` before any path is asked."""
 
     foundation: bool = _feature(
@@ -150,11 +150,13 @@ class SystemParts:
     it has none (a path's system class declares those it can hold as fields): ``coupling`` the
     :class:`~contactopt.fem.foundation.Coupling` of an elastic foundation (S_eff, ℓ_eff), ``product``
     x ↦ A(α) x on the free DOFs where A(α) is not formed on this process, ``force`` a load step's
-    |f| of a force-controlled obstacle (None: the model's)."""
+    |f| of a force-controlled obstacle (None: the model's), ``basis`` the transformed basis of
+    six-node triangles with mortar partners (:class:`~contactopt.paths.transforms.Basis`)."""
 
     coupling = None
     product = None
     force = None
+    basis = None
 
 
 class Adjoint(NamedTuple):

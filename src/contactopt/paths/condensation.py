@@ -74,6 +74,8 @@ class CondensedSystem(SystemParts):
     rigid: Anchor | None = None        # a body held only by contact: the kernel of S (module docstring)
     beta: np.ndarray | None = None     # ... and the anchor's position β of this solve
     force: float | None = None         # a load step's |f| of a force-controlled obstacle (None: the model's)
+    moved: float = 0.0                 # the force search's translation s of the counterpart (.force)
+    basis: object = None               # the transformed basis of quadratic faces (transforms.Basis): u_c = Vᵀ û
 
     @property
     def law_S(self) -> np.ndarray:
@@ -149,14 +151,16 @@ class CondensationPath(ZonePath):
             S = S - shift_c * np.eye(S.shape[0])
         if mech.rotate is not None:
             S, ell = mech.rotate.matrix(S), mech.rotate.vector(ell)
-        system = CondensedSystem(asm, fac, S, ell, asm.gap, {})
+        if mech.basis is not None:
+            S, ell = mech.basis.matrix(S), mech.basis.vector(ell)
+        system = CondensedSystem(asm, fac, S, ell, asm.gap, {}, basis=mech.basis)
         if mech.shift is not None:
             system = shifted(system, mech.shift.vector)
         if mech.couple is not None:
             system.coupling = Coupling(system.S, mech.couple)
             system.ell_eff = system.coupling.ell_eff(system.ell)
         if mech.anchor is not None:
-            system.rigid = anchor(self.model, mech.anchor, asm, system.S, mech.frames)
+            system.rigid = anchor(self.model, mech.anchor, asm, system.contact_S, mech.frames, mech.basis)
         system.timings["schur"] = time.perf_counter() - t1
         return system
 
@@ -176,6 +180,8 @@ class CondensationPath(ZonePath):
         ell = system.factor.condense_load(asm.L)
         if self.mechanics.rotate is not None:
             ell = self.mechanics.rotate.vector(ell)
+        if self.mechanics.basis is not None:
+            ell = self.mechanics.basis.vector(ell)
         out = replace(system, assembled=asm, ell=ell, timings={})
         if out.coupling is not None:
             out.ell_eff = out.coupling.ell_eff(ell)
@@ -187,7 +193,7 @@ class CondensationPath(ZonePath):
     def translated(self, system, s, c, e):
         """The obstacle translated by s f̂ (:mod:`.force`): the gap falls by s c, the law's load
         by S s e (:func:`shifted`)."""
-        moved = replace(system, gap=system.gap - s * c)
+        moved = replace(system, gap=system.gap - s * c, moved=s)
         return shifted(moved, s * e) if np.any(e) else moved
 
     def normal_stiffness(self, system):
@@ -218,6 +224,8 @@ class CondensationPath(ZonePath):
             u_c = np.ravel(u_c) + system.shift
         if system.coupling is not None:      # (in the nodes' frames on a curved face)
             u_c = system.coupling.body_displacement(u_c, r)
+        if self.mechanics.basis is not None:
+            return self.mechanics.basis.back(u_c)
         if self.mechanics.rotate is not None:
             return self.mechanics.rotate.back(np.ravel(u_c))
         return np.ravel(u_c)
@@ -227,9 +235,15 @@ class CondensationPath(ZonePath):
         (t1, t2, ν) — w = u_c − partner is the state's ``u_c`` — and the foundation's own."""
         if system.coupling is None:
             return None
-        rot = self.mechanics.rotate
+        rot, basis = self.mechanics.rotate, self.mechanics.basis
         body = (u_body if rot is None else rot.vector(np.ravel(u_body))).reshape(-1, 3)
-        return FoundationState(u_body_c=body, u_partner=body - u_c, displacement=self.foundation.displacement(r))
+        if basis is not None:
+            body = basis.displacement(body).reshape(-1, 3)
+        partner = body - np.reshape(u_c, (-1, 3))
+        if system.moved:         # a force-controlled foundation: u_c's normal part omits the translation's
+            partner = partner + system.moved * self.model.obstacle_force.gap_rate[:, None] * [0.0, 0.0, 1.0]
+        return FoundationState(u_body_c=body, u_partner=partner,
+                               displacement=self.foundation.displacement(r, system.moved))
 
     def load_scale(self, system):
         return system.contact_ell
@@ -255,6 +269,8 @@ class CondensationPath(ZonePath):
             y_u = g[fac.c] - (system.assembled.A @ zhat)[fac.c]
             if self.mechanics.rotate is not None:   # global components at the contact nodes: into their frames
                 y_u = self.mechanics.rotate.vector(y_u)
+            if self.mechanics.basis is not None:    # ... and into the transformed basis
+                y_u = self.mechanics.basis.vector(y_u)
             if system.coupling is not None:  # ∂J/∂w of the body's contact displacement
                 y_c, y_u = y_u, system.coupling.to_eff(y_u)
         v_u, v_lam = solve_adjoint(system.contact_S, state, y_u, y_lam, choices)
@@ -262,6 +278,8 @@ class CondensationPath(ZonePath):
             z = v_u
         else:
             z = system.coupling.adjoint_z(v_u if y_c is None else v_u - self.foundation.C @ y_c)
+        if self.mechanics.basis is not None:
+            z = self.mechanics.basis.back(z)
         if self.mechanics.rotate is not None:
             z = self.mechanics.rotate.back(z)
         v = system.factor.extend(z)
@@ -269,10 +287,23 @@ class CondensationPath(ZonePath):
             v = v - zhat
         return Adjoint(v_u, v_lam, self.model.assembler.to_full(v))
 
+    def law_extension(self, system, x: np.ndarray) -> np.ndarray:
+        """The A-harmonic extension, on every DOF, of the body's contact displacement that the
+        law's displacement x (3p, per node frame) gives at fixed forces: S⁻¹ S_eff x on a
+        foundation (:meth:`~contactopt.fem.foundation.Coupling.adjoint_z`), x itself elsewhere."""
+        z = x if system.coupling is None else system.coupling.adjoint_z(x)
+        if self.mechanics.rotate is not None:
+            z = self.mechanics.rotate.back(z)
+        return self.model.assembler.to_full(system.factor.extend(z))
+
     def adjoint_force(self, system, ctx, v_u):
         return system.contact_S @ v_u
 
     def global_contact(self, v):
+        """A contact vector conjugate to u_c (a force, ∂J/∂u_c) in global components: Q v in the
+        nodes' frames, V⁻¹ v in the transformed basis."""
+        if self.mechanics.basis is not None:
+            v = self.mechanics.basis.force(v)
         rot = self.mechanics.rotate
         return v if rot is None else rot.back(np.asarray(v))
 
@@ -282,6 +313,8 @@ class CondensationPath(ZonePath):
         out = super().adjoint_carry(system, ctx, v_u, v_full, y_u)
         if self.mechanics.rotate is not None and self.is_full(y_u):
             out = self.mechanics.rotate.vector(out)
+        if self.mechanics.basis is not None and self.is_full(y_u):
+            out = self.mechanics.basis.vector(out)
         return out
 
     def uniqueness_bound(self, system):
@@ -303,5 +336,9 @@ class CondensationPath(ZonePath):
 def shifted(system: CondensedSystem, shift: np.ndarray) -> CondensedSystem:
     """The system whose contact law sees the displacement relative to an obstacle translated
     tangentially by ``shift`` (3p, per node frame, normal parts 0): w = u_c − shift, so
-    S w − ℓ_eff = r with ℓ_eff = ℓ − S shift; the body's own u_c is w + shift."""
-    return replace(system, shift=shift, ell_eff=system.ell - system.S @ shift)
+    S w − ℓ_eff = r with ℓ_eff = ℓ − S shift; the body's own u_c is w + shift. On an elastic
+    foundation translated by a force (:mod:`.force`) the law's w is relative to the partners and
+    its stiffness S_eff: ℓ_eff = S_eff (S⁻¹ℓ − Π q_f) − S_eff shift."""
+    if system.coupling is None:
+        return replace(system, shift=shift, ell_eff=system.ell - system.S @ shift)
+    return replace(system, shift=shift, ell_eff=system.coupling.ell_eff(system.ell) - system.S_eff @ shift)

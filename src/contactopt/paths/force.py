@@ -75,7 +75,7 @@ class ForceSearch:
         c, b, f = self.force.gap_rate, self.force.b, self.force.magnitude
         if system.force is not None:      # a load step's own force (sensitivity/steps.py)
             f = system.force
-        e = (b * TANGENTIAL).ravel()
+        e = self.force.slip
         states = {}
 
         def excess(s):
@@ -130,7 +130,7 @@ class ForceSearch:
         with s at fixed w; on a load path without what later steps pass down)."""
         m = path.model
         c, b = self.force.gap_rate, self.force.b
-        e = (b * TANGENTIAL).ravel()
+        e = self.force.slip
         A, asm = system.assembled.A, m.assembler
         frames = m.frames
         dT_ds = -float(v_lam @ c)
@@ -141,6 +141,17 @@ class ForceSearch:
             if frames is not None:
                 force = np.einsum("mij,mi->mj", frames, force.reshape(-1, 3)).ravel()
             dT_ds += float(force @ e)
+        if path.mechanics.couple is not None:
+            # an elastic foundation pressed by the force: F = bᵀ(S_eff w − ℓ_eff) of the law's w
+            # relative to the partners; its adjoint on the law, its design term through the
+            # body's contact displacement S⁻¹S_eff (b + w_u) extended (paths/condensation.py)
+            S_law = system.contact_S
+            y_F = S_law @ b.ravel()                   # ∂F/∂w
+            w = path.adjoint(system, ctx, state, y_F, np.zeros(c.size))
+            z = w.v + path.law_extension(system, b.ravel())
+            dF_da = path.design_contraction(system, state.u, z, loads) + m.gap_matrix.T @ w.v_lam
+            dF_ds = float((S_law @ (b.ravel() + w.v_u)) @ e - w.v_lam @ c)
+            return ForceTerms(dT_ds, dF_ds, dF_da, w, y_F)
         bg = b.ravel() if frames is None else np.einsum("mij,mj->mi", frames, b).ravel()
         e_free = np.zeros(asm.n_free)
         e_free[m.contact_dofs] = bg

@@ -35,7 +35,8 @@ import numpy as np
 import scipy.sparse as sp
 
 from .._threads import sequential_openblas
-from ..contact.fullspace import solve_fullspace
+from ..contact.fullspace import solve_fullspace_with_fallbacks
+from ..contact.fullspace.core import overlap_force
 from ..contact.fullspace.pyamg import sorted_csr
 from ..errors import CheckpointError
 from ..fem import memory
@@ -101,6 +102,18 @@ class FullSpaceCommon(SolverPath):
         s = self.settings
         return {"tol": max(tol or s.tol, FULLSPACE_TOL), "zone": ctx.next_zone if s.use_zone and warm_start else None,
                 "zone_margin": s.zone_margin}
+
+    def fit_scale(self, load_norm: float, diag_c, gap) -> float | None:
+        """The force scale of a press or shrink fit without load: with ``[body] interference`` and
+        L = 0 (``load_norm``), the overlap's force ‖A_νν min(g, 0)‖ (``diag_c()`` gives the (p, 3)
+        diagonal of the Newton method's A at the contact DOFs, per node (t1, t2, ν); ``gap`` (p,)
+        the gaps, negative inside the counterpart);
+        else None, so that the Newton method measures its residuals against ‖L‖, or 1 as before.
+        Without it such a fit's forces (E δ per unit area, 1e-4 for E = 1 and δ = 1e-3) would be
+        measured against 1, and its Krylov solves would stop before they begin."""
+        if load_norm or not self.model.config.body.interference:
+            return None
+        return overlap_force(diag_c(), gap)
 
     def state_of(self, ctx, system, alpha, res, *, u_free, t0, t_setup, stats, label, slip_ref=None, u_c=None):
         """The :class:`~contactopt.contact.state.State` of a full-space result ``res``
@@ -212,6 +225,10 @@ class FullSpacePath(FullSpaceCommon):
         out = replace(system, assembled=asm, timings={})
         return out if out.T is None else replace(out, L=out.T.T @ asm.L)
 
+    def contact_diagonal(self, system) -> np.ndarray:
+        """(p, 3) the diagonal of the Newton method's A at the contact DOFs, per node (t1, t2, ν)."""
+        return system.law_A.diagonal()[self.model.contact_dofs.reshape(-1, 3)]
+
     def build_hierarchy(self, alpha, asm=None):
         """The AMG hierarchy of A(α) (:class:`~contactopt.fem.amg.ContactHierarchy`).
 
@@ -255,9 +272,11 @@ class FullSpacePath(FullSpaceCommon):
         # on an obstacle: the contact DOFs in the nodes' frames (A → TᵀAT), and a tangential translation
         # as the reference of the slip (the law's displacement is w = u_c − shift, as on the condensation path)
         law_ref = slip_ref if system.shift is None else (system.shift if slip_ref is None else slip_ref + system.shift)
-        res = solve_fullspace(system.law_A, system.law_L, self.model.contact_dofs, system.gap, self.settings.friction,
+        res = solve_fullspace_with_fallbacks(system.law_A, system.law_L, self.model.contact_dofs, system.gap, self.settings.friction,
                               coords=asm.coords, free=self.model.assembler.free, r0=warm, u0=u0,
                               hierarchy=self._hierarchy, slip_ref=law_ref,
+                              force_scale=self.fit_scale(float(np.linalg.norm(system.law_L)), lambda: self.contact_diagonal(system),
+                                                         system.gap),
                               **self.newton_options(ctx, tol, warm_start))
         self._hierarchy = res.hierarchy
         ctx.u_free = res.u
@@ -268,7 +287,8 @@ class FullSpacePath(FullSpaceCommon):
             u_c = res.u_c.copy()
             u_c[:, :2] -= system.shift
         return self.state_of(ctx, system, alpha, res, u_free=u_free, u_c=u_c, t0=t0, t_setup=t_setup,
-                             stats={"backend": "pyamg"}, label=label, slip_ref=slip_ref)
+                             stats={"backend": "pyamg", **({"fallback": res.fallback} if res.fallback else {})},
+                             label=label, slip_ref=slip_ref)
 
     def adjoint(self, system, ctx, state, y_u, y_lam, choices=None):
         if self.is_full(y_u):          # ∂J/∂u on every DOF: the free DOFs' part

@@ -243,8 +243,9 @@ class PetscPath(FullSpaceCommon):
         if warm_start and warm is not None and ctx.u_all is not None:
             u0 = self.newton.A.createVecRight()
             u0.getArray()[:] = self.dist.owned(ctx.u_all)
+        scale = self.fit_scale(system.L.norm(), self.newton._diag_at_contact, system.gap)   # collective: every rank
         res = self.newton.solve(self._hier, system.L, system.gap, self.settings.friction, r0=warm, u0=u0,
-                                slip_ref=slip_ref, **self.newton_options(ctx, tol, warm_start))
+                                slip_ref=slip_ref, force_scale=scale, **self.newton_options(ctx, tol, warm_start))
         system.u_all = ctx.u_all = res.u_all
         return self.state_of(ctx, system, alpha, res, u_free=self.dist.free_vector(res.u_all), t0=t0,
                              t_setup=t_setup, stats={"backend": "petsc", "ranks": self.size}, label=label,

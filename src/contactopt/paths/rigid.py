@@ -92,9 +92,10 @@ def kernel_on_free(model, modes, coords) -> np.ndarray:
     return V[model.assembler.free]
 
 
-def anchor(model, modes, asm, S: np.ndarray, frames) -> Anchor:
+def anchor(model, modes, asm, S: np.ndarray, frames, basis=None) -> Anchor:
     """The :class:`Anchor` of a design; SolverError when A R ≠ 0 (a clamp that moves with the
-    design, for instance)."""
+    design, for instance). ``frames``: the nodes' frames of the contact DOFs, ``basis`` their
+    transformed basis (:class:`~contactopt.paths.transforms.Basis`), or None."""
     R_free = kernel_on_free(model, modes, asm.coords)
     AR = asm.A @ R_free
     bound = KERNEL_RTOL * abs(asm.A).max() * np.abs(R_free).max()
@@ -104,6 +105,8 @@ def anchor(model, modes, asm, S: np.ndarray, frames) -> Anchor:
     Rc = R_free[model.contact_dofs]
     if frames is not None:
         Rc = np.einsum("mij,mik->mjk", frames, Rc.reshape(-1, 3, modes.count)).reshape(-1, modes.count)
+    if basis is not None:           # rigid motions are displacements: û = V⁻ᵀ u
+        Rc = np.column_stack([basis.displacement(Rc[:, k]) for k in range(modes.count)])
     Q, _ = np.linalg.qr(Rc)
     return anchored(S, Rc, Q, modes.names(), GAMMA_FACTOR)
 
@@ -134,7 +137,8 @@ def held_state(solve, system, tol: float, method: str = "newton"):
         k = int(np.argmax(np.abs(worst) / np.linalg.norm(an.R, axis=0)))
         raise SolverError(f"{an.names[k]} is not held: after {MAX_ANCHOR_STEPS} anchor steps the contact forces "
                           f"still leave {history[-1]:.3g} of the load unbalanced on the free rigid motions "
-                          "(a load near the limit of what friction holds?)")
+                          "(the load has a component along a rigid motion that nothing holds, or lies near the "
+                          "limit of what friction holds; check body.clamped and the loads)")
     st.rigid = RigidAnchor(iterations=len(history), residual=history[-1])
     log.debug("body held only by contact: %d anchor step(s), unbalanced %.2e", len(history), history[-1])
     return st

@@ -14,6 +14,9 @@ shift           an obstacle's tangential translation per node frame: the    ``Sh
                 law sees w = u_c − shift (its normal part is in the gap)
 couple          an elastic counterpart: W = S⁻¹ + C on the relative         :class:`~contactopt.fem.foundation.Foundation`
                 displacement (:mod:`.condensation`)
+basis           quadratic faces with mortar partners: the transformed       ``Basis``
+                nodal values û = V⁻ᵀ u_c, forces r̂ = V r, the system
+                V S Vᵀ, V ℓ (V = T ⊗ I₃, :mod:`contactopt.fem.mortar`)
 anchor          a body held only by contact: S singular, an anchored        :class:`~contactopt.mesh.rigid.RigidModes`
                 problem iterated until the anchor carries no force          (:mod:`.rigid`)
 search          a force-controlled obstacle: an outer search over the       :class:`~.force.ForceSearch`
@@ -32,6 +35,7 @@ from dataclasses import dataclass
 
 import numpy as np
 import scipy.sparse as sp
+import scipy.sparse.linalg as spla
 
 from .force import ForceSearch
 
@@ -89,6 +93,47 @@ class Rotate:
         return frame_rotation(contact_dofs, self.R, n_free)
 
 
+class Basis:
+    """The transformed basis of six-node triangles with mortar partners (:mod:`contactopt.fem.mortar`):
+    ``T`` (p × p) on the contact nodes, N̂ = T N; V = T ⊗ I₃ on the contact DOFs. Displacements
+    u_c = Vᵀ û, forces r̂ = V r, so the contact law acts per node on (û, r̂) with the system
+    Ŝ = V S Vᵀ, ℓ̂ = V ℓ and the gaps ĝ = T⁻ᵀ g; per node the order (t1, t2, ν) of the
+    untransformed system is kept. The resultant and moment of the forces are unchanged on faces
+    with straight edges."""
+
+    def __init__(self, T):
+        self.T = sp.csr_matrix(T)
+        self.V = sp.csr_matrix(sp.kron(self.T, sp.identity(3)))
+        self._VT = spla.splu(sp.csc_matrix(self.V.T))
+        self._V = spla.splu(sp.csc_matrix(self.V))
+
+    def vector(self, v: np.ndarray) -> np.ndarray:
+        """V v: a (3p,) force, load or derivative with respect to u_c into the transformed basis."""
+        return self.V @ np.ravel(v)
+
+    def back(self, v: np.ndarray) -> np.ndarray:
+        """Vᵀ v: transformed nodal values (a displacement) back to the nodes' own."""
+        return self.V.T @ np.ravel(v)
+
+    def displacement(self, u: np.ndarray) -> np.ndarray:
+        """V⁻ᵀ u: the nodes' displacement (3p,) into transformed nodal values."""
+        return self._VT.solve(np.ravel(u).astype(float))
+
+    def force(self, r: np.ndarray) -> np.ndarray:
+        """V⁻¹ r̂: transformed forces (3p,) back to the nodes' own."""
+        return self._V.solve(np.ravel(r).astype(float))
+
+    def matrix(self, S: np.ndarray) -> np.ndarray:
+        """V S Vᵀ of a (3p, 3p) matrix on the contact DOFs, symmetric as S is."""
+        out = np.asarray(self.V @ (self.V @ S).T).T
+        return np.ascontiguousarray(0.5 * (out + out.T))
+
+    def gaps(self, g: np.ndarray) -> np.ndarray:
+        """T⁻ᵀ g of per-node values (p,) or (p, k): the gaps in the transformed basis."""
+        lu = spla.splu(sp.csc_matrix(self.T.T))
+        return lu.solve(np.asarray(g, float))
+
+
 @dataclass(frozen=True)
 class Shift:
     """An obstacle's prescribed tangential translation under the contact nodes: ``slip`` (p, 3) per
@@ -113,13 +158,14 @@ class Mechanics:
     """The transforms of a model's contact system (module docstring), None where it has none:
     ``rotate`` (``Rotate``), ``shift`` (``Shift``), ``couple`` an elastic foundation,
     ``anchor`` the rigid motions that contact alone holds, ``search`` a force-controlled obstacle's
-    :class:`~.force.ForceSearch`."""
+    :class:`~.force.ForceSearch`, ``basis`` the transformed basis of quadratic faces (``Basis``)."""
 
     rotate: Rotate | None = None
     shift: Shift | None = None
     couple: object = None
     anchor: object = None
     search: ForceSearch | None = None
+    basis: Basis | None = None
 
     @classmethod
     def of(cls, model) -> "Mechanics":
@@ -127,7 +173,8 @@ class Mechanics:
         return cls(rotate=None if model.frames is None else Rotate(model.frames),
                    shift=None if model.slip_shift is None else Shift(model.slip_shift),
                    couple=model.foundation, anchor=model.body.rigid,
-                   search=None if model.obstacle_force is None else ForceSearch(model.obstacle_force))
+                   search=None if model.obstacle_force is None else ForceSearch(model.obstacle_force),
+                   basis=None if model.foundation is None or model.foundation.basis is None else Basis(model.foundation.basis))
 
     @property
     def frames(self) -> np.ndarray | None:

@@ -325,6 +325,8 @@ class Compliance(Objective):
         if coupling is not None:                  # an elastic foundation (class docstring)
             dw = coupling.to_eff(cond.ell)
             z = -coupling.adjoint_z(coupling.foundation.C @ cond.ell)
+            if cond.basis is not None:   # transformed nodal values back to the nodes'
+                z = cond.basis.back(z)
             dalpha += dc(asm.coords, state.u, model.assembler.to_full(cond.factor.extend(z)))
         return self.partials(self.scale * value, self.scale * dw, np.zeros(state.lam.size), self.scale * dalpha)
 

@@ -21,6 +21,8 @@ from __future__ import annotations
 import meshio
 import numpy as np
 
+from ..fem.loadset import LoadSet
+
 E, NU = 1.0, 0.3
 B, C, DELTA = 1.0, 2.0, 1e-3
 
@@ -35,10 +37,12 @@ def pressure_equal_materials(E=E, nu=NU, b=B, c=C, delta=DELTA) -> float:
     return E * delta * (c * c - b * b) / (2 * (1 - nu * nu) * b * c * c)
 
 
-def quarter_hub_mesh(path, nr: int, nt: int, nz: int, b=B, c=C, length=0.25, grading=1.0, angle=0.5 * np.pi):
+def quarter_hub_mesh(path, nr: int, nt: int, nz: int, b=B, c=C, length=0.25, grading=1.0, angle=0.5 * np.pi,
+                     ends: bool = False):
     """Write the quarter hub b ≤ r ≤ c, 0 ≤ θ ≤ ``angle`` (π/2), 0 ≤ x3 ≤ length as hexahedra (nr × nt × nz) to a
     Gmsh 2.2 file with the physical groups ``bore`` (its faces at r = b) and ``hub`` (the volume).
-    ``grading`` > 1 makes the radial elements grow geometrically from the bore. Returns ``path``."""
+    ``grading`` > 1 makes the radial elements grow geometrically from the bore. ``ends``: also the
+    node group ``ends``, the nodes of both end faces off the bore (r > b). Returns ``path``."""
     w = grading ** np.arange(nr)
     r = b + (c - b) * np.r_[0.0, np.cumsum(w)] / w.sum()
     t = angle * np.arange(nt + 1) / nt
@@ -57,28 +61,40 @@ def quarter_hub_mesh(path, nr: int, nt: int, nz: int, b=B, c=C, length=0.25, gra
     bore = np.stack([node(0, j, k), node(0, j + 1, k), node(0, j + 1, k + 1), node(0, j, k + 1)], axis=1)
     blocks = [("quad", bore), ("hexahedron", hexes)]
     tags = [np.full(len(bore), 1), np.full(len(hexes), 2)]
+    field = {"bore": np.array([1, 2]), "hub": np.array([2, 3])}
+    if ends:
+        i, j, k = (a.ravel() for a in np.meshgrid(np.arange(1, nr + 1), np.arange(nt + 1), [0, nz], indexing="ij"))
+        blocks.append(("vertex", node(i, j, k)[:, None]))
+        tags.append(np.full(i.size, 3))
+        field["ends"] = np.array([3, 0])
     meshio.write(path, meshio.Mesh(pts, blocks, cell_data={"gmsh:physical": tags, "gmsh:geometrical": tags},
-                                   field_data={"bore": np.array([1, 2]), "hub": np.array([2, 3])}),
+                                   field_data=field),
                  file_format="gmsh22", binary=False)
     return str(path)
 
 
-def _write_groups(path, pts, surface, hexes, names):
+def _write_groups(path, pts, surface, hexes, names, ends=None):
     pts = np.asarray(pts, float)
     pts[np.abs(pts) < 1e-15] = 0.0
     blocks = [("quad", surface), ("hexahedron", hexes)]
     tags = [np.full(len(surface), 1), np.full(len(hexes), 2)]
+    field = {names[0]: np.array([1, 2]), names[1]: np.array([2, 3])}
+    if ends is not None:
+        blocks.append(("vertex", np.asarray(ends)[:, None]))
+        tags.append(np.full(len(ends), 3))
+        field["ends"] = np.array([3, 0])
     meshio.write(path, meshio.Mesh(pts, blocks, cell_data={"gmsh:physical": tags, "gmsh:geometrical": tags},
-                                   field_data={names[0]: np.array([1, 2]), names[1]: np.array([2, 3])}),
+                                   field_data=field),
                  file_format="gmsh22", binary=False)
     return str(path)
 
 
-def quarter_shaft_mesh(path, n: int, nt: int, nz: int, radius=B, length=0.25, core=0.5):
+def quarter_shaft_mesh(path, n: int, nt: int, nz: int, radius=B, length=0.25, core=0.5, ends: bool = False):
     """Write the quarter of a solid shaft r ≤ ``radius``, 0 ≤ θ ≤ π/2, 0 ≤ x3 ≤ length as hexahedra
     (an O-grid: an n × n square core [0, core·radius]² and a ring of nt/2 + nt/2 cells around it,
     n radial layers, nt cells along the arc at equal angles, nz along x3; nt even) to a Gmsh 2.2
-    file with the physical groups ``surface`` (its faces at r = radius) and ``shaft``."""
+    file with the physical groups ``surface`` (its faces at r = radius) and ``shaft``; ``ends``: also
+    the node group ``ends``, the nodes of both end faces off the surface (r < radius)."""
     if nt % 2:
         raise ValueError("nt must be even")
     s = core * radius
@@ -112,7 +128,9 @@ def quarter_shaft_mesh(path, n: int, nt: int, nz: int, radius=B, length=0.25, co
     outer = ring_id[n]
     surface = np.vstack([np.c_[outer[j] + k * m, outer[j + 1] + k * m, outer[j + 1] + (k + 1) * m, outer[j] + (k + 1) * m]
                          for k in range(nz) for j in range(nt)])
-    return _write_groups(path, pts, surface, hexes, ("surface", "shaft"))
+    off = np.setdiff1d(np.arange(m), outer)
+    end_nodes = np.r_[off, off + nz * m] if ends else None
+    return _write_groups(path, pts, surface, hexes, ("surface", "shaft"), end_nodes)
 
 
 def shrink_fit_config(mesh_path, *, delta=DELTA, b=B, length=0.25, degree=(2, 1), friction=0.0,
@@ -136,12 +154,13 @@ def shrink_fit_config(mesh_path, *, delta=DELTA, b=B, length=0.25, degree=(2, 1)
     return cfg
 
 
-def shaft_config(hub_path, shaft_path, *, delta=DELTA, b=B, length=0.25, **kw) -> dict:
+def shaft_config(hub_path, shaft_path, *, delta=DELTA, b=B, length=0.25, foundation_clamped=None, **kw) -> dict:
     """The quarter hub (bore radius b) on an elastic quarter shaft of radius b + δ of the same
-    material (``[foundation]``), both in plane strain with the symmetry planes through both."""
+    material (``[foundation]``), both in plane strain with the symmetry planes through both
+    (``foundation_clamped``: the shaft's clamps in place of those)."""
     hub = shrink_fit_config(hub_path, delta=delta, b=b, length=length, **kw)
-    clamps = [{"on": {"x1": 0.0}, "components": [1]}, {"on": {"x2": 0.0}, "components": [2]},
-              {"on": {"x3": 0.0}, "components": [3]}, {"on": {"x3": length}, "components": [3]}]
+    clamps = foundation_clamped or [{"on": {"x1": 0.0}, "components": [1]}, {"on": {"x2": 0.0}, "components": [2]},
+                                    {"on": {"x3": 0.0}, "components": [3]}, {"on": {"x3": length}, "components": [3]}]
     return {**{k: v for k, v in hub.items() if k != "obstacle"},
             "foundation": {"mesh": str(shaft_path), "top": "surface", "partner": "point", "clamped": clamps}}
 
@@ -159,3 +178,69 @@ def pressure_errors(problem, p_exact: float) -> tuple[float, float]:
     _, p, _ = contact_pressure(problem)
     e = (p - p_exact) / p_exact
     return float(np.sqrt(np.mean(e ** 2))), float(np.abs(e).max())
+
+
+# ------------------------------------------------------------------ push-out with friction
+def push_out_config(hub_path, shaft_path, pushes: int, *, friction=0.3, delta=DELTA, b=B, length=0.25,
+                    path="condensation") -> dict:
+    """The shrink fit of :func:`shaft_config` with friction as a load path, on meshes with the node
+    groups ``ends`` (:func:`quarter_hub_mesh`, :func:`quarter_shaft_mesh` with ``ends=True``): the
+    step ``fit`` (the interference alone), then ``pushes`` steps ``push1``, … in which
+    :func:`push_out` moves the hub's end faces along x3. u3 is clamped on both end faces of both
+    bodies but on the contact face's two end rings, whose nodes slide along x3 with the rest of
+    the interface (a clamped u3 there would carry part of the push by the clamps, not by friction)."""
+    clamps = [{"on": {"x1": 0.0}, "components": [1]}, {"on": {"x2": 0.0}, "components": [2]},
+              {"on": "ends", "components": [3]}]
+    cfg = shaft_config(hub_path, shaft_path, delta=delta, b=b, length=length, friction=friction, path=path,
+                       body={"clamped": clamps}, foundation_clamped=clamps)
+    return {**cfg, "load_steps": [{"name": "fit"}] + [{"name": f"push{k}"} for k in range(1, pushes + 1)]}
+
+
+class _WithNodal(LoadSet):
+    """A load set plus a fixed nodal force vector (a prescribed displacement's −K_fd u_d)."""
+
+    def __init__(self, base: LoadSet, extra: np.ndarray):
+        super().__init__(base.tractions, base.pressures, base.body_force)
+        self.extra = extra
+
+    def vector(self, coords, assembler):
+        return super().vector(coords, assembler) + self.extra
+
+
+def push_out(problem, pushes) -> list[dict]:
+    """Push the hub of ``problem`` (:func:`push_out_config`) along its shaft: in step ``push<k>``
+    the hub's end faces (the group ``ends``, u3 clamped) are displaced by s_k = ``pushes[k-1]``
+    along x3 through their equivalent nodal load −K_fd u_d (K the hub's stiffness on every DOF),
+    the shaft's held at u3 = 0. Displacement control: past the push-out force the interface slides
+    as a whole at a constant force, where a force beyond it would have no static solution.
+
+    Returns per step (the fit first) {"step", "s", "force": the axial force on the hub's end faces
+    (the reaction Σ (K u)_d over their u3, u with s on them; = the interface's friction force on
+    the hub, −e3·Σ contact forces), "normal": Σλ, "slide": the fraction of contact nodes that slide
+    (classes M1, M2), "stick": those that stick (M3+)}, per quarter model. Contact conventions:
+    λ ≥ 0 on the hub, the friction force opposes the hub's slip (+x3 here), so the force is > 0."""
+    model = problem.model
+    asm = model.assembler
+    alpha = model.initial_design()
+    K = asm.full_stiffness(model.mesh.coordinates(alpha))
+    ends = model.body.part("ends").nodes
+    ud = np.zeros(asm.n_full)
+    ud[3 * ends + 2] = 1.0
+    unit = -(K @ ud)
+    fixed = np.ones(asm.n_full, bool)
+    fixed[asm.free] = False
+    unit[fixed] = 0.0
+    pushes = [0.0] + [float(x) for x in pushes]
+    steps = problem.steps[0]
+    if len(steps) != len(pushes):
+        raise ValueError(f"{len(pushes) - 1} pushes for a load path of {len(steps) - 1} push steps")
+    for step in steps[1:]:
+        step.loads = _WithNodal(step.loads, pushes[step.index] * unit)
+    problem.solve_states(alpha, warm_start=False)
+    rows = []
+    for (name, _, st), s in zip(problem.step_results(), pushes):
+        u = st.u + s * ud
+        names = st.class_names
+        rows.append({"step": name, "s": s, "force": float((K @ u)[3 * ends + 2].sum()), "normal": float(st.lam.sum()),
+                     "slide": float(np.isin(names, ("M1", "M2")).mean()), "stick": float((names == "M3+").mean())})
+    return rows

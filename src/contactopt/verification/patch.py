@@ -57,10 +57,12 @@ def patch_config(body_cells: int, foundation_cells: int, friction: float, direct
               {"on": {"box": [[-1, 2], [-1e-6, 1e-6], [0.25, 2]]}, "components": [2]},
               {"on": {"x3": H_BODY}, "components": [3]}]
     raw["body"] = {"clamped": clamps}
-    if body == "tetra":
+    if body in ("tetra", "tetra10"):
         ref = block_mesh(1.0, 1.0, H_BODY, n, n, 2)
-        raw["body"].update(mesh=_write(directory / "patch_body.vtu", ref.points,
-                                       hex_to_tets(ref.cells, ref.points), "tetra"), contact={"x3": 0.0})
+        pts, cells = ref.points, hex_to_tets(ref.cells, ref.points)
+        if body == "tetra10":
+            pts, cells = tet4_to_tet10(pts, cells)
+        raw["body"].update(mesh=_write(directory / "patch_body.vtu", pts, cells, body), contact={"x3": 0.0})
     else:
         raw.update(geometry={"a": 1.0, "b": 1.0, "c": H_BODY}, mesh={"nx": n, "ny": n, "nz": 2},
                    loads={"top_traction": [0.0, 0.0, 0.0], "right_traction": [0.0, 0.0, 0.0]})
@@ -93,10 +95,20 @@ def exact_pressure(coords: np.ndarray, contact_nodes: np.ndarray) -> float:
     return E * d / (float(np.ptp(coords[:, 2])) + H_FOUNDATION)
 
 
+def node_areas(problem) -> np.ndarray:
+    """a_m = ∫ N_m dA of the contact nodes on the reference face, or ∫ N̂_m dA = (T a)_m in the
+    transformed basis of six-node triangles with mortar partners (:mod:`contactopt.fem.mortar`),
+    where the state's forces are the transformed ones: λ_m = p a_m under a uniform pressure p."""
+    b = problem.model.body
+    area = contact_areas(b.reference.points, b.contact_face.faces, b.contact_nodes)
+    f = problem.model.foundation
+    return area if f is None or f.basis is None else f.basis @ area
+
+
 def patch_errors(problem, state) -> dict:
     """max and rms of (λ/a − p)/p and max ‖τ‖/(a p) over the contact nodes of a solved state."""
     b = problem.model.body
-    area = contact_areas(b.reference.points, b.contact_face.faces, b.contact_nodes)
+    area = node_areas(problem)
     p = exact_pressure(state.coords, b.contact_nodes)
     e = state.lam / area / p - 1.0
     return {"max": float(np.abs(e).max()), "rms": float(np.sqrt(np.mean(e ** 2))),

@@ -86,7 +86,7 @@ from .core import (
                    newton_loop,
                    sliding_frame,
 )
-from .pyamg import NewtonSystem, solve_fullspace
+from .pyamg import FullSpaceProblem, NewtonSystem, solve_fullspace, solve_fullspace_with_fallbacks
 
-__all__ = ("solve_fullspace", "FullSpaceResult", "NewtonSystem", "newton_loop", "NewtonBackend",
+__all__ = ("solve_fullspace", "solve_fullspace_with_fallbacks", "FullSpaceProblem", "FullSpaceResult", "NewtonSystem", "newton_loop", "NewtonBackend",
            "NewtonOutcome", "sliding_frame", "OPEN", "STICK", "SLIDE", "W_DIAG_FACTOR")

@@ -46,7 +46,9 @@ class FullSpaceResult:
     ``krylov_iterations`` (and on pyamg ``krylov_histories`` / ``krylov_rtol``) per Newton step
     (preceded by those of the start solve when no u0 was given); ``steps`` the line-search step
     lengths; ``timings`` in seconds per phase; ``hierarchy`` (pyamg) the AMG hierarchy to pass to
-    the next solve."""
+    the next solve; ``reason`` why Newton stopped without converging; ``fallback`` the path of
+    the fallback chain that reached the state (None: the first attempt) after
+    ``fallback_iterations`` Newton steps of the attempts before it."""
 
     r: np.ndarray
     u: object
@@ -67,6 +69,9 @@ class FullSpaceResult:
     hierarchy: object = None
     u_all: np.ndarray | None = None
     info: dict = field(default_factory=dict)
+    reason: str = ""                 # why Newton stopped, when it did not converge
+    fallback: str | None = None      # the fallback that reached the state (contactopt.contact.fallback), or None
+    fallback_iterations: int = 0     # the Newton steps of the attempts before it
 
     @property
     def lam(self) -> np.ndarray:
@@ -294,6 +299,17 @@ def rho_of(diag_c: np.ndarray, compliance, rho_scale: float) -> np.ndarray:
     return rho_scale / (W_DIAG_FACTOR / diag_c.mean(axis=1) + compliance)
 
 
+def overlap_force(diag_c: np.ndarray, gap: np.ndarray) -> float | None:
+    """‖A_νν min(g, 0)‖ over the contact nodes: the scale of the forces an initial overlap makes
+    (a press or shrink fit without load), or None without overlap. ``diag_c`` (p, 3) is the
+    diagonal of A at the contact DOFs in the order (t1, t2, ν), ``gap`` (p,) the initial gaps,
+    negative where a node starts inside its counterpart. A node's own stiffness times its overlap
+    bounds its contact force from above, by about the inverse of the node's share of the body's
+    stiffness."""
+    f = diag_c[:, 2] * np.minimum(np.asarray(gap, dtype=np.float64), 0.0)
+    return float(np.linalg.norm(f)) or None
+
+
 def start_forces(r0, zone: np.ndarray, p: int) -> np.ndarray:
     """The warm start's contact forces (p, 3) per node (t1, t2, ν), zero outside the zone, from
     ``r0`` in FCLIB order (N, T1, T2)."""
@@ -317,7 +333,8 @@ def finish(backend: NewtonBackend, out: NewtonOutcome, *, u_c, tol, t_start, tim
     result = FullSpaceResult(r=r, u=out.u, u_c=u_c, classes=out.classes, converged=out.converged, error=out.error,
                              equilibrium=out.equilibrium, newton_steps=len(out.steps),
                              krylov_iterations=krylov_iterations, history=out.history, steps=out.steps,
-                             zone=out.zone, zone_growths=out.zone_growths, timings=timings, info=info, **fields)
+                             zone=out.zone, zone_growths=out.zone_growths, timings=timings, info=info,
+                             reason=out.reason, **fields)
     if not out.converged and raise_on_failure:
         raise ContactNotConverged(f"{backend.label} did not converge: Siconos error {out.error:.3e}, "
                                   f"equilibrium {out.equilibrium:.3e} (tol {tol:.1e}) after {len(out.steps)} "

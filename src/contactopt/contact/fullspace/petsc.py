@@ -345,7 +345,7 @@ class PetscNewton:
     # ------------------------------------------------------------------ the state
     def solve(self, hier: PetscHierarchy, L, gap, friction, *, r0=None, u0=None, tol=1e-10, zone=None,
               rho_scale=0.5, max_steps=50, krylov_rtol=None, eta_max=1e-2, eta_factor=0.1,
-              zone_margin=0.1, compliance=None, slip_ref=None) -> FullSpaceResult:
+              zone_margin=0.1, compliance=None, slip_ref=None, force_scale=None) -> FullSpaceResult:
         """The contact state of load ``L`` (PETSc Vec) and gaps ``gap`` (p,) from the warm start
         ``r0`` (p, 3; FCLIB order) or ``u0`` (a PETSc Vec); the arguments and the stopping rule as
         :func:`contactopt.contact.fullspace.solve_fullspace`, whose Newton loop
@@ -353,13 +353,13 @@ class PetscNewton:
         ``compliance`` (p,): the part of the Delassus diagonal estimate beyond the local
         W_DIAG_FACTOR / mean(A_mm). ``slip_ref`` (p, 2): in a load step, u_t at the end of the
         previous step (the tangential law on u_t − slip_ref, as on the pyamg backend); None: the
-        static problem."""
+        static problem. ``force_scale``: the residuals' scale when L = 0, as there."""
         t_start = time.perf_counter()
         p, cd = self.p, self.cd
         A = self.A
         st = start(friction, p, tol, krylov_rtol, zone)
         timings = st.timings
-        Lnorm = L.norm() or 1.0
+        Lnorm = L.norm() or force_scale or 1.0
         rho_all = rho_of(self._diag_at_contact(), 0.0 if compliance is None else compliance, rho_scale)
         u = A.createVecRight()
 

@@ -9,11 +9,13 @@ import time
 
 import numpy as np
 import scipy.sparse as sp
+import scipy.sparse.linalg as sla
 
 from ..._threads import sequential_openblas
 from ...errors import ProblemDataError, SolverError
 from ...fem.amg import ContactHierarchy, block_positions, rigid_body_modes
 from ...fem.krylov import KrylovNotConverged, gmres
+from ..fallback import diagnose, penetrating_start, run_chain
 from .core import OPEN, SLIDE, STICK, FullSpaceResult, finish, newton_loop, rho_of, start, start_forces
 
 
@@ -184,7 +186,7 @@ def solve_fullspace(A, L, contact_dofs, gap, friction, *, coords, free, r0=None,
                     rho_scale: float = 0.5, max_steps: int = 50, krylov_rtol: float | None = None,
                     eta_max: float = 1e-2, eta_factor: float = 0.1, restart: int = 60,
                     max_krylov: int = 400, zone_margin: float = 0.1, amg: dict | None = None,
-                    raise_on_failure: bool = True, slip_ref=None) -> FullSpaceResult:
+                    raise_on_failure: bool = True, slip_ref=None, force_scale: float | None = None) -> FullSpaceResult:
     """Solve the discrete Coulomb problem A u = L + Bᵀ r with the contact law on the contact nodes
     (module docstring) by a full-space semismooth Newton method with AMG-preconditioned GMRES.
 
@@ -210,6 +212,9 @@ def solve_fullspace(A, L, contact_dofs, gap, friction, *, coords, free, r0=None,
     raise_on_failure : raise ContactNotConverged on a Newton failure (else return converged=False).
     slip_ref : (p, 2) in a load step, u_t at the end of the previous step (the tangential law on
         u_t − slip_ref, :mod:`contactopt.sensitivity.steps`); None: the static problem.
+    force_scale : the force the equilibrium residual and the Krylov tolerances are measured
+        against when L = 0 (a press fit: :func:`~contactopt.contact.fullspace.core.overlap_force`);
+        None: 1. With a load it is ‖L‖.
 
     OpenBLAS runs sequentially inside (:func:`contactopt._threads.sequential_openblas`): the dense
     work here is the GMRES basis products, memory-bound, and its threads competed with the sparse
@@ -218,7 +223,7 @@ def solve_fullspace(A, L, contact_dofs, gap, friction, *, coords, free, r0=None,
     with sequential_openblas():
         return _solve_fullspace(A, L, contact_dofs, gap, friction, coords, free, r0, u0, tol, hierarchy,
                                 zone, rho_scale, max_steps, krylov_rtol, eta_max, eta_factor, restart,
-                                max_krylov, zone_margin, amg, raise_on_failure, slip_ref)
+                                max_krylov, zone_margin, amg, raise_on_failure, slip_ref, force_scale)
 
 
 def sorted_csr(A):
@@ -233,7 +238,7 @@ def sorted_csr(A):
 
 def _solve_fullspace(A, L, contact_dofs, gap, friction, coords, free, r0, u0, tol, hierarchy, zone,
                      rho_scale, max_steps, krylov_rtol, eta_max, eta_factor, restart, max_krylov,
-                     zone_margin, amg, raise_on_failure, slip_ref=None):
+                     zone_margin, amg, raise_on_failure, slip_ref=None, force_scale=None):
     t_start = time.perf_counter()
     A = sorted_csr(A)
     n = A.shape[0]
@@ -246,7 +251,7 @@ def _solve_fullspace(A, L, contact_dofs, gap, friction, coords, free, r0, u0, to
                                f"and {p} contact nodes")
     st = start(friction, p, tol, krylov_rtol, zone)
     timings = st.timings
-    Lnorm = float(np.linalg.norm(L)) or 1.0
+    Lnorm = float(np.linalg.norm(L)) or force_scale or 1.0
 
     # -- the hierarchy (reused when given)
     if hierarchy is None:
@@ -296,3 +301,114 @@ def _solve_fullspace(A, L, contact_dofs, gap, friction, coords, free, r0, u0, to
                         "class_counts": {"open": int(np.sum(classes == OPEN)), "stick": int(np.sum(classes == STICK)),
                                          "slide": int(np.sum(classes == SLIDE))},
                         "start_solve": u0 is None})
+
+
+# ----------------------------------------------------------------------------- the fallback chain
+DIAGNOSIS_MAX_DOFS = 30000      # largest A factorized to form W for a diagnosis (no fallback converged)
+_DIAGNOSIS_BLOCK = 256          # columns of W per block of solves (n × 256 doubles at a time)
+LOAD_CONTINUATION = (0.25, 0.5, 0.75, 1.0)
+
+
+class FullSpaceProblem:
+    """The full-space Newton method as a :class:`contactopt.contact.fallback.FallbackProblem`:
+    the chain of :func:`contactopt.contact.fallback.run_chain` with the parts that apply without
+    a Delassus operator (:data:`contactopt.contact.fallback.FULLSPACE_FALLBACKS`):
+
+    * ``cold restart``: from nothing, without the warm start of r, u and the zone;
+    * ``friction continuation``: F·t for t = 0, 1/4, 1/2, 3/4, 1, each from the displacement of
+      the one before (with friction only);
+    * ``load continuation``: the load t·L for t = 1/4, 1/2, 3/4, 1, each from the last.
+
+    ``options``: the keyword arguments of :func:`solve_fullspace` (A, L, the contact DOFs per node
+    (t1, t2, ν), the gap, F, the warm starts r0 in FCLIB order (N, T1, T2) and u0). Each attempt
+    is bounded by the same ``max_steps`` (per step of a continuation) and reuses the AMG hierarchy
+    of the first. The diagnosis names a penetrating start and, on at most
+    :data:`DIAGNOSIS_MAX_DOFS` free DOFs, forms W = B A⁻¹ Bᵀ (FCLIB order) from a factorization
+    of A for :func:`contactopt.contact.fallback.diagnose` (which checks its eigenvalues on up to
+    2000 contact nodes)."""
+
+    def __init__(self, A, L, contact_dofs, gap, friction, *, what: str = "the contact state (full space)", **options):
+        self.A, self.L, self.contact_dofs, self.gap, self.friction = A, L, contact_dofs, gap, friction
+        self.options, self.what = options, what
+        self.tol = options.get("tol", 1e-10)
+        warm = any(options.get(k) is not None for k in ("r0", "u0", "zone"))
+        self.first_name = "full-space Newton" + (" from the warm start" if warm else "")
+        self.hierarchy = options.get("hierarchy")
+
+    def _solve(self, *, L=None, friction=None, **over):
+        kw = {**self.options, "hierarchy": self.hierarchy, **over, "raise_on_failure": False}
+        res = solve_fullspace(self.A, self.L if L is None else L, self.contact_dofs, self.gap,
+                              self.friction if friction is None else friction, **kw)
+        self.hierarchy = res.hierarchy
+        return res
+
+    def first(self):
+        return self._solve()
+
+    def attempts(self):
+        cold = dict(r0=None, u0=None, zone=None)
+        if any(self.options.get(k) is not None for k in cold):
+            yield "cold restart", lambda: self._solve(**cold)
+
+        def continuation(scales, of):
+            res, total = None, 0
+            for t in scales:
+                res = self._solve(**of(t), r0=None, zone=None, u0=None if res is None else res.u)
+                total += res.newton_steps
+            res.newton_steps = total
+            return res
+        mu = np.asarray(self.friction, dtype=float)
+        if float(np.max(mu)) > 0:
+            yield "friction continuation", lambda: continuation((0.0, 0.25, 0.5, 0.75, 1.0),
+                                                                of=lambda t: {"friction": mu * t})
+        L = np.asarray(self.L, dtype=float)
+        yield "load continuation", lambda: continuation(LOAD_CONTINUATION, of=lambda t: {"L": L * t})
+
+    def steps(self, result) -> int:
+        return result.newton_steps
+
+    def stop(self, result) -> str:
+        return result.reason or f"Siconos error {result.error:.2e}, equilibrium {result.equilibrium:.2e}"
+
+    def converged_by(self, result, name, spent):
+        result.fallback, result.fallback_iterations = name, spent
+        return result
+
+    def diagnose(self, best) -> str:
+        A = sp.csc_matrix(self.A)
+        gap = np.asarray(self.gap, dtype=float)
+        cd = np.asarray(self.contact_dofs, dtype=np.int64).reshape(-1, 3)
+        if A.shape[0] > DIAGNOSIS_MAX_DOFS:
+            found = penetrating_start(gap)
+            return "The model: " + "; ".join(found or [
+                f"no penetrating start; A has {A.shape[0]} free DOFs, too many to form W for the check of a rigid "
+                "motion or an unbalanced load: check body.clamped, the loads and the initial gap"]) + "."
+        try:
+            lu = sla.splu(A)
+        except RuntimeError:            # A exactly singular: the clamps leave a motion free
+            return ("The model: " + "; ".join(penetrating_start(gap) + [
+                "a rigid motion: the stiffness A is singular, so the body is not held in some direction; check "
+                "body.clamped (a support or a symmetry plane missing)"]) + ".")
+        order = cd[:, [2, 0, 1]].ravel()                    # FCLIB order (ν, t1, t2) per node
+        W = np.empty((order.size, order.size))
+        for j in range(0, order.size, _DIAGNOSIS_BLOCK):     # W = B A⁻¹ Bᵀ, a block of columns at a time
+            cols = order[j:j + _DIAGNOSIS_BLOCK]
+            E = np.zeros((A.shape[0], cols.size))
+            E[cols, np.arange(cols.size)] = 1.0
+            W[:, j:j + cols.size] = lu.solve(E)[order]
+        q = lu.solve(np.asarray(self.L, dtype=float))[order]
+        q[0::3] += gap
+        shift = self.options.get("slip_ref")
+        if shift is not None:
+            s = np.asarray(shift, dtype=float).reshape(-1, 2)
+            q[1::3] -= s[:, 0]
+            q[2::3] -= s[:, 1]
+        return diagnose(W, q, self.friction, gap=gap)
+
+
+def solve_fullspace_with_fallbacks(A, L, contact_dofs, gap, friction, **options) -> FullSpaceResult:
+    """:func:`solve_fullspace` and, where it does not converge, the fallback chain of
+    :class:`FullSpaceProblem`: a converged state (``fallback`` names the path that reached it,
+    None when the first did) or :class:`~contactopt.errors.ContactNotConverged` with the
+    diagnosis of the model. A solve that converges at once is :func:`solve_fullspace`'s, bit for bit."""
+    return run_chain(FullSpaceProblem(A, L, contact_dofs, gap, friction, **options))

@@ -1,0 +1,137 @@
+"""Hertz on tetrahedra: a rigid sphere pressed into a quarter block meshed by Gmsh, frictionless.
+
+The quarter block [0, L]³ (L = 10 a, a the target contact radius 0.5 of
+:mod:`contactopt.verification.hertz`) of unstructured linear (``tetra``) or quadratic (``tetra10``)
+tetrahedra, of size h up to the distance 1.6 a from the axis and growing away from it, clamped on
+its top x3 = L, symmetry rollers on x1 = 0 and x2 = 0; the sphere of radius R = 10 under the face
+x3 = 0 pressed by the quarter of the force P of contact radius a (``control = "force"``). The
+contact face is flat and the sphere curved, so the gap is curved on every face and a node's
+dual-weighted gap (``[obstacle] weighting = "mortar"``) differs from its nodal one.
+
+Measured: the nodal pressures p_m = λ_m / a_m (a_m = ∫ N_m dA; on six-node triangles the pressure
+of :func:`contactopt.io.pressure.contact_pressure`) against p_Hertz(r) = p0 √(1 − r²/a²), a and p0
+from the force P = 4 Σ λ_m n3_m the state carries: the rms and the largest error over the nodes
+within 1.5 a of the axis, relative to p0.
+
+Sign convention: λ_m ≥ 0 the normal force of the sphere on the body at node m, along the sphere's
+normal n_m (from the sphere to the body); per contact node the frame (t1, t2, n).
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from pathlib import Path
+
+import meshio
+import numpy as np
+
+from contactopt.config import load_config, validate
+from contactopt.io.pressure import contact_pressure
+from contactopt.mesh.tetsplit import hex_to_tets, tet_boundary_faces
+from contactopt.problem import ShapeProblem
+
+from .hertz import A_TARGET, E_STAR, P_SPHERE, R, common, graded_axis, resultant
+
+L = 10 * A_TARGET
+
+
+def quarter_mesh(path: str | Path, h: float, order: int = 1, growth: float = 0.25, seed: int = 1) -> str:
+    """A Gmsh file of the quarter block (module docstring): element size h within 1.6 a of the
+    origin, h + growth·(distance − 1.6 a) beyond; groups ``contact`` (x3 = 0), ``top`` and ``body``.
+    Gmsh is imported here: an optional dependency (the ``mesh`` extra)."""
+    import gmsh
+
+    gmsh.initialize(interruptible=False)
+    try:
+        gmsh.option.setNumber("General.Terminal", 0)
+        gmsh.model.add("quarter")
+        gmsh.model.occ.addBox(0, 0, 0, L, L, L)
+        gmsh.model.occ.synchronize()
+        for dim, tag in gmsh.model.getBoundary([(3, 1)], oriented=False):
+            z = gmsh.model.occ.getCenterOfMass(dim, tag)[2]
+            if abs(z) < 1e-9:
+                gmsh.model.addPhysicalGroup(2, [tag], name="contact")
+            elif abs(z - L) < 1e-9:
+                gmsh.model.addPhysicalGroup(2, [tag], name="top")
+        gmsh.model.addPhysicalGroup(3, [1], name="body")
+        f = gmsh.model.mesh.field.add("MathEval")
+        gmsh.model.mesh.field.setString(f, "F", f"{h}+{growth}*Max(0,Sqrt(x*x+y*y+z*z)-{1.6 * A_TARGET})")
+        gmsh.model.mesh.field.setAsBackgroundMesh(f)
+        for key, value in (("Mesh.MeshSizeExtendFromBoundary", 0), ("Mesh.MeshSizeFromPoints", 0),
+                           ("Mesh.MeshSizeFromCurvature", 0), ("Mesh.Algorithm", 6),
+                           ("Mesh.RandomSeed", seed), ("Mesh.MshFileVersion", 2.2)):
+            gmsh.option.setNumber(key, value)
+        gmsh.model.mesh.generate(3)
+        if order == 2:
+            gmsh.model.mesh.setOrder(2)
+        gmsh.write(str(path))
+    finally:
+        gmsh.finalize()
+    return str(path)
+
+
+def split_mesh(path: str | Path, h: float) -> str:
+    """The quarter block as the graded grid of :func:`contactopt.verification.hertz.graded_axis`
+    (h up to 1.6 a, then growing by 1.25) with every hexahedron split into six linear tetrahedra:
+    a structured contact face of equal node areas in the fine zone. Groups as :func:`quarter_mesh`."""
+    x = np.asarray(graded_axis(h, 1.6 * A_TARGET, L))
+    n = x.size
+    X, Y, Z = np.meshgrid(x, x, x, indexing="ij")
+    pts = np.c_[X.ravel(), Y.ravel(), Z.ravel()]
+    idx = np.arange(n ** 3).reshape(n, n, n)
+
+    def corner(i, j, k):
+        return idx[i:n - 1 + i, j:n - 1 + j, k:n - 1 + k].ravel()
+    hexes = np.stack([corner(*o) for o in ((0, 0, 0), (1, 0, 0), (1, 1, 0), (0, 1, 0),
+                                            (0, 0, 1), (1, 0, 1), (1, 1, 1), (0, 1, 1))], axis=1)
+    tets = hex_to_tets(hexes, pts)
+    bf = tet_boundary_faces(tets)
+    bottom, top = bf[np.all(pts[bf, 2] == 0.0, axis=1)], bf[np.all(pts[bf, 2] == x[-1], axis=1)]
+    cells = [("tetra", tets), ("triangle", bottom), ("triangle", top)]
+    tags = [np.full(len(c), t) for (_, c), t in zip(cells, (3, 1, 2))]
+    meshio.write(path, meshio.Mesh(pts, cells, cell_data={"gmsh:physical": tags, "gmsh:geometrical": tags},
+                                   field_data={"contact": np.array([1, 2]), "top": np.array([2, 2]),
+                                               "body": np.array([3, 3])}), file_format="gmsh22", binary=True)
+    return str(path)
+
+
+def quarter_problem(mesh: str, weighting: str = "node") -> ShapeProblem:
+    """The sphere pressed by P/4 into the quarter block of the Gmsh file ``mesh``, frictionless."""
+    data = load_config("example1").to_dict()
+    for key in ("geometry", "mesh"):
+        data.pop(key, None)
+    for sec, vals in common(0.0).items():
+        data[sec] = {**data.get(sec, {}), **vals}
+    data["loads"] = {"body_force": [0.0, 0.0, 0.0]}
+    data["body"] = {"mesh": str(mesh), "contact": "contact",
+                    "clamped": ["top", {"on": {"x1": 0.0}, "components": [1]}, {"on": {"x2": 0.0}, "components": [2]}]}
+    data["obstacle"] = {"shape": "sphere", "center": [0.0, 0.0, -R], "radius": R, "control": "force",
+                        "force": [0.0, 0.0, P_SPHERE / 4], "weighting": weighting}
+    return ShapeProblem(validate(data, f"hertz on {Path(mesh).name}"))
+
+
+def hertz_errors(problem: ShapeProblem, state, within: float = 1.5) -> dict:
+    """rms and max of (p − p_Hertz)/p0 over the contact nodes within ``within``·a of the axis
+    (module docstring), with the radius r, p and p_Hertz of every contact node."""
+    m = problem.model
+    x = m.body.reference.points[m.contact_nodes]
+    r = np.hypot(x[:, 0], x[:, 1])
+    p = contact_pressure(m, state.lam, state.coords)
+    P = 4.0 * float(resultant(problem, state)[2])
+    a = (3 * P * R / (4 * E_STAR)) ** (1 / 3)
+    p0 = 3 * P / (2 * math.pi * a * a)
+    ph = p0 * np.sqrt(np.clip(1 - (r / a) ** 2, 0.0, None))
+    use = r < within * a
+    e = (p[use] - ph[use]) / p0
+    return {"rms": float(np.sqrt(np.mean(e * e))), "max": float(np.abs(e).max()), "a": a, "p0": p0,
+            "r": r, "p": p, "p_hertz": ph, "nodes": int(use.sum())}
+
+
+def measure(mesh: str, weighting: str = "node") -> dict:
+    t0 = time.perf_counter()
+    pr = quarter_problem(mesh, weighting)
+    st = pr.solve_state(np.zeros(pr.model.n_design))
+    out = hertz_errors(pr, st)
+    out.update(time=time.perf_counter() - t0, contact_nodes=pr.model.n_contact, problem=pr, state=st)
+    return out
