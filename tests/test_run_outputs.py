@@ -2,6 +2,8 @@
 evaluation, the summary's J0 and J are the history's values at α0 and at the returned design,
 and a resumed run repeats the recorded solves bit for bit."""
 
+import subprocess
+import sys
 import time
 from pathlib import Path
 
@@ -66,7 +68,8 @@ def _history_values(out: Path) -> list[float]:
 @pytest.mark.parametrize("kind", ["plain", "symmetric_constrained", "load_cases", "terms_on_foundation"])
 def test_outputs_solve_no_state_beyond_the_optimization(tmp_path, monkeypatch, kind):
     counts = _count_solves(monkeypatch)
-    s = runner.run_optimization(_config(kind), tmp_path / "run", max_iter=3, plots=False).summary
+    s = runner.run_optimization(_config(kind), tmp_path / "run", max_iter=8, plots=False).summary
+    assert s["J"] != s["J0"]                      # the optimum is another design than α0
     assert counts["finish"] == 0, counts
     # one solve per evaluation (the first one also gives the scale Θ(α0))
     assert counts["all"] == s["evaluations"], (counts, s["evaluations"])
@@ -153,3 +156,40 @@ def test_the_block_is_exported_with_the_bytes_of_meshios_gmsh_writer(tmp_path):
     meshio.write(tmp_path / "meshio.msh", mesh, file_format="gmsh22", binary=False)
     export._write_gmsh22_ascii(tmp_path / "own.msh", mesh)
     assert (tmp_path / "own.msh").read_bytes() == (tmp_path / "meshio.msh").read_bytes()
+
+
+def _ended(pid: int) -> bool:
+    """Whether process ``pid`` is gone (or a zombie waiting for its new parent to reap it)."""
+    try:
+        status = Path(f"/proc/{pid}/status").read_text()
+    except OSError:
+        return True
+    return "\nState:\tZ" in status
+
+
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="the figures are forked on Linux only")
+def test_the_child_ends_with_its_parent_killed(tmp_path):
+    """A run killed by SIGKILL during its outputs leaves no process drawing figures (which would
+    hold the run directory's lock) and no temporary file."""
+    script = (
+        "import sys, time\n"
+        "from pathlib import Path\n"
+        "from contactopt.io.atomic import atomic_output\n"
+        "from contactopt.io.forked import Forked\n"
+        "def slow():\n"
+        f"    with atomic_output(Path({str(tmp_path)!r}) / 'slow.png') as tmp:\n"
+        "        tmp.write_bytes(b'x')\n"
+        "        time.sleep(60)\n"
+        "jobs = Forked([slow], fork=True)\n"
+        "print(jobs.pid, flush=True)\n"
+        "time.sleep(60)\n")
+    proc = subprocess.Popen([sys.executable, "-c", script], stdout=subprocess.PIPE, text=True)
+    child = int(proc.stdout.readline())
+    time.sleep(1.0)
+    proc.kill()
+    proc.wait()
+    deadline = time.time() + 20
+    while not _ended(child) and time.time() < deadline:
+        time.sleep(0.1)
+    assert _ended(child)
+    assert list(tmp_path.iterdir()) == []

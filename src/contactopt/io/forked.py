@@ -6,8 +6,9 @@ that write their own files, atomically) in a child made by ``fork``, so that the
 array without copying, while the parent writes its other files; :meth:`Forked.join` waits for the
 child and raises the child's exception in the parent (the exception itself where it can be
 pickled, else a :class:`~contactopt.errors.ContactOptError` with its text). :meth:`Forked.cancel`
-stops the child (an exception or a signal in the parent): it ends by an exception of its own, so
-that a file it was writing leaves no temporary behind.
+stops the child (an exception or a signal in the parent), and so does the parent's end, however
+it ends: the child ends by an exception of its own, so that a file it was writing leaves no
+temporary behind, and holds no inherited lock beyond its parent.
 
 Forking is used only where it is safe and pays: on Linux, with more than one CPU available to
 the process, no thread in it but the main one and the idle workers of the assembly's pool, and
@@ -18,6 +19,7 @@ no MPI loaded (a forked MPI process may hang). Elsewhere the jobs run in the par
 from __future__ import annotations
 
 import contextlib
+import ctypes
 import logging
 import os
 import pickle
@@ -73,6 +75,7 @@ class Forked:
         for stream in (sys.stdout, sys.stderr):          # nothing buffered is written twice
             with contextlib.suppress(Exception):
                 stream.flush()
+        parent = os.getpid()
         pid = os.fork()
         if pid == 0:                                       # the child: the jobs, then _exit
             code = 1
@@ -80,6 +83,7 @@ class Forked:
                 os.close(read)
                 signal.signal(signal.SIGTERM, _stop)
                 signal.signal(signal.SIGINT, _stop)
+                _end_with(parent)
                 try:
                     for job in self.jobs:
                         job()
@@ -129,6 +133,18 @@ class Forked:
         return False
 
 
+def _end_with(parent: int) -> None:
+    """SIGTERM to this child when its parent ends (a parent killed by SIGKILL leaves no child
+    that holds the run directory's lock through an inherited descriptor)."""
+    with contextlib.suppress(Exception):
+        ctypes.CDLL(None, use_errno=True).prctl(_PR_SET_PDEATHSIG, signal.SIGTERM)
+    if os.getppid() != parent:                             # it ended before the request
+        raise _Stop(signal.SIGTERM)
+
+
+_PR_SET_PDEATHSIG = 1
+
+
 def _payload(exc: BaseException) -> bytes:
     """The child's exception as bytes: pickled where it unpickles again, else its text."""
     with contextlib.suppress(Exception):
@@ -140,6 +156,8 @@ def _payload(exc: BaseException) -> bytes:
 
 def _exception(data: bytes) -> BaseException:
     exc = pickle.loads(data)
+    if isinstance(exc, _Stop):
+        return ContactOptError(f"the process writing the figures was stopped by signal {exc.args[0]}")
     if isinstance(exc, str):
         return ContactOptError(f"writing the figures failed: {exc}")
     return exc
