@@ -23,21 +23,21 @@ import sys
 import time
 from pathlib import Path
 
-import meshio
 import numpy as np
 import pytest
 import tomli_w
 
 from contactopt._mpi import petsc_missing
 from contactopt.cli import main
-from contactopt.config import load_config, validate
+from contactopt.config import load_config
 from contactopt.io.checkpoint import Checkpoint
-from contactopt.mesh.block import block_mesh
 from contactopt.problem import ShapeProblem
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "tests" / "mpi"))
 from compare_paths import evaluations, overrides  # noqa: E402
+
+from test_fullspace import plane_press_fit  # noqa: E402  (the block of the pyamg backend's test)
 
 MISSING = petsc_missing()
 pytestmark = pytest.mark.skipif(MISSING is not None, reason=f"PETSc path: {MISSING}")
@@ -610,21 +610,6 @@ def test_the_differences_see_the_adjoint_without_its_interior_rows(monkeypatch):
 
 
 # ------------------------------------------------------------------ a press fit without load
-def plane_press_fit(tmp_path, path, friction):
-    """A block 2 × 1 × 1 (8 × 4 × 3 hexahedra) clamped on its top whose underside starts below the
-    plane x3 = 0 by about 1e-3 (``initial_gap = "mesh"``, ``interference = true``), E = 1, no load."""
-    m = block_mesh(2.0, 1.0, 1.0, 8, 4, 3)
-    pts = m.points.copy()
-    pts[:, 2] -= 1e-3 * (1.0 + 0.2 * np.sin(pts[:, 0]))
-    meshio.write(tmp_path / "fit.vtu", meshio.Mesh(pts, [("hexahedron", m.cells)]))
-    return validate({"name": "plane-fit", "material": {"E": 1.0, "nu": 0.3}, "friction": {"coefficient": friction},
-                     "body": {"mesh": str(tmp_path / "fit.vtu"), "contact": {"box": [[-1, 3], [-1, 2], [-0.01, 0.0]]},
-                              "clamped": {"box": [[-1, 3], [-1, 2], [0.9, 1.1]]}, "initial_gap": "mesh",
-                              "interference": True},
-                     "loads": {"body_force": [0.0, 0.0, 0.0]}, "design": {"degree": [2, 1], "initial": 0.0, "C2": 0.0},
-                     "state": {"method": "newton", "tol": 1e-12}, "linear_solver": {"path": path}}, "plane-fit")
-
-
 @pytest.mark.parametrize("friction", [0.0, 0.3])
 def test_a_press_fit_without_load_on_the_petsc_path_equals_the_condensation(tmp_path, friction):
     # L = 0: the residuals against the overlap's force, as on the pyamg backend
