@@ -386,10 +386,12 @@ def test_one_mkl_thread_makes_evaluations_those_of_a_single_threaded_run():
     lib, _ = _pardiso._load()
     set_global, get_max = lib.MKL_Set_Num_Threads, lib.MKL_Get_Max_Threads
     set_global.argtypes, get_max.restype = [ctypes.c_int], ctypes.c_int
-    set_dynamic, get_dynamic = lib.MKL_Set_Dynamic, lib.MKL_Get_Dynamic
-    set_dynamic.argtypes, get_dynamic.restype = [ctypes.c_int], ctypes.c_int
-    before, dynamic = get_max(), get_dynamic()
-    set_dynamic(0)          # MKL uses the threads it is given, also on a busy machine (not fewer)
+    set_local = lib.MKL_Set_Num_Threads_Local
+    set_local.argtypes, set_local.restype = [ctypes.c_int], ctypes.c_int
+    before = get_max()
+    # this thread on MKL's global count: a threadpoolctl limit that ended earlier in this process
+    # leaves a thread-local count behind (it restores the count it read, not "the global one")
+    local_before = set_local(0)
 
     def evaluations(threads, mkl):
         set_global(mkl)
@@ -405,7 +407,7 @@ def test_one_mkl_thread_makes_evaluations_those_of_a_single_threaded_run():
         free = evaluations(0, 2)
     finally:
         set_global(before)
-        set_dynamic(dynamic)
+        set_local(local_before)
     assert all(f == g and np.array_equal(x, y) for (f, x), (g, y) in zip(one, pinned))
     assert any(f != g or not np.array_equal(x, y) for (f, x), (g, y) in zip(one, free))
     assert max(abs(f - g) / abs(f) for (f, _), (g, _) in zip(one, free)) < 1e-12   # round-off only
