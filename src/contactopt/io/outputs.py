@@ -165,6 +165,8 @@ def _figures(out: Path, model, x, target, s0, s1, res) -> tuple[list, list]:
     and one drawn here: λ and the contact pressure p = λ/a of the target, α0 and the optimum, the
     optimal surface and the convergence history; the optimum's node classes, contact response and
     von Mises stress."""
+    classes = face_classes(model, s1)         # the maps' classes, read by two figures
+
     def pressure():
         p0, p1 = contact_pressure(model, s0.lam, s0.coords), contact_pressure(model, s1.lam, s1.coords)
         # the target in the same units: λ̄ over the optimal design's areas, as the optimal λ
@@ -174,13 +176,13 @@ def _figures(out: Path, model, x, target, s0, s1, res) -> tuple[list, list]:
 
     def contact():
         plot_contact_response(out / "contact.png", model, contact_pressure(model, s1.lam, s1.coords), s1.tau,
-                              s1.u_c[:, :2], face_classes(model, s1), title="optimal design")
+                              s1.u_c[:, :2], classes, title="optimal design")
 
     forked = [lambda: plot_stress_comparison(out / "stress.png", model,
                                              target if target is not None else np.zeros_like(s0.lam), s0.lam, s1.lam),
               pressure, lambda: plot_surface(out / "surface.png", model, x),
               lambda: plot_history(out / "history.png", [{**r, "kind": r.get("step")} for r in res.history])]
-    here = [lambda: plot_node_classes(out / "classes.png", model, face_classes(model, s1)), contact,
+    here = [lambda: plot_node_classes(out / "classes.png", model, classes), contact,
             lambda: plot_peak_stress(out / "von_mises.png", model, s1.coords, s1.u, title="optimal design")]
     return forked, here
 
