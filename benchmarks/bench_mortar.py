@@ -1,6 +1,6 @@
 """Mortar partners on the elastic foundation: the contact patch test, convergence, cost.
 
-    python benchmarks/bench_mortar.py [--part patch|meshes|hertz|tets|cost|cost10|all] [--steps 6]
+    python benchmarks/bench_mortar.py [--part patch|meshes|hertz|tets|tetparts|cost|cost10|all] [--steps 6]
 
 patch   The contact patch test of contactopt.verification.patch (overlap loading) with point,
         averaged and mortar partners, F = 0 and 0.3: max and rms of (λ/a − p)/p, max ‖τ‖/(a p).
@@ -19,6 +19,16 @@ tets    Hertz on Gmsh tetrahedra (contactopt.verification.hertz_tets): a rigid s
         within 1.5 a, the rate of the rms between refinements, the rms within 0.8 a (the interior
         of the contact); and the exact Hertz pressure read
         as the nodal pressure reads λ (∫ N_m p_Hertz dA / a_m), the floor of the nodal reading.
+        --growth and --fine: the Gmsh meshes' grading (h + growth·(d − fine·a) beyond fine·a).
+tetparts
+        What that error is made of (contactopt.verification.hertz_tets.error_parts) on the meshes
+        of --mesh (gmsh, split, tet10), sizes --sizes, Gmsh grading --growth, --fine: per reading
+        of the forces (nodal λ/a, L²-projection M p = λ, hat-weighted mean of λ/a) the rms of
+        p(λ) − p_Hertz (total), p(λ) − p(λ_H) (the forces' error, λ_H = ∫ N p_Hertz the forces of
+        the exact pressure) and p(λ_H) − p_Hertz (the reading's error), within 1.5 a and 0.8 a,
+        relative to p0; the L² reading's least value; the pressure −σ33 of the face's tetrahedra;
+        the correlation, within 0.8 a, of the forces' error with the number of tetrahedra per
+        face triangle at the node.
 cost    examples/example1_elastic.toml (body 32×15×9, slab 24×16×8: non-matching): the time to
         build the partners (segmentation and mortar matrices once per run) and the median time of
         one evaluation (state + subgradient) along a path of small design steps, mortar against
@@ -139,7 +149,7 @@ def hertz(sizes=(12, 16, 24)) -> None:
                       f"{np.sqrt(np.mean((p - ph) ** 2)) / p0:.2e} |", flush=True)
 
 
-def tets(sizes=(6, 8, 10)) -> None:
+def tets(sizes=(6, 8, 10), growth=0.25, fine=1.6) -> None:
     from contactopt.fem.elements import face_for
     from contactopt.io.pressure import contact_areas
     from contactopt.verification.hertz_tets import A_TARGET, measure, quarter_mesh, split_mesh
@@ -170,7 +180,8 @@ def tets(sizes=(6, 8, 10)) -> None:
             last = {}
             for k in sizes:
                 mesh = (split_mesh(Path(tmp) / f"s{k}.msh", A_TARGET / k) if order == 0 else
-                        quarter_mesh(Path(tmp) / f"q{order}_{k}.msh", A_TARGET / k, order=order))
+                        quarter_mesh(Path(tmp) / f"q{order}_{k}.msh", A_TARGET / k, order=order, growth=growth,
+                                     fine=fine))
                 for weighting in (("node", "mortar") if order < 2 else ("node",)):
                     res = measure(mesh, weighting)
                     rate = (math.log(last[weighting][1] / res["rms"]) / math.log(k / last[weighting][0])
@@ -182,6 +193,50 @@ def tets(sizes=(6, 8, 10)) -> None:
                     print(f"| {kind} | a/{k} | {res['contact_nodes']} | {weighting} | {res['rms']:.2e} | "
                           f"{res['max']:.2e} | {'' if math.isnan(rate) else f'{rate:.2f}'} | {ri:.2e} | {fl} | "
                           f"{res['time']:.1f} s |", flush=True)
+
+
+def tetparts(meshes=("gmsh",), sizes=(6, 8, 10), growth=0.25, fine=1.6) -> None:
+    from contactopt.io.pressure import contact_pressure
+    from contactopt.verification import hertz_tets as ht
+
+    def per_face(model):
+        """tetrahedra per face triangle at each contact node"""
+        n = model.body.reference.points.shape[0]
+        tets = np.bincount(np.asarray(model.assembler.elements).ravel(), minlength=n)
+        tris = np.bincount(np.asarray(model.body.contact_face.faces).ravel(), minlength=n)
+        return (tets / np.maximum(tris, 1))[model.contact_nodes]
+
+    print(f"Gmsh grading: growth {growth}, fine zone {fine} a")
+    print("| mesh | h | contact nodes | nodal: total / forces / reading | within 0.8 a | "
+          "L²: total / forces / reading | L²: least p/p0 (exact forces) | mean: total / reading | "
+          "stress −σ33 | corr | time |")
+    print("|---|---|---|---|---|---|---|---|---|---|---|")
+    with tempfile.TemporaryDirectory() as tmp:
+        for kind in meshes:
+            for k in sizes:
+                path = Path(tmp) / f"{kind}{k}.msh"
+                mesh = (ht.split_mesh(path, ht.A_TARGET / k) if kind == "split" else
+                        ht.quarter_mesh(path, ht.A_TARGET / k, order=2 if kind == "tet10" else 1, growth=growth,
+                                        fine=fine))
+                res = ht.measure(mesh)
+                e = ht.error_parts(res)
+                m, st = res["problem"].model, res["state"]
+                nd, l2, mean = e["nodal"], e["l2"], e["mean"]
+                inner = res["r"] < 0.8 * res["a"]
+                linear = kind != "tet10"
+                if linear:
+                    ps = ht.face_stress_pressure(m, st)
+                    use = res["r"] < 1.5 * res["a"]
+                    stress = f"{np.sqrt(np.mean((ps - res['p_hertz'])[use] ** 2)) / res['p0']:.2e}"
+                    err = contact_pressure(m, st.lam - e["lam_hertz"], st.coords)[inner]
+                    corr = f"{np.corrcoef(err, per_face(m)[inner])[0, 1]:+.2f}"
+                else:
+                    stress = corr = "–"
+                print(f"| {kind} | a/{k} | {res['contact_nodes']} | {nd['total']:.2e} / {nd['forces']:.2e} / "
+                      f"{nd['reading']:.2e} | {nd['total_in']:.2e} / {nd['forces_in']:.2e} / {nd['reading_in']:.2e} | "
+                      f"{l2['total']:.2e} / {l2['forces']:.2e} / {l2['reading']:.2e} | {l2['min']:.3f} "
+                      f"({l2['min_exact']:.3f}) | {mean['total']:.2e} / {mean['reading']:.2e} | {stress} | {corr} | "
+                      f"{res['time']:.1f} s |", flush=True)
 
 
 def cost(steps: int) -> None:
@@ -246,9 +301,13 @@ def cost10(steps: int) -> None:
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--part", default="all", choices=["patch", "meshes", "hertz", "tets", "cost", "cost10", "all"])
+    ap.add_argument("--part", default="all",
+                    choices=["patch", "meshes", "hertz", "tets", "tetparts", "cost", "cost10", "all"])
     ap.add_argument("--steps", type=int, default=6)
     ap.add_argument("--sizes", type=int, nargs="+", default=[6, 8, 10], help="tets: element sizes a/k")
+    ap.add_argument("--growth", type=float, default=0.25, help="tets, tetparts: Gmsh size growth beyond the fine zone")
+    ap.add_argument("--fine", type=float, default=1.6, help="tets, tetparts: radius of the fine zone, in units of a")
+    ap.add_argument("--mesh", nargs="+", default=["gmsh"], choices=["gmsh", "split", "tet10"], help="tetparts: meshes")
     args = ap.parse_args()
     if args.part in ("patch", "all"):
         patch()
@@ -257,7 +316,9 @@ def main() -> None:
     if args.part in ("hertz", "all"):
         hertz()
     if args.part in ("tets", "all"):
-        tets(tuple(args.sizes))
+        tets(tuple(args.sizes), args.growth, args.fine)
+    if args.part in ("tetparts", "all"):
+        tetparts(tuple(args.mesh), tuple(args.sizes), args.growth, args.fine)
     if args.part in ("cost", "all"):
         cost(args.steps)
     if args.part in ("cost10", "all"):
