@@ -191,7 +191,8 @@ def read_pressure(model, lam, coords, reading: str = "nodal") -> np.ndarray:
 
     - ``nodal``: :func:`contactopt.io.pressure.contact_pressure` (λ_m / a_m on linear faces);
     - ``l2``: the L²-projection onto the face's functions, M p = λ (M the face mass matrix);
-    - ``mean``: the hat-weighted mean of the nodal reading, p_m = Σ_n M_mn p_n / a_m, a smoothing.
+    - ``mean``: the hat-weighted mean of the nodal reading, p_m = Σ_n M_mn p_n / a_m, a smoothing
+      (linear faces: on six-node triangles a_m = 0 at the corners).
 
     All three recover a uniform pressure exactly (M 1 = a, the lumped areas)."""
     faces = np.asarray(model.body.contact_face.faces, np.int64)
@@ -203,6 +204,8 @@ def read_pressure(model, lam, coords, reading: str = "nodal") -> np.ndarray:
     if reading == "l2":
         return spla.spsolve(M.tocsc(), np.asarray(lam, float))
     if reading == "mean":
+        if face_for(faces).degree != 1:
+            raise ValueError("the hat-weighted mean reading takes linear faces (∫ N_m dA = 0 at six-node corners)")
         return (M @ p) / contact_areas(np.asarray(coords, float), faces, nodes)
     raise ValueError(f"unknown pressure reading {reading!r}; expected one of {', '.join(READINGS)}")
 
@@ -212,7 +215,8 @@ def error_parts(res: dict) -> dict:
     :func:`read_pressure`, as rms over the nodes within 1.5 a (and within 0.8 a: ``_in``), relative
     to p0: ``total`` p(λ) − p_Hertz; ``forces`` p(λ) − p(λ_H), the error of the forces alone
     (λ_H of :func:`hertz_forces`); ``reading`` p(λ_H) − p_Hertz, the error of the reading alone,
-    with exact forces; ``min`` the least p(λ)/p0 and ``min_exact`` the least p(λ_H)/p0. The
+    with exact forces; ``min`` the least p(λ)/p0 and ``min_exact`` the least p(λ_H)/p0 (``mean``
+    on linear faces only). The
     parts are rms of the two terms of one sum: they need not add up, and partly cancel."""
     pr, st = res["problem"], res["state"]
     m = pr.model
@@ -224,7 +228,8 @@ def error_parts(res: dict) -> dict:
         return float(np.sqrt(np.mean(v[sel] ** 2)) / p0)
 
     out = {"lam_hertz": lam_h}
-    for reading in READINGS:
+    linear = face_for(np.asarray(m.body.contact_face.faces)).degree == 1
+    for reading in READINGS if linear else READINGS[:2]:
         p, p_h = read_pressure(m, st.lam, st.coords, reading), read_pressure(m, lam_h, st.coords, reading)
         parts = {}
         for name, v in (("total", p - ph), ("forces", p - p_h), ("reading", p_h - ph)):
