@@ -22,7 +22,8 @@ tets    Hertz on Gmsh tetrahedra (contactopt.verification.hertz_tets): a rigid s
         --growth and --fine: the Gmsh meshes' grading (h + growth·(d − fine·a) beyond fine·a).
 tetparts
         What that error is made of (contactopt.verification.hertz_tets.error_parts) on the meshes
-        of --mesh (gmsh, split, tet10), sizes --sizes, Gmsh grading --growth, --fine: per reading
+        of --mesh (gmsh, split, tet10), sizes --sizes, Gmsh grading --growth, --fine, Poisson's
+        ratio --nu (the force that of contact radius a for it): per reading
         of the forces (nodal λ/a, L²-projection M p = λ, hat-weighted mean of λ/a) the rms of
         p(λ) − p_Hertz (total), p(λ) − p(λ_H) (the forces' error, λ_H = ∫ N p_Hertz the forces of
         the exact pressure) and p(λ_H) − p_Hertz (the reading's error), within 1.5 a and 0.8 a,
@@ -195,7 +196,7 @@ def tets(sizes=(6, 8, 10), growth=0.25, fine=1.6) -> None:
                           f"{res['time']:.1f} s |", flush=True)
 
 
-def tetparts(meshes=("gmsh",), sizes=(6, 8, 10), growth=0.25, fine=1.6) -> None:
+def tetparts(meshes=("gmsh",), sizes=(6, 8, 10), growth=0.25, fine=1.6, nu=0.3) -> None:
     from contactopt.io.pressure import contact_pressure
     from contactopt.verification import hertz_tets as ht
 
@@ -206,7 +207,7 @@ def tetparts(meshes=("gmsh",), sizes=(6, 8, 10), growth=0.25, fine=1.6) -> None:
         tris = np.bincount(np.asarray(model.body.contact_face.faces).ravel(), minlength=n)
         return (tets / np.maximum(tris, 1))[model.contact_nodes]
 
-    print(f"Gmsh grading: growth {growth}, fine zone {fine} a")
+    print(f"Gmsh grading: growth {growth}, fine zone {fine} a; ν = {nu}")
     print("| mesh | h | contact nodes | nodal: total / forces / reading | within 0.8 a | "
           "L²: total / forces / reading | L²: least p/p0 (exact forces) | mean: total / reading | "
           "stress −σ33 | corr | time |")
@@ -218,7 +219,7 @@ def tetparts(meshes=("gmsh",), sizes=(6, 8, 10), growth=0.25, fine=1.6) -> None:
                 mesh = (ht.split_mesh(path, ht.A_TARGET / k) if kind == "split" else
                         ht.quarter_mesh(path, ht.A_TARGET / k, order=2 if kind == "tet10" else 1, growth=growth,
                                         fine=fine))
-                res = ht.measure(mesh)
+                res = ht.measure(mesh, nu=nu)
                 e = ht.error_parts(res)
                 m, st = res["problem"].model, res["state"]
                 nd, l2 = e["nodal"], e["l2"]
@@ -309,6 +310,7 @@ def main() -> None:
     ap.add_argument("--growth", type=float, default=0.25, help="tets, tetparts: Gmsh size growth beyond the fine zone")
     ap.add_argument("--fine", type=float, default=1.6, help="tets, tetparts: radius of the fine zone, in units of a")
     ap.add_argument("--mesh", nargs="+", default=["gmsh"], choices=["gmsh", "split", "tet10"], help="tetparts: meshes")
+    ap.add_argument("--nu", type=float, default=0.3, help="tetparts: Poisson's ratio of the block")
     args = ap.parse_args()
     if args.part in ("patch", "all"):
         patch()
@@ -319,7 +321,7 @@ def main() -> None:
     if args.part in ("tets", "all"):
         tets(tuple(args.sizes), args.growth, args.fine)
     if args.part in ("tetparts", "all"):
-        tetparts(tuple(args.mesh), tuple(args.sizes), args.growth, args.fine)
+        tetparts(tuple(args.mesh), tuple(args.sizes), args.growth, args.fine, args.nu)
     if args.part in ("cost", "all"):
         cost(args.steps)
     if args.part in ("cost10", "all"):

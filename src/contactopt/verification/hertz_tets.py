@@ -35,9 +35,14 @@ from contactopt.io.pressure import contact_areas, contact_pressure, face_mass
 from contactopt.mesh.tetsplit import hex_to_tets, tet_boundary_faces
 from contactopt.problem import ShapeProblem
 
-from .hertz import A_TARGET, E_STAR, P_SPHERE, R, common, graded_axis, resultant
+from .hertz import A_TARGET, NU, E, R, common, graded_axis, resultant
 
 L = 10 * A_TARGET
+
+
+def _force(E: float, nu: float) -> float:
+    """The force P of contact radius a: P = 4 E* a³ / (3 R), E* = E / (1 − ν²)."""
+    return 4 * (E / (1 - nu ** 2)) * A_TARGET ** 3 / (3 * R)
 
 
 def quarter_mesh(path: str | Path, h: float, order: int = 1, growth: float = 0.25, seed: int = 1,
@@ -101,18 +106,20 @@ def split_mesh(path: str | Path, h: float) -> str:
     return str(path)
 
 
-def quarter_problem(mesh: str, weighting: str = "node") -> ShapeProblem:
-    """The sphere pressed by P/4 into the quarter block of the Gmsh file ``mesh``, frictionless."""
+def quarter_problem(mesh: str, weighting: str = "node", nu: float = NU) -> ShapeProblem:
+    """The sphere pressed by P/4 into the quarter block of the Gmsh file ``mesh``, frictionless;
+    P the force of contact radius a for the Poisson ratio ``nu``."""
     data = load_config("example1").to_dict()
     for key in ("geometry", "mesh"):
         data.pop(key, None)
     for sec, vals in common(0.0).items():
         data[sec] = {**data.get(sec, {}), **vals}
+    data["material"]["nu"] = nu
     data["loads"] = {"body_force": [0.0, 0.0, 0.0]}
     data["body"] = {"mesh": str(mesh), "contact": "contact",
                     "clamped": ["top", {"on": {"x1": 0.0}, "components": [1]}, {"on": {"x2": 0.0}, "components": [2]}]}
     data["obstacle"] = {"shape": "sphere", "center": [0.0, 0.0, -R], "radius": R, "control": "force",
-                        "force": [0.0, 0.0, P_SPHERE / 4], "weighting": weighting}
+                        "force": [0.0, 0.0, _force(E, nu) / 4], "weighting": weighting}
     return ShapeProblem(validate(data, f"hertz on {Path(mesh).name}"))
 
 
@@ -124,7 +131,8 @@ def hertz_errors(problem: ShapeProblem, state, within: float = 1.5) -> dict:
     r = np.hypot(x[:, 0], x[:, 1])
     p = contact_pressure(m, state.lam, state.coords)
     P = 4.0 * float(resultant(problem, state)[2])
-    a = (3 * P * R / (4 * E_STAR)) ** (1 / 3)
+    e_star = problem.model.config.material.E / (1 - problem.model.config.material.nu ** 2)
+    a = (3 * P * R / (4 * e_star)) ** (1 / 3)
     p0 = 3 * P / (2 * math.pi * a * a)
     ph = p0 * np.sqrt(np.clip(1 - (r / a) ** 2, 0.0, None))
     use = r < within * a
@@ -133,9 +141,9 @@ def hertz_errors(problem: ShapeProblem, state, within: float = 1.5) -> dict:
             "r": r, "p": p, "p_hertz": ph, "nodes": int(use.sum())}
 
 
-def measure(mesh: str, weighting: str = "node") -> dict:
+def measure(mesh: str, weighting: str = "node", nu: float = NU) -> dict:
     t0 = time.perf_counter()
-    pr = quarter_problem(mesh, weighting)
+    pr = quarter_problem(mesh, weighting, nu)
     st = pr.solve_state(np.zeros(pr.model.n_design))
     out = hertz_errors(pr, st)
     out.update(time=time.perf_counter() - t0, contact_nodes=pr.model.n_contact, problem=pr, state=st)
