@@ -212,21 +212,54 @@ def test_parallel_assembly_equals_one_chunk_and_names_inverted_elements_globally
 
 
 def test_parallel_assembly_in_a_forked_child():
-    # worker threads do not survive fork: a child process must assemble with its own pool. Both
-    # assemble as a state solve does, on one OpenBLAS thread (the element kernels' products
-    # round differently when OpenBLAS splits them over threads, and a forked child's OpenBLAS
-    # need not have the parent's thread count)
-    import multiprocessing as mp
-    if "fork" not in mp.get_all_start_methods():
+    # worker threads do not survive fork: a child process must assemble with its own pool. The
+    # parent is a fresh interpreter whose only threads are its own and the assembly's idle pool, as
+    # in a run that forks (io/forked.py), not this test process with whatever native thread pools
+    # earlier tests left behind. Both assemble as a state solve does, on one OpenBLAS thread (the
+    # element kernels' products round differently when OpenBLAS splits them over threads).
+    import os
+    import subprocess
+    import sys
+    if not hasattr(os, "fork"):
         pytest.skip("no fork on this platform")
-    model = ElasticModel(load_config("example1"))
-    A = model.assemble(model.initial_design()).A      # the parent's pool exists now
-    ctx = mp.get_context("fork")
-    with ctx.Pool(1) as pool:
-        data = pool.apply_async(_child_stiffness_data, ()).get(timeout=60)
-    assert np.array_equal(data, A.data)
+    env = {**os.environ, "OPENBLAS_NUM_THREADS": "1", "OMP_NUM_THREADS": "1", "MKL_NUM_THREADS": "1"}
+    proc = subprocess.run([sys.executable, "-c", _FORKED_ASSEMBLY], env=env, capture_output=True, text=True,
+                          timeout=120)
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    threads, verdict = proc.stdout.split()
+    from contactopt.fem import elasticity
+    if elasticity._assembly_chunks(4320) > 1:         # Example 1's mesh is assembled in parallel here
+        assert int(threads.split(":")[1]) >= 1
+    assert verdict == "same"
 
 
-def _child_stiffness_data():
+_FORKED_ASSEMBLY = """
+import os, threading
+import numpy as np
+from contactopt.config import load_config
+from contactopt.fem.model import ElasticModel
+
+def stiffness_data():
     model = ElasticModel(load_config("example1"))
     return model.assemble(model.initial_design()).A.data
+
+parent = stiffness_data()                     # the parent's pool exists now
+pool = [t for t in threading.enumerate() if t.name.startswith("contactopt-assembly")]
+print(f"pool-threads-before-fork:{len(pool)}")
+read, write = os.pipe()
+pid = os.fork()
+if pid == 0:
+    code = 1
+    try:
+        os.close(read)
+        with os.fdopen(write, "wb") as pipe:
+            pipe.write(stiffness_data().tobytes())
+        code = 0
+    finally:
+        os._exit(code)
+os.close(write)
+with os.fdopen(read, "rb") as pipe:
+    child = np.frombuffer(pipe.read(), dtype=parent.dtype)
+_, status = os.waitpid(pid, 0)
+print("same" if status == 0 and np.array_equal(child, parent) else f"differ status={status}")
+"""
