@@ -176,27 +176,59 @@ RULES = {"pairs": pairs, "stars": stars}
 
 
 # ---------------------------------------------------------------- integrals on the face
-def face_integrals(c: dict, patch: np.ndarray, a: float | None = None, p0: float | None = None) -> dict:
-    """W (patches × nodes) = ∫_P N_m dA, |P|, centroids, ∫_P g dA (g the exact distance to the
-    sphere) and, with a and p0, ∫_P p_Hertz dA; triangles flat (x3 = 0), one rule of degree 10."""
+def dual_cells(faces: np.ndarray, x: np.ndarray):
+    """Not a patch of triangles: the median dual cell of every face node (the quadrilaterals
+    node, edge midpoints, centroid of each triangle at it), one pressure per node, the gap averaged
+    over the cell. Returns (pieces (n, 3, 3), parent triangle, cell) as :func:`pieces` does."""
+    X = x[faces]
+    cen = X.mean(axis=1)
+    out, parent, pid = [], [], []
+    for i in range(3):
+        j, k = (i + 1) % 3, (i + 2) % 3
+        mij, mik = 0.5 * (X[:, i] + X[:, j]), 0.5 * (X[:, i] + X[:, k])
+        for tri in ((X[:, i], mij, cen), (X[:, i], cen, mik)):
+            out.append(np.stack(tri, axis=1))
+            parent.append(np.arange(len(faces)))
+            pid.append(faces[:, i])
+    return np.concatenate(out), np.concatenate(parent), np.concatenate(pid)
+
+
+def pieces(c: dict, rule: str):
+    """The face cut into pieces, each a triangle in one patch: (pieces (n, 3, 3), the face triangle
+    each lies in, its patch) and the number of triangles a patch rule left alone."""
+    faces, x = c["faces"], np.asarray(c["coords"], float)[c["model"].contact_nodes]
+    if rule == "cells":
+        return (*dual_cells(faces, x), 0)
+    patch, alone = RULES[rule](faces, x)
+    return x[faces], np.arange(len(faces)), patch, alone
+
+
+def face_integrals(c: dict, Xp: np.ndarray, parent: np.ndarray, pid: np.ndarray, a: float | None = None,
+                   p0: float | None = None) -> dict:
+    """On the pieces Xp (in face triangles ``parent``, patches ``pid``): W (patches × nodes) =
+    ∫_P N_m dA, |P|, centroids, ∫_P g dA (g the exact distance to the sphere) and, with a and p0,
+    ∫_P p_Hertz dA; the face flat (x3 = 0), one rule of degree 10 on each piece."""
     faces, x = c["faces"], np.asarray(c["coords"], float)[c["model"].contact_nodes]
     q, w = tri_rule(10)
     N = np.c_[1 - q[:, 0] - q[:, 1], q[:, 0], q[:, 1]]
-    X = x[faces]
-    area = 0.5 * np.linalg.norm(np.cross(X[:, 1] - X[:, 0], X[:, 2] - X[:, 0]), axis=1)
+    area = 0.5 * np.linalg.norm(np.cross(Xp[:, 1] - Xp[:, 0], Xp[:, 2] - Xp[:, 0]), axis=1)
     dA = np.outer(area * 2, w)                                  # reference triangle of area 1/2
-    xq = np.einsum("qa,fam->fqm", N, X)
-    npatch = patch.max() + 1
-    W = sp.csr_matrix((np.repeat(area / 3, 3), (np.repeat(patch, 3), faces.ravel())),
+    xq = np.einsum("qa,fam->fqm", N, Xp)
+    # the parent triangle's functions at the pieces' points (barycentric coordinates, flat face)
+    T = x[faces[parent]]
+    J = np.stack([T[:, 1, :2] - T[:, 0, :2], T[:, 2, :2] - T[:, 0, :2]], axis=2)
+    lam12 = np.linalg.solve(J[:, None], (xq[..., :2] - T[:, None, 0, :2])[..., None])[..., 0]
+    Nq = np.concatenate([1 - lam12.sum(axis=2, keepdims=True), lam12], axis=2)      # (n, q, 3)
+    npatch = pid.max() + 1
+    W = sp.csr_matrix((np.einsum("fq,fqa->fa", dA, Nq).ravel(), (np.repeat(pid, 3), faces[parent].ravel())),
                       shape=(npatch, x.shape[0])).toarray()
     gq = np.linalg.norm(xq - np.array([0.0, 0.0, -R]), axis=2) - R
-    out = {"W": W, "area": np.bincount(patch, area, npatch),
-           "G": np.bincount(patch, (gq * dA).sum(axis=1), npatch)}
-    out["centroid"] = np.stack([np.bincount(patch, area * X[:, :, k].mean(axis=1), npatch) for k in range(2)],
+    out = {"W": W, "area": np.bincount(pid, area, npatch), "G": np.bincount(pid, (gq * dA).sum(axis=1), npatch)}
+    out["centroid"] = np.stack([np.bincount(pid, area * Xp[:, :, k].mean(axis=1), npatch) for k in range(2)],
                                axis=1) / out["area"][:, None]
     if a is not None:
         pq = p0 * np.sqrt(np.clip(1 - (np.hypot(xq[..., 0], xq[..., 1]) / a) ** 2, 0.0, None))
-        out["PH"] = np.bincount(patch, (pq * dA).sum(axis=1), npatch)
+        out["PH"] = np.bincount(pid, (pq * dA).sum(axis=1), npatch)
     return out
 
 
@@ -296,14 +328,14 @@ def experiment(sizes, rules, gap: str, kind: str = "gmsh") -> None:
             areas = contact_areas(np.asarray(c["coords"], float), m.body.contact_face.faces, m.contact_nodes)
             for rule in rules:
                 t1 = time.perf_counter()
-                patch, alone = RULES[rule](c["faces"], x)
-                fi = face_integrals(c, patch)
+                Xp, parent, pid, alone = pieces(c, rule)
+                fi = face_integrals(c, Xp, parent, pid)
                 W = fi["W"]
                 G = fi["G"] if gap == "exact" else W @ g
                 pp, s, kkt, its = solve_qp(W @ D @ W.T, G, W @ n3, F)
                 lam_p = W.T @ pp
                 a, p0 = hertz_of(4 * float(n3 @ lam_p))
-                fi = face_integrals(c, patch, a, p0)
+                fi = face_integrals(c, Xp, parent, pid, a, p0)
                 ph = p0 * np.sqrt(np.clip(1 - (r / a) ** 2, 0.0, None))
                 rc = np.hypot(fi["centroid"][:, 0], fi["centroid"][:, 1])
                 phc = p0 * np.sqrt(np.clip(1 - (rc / a) ** 2, 0.0, None))
@@ -314,7 +346,7 @@ def experiment(sizes, rules, gap: str, kind: str = "gmsh") -> None:
                 pnw = (W @ pn) / fi["area"]
                 phc_n = p0_n * np.sqrt(np.clip(1 - (rc / a_n) ** 2, 0.0, None))
                 sm = sigma_min(W, fi["area"], areas, np.flatnonzero(rc < 0.8 * a))
-                nt = np.bincount(patch)
+                nt = np.bincount(np.unique(np.c_[pid, parent], axis=0)[:, 0])     # triangles per patch
                 print(f"| a/{k} | {rule} | {pp.size} ({nt.mean():.2f}, {nt.min()}–{nt.max()}; {alone} joined) "
                       f"| {both(pp - phc, rc, a, p0)} | {both(pp - mean_h, rc, a, p0)} | {both(mean_h - phc, rc, a, p0)} "
                       f"| {both(pmean - ph, r, a, p0)} | {both(lam_p / areas - ph, r, a, p0)} "
@@ -325,7 +357,8 @@ def experiment(sizes, rules, gap: str, kind: str = "gmsh") -> None:
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--sizes", type=int, nargs="+", default=[6, 8, 10], help="element sizes a/k")
-    ap.add_argument("--rules", nargs="+", default=list(RULES), choices=list(RULES), help="patch rules")
+    ap.add_argument("--rules", nargs="+", default=[*RULES, "cells"], choices=[*RULES, "cells"],
+                    help="patch rules (cells: the nodes' median dual cells, one pressure per node)")
     ap.add_argument("--gap", default="exact", choices=["exact", "nodal"], help="the patch gap: ∫_P g dA or Σ W_Pm g_m")
     ap.add_argument("--mesh", default="gmsh", choices=["gmsh", "split"],
                     help="Gmsh's quarter block, or the graded grid split into six tetrahedra per hexahedron")
