@@ -2,6 +2,7 @@
 evaluation, the summary's J0 and J are the history's values at α0 and at the returned design,
 and a resumed run repeats the recorded solves bit for bit."""
 
+import os
 import subprocess
 import sys
 import time
@@ -147,6 +148,38 @@ def test_a_cancelled_child_leaves_no_temporary_file(tmp_path):
             raise RuntimeError("the parent fails")
     assert time.perf_counter() - t < 10
     assert list(tmp_path.iterdir()) == []
+
+
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="the figures are forked on Linux only")
+def test_a_stalled_child_is_stopped_and_its_jobs_done_by_the_parent(tmp_path, caplog):
+    """A child that finishes no job for ``stall`` seconds (here: one that hangs in its second job,
+    holding a temporary file) is killed; the parent removes the temporary file and runs the jobs
+    the child had not finished, and only those."""
+    parent = os.getpid()
+
+    def first():                      # records who ran it
+        atomic_write_text(tmp_path / "a.txt", str(os.getpid()))
+
+    def stuck():
+        with atomic_output(tmp_path / "b.txt") as tmp:
+            tmp.write_bytes(b"partial")
+            end = time.time() + 30            # the child hangs (for 30 s: a broken watchdog fails, not hangs)
+            while os.getpid() != parent and time.time() < end:
+                time.sleep(0.5)
+            tmp.write_bytes(b"b")
+
+    t = time.perf_counter()
+    with caplog.at_level("WARNING", logger="contactopt.io.forked"):
+        with Forked([first, stuck, _write(tmp_path / "c.txt", "c")], fork=True, directory=tmp_path,
+                    stall=1.5) as jobs:
+            child = jobs.pid
+            jobs.join()
+    assert time.perf_counter() - t < 20
+    assert _ended(child)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["a.txt", "b.txt", "c.txt"]
+    assert (tmp_path / "a.txt").read_text() == str(child)            # not run again
+    assert (tmp_path / "b.txt").read_text() + (tmp_path / "c.txt").read_text() == "bc"
+    assert "(1 of 3 done)" in caplog.text
 
 
 def test_the_block_is_exported_with_the_bytes_of_meshios_gmsh_writer(tmp_path):

@@ -10,6 +10,10 @@ stops the child (an exception or a signal in the parent), and so does the parent
 it ends: the child ends by an exception of its own, so that a file it was writing leaves no
 temporary behind, and holds no inherited lock beyond its parent.
 
+A child that stops making progress (no job finished for ``stall`` seconds: a lock inherited in
+a held state would do it) is killed, its temporary files in ``directory`` are removed, and the
+jobs it had not finished run in the parent, with a warning: the run's files are complete either way.
+
 Forking is used only where it is safe and pays: on Linux, with more than one CPU available to
 the process, no thread in it but the main one and the idle workers of the assembly's pool, and
 no MPI loaded (a forked MPI process may hang). Elsewhere the jobs run in the parent, at
@@ -23,9 +27,12 @@ import ctypes
 import logging
 import os
 import pickle
+import select
 import signal
 import sys
 import threading
+import time
+from pathlib import Path
 
 from ..errors import ContactOptError
 
@@ -46,6 +53,9 @@ def can_fork() -> bool:
     return cpus > 1 and all(t.name.startswith(IDLE_THREADS) for t in others) and "mpi4py.MPI" not in sys.modules
 
 
+STALL_S = 600.0
+"""Seconds without a finished job after which the parent takes the child's jobs over."""
+
 IDLE_THREADS = ("contactopt-assembly",)
 """Threads that may live in a process that forks: the assembly's pool, whose workers wait
 between the solves (the outputs solve nothing) and which a forked child makes anew."""
@@ -63,10 +73,12 @@ class Forked:
     """``jobs`` run in a forked child (or, where :func:`can_fork` says no, in the parent at
     :meth:`join`); use as a context manager, which cancels the child on an exception."""
 
-    def __init__(self, jobs, *, fork: bool | None = None):
+    def __init__(self, jobs, *, fork: bool | None = None, directory=None, stall: float = STALL_S):
         self.jobs = list(jobs)
         self.pid = None
         self._read = None
+        self.directory = None if directory is None else Path(directory)
+        self.stall = float(stall)
         if self.jobs and (can_fork() if fork is None else fork):
             self._start()
 
@@ -87,24 +99,26 @@ class Forked:
                 try:
                     for job in self.jobs:
                         job()
+                        os.write(write, _DONE)            # one byte a finished job: the progress
                     code = 0
                 except BaseException as exc:              # noqa: BLE001 - carried to the parent
                     with os.fdopen(write, "wb") as pipe:
-                        pipe.write(_payload(exc))
+                        pipe.write(_FAILED + _payload(exc))
             finally:
                 os._exit(code)
         os.close(write)
-        self.pid, self._read = pid, read
+        self.pid, self._read, self._started = pid, read, time.time()
 
     def join(self) -> None:
-        """Wait for the jobs (run them here where no child was made); raise a child's exception."""
+        """Wait for the jobs (run them here where no child was made, or where the child stalled);
+        raise a child's exception."""
         if self.pid is None:
-            jobs, self.jobs = self.jobs, []
-            for job in jobs:
-                job()
+            self._run_here(0)
             return
-        with os.fdopen(self._read, "rb") as pipe:
-            data = pipe.read()
+        done, data = self._progress()
+        if data is None:                                  # stalled: the rest is done here
+            self._take_over(done)
+            return
         _, status = os.waitpid(self.pid, 0)
         self.pid = None
         if data:
@@ -112,14 +126,59 @@ class Forked:
         if status != 0:
             raise ContactOptError(f"the process writing the figures ended with status {status}")
 
+    def _run_here(self, start: int) -> None:
+        jobs, self.jobs = self.jobs[start:], []
+        for job in jobs:
+            job()
+
+    def _progress(self) -> tuple[int, bytes | None]:
+        """Read the child's pipe to its end: the number of jobs it finished and its exception's
+        payload (b"" for none); None for the payload where ``stall`` seconds passed without a byte."""
+        done, payload = 0, None
+        with os.fdopen(self._read, "rb", buffering=0) as pipe:
+            self._read = None
+            while True:
+                ready, _, _ = select.select([pipe], [], [], self.stall)
+                if not ready:
+                    return done, None
+                chunk = pipe.read(65536)
+                if not chunk:
+                    return done, b"" if payload is None else bytes(payload)
+                if payload is None:                   # progress bytes, then perhaps "!" and the payload
+                    head, failed, rest = chunk.partition(_FAILED)
+                    done += len(head)
+                    if failed:
+                        payload = bytearray(rest)
+                else:
+                    payload += chunk
+
+    def _take_over(self, done: int) -> None:
+        """The child finished ``done`` jobs and then nothing for ``stall`` seconds: kill it, remove
+        its temporary files and run the other jobs here."""
+        log.warning("the process drawing the figures finished no job for %.0f s (%d of %d done); it is "
+                    "stopped and the other %d are drawn by the run itself", self.stall, done, len(self.jobs),
+                    len(self.jobs) - done)
+        with contextlib.suppress(OSError):
+            os.kill(self.pid, signal.SIGKILL)             # a deadlocked child runs no signal handler
+        with contextlib.suppress(OSError):
+            os.waitpid(self.pid, 0)
+        self.pid = None
+        if self.directory is not None:
+            for leftover in self.directory.glob(".*.tmp*"):
+                with contextlib.suppress(OSError):
+                    if leftover.stat().st_mtime >= self._started - 1.0:
+                        leftover.unlink()
+        self._run_here(done)
+
     def cancel(self) -> None:
         """Stop the child (if any) and wait for it; its exception, if any, is dropped."""
         if self.pid is None:
             return
         with contextlib.suppress(OSError):
             os.kill(self.pid, signal.SIGTERM)
-        with contextlib.suppress(OSError):
-            os.close(self._read)
+        if self._read is not None:
+            with contextlib.suppress(OSError):
+                os.close(self._read)
         with contextlib.suppress(OSError):
             os.waitpid(self.pid, 0)
         self.pid = None
@@ -143,6 +202,7 @@ def _end_with(parent: int) -> None:
 
 
 _PR_SET_PDEATHSIG = 1
+_DONE, _FAILED = b".", b"!"          # the child's pipe: a byte a finished job; "!" and the exception
 
 
 def _payload(exc: BaseException) -> bytes:

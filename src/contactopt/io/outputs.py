@@ -78,7 +78,7 @@ def write_outputs(out: Path, problem, alpha0, res, oracle, plots: bool = True, d
     s0, s1 = at0["states"][c1.case], at1["states"][c1.case]      # the load case active at the optimum
     target = problem.cases[c1.case].objective.target
     forked, here = _figures(out, model, x, target, s0, s1, res) if plots else ([], [])
-    with Forked(forked) as figures:             # drawn beside the other files (io/forked.py)
+    with Forked(forked, directory=out) as figures:      # drawn beside the other files (io/forked.py)
         summary = _write_files(out, problem, x, res, oracle, t0, (at0, at1, s0, s1), here, plots)
         figures.join()
     summary["time_breakdown_s"]["outputs"] = time.perf_counter() - t0
