@@ -43,7 +43,7 @@ the effect of the constraint is told from the smoothing of the patch reading).
 
 Patch rules: ``pairs`` — greedy matching of each triangle with the unmatched neighbour across its
 longest edge (triangles left alone join the neighbour patch across their longest edge: patches of
-2, some of 3); ``stars`` — the stars of a greedy maximal independent set of face vertices (each
+2, some of 3); ``quads`` — the pairs paired again the same way (patches of about 4); ``stars`` — the stars of a greedy maximal independent set of face vertices (each
 triangle has at most one such vertex; triangles with none join a neighbour patch: patches of
 about 5–7 triangles).
 
@@ -157,6 +157,37 @@ def pairs(faces: np.ndarray, x: np.ndarray) -> np.ndarray:
     return patch, int(left.sum())
 
 
+def quads(faces: np.ndarray, x: np.ndarray) -> np.ndarray:
+    """Patch index per triangle: the pairs of :func:`pairs` paired again across their longest
+    shared edge (patches of about 4 triangles; a pair left alone joins a neighbour patch)."""
+    first, alone = pairs(faces, x)
+    nb = _neighbours(faces)
+    n = first.max() + 1
+    border = {}                                  # (pair, pair) → shared edge length
+    for t, lst in enumerate(nb):
+        for s_, e in lst:
+            if first[s_] != first[t]:
+                key = (first[t], first[s_])
+                border[key] = border.get(key, 0.0) + np.linalg.norm(x[e[0]] - x[e[1]])
+    adj = [[] for _ in range(n)]
+    for (p_, q_), length in border.items():
+        adj[p_].append((length, q_))
+    second = np.full(n, -1)
+    k = 0
+    for p_ in range(n):
+        if second[p_] >= 0:
+            continue
+        cand = [(length, q_) for length, q_ in adj[p_] if second[q_] < 0]
+        if cand:
+            second[p_] = second[max(cand)[1]] = k
+            k += 1
+    left = second < 0
+    for p_ in np.flatnonzero(left):
+        second[p_] = second[max(adj[p_])[1]] if adj[p_] else k
+        k += 0 if adj[p_] else 1
+    return np.unique(second[first], return_inverse=True)[1], alone + int(left.sum())
+
+
 def stars(faces: np.ndarray, x: np.ndarray) -> np.ndarray:
     """Patch index per triangle: stars of a greedy maximal independent set of vertices."""
     nv = x.shape[0]
@@ -182,7 +213,7 @@ def stars(faces: np.ndarray, x: np.ndarray) -> np.ndarray:
     return np.unique(patch, return_inverse=True)[1], int(left.sum())
 
 
-RULES = {"pairs": pairs, "stars": stars}
+RULES = {"pairs": pairs, "quads": quads, "stars": stars}
 
 
 # ---------------------------------------------------------------- integrals on the face
