@@ -49,8 +49,8 @@ about 5–7 triangles).
 
 Run (about 11 s)::
 
-    python benchmarks/lac_experiment.py [--sizes 6 8 10] [--rules pairs stars cells] [--gap exact|nodal]
-                                        [--mesh gmsh|split]
+    python benchmarks/lac_experiment.py [--sizes 6 8 10] [--rules pairs quads stars cells] [--gap exact|nodal]
+                                        [--mesh gmsh|split] [--detail]
 
 ``--gap nodal`` replaces ∫_P g dA by Σ_m W_Pm g_m (the nodal gaps interpolated).
 
@@ -58,11 +58,11 @@ Run (about 11 s)::
 pressure per node, the gap averaged over the cell). ``--mesh split`` takes the graded grid split
 into six tetrahedra per hexahedron instead (slow: minutes per size).
 
-Found (docs/mortar.md, "A patch-averaged experiment"): no patch space reaches 1 % rms at a/6, a/8
-or a/10. Pairs are not stable (σ_min 0.19 → 0.11, patch pressures 17, 11, 10 %); stars and dual
-cells are stable but their patch pressures miss by 6.3 and 6.5 % at a/10 and their best nodal
-reading (2.2 %, cells) is what averaging the node-wise solution over the same patches gives too
-(2.2 %). The node-wise constraint through this solver reproduces the library's λ (1e-12) and its
+Found (docs/mortar.md, "A patch-averaged experiment"): no patch space reaches 1 % rms at a/6, a/8,
+a/10 or a/16. Pairs are not stable (σ_min 0.19 → 0.07, patch pressures 17, 11, 10, 11 %); quads,
+stars and dual cells keep σ_min up but their patch pressures miss by 6.4, 6.3 and 6.5 % at a/10,
+and their best nodal reading (2.2 %, cells) is what averaging the node-wise solution over the same
+patches gives too (2.2 %). The node-wise constraint through this solver reproduces the library's λ (1e-12) and its
 5.16 / 3.41 / 3.22 %.
 """
 
@@ -333,7 +333,15 @@ def sigma_min(W: np.ndarray, area: np.ndarray, nodal_area: np.ndarray, sel: np.n
     return float(np.linalg.svd(S, compute_uv=False).min())
 
 
-def experiment(sizes, rules, gap: str, kind: str = "gmsh") -> None:
+def tets_per_triangle(model) -> np.ndarray:
+    """Per contact node, the tetrahedra at it per face triangle at it (contact-node order)."""
+    n = model.body.reference.points.shape[0]
+    tets = np.bincount(np.asarray(model.assembler.elements).ravel(), minlength=n)
+    tris = np.bincount(np.asarray(model.body.contact_face.faces).ravel(), minlength=n)
+    return (tets / np.maximum(tris, 1))[model.contact_nodes]
+
+
+def experiment(sizes, rules, gap: str, kind: str = "gmsh", detail: bool = False) -> None:
     print(f"{kind} meshes; force control (P/4 on the quarter, as the library's test); a, p0 from the computed "
           f"resultant; patch gap {gap}.")
     print("rms of (p − p_Hertz)/p0 in %, within 1.5 a (within 0.8 a):")
@@ -345,6 +353,7 @@ def experiment(sizes, rules, gap: str, kind: str = "gmsh") -> None:
     def both(v, r, a, p0):
         return f"{100 * rms(v, r < 1.5 * a, p0):.2f} ({100 * rms(v, r < 0.8 * a, p0):.2f})"
 
+    lines = []
     with tempfile.TemporaryDirectory() as tmp:
         for k in sizes:
             t0 = time.perf_counter()
@@ -360,7 +369,7 @@ def experiment(sizes, rules, gap: str, kind: str = "gmsh") -> None:
             ref = np.asarray(c["state"].lam, float)
             dif = np.abs(lam - ref).max() / ref.max()
             a_n, p0_n = hertz_of(4 * float(n3 @ lam))
-            ph = p0_n * np.sqrt(np.clip(1 - (r / a_n) ** 2, 0.0, None))
+            ph = ph_n = p0_n * np.sqrt(np.clip(1 - (r / a_n) ** 2, 0.0, None))
             pn = contact_pressure(m, lam, c["coords"])
             lib = ht.hertz_errors(c["problem"], c["state"])["rms"]
             print(f"| a/{k} | node-wise | {r.size} nodes (λ vs the library's: {dif:.1e}; library {100 * lib:.2f}) "
@@ -393,6 +402,24 @@ def experiment(sizes, rules, gap: str, kind: str = "gmsh") -> None:
                       f"| {both(pmean - ph, r, a, p0)} | {both(lam_p / areas - ph, r, a, p0)} "
                       f"| {both(pnw - phc_n, rc, a_n, p0_n)} | {sm:.2f} | {kkt:.1e} ({its}) "
                       f"| {time.perf_counter() - t1:.1f} s |", flush=True)
+                if detail:
+                    # within 0.8 a: the nodal gaps a patch leaves (relative to the approach s), their
+                    # correlation with the tetrahedra per triangle, and that of the patch pressures' own
+                    # error with the patch's mean tetrahedra per triangle
+                    tpt = tets_per_triangle(m)
+                    inner, pin = r < 0.8 * a, rc < 0.8 * a
+                    wn = g + D @ lam_p - s * n3
+                    tp = (W @ tpt) / W.sum(axis=1)
+                    lines.append(f"a/{k} {rule}: nodal gaps within 0.8 a {wn[inner].min() / s:+.4f} to "
+                                 f"{wn[inner].max() / s:+.4f} of the approach, correlation with tetrahedra per "
+                                 f"triangle {np.corrcoef(wn[inner], tpt[inner])[0, 1]:+.2f}; p_P − mean p_Hertz "
+                                 f"against the patch's tetrahedra per triangle "
+                                 f"{np.corrcoef((pp - mean_h)[pin], tp[pin])[0, 1]:+.2f}")
+            if detail:
+                inner = r < 0.8 * a_n
+                lines.append(f"a/{k} node-wise: p − p_Hertz against tetrahedra per triangle within 0.8 a "
+                             f"{np.corrcoef((pn - ph_n)[inner], tets_per_triangle(m)[inner])[0, 1]:+.2f}")
+    print("\n".join(lines))
 
 
 def main() -> None:
@@ -403,8 +430,10 @@ def main() -> None:
     ap.add_argument("--gap", default="exact", choices=["exact", "nodal"], help="the patch gap: ∫_P g dA or Σ W_Pm g_m")
     ap.add_argument("--mesh", default="gmsh", choices=["gmsh", "split"],
                     help="Gmsh's quarter block, or the graded grid split into six tetrahedra per hexahedron")
+    ap.add_argument("--detail", action="store_true",
+                    help="the nodal gaps a patch leaves and the errors' correlation with the tetrahedra per triangle")
     args = ap.parse_args()
-    experiment(args.sizes, args.rules, args.gap, args.mesh)
+    experiment(args.sizes, args.rules, args.gap, args.mesh, args.detail)
 
 
 if __name__ == "__main__":
