@@ -1,6 +1,6 @@
 """Mortar partners on the elastic foundation: the contact patch test, convergence, cost.
 
-    python benchmarks/bench_mortar.py [--part patch|meshes|hertz|tets|tetparts|cost|cost10|all] [--steps 6]
+    python benchmarks/bench_mortar.py [--part patch|meshes|hertz|hertz4|tets|tetparts|cost|cost10|all] [--steps 6]
 
 patch   The contact patch test of contactopt.verification.patch (overlap loading) with point,
         averaged and mortar partners, F = 0 and 0.3: max and rms of (λ/a − p)/p, max ‖τ‖/(a p).
@@ -12,6 +12,11 @@ hertz   Two bodies of one material in Hertz contact (E = 1, ν = 0.3, R = 2: the
         a slab 0.7 n and 1.5 n, averaged and mortar partners, against the matching slab (point
         partners, node-to-node): rms of (p − p_match)/p0 over the face (the non-matching bias),
         and rms of (p − p_Hertz)/p0, p = λ/a per node, p_Hertz = p0 √(1 − r²/a²) from Σλ.
+hertz4  The same two bodies on linear tetrahedra: the pad's grid n×n×max(4, n/2) and the slab's
+        split into six tetrahedra per hexahedron (Kuhn split, face diagonals along +x1+x2), the pad
+        n = --pads; the reference the matching slab with point partners when the two split faces
+        have the same nodes and triangles (checked), else the slab 1.5 n with mortar partners;
+        a/h the contact radius in pad elements.
 tets    Hertz on Gmsh tetrahedra (contactopt.verification.hertz_tets): a rigid sphere pressed into a
         quarter block of linear and quadratic tetrahedra of size a/6, a/8, a/10 (--sizes), and of
         the graded grid split into six linear tetrahedra per hexahedron; the
@@ -48,6 +53,7 @@ import tempfile
 import time
 from pathlib import Path
 
+import meshio
 import numpy as np
 
 from contactopt.config import load_config
@@ -149,6 +155,94 @@ def hertz(sizes=(12, 16, 24)) -> None:
                 print(f"| {n} | {slab} | {partner} | {np.sqrt(np.mean((p - pm) ** 2)) / p0:.2e} | "
                       f"{np.sqrt(np.mean((p - ph) ** 2)) / p0:.2e} |", flush=True)
 
+
+def _tet_pad_mesh(path: Path, n: int) -> str:
+    """The pad [0, 2]²×[0, 1] of :func:`_pad` (n×n×max(4, n/2) hexahedra) split into six linear
+    tetrahedra per hexahedron, written as a Gmsh file with the groups contact (x3 = 0), top
+    (x3 = 1) and body; the contact face's triangles are the split grid's, diagonals along +x1+x2."""
+    from contactopt.mesh.block import block_mesh
+    from contactopt.mesh.tetsplit import hex_to_tets, tet_boundary_faces
+    ref = block_mesh(2.0, 2.0, 1.0, n, n, max(4, n // 2))
+    pts = ref.points
+    tets = hex_to_tets(ref.cells, pts)
+    bf = tet_boundary_faces(tets)
+    bottom, top = bf[np.all(pts[bf, 2] == 0.0, axis=1)], bf[np.all(pts[bf, 2] == 1.0, axis=1)]
+    cells = [("tetra", tets), ("triangle", bottom), ("triangle", top)]
+    tags = [np.full(len(c), t) for (_, c), t in zip(cells, (3, 1, 2))]
+    meshio.write(path, meshio.Mesh(pts, cells, cell_data={"gmsh:physical": tags, "gmsh:geometrical": tags},
+                                   field_data={"contact": np.array([1, 2]), "top": np.array([2, 2]),
+                                               "body": np.array([3, 3])}), file_format="gmsh22", binary=True)
+    return str(path)
+
+
+def _tet_pad(mesh: str, n: int, slab: int, partner: str) -> dict:
+    """:func:`_pad` with the pad of the Gmsh file ``mesh`` (:func:`_tet_pad_mesh`) and the slab
+    split into six linear tetrahedra per hexahedron."""
+    data = _pad(n, slab, partner)
+    for key in ("geometry", "mesh"):
+        data.pop(key)
+    data["body"] = {"mesh": mesh, "contact": "contact", "clamped": "top"}
+    data["loads"] = {"body_force": data["loads"]["body_force"]}
+    data["design"]["domain"] = [[0.0, 2.0], [0.0, 2.0]]
+    data["foundation"]["block"]["element"] = "tetra"
+    return data
+
+
+def _matching_faces(n: int) -> bool:
+    """Whether the pad's split contact face and the split matching slab's top face have the same
+    nodes and the same triangles (compared by their vertices' (x1, x2))."""
+    from contactopt.mesh.block import block_mesh
+    from contactopt.mesh.foundation import foundation_block
+    from contactopt.mesh.tetsplit import hex_to_tets, tet_boundary_faces
+    ref = block_mesh(2.0, 2.0, 1.0, n, n, max(4, n // 2))
+    bf = tet_boundary_faces(hex_to_tets(ref.cells, ref.points))
+    pad = ref.points[bf[np.all(ref.points[bf, 2] == 0.0, axis=1)]][:, :, :2]
+    slab = foundation_block([2.0, 2.0, 1.0], [n, n, max(4, n // 2)], element="tetra")
+    top = slab.points[slab.parts["top"].faces][:, :, :2]
+
+    def key(tris):
+        return {tuple(sorted(map(tuple, t))) for t in np.round(tris * 1e9).astype(np.int64).tolist()}
+    nodes = {v for t in key(pad) for v in t}
+    nodes_top = {v for t in key(top) for v in t}
+    return nodes == nodes_top and key(pad) == key(top)
+
+
+def hertz4(sizes=(8, 12, 16, 24)) -> None:
+    from contactopt.io.pressure import contact_areas
+    estar = 1.0 / (2 * (1 - 0.3 ** 2))
+    print("| pad n | a/h | slab | partner | rms (p − p_ref)/p0 | rms (p − p_Hertz)/p0 |")
+    print("|---|---|---|---|---|---|")
+    with tempfile.TemporaryDirectory() as tmp:
+        for n in sizes:
+            mesh = _tet_pad_mesh(Path(tmp, f"pad{n}.msh"), n)
+
+            def pressure(slab, partner):
+                pb = ShapeProblem(load_config(_tet_pad(mesh, n, slab, partner)))
+                st = pb.solve_state(pb.model.initial_design())
+                b = pb.model.body
+                x = b.reference.points[b.contact_nodes, :2]
+                p = st.lam / contact_areas(b.reference.points, b.contact_face.faces, b.contact_nodes)
+                P = st.lam.sum()
+                a = (3 * P * 2.0 / (4 * estar)) ** (1 / 3)
+                p0 = 3 * P / (2 * np.pi * a * a)
+                r2 = ((x - 1.0) ** 2).sum(axis=1)
+                return p, p0 * np.sqrt(np.clip(1 - r2 / a ** 2, 0, None)), p0, a * n / 2.0
+
+            def rms(d, p0):
+                return f"{np.sqrt(np.mean(d ** 2)) / p0:.2e}"
+            slabs = (int(round(0.7 * n)), int(round(1.5 * n)))
+            if _matching_faces(n):
+                pm, ph, p0, ah = pressure(n, "point")
+                print(f"| {n} | {ah:.1f} | {n} (matching) | point | 0 | {rms(pm - ph, p0)} |", flush=True)
+            else:                     # no node-to-node reference: the finest slab with mortar partners
+                pm, ph, p0, ah = pressure(slabs[1], "mortar")
+                print(f"| {n} | {ah:.1f} | {slabs[1]} (reference: faces do not match) | mortar | 0 | "
+                      f"{rms(pm - ph, p0)} |", flush=True)
+            for slab in slabs:
+                for partner in ("average", "mortar"):
+                    p, ph, p0, ah = pressure(slab, partner)
+                    print(f"| {n} | {ah:.1f} | {slab} | {partner} | {rms(p - pm, p0)} | {rms(p - ph, p0)} |",
+                          flush=True)
 
 def tets(sizes=(6, 8, 10), growth=0.25, fine=1.6) -> None:
     from contactopt.fem.elements import face_for
@@ -304,9 +398,10 @@ def cost10(steps: int) -> None:
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--part", default="all",
-                    choices=["patch", "meshes", "hertz", "tets", "tetparts", "cost", "cost10", "all"])
+                    choices=["patch", "meshes", "hertz", "hertz4", "tets", "tetparts", "cost", "cost10", "all"])
     ap.add_argument("--steps", type=int, default=6)
     ap.add_argument("--sizes", type=int, nargs="+", default=[6, 8, 10], help="tets: element sizes a/k")
+    ap.add_argument("--pads", type=int, nargs="+", default=[8, 12, 16], help="hertz4: pad divisions n")
     ap.add_argument("--growth", type=float, default=0.25, help="tets, tetparts: Gmsh size growth beyond the fine zone")
     ap.add_argument("--fine", type=float, default=1.6, help="tets, tetparts: radius of the fine zone, in units of a")
     ap.add_argument("--mesh", nargs="+", default=["gmsh"], choices=["gmsh", "split", "tet10"], help="tetparts: meshes")
@@ -318,6 +413,8 @@ def main() -> None:
         meshes()
     if args.part in ("hertz", "all"):
         hertz()
+    if args.part in ("hertz4", "all"):
+        hertz4(tuple(args.pads))
     if args.part in ("tets", "all"):
         tets(tuple(args.sizes), args.growth, args.fine)
     if args.part in ("tetparts", "all"):
