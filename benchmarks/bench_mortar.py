@@ -1,6 +1,7 @@
 """Mortar partners on the elastic foundation: the contact patch test, convergence, cost.
 
     python benchmarks/bench_mortar.py [--part patch|meshes|hertz|hertz4|tets|tetparts|cost|cost10|all] [--steps 6]
+        [--pads 8 12 16 24] [--order 1|2]
 
 patch   The contact patch test of contactopt.verification.patch (overlap loading) with point,
         averaged and mortar partners, F = 0 and 0.3: max and rms of (λ/a − p)/p, max ‖τ‖/(a p).
@@ -12,11 +13,13 @@ hertz   Two bodies of one material in Hertz contact (E = 1, ν = 0.3, R = 2: the
         a slab 0.7 n and 1.5 n, averaged and mortar partners, against the matching slab (point
         partners, node-to-node): rms of (p − p_match)/p0 over the face (the non-matching bias),
         and rms of (p − p_Hertz)/p0, p = λ/a per node, p_Hertz = p0 √(1 − r²/a²) from Σλ.
-hertz4  The same two bodies on linear tetrahedra: the pad's grid n×n×max(4, n/2) and the slab's
-        split into six tetrahedra per hexahedron (Kuhn split, face diagonals along +x1+x2), the pad
-        n = --pads; the reference the matching slab with point partners when the two split faces
-        have the same nodes and triangles (checked), else the slab 1.5 n with mortar partners;
-        a/h the contact radius in pad elements.
+hertz4  The same two bodies on tetrahedra: the pad's grid n×n×max(4, n/2) and the slab's split
+        into six tetrahedra per hexahedron (Kuhn split, face diagonals along +x1+x2), linear or
+        (--order 2) ten-node, the pad n = --pads; the reference the matching slab with point
+        partners when the two split faces have the same nodes and triangles (checked), else the
+        slab 1.5 n with mortar partners; a/h the contact radius in pad elements; p the nodal
+        pressure of contactopt.io.pressure.contact_pressure (on six-node triangles that of the
+        transformed basis).
 tets    Hertz on Gmsh tetrahedra (contactopt.verification.hertz_tets): a rigid sphere pressed into a
         quarter block of linear and quadratic tetrahedra of size a/6, a/8, a/10 (--sizes), and of
         the graded grid split into six linear tetrahedra per hexahedron; the
@@ -156,35 +159,39 @@ def hertz(sizes=(12, 16, 24)) -> None:
                       f"{np.sqrt(np.mean((p - ph) ** 2)) / p0:.2e} |", flush=True)
 
 
-def _tet_pad_mesh(path: Path, n: int) -> str:
-    """The pad [0, 2]²×[0, 1] of :func:`_pad` (n×n×max(4, n/2) hexahedra) split into six linear
-    tetrahedra per hexahedron, written as a Gmsh file with the groups contact (x3 = 0), top
-    (x3 = 1) and body; the contact face's triangles are the split grid's, diagonals along +x1+x2."""
+def _tet_pad(tmp: Path, n: int, slab: int, partner: str, order: int = 1) -> dict:
+    """:func:`_pad` on tetrahedra: the pad's grid n×n×max(4, n/2) split into six tetrahedra per
+    hexahedron (face diagonals along +x1+x2), written to ``tmp`` with its contact face x3 = 0 and
+    its clamped top x3 = 1; the slab the block split the same way, or (``order`` 2) both of
+    ten-node tetrahedra, the slab a mesh file too."""
     from contactopt.mesh.block import block_mesh
-    from contactopt.mesh.tetsplit import hex_to_tets, tet_boundary_faces
-    ref = block_mesh(2.0, 2.0, 1.0, n, n, max(4, n // 2))
-    pts = ref.points
-    tets = hex_to_tets(ref.cells, pts)
-    bf = tet_boundary_faces(tets)
-    bottom, top = bf[np.all(pts[bf, 2] == 0.0, axis=1)], bf[np.all(pts[bf, 2] == 1.0, axis=1)]
-    cells = [("tetra", tets), ("triangle", bottom), ("triangle", top)]
-    tags = [np.full(len(c), t) for (_, c), t in zip(cells, (3, 1, 2))]
-    meshio.write(path, meshio.Mesh(pts, cells, cell_data={"gmsh:physical": tags, "gmsh:geometrical": tags},
-                                   field_data={"contact": np.array([1, 2]), "top": np.array([2, 2]),
-                                               "body": np.array([3, 3])}), file_format="gmsh22", binary=True)
-    return str(path)
-
-
-def _tet_pad(mesh: str, n: int, slab: int, partner: str) -> dict:
-    """:func:`_pad` with the pad of the Gmsh file ``mesh`` (:func:`_tet_pad_mesh`) and the slab
-    split into six linear tetrahedra per hexahedron."""
+    from contactopt.mesh.foundation import foundation_block
+    from contactopt.mesh.tetsplit import hex_to_tets, tet4_to_tet10
     data = _pad(n, slab, partner)
     for key in ("geometry", "mesh"):
         data.pop(key)
-    data["body"] = {"mesh": mesh, "contact": "contact", "clamped": "top"}
+    ctype = "tetra" if order == 1 else "tetra10"
+    pad = Path(tmp, f"pad{n}_{order}.vtu")
+    if not pad.exists():
+        ref = block_mesh(2.0, 2.0, 1.0, n, n, max(4, n // 2))
+        pts, cells = ref.points, hex_to_tets(ref.cells, ref.points)
+        if order == 2:
+            pts, cells = tet4_to_tet10(pts, cells)
+        meshio.write(pad, meshio.Mesh(pts, [(ctype, cells)]))
+    data["body"] = {"mesh": str(pad), "contact": {"x3": 0.0}, "clamped": {"x3": 1.0}, "fixed_shape": [{"x3": 1.0}]}
     data["loads"] = {"body_force": data["loads"]["body_force"]}
     data["design"]["domain"] = [[0.0, 2.0], [0.0, 2.0]]
-    data["foundation"]["block"]["element"] = "tetra"
+    f = data["foundation"]
+    if order == 1:
+        f["block"]["element"] = "tetra"
+    else:
+        cells = f.pop("block")["cells"]
+        path = Path(tmp, f"slab{slab}_{order}.vtu")
+        if not path.exists():
+            ref = foundation_block([2.0, 2.0, 1.0], cells, element="tetra")
+            p10, c10 = tet4_to_tet10(ref.points, ref.cells)
+            meshio.write(path, meshio.Mesh(p10, [(ctype, c10)]))
+        f.update(mesh=str(path), top={"x3": 0.0}, clamped={"x3": -1.0})
     return data
 
 
@@ -207,21 +214,19 @@ def _matching_faces(n: int) -> bool:
     return nodes == nodes_top and key(pad) == key(top)
 
 
-def hertz4(sizes=(8, 12, 16, 24)) -> None:
-    from contactopt.io.pressure import contact_areas
+def hertz4(sizes=(8, 12, 16, 24), order: int = 1) -> None:
+    from contactopt.io.pressure import contact_pressure
     estar = 1.0 / (2 * (1 - 0.3 ** 2))
     print("| pad n | a/h | slab | partner | rms (p − p_ref)/p0 | rms (p − p_Hertz)/p0 |")
     print("|---|---|---|---|---|---|")
     with tempfile.TemporaryDirectory() as tmp:
         for n in sizes:
-            mesh = _tet_pad_mesh(Path(tmp, f"pad{n}.msh"), n)
-
             def pressure(slab, partner):
-                pb = ShapeProblem(load_config(_tet_pad(mesh, n, slab, partner)))
+                pb = ShapeProblem(load_config(_tet_pad(Path(tmp), n, slab, partner, order)))
                 st = pb.solve_state(pb.model.initial_design())
                 b = pb.model.body
                 x = b.reference.points[b.contact_nodes, :2]
-                p = st.lam / contact_areas(b.reference.points, b.contact_face.faces, b.contact_nodes)
+                p = contact_pressure(pb.model, st.lam, b.reference.points)
                 P = st.lam.sum()
                 a = (3 * P * 2.0 / (4 * estar)) ** (1 / 3)
                 p0 = 3 * P / (2 * np.pi * a * a)
@@ -239,7 +244,8 @@ def hertz4(sizes=(8, 12, 16, 24)) -> None:
                 print(f"| {n} | {ah:.1f} | {slabs[1]} (reference: faces do not match) | mortar | 0 | "
                       f"{rms(pm - ph, p0)} |", flush=True)
             for slab in slabs:
-                for partner in ("average", "mortar"):
+                # averaged partners take linear faces only
+                for partner in ("average", "mortar") if order == 1 else ("mortar",):
                     p, ph, p0, ah = pressure(slab, partner)
                     print(f"| {n} | {ah:.1f} | {slab} | {partner} | {rms(p - pm, p0)} | {rms(p - ph, p0)} |",
                           flush=True)
@@ -402,6 +408,7 @@ def main() -> None:
     ap.add_argument("--steps", type=int, default=6)
     ap.add_argument("--sizes", type=int, nargs="+", default=[6, 8, 10], help="tets: element sizes a/k")
     ap.add_argument("--pads", type=int, nargs="+", default=[8, 12, 16], help="hertz4: pad divisions n")
+    ap.add_argument("--order", type=int, default=1, choices=[1, 2], help="hertz4: 1 linear, 2 ten-node tetrahedra")
     ap.add_argument("--growth", type=float, default=0.25, help="tets, tetparts: Gmsh size growth beyond the fine zone")
     ap.add_argument("--fine", type=float, default=1.6, help="tets, tetparts: radius of the fine zone, in units of a")
     ap.add_argument("--mesh", nargs="+", default=["gmsh"], choices=["gmsh", "split", "tet10"], help="tetparts: meshes")
@@ -414,7 +421,7 @@ def main() -> None:
     if args.part in ("hertz", "all"):
         hertz()
     if args.part in ("hertz4", "all"):
-        hertz4(tuple(args.pads))
+        hertz4(tuple(args.pads), args.order)
     if args.part in ("tets", "all"):
         tets(tuple(args.sizes), args.growth, args.fine)
     if args.part in ("tetparts", "all"):
