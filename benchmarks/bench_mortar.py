@@ -16,8 +16,8 @@ hertz   Two bodies of one material in Hertz contact (E = 1, ν = 0.3, R = 2: the
 hertz4  The same two bodies on tetrahedra: the pad's grid n×n×max(4, n/2) and the slab's split
         into six tetrahedra per hexahedron (Kuhn split, face diagonals along +x1+x2), linear or
         (--order 2) ten-node, the pad n = --pads; the reference the matching slab with point
-        partners (ten-node: with mortar partners, the same coupling; its difference from point
-        partners shown) when the two split faces have the same nodes and triangles (checked), else
+        partners (ten-node: with mortar partners, the same coupling; mortar against point partners
+        on the matching faces shown for both) when the two split faces have the same nodes and triangles (checked), else
         the slab 1.5 n with mortar partners; a/h the contact radius in pad elements; p the nodal
         pressure of contactopt.io.pressure.contact_pressure (on six-node triangles that of the
         transformed basis).
@@ -240,11 +240,14 @@ def hertz4(sizes=(8, 12, 16, 24), order: int = 1) -> None:
             if _matching_faces(n):
                 pm, ph, p0, ah = pressure(n, "point")
                 print(f"| {n} | {ah:.1f} | {n} (matching) | point | 0 | {rms(pm - ph, p0)} |", flush=True)
-                if order == 2:   # the transformed basis is another coupling even on matching faces:
-                    pp = pm      # its matching result is the reference of the non-matching ones
-                    pm, ph, p0, ah = pressure(n, "mortar")
-                    print(f"| {n} | {ah:.1f} | {n} (matching) | mortar | {rms(pm - pp, p0)} (against point) | "
-                          f"{rms(pm - ph, p0)} |", flush=True)
+                # mortar partners on the matching faces: point partners' result on linear faces; the
+                # transformed basis of six-node triangles is another coupling, so there its matching
+                # result is the reference of the non-matching ones
+                pq, ph, p0, ah = pressure(n, "mortar")
+                print(f"| {n} | {ah:.1f} | {n} (matching) | mortar | {rms(pq - pm, p0)} (against point) | "
+                      f"{rms(pq - ph, p0)} |", flush=True)
+                if order == 2:
+                    pm = pq
             else:                     # no node-to-node reference: the finest slab with mortar partners
                 pm, ph, p0, ah = pressure(slabs[1], "mortar")
                 print(f"| {n} | {ah:.1f} | {slabs[1]} (reference: faces do not match) | mortar | 0 | "
