@@ -15,12 +15,12 @@ hertz   Two bodies of one material in Hertz contact (E = 1, ν = 0.3, R = 2: the
         and rms of (p − p_Hertz)/p0, p = λ/a per node, p_Hertz = p0 √(1 − r²/a²) from Σλ.
 hertz4  The same two bodies on tetrahedra: the pad's grid n×n×max(4, n/2) and the slab's split
         into six tetrahedra per hexahedron (Kuhn split, face diagonals along +x1+x2), linear or
-        (--order 2) ten-node, the pad n = --pads; the reference the matching slab with point
-        partners (ten-node: with mortar partners, the same coupling; mortar against point partners
-        on the matching faces shown for both) when the two split faces have the same nodes and triangles (checked), else
-        the slab 1.5 n with mortar partners; a/h the contact radius in pad elements; p the nodal
-        pressure of contactopt.io.pressure.contact_pressure (on six-node triangles that of the
-        transformed basis).
+        (--order 2) ten-node, the pad n = --pads. The reference: when the two split faces have
+        the same nodes and triangles (checked), the matching slab with point partners (ten-node:
+        with mortar partners, the same coupling), mortar against point partners on the matching
+        faces shown for both; else the slab 1.5 n with mortar partners. a/h the contact radius
+        in pad elements; p the nodal pressure of contactopt.io.pressure.contact_pressure (on
+        six-node triangles that of the transformed basis).
 tets    Hertz on Gmsh tetrahedra (contactopt.verification.hertz_tets): a rigid sphere pressed into a
         quarter block of linear and quadratic tetrahedra of size a/6, a/8, a/10 (--sizes), and of
         the graded grid split into six linear tetrahedra per hexahedron; the
