@@ -55,12 +55,19 @@ class Objective:
         """The :class:`Partials` of one solve, ∂J/∂u on this objective's space."""
         return Partials(value, {0: Derivatives(du, dlam, dalpha, FULL if self.full_space else CONTACT)})
 
+    def evaluate_under(self, state, cond, loads) -> Partials:
+        """:meth:`evaluate` of a solve under the load set ``loads`` (a load path's step; None: the
+        objective's own, :attr:`loads`). Only an objective whose ∂J/∂α at fixed u holds ∂L/∂α
+        (the compliance) reads it: the load's derivative must be that of the loads the state was
+        solved under."""
+        return self.evaluate(state, cond)
+
     def evaluate_path(self, states, systems, loads, memo=None) -> Partials:
         """J at the end of the last of the solves ``states`` of a load path (from the first, in
         order; ``systems`` and ``loads`` theirs), its derivatives keyed by each solve's index. An
-        objective of the state alone: the last solve's :meth:`evaluate`. ``memo`` (a dict) keeps
-        what the ends of several steps of one path share."""
-        return self.evaluate(states[-1], systems[-1]).at_solve(len(states) - 1)
+        objective of the state alone: the last solve's :meth:`evaluate_under` its loads.
+        ``memo`` (a dict) keeps what the ends of several steps of one path share."""
+        return self.evaluate_under(states[-1], systems[-1], loads[-1]).at_solve(len(states) - 1)
 
 
 class TargetNormalForce(Objective):
@@ -188,7 +195,10 @@ class FrictionalDissipation(Objective):
     accumulates = True           # on a load path: the work of every solve's slip increment
 
     def evaluate(self, state, cond):
-        return self.partials(*self._work(state, cond, self.loads)[:4])
+        return self.evaluate_under(state, cond, None)
+
+    def evaluate_under(self, state, cond, loads):
+        return self.partials(*self._work(state, cond, self.loads if loads is None else loads)[:4])
 
     def _work(self, state, cond, loads):
         """(τ·Δu_t, ∂/∂u, 0 (p,), ∂/∂α at fixed u, ∂/∂u of the previous solve (every DOF)) of one
@@ -309,16 +319,27 @@ class Compliance(Objective):
     displacement w, with the body's contact displacement u_b = w + Πq_f − C r and r = S_eff w −
     ℓ_eff: ∂J/∂w = (I − S_eff C)ℓ = S_eff S⁻¹ℓ, and at fixed w the term −ℓᵀC d(S_eff w − ℓ_eff) =
     z̃ᵀ(∂A u − ∂L) with z = −S⁻¹S_eff Cℓ (z̃ its A-harmonic extension) joins ∂J/∂α (docs/foundation.md).
+
+    ∂L is the derivative of the loads the state was solved under: a load case's, or on a load path
+    the step's L_k (J_k = L_kᵀu_k at the step's end); a body force or a pressure on a face that moves
+    with α has ∂L ≠ 0.
     """
 
     name = "compliance"
 
     def evaluate(self, state, cond):
+        return self.evaluate_under(state, cond, None)
+
+    def evaluate_under(self, state, cond, loads):
         model = self.model
         asm = cond.assembled
         value = float(asm.L_full @ state.u)
         zhat = model.assembler.to_full(cond.factor.recover(asm.L, np.zeros(3 * state.lam.size)))
-        dc = model.design_contraction
+        loads = self.loads if loads is None else loads
+
+        def dc(coords, u, v):
+            return model.design_contraction(coords, u, v, loads)
+
         dalpha = -dc(asm.coords, zhat, state.u) - dc(asm.coords, np.zeros_like(zhat), zhat)
         dw = cond.ell.copy()
         coupling = cond.coupling
@@ -330,12 +351,14 @@ class Compliance(Objective):
             dalpha += dc(asm.coords, state.u, model.assembler.to_full(cond.factor.extend(z)))
         return self.partials(self.scale * value, self.scale * dw, np.zeros(state.lam.size), self.scale * dalpha)
 
-    def evaluate_full(self, state, cond):
+    def evaluate_full(self, state, cond, loads=None):
         """The same J = L(α)ᵀu with ∂J/∂u = L on every DOF and ∂J/∂α = uᵀ∂L/∂α at fixed u: the form a
         sum with an objective of the whole displacement takes on an elastic foundation, whose
-        adjoint maps ∂J/∂u of the body to the state's w itself (:class:`WeightedSum`)."""
+        adjoint maps ∂J/∂u of the body to the state's w itself (:class:`WeightedSum`); ``loads``
+        as in :meth:`evaluate_under`."""
         asm = cond.assembled
-        dalpha = -self.model.design_contraction(asm.coords, np.zeros_like(state.u), state.u)
+        loads = self.loads if loads is None else loads
+        dalpha = -self.model.design_contraction(asm.coords, np.zeros_like(state.u), state.u, loads)
         return Partials(self.scale * float(asm.L_full @ state.u),
                         {0: Derivatives(self.scale * np.asarray(asm.L_full, float), np.zeros(state.lam.size),
                                         self.scale * dalpha, FULL)})
@@ -379,6 +402,10 @@ class WeightedSum(Objective):
             o.loads = value
 
     def evaluate(self, state, cond):
+        return self.evaluate_under(state, cond, None)
+
+    def evaluate_under(self, state, cond, loads):
+        """Σ_k w_k J_k of one solve, each term under ``loads`` (None: its own)."""
         p = state.lam.size
         n = self.model.assembler.n_full
         value, dlam, dalpha = 0.0, np.zeros(p), np.zeros(state.alpha.size)
@@ -390,7 +417,7 @@ class WeightedSum(Objective):
         coupled = self.full_space and cond is not None and cond.coupling is not None
         for name, w, obj in self.terms:
             full = coupled and isinstance(obj, Compliance)
-            part = obj.evaluate_full(state, cond) if full else obj.evaluate(state, cond)
+            part = obj.evaluate_full(state, cond, loads) if full else obj.evaluate_under(state, cond, loads)
             d = part.derivatives
             terms[name] = float(part.value)
             value += w * part.value

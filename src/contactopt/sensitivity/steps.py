@@ -120,9 +120,7 @@ def step_objective(objective, steps, states, systems, j: int, memo: dict):
     """The :class:`~contactopt.sensitivity.partials.Partials` of J at the end of solve j of a load
     path, keyed by solve: an objective of the state at solve j alone, the friction work summed over
     the solves up to j (:meth:`contactopt.sensitivity.objectives.Objective.evaluate_path`)."""
-    if objective.accumulates:
-        return objective.evaluate_path(states[:j + 1], systems[:j + 1], [s.loads for s in steps[:j + 1]], memo)
-    return objective.evaluate(states[j], systems[j]).at_solve(j)
+    return objective.evaluate_path(states[:j + 1], systems[:j + 1], [s.loads for s in steps[:j + 1]], memo)
 
 
 def add_at_contact(y_u: np.ndarray, carry: np.ndarray, contact: np.ndarray, full: bool) -> np.ndarray:
