@@ -543,6 +543,33 @@ def test_compliance_through_the_steps_matches_central_differences(tmp_path, body
     assert np.abs(g - fd).max() <= 1e-6 * np.abs(fd).max()
 
 
+@pytest.mark.parametrize("objective", [
+    {"type": "frictional_dissipation", "steps": "sum"},
+    {"type": "frictional_dissipation", "steps": "last"},
+    {"type": "peak_stress", "aggregate": "ks", "rho": 20.0, "steps": "sum"},
+    {"type": "sum", "steps": "sum", "terms": [{"type": "compliance", "weight": 1.0},
+                                              {"type": "frictional_dissipation", "weight": 0.1}]},
+])
+def test_whole_displacement_objectives_through_the_steps_on_an_elastic_foundation(tmp_path, objective):
+    """∂J/∂u on every DOF of solves that later steps pass a derivative to, on a foundation: that
+    derivative is with respect to the state's w (the next step's slip reference is w_t) and joins
+    the adjoint after the map of ∂J/∂u (2e-2 to 0.7 relative before); the friction work's reference
+    w_t^(k−1) depends on r^(k−1) through C (1.2 relative without); the compliance in a sum on every
+    DOF takes its whole-body form (0.77 without)."""
+    updates = {"objective": objective, "friction": {"coefficient": 0.3}, "foundation": TET_SLAB,
+               "state": {"method": "newton", "tol": 1e-12}}
+    pr = ShapeProblem(tet_box(TET_STEPS, tmp_path).with_updates(updates))
+    alpha = pr.model.initial_design() + 0.001 * np.cos(np.arange(pr.model.n_design))
+    res = pr.subgradient(alpha)
+    assert res.n_degenerate == 0
+    assert any(st.counts["M1"] for _, _, st in pr.step_results())
+    rng = np.random.default_rng(4)
+    directions = [rng.standard_normal(alpha.size) for _ in range(3)]
+    fd = central_differences(pr, alpha, directions, h=1e-7)
+    g = np.array([res.gradient @ d for d in directions])
+    assert np.abs(g - fd).max() <= 1e-6 * np.abs(fd).max()
+
+
 def test_load_cases_with_their_own_paths(tmp_path):
     """[[load_cases.steps]]: a case with a path and a case without (one step), combined; the
     subgradient against central differences and the state directories case-<case>/step-<name>/."""
