@@ -312,7 +312,11 @@ class SolverPath:
         objective of the whole displacement. Then J depends on u_c also through the interior
         displacement u_i = A_ii⁻¹(L_i − A_ic u_c): (4.15) holds with y*_u = g_c − A_ci A_ii⁻¹ g_i
         (g = ∂J/∂u on the free DOFs), and ṽ = (v_u, −A_ii⁻¹(A_ic v_u + g_i)) — the extension
-        satisfies (A ṽ)_i = −g_i — so the design term ṽᵀ(∂A u − ∂L) needs no other change."""
+        satisfies (A ṽ)_i = −g_i — so the design term ṽᵀ(∂A u − ∂L) needs no other change.
+
+        A path whose systems hold an elastic foundation's ``coupling`` (the condensation path) also
+        takes ``carry``: with ``y_u`` on every DOF, what a later load step passes down, a derivative
+        with respect to the state's own contact unknown w (not the body's u_c; sensitivity/steps.py)."""
         raise NotImplementedError
 
     def force_terms(self, system, ctx, state, v_lam, loads=None, *, v=None, y_u=None):

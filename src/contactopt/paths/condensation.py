@@ -251,7 +251,7 @@ class CondensationPath(ZonePath):
     def own_block(self, system, zone):
         return zone_rules.ZoneProblem(system.law_S, system.law_ell, zone).W
 
-    def adjoint(self, system, ctx, state, y_u, y_lam, choices=None):
+    def adjoint(self, system, ctx, state, y_u, y_lam, choices=None, carry=None):
         """(v_u, v_λ, ṽ) of (4.15); on a foundation (4.15) is solved with S_eff and ṽ extends
         z = S⁻¹ S_eff v_u (module docstring).
 
@@ -259,7 +259,10 @@ class CondensationPath(ZonePath):
         the body's u_c = w + Π q_f − C r, r = S_eff w − ℓ_eff, so u_c = S⁻¹S_eff w + … and with
         y_c = g_c − A_ci A_ii⁻¹ g_i (4.15) takes y*_u = S_eff S⁻¹ y_c; at fixed w, r and with it
         u_c move with α: g·δu gains −y_cᵀC δr = −(S⁻¹S_eff C y_c)ᵀ(∂A u − ∂L)… extended, so
-        z = S⁻¹S_eff (v_u − C y_c) (docs/foundation.md)."""
+        z = S⁻¹S_eff (v_u − C y_c) (docs/foundation.md). ``carry`` (3p, per node (t1, t2, ν)), with
+        g on every DOF on a foundation: what a later load step passes down, a derivative with
+        respect to w itself (the next step's slip reference is w_t), which joins y*_u after that
+        map, not g (:meth:`SolverPath.adjoint`)."""
         zhat = y_c = None
         if self.is_full(y_u):          # ∂J/∂u on every DOF (SolverPath.adjoint): ẑ = (0, A_ii⁻¹g_i)
             fac, asm = system.factor, self.model.assembler
@@ -273,6 +276,8 @@ class CondensationPath(ZonePath):
                 y_u = self.mechanics.basis.vector(y_u)
             if system.coupling is not None:  # ∂J/∂w of the body's contact displacement
                 y_c, y_u = y_u, system.coupling.to_eff(y_u)
+                if carry is not None:
+                    y_u = y_u + carry
         v_u, v_lam = solve_adjoint(system.contact_S, state, y_u, y_lam, choices)
         if system.coupling is None:
             z = v_u

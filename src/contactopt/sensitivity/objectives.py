@@ -55,12 +55,19 @@ class Objective:
         """The :class:`Partials` of one solve, ∂J/∂u on this objective's space."""
         return Partials(value, {0: Derivatives(du, dlam, dalpha, FULL if self.full_space else CONTACT)})
 
+    def evaluate_under(self, state, cond, loads) -> Partials:
+        """:meth:`evaluate` of a solve under the load set ``loads`` (a load path's step; None: the
+        objective's own, :attr:`loads`). Only an objective whose ∂J/∂α at fixed u holds ∂L/∂α
+        (the compliance) reads it: the load's derivative must be that of the loads the state was
+        solved under."""
+        return self.evaluate(state, cond)
+
     def evaluate_path(self, states, systems, loads, memo=None) -> Partials:
         """J at the end of the last of the solves ``states`` of a load path (from the first, in
         order; ``systems`` and ``loads`` theirs), its derivatives keyed by each solve's index. An
-        objective of the state alone: the last solve's :meth:`evaluate`. ``memo`` (a dict) keeps
-        what the ends of several steps of one path share."""
-        return self.evaluate(states[-1], systems[-1]).at_solve(len(states) - 1)
+        objective of the state alone: the last solve's :meth:`evaluate_under` its loads.
+        ``memo`` (a dict) keeps what the ends of several steps of one path share."""
+        return self.evaluate_under(states[-1], systems[-1], loads[-1]).at_solve(len(states) - 1)
 
 
 class TargetNormalForce(Objective):
@@ -181,6 +188,9 @@ class FrictionalDissipation(Objective):
     w = u_c − Π q_f + C r with r = (A u − L)_c the contact force on the body, so J = −w_tᵀr_t is
     a function of the body's u through r in w as well: the same formulas hold with
     ũ = (w_t, 0) − C (τ, 0) per contact node (t1, t2, ν), all three components (docs/foundation.md).
+    On a load path the increment's reference w_t^(k−1) is relative too: −τ^k·w_t^(k−1) =
+    −τ̂^kᵀu^(k−1) − cᵀ(A u^(k−1) − L^(k−1)) with c = C (τ^k, 0) on the contact DOFs, so the solve
+    before gets ∂/∂u^(k−1) = −τ̂^k − A c and ∂/∂α = −cᵀ(∂A u^(k−1) − ∂L^(k−1)) at fixed u^(k−1).
     """
 
     name = "frictional_dissipation"
@@ -188,13 +198,18 @@ class FrictionalDissipation(Objective):
     accumulates = True           # on a load path: the work of every solve's slip increment
 
     def evaluate(self, state, cond):
-        return self.partials(*self._work(state, cond, self.loads)[:4])
+        return self.evaluate_under(state, cond, None)
+
+    def evaluate_under(self, state, cond, loads):
+        return self.partials(*self._work(state, cond, self.loads if loads is None else loads)[:4])
 
     def _work(self, state, cond, loads):
-        """(τ·Δu_t, ∂/∂u, 0 (p,), ∂/∂α at fixed u, ∂/∂u of the previous solve (every DOF)) of one
-        solve, Δu_t = u_t − u_t^(k−1) its slip increment (u_t itself without ``slip_ref``): the work
-        is −Δũᵀ(A u − L) with Δũ the increment on the tangential contact DOFs, so ∂/∂u = τ̂ − AΔũ
-        and ∂/∂α = −Δũᵀ(∂A u − ∂L); through u_t^(k−1) = Δũ's reference, ∂/∂u^(k−1) = −τ̂."""
+        """(τ·Δu_t, ∂/∂u, 0 (p,), ∂/∂α at fixed u, ∂/∂u^(k−1) at fixed r^(k−1) (every DOF), c) of
+        one solve, Δu_t = u_t − u_t^(k−1) its slip increment (u_t itself without ``slip_ref``): the
+        work is −Δũᵀ(A u − L) with Δũ the increment on the tangential contact DOFs, so ∂/∂u =
+        τ̂ − AΔũ and ∂/∂α = −Δũᵀ(∂A u − ∂L); through u_t^(k−1) = Δũ's reference, ∂/∂u^(k−1) = −τ̂.
+        c (every DOF, None off a foundation): C (τ, 0) on the contact DOFs, by which the relative
+        reference w_t^(k−1) depends on the contact force r^(k−1) (class docstring)."""
         model = self.model
         asm = model.assembler
         p = state.lam.size
@@ -205,34 +220,51 @@ class FrictionalDissipation(Objective):
         u_t = np.zeros(asm.n_full)
         u_t[full] = ut.ravel()
         coupling = None if cond is None else cond.coupling
+        c_ref = None
         if coupling is not None:                  # an elastic foundation (class docstring)
             tau3 = np.zeros((p, 3))
             tau3[:, :2] = state.tau
             contact = (3 * model.contact_nodes[:, None] + np.arange(3)).ravel()
-            u_t[contact] -= coupling.foundation.C @ tau3.ravel()
+            c_ref = np.zeros(asm.n_full)
+            c_ref[contact] = coupling.foundation.C @ tau3.ravel()
+            u_t -= c_ref
         tau = np.zeros(asm.n_full)
         tau[full] = np.asarray(state.tau).ravel()
         dJ_du = tau - asm.to_full(stiffness_product(cond, asm, state.coords, u_t[asm.free]))
         dalpha = -model.design_contraction(state.coords, state.u, u_t, loads)
         value = float(np.sum(np.asarray(state.tau) * ut))
-        return self.scale * value, self.scale * dJ_du, np.zeros(p), self.scale * dalpha, -self.scale * tau
+        return self.scale * value, self.scale * dJ_du, np.zeros(p), self.scale * dalpha, -self.scale * tau, c_ref
 
     def evaluate_path(self, states, systems, loads, memo=None):
         """The friction work along the path up to the last solve: Σ_k τ^k·Δu_t^k over the solves
         (substeps included), each increment's derivatives on its own solve and, through Δu_t^k's
-        reference u_t^(k−1), on the solve before it."""
+        reference u_t^(k−1), on the solve before it (on an elastic foundation also through the
+        contact force r^(k−1) in the relative reference w_t^(k−1))."""
         memo = {} if memo is None else memo
         value, out = 0.0, {}
         for i, (st, cond, ld) in enumerate(zip(states, systems, loads)):
             key = (id(self), i)
             if key not in memo:
                 memo[key] = self._work(st, cond, ld)
-            v, y_u, y_lam, dalpha, y_prev = memo[key]
+            v, y_u, y_lam, dalpha, y_prev, c_ref = memo[key]
             value += v
             add_solve(out, i, Derivatives(y_u, y_lam, dalpha, FULL))
             if i:
-                add_solve(out, i - 1, Derivatives(y_prev, np.zeros_like(y_lam), np.zeros_like(dalpha), FULL))
+                add_solve(out, i - 1, self._previous(states[i - 1], systems[i - 1], loads[i - 1], y_prev, c_ref,
+                                                     y_lam, dalpha))
         return Partials(value, out)
+
+    def _previous(self, state, cond, loads, y_prev, c_ref, y_lam, dalpha) -> Derivatives:
+        """The derivatives of an increment's work with respect to the solve before it (``state``,
+        ``cond``, ``loads`` that solve's): −τ̂ on its tangential contact DOFs and, on an elastic
+        foundation, −A c on every DOF and −cᵀ(∂A u − ∂L) at fixed u (class docstring)."""
+        if c_ref is None:
+            return Derivatives(y_prev, np.zeros_like(y_lam), np.zeros_like(dalpha), FULL)
+        asm = self.model.assembler
+        c = self.scale * c_ref
+        du = y_prev - asm.to_full(stiffness_product(cond, asm, state.coords, c[asm.free]))
+        da = -self.model.design_contraction(state.coords, state.u, c, loads)
+        return Derivatives(du, np.zeros_like(y_lam), da, FULL)
 
 
 def stiffness_product(cond, asm, coords, x) -> np.ndarray:
@@ -309,16 +341,27 @@ class Compliance(Objective):
     displacement w, with the body's contact displacement u_b = w + Πq_f − C r and r = S_eff w −
     ℓ_eff: ∂J/∂w = (I − S_eff C)ℓ = S_eff S⁻¹ℓ, and at fixed w the term −ℓᵀC d(S_eff w − ℓ_eff) =
     z̃ᵀ(∂A u − ∂L) with z = −S⁻¹S_eff Cℓ (z̃ its A-harmonic extension) joins ∂J/∂α (docs/foundation.md).
+
+    ∂L is the derivative of the loads the state was solved under: a load case's, or on a load path
+    the step's L_k (J_k = L_kᵀu_k at the step's end); a body force or a pressure on a face that moves
+    with α has ∂L ≠ 0.
     """
 
     name = "compliance"
 
     def evaluate(self, state, cond):
+        return self.evaluate_under(state, cond, None)
+
+    def evaluate_under(self, state, cond, loads):
         model = self.model
         asm = cond.assembled
         value = float(asm.L_full @ state.u)
         zhat = model.assembler.to_full(cond.factor.recover(asm.L, np.zeros(3 * state.lam.size)))
-        dc = model.design_contraction
+        loads = self.loads if loads is None else loads
+
+        def dc(coords, u, v):
+            return model.design_contraction(coords, u, v, loads)
+
         dalpha = -dc(asm.coords, zhat, state.u) - dc(asm.coords, np.zeros_like(zhat), zhat)
         dw = cond.ell.copy()
         coupling = cond.coupling
@@ -330,12 +373,14 @@ class Compliance(Objective):
             dalpha += dc(asm.coords, state.u, model.assembler.to_full(cond.factor.extend(z)))
         return self.partials(self.scale * value, self.scale * dw, np.zeros(state.lam.size), self.scale * dalpha)
 
-    def evaluate_full(self, state, cond):
+    def evaluate_full(self, state, cond, loads=None):
         """The same J = L(α)ᵀu with ∂J/∂u = L on every DOF and ∂J/∂α = uᵀ∂L/∂α at fixed u: the form a
         sum with an objective of the whole displacement takes on an elastic foundation, whose
-        adjoint maps ∂J/∂u of the body to the state's w itself (:class:`WeightedSum`)."""
+        adjoint maps ∂J/∂u of the body to the state's w itself (:class:`WeightedSum`); ``loads``
+        as in :meth:`evaluate_under`."""
         asm = cond.assembled
-        dalpha = -self.model.design_contraction(asm.coords, np.zeros_like(state.u), state.u)
+        loads = self.loads if loads is None else loads
+        dalpha = -self.model.design_contraction(asm.coords, np.zeros_like(state.u), state.u, loads)
         return Partials(self.scale * float(asm.L_full @ state.u),
                         {0: Derivatives(self.scale * np.asarray(asm.L_full, float), np.zeros(state.lam.size),
                                         self.scale * dalpha, FULL)})
@@ -379,18 +424,19 @@ class WeightedSum(Objective):
             o.loads = value
 
     def evaluate(self, state, cond):
+        return self.evaluate_under(state, cond, None)
+
+    def evaluate_under(self, state, cond, loads):
+        """Σ_k w_k J_k of one solve, each term under ``loads`` (None: its own)."""
         p = state.lam.size
         n = self.model.assembler.n_full
         value, dlam, dalpha = 0.0, np.zeros(p), np.zeros(state.alpha.size)
         du = np.zeros(n if self.full_space else 3 * p)
         contact = (3 * self.model.contact_nodes[:, None] + np.arange(3)).ravel()
         terms = {}
-        # on an elastic foundation ∂J/∂u_c of a contact-only term is on the state's w, not on the
-        # body's u_c: compliance (the one such term with ∂J/∂u_c ≠ 0) joins in its whole-body form
-        coupled = self.full_space and cond is not None and cond.coupling is not None
         for name, w, obj in self.terms:
-            full = coupled and isinstance(obj, Compliance)
-            part = obj.evaluate_full(state, cond) if full else obj.evaluate(state, cond)
+            full = self._whole_body(obj, cond)
+            part = obj.evaluate_full(state, cond, loads) if full else obj.evaluate_under(state, cond, loads)
             d = part.derivatives
             terms[name] = float(part.value)
             value += w * part.value
@@ -403,17 +449,28 @@ class WeightedSum(Objective):
         out = self.partials(self.scale * value, self.scale * du, self.scale * dlam, self.scale * dalpha)
         return Partials(out.value, out.solves, terms)
 
+    def _whole_body(self, obj, cond) -> bool:
+        """Whether term ``obj`` joins in its whole-body form: on an elastic foundation ∂J/∂u_c of a
+        contact-only term is on the state's w, not on the body's u_c, so in a sum on every DOF
+        the compliance (the one such term with ∂J/∂u_c ≠ 0) gives ∂J/∂u = L on the body."""
+        return (self.full_space and cond is not None and cond.coupling is not None
+                and isinstance(obj, Compliance))
+
     def evaluate_path(self, states, systems, loads, memo=None):
         """Σ_k w_k J_k with each term on the path (:meth:`Objective.evaluate_path`): a term of the
-        state at the last solve, the friction work summed over the solves."""
+        state at the last solve (under its loads), the friction work summed over the solves."""
         if not self.accumulates:
             return super().evaluate_path(states, systems, loads, memo)
         memo = {} if memo is None else memo
         contact = (3 * self.model.contact_nodes[:, None] + np.arange(3)).ravel()
         n = self.model.assembler.n_full
         value, out, terms = 0.0, {}, {}
+        last = len(states) - 1
         for name, w, obj in self.terms:
-            part = obj.evaluate_path(states, systems, loads, memo)
+            if self._whole_body(obj, systems[last]):
+                part = obj.evaluate_full(states[last], systems[last], loads[last]).at_solve(last)
+            else:
+                part = obj.evaluate_path(states, systems, loads, memo)
             terms[name] = float(part.value)
             value += w * part.value
             for i, d in part.solves.items():

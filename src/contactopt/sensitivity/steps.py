@@ -24,6 +24,9 @@ u_k (its own ∇_{u_k}J plus what the later steps pass down),
 ``[objective] steps`` chooses Θ from the named steps' J: "last" (default), "max", "sum", or a
 list of step names (the worst of them). An objective of the whole displacement (the peak stress)
 gives y*_u on every DOF; what it passes down is then P_t((A ṽ_k)_c + y*_c), the same S v_k + ∂J/∂u_c.
+On an elastic foundation the state's u_c is the relative w (the slip reference w_t^(k−1)): what a
+step passes down is a derivative with respect to w, which joins a solve's y*_u on every DOF after
+the map of the body's ∂J/∂u to w (:meth:`contactopt.paths.condensation.CondensationPath.adjoint`).
 The friction work is a sum over the solves, J at the end of solve j = Σ_{i≤j} τ^i·Δu_t^i: each
 increment's derivatives act on its own solve and, through Δu_t^i's reference u_t^(i−1), on the
 solve before it (−τ^i on the tangential contact DOFs).
@@ -120,9 +123,7 @@ def step_objective(objective, steps, states, systems, j: int, memo: dict):
     """The :class:`~contactopt.sensitivity.partials.Partials` of J at the end of solve j of a load
     path, keyed by solve: an objective of the state at solve j alone, the friction work summed over
     the solves up to j (:meth:`contactopt.sensitivity.objectives.Objective.evaluate_path`)."""
-    if objective.accumulates:
-        return objective.evaluate_path(states[:j + 1], systems[:j + 1], [s.loads for s in steps[:j + 1]], memo)
-    return objective.evaluate(states[j], systems[j]).at_solve(j)
+    return objective.evaluate_path(states[:j + 1], systems[:j + 1], [s.loads for s in steps[:j + 1]], memo)
 
 
 def add_at_contact(y_u: np.ndarray, carry: np.ndarray, contact: np.ndarray, full: bool) -> np.ndarray:

@@ -84,10 +84,14 @@ def case_subgradient(parts, k: int, case, rhs: dict, choices):
             y_u, y_lam = d.du, d.dlam
             xi = d.dalpha if xi is None else xi + d.dalpha
         own = y_u                       # the response's own ∂J/∂u at this solve
+        late = {}                       # a carry that joins the adjoint after ∂J/∂u's map
         if carry is not None:           # on every DOF: y_u's global components
             full = j in rhs and rhs[j].space == FULL
-            y_u = add_at_contact(y_u, path.global_contact(carry) if full else carry, contact, full)
-        v_u, v_lam, v_full, krylov = path.adjoint(system, ctxs[j], state, y_u, y_lam, choices)
+            if full and system.coupling is not None:   # on a foundation: ∂/∂w, not ∂/∂u_c of the body
+                late = {"carry": carry}
+            else:
+                y_u = add_at_contact(y_u, path.global_contact(carry) if full else carry, contact, full)
+        v_u, v_lam, v_full, krylov = path.adjoint(system, ctxs[j], state, y_u, y_lam, choices, **late)
         if krylov is not None:
             state.stats.adjoint_krylov = krylov
         t1 = time.perf_counter()
@@ -96,7 +100,8 @@ def case_subgradient(parts, k: int, case, rhs: dict, choices):
         if out is None:
             out = (v_u, v_lam)
         if j:
-            carry = tangential(path.adjoint_carry(system, ctxs[j], v_u, v_full, y_u))
+            passed = path.adjoint_carry(system, ctxs[j], v_u, v_full, y_u)
+            carry = tangential(passed + late["carry"] if late else passed)
         if forces[j] is not None:
             xi, carry = _force(path, system, ctxs[j], state, v_lam, v_full, own, xi, carry, j, loads[j])
         if j:
