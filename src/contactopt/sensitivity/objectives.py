@@ -44,7 +44,11 @@ class Objective:
         self.model = model
         self.scale = float(scale)
 
-    def evaluate(self, state, cond) -> Partials:
+    def evaluate(self, state, cond, loads=None) -> Partials:
+        """J of one solve and its :class:`Partials`; ``loads`` the load set the state was solved
+        under (a load path's step; None: the objective's own, :attr:`loads`). Only an objective
+        whose ∂J/∂α at fixed u holds ∂L/∂α (the compliance, the friction work) reads it: the
+        load's derivative must be that of the loads the state was solved under."""
         raise NotImplementedError
 
     def resolve(self) -> None:
@@ -55,19 +59,12 @@ class Objective:
         """The :class:`Partials` of one solve, ∂J/∂u on this objective's space."""
         return Partials(value, {0: Derivatives(du, dlam, dalpha, FULL if self.full_space else CONTACT)})
 
-    def evaluate_under(self, state, cond, loads) -> Partials:
-        """:meth:`evaluate` of a solve under the load set ``loads`` (a load path's step; None: the
-        objective's own, :attr:`loads`). Only an objective whose ∂J/∂α at fixed u holds ∂L/∂α
-        (the compliance) reads it: the load's derivative must be that of the loads the state was
-        solved under."""
-        return self.evaluate(state, cond)
-
     def evaluate_path(self, states, systems, loads, memo=None) -> Partials:
         """J at the end of the last of the solves ``states`` of a load path (from the first, in
         order; ``systems`` and ``loads`` theirs), its derivatives keyed by each solve's index. An
-        objective of the state alone: the last solve's :meth:`evaluate_under` its loads.
+        objective of the state alone: the last solve's :meth:`evaluate` under its loads.
         ``memo`` (a dict) keeps what the ends of several steps of one path share."""
-        return self.evaluate_under(states[-1], systems[-1], loads[-1]).at_solve(len(states) - 1)
+        return self.evaluate(states[-1], systems[-1], loads[-1]).at_solve(len(states) - 1)
 
 
 class TargetNormalForce(Objective):
@@ -91,7 +88,7 @@ class TargetNormalForce(Objective):
         if self._target is None:
             self._target = target_values(self.spec, self.model, self.case, self.solve)
 
-    def evaluate(self, state, cond):
+    def evaluate(self, state, cond, loads=None):
         d = self.target - state.lam
         p = state.lam.size
         return self.partials(self.scale * float(d @ d), np.zeros(3 * p), -2.0 * self.scale * d,
@@ -113,7 +110,7 @@ class PressureUniformity(Objective):
         super().__init__(model, scale)
         self.areas, self.used = node_areas(model)
 
-    def evaluate(self, state, cond):
+    def evaluate(self, state, cond, loads=None):
         a, m = self.areas[self.used], self.used
         lam = state.lam[m]
         pbar = lam.sum() / a.sum()
@@ -167,7 +164,7 @@ class MaxPressure(Objective):
         self.areas, self.used = node_areas(model)
         self.kind, self.rho, self.p = kind, float(rho), float(p)
 
-    def evaluate(self, state, cond):
+    def evaluate(self, state, cond, loads=None):
         a, m = self.areas[self.used], self.used
         value, w = aggregate(state.lam[m] / a, self.kind, self.rho, self.p)
         grad = np.zeros(state.lam.size)
@@ -197,10 +194,7 @@ class FrictionalDissipation(Objective):
     full_space = True            # ∂J/∂u is on every DOF (the paths' adjoints take it)
     accumulates = True           # on a load path: the work of every solve's slip increment
 
-    def evaluate(self, state, cond):
-        return self.evaluate_under(state, cond, None)
-
-    def evaluate_under(self, state, cond, loads):
+    def evaluate(self, state, cond, loads=None):
         return self.partials(*self._work(state, cond, self.loads if loads is None else loads)[:4])
 
     def _work(self, state, cond, loads):
@@ -301,7 +295,7 @@ class PeakStress(Objective):
         """σ_vM (len(cells), Q) of the state."""
         return von_mises_points(self.model.assembler, state.coords, state.u, self.cells)
 
-    def evaluate(self, state, cond):
+    def evaluate(self, state, cond, loads=None):
         model = self.model
         vm = self.values(state)
         value, w = aggregate(vm.ravel(), self.kind, self.rho, self.p)
@@ -349,10 +343,7 @@ class Compliance(Objective):
 
     name = "compliance"
 
-    def evaluate(self, state, cond):
-        return self.evaluate_under(state, cond, None)
-
-    def evaluate_under(self, state, cond, loads):
+    def evaluate(self, state, cond, loads=None):
         model = self.model
         asm = cond.assembled
         value = float(asm.L_full @ state.u)
@@ -377,7 +368,7 @@ class Compliance(Objective):
         """The same J = L(α)ᵀu with ∂J/∂u = L on every DOF and ∂J/∂α = uᵀ∂L/∂α at fixed u: the form a
         sum with an objective of the whole displacement takes on an elastic foundation, whose
         adjoint maps ∂J/∂u of the body to the state's w itself (:class:`WeightedSum`); ``loads``
-        as in :meth:`evaluate_under`."""
+        as in :meth:`evaluate`."""
         asm = cond.assembled
         loads = self.loads if loads is None else loads
         dalpha = -self.model.design_contraction(asm.coords, np.zeros_like(state.u), state.u, loads)
@@ -423,10 +414,7 @@ class WeightedSum(Objective):
         for _, _, o in self.terms:
             o.loads = value
 
-    def evaluate(self, state, cond):
-        return self.evaluate_under(state, cond, None)
-
-    def evaluate_under(self, state, cond, loads):
+    def evaluate(self, state, cond, loads=None):
         """Σ_k w_k J_k of one solve, each term under ``loads`` (None: its own)."""
         p = state.lam.size
         n = self.model.assembler.n_full
@@ -436,7 +424,7 @@ class WeightedSum(Objective):
         terms = {}
         for name, w, obj in self.terms:
             full = self._whole_body(obj, cond)
-            part = obj.evaluate_full(state, cond, loads) if full else obj.evaluate_under(state, cond, loads)
+            part = obj.evaluate_full(state, cond, loads) if full else obj.evaluate(state, cond, loads)
             d = part.derivatives
             terms[name] = float(part.value)
             value += w * part.value
