@@ -235,7 +235,9 @@ def _export_locked(model, alpha, out: Path, formats, args) -> dict:
 
 
 def _cmd_check_gradient(args) -> int:
-    problem = ShapeProblem(args.config)
+    config = load_config(args.config)
+    config.assembly.require_design(config.source, "a gradient check (contactopt check-gradient)")
+    problem = ShapeProblem(config)
     model = problem.model
     alpha = _read_alpha(args.alpha, model) if args.alpha else model.initial_design()
     model.admissible.require_feasible(alpha, tol=1e-8)

@@ -406,6 +406,7 @@ def run_optimization(config, outdir=None, *, eps=None, max_iter=None, resume=Fal
         eps = ckpt.eps if eps is None else eps
         max_iter = ckpt.max_iter if max_iter is None else max_iter
     cfg = resolve_config(config, eps=eps, max_iter=max_iter)
+    cfg.assembly.require_design(cfg.source, "an optimization (contactopt run)")
     setup = _set_up(cfg)
     # before the run directory is touched: a kept Delassus block or AMG hierarchy is rebuilt
     ckpt, finished = _restore(run_dir.checkpoint, setup, ckpt) if resume else (None, None)

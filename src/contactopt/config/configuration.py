@@ -14,6 +14,7 @@ from dataclasses import dataclass, field
 
 import tomli_w
 
+from .assembly import Assembly
 from .constraints import ResponseConstraint
 from .sections import (
     Body,
@@ -57,6 +58,7 @@ class Config:
     load_cases: tuple[LoadCase, ...]
     load_steps: tuple[LoadStep, ...]
     constraints: tuple[ResponseConstraint, ...] = ()     # [[constraints]] (config/constraints.py)
+    assembly: Assembly | None = None     # the names of bodies, pairs and designs (config/assembly.py)
     source: str = "<dict>"
     _data: dict = field(default_factory=dict, repr=False, compare=False)
 
@@ -77,7 +79,7 @@ class Config:
             load_cases=tuple(LoadCase.from_dict(c) for c in data.get("load_cases", [])),
             load_steps=tuple(LoadStep.from_dict(s) for s in data.get("load_steps", [])),
             constraints=tuple(ResponseConstraint.from_dict(c) for c in data.get("constraints", [])),
-            source=source, _data=data)
+            assembly=Assembly.of(data), source=source, _data=data)
 
     @property
     def data(self) -> dict:

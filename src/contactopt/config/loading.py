@@ -33,15 +33,15 @@ def load_config(path_or_name) -> Config:
         raw = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
         raise ConfigError([f"{source}: not valid TOML: {exc}"]) from None
-    body = raw.get("body")
-    if name not in EXAMPLES and isinstance(body, dict) and isinstance(body.get("mesh"), str) and body["mesh"]:
+    if name not in EXAMPLES:
         # a mesh path is relative to the TOML file; the resolved configuration keeps it absolute
-        body["mesh"] = str((Path(name).parent / body["mesh"]).resolve())
-    obst = raw.get("obstacle")
-    if name not in EXAMPLES and isinstance(obst, dict) and isinstance(obst.get("mesh"), str) and obst["mesh"]:
-        obst["mesh"] = str((Path(name).parent / obst["mesh"]).resolve())
-    found = raw.get("foundation")
-    if name not in EXAMPLES and isinstance(found, dict) and isinstance(found.get("mesh"), str) and found["mesh"]:
-        found["mesh"] = str((Path(name).parent / found["mesh"]).resolve())
+        tables = [raw.get("body"), raw.get("obstacle"), raw.get("foundation")]
+        bodies = raw.get("bodies")
+        tables += list(bodies.values()) if isinstance(bodies, dict) else []
+        contacts = raw.get("contacts")
+        tables += [c.get("counterpart") for c in contacts if isinstance(c, dict)] if isinstance(contacts, list) else []
+        for t in tables:
+            if isinstance(t, dict) and isinstance(t.get("mesh"), str) and t["mesh"]:
+                t["mesh"] = str((Path(name).parent / t["mesh"]).resolve())
     return validate(raw, source)
 

@@ -8,6 +8,7 @@ import math
 from pathlib import Path
 
 from ..errors import ConfigError
+from .assembly import NEW_KEYS, check_record, desugar, rename
 from .checks import (
     _NUM,
     _axis,
@@ -500,11 +501,13 @@ def resolve(raw: dict, source: str = "<dict>") -> dict:
         raise ConfigError([f"{source}: the configuration must be a table"])
     problems = []
     data = {}
+    raw, renames = desugar(raw, problems)       # [bodies], [[contacts]], [[designs]] (config/assembly.py)
+    n_assembly = len(problems)
+    optional = ["foundation", "obstacle", "load_cases", "load_steps", "constraints"]
     for key in raw:
-        if key not in SCHEMA and key not in TOP_LEVEL and key not in ("load_cases", "foundation", "obstacle",
-                                                                   "load_steps", "constraints"):
+        if key not in SCHEMA and key not in TOP_LEVEL and key not in optional and key != "assembly":
             problems.append(f"{key}: unknown section (allowed: "
-                            f"{', '.join(list(TOP_LEVEL) + list(SCHEMA) + ['foundation', 'obstacle', 'load_cases', 'load_steps', 'constraints'])})")
+                            f"{', '.join(list(TOP_LEVEL) + list(SCHEMA) + optional + list(NEW_KEYS))})")
     for key, (default, check, desc) in TOP_LEVEL.items():
         val = raw.get(key, default)
         if not check(val):
@@ -551,6 +554,10 @@ def resolve(raw: dict, source: str = "<dict>") -> dict:
         if _pos(g["c"]) and _pos(data["design"]["C0"]) and data["design"]["C0"] >= g["c"]:
             problems.append(f"design.C0 = {data['design']['C0']}: must be < geometry.c = {g['c']} "
                             "(a surface reaching the top face inverts the mesh)")
+    if "assembly" in raw:
+        check_record(raw, problems)
+        data["assembly"] = copy.deepcopy(raw["assembly"])
+    problems[n_assembly:] = rename(problems[n_assembly:], renames)
     if problems:
         raise ConfigError([f"{source}: {p}" for p in problems])
     return data

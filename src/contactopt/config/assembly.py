@@ -1,0 +1,370 @@
+"""Assemblies in the configuration: ``[bodies.<name>]``, ``[[contacts]]`` and ``[[designs]]``.
+
+A model is a list of bodies, a list of contact pairs and a list of designed faces. ``[body]``,
+``[foundation]``, ``[obstacle]`` and ``[design]`` are its one- and two-body spellings: ``[body]`` is
+the body ``body``, ``[foundation]`` a second body ``foundation`` with its pair, ``[obstacle]`` a
+rigid counterpart, ``[design]`` the one design on the body's contact face. :func:`desugar` reads the
+assembly spelling as those sections, so both spellings resolve to one configuration and give the
+same numbers; the resolved configuration keeps the assembly's names in ``[assembly]``
+(:class:`Assembly`), from which :class:`~contactopt.config.Config` answers ``cfg.assembly`` for
+either spelling.
+
+Contact convention of a pair: the nodes of ``face`` carry the contact forces (λ ≥ 0 on the face's
+body, per node (t1, t2, ν) with ν the normal from the counterpart to the face); ``counterpart`` is
+a part of another body (an elastic counterpart, its partners below the face's nodes) or a rigid
+counterpart, a table with the keys of ``[obstacle]``.
+
+The mechanics take, so far, one contact pair: one body against a rigid counterpart, or a body
+against a second, undesigned body; at most one design, on the pair's face. A configuration beyond
+that is refused here, naming what it asks for.
+"""
+
+from __future__ import annotations
+
+import copy
+import re
+from dataclasses import dataclass
+
+from ..errors import ConfigError
+from .schema import FOUNDATION, OBSTACLE, SCHEMA
+
+NAME = re.compile(r"[A-Za-z][A-Za-z0-9_-]*")
+NEW_KEYS = ("bodies", "contacts", "designs")
+OLD_KEYS = ("body", "foundation", "obstacle", "design")
+
+# the keys of a body: [body]'s that describe a body, and [foundation]'s of a counterpart body
+FACE_BODY_KEYS = ("mesh", "clamped", "fixed_shape", "tolerance", "min_jacobian_ratio", "graph_tolerance",
+                  "penetration_tolerance")
+COUNTERPART_BODY_KEYS = ("mesh", "block", "clamped", "tolerance", "control", "loaded", "displacement", "force")
+BODY_KEYS = tuple(dict.fromkeys(FACE_BODY_KEYS + COUNTERPART_BODY_KEYS + ("material", "body_force")))
+CONTACT_KEYS = ("name", "face", "counterpart", "friction", "partner", "interference", "initial_gap")
+DESIGN_KEYS = ("face", *SCHEMA["design"])
+
+# descriptions of the keys (the configuration reference)
+ASSEMBLY_DOCS = {
+    "bodies": "A body of an assembly, `[bodies.<name>]`: a mesh file (`mesh`) or, without one, the built-in "
+              "block of [geometry] and [mesh] (the body that carries the contact face) or a generated box "
+              "(`block`, a counterpart body); its clamps, tolerances, `material` (else [material]) and "
+              "`body_force`. A counterpart body may be moved by `control`, `loaded`, `displacement`, `force` "
+              "as in [foundation].",
+    "contacts": "A contact pair, `[[contacts]]`: `face = \"<body>.<part>\"` (its nodes carry the contact "
+                "forces), `counterpart = \"<body>.<part>\"` (an elastic counterpart) or a table with the keys of "
+                "[obstacle] (a rigid one), `friction` (else [friction] coefficient), `partner` (as "
+                "foundation.partner), `interference`, `initial_gap` (as in [body]), an optional `name`.",
+    "designs": "A designed face, `[[designs]]`: `face = \"<body>.<part>\"` and the keys of [design]. A model "
+               "without designs solves states only.",
+}
+
+
+@dataclass(frozen=True)
+class Pair:
+    """One contact pair by name: ``face`` and ``counterpart`` as ``"<body>.<part>"`` (a part given
+    as a predicate table is written ``"<body>.<table>"``), ``counterpart`` ``"rigid <shape>"`` for a
+    rigid counterpart."""
+
+    name: str
+    face: str
+    counterpart: str
+
+
+@dataclass(frozen=True)
+class Assembly:
+    """The names of a model's bodies (the first carries the contact face), pairs and designed faces."""
+
+    bodies: tuple[str, ...]
+    contacts: tuple[Pair, ...]
+    designs: tuple[str, ...]
+
+    @classmethod
+    def of(cls, data: dict) -> "Assembly":
+        """The assembly of a resolved configuration: its ``[assembly]`` record, or the one- and
+        two-body spelling's (the bodies ``body`` and ``foundation``, one pair, the design on the
+        contact face)."""
+        rec = data.get("assembly")
+        if rec is not None:
+            return cls(tuple(rec["bodies"]), tuple(Pair(**p) for p in rec["contacts"]), tuple(rec["designs"]))
+        face = f"body.{_part_name(data['body']['contact'])}"
+        if data.get("foundation") is not None:
+            bodies, other = ("body", "foundation"), f"foundation.{_part_name(data['foundation']['top'])}"
+        else:
+            obst = data.get("obstacle")
+            bodies, other = ("body",), f"rigid {obst['shape'] if obst else 'plane'}"
+        return cls(bodies, (Pair("contact", face, other),), (face,))
+
+
+    def require_design(self, source: str, what: str) -> None:
+        """ConfigError when the model has no designed face: ``what`` (an optimization, a gradient
+        check) needs design variables."""
+        if not self.designs:
+            raise ConfigError([f"{source}: {what} needs a designed face, and the model has no [[designs]]: it "
+                               "solves states only (contactopt state); add [[designs]] with face = "
+                               "\"<body>.<part>\" to optimize it"])
+
+
+def _part_name(part) -> str:
+    return part if isinstance(part, str) else repr(part)
+
+
+def _split(ref, key: str, bodies: dict, problems: list):
+    """(body, part) of ``"<body>.<part>"``; None with a problem appended."""
+    if not (isinstance(ref, str) and "." in ref):
+        problems.append(f"{key} = {ref!r}: must be \"<body>.<part>\", a body of [bodies] and one of its parts")
+        return None
+    name, part = ref.split(".", 1)
+    if name not in bodies:
+        problems.append(f"{key} = {ref!r}: no body is named {name!r} (bodies: {', '.join(bodies) or 'none'})")
+        return None
+    if not part:
+        problems.append(f"{key} = {ref!r}: names no part of body {name!r}")
+        return None
+    return name, part
+
+
+def _load_target(on, key: str, bodies: dict, problems: list):
+    """(body, part) of a load's ``on``: ``"<body>.<part>"`` or a predicate table with ``body``."""
+    if isinstance(on, dict):
+        part = {k: v for k, v in on.items() if k != "body"}
+        if on.get("body") not in bodies:
+            problems.append(f"{key} = {on!r}: a predicate table needs body = \"<name>\", a body of [bodies] "
+                            f"(bodies: {', '.join(bodies)})")
+            return None
+        return on["body"], part
+    return _split(on, key, bodies, problems)
+
+
+def desugar(raw: dict, problems: list) -> tuple[dict, list]:
+    """``raw`` in the assembly spelling read as the one- and two-body sections, and the renames
+    ``(old key, new key)`` that turn a problem found later in those sections into the key the user
+    wrote (:func:`rename`); problems of the assembly itself are appended to ``problems``. A
+    configuration without ``[bodies]`` is returned as it is."""
+    if not any(k in raw for k in NEW_KEYS):
+        return raw, []
+    old = [k for k in OLD_KEYS if k in raw]
+    for k in old:
+        problems.append(f"[{k}]: is the one-body spelling of a model; with [bodies], [[contacts]] and [[designs]] "
+                        f"write it there (docs/assemblies.md)")
+    bodies, contacts, designs = raw.get("bodies"), raw.get("contacts"), raw.get("designs", [])
+    if not (isinstance(bodies, dict) and bodies and all(isinstance(b, dict) for b in bodies.values())):
+        problems.append("bodies: must be one or more tables [bodies.<name>]")
+        return _rest(raw), []
+    for name in bodies:
+        if not NAME.fullmatch(name):
+            problems.append(f"bodies.{name}: a body's name is a letter followed by letters, digits, _ and - "
+                            "(it is written \"<body>.<part>\" in contacts, designs and loads)")
+    if not (isinstance(contacts, list) and contacts and all(isinstance(c, dict) for c in contacts)):
+        problems.append("contacts: must be one or more tables [[contacts]] with face and counterpart")
+        return _rest(raw), []
+    if not (isinstance(designs, list) and all(isinstance(d, dict) for d in designs)):
+        problems.append("designs: must be tables [[designs]] with face and the keys of a design")
+        return _rest(raw), []
+    n0 = len(problems)
+    pairs = [_pair(c, n, bodies, raw, problems) for n, c in enumerate(contacts)]
+    faces = [_design_face(d, n, bodies, problems) for n, d in enumerate(designs)]
+    if len(problems) > n0:
+        return _rest(raw), []
+    if len(contacts) > 1:
+        problems.append(f"contacts: {len(contacts)} contact pairs; contactopt solves one contact pair per model "
+                        "so far (one body against a rigid counterpart or against a second body)")
+    face_body, part, counter = pairs[0]
+    used = {face_body} | ({counter[0]} if isinstance(counter, tuple) else set())
+    for name in bodies:
+        if name not in used:
+            problems.append(f"bodies.{name}: takes part in no contact pair (a body of an assembly is held by its "
+                            "clamps and its contacts with the others)")
+    for n, f in enumerate(faces):
+        if f != (face_body, part):
+            problems.append(f"designs[{n}].face = {'.'.join(f)!r}: contactopt designs the face of the contact pair "
+                            f"({face_body}.{part}) so far, not another face")
+    if len(designs) > 1:
+        problems.append(f"designs: {len(designs)} designed faces; contactopt designs one face per model so far")
+    if len(problems) > n0:
+        return _rest(raw), []
+    return _sections(raw, bodies, contacts[0], pairs[0], designs, problems)
+
+
+def _rest(raw: dict) -> dict:
+    return {k: v for k, v in raw.items() if k not in NEW_KEYS}
+
+
+def _pair(c: dict, n: int, bodies: dict, raw: dict, problems: list):
+    """(face body, face part, counterpart) of ``[[contacts]]`` entry n; the counterpart (body, part)
+    or the rigid table."""
+    key = f"contacts[{n}]"
+    for k in c:
+        if k not in CONTACT_KEYS:
+            problems.append(f"{key}.{k}: unknown key (allowed: {', '.join(CONTACT_KEYS)})")
+    if "name" in c and not (isinstance(c["name"], str) and NAME.fullmatch(c["name"])):
+        problems.append(f"{key}.name = {c['name']!r}: must be a letter followed by letters, digits, _ and -")
+    for k in ("face", "counterpart"):
+        if k not in c:
+            problems.append(f"{key}.{k}: required (\"<body>.<part>\"{', or a rigid counterpart table' if k == 'counterpart' else ''})")
+    face = _split(c["face"], f"{key}.face", bodies, problems) if "face" in c else None
+    other = c.get("counterpart")
+    if isinstance(other, dict):
+        counter = other
+    elif "counterpart" in c:
+        counter = _split(other, f"{key}.counterpart", bodies, problems)
+        if face is not None and counter is not None:
+            if counter == face:
+                problems.append(f"{key}: face and counterpart are the same part {c['face']!r}")
+            elif counter[0] == face[0]:
+                problems.append(f"{key}: face and counterpart are parts of one body {face[0]!r}; contactopt "
+                                "takes contact between two bodies or with a rigid counterpart, not self-contact")
+    else:
+        counter = None
+    return (*face, counter) if face is not None else (None, None, counter)
+
+
+def _design_face(d: dict, n: int, bodies: dict, problems: list):
+    for k in d:
+        if k not in DESIGN_KEYS:
+            problems.append(f"designs[{n}].{k}: unknown key (allowed: {', '.join(DESIGN_KEYS)})")
+    if "face" not in d:
+        problems.append(f"designs[{n}].face: required (\"<body>.<part>\", the designed face)")
+        return None
+    return _split(d["face"], f"designs[{n}].face", bodies, problems)
+
+
+def _sections(raw: dict, bodies: dict, contact: dict, pair, designs: list, problems: list) -> tuple[dict, list]:
+    """The one- and two-body sections of a checked assembly of one pair (module docstring)."""
+    face_body, part, counter = pair
+    out = _rest(raw)
+    b = bodies[face_body]
+    out["body"] = {k: copy.deepcopy(v) for k, v in b.items() if k in FACE_BODY_KEYS}
+    out["body"]["contact"] = part
+    for k in ("interference", "initial_gap"):
+        if k in contact:
+            out["body"][k] = contact[k]
+    for k in b:
+        if k not in BODY_KEYS:
+            problems.append(f"bodies.{face_body}.{k}: unknown key (allowed: {', '.join(BODY_KEYS)})")
+        elif k not in FACE_BODY_KEYS and k not in ("material", "body_force"):
+            problems.append(f"bodies.{face_body}.{k}: a key of a counterpart body; body {face_body!r} carries "
+                            "the contact face")
+    given = raw.get("material", {})
+    if isinstance(b.get("material"), dict) and isinstance(given, dict):
+        out["material"] = {**given, **b["material"]}
+    if "friction" in contact:
+        out["friction"] = {**(raw.get("friction") or {}), "coefficient": contact["friction"]}
+    loads = copy.deepcopy(raw.get("loads", {})) if isinstance(raw.get("loads"), dict) else raw.get("loads")
+    counter_loads = {}
+    if isinstance(loads, dict):
+        if "body_force" in loads:
+            problems.append("loads.body_force: in an assembly a body force is a body's own: "
+                            "bodies.<name>.body_force")
+        if "body_force" in b:
+            loads["body_force"] = b["body_force"]
+        for kind in ("traction", "pressure"):
+            mine, theirs = [], []
+            for n, item in enumerate(loads.get(kind, []) if isinstance(loads.get(kind), list) else []):
+                target = (_load_target(item.get("on"), f"loads.{kind}[{n}].on", bodies, problems)
+                          if isinstance(item, dict) else None)
+                if target is None:
+                    continue
+                (mine if target[0] == face_body else theirs).append({**item, "on": target[1]})
+            if kind in loads:
+                loads[kind] = mine
+            if theirs:
+                counter_loads[kind] = theirs
+        out["loads"] = loads
+    for where in ("load_cases", "load_steps"):
+        if not isinstance(raw.get(where), list):
+            continue
+        out[where] = copy.deepcopy(raw[where])
+        for n, item in enumerate(out[where]):
+            if not isinstance(item, dict):
+                continue
+            if "body_force" in item:
+                problems.append(f"{where}[{n}].body_force: in an assembly a body force is a body's own: "
+                                "bodies.<name>.body_force")
+            for kind in ("traction", "pressure"):
+                for m, load in enumerate(item.get(kind, []) if isinstance(item.get(kind), list) else []):
+                    target = (_load_target(load.get("on"), f"{where}[{n}].{kind}[{m}].on", bodies, problems)
+                              if isinstance(load, dict) else None)
+                    if target is None:
+                        continue
+                    if target[0] != face_body:
+                        problems.append(f"{where}[{n}].{kind}[{m}].on: a load on body {target[0]!r}, which does "
+                                        "not carry the contact face, is the same in every case and step: put it "
+                                        "in [loads]")
+                    load["on"] = target[1]
+    renames = [(f"body.{k}", f"bodies.{face_body}.{k}") for k in FACE_BODY_KEYS]
+    renames += [(f"body.{k}", f"contacts[0].{k}") for k in ("interference", "initial_gap")]
+    renames += [("body.contact", "contacts[0].face"), ("friction.coefficient", "contacts[0].friction")]
+    if isinstance(counter, tuple):
+        renames += _counterpart_body(out, bodies, counter, contact, raw, counter_loads, problems)
+    else:
+        if counter_loads:
+            problems.append("loads: a load on a body that takes part in no pair")
+        if any(k not in OBSTACLE or OBSTACLE[k][0] != v for k, v in counter.items()):
+            out["obstacle"] = copy.deepcopy(counter)       # the fixed plane x3 = 0 is the model without one
+        renames += [("[obstacle]", "contacts[0].counterpart"), ("obstacle.", "contacts[0].counterpart.")]
+    if designs:
+        out["design"] = {k: copy.deepcopy(v) for k, v in designs[0].items() if k != "face"}
+        renames += [("design.", "designs[0].")]
+    else:                               # no design: the reference shape, ϑ = 0 (``run`` refuses the model)
+        out["design"] = {"degree": [0, 0], "initial": 0.0, "C2": 0.0}
+    name = contact.get("name", f"{face_body}-{counter[0] if isinstance(counter, tuple) else 'rigid'}")
+    other = (f"{counter[0]}.{_part_name(counter[1])}" if isinstance(counter, tuple)
+             else f"rigid {counter.get('shape', 'plane')}")
+    out["assembly"] = {"bodies": [face_body] + ([counter[0]] if isinstance(counter, tuple) else []),
+                       "contacts": [{"name": name, "face": f"{face_body}.{_part_name(part)}", "counterpart": other}],
+                       "designs": [f"{face_body}.{_part_name(part)}"] if designs else []}
+    return out, renames
+
+
+def _counterpart_body(out, bodies, counter, contact, raw, counter_loads, problems) -> list:
+    """``[foundation]`` of a counterpart body; the renames of its keys."""
+    name, part = counter
+    c = bodies[name]
+    fnd = {k: copy.deepcopy(v) for k, v in c.items() if k in COUNTERPART_BODY_KEYS}
+    fnd["top"] = part
+    if "partner" in contact:
+        fnd["partner"] = contact["partner"]
+    for k in c:
+        if k not in BODY_KEYS:
+            problems.append(f"bodies.{name}.{k}: unknown key (allowed: {', '.join(BODY_KEYS)})")
+        elif k not in COUNTERPART_BODY_KEYS and k not in ("material", "body_force"):
+            problems.append(f"bodies.{name}.{k}: a key of the body that carries the contact face; body {name!r} "
+                            "is a counterpart (its mesh is not morphed)")
+    given = raw.get("material") if isinstance(raw.get("material"), dict) else {}
+    own = c.get("material", {}) if isinstance(c.get("material"), dict) else {}
+    if "formulation" in own:
+        problems.append(f"bodies.{name}.material.formulation: a counterpart body takes E and nu")
+    # the counterpart's own material, else [material] (not the other body's)
+    fnd["material"] = {k: own.get(k, given.get(k, SCHEMA["material"][k][0])) for k in ("E", "nu")}
+    loads = dict(counter_loads)
+    if "body_force" in c:
+        loads["body_force"] = c["body_force"]
+    if loads:
+        fnd["loads"] = loads
+    out["foundation"] = fnd
+    keys = [k for k in FOUNDATION if k not in ("top", "partner")]
+    return ([("foundation.top", "contacts[0].counterpart"), ("foundation.partner", "contacts[0].partner"),
+             ("[foundation]", f"bodies.{name}")] + [(f"foundation.{k}", f"bodies.{name}.{k}") for k in keys])
+
+
+def check_record(data: dict, problems: list) -> None:
+    """``[assembly]`` of a resolved configuration (written back and read again) agrees with its
+    sections: one or two bodies as [foundation] says, at most one design."""
+    rec = data.get("assembly")
+    ok = (isinstance(rec, dict) and set(rec) == {"bodies", "contacts", "designs"}
+          and isinstance(rec["bodies"], list) and len(rec["bodies"]) == 1 + ("foundation" in data)
+          and isinstance(rec["contacts"], list) and len(rec["contacts"]) == 1
+          and all(isinstance(p, dict) and set(p) == {"name", "face", "counterpart"} for p in rec["contacts"])
+          and isinstance(rec["designs"], list) and len(rec["designs"]) <= 1)
+    if not ok:
+        problems.append("[assembly]: is the record of a resolved assembly (bodies, contacts, designs); write the "
+                        "model with [bodies], [[contacts]] and [[designs]] instead")
+
+
+
+def rename(problems: list, renames: list) -> list:
+    """``problems`` with the one-body keys of ``renames`` written as the assembly's keys."""
+    out = []
+    for p in problems:
+        for old, new in renames:
+            end = r"(?!\w)" if old[-1].isalnum() or old[-1] == "_" else ""
+            p = re.sub(r"(?<![\w.\[])" + re.escape(old) + end, new, p)
+        out.append(p)
+    return out
