@@ -245,3 +245,15 @@ def test_mesh_paths_of_bodies_and_rigid_counterparts_are_relative_to_the_file(tm
     # the body's mesh was found; the counterpart's file is looked for beside the configuration
     assert "bodies.roller.mesh" not in str(exc.value)
     assert f"contacts[0].counterpart.mesh = '{sub / 'plate.stl'}': no such file" in str(exc.value)
+
+
+def test_the_json_schema_takes_the_assembly_spelling_and_its_resolved_record(tmp_path):
+    jsonschema = pytest.importorskip("jsonschema")
+    from contactopt.config import json_schema
+    validator = jsonschema.Draft202012Validator(json_schema())
+    raw = tomllib.loads(BLOCK_ON_SLAB)
+    assert list(validator.iter_errors(raw)) == []
+    assert list(validator.iter_errors(load_config(_write(tmp_path, BLOCK_ON_SLAB)).to_dict())) == []
+    raw["contacts"][0]["frixion"] = 0.2
+    assert [e.message for e in validator.iter_errors(raw)] == ["Additional properties are not allowed ('frixion' was "
+                                                                "unexpected)"]

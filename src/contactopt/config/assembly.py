@@ -26,7 +26,7 @@ import re
 from dataclasses import dataclass
 
 from ..errors import ConfigError
-from .schema import FOUNDATION, OBSTACLE, SCHEMA
+from .schema import BODIES, CONTACTS, DESIGNS, FOUNDATION, OBSTACLE, SCHEMA
 
 NAME = re.compile(r"[A-Za-z][A-Za-z0-9_-]*")
 NEW_KEYS = ("bodies", "contacts", "designs")
@@ -36,9 +36,9 @@ OLD_KEYS = ("body", "foundation", "obstacle", "design")
 FACE_BODY_KEYS = ("mesh", "clamped", "fixed_shape", "tolerance", "min_jacobian_ratio", "graph_tolerance",
                   "penetration_tolerance")
 COUNTERPART_BODY_KEYS = ("mesh", "block", "clamped", "tolerance", "control", "loaded", "displacement", "force")
-BODY_KEYS = tuple(dict.fromkeys(FACE_BODY_KEYS + COUNTERPART_BODY_KEYS + ("material", "body_force")))
-CONTACT_KEYS = ("name", "face", "counterpart", "friction", "partner", "interference", "initial_gap")
-DESIGN_KEYS = ("face", *SCHEMA["design"])
+BODY_KEYS = tuple(BODIES)
+CONTACT_KEYS = tuple(CONTACTS)
+DESIGN_KEYS = tuple(DESIGNS)
 
 # descriptions of the keys (the configuration reference)
 ASSEMBLY_DOCS = {

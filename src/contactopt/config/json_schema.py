@@ -8,9 +8,12 @@ authority on what depends on other keys (a control net's size, the names of load
 
 from __future__ import annotations
 
+from .assembly import ASSEMBLY_DOCS
 from .checks import _nonneg, _pos, _posint
 from .constraints import json_schema as constraints_schema
 from .schema import (
+    BODIES,
+    CONTACTS,
     FOUNDATION,
     FOUNDATION_LOADS,
     OBSTACLE,
@@ -34,7 +37,8 @@ _PART = {"anyOf": [
     {"type": "string", "minLength": 1},
     {"type": "object", "minProperties": 1, "additionalProperties": False,
      "properties": {"x1": _NUMBER, "x2": _NUMBER, "x3": _NUMBER,
-                    "box": {"type": "array", "items": _INTERVAL, "minItems": 3, "maxItems": 3}}}]}
+                    "box": {"type": "array", "items": _INTERVAL, "minItems": 3, "maxItems": 3},
+                    "body": {"type": "string", "description": "in an assembly: the body of a load's part"}}}]}
 _CLAMP_TABLE = {"type": "object", "required": ["on"], "additionalProperties": False,
                 "properties": {"on": _PART, "components": {"type": "array", "minItems": 1, "items": {
                     "enum": [1, 2, 3, "x1", "x2", "x3"]}}}}
@@ -127,6 +131,31 @@ def _loads_keys(extra: dict) -> dict:
     return {**_table("loads", SCHEMA["loads"])["properties"], **extra}
 
 
+def _assembly(props: dict) -> dict:
+    """[bodies.<name>], [[contacts]], [[designs]] and the [assembly] record of a resolved file."""
+    body = _table("bodies", BODIES, ASSEMBLY_DOCS["bodies"])
+    body["properties"]["block"] = props["foundation"]["properties"]["block"]
+    body["properties"]["material"] = {"type": "object", "additionalProperties": False, "description": BODIES["material"][2],
+                                      "properties": {"E": _NUMBER, "nu": _NUMBER,
+                                                     "formulation": {"enum": ["auto", "standard", "bbar"]}}}
+    for k in ("clamped", "fixed_shape"):
+        body["properties"][k] = {**_key("body", k, *BODIES[k])}
+    body["properties"]["loaded"] = {**_PART, "description": BODIES["loaded"][2]}
+    contact = _table("contacts", CONTACTS, ASSEMBLY_DOCS["contacts"])
+    contact["required"] = ["face", "counterpart"]
+    contact["properties"]["counterpart"] = {"anyOf": [{"type": "string", "pattern": "^[^.]+[.].+$"},
+                                                      props["obstacle"]], "description": CONTACTS["counterpart"][2]}
+    contact["properties"]["face"] = {"type": "string", "pattern": "^[^.]+[.].+$", "description": CONTACTS["face"][2]}
+    design = {**props["design"], "description": ASSEMBLY_DOCS["designs"], "required": ["face"],
+              "properties": {**props["design"]["properties"], "face": contact["properties"]["face"]}}
+    record = {"type": "object", "description": "the names of a resolved assembly's bodies, pairs and designed "
+                                               "faces (written by contactopt in a run's configuration)"}
+    return {"bodies": {"type": "object", "description": ASSEMBLY_DOCS["bodies"], "additionalProperties": body},
+            "contacts": {"type": "array", "minItems": 1, "items": contact, "description": ASSEMBLY_DOCS["contacts"]},
+            "designs": {"type": "array", "items": design, "description": ASSEMBLY_DOCS["designs"]},
+            "assembly": record}
+
+
 def json_schema() -> dict:
     """The JSON Schema (draft 2020-12) of a configuration file."""
     props = {k: _key("", k, *spec) for k, spec in TOP_LEVEL.items()}
@@ -156,6 +185,7 @@ def json_schema() -> dict:
     props["foundation"] = found
     props["obstacle"] = _table("obstacle", OBSTACLE, "a rigid obstacle of any shape (docs/obstacles.md)")
     props["constraints"] = constraints_schema(props["objective"]["properties"])
+    props.update(_assembly(props))
     return {"$schema": DRAFT,
             "title": "contactopt configuration", "type": "object", "additionalProperties": False,
             "properties": props}

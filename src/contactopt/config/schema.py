@@ -358,6 +358,35 @@ OBSTACLE = {
                   "face: linear faces on the paper's map or a normal motion without a chart; docs/mortar.md)"),
 }
 
+# the assembly spelling (config/assembly.py): a body, a contact pair, a designed face
+_BODY_REF = "\"<body>.<part>\": a body of [bodies] and one of its parts"
+BODIES = {
+    "mesh": ("", lambda x: isinstance(x, str),
+             "a path to the body's mesh file (as body.mesh), relative to this file; empty: the built-in block of "
+             "[geometry] and [mesh] (the body that carries the contact face) or `block` (a counterpart body)"),
+    "block": FOUNDATION["block"],
+    **{k: SCHEMA["body"][k] for k in ("clamped", "fixed_shape", "tolerance", "min_jacobian_ratio", "graph_tolerance",
+                                      "penetration_tolerance")},
+    "material": ({}, lambda x: isinstance(x, dict),
+                 "a table { E = ..., nu = ... } (and formulation, as in [material], on the body that carries "
+                 "the contact face); a key not given is [material]'s"),
+    "body_force": ([0.0, 0.0, 0.0], _vec3, "[f1, f2, f3]: the body's force per unit volume"),
+    **{k: FOUNDATION[k] for k in ("control", "loaded", "displacement", "force")},
+}
+CONTACTS = {
+    "name": ("", lambda x: isinstance(x, str), "a name of letters, digits, _ and - (default: \"<face body>-<counterpart "
+             "body>\", or \"<face body>-rigid\")"),
+    "face": ("", lambda x: isinstance(x, str), _BODY_REF + " (the side whose nodes carry the contact forces)"),
+    "counterpart": ("", lambda x: isinstance(x, (str, dict)),
+                    _BODY_REF + " (an elastic counterpart), or a table with the keys of [obstacle] (a rigid one: "
+                    "{ shape = \"plane\" } is the fixed plane x3 = 0)"),
+    "friction": (0.3, _nonneg, "a number ≥ 0: the pair's Coulomb coefficient (default: [friction] coefficient)"),
+    "partner": FOUNDATION["partner"],
+    "interference": SCHEMA["body"]["interference"],
+    "initial_gap": SCHEMA["body"]["initial_gap"],
+}
+DESIGNS = {"face": ("", lambda x: isinstance(x, str), _BODY_REF + " (the designed face)"), **SCHEMA["design"]}
+
 TOP_LEVEL = {"name": ("custom", lambda x: isinstance(x, str) and x != "", "a non-empty string"),
              "description": ("", lambda x: isinstance(x, str), "a string")}
 
