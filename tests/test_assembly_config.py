@@ -257,3 +257,9 @@ def test_the_json_schema_takes_the_assembly_spelling_and_its_resolved_record(tmp
     raw["contacts"][0]["frixion"] = 0.2
     assert [e.message for e in validator.iter_errors(raw)] == ["Additional properties are not allowed ('frixion' was "
                                                                 "unexpected)"]
+
+
+def test_the_shipped_assembly_example_is_example1_elastic():
+    new, old = load_config(EXAMPLES / "block_on_slab.toml"), load_config(EXAMPLES / "example1_elastic.toml")
+    assert _sections(new) == _sections(old)
+    assert new.assembly.bodies == ("block", "slab")
