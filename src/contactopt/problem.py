@@ -47,9 +47,8 @@ class ShapeProblem:
 
     A state is solved for any design that leaves the mesh valid, whatever ``[design]`` says of
     the admissible set U; ``optimizing=True`` (an optimization's set-up) also refuses a U unfit
-    for one (:meth:`~contactopt.fem.model.ElasticModel.check_design_space`: bounds that let
-    admissible designs invert an element, rows that leave U empty) as soon as the model is built.
-    """
+    for one (``model.check_design_space()``: bounds that let admissible designs invert or distort
+    an element) as soon as the model is built, as ``contactopt run`` does."""
 
     def __init__(self, config, *, method: str | None = None, optimizing: bool = False):
         self.config = config if isinstance(config, Config) else load_config(config)
