@@ -279,8 +279,9 @@ BAD = {
 }
 
 
-@pytest.mark.parametrize("case", list(BAD))
-@pytest.mark.parametrize("command", ["state", "run"])
+# a C0 that lets admissible designs invert an element refuses a run; a state needs no U (below)
+@pytest.mark.parametrize("case, command", [(case, command) for case in BAD for command in ("state", "run")
+                                           if (case, command) != ("C0 inverts", "state")])
 def test_bad_body_input_exits_2_and_writes_nothing(tmp_path, capsys, case, command):
     cfg = _bad(tmp_path, case)
     out = tmp_path / "out"
@@ -290,6 +291,55 @@ def test_bad_body_input_exits_2_and_writes_nothing(tmp_path, capsys, case, comma
     assert err.startswith("contactopt: error:")
     assert BAD[case] in err, err
     assert not out.exists()
+
+
+def _bracket_with_design_defaults(tmp_path):
+    """examples/bracket.toml without its C0: [design] C0 = 0.75 lets admissible designs invert the
+    foot's elements (the largest safe C0 is 0.1445); its initial design 0.002 leaves the mesh valid."""
+    example = Path(__file__).resolve().parents[1] / "examples" / "bracket.toml"
+    text = example.read_text().replace("C0 = 0.1\n", "").replace('"bracket/bracket.msh"',
+                                                                  json.dumps(str(example.parent / "bracket" / "bracket.msh")))
+    toml = tmp_path / "bracket.toml"
+    toml.write_text(text)
+    assert load_config(toml).design.C0 == 0.75
+    return toml
+
+
+def test_a_state_is_solved_where_the_design_space_would_refuse_a_run(tmp_path, capsys):
+    """The admissible set U matters to an optimization, not to one state: `contactopt state` solves
+    the bracket with [design] defaults; `contactopt run` is refused, naming design.C0 and the largest
+    safe C0, and writes nothing."""
+    toml = _bracket_with_design_defaults(tmp_path)
+    assert main(["state", str(toml), "--out", str(tmp_path / "state")]) == 0, capsys.readouterr().err
+    doc = json.loads((tmp_path / "state" / "state.json").read_text())
+    assert doc["warnings"] == []                              # α0 = 0.002 lies in U
+    assert doc["summary"]["total_normal_force"] == pytest.approx(0.0056029, rel=1e-4)
+    capsys.readouterr()
+    out = tmp_path / "run"
+    assert main(["run", str(toml), "--out", str(out), "--max-iter", "1"]) == 2
+    err = capsys.readouterr().err
+    assert "design.C0 = 0.75 lets admissible designs invert element" in err, err
+    assert "the largest safe C0 for this mesh and morph is 0.1445" in err, err
+    assert not out.exists()
+
+
+def test_the_python_problem_checks_the_design_space_only_when_asked(tmp_path):
+    """ShapeProblem solves states on any configuration; ``optimizing=True`` (a run's set-up) refuses
+    the U that lets designs invert an element, as the model's check_design_space does."""
+    cfg = load_config(_bracket_with_design_defaults(tmp_path))
+    problem = ShapeProblem(cfg)
+    model = problem.model
+    assert model.safe_C0 == pytest.approx(0.1445, abs=1e-4)
+    problems = model.design_space_problems()
+    assert len(problems) == 1 and "design.C0 = 0.75 lets admissible designs invert" in problems[0]
+    state = problem.solve_state(model.initial_design())
+    assert state.lam.sum() == pytest.approx(0.0056029, rel=1e-4)
+    with pytest.raises(ConfigError, match=r"design\.C0 = 0\.75 lets admissible designs invert element \d+"):
+        ShapeProblem(cfg, optimizing=True)
+    with pytest.raises(ConfigError, match="largest safe C0"):
+        model.check_design_space()
+    safe = ShapeProblem(cfg.with_updates({"design": {"C0": 0.14}}), optimizing=True).model   # below 0.1445
+    assert safe.design_space_problems() == []
 
 
 def test_block_loads_on_a_body_from_a_file_are_refused(tmp_path):

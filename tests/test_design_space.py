@@ -8,6 +8,8 @@ from a file; bad input ends with exit 2 and writes nothing.
 """
 
 import json
+import logging
+from pathlib import Path
 
 import meshio
 import numpy as np
@@ -295,3 +297,50 @@ def test_worst_jacobian_ratio_on_the_box_is_attained_at_a_vertex(seed):
     safe = jr.safe_C0(lower)
     if np.isfinite(safe) and safe > lower:
         assert np.isclose(jr.worst_on_box(safe, lower)[0], 0.1, rtol=0, atol=1e-12)
+
+
+# ------------------------------------------------------------------ the overlap warning
+def _overlap_warnings(caplog, config):
+    """The warnings of building ``config``'s model and checking its design space for a run, as
+    (at construction, at the check)."""
+    caplog.clear()
+    with caplog.at_level(logging.WARNING, logger="contactopt"):
+        model = ElasticModel(config)
+        built = [r.getMessage() for r in caplog.records if r.levelno >= logging.WARNING]
+        caplog.clear()
+        model.check_design_space()
+        checked = [r.getMessage() for r in caplog.records if r.levelno >= logging.WARNING]
+    return built, checked
+
+
+def test_an_overlap_is_warned_about_in_the_counterparts_terms_and_not_where_it_is_intended(caplog, small_config):
+    """design.lower < 0 without nonnegative_gap lets designs overlap the counterpart: a run is warned
+    on the foundation plane (as before) and on an obstacle (naming it); a state is not (it solves one
+    design); a shrink fit (body.interference, the roller pressed into its race) intends the overlap:
+    no warning, and none speaks of a plane."""
+    loose = {"lower": -0.01, "nonnegative_gap": False}
+    built, checked = _overlap_warnings(caplog, small_config(design=loose))
+    assert built == []
+    assert len(checked) == 1 and ("design.lower = -0.01 < 0 with design.nonnegative_gap = false: admissible "
+                                  "designs may put the contact face below the foundation plane (an initial "
+                                  "penetration; body.interference = true where the overlap is intended)") in checked[0]
+    sphere = {"shape": "sphere", "center": [1.0, 0.5, -5.0], "radius": 5.0}
+    built, checked = _overlap_warnings(caplog, small_config(design=loose, obstacle=sphere))
+    assert built == [] and len(checked) == 1 and "put the contact face into the obstacle's sphere" in checked[0]
+    roller = load_config(Path(__file__).resolve().parents[1] / "examples" / "roller_crowning_interference.toml")
+    assert roller.body.interference and roller.design.lower < 0 and not roller.design.nonnegative_gap
+    built, checked = _overlap_warnings(caplog, roller)
+    assert built == [] and checked == []
+
+
+def test_a_gap_row_broken_on_an_obstacle_names_the_obstacle():
+    """The gap rows of U on an obstacle are distance + ϑ ≥ 0; a design breaking them is reported as
+    the face moved into the obstacle (on the plane: below the foundation plane, as before)."""
+    basis = np.full((3, 4), 0.25)
+    for counterpart, expect in (("the obstacle's cylinder", "distance + ϑ ≥ 0 broken at 3 of 3 nodes of the "
+                                 "contact face (the face into the obstacle's cylinder), the deepest -0.1 at node 7"),
+                                ("the foundation plane", "height + ϑ ≥ 0 broken at 3 of 3 nodes of the contact "
+                                 "face (the face below the foundation plane), the deepest -0.1 at node 7")):
+        U = AdmissibleSet(1, 1, 1.0, 1.0, 1.0, 10.0, 0.0, lower=-1.0, gap_basis=basis, gap_offset=np.full(3, 0.1),
+                          gap_nodes=np.array([7, 8, 9]), counterpart=counterpart)
+        assert U.gap_violations(np.full(4, -0.2)) == [f"gap: {expect}"]

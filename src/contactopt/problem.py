@@ -29,7 +29,7 @@ from .io import reports
 from .mesh.body import build_body
 from .paths import PATHS, Start, make_path, select_path
 from .sensitivity.cases import build_cases
-from .sensitivity.objectives import make_constraints
+from .sensitivity.objectives import make_constraints, warn_pressure_on_linear_tetrahedra
 from .sensitivity.responses import Response, evaluate_response, max_combination
 from .sensitivity.solution import KeptDesign, LastDesign, Parts, export_contexts, import_contexts
 from .sensitivity.steps import build_path, step_choice, step_tables
@@ -44,9 +44,13 @@ class ShapeProblem:
     ``solve_state(alpha)`` returns the :class:`~contactopt.contact.state.State`;
     ``evaluate(alpha)`` returns (Θ(α), one Clarke subgradient) (:meth:`evaluate`).
     ``path``: the :class:`~contactopt.paths.base.SolverPath` the configuration runs on.
-    """
 
-    def __init__(self, config, *, method: str | None = None):
+    A state is solved for any design that leaves the mesh valid, whatever ``[design]`` says of
+    the admissible set U; ``optimizing=True`` (an optimization's set-up) also refuses a U unfit
+    for one (``model.check_design_space()``: bounds that let admissible designs invert or distort
+    an element) as soon as the model is built, as ``contactopt run`` does."""
+
+    def __init__(self, config, *, method: str | None = None, optimizing: bool = False):
         self.config = config if isinstance(config, Config) else load_config(config)
         body = build_body(self.config)
         # pinned components on an elastic foundation: the foundation checks that they are clamped at
@@ -55,6 +59,8 @@ class ShapeProblem:
                                     rigid=body.rigid, pinned_held=True)
         with PATHS[name].library_threads(self.config.linear_solver.threads):   # the morph weight's solve
             self.model = ElasticModel(self.config, body=body, memory_estimate=PATHS[name].memory_estimate)
+        if optimizing:
+            self.model.check_design_space()
         self.cases, self.combination = build_cases(self.config, self.model, self._design_lambda)
         self._selected = name, library
         self.path = make_path(self.config, self.model, name, library, Start(first_loads=self.cases[0].loads))
@@ -64,6 +70,7 @@ class ShapeProblem:
         if body.rigid is not None:
             self._check_held()
         self.constraints = make_constraints(self.config, self.model, self.cases, self._design_lambda)
+        warn_pressure_on_linear_tetrahedra(self.config, self.model)
         contexts = [self.path.new_context() for _ in self.cases]
         self.steps = [build_path(self.model, case.loads, step_tables(self.config, k if self.has_load_cases else None),
                                  f"load_cases[{k}].steps" if self.has_load_cases and self.config.load_cases[k].steps

@@ -457,7 +457,7 @@ class _SetUp:
 
 def _set_up(cfg: Config) -> _SetUp:
     t = time.perf_counter()
-    problem = ShapeProblem(cfg)
+    problem = ShapeProblem(cfg, optimizing=True)
     seconds = time.perf_counter() - t
     alpha0 = problem.model.initial_design()
     red = reduction_of(problem, alpha0)        # [design] symmetry / fixed: α = P β + α_fixed, else None

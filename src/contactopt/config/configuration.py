@@ -86,6 +86,17 @@ class Config:
         """The resolved nested dict (as validated; for writing it back, use :meth:`to_dict`)."""
         return self._data
 
+    @property
+    def counterpart(self) -> str:
+        """What the contact face meets, in the words of messages: the foundation plane (x3 = 0,
+        the paper's rigid foundation), an elastic foundation's face, or a rigid obstacle's plane,
+        sphere, cylinder or surface."""
+        if self.foundation is not None:
+            return "the elastic foundation's face"
+        if self.obstacle is not None:
+            return f"the obstacle's {self.obstacle.shape}"
+        return "the foundation plane"
+
     def __getitem__(self, key):
         """A section of the resolved dict, as before the typed sections (for scripts and tests;
         the package reads attributes, tests/test_architecture.py)."""

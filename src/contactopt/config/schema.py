@@ -52,7 +52,8 @@ SCHEMA = {
         "min_jacobian_ratio": (0.1, lambda x: _finite(x) and 0 < x < 1,
                                "a number in (0, 1) (smallest det J(α)/det J_ref accepted at a quadrature point)"),
         "initial_gap": ("zero", _oneof("zero", "mesh"),
-                        "'zero' (the contact face lies on the foundation plane x3 = 0: the gap is ϑ_α) or 'mesh' "
+                        "'zero' (the contact face lies on the plane x3 = 0, the foundation plane where there is no "
+                        "[obstacle] or [foundation]: the gap there is ϑ_α) or 'mesh' "
                         "(the contact face may lie above it, e.g. an exported optimal body: the gap is its "
                         "height x3 in the mesh plus ϑ_α)"),
         "graph_tolerance": (0.0, lambda x: _nonneg(x) and x < 0.5,
@@ -119,9 +120,10 @@ SCHEMA = {
         "lower": (0.0, _finite, "a number ≤ C0 (lower bound of the control points; 0 is the paper's U, a negative "
                   "bound admits crowned faces such as a paraboloid, whose Bézier net dips below 0)"),
         "nonnegative_gap": (True, lambda x: isinstance(x, bool),
-                            "true or false (keep the contact face on or above the foundation plane: "
-                            "ϑ_α ≥ 0 at every node of the face, with initial_gap = 'mesh' its height in the "
-                            "mesh + ϑ_α ≥ 0; linear constraints of U, needed only where design.lower < 0)"),
+                            "true or false (keep the contact face off its counterpart: ϑ_α ≥ 0 at every node of "
+                            "the face on the foundation plane, with initial_gap = 'mesh' its height in the mesh + "
+                            "ϑ_α ≥ 0, on an obstacle its distance + ϑ_α ≥ 0; linear constraints of U, needed only "
+                            "where design.lower < 0; none with body.interference, whose overlap is intended)"),
         "C1": (0.5, _pos, "a number > 0 (slope bound)"),
         "C2": (0.01, _nonneg, "a number ≥ 0 (mean control point: the volume constraint)"),
         "slope_divisor": ("degree", _oneof("degree", "count"), "'degree' or 'count'"),

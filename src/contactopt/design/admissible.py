@@ -7,8 +7,9 @@
                                    g0_m + ϑ_α(x'_m) ≥ 0 at every node m of the contact face }.
 
 The paper's U has lower = 0. A negative ``lower`` admits crowned faces (a paraboloid needs a
-negative control point although ϑ_α ≥ 0 everywhere); the last rows keep the face on or above
-the foundation plane at its nodes (g0 the face's height in the reference mesh, 0 on the plane).
+negative control point although ϑ_α ≥ 0 everywhere); the last rows keep the face off its
+counterpart at its nodes (g0 the face's initial gap: its height above the foundation plane in the
+reference mesh, 0 on the plane, or its distance to an obstacle).
 With lower ≥ 0 and g0 ≥ 0 they follow from the bounds (Bernstein polynomials are ≥ 0 and sum to
 1, so ϑ_α ≥ min α), and in general every row that cannot be active on the other constraints is
 dropped: the paper's U has exactly its bound, slope and volume rows.
@@ -42,7 +43,8 @@ class AdmissibleSet:
     ``gap_basis`` (p, n): ϑ_α = gap_basis @ α at the p nodes of the contact face,
     ``gap_offset`` (p,) their initial gap g0 (default 0); given, the rows −ϑ_α(x'_m) ≤ g0_m that
     can be active join A_ub after the slope rows (``gap_rows`` lists which face nodes they are).
-    ``gap_nodes``, ``gap_points``: node numbers and (x1, x2) of those nodes, for messages.
+    ``gap_nodes``, ``gap_points``: node numbers and (x1, x2) of those nodes, for messages, and
+    ``counterpart`` what the face meets (the foundation plane, an obstacle, an elastic foundation's face).
     """
 
     d1: int
@@ -58,6 +60,7 @@ class AdmissibleSet:
     gap_offset: np.ndarray | None = None
     gap_nodes: np.ndarray | None = None
     gap_points: np.ndarray | None = None
+    counterpart: str = "the foundation plane"
     direction: str = "both"
     initial: np.ndarray | None = None
     linear: tuple = ()
@@ -229,9 +232,11 @@ class AdmissibleSet:
         if not bad.size:
             return []
         m = int(bad[np.argmin(gap[bad])])
-        what = "ϑ ≥ 0" if not np.any(g0) else "height + ϑ ≥ 0"
+        plane = self.counterpart == "the foundation plane"
+        what = "ϑ ≥ 0" if not np.any(g0) else "height + ϑ ≥ 0" if plane else "distance + ϑ ≥ 0"
+        where = "below" if plane else "into"
         return [f"gap: {what} broken at {bad.size} of {gap.size} nodes of the contact face (the face "
-                f"below the foundation plane), the deepest {gap[m]:.6g} at {self._where(m)}"]
+                f"{where} {self.counterpart}), the deepest {gap[m]:.6g} at {self._where(m)}"]
 
     @property
     def size(self) -> int:

@@ -438,7 +438,9 @@ class ElasticModel:
     def _admissible_set(self, ref, body, frames=None) -> AdmissibleSet:
         """U of ``[design]``; with ``nonnegative_gap`` ϑ_α + g0 ≥ 0 at the nodes of the contact face
         (g0 the face's height in the mesh with ``initial_gap = "mesh"``, else 0); on an obstacle
-        other than the plane (n_m·e3) ϑ_α + d_m ≥ 0, d_m the node's distance to it (mesh.obstacle)."""
+        other than the plane (n_m·e3) ϑ_α + d_m ≥ 0, d_m the node's distance to it (mesh.obstacle).
+        Built for every configuration (a state reports the constraints its design breaks); whether
+        U is fit for an optimization on this mesh is :meth:`design_space_problems`."""
         d, s = self.config.design, self.surface
         gap = {}
         if d.nonnegative_gap and not self.config.body.interference:
@@ -450,11 +452,7 @@ class ElasticModel:
             if frames is not None and self.frames is not None:
                 B, g0 = self._gap_factor(frames.normal, nodes)[:, None] * B, frames.distance.copy()
             gap = dict(gap_basis=B, gap_offset=g0, gap_nodes=nodes,
-                       gap_points=ref.points[nodes, :2])
-        elif d.lower < 0:
-            log.warning("%s: design.lower = %g < 0 with design.nonnegative_gap = false: admissible designs may "
-                        "put the contact face below the foundation plane (an initial penetration)",
-                        self.config.source, d.lower)
+                       gap_points=ref.points[nodes, :2], counterpart=self.config.counterpart)
         extra = {}             # [design] direction and [[design.linear]] (absent: the paper's U)
         if d.direction != "both":
             extra.update(direction=d.direction, initial=self.initial_design())
@@ -463,30 +461,54 @@ class ElasticModel:
                                     for r in d.linear)
         U = AdmissibleSet(s.d1, s.d2, s.a, s.b, d.C0, d.C1, d.C2, d.slope_divisor,
                           lower=d.lower, **gap, **extra)
-        if extra and not U.nonempty():
+        if extra and not U.nonempty():      # a contradiction within [design], refused as lower > C0 is
             raise ConfigError([f"{self.config.source}: design.direction / design.linear leave no admissible "
                                "design: the bounds, slopes, mean value and these rows have no common point"])
         return U
 
     def _jacobian_ratio(self, ref, body) -> JacobianRatio:
-        """det J(α)/det J_ref = 1 + Rα (mesh.morph); C0 must keep it above the threshold on U."""
+        """det J(α)/det J_ref = 1 + Rα (mesh.morph), which refuses a design that inverts or distorts
+        an element; ``safe_C0`` the largest C0 that keeps it above the threshold on U's box."""
         G, _ = element_geometry(ref.points[ref.cells], self.assembler.dN)
         centroids = ref.points[ref.cells].mean(axis=1)
-        thr = self.config.body.min_jacobian_ratio
-        jr = JacobianRatio(ref.cells, self.mesh.ratio_gradient(G), self.mesh.dx3_dalpha(), thr, qpoints=centroids,
+        jr = JacobianRatio(ref.cells, self.mesh.ratio_gradient(G), self.mesh.dx3_dalpha(),
+                           self.config.body.min_jacobian_ratio, qpoints=centroids,
                            fixed_parts={name: nodes for name, nodes in body.fixed_shape.items()})
-        C0, lower = self.config.design.C0, self.config.design.lower
-        worst, e, _, _ = jr.worst_on_box(C0, lower)
-        self.safe_C0 = jr.safe_C0(lower)
-        if worst <= thr:
-            what = f"design.C0 = {C0:g}" + (f" with design.lower = {lower:g}" if lower else "")
-            safe = (f"the largest safe C0 for this mesh and morph is {self.safe_C0:.4g}" if self.safe_C0 > lower
-                    else "no C0 is safe with this lower bound: raise design.lower towards 0")
-            raise ConfigError([f"{self.config.source}: {what} lets admissible designs "
-                               f"{'invert' if worst <= 0 else 'distort'} element {e} at {_fmt(centroids[e])} "
-                               f"(Jacobian ratio down to {worst:.3g} ≤ body.min_jacobian_ratio = {thr:g}); "
-                               f"{safe}"])
+        self.safe_C0 = jr.safe_C0(self.config.design.lower)
         return jr
+
+    # ------------------------------------------------------------------ the design space
+    def design_space_problems(self) -> list[str]:
+        """Why ``[design]``'s admissible set U is unfit for an optimization on this mesh (empty: it
+        is fit): bounds C0 (and ``lower``) that let admissible designs invert or distort an element
+        (the Jacobian ratio on U's box down to ``body.min_jacobian_ratio``). A state solve needs
+        none of this: it is solved for any design that leaves the mesh valid (the mesh's
+        ``coordinates`` refuse the others)."""
+        d, src, jr = self.config.design, self.config.source, self.mesh.ratio
+        problems = []
+        worst, e, _, _ = jr.worst_on_box(d.C0, d.lower)
+        if worst <= jr.threshold:
+            what = f"design.C0 = {d.C0:g}" + (f" with design.lower = {d.lower:g}" if d.lower else "")
+            safe = (f"the largest safe C0 for this mesh and morph is {self.safe_C0:.4g}" if self.safe_C0 > d.lower
+                    else "no C0 is safe with this lower bound: raise design.lower towards 0")
+            problems.append(f"{src}: {what} lets admissible designs {'invert' if worst <= 0 else 'distort'} "
+                            f"element {e} at {_fmt(jr.qpoints[e])} (Jacobian ratio down to {worst:.3g} ≤ "
+                            f"body.min_jacobian_ratio = {jr.threshold:g}); {safe}")
+        return problems
+
+    def check_design_space(self) -> None:
+        """Before an optimization: ConfigError listing :meth:`design_space_problems`; a warning
+        when U lets the contact face overlap its counterpart (``design.lower < 0`` without
+        ``nonnegative_gap``) where no overlap is intended (``body.interference`` false)."""
+        problems = self.design_space_problems()
+        if problems:
+            raise ConfigError(problems)
+        d, cfg = self.config.design, self.config
+        if d.lower < 0 and not d.nonnegative_gap and not cfg.body.interference:
+            where = "below" if cfg.counterpart == "the foundation plane" else "into"
+            log.warning("%s: design.lower = %g < 0 with design.nonnegative_gap = false: admissible designs may "
+                        "put the contact face %s %s (an initial penetration; body.interference = true where "
+                        "the overlap is intended)", cfg.source, d.lower, where, cfg.counterpart)
 
     # ------------------------------------------------------------------ sizes
     @property

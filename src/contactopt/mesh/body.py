@@ -112,7 +112,7 @@ def build_body(cfg) -> Body:
     chart = _chart(cfg, ref, face, gtol)
     if chart is None:
         face = _check_contact_face(ref, face, ptol, on_plane=spec.initial_gap == "zero", graph_tol=gtol,
-                                   interference=spec.interference)
+                                   interference=spec.interference, plane=_plane_name(cfg))
     else:
         face = Part(face.name, np.unique(face.faces), face.faces, face.origin)
     normal_comp = None
@@ -203,24 +203,37 @@ def _chart(cfg, ref: ReferenceMesh, face: Part, gtol: float):
     return chart
 
 
+def _plane_name(cfg) -> str:
+    """The plane x3 = 0 of the paper's map in the words of messages: the foundation plane, the
+    plane of a rigid obstacle or of an elastic foundation's top face, or only the plane the face
+    is designed on (an obstacle's gap is the distance to its sphere, cylinder or surface)."""
+    if cfg.foundation is not None:
+        return "the plane x3 = 0 of the elastic foundation's top face"
+    if cfg.obstacle is None:
+        return "the foundation plane x3 = 0"
+    if cfg.obstacle.shape == "plane":
+        return "the obstacle's plane x3 = 0"
+    return "the plane x3 = 0 the face is designed on"
+
+
 def _check_contact_face(ref: ReferenceMesh, face: Part, tol: float, on_plane: bool = True, graph_tol=None,
-                        interference: bool = False) -> Part:
+                        interference: bool = False, plane: str = "the foundation plane x3 = 0") -> Part:
     """The contact face lies on x3 = 0 (snapped there), the body above it, and is a graph over (x1, x2).
 
     ``on_plane=False`` (``initial_gap = "mesh"``): the face may lie above the plane, x3 ≥ 0, and
     keeps its coordinates as they are (they are its initial gap); with ``interference`` also below
     it (a negative initial gap). ``tol`` is the penetration tolerance, ``graph_tol`` (default
-    ``tol``) that of the graph check."""
+    ``tol``) that of the graph check; ``plane`` names x3 = 0 in messages (:func:`_plane_name`)."""
     graph_tol = tol if graph_tol is None else graph_tol
     name = face.name
     if face.faces.shape[0] == 0:
         raise ConfigError([f"body.contact = {name}: has no boundary faces (it must be a surface of the body "
-                           "lying on the foundation plane x3 = 0)"])
+                           f"lying on {plane})"])
     nodes = np.unique(face.faces)
     off = np.abs(ref.points[nodes, 2]) > tol if on_plane else ref.points[nodes, 2] < (-np.inf if interference else -tol)
     if np.any(off):
         bad = nodes[off][:5]
-        where = "do not lie on the foundation plane x3 = 0" if on_plane else "lie below the foundation plane x3 = 0"
+        where = f"do not lie on {plane}" if on_plane else f"lie below {plane}"
         raise ConfigError([f"body.contact = {name}: {int(off.sum())} node(s) {where} (tolerance {tol:.3g}), first: "
                            + ", ".join(f"node {n} at {_fmt(ref.points[n])}" for n in bad)])
     if on_plane:
@@ -233,7 +246,7 @@ def _check_contact_face(ref: ReferenceMesh, face: Part, tol: float, on_plane: bo
     if np.any(n3 >= 0):
         up = face.faces[n3 >= 0][:3, :nc]
         raise ConfigError([f"body.contact = {name}: {int(np.sum(n3 >= 0))} face(s) have the body below them "
-                           f"(outward normal +x3; the body must lie in x3 ≥ 0 above the foundation), first with "
+                           f"(outward normal +x3; the body must lie in x3 ≥ 0 above {plane}), first with "
                            f"nodes {up.tolist()}"])
     pairs = cKDTree(ref.points[nodes, :2]).query_pairs(graph_tol, output_type="ndarray")
     if len(pairs):

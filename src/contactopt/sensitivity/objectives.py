@@ -20,6 +20,7 @@ and the design terms) and, for a 'design' target, a function that solves the sta
 
 from __future__ import annotations
 
+import logging
 from dataclasses import dataclass
 
 import numpy as np
@@ -29,6 +30,7 @@ from ..fem.stress import von_mises_gradients, von_mises_points
 from .partials import CONTACT, FULL, Derivatives, Partials, add_solve
 from .steps import choice_of
 
+log = logging.getLogger(__name__)
 
 class Objective:
     """Base class: ``evaluate(state, system) -> Partials`` of one solve (its ``space`` the DOFs of
@@ -503,6 +505,46 @@ def _one_objective(model, table, scale, key, target, case, solve) -> Objective:
     if cls is PeakStress:
         return cls(model, scale, *agg, region=table.region or None, key=f"{key}.region")
     return cls(model, scale)
+
+
+PRESSURE_TYPES = ("pressure_uniformity", "max_pressure")    # responses of p_m = λ_m/a_m
+
+
+def pressure_responses(config) -> list[str]:
+    """The keys of the objective (or its terms) and the ``[[constraints]]`` that read the contact
+    pressure p_m = λ_m/a_m: ``pressure_uniformity``, ``max_pressure``, and a target normal force
+    per unit area (``per_area = true``: a pressure p̄ as the forces p̄·a_m), in the objective, a
+    term or a load case."""
+    obj, out = config.objective, []
+    tables = [(f"objective.terms[{k}]", t) for k, t in enumerate(obj.terms)] or [("objective", obj)]
+    for key, t in tables:
+        if t.type in PRESSURE_TYPES:
+            out.append(f"{key}.type = {t.type!r}")
+        elif t.type == "target_normal_force":
+            own = t.target if t is not obj else None
+            targets = [(f"{key}.target", own) if own is not None else ("objective.target", obj.target)]
+            targets += [(f"load_cases[{k}].target", c.target) for k, c in enumerate(config.load_cases)
+                        if c.target is not None]
+            out += [f"{where}.per_area = true" for where, tg in targets if tg.kind == "step" and tg.per_area]
+    out += [f"constraints[{k}].type = {c.type!r}" for k, c in enumerate(config.constraints)
+            if c.type in PRESSURE_TYPES]
+    return list(dict.fromkeys(out))
+
+
+def warn_pressure_on_linear_tetrahedra(config, model) -> None:
+    """A warning when a response of the contact pressure (:func:`pressure_responses`) sits on a
+    contact face of linear tetrahedra, whose nodal pressure is coarse: 3.2 % rms of p0 at h = a/10
+    on Gmsh's tetrahedra in the Hertz benchmark, against 0.62 % with ten-node tetrahedra
+    (docs/mortar.md, "Hertz on tetrahedra")."""
+    if model.body.reference.cell_type != "tetra":
+        return
+    keys = pressure_responses(config)
+    if keys:
+        log.warning("%s: %s read%s the contact pressure on a contact face of linear tetrahedra (tetra), whose "
+                    "nodal pressure is coarse: 3.2 %% rms of the peak pressure p0 at element size a/10 (a the "
+                    "contact radius) in the Hertz benchmark on Gmsh's tetrahedra, against 0.62 %% with ten-node "
+                    "tetrahedra; mesh the body with tetra10 (Gmsh: Mesh.ElementOrder = 2) or hexahedra",
+                    config.source, ", ".join(keys), "s" if len(keys) == 1 else "")
 
 
 def objective_types(config) -> set:
