@@ -22,7 +22,7 @@ EXAMPLES = Path(__file__).resolve().parents[1] / "examples"
 
 SMALL = {"nx": 8, "ny": 4, "nz": 3}
 
-BLOCK_ON_SLAB = """
+HEADER = """
 name = "slab"
 [mesh]
 nx = 8
@@ -31,7 +31,13 @@ nz = 3
 [loads]
 top_traction = [0.0, 0.0, -8.0e-2]
 right_traction = [5.0e-2, 0.0, 0.0]
-[bodies.block]
+"""
+OBJECTIVE = """[objective]
+type = "target_normal_force"
+target = { kind = "step", per_area = true, default = 0.0, regions = [ { x1 = [0.6875, 2.0], value = 0.0676 } ] }
+"""
+
+BLOCK_ON_SLAB = HEADER + """[bodies.block]
 [bodies.slab]
 block = { size = [3.0, 2.0, 1.0], cells = [6, 4, 2], origin = [-0.5, -0.5] }
 clamped = "bottom"
@@ -43,21 +49,9 @@ friction = 0.3
 [[designs]]
 face = "block.contact"
 initial = 0.01
-[objective]
-type = "target_normal_force"
-target = { kind = "step", per_area = true, default = 0.0, regions = [ { x1 = [0.6875, 2.0], value = 0.0676 } ] }
-"""
+""" + OBJECTIVE
 
-BLOCK_ON_SLAB_OLD = """
-name = "slab"
-[mesh]
-nx = 8
-ny = 4
-nz = 3
-[loads]
-top_traction = [0.0, 0.0, -8.0e-2]
-right_traction = [5.0e-2, 0.0, 0.0]
-[friction]
+BLOCK_ON_SLAB_OLD = HEADER + """[friction]
 coefficient = 0.3
 [design]
 initial = 0.01
@@ -65,10 +59,7 @@ initial = 0.01
 block = { size = [3.0, 2.0, 1.0], cells = [6, 4, 2], origin = [-0.5, -0.5] }
 clamped = "bottom"
 material = { E = 2.119 }
-[objective]
-type = "target_normal_force"
-target = { kind = "step", per_area = true, default = 0.0, regions = [ { x1 = [0.6875, 2.0], value = 0.0676 } ] }
-"""
+""" + OBJECTIVE
 
 
 def _write(tmp_path, text: str, name: str = "model.toml") -> Path:

@@ -230,17 +230,12 @@ def _sections(raw: dict, bodies: dict, contact: dict, pair, designs: list, probl
     face_body, part, counter = pair
     out = _rest(raw)
     b = bodies[face_body]
-    out["body"] = {k: copy.deepcopy(v) for k, v in b.items() if k in FACE_BODY_KEYS}
+    out["body"] = _body_keys(face_body, b, FACE_BODY_KEYS, "a key of a counterpart body; body {name!r} carries "
+                             "the contact face", problems)
     out["body"]["contact"] = part
     for k in ("interference", "initial_gap"):
         if k in contact:
             out["body"][k] = contact[k]
-    for k in b:
-        if k not in BODY_KEYS:
-            problems.append(f"bodies.{face_body}.{k}: unknown key (allowed: {', '.join(BODY_KEYS)})")
-        elif k not in FACE_BODY_KEYS and k not in ("material", "body_force"):
-            problems.append(f"bodies.{face_body}.{k}: a key of a counterpart body; body {face_body!r} carries "
-                            "the contact face")
     given = raw.get("material", {})
     if isinstance(b.get("material"), dict) and isinstance(given, dict):
         out["material"] = {**given, **b["material"]}
@@ -313,20 +308,26 @@ def _sections(raw: dict, bodies: dict, contact: dict, pair, designs: list, probl
     return out, renames
 
 
+def _body_keys(name: str, body: dict, keys: tuple, other: str, problems: list) -> dict:
+    """The keys of ``body`` that a body in its role takes (``keys``; material and body force are
+    read apart); a key of the other role is a problem with the sentence ``other``."""
+    for k in body:
+        if k not in BODY_KEYS:
+            problems.append(f"bodies.{name}.{k}: unknown key (allowed: {', '.join(BODY_KEYS)})")
+        elif k not in keys and k not in ("material", "body_force"):
+            problems.append(f"bodies.{name}.{k}: " + other.format(name=name))
+    return {k: copy.deepcopy(v) for k, v in body.items() if k in keys}
+
+
 def _counterpart_body(out, bodies, counter, contact, raw, counter_loads, problems) -> list:
     """``[foundation]`` of a counterpart body; the renames of its keys."""
     name, part = counter
     c = bodies[name]
-    fnd = {k: copy.deepcopy(v) for k, v in c.items() if k in COUNTERPART_BODY_KEYS}
+    fnd = _body_keys(name, c, COUNTERPART_BODY_KEYS, "a key of the body that carries the contact face; body "
+                     "{name!r} is a counterpart (its mesh is not morphed)", problems)
     fnd["top"] = part
     if "partner" in contact:
         fnd["partner"] = contact["partner"]
-    for k in c:
-        if k not in BODY_KEYS:
-            problems.append(f"bodies.{name}.{k}: unknown key (allowed: {', '.join(BODY_KEYS)})")
-        elif k not in COUNTERPART_BODY_KEYS and k not in ("material", "body_force"):
-            problems.append(f"bodies.{name}.{k}: a key of the body that carries the contact face; body {name!r} "
-                            "is a counterpart (its mesh is not morphed)")
     given = raw.get("material") if isinstance(raw.get("material"), dict) else {}
     own = c.get("material", {}) if isinstance(c.get("material"), dict) else {}
     if "formulation" in own:
