@@ -130,3 +130,36 @@ def test_math_renders_without_a_network(built_page):
     assert not [s for s in scripts if "://" in s or s.startswith("//")], scripts
     assert (DOCS / "_static" / "mathjax" / "tex-svg.js").stat().st_size > 1_000_000
     assert (DOCS / "_static" / "mathjax" / "LICENSE").exists()
+
+
+class _RowText(_Rows):
+    """As :class:`_Rows`, with the whole text of every body row by (section, first cell)."""
+
+    def __init__(self):
+        super().__init__()
+        self.text, self._row, self._first = {}, None, 0
+
+    def handle_starttag(self, tag, attrs):
+        super().handle_starttag(tag, attrs)
+        if tag == "tr":
+            self._row, self._first = [], len(self.rows)
+
+    def handle_endtag(self, tag):
+        super().handle_endtag(tag)
+        if tag == "tr" and self._row is not None and len(self.rows) > self._first:    # a body row, not a header
+            self.text[(section_name(self.rows[-1][0] or ""), self.rows[-1][1])] = "".join(self._row)
+            self._row = None
+
+    def handle_data(self, data):
+        super().handle_data(data)
+        if self._row is not None:
+            self._row.append(data)
+
+
+def test_a_placeholder_in_angle_brackets_is_shown(built_page):
+    """'{ on = <part>, … }': in a browser's text of the page, not hidden as an unknown HTML tag."""
+    parser = _RowText()
+    parser.feed(built_page)
+    assert "{ on = <part>, components = [1, 3] }" in parser.text[("body", "clamped")]
+    assert "{ on = <part>, value = [t1, t2, t3] }" in parser.text[("loads", "traction")]
+    assert "{ on = <part of the foundation>, value = … }" in parser.text[("foundation", "loads")]

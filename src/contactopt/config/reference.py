@@ -4,6 +4,9 @@ Every key of the JSON Schema (:func:`.json_schema.json_schema`) gets one row of 
 its section, its default written inline on one line (TOML syntax: a list or a table never spans
 lines, which would break the table) and its meaning. The arrays of tables ([[load_cases]],
 [[load_steps]], [[constraints]]) have a table of their own keys too.
+
+A placeholder of the schema's prose, ``<part>``, is written ``\\<part>``: Markdown (MyST as
+CommonMark) takes ``<part>`` for an HTML tag, which a browser hides.
 """
 
 from __future__ import annotations
@@ -40,18 +43,32 @@ def inline_toml(value) -> str:
 
 
 _PAGE = re.compile(r"docs/([a-z_/-]+)\.md")
+_CODE = re.compile(r"(`+).*?\1")
 
 
-def _cell(text: str) -> str:
+def _prose(text: str) -> str:
+    """Markdown prose that shows ``text`` as written: every ``<`` outside code spans escaped
+    (``\\<``), so that a placeholder such as ``<part>`` is text, not an HTML tag; code spans
+    show it as it is."""
+    out, end = [], 0
+    for m in _CODE.finditer(text):
+        out += [text[end:m.start()].replace("<", "\\<"), m.group(0)]
+        end = m.end()
+    return "".join(out) + text[end:].replace("<", "\\<")
+
+
+def _cell(text: str, code: bool = False) -> str:
     """Text of a table cell: a ``|`` escaped, no line breaks, a page of the manual
-    ("docs/materials.md") a link to it."""
+    ("docs/materials.md") a link to it; prose (``code=False``) also with its ``<`` escaped
+    (:func:`_prose`), the content of a code span (``code=True``) as it is."""
     text = " ".join(str(text).split()).replace("|", "\\|")
+    text = text if code else _prose(text)
     return _PAGE.sub(lambda m: f"[{m.group(1).split('/')[-1].replace('_', ' ').replace('-', ' ')}]({m.group(1)}.md)", text)
 
 
 def _row(key: str, default, meaning: str) -> str:
     shown = inline_toml(default)
-    return f"| `{key}` | {'`' + _cell(shown) + '`' if shown else '(none)'} | {_cell(meaning)} |"
+    return f"| `{key}` | {'`' + _cell(shown, code=True) + '`' if shown else '(none)'} | {_cell(meaning)} |"
 
 
 def _rows(keys: dict) -> list[str]:
@@ -99,7 +116,7 @@ def reference_markdown() -> str:
              "keys (the size of a control net, the names of load cases).", "", "## Top level", ""]
     lines += _rows(TOP_LEVEL)
     for sec, keys in SCHEMA.items():
-        lines += ["", f"## [{sec}]", "", SECTION_DOCS.get(sec, ""), ""] + _rows(keys)
+        lines += ["", f"## [{sec}]", "", _prose(SECTION_DOCS.get(sec, "")), ""] + _rows(keys)
     lines += ["", "## [foundation]", "",
               "Optional: an elastic foundation under the body ([foundation](guide/foundation.md)). Absent, "
               "the foundation is the rigid half-space x3 ≤ 0. Its top face lies on x3 = 0 under the contact "
@@ -132,6 +149,7 @@ def reference_markdown() -> str:
               "like the loads over its substeps (the first step's from zero). Without steps the problem is one "
               "step, the static problem.", ""]
     lines += _array_rows(schema["load_steps"]["items"], "load_steps")
-    lines += [_PAGE.sub(lambda m: f"[{m.group(1)}]({m.group(1)}.md)", line) for line in CONSTRAINTS_REFERENCE] + [""]
+    lines += [_PAGE.sub(lambda m: f"[{m.group(1)}]({m.group(1)}.md)", _prose(line)) for line in CONSTRAINTS_REFERENCE]
+    lines += [""]
     lines += _array_rows(schema["constraints"]["items"], "constraints")
     return "\n".join(lines) + "\n"

@@ -12,7 +12,10 @@ gives every point x of the body
   from the mean radial direction of the face (ξ1 is the arc length on the fitted cylinder, so that
   slopes of ϑ_α are slopes on the face);
 - the face's *outward* unit normal of the chart surface at x (plane: n; cylinder: ± the radial
-  direction, + where the body lies inside the cylinder, a shaft; − where it lies outside, a bore).
+  direction, + where the body lies inside the cylinder, a shaft; − where it lies outside, a bore);
+- the names of its coordinates (:class:`ChartAxes`, ``chart.axes``), which the maps and plots of the
+  face are labelled with (:func:`chart_axes`: (x1, x2) on the paper's map, where there is no chart).
+  The configuration has no length unit, so a name carries none: ξ is in the mesh's units.
 
 Sign convention of a design: ϑ_α > 0 moves the face *into* the body (along −n, the inward normal):
 material is removed and the gap to the counterpart grows by (n_c·(−n)) ϑ_α, n_c the counterpart's
@@ -31,6 +34,30 @@ from scipy.spatial import cKDTree
 
 from ..errors import ConfigError
 from ..mesh.reference import FACE_CORNERS
+
+
+@dataclass(frozen=True)
+class ChartAxes:
+    """The names of a chart's coordinates (ξ1, ξ2): ``labels`` label the axes of a figure
+    (matplotlib mathtext), ``names`` say the same in plain text (state.json, summary.json)."""
+
+    labels: tuple[str, str]
+    names: tuple[str, str]
+
+
+# the paper's map ξ = (x1, x2) of a face on the plane x3 = 0 (no chart object)
+PAPER_AXES = ChartAxes(("$x_1$", "$x_2$"), ("x1", "x2"))
+
+
+def chart_axes(chart) -> ChartAxes:
+    """The names of the coordinates of ``chart``; of the paper's (x1, x2) when ``chart`` is None."""
+    return PAPER_AXES if chart is None else chart.axes
+
+
+def chart_summary(chart) -> dict:
+    """The chart of a face in a result file: {"description", "axes"} (the plain names of ξ1, ξ2)."""
+    return {"description": "the paper's map xi = (x1, x2)" if chart is None else chart.describe(),
+            "axes": list(chart_axes(chart).names)}
 
 
 @dataclass(frozen=True)
@@ -54,6 +81,25 @@ class PlaneChart:
 
     def describe(self) -> str:
         return f"plane through {_fmt(self.origin)} with outward normal {_fmt(self.normal)}"
+
+    @property
+    def axes(self) -> ChartAxes:
+        """ξk = (x − origin)·ek: ξk = ±xj − c where ek is the axis ±ej (the face on x3 = 0: ξ = (x1 − o1,
+        x2 − o2)), else ξk along ek."""
+        labels, names = [], []
+        for k, e in enumerate((self.e1, self.e2), start=1):
+            j = int(np.argmax(np.abs(e)))
+            if abs(abs(e[j]) - 1.0) <= 1e-12:
+                c = float(self.origin @ e)
+                x = ("-" if e[j] < 0 else "") + f"x_{j + 1}"
+                shift = "" if abs(c) <= 1e-12 * max(1.0, float(np.abs(self.origin).max())) else \
+                    f" {'-' if c > 0 else '+'} {_num(abs(c))}"
+                labels.append(f"$\\xi_{k} = {x}{shift}$")
+                names.append(f"xi{k} = {x.replace('_', '')}{shift}")
+            else:
+                labels.append(f"$\\xi_{k}$ along {_vec(e, 4)}")
+                names.append(f"xi{k} = (x - o).e{k}: along e{k} = {_vec(e)} from o = {_vec(self.origin)}")
+        return ChartAxes(tuple(labels), tuple(names))
 
 
 @dataclass(frozen=True)
@@ -90,6 +136,16 @@ class CylinderChart:
     def describe(self) -> str:
         return (f"cylinder of radius {self.radius:.6g} around the axis {_fmt(self.axis)} through "
                 f"{_fmt(self.origin)}")
+
+    @property
+    def axes(self) -> ChartAxes:
+        """ξ1 = ρθ, the arc length on the cylinder, ξ2 = (x − origin)·axis, the axial position."""
+        return ChartAxes(
+            (f"$\\xi_1 = \\rho\\theta$, arc length ($\\rho$ = {_num(self.radius)})",
+             f"$\\xi_2$, axial position along {_vec(self.axis, 4)}"),
+            (f"xi1 = rho*theta: arc length on the cylinder of radius rho = {self.radius:.6g}, theta the angle "
+             f"about the axis from the direction {_vec(self.ref)}",
+             f"xi2 = (x - o).a: axial position along a = {_vec(self.axis)} from o = {_vec(self.origin)}"))
 
 
 def face_normals(points: np.ndarray, faces: np.ndarray, face_type: str) -> tuple[np.ndarray, np.ndarray]:
@@ -264,8 +320,20 @@ def _check_graph(chart, points, face, nodes, nf, cf, tol, pre) -> None:
                            f"{_fmt(points[a])} and {_fmt(points[b])}"])
 
 
+def _num(v: float, digits: int = 4) -> str:
+    return f"{float(v) + 0.0:.{digits}g}"         # + 0.0: no "-0"
+
+
 def _fmt(x) -> str:
     return "(" + ", ".join(f"{v:.6g}" for v in np.asarray(x, float)) + ")"
+
+
+def _vec(x, digits: int = 6) -> str:
+    """A vector in an axis name: as :func:`_fmt`, its round-off (an entry below 1e-12 of the
+    largest) and "-0" written 0."""
+    x = np.asarray(x, float)
+    x = np.where(np.abs(x) <= 1e-12 * np.abs(x).max(initial=0.0), 0.0, x)
+    return "(" + ", ".join(_num(v, digits) for v in x) + ")"
 
 
 def motion_directions(points: np.ndarray, face, face_type: str, chart=None) -> np.ndarray:

@@ -4,6 +4,8 @@ summary.json says whether the optimum is feasible in two words, one per kind of 
 ``admissible`` — the design α lies in the admissible set U (the bounds, slope limits and linear
 constraints of [design], to 1e-8) — and ``constraints_satisfied`` — every response of
 [[constraints]] is at most its limit within its relative tolerance (null when the run has none).
+Its ``chart`` names the coordinates of surface.csv's columns x1, x2 (the chart coordinates ξ1, ξ2 of
+the face, :mod:`contactopt.design.chart`; the columns keep their names on every chart).
 """
 
 from __future__ import annotations
@@ -14,6 +16,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..design.chart import chart_summary
 from ..errors import ContactOptError
 from ..sensitivity.solution import KeptDesign
 from .atomic import WriteError, atomic_write_json, atomic_write_text
@@ -123,6 +126,7 @@ def _write_files(out: Path, problem, x, res, oracle, t0, at, figures, plots) -> 
         "wall_time_s": wall,
         "time_breakdown_s": {**oracle.time, "outputs": time.perf_counter() - t0},
         "final_state": s1.summary(),
+        "chart": chart_summary(model.mesh.chart),
     }
     if model.foundation is not None:
         summary["foundation"] = model.foundation.summary()

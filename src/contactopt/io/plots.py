@@ -13,6 +13,11 @@ clamped edge x1 = 0 belongs to the clamped nodes and stays empty. On any other f
 L, an unstructured mesh) the field is drawn on the face's triangulation (quadrilaterals split in
 two; triangles touching a clamped node are left out): :func:`face_triangulation`.
 
+A map of the face is drawn in its chart's coordinates ξ = (ξ1, ξ2) (:mod:`contactopt.design.chart`)
+and its axes carry the chart's names (:func:`~contactopt.design.chart.chart_axes`): x1, x2 on the
+paper's map; on a cylinder the arc length ρθ and the axial position; on a plane chart its in-plane
+axes. The configuration has no length unit: the axes are in the mesh's units.
+
 Sign conventions of the plotted fields (see :mod:`contactopt.contact.state`): λ_m = (S u_c − ℓ)_ν ≥ 0
 is the normal contact force on the body; τ_m = −(S u_c − ℓ)_t with ‖τ_m‖ ≤ F λ_m; the gap is
 g_m = ϑ_α(x'_m) ≥ 0 above the foundation x3 ≤ 0.
@@ -32,6 +37,7 @@ from matplotlib.patches import Patch
 from matplotlib.tri import Triangulation
 
 from ..contact.state import CLASS_NAMES
+from ..design.chart import chart_axes
 from ..fem.stress import quadrature_points, von_mises_points
 from .atomic import atomic_output
 
@@ -174,14 +180,37 @@ def _rectangle(model):
     return s.x1lo, s.x1lo + s.a, s.x2lo, s.x2lo + s.b
 
 
+def _axis_labels(model) -> tuple[str, str]:
+    """The labels of the chart coordinates ξ1, ξ2 of the face (x1, x2 on the paper's map)."""
+    return chart_axes(model.mesh.chart).labels
+
+
+def _lift_label(model) -> str:
+    """The label of ϑ_α in a plot of the surface: x3 on the paper's map (the face lies at x3 = ϑ_α),
+    else ϑ_α along the direction the design moves the face (``[design] motion``)."""
+    mesh = model.mesh
+    if mesh.directions is not None:
+        return "$\\vartheta_\\alpha$ along the inward normal"
+    return "$x_3$" if mesh.chart is None else "$\\vartheta_\\alpha$ along $x_3$"
+
+
+def _label_pad(axis, pad: float = 4.0, chars: int = 5) -> float:
+    """The label pad of a 3D plot's axis that keeps its label clear of its tick labels: the default
+    ``pad`` (points) for tick labels of up to ``chars`` characters ("0.025"), 5 points more for every
+    further one ("−0.0001")."""
+    labels = axis.get_major_formatter().format_ticks(axis.get_majorticklocs())
+    return pad + 5.0 * max(0, max((len(t) for t in labels), default=0) - chars)
+
+
 def _map_axes(fig, model, pos=None):
     x1lo, x1hi, x2lo, x2hi = _rectangle(model)
     ax = fig.add_subplot() if pos is None else fig.add_subplot(*pos)
     ax.set_xlim(x1lo, x1hi)
     ax.set_ylim(x2lo, x2hi)
     ax.set_aspect("equal")
-    ax.set_xlabel("$x_1$")
-    ax.set_ylabel("$x_2$")
+    xlabel, ylabel = _axis_labels(model)
+    ax.set_xlabel(xlabel)
+    ax.set_ylabel(ylabel)
     return ax
 
 
@@ -290,8 +319,9 @@ def plot_stress_comparison(path, model, target, initial, optimal, *,
         ax.set_ylim(0.0, model.surface.b)
         ax.set_zlim(zmin - (pad if zmin < 0 else 0.0), zmax + pad)
         ax.set_box_aspect((model.surface.a, model.surface.b, 0.8 * max(model.surface.a, model.surface.b)))
-        ax.set_xlabel("$x_1$")
-        ax.set_ylabel("$x_2$")
+        xlabel, ylabel = _axis_labels(model)
+        ax.set_xlabel(xlabel)
+        ax.set_ylabel(ylabel)
         ax.set_zlabel(zlabel, fontsize=8, labelpad=8)
         ax.tick_params(labelsize=7)
         ax.tick_params(axis="z", pad=6)
@@ -368,7 +398,8 @@ def plot_load_cases(path, model, names, initial, optimal, values0=None, values1=
 
 
 def plot_surface(path, model, alpha, *, resolution=(81, 41), title="Contact surface $\\vartheta_\\alpha$") -> Path:
-    """The contact surface ϑ_α(x1, x2) as a 3D surface with the Bézier control points and net.
+    """The contact surface ϑ_α(ξ1, ξ2) as a 3D surface with the Bézier control points and net, over
+    the chart coordinates of the face ((x1, x2) on the paper's map).
 
     Control point α_ij is drawn at (a·i/d1, b·j/d2, α_ij), where the linear-precision property of
     Bernstein polynomials puts it (the surface of a planar control net is that plane).
@@ -399,11 +430,12 @@ def plot_surface(path, model, alpha, *, resolution=(81, 41), title="Contact surf
     ax.plot_wireframe(C1, C2, A, color="0.25", linewidth=0.6)
     ax.scatter(C1.ravel(), C2.ravel(), A.ravel(), color="crimson", s=14, depthshade=False,
                label=f"control points ({A.shape[0]}×{A.shape[1]})")
-    ax.set_xlabel("$x_1$")
-    ax.set_ylabel("$x_2$")
-    ax.set_zlabel("$x_3$")
+    xlabel, ylabel = _axis_labels(model)
+    ax.set_xlabel(xlabel)
+    ax.set_ylabel(ylabel)
     lo, hi = min(0.0, np.nanmin(Z), A.min()), max(np.nanmax(Z), A.max())
     ax.set_zlim(lo, hi + 0.05 * (hi - lo) if hi > lo else lo + 1.0)
+    ax.set_zlabel(_lift_label(model), labelpad=_label_pad(ax.zaxis))
     ax.set_box_aspect((surf.a, surf.b, 0.6 * max(surf.a, surf.b)))
     ax.legend(loc="upper left", fontsize=8)
     fig.colorbar(sm, cax=fig.add_axes((0.86, 0.22, 0.025, 0.56)), label="$\\vartheta_\\alpha$")

@@ -18,7 +18,11 @@ Conventions of the stored contact arrays (contact-node order m = 0..p−1, see
   (:mod:`contactopt.io.pressure`; force per unit area in the model's units);
 * ``tau[m] = τ_m = −(S u_c − ℓ)_t``: the paper's tangential contact force, ‖τ_m‖ ≤ F λ_m and
   u_t ≠ 0 ⇒ τ_m = F λ_m u_t/‖u_t‖ (the friction force on the body is −τ_m);
-* ``classes[m]``: index into ("L", "M1", "M2", "M3+", "M3-", "M4") of Table 4.1.
+* ``classes[m]``: index into ("L", "M1", "M2", "M3+", "M3-", "M4") of Table 4.1;
+* ``x1[m], x2[m]`` (state.json; ``contact_points`` in state.npz): the chart coordinates
+  ξ = (ξ1, ξ2) of the contact node, (x1, x2) on the paper's map; state.json's ``chart`` names them
+  (on a cylinder the arc length ρθ and the axial position, :mod:`contactopt.design.chart`). The
+  keys stay x1, x2 on every chart, as in files written before.
 
 On an elastic foundation ``u_c`` is the relative displacement w = u_body − u_partner of a contact
 node and its partner on the foundation's top face (the contact law acts on it), ``u_body`` and
@@ -39,6 +43,7 @@ from pathlib import Path
 import numpy as np
 
 from ..contact.state import CLASS_NAMES, FoundationState, State
+from ..design.chart import chart_summary
 from . import plots, vtk
 from .atomic import atomic_savez, atomic_write_json, fsync_dir, to_jsonable
 from .pressure import contact_pressure, face_classes
@@ -63,12 +68,14 @@ CONVENTIONS = {
                 "design's surface (force per unit area in the model's units)",
     "tau": "tau_m = -(S u_c - l)_t, |tau_m| <= F lambda_m; friction force on the body is -tau_m",
     "classes": "index into class_names (Table 4.1)",
-    "alpha": "control points alpha_ij, (d1+1) x (d2+1), row i along x1",
+    "x1, x2": "chart coordinates xi = (xi1, xi2) of the contact nodes, named in 'chart' (the paper's map: x1, x2)",
+    "alpha": "control points alpha_ij, (d1+1) x (d2+1), row i along xi1 (x1 on the paper's map)",
 }
 
 
 def state_json(model, state: State, config=None, warnings=None, objective=None, constraints=None) -> dict:
-    """The content of state.json: summary, design, contact arrays as lists, conventions, and
+    """The content of state.json: summary, design, contact arrays as lists, conventions, the
+    chart of the face (its description and the names of the coordinates x1, x2), and
     ``warnings`` (e.g. the constraints of U the design breaks), ``objective`` ({type, value,
     terms}) and ``constraints`` ({name: {type, value, limit, margin}}) when given."""
     doc = {
@@ -79,6 +86,7 @@ def state_json(model, state: State, config=None, warnings=None, objective=None, 
         "n_contact": int(model.n_contact),
         "class_names": list(CLASS_NAMES),
         "conventions": CONVENTIONS,
+        "chart": chart_summary(model.mesh.chart),
         "contact": {
             "node": np.asarray(model.contact_nodes).tolist(),
             "x1": model.mesh.contact_points()[:, 0].tolist(),
