@@ -17,7 +17,8 @@ import re
 
 from .constraints import REFERENCE as CONSTRAINTS_REFERENCE
 from .json_schema import json_schema
-from .schema import FOUNDATION, OBSTACLE, SCHEMA, SECTION_DOCS, TOP_LEVEL
+from .assembly import ASSEMBLY_DOCS
+from .schema import BODIES, CONTACTS, DESIGNS, FOUNDATION, OBSTACLE, SCHEMA, SECTION_DOCS, TOP_LEVEL
 
 HEADER = ["| key | default | meaning |", "|---|---|---|"]
 
@@ -115,6 +116,9 @@ def reference_markdown() -> str:
              "Schema checks the form of each key; contactopt itself still checks what depends on other",
              "keys (the size of a control net, the names of load cases).", "", "## Top level", ""]
     lines += _rows(TOP_LEVEL)
+    lines += [_row("bodies", {}, "the bodies of an assembly, a table [bodies.<name>] each (below)"),
+              _row("assembly", {}, "written by contactopt in a resolved configuration: the names of an assembly's "
+                   "bodies, contact pairs and designed faces")]
     for sec, keys in SCHEMA.items():
         lines += ["", f"## [{sec}]", "", _prose(SECTION_DOCS.get(sec, "")), ""] + _rows(keys)
     lines += ["", "## [foundation]", "",
@@ -131,6 +135,14 @@ def reference_markdown() -> str:
               "the gap and the Coulomb law act in that frame. A shape other than the plane, and force control, "
               "run on the condensation, Delassus and full-space paths; excludes [foundation].",
               ""] + _rows(OBSTACLE)
+    lines += ["", _prose("## [bodies.<name>]"), "",
+              _prose("A model written as its bodies, contact pairs and designed faces ([assemblies](guide/assemblies.md)); "
+                     "[body], [foundation], [obstacle] and [design] are its one- and two-body spellings and are not "
+                     "given beside these. A part of a body is written \"<body>.<part>\", in a pair, a design and a "
+                     "load's `on` (a predicate table names its body: `{ body = \"<name>\", x1 = 0.0 }`)."),
+              "", _prose(ASSEMBLY_DOCS["bodies"]), ""] + _rows(BODIES)
+    lines += ["", "## [[contacts]]", "", _prose(ASSEMBLY_DOCS["contacts"]), ""] + _rows(CONTACTS)
+    lines += ["", "## [[designs]]", "", _prose(ASSEMBLY_DOCS["designs"]), ""] + _rows(DESIGNS)
     lines += ["", "## [[load_cases]]", "",
               "Optional named load cases (an array of tables). Each has a `name` (letters, digits, `_ . + -`), "
               "any of the keys of [loads] (none required) and optionally a `target` in the form of "
