@@ -15,9 +15,9 @@ import json
 import math
 import re
 
+from .assembly import ASSEMBLY_DOCS
 from .constraints import REFERENCE as CONSTRAINTS_REFERENCE
 from .json_schema import json_schema
-from .assembly import ASSEMBLY_DOCS
 from .schema import BODIES, CONTACTS, DESIGNS, FOUNDATION, OBSTACLE, SCHEMA, SECTION_DOCS, TOP_LEVEL
 
 HEADER = ["| key | default | meaning |", "|---|---|---|"]
