@@ -5,6 +5,7 @@ every problem named at once and nothing written."""
 
 from __future__ import annotations
 
+import json
 import shutil
 import tomllib
 from pathlib import Path
@@ -254,3 +255,37 @@ def test_the_shipped_assembly_example_is_example1_elastic():
     new, old = load_config(EXAMPLES / "block_on_slab.toml"), load_config(EXAMPLES / "example1_elastic.toml")
     assert _sections(new) == _sections(old)
     assert new.assembly.bodies == ("block", "slab")
+
+
+def test_the_state_files_name_each_pair_and_each_contact_node_s_pair_and_place(tmp_path, capsys):
+    path = _write(tmp_path, BLOCK_ON_SLAB)
+    out = tmp_path / "state"
+    assert main(["state", str(path), "--out", str(out)]) == 0
+    capsys.readouterr()
+    doc = json.loads((out / "state.json").read_text())
+    with np.load(out / "state.npz") as z:
+        lam, pressure, classes = z["lam"], z["pressure"], z["classes"]
+        coords, pair, nodes = z["contact_coords"], z["contact_pair"], z["contact_nodes"]
+    cfg = load_config(path)
+    ref = ShapeProblem(cfg).model.body.reference.points
+    assert np.array_equal(coords, ref[nodes]) and np.all(coords[:, 2] == 0.0)
+    assert pair.dtype.kind == "i" and np.all(pair == 0) and pair.size == lam.size
+    [report] = doc["contacts"]
+    assert (report["name"], report["face"], report["counterpart"]) == ("block-slab", "block.contact", "slab.top")
+    assert report["total_normal_force"] == pytest.approx(lam.sum(), rel=1e-15)
+    assert report["total_normal_force"] == pytest.approx(doc["summary"]["total_normal_force"], rel=1e-15)
+    assert report["peak_pressure"] == pressure.max() > 0
+    assert sum(report["node_classes"].values()) == report["nodes"] == lam.size
+    assert report["node_classes"]["L"] == int(np.sum(classes == 0))
+
+
+def test_a_run_reports_each_pair_at_the_initial_and_the_optimal_design(tmp_path, capsys):
+    out = tmp_path / "run"
+    assert main(["run", str(_write(tmp_path, BLOCK_ON_SLAB)), "--out", str(out), "--max-iter", "2", "--no-plots"]) == 0
+    capsys.readouterr()
+    summary = json.loads((out / "summary.json").read_text())
+    for at, state in (("optimal", summary["final_state"]),):
+        [report] = summary["contacts"][at]
+        assert report["name"] == "block-slab"
+        assert report["total_normal_force"] == pytest.approx(state["total_normal_force"], rel=1e-15)
+    assert [r["name"] for r in summary["contacts"]["initial"]] == ["block-slab"]

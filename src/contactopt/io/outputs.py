@@ -31,7 +31,7 @@ from .plots import (
     plot_stress_comparison,
     plot_surface,
 )
-from .pressure import contact_pressure, face_classes
+from .pressure import contact_pressure, face_classes, pair_reports
 from .vtk import write_body_vtu, write_foundation_vtu, write_pvd
 
 log = logging.getLogger(__name__)
@@ -127,6 +127,7 @@ def _write_files(out: Path, problem, x, res, oracle, t0, at, figures, plots) -> 
         "time_breakdown_s": {**oracle.time, "outputs": time.perf_counter() - t0},
         "final_state": s1.summary(),
         "chart": chart_summary(model.mesh.chart),
+        "contacts": {"initial": pair_reports(model, s0), "optimal": pair_reports(model, s1)},
     }
     if model.foundation is not None:
         summary["foundation"] = model.foundation.summary()

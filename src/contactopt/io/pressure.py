@@ -135,3 +135,30 @@ def face_classes(model, state) -> np.ndarray:
     lam = T @ np.asarray(state.lam, float)
     tau = T @ np.asarray(state.tau, float).reshape(-1, 2)
     return classify_nodes(u_c, lam, tau, gap, state.friction, u=state.u)
+
+
+def contact_pairs(model) -> list[tuple[object, np.ndarray]]:
+    """The contact pairs of ``model`` (:class:`contactopt.config.assembly.Pair`, in ``[[contacts]]``
+    order) with the contact-node indices m of each: every contact node belongs to one pair."""
+    pairs = model.config.assembly.contacts
+    return [(pair, np.arange(model.n_contact)) for pair in pairs]
+
+
+def pair_index(model) -> np.ndarray:
+    """(p,) per contact node the index of its pair in ``[[contacts]]``."""
+    out = np.full(model.n_contact, -1, np.int64)
+    for k, (_, nodes) in enumerate(contact_pairs(model)):
+        out[nodes] = k
+    return out
+
+
+def pair_reports(model, state) -> list[dict]:
+    """Per contact pair: its name, face and counterpart, the resultant normal force Σλ on its face
+    (λ ≥ 0, the normal force on the face's body), the peak contact pressure (force per unit area) and
+    the node classes of Table 4.1 on it."""
+    from ..contact.state import class_counts
+    pressure = contact_pressure(model, state.lam, state.coords)
+    lam, classes = np.asarray(state.lam, float), np.asarray(state.classes, int)
+    return [{"name": pair.name, "face": pair.face, "counterpart": pair.counterpart, "nodes": int(nodes.size),
+             "total_normal_force": float(lam[nodes].sum()), "peak_pressure": float(pressure[nodes].max(initial=0.0)),
+             "node_classes": class_counts(classes[nodes])} for pair, nodes in contact_pairs(model)]

@@ -19,6 +19,9 @@ Conventions of the stored contact arrays (contact-node order m = 0..p−1, see
 * ``tau[m] = τ_m = −(S u_c − ℓ)_t``: the paper's tangential contact force, ‖τ_m‖ ≤ F λ_m and
   u_t ≠ 0 ⇒ τ_m = F λ_m u_t/‖u_t‖ (the friction force on the body is −τ_m);
 * ``classes[m]``: index into ("L", "M1", "M2", "M3+", "M3-", "M4") of Table 4.1;
+* ``contact_coords[m]`` (state.npz): the node's reference coordinates (x1, x2, x3), before the design
+  moves it; ``contact_pair[m]``: the index of its contact pair in ``[[contacts]]`` (state.json's
+  ``contacts`` lists the pairs with their resultant, peak pressure and classes);
 * ``x1[m], x2[m]`` (state.json; ``contact_points`` in state.npz): the chart coordinates
   ξ = (ξ1, ξ2) of the contact node, (x1, x2) on the paper's map; state.json's ``chart`` names them
   (on a cylinder the arc length ρθ and the axial position, :mod:`contactopt.design.chart`). The
@@ -46,7 +49,7 @@ from ..contact.state import CLASS_NAMES, FoundationState, State
 from ..design.chart import chart_summary
 from . import plots, vtk
 from .atomic import atomic_savez, atomic_write_json, fsync_dir, to_jsonable
-from .pressure import contact_pressure, face_classes
+from .pressure import contact_pressure, face_classes, pair_index, pair_reports
 
 log = logging.getLogger(__name__)
 
@@ -87,6 +90,7 @@ def state_json(model, state: State, config=None, warnings=None, objective=None, 
         "class_names": list(CLASS_NAMES),
         "conventions": CONVENTIONS,
         "chart": chart_summary(model.mesh.chart),
+        "contacts": pair_reports(model, state),
         "contact": {
             "node": np.asarray(model.contact_nodes).tolist(),
             "x1": model.mesh.contact_points()[:, 0].tolist(),
@@ -135,6 +139,8 @@ def _state_arrays(model, state: State) -> dict:
         "class_names": np.array(CLASS_NAMES),
         "contact_nodes": np.asarray(model.contact_nodes, np.int64),
         "contact_points": np.asarray(model.mesh.contact_points(), float),
+        "contact_coords": np.asarray(model.body.reference.points[model.contact_nodes], float),
+        "contact_pair": pair_index(model),
         "friction": np.float64(state.friction),
         "method": np.array(str(state.method)),
         "iterations": np.int64(state.iterations),
