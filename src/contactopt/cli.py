@@ -20,29 +20,54 @@ import signal
 import sys
 import threading
 import time
+from importlib import import_module
 from pathlib import Path
 
 import numpy as np
 
+from ._mpi import world_size
 from ._progress import LiveLine
 from .config import json_schema, load_config
-from .errors import ConfigError, ContactOptError, MeshError
-from .fem.model import ElasticModel
+from .errors import ConfigError, ContactOptError, Interrupted, MeshError
 from .io.atomic import WriteError, atomic_write_json, atomic_write_text, write_error
 from .io.examples import copy_examples, list_examples
-from .io.export import export_design, normalize_formats
-from .io.fclib import solve_fclib
 from .io.lock import acquire
-from .io.rundir import prepare_output_dir
-from .io.statefiles import state_files, write_state, write_steps
-from .problem import ShapeProblem
-from .runner import Interrupted, run_from_cli
-from .sensitivity.check import check_gradient
-from .studies import parse_settings, run_sweep
 
 log = logging.getLogger("contactopt")
 
 EXIT_WRITE = 74        # sysexits.h EX_IOERR: a file could not be written
+
+
+def _deferred(module: str, name: str):
+    """``name`` of the package's ``module``, imported when first called."""
+    def call(*args, **kw):
+        return getattr(import_module(module, __package__), name)(*args, **kw)
+    call.__name__ = call.__qualname__ = name
+    return call
+
+
+# The commands' own modules load with the command that calls them: the solver (scipy, the FEM
+# model), the figures (matplotlib) and the file formats (h5py, meshio) take about a second to
+# import, and `contactopt --help`, `contactopt schema` and a rejected configuration need none of them.
+ElasticModel = _deferred(".fem.model", "ElasticModel")
+export_design = _deferred(".io.export", "export_design")
+normalize_formats = _deferred(".io.export", "normalize_formats")
+solve_fclib = _deferred(".io.fclib", "solve_fclib")
+prepare_output_dir = _deferred(".io.rundir", "prepare_output_dir")
+state_files = _deferred(".io.statefiles", "state_files")
+write_state = _deferred(".io.statefiles", "write_state")
+write_steps = _deferred(".io.statefiles", "write_steps")
+run_from_cli = _deferred(".runner", "run_from_cli")
+check_gradient = _deferred(".sensitivity.check", "check_gradient")
+parse_settings = _deferred(".studies", "parse_settings")
+run_sweep = _deferred(".studies", "run_sweep")
+_shape_problem = _deferred(".problem", "ShapeProblem")
+
+
+def ShapeProblem(config, **kw):
+    """:class:`contactopt.problem.ShapeProblem` of ``config``, loaded and validated before the
+    solver's modules are imported: a rejected configuration is said at once."""
+    return _shape_problem(load_config(config), **kw)
 
 
 def _read_alpha(path: str, model) -> np.ndarray:
@@ -279,7 +304,30 @@ def _cmd_solve_fclib(args) -> int:
 
 
 def _cmd_run(args) -> int:
+    _refuse_invalid(args.config)
     return run_from_cli(args)
+
+
+def _refuse_invalid(config) -> None:
+    """The ConfigError of a configuration that ``run`` would reject, raised before the optimizer's
+    modules are imported. A configuration that loads is loaded again by the run, which logs its
+    warnings; here they are logged only ahead of the error, as the run would."""
+    logger, held = logging.getLogger("contactopt.config"), []
+
+    def hold(record):
+        held.append(record)
+        return False
+
+    logger.addFilter(hold)
+    try:
+        load_config(config)
+    except ConfigError:
+        logger.removeFilter(hold)
+        for record in held:
+            logger.handle(record)
+        raise
+    finally:
+        logger.removeFilter(hold)
 
 
 def _cmd_sweep(args) -> int:
@@ -422,6 +470,8 @@ def build_parser() -> argparse.ArgumentParser:
 def main(argv=None) -> int:
     """The command line; under ``mpiexec`` rank 0 runs it and the other ranks serve its PETSc path
     (:mod:`contactopt.ranks`), so only rank 0 prints, logs and writes."""
+    if world_size() <= 1:         # not under mpiexec: the ranks' machinery (the solver) is not needed
+        return _main(argv)
     from .ranks import run_on_ranks
     return run_on_ranks(_main, argv)
 

@@ -1,6 +1,9 @@
-"""Exceptions of contactopt: one base class, specific subclasses."""
+"""Exceptions of contactopt: one base class, specific subclasses; and :class:`Interrupted`, the
+KeyboardInterrupt of a process asked to stop."""
 
 from __future__ import annotations
+
+import signal
 
 
 class ContactOptError(Exception):
@@ -56,3 +59,16 @@ class ProblemDataError(ContactOptError, ValueError):
 
 class FclibError(ContactOptError):
     """A file that cannot be read as, or written to, an FCLIB local problem."""
+
+
+class Interrupted(KeyboardInterrupt):
+    """The process was asked to stop (SIGINT, SIGTERM): the evaluation in progress is abandoned.
+
+    ``signum`` is the signal; a run's summary.json then says ``"status": "interrupted"``, and
+    ``message``/``resume`` say where the run stands and the command that continues it."""
+
+    def __init__(self, signum=signal.SIGINT, message: str = "", resume: str | None = None):
+        self.signum = int(signum)
+        self.message = message
+        self.resume = resume
+        super().__init__(message)

@@ -58,7 +58,7 @@ import numpy as np
 
 from .config import Config, load_config
 from .design.reduction import DesignReduction, reduction_of
-from .errors import CheckpointError, ConfigError, ContactOptError, SolverError
+from .errors import CheckpointError, ConfigError, ContactOptError, Interrupted, SolverError
 from .io.atomic import WriteError, atomic_write_json
 from .io.checkpoint import Checkpoint, SavedResult, flatten_config
 from .io.outputs import write_outputs
@@ -94,19 +94,6 @@ class RunAborted(ContactOptError):
     ``checkpoint`` is its path (None when no iteration had finished)."""
 
     checkpoint = None
-
-
-class Interrupted(KeyboardInterrupt):
-    """The process was asked to stop (SIGINT, SIGTERM): the evaluation in progress is abandoned.
-
-    ``signum`` is the signal; a run's summary.json then says ``"status": "interrupted"``, and
-    ``message``/``resume`` say where the run stands and the command that continues it."""
-
-    def __init__(self, signum=signal.SIGINT, message: str = "", resume: str | None = None):
-        self.signum = int(signum)
-        self.message = message
-        self.resume = resume
-        super().__init__(message)
 
 
 def package_versions() -> dict:
