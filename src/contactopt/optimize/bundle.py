@@ -502,6 +502,70 @@ def _trial_point(poly: Polyhedron, x, d, feas_tol):
     return y
 
 
+def _start_tests(poly: Polyhedron, st: BundleState, o: BTOptions, eps: float, qp: DirectionQP,
+                 alpha, t: float) -> _Step | None:
+    """The stopping tests at the start of an iteration, from the QP ``qp`` at x and no evaluation:
+    a stop (or a restart) as a step, else None; sets ``st.xi``, ``st.stationarity`` and
+    ``st.predicted``."""
+    f = st.f
+    alpha_p = float(qp.lam @ alpha)
+    st.xi = qp.xi
+    # relative to max(1, |f|): eps means the same for f and for 1000·f
+    st.stationarity = (max(float(np.linalg.norm(qp.p)), alpha_p + qp.sigma)
+                       / max(1.0, abs(f)))
+    if st.stationarity <= eps:
+        # f not convex: a certificate from cuts made far from x may be false; it is
+        # accepted only from a bundle rebuilt at x (restart)
+        if o.gamma is None and st.nonconvex and not st.verified and st.G.shape[0] > 1:
+            return _Step("restart", qp, t)
+        return _Step("converged", qp, t)
+    if -qp.v <= 4 * np.finfo(float).eps * max(1.0, abs(f)):
+        # the far cuts' locality terms may be what blocks the certificate: once, rebuild
+        if o.gamma is None and st.nonconvex and not st.verified and st.G.shape[0] > 1:
+            return _Step("restart", qp, t)
+        return _Step("roundoff", qp, t)
+    # f has stopped changing and the aggregate certifies x at sqrt(tolf): f alone also
+    # stops changing on a crawl far from x* (measured: Maxquad, Steiner2, Wong3 1e-6 to
+    # 1e-4 above f*; a guard relative to the measure at x0 let HS78 stop 2e-6 above f*
+    # under one BLAS kernel)
+    if (o.tolf > 0 and st.stationarity <= math.sqrt(o.tolf)
+            and -qp.v <= o.tolf * max(1.0, abs(f))
+            and flat_serious_steps(st.history, o.tolf_steps, o.tolf)):
+        return _Step("fchange", qp, t)
+    before, st.predicted = st.predicted, _predicted_decrease(poly, st, qp, alpha, t,
+                                                             o.ftol_window)
+    # at this x and at the last iteration's, and the run's own progress confirms it: the
+    # prediction is local (a model that has not seen the next kink, or a t shrunk on
+    # a kink, predicts little while a slow descent goes on — measured: a stop 2.6 %
+    # above the optimum on one BLAS kernel, 0.6 % on another)
+    if (o.ftol > 0 and max(st.predicted, before) <= o.ftol
+            and st.n_serious >= o.ftol_window
+            and st.history and st.history[-1]["step"] == "serious"
+            and relative_decrease(st.history, o.ftol_window) <= o.ftol_window * o.ftol):
+        return _Step("practical", qp, t)
+    return None
+
+
+def _last_iterate_stop(poly: Polyhedron, st: BundleState, o: BTOptions, eps: float, max_iter: int):
+    """(state, stop) after ``max_iter`` iterations: the stop of the next iteration's start when its
+    tests (no evaluation) end the run there, else max_iter with ``st`` untouched.
+
+    A run capped at the iteration where the uncapped run stops ends as that run does, instead of
+    reporting max_iter for an iterate that passes a stopping test; the tests run on a copy, so a
+    run that does hit max_iter resumes (with a larger ``max_iter``) bit for bit as before.
+    """
+    probe = st.copy()
+    alpha = _alpha(probe, o.gamma)
+    if probe.pending_s is not None:
+        _secant_cap(poly, probe, alpha, o.t_factor)
+    t = min(max(probe.t, probe.t_min), probe.t_max)
+    step = _start_tests(poly, probe, o, eps, direction(poly, probe.x, probe.G, alpha, t, probe.w), alpha, t)
+    stop = _converged(step, probe, o, eps) if step is not None else None
+    if stop is None:               # no test holds, or a certificate that needs a restart first
+        return st, (1, "max_iter", f"max_iter reached ({max_iter} iterations)")   # measures: in the result
+    return probe, stop
+
+
 def _iteration(oracle, poly: Polyhedron, st: BundleState, o: BTOptions, eps: float):
     """One iteration: inner loop on t ending in a serious or null step (or a stop)."""
     x, f = st.x, st.f
@@ -514,41 +578,9 @@ def _iteration(oracle, poly: Polyhedron, st: BundleState, o: BTOptions, eps: flo
     for trial in range(o.max_inner):
         qp = direction(poly, x, st.G, alpha, t, st.w)
         if trial == 0:
-            alpha_p = float(qp.lam @ alpha)
-            st.xi = qp.xi
-            # relative to max(1, |f|): eps means the same for f and for 1000·f
-            st.stationarity = (max(float(np.linalg.norm(qp.p)), alpha_p + qp.sigma)
-                               / max(1.0, abs(f)))
-            if st.stationarity <= eps:
-                # f not convex: a certificate from cuts made far from x may be false; it is
-                # accepted only from a bundle rebuilt at x (restart)
-                if o.gamma is None and st.nonconvex and not st.verified and st.G.shape[0] > 1:
-                    return _Step("restart", qp, t)
-                return _Step("converged", qp, t)
-            if -qp.v <= 4 * np.finfo(float).eps * max(1.0, abs(f)):
-                # the far cuts' locality terms may be what blocks the certificate: once, rebuild
-                if o.gamma is None and st.nonconvex and not st.verified and st.G.shape[0] > 1:
-                    return _Step("restart", qp, t)
-                return _Step("roundoff", qp, t)
-            # f has stopped changing and the aggregate certifies x at sqrt(tolf): f alone also
-            # stops changing on a crawl far from x* (measured: Maxquad, Steiner2, Wong3 1e-6 to
-            # 1e-4 above f*; a guard relative to the measure at x0 let HS78 stop 2e-6 above f*
-            # under one BLAS kernel)
-            if (o.tolf > 0 and st.stationarity <= math.sqrt(o.tolf)
-                    and -qp.v <= o.tolf * max(1.0, abs(f))
-                    and flat_serious_steps(st.history, o.tolf_steps, o.tolf)):
-                return _Step("fchange", qp, t)
-            before, st.predicted = st.predicted, _predicted_decrease(poly, st, qp, alpha, t,
-                                                                     o.ftol_window)
-            # at this x and at the last iteration's, and the run's own progress confirms it: the
-            # prediction is local (a model that has not seen the next kink, or a t shrunk on
-            # a kink, predicts little while a slow descent goes on — measured: a stop 2.6 %
-            # above the optimum on one BLAS kernel, 0.6 % on another)
-            if (o.ftol > 0 and max(st.predicted, before) <= o.ftol
-                    and st.n_serious >= o.ftol_window
-                    and st.history and st.history[-1]["step"] == "serious"
-                    and relative_decrease(st.history, o.ftol_window) <= o.ftol_window * o.ftol):
-                return _Step("practical", qp, t)
+            stop = _start_tests(poly, st, o, eps, qp, alpha, t)
+            if stop is not None:
+                return stop
         y = _trial_point(poly, x, qp.d, o.feas_tol)
         out = _evaluate(oracle, y, trial=True)
         st.nfev += 1
@@ -754,7 +786,9 @@ def minimize_bundle(oracle, x0, *, lb=None, ub=None, A_ub=None, b_ub=None, A_eq=
         in both.
     max_iter : int
         Maximum number of iterations (serious + null steps), counted from the start of the
-        run including iterations done before a restored ``state``.
+        run including iterations done before a restored ``state``.  The stopping tests of the
+        iteration after the last need no evaluation and are made: a run whose last iterate
+        passes one ends by it (status 0, 4 or 5), not by max_iter (status 1).
     callback : callable, optional
         ``callback(intermediate_result)`` after every iteration; the argument is a
         :class:`~contactopt.optimize.bundle.BundleResult` with a ``state`` copy.  Raising ``StopIteration`` stops the run
@@ -790,7 +824,7 @@ def minimize_bundle(oracle, x0, *, lb=None, ub=None, A_ub=None, b_ub=None, A_eq=
     rel = relative_decrease(st.history, o.ftol_window)
     while True:
         if st.nit >= max_iter:
-            stop = (1, "max_iter", f"max_iter reached ({max_iter} iterations)")   # measures: in the result
+            st, stop = _last_iterate_stop(poly, st, o, eps, max_iter)
             break
         step = _iteration(oracle, poly, st, o, eps)
         if step.kind == "restart":
