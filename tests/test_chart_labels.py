@@ -108,3 +108,17 @@ def test_a_plane_chart_names_its_in_plane_axes():
     flank, _ = fit_plane(x, np.tile(n, (20, 1)), origin=[0.0, 0.0, 0.0])
     assert flank.axes.labels == ("$\\xi_1$ along (0.5, 0, 0.866)", "$\\xi_2 = x_2$")
     assert np.allclose(flank.parameters(x)[:, 0], 2 * x[:, 2] / np.sqrt(3), atol=1e-12)     # the length up the slope
+
+
+def test_a_run_without_a_target_compares_the_initial_and_the_optimal_design_alone(bore, tmp_path, figures):
+    """An objective without a target (pressure uniformity) draws no empty "target" panel; Example 1's
+    target stays the first of three."""
+    run_optimization(bore, tmp_path / "run", max_iter=1)
+    for name in ("pressure.png", "stress.png"):
+        titles = [ax.get_title().split("\n")[0] for ax in figures[name].axes if ax.get_label() != "<colorbar>"]
+        assert titles == ["initial design", "optimal design"], (name, titles)
+    model = ElasticModel(load_config("example1").with_updates({"mesh": {"nx": 6, "ny": 3, "nz": 2}}))
+    p = np.arange(model.n_contact, dtype=float)
+    plots.plot_stress_comparison(tmp_path / "bars.png", model, p, p, p)
+    assert [ax.get_title().split("\n")[0] for ax in figures["bars.png"].axes] == ["target", "initial design",
+                                                                                   "optimal design"]

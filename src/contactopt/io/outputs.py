@@ -167,7 +167,8 @@ def _at_design(out: Path, problem, design, which: str, plots: bool) -> dict:
 
 def _figures(out: Path, model, x, target, s0, s1, res) -> tuple[list, list]:
     """The run's figures as two lists of jobs of about equal time, one for a forked process
-    and one drawn here: λ and the contact pressure p = λ/a of the target, α0 and the optimum, the
+    and one drawn here: λ and the contact pressure p = λ/a of the target (where the objective has
+    one), α0 and the optimum, the
     optimal surface and the convergence history; the optimum's node classes, contact response and
     von Mises stress."""
     classes = face_classes(model, s1)         # the maps' classes, read by two figures
@@ -175,7 +176,7 @@ def _figures(out: Path, model, x, target, s0, s1, res) -> tuple[list, list]:
     def pressure():
         p0, p1 = contact_pressure(model, s0.lam, s0.coords), contact_pressure(model, s1.lam, s1.coords)
         # the target in the same units: λ̄ over the optimal design's areas, as the optimal λ
-        p_target = (contact_pressure(model, target, s1.coords) if target is not None else np.zeros_like(p0))
+        p_target = contact_pressure(model, target, s1.coords) if target is not None else None
         plot_stress_comparison(out / "pressure.png", model, p_target, p0, p1,
                                zlabel="contact pressure $p = \\lambda/a$")
 
@@ -183,8 +184,7 @@ def _figures(out: Path, model, x, target, s0, s1, res) -> tuple[list, list]:
         plot_contact_response(out / "contact.png", model, contact_pressure(model, s1.lam, s1.coords), s1.tau,
                               s1.u_c[:, :2], classes, title="optimal design")
 
-    forked = [lambda: plot_stress_comparison(out / "stress.png", model,
-                                             target if target is not None else np.zeros_like(s0.lam), s0.lam, s1.lam),
+    forked = [lambda: plot_stress_comparison(out / "stress.png", model, target, s0.lam, s1.lam),
               pressure, lambda: plot_surface(out / "surface.png", model, x),
               lambda: plot_history(out / "history.png", [{**r, "kind": r.get("step")} for r in res.history])]
     here = [lambda: plot_node_classes(out / "classes.png", model, classes), contact,

@@ -286,9 +286,12 @@ def plot_stress_comparison(path, model, target, initial, optimal, *,
     """Three 3D bar plots side by side, as in the paper's Figures 5.2–5.10, with shared z-limits.
 
     ``target``, ``initial``, ``optimal``: one value per contact node (λ̄, λ(α0), λ(α_opt));
-    each bar stands on the dual cell of its contact node.
+    each bar stands on the dual cell of its contact node. ``target`` None (an objective without a
+    target): the initial and the optimal design alone.
     """
-    fields = [np.asarray(_contact_values(model, v), float) for v in (target, initial, optimal)]
+    if target is None:
+        titles = titles[1:]
+    fields = [np.asarray(_contact_values(model, v), float) for v in (target, initial, optimal) if v is not None]
     for name, g in zip(titles, fields):
         if not np.all(np.isfinite(g)):
             raise ValueError(f"plot_stress_comparison: {name!r} has non-finite values")
@@ -309,10 +312,10 @@ def plot_stress_comparison(path, model, target, initial, optimal, *,
         zmax = zmin + 1.0
     pad = 0.05 * (zmax - zmin)
     cm = colormaps["viridis"]
-    fig = _new_figure((15.5, 4.8), layout=None)
+    fig = _new_figure((15.5 * len(grids) / 3, 4.8), layout=None)
     fig.subplots_adjust(left=0.0, right=0.97, bottom=0.03, top=0.84 if suptitle else 0.9, wspace=0.08)
     for n, (g, title) in enumerate(zip(grids, titles)):
-        ax = fig.add_subplot(1, 3, n + 1, projection="3d")
+        ax = fig.add_subplot(1, len(grids), n + 1, projection="3d")
         colors = cm((g.ravel() - zmin) / (zmax - zmin))
         _bars(ax, x0.ravel(), y0.ravel(), DX.ravel(), DY.ravel(), g.ravel(), colors)
         ax.set_xlim(0.0, model.surface.a)
@@ -333,17 +336,17 @@ def plot_stress_comparison(path, model, target, initial, optimal, *,
 
 
 def _stress_maps(path, model, fields, titles, zlabel, suptitle) -> Path:
-    """Three maps of per-contact-node fields over a face of any shape, on one colour scale."""
+    """Maps of per-contact-node fields (two or three) over a face of any shape, on one colour scale."""
     lo = min(0.0, *(g.min() for g in fields))
     hi = max(0.0, *(g.max() for g in fields))
     if hi == lo:
         hi = lo + 1.0
     w, h = _figsize_map(model, extra_width=0.0)
-    fig = _new_figure((3 * w * 0.8 + 1.5, h * 0.8 + 0.6), layout=None)
+    fig = _new_figure((len(fields) * w * 0.8 + 1.5, h * 0.8 + 0.6), layout=None)
     fig.subplots_adjust(left=0.05, right=0.98, bottom=0.12, top=0.78 if suptitle else 0.82, wspace=0.3)
     tri = face_triangulation(model)
     for n, (g, title) in enumerate(zip(fields, titles)):
-        ax = _map_axes(fig, model, (1, 3, n + 1))
+        ax = _map_axes(fig, model, (1, len(fields), n + 1))
         m = ax.tripcolor(tri, g, shading="gouraud", cmap="viridis", vmin=lo, vmax=hi)
         ax.set_title(f"{title}\nsum {g.sum():.4g}, max {g.max():.4g}", fontsize=10)
     fig.colorbar(m, ax=fig.axes, label=zlabel, shrink=0.85)
