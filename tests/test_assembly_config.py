@@ -289,3 +289,13 @@ def test_a_run_reports_each_pair_at_the_initial_and_the_optimal_design(tmp_path,
         assert report["name"] == "block-slab"
         assert report["total_normal_force"] == pytest.approx(state["total_normal_force"], rel=1e-15)
     assert [r["name"] for r in summary["contacts"]["initial"]] == ["block-slab"]
+
+
+def test_the_examples_copy_takes_the_mesh_folders_of_every_body_and_rigid_counterpart():
+    from contactopt.io.examples import _mesh_paths
+    data = {"bodies": {"roller": {"mesh": "roller/roller.msh"}, "race": {"mesh": "races/outer.msh"}},
+            "contacts": [{"face": "roller.top", "counterpart": "race.inner"},
+                         {"face": "roller.bottom", "counterpart": {"shape": "surface", "mesh": "inner/race.stl"}}]}
+    assert sorted(_mesh_paths(data)) == ["inner/race.stl", "races/outer.msh", "roller/roller.msh"]
+    old = {"body": {"mesh": "pad/pad.msh"}, "foundation": {"mesh": "slab/slab.msh"}}
+    assert sorted(_mesh_paths(old)) == ["pad/pad.msh", "slab/slab.msh"]

@@ -46,6 +46,16 @@ def _sources() -> dict[str, object]:
     return out
 
 
+def _mesh_paths(data: dict) -> list[str]:
+    """The mesh files a configuration names: its body's, a foundation's or obstacle's, and in an
+    assembly each body's and each rigid counterpart's."""
+    tables = [data.get("body"), data.get("foundation"), data.get("obstacle")]
+    bodies = data.get("bodies")
+    tables += list(bodies.values()) if isinstance(bodies, dict) else []
+    tables += [c.get("counterpart") for c in data.get("contacts", []) if isinstance(c, dict)]
+    return [t["mesh"] for t in tables if isinstance(t, dict) and isinstance(t.get("mesh"), str) and t["mesh"]]
+
+
 def list_examples() -> list[Example]:
     """The shipped configurations, each with the files it needs (a mesh in a folder of its name)."""
     sources = _sources()
@@ -54,9 +64,8 @@ def list_examples() -> list[Example]:
         if "/" in rel or not rel.endswith(".toml"):
             continue
         data = tomllib.loads(res.read_text())
-        mesh = str(data.get("body", {}).get("mesh", "") or "")
-        folder = mesh.split("/")[0] if "/" in mesh else ""
-        extra = tuple(r for r in sources if folder and r.startswith(folder + "/"))
+        folders = {m.split("/")[0] for m in _mesh_paths(data) if "/" in m}
+        extra = tuple(r for r in sources if any(r.startswith(f + "/") for f in sorted(folders)))
         out.append(Example(rel[:-5], str(data.get("description", "")), (rel,) + extra))
     return out
 
