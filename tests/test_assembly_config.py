@@ -299,3 +299,17 @@ def test_the_examples_copy_takes_the_mesh_folders_of_every_body_and_rigid_counte
     assert sorted(_mesh_paths(data)) == ["inner/race.stl", "races/outer.msh", "roller/roller.msh"]
     old = {"body": {"mesh": "pad/pad.msh"}, "foundation": {"mesh": "slab/slab.msh"}}
     assert sorted(_mesh_paths(old)) == ["pad/pad.msh", "slab/slab.msh"]
+
+
+def test_a_counterpart_body_left_free_is_refused_in_the_keys_written_naming_its_free_motions(tmp_path, state_refused):
+    """A problem found while the meshes are read names the assembly's keys, not the one-body sections
+    the assembly is read as; the one-body spelling keeps its own."""
+    free = 'clamped = [{ on = "bottom", components = [3] }]'
+    motions = "the translation along x1, the translation along x2, the rotation about x3"
+    state_refused(_write(tmp_path, BLOCK_ON_SLAB.replace('clamped = "bottom"', free), "a.toml"),
+                  "bodies.slab.clamped leaves 3 rigid-body motion(s) free, " + motions, "its own clamps")
+    state_refused(_write(tmp_path, BLOCK_ON_SLAB_OLD.replace('clamped = "bottom"', free), "b.toml"),
+                  "foundation.clamped leaves 3 rigid-body motion(s) free, " + motions)
+    # a part the mesh does not have, found when the body is built
+    state_refused(_write(tmp_path, BLOCK_ON_SLAB.replace('counterpart = "slab.top"', 'counterpart = "slab.tpo"'),
+                         "c.toml"), "contacts[0].counterpart")

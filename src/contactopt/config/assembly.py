@@ -74,6 +74,7 @@ class Assembly:
     bodies: tuple[str, ...]
     contacts: tuple[Pair, ...]
     designs: tuple[str, ...]
+    spelled: bool = False        # written in the assembly spelling (else [body], [foundation], …)
 
     @classmethod
     def of(cls, data: dict) -> "Assembly":
@@ -82,7 +83,7 @@ class Assembly:
         contact face)."""
         rec = data.get("assembly")
         if rec is not None:
-            return cls(tuple(rec["bodies"]), tuple(Pair(**p) for p in rec["contacts"]), tuple(rec["designs"]))
+            return cls(tuple(rec["bodies"]), tuple(Pair(**p) for p in rec["contacts"]), tuple(rec["designs"]), True)
         face = f"body.{_part_name(data['body']['contact'])}"
         if data.get("foundation") is not None:
             bodies, other = ("body", "foundation"), f"foundation.{_part_name(data['foundation']['top'])}"
@@ -91,6 +92,29 @@ class Assembly:
             bodies, other = ("body",), f"rigid {obst['shape'] if obst else 'plane'}"
         return cls(bodies, (Pair("contact", face, other),), (face,))
 
+
+    def renames(self) -> list[tuple[str, str]]:
+        """(one-body key, the assembly's key) of every key a problem may name, most specific first;
+        none for a model written in the one-body spelling."""
+        if not self.spelled:
+            return []
+        face = self.bodies[0]
+        out = [("body.contact", "contacts[0].face"), ("friction.coefficient", "contacts[0].friction")]
+        out += [(f"body.{k}", f"contacts[0].{k}") for k in ("interference", "initial_gap")]
+        out += [(f"body.{k}", f"bodies.{face}.{k}") for k in FACE_BODY_KEYS]
+        if len(self.bodies) > 1:
+            other = self.bodies[1]
+            out += [("foundation.top", "contacts[0].counterpart"), ("foundation.partner", "contacts[0].partner"),
+                    ("[foundation]", f"bodies.{other}")]
+            out += [(f"foundation.{k}", f"bodies.{other}.{k}") for k in FOUNDATION if k not in ("top", "partner")]
+        else:
+            out += [("[obstacle]", "contacts[0].counterpart"), ("obstacle.", "contacts[0].counterpart.")]
+        return out + [("design.", "designs[0].")]
+
+    def rename_error(self, exc: ConfigError) -> ConfigError:
+        """``exc`` with its problems in the keys the model was written in (a problem found while the
+        meshes are read names the one-body sections the assembly is read as)."""
+        return ConfigError(rename(exc.problems, self.renames())) if self.spelled else exc
 
     def require_design(self, source: str, what: str) -> None:
         """ConfigError when the model has no designed face: ``what`` (an optimization, a gradient
@@ -283,20 +307,15 @@ def _sections(raw: dict, bodies: dict, contact: dict, pair, designs: list, probl
                                         "not carry the contact face, is the same in every case and step: put it "
                                         "in [loads]")
                     load["on"] = target[1]
-    renames = [(f"body.{k}", f"bodies.{face_body}.{k}") for k in FACE_BODY_KEYS]
-    renames += [(f"body.{k}", f"contacts[0].{k}") for k in ("interference", "initial_gap")]
-    renames += [("body.contact", "contacts[0].face"), ("friction.coefficient", "contacts[0].friction")]
     if isinstance(counter, tuple):
-        renames += _counterpart_body(out, bodies, counter, contact, raw, counter_loads, problems)
+        _counterpart_body(out, bodies, counter, contact, raw, counter_loads, problems)
     else:
         if counter_loads:
             problems.append("loads: a load on a body that takes part in no pair")
         if any(k not in OBSTACLE or OBSTACLE[k][0] != v for k, v in counter.items()):
             out["obstacle"] = copy.deepcopy(counter)       # the fixed plane x3 = 0 is the model without one
-        renames += [("[obstacle]", "contacts[0].counterpart"), ("obstacle.", "contacts[0].counterpart.")]
     if designs:
         out["design"] = {k: copy.deepcopy(v) for k, v in designs[0].items() if k != "face"}
-        renames += [("design.", "designs[0].")]
     else:                               # no design: the reference shape, ϑ = 0 (``run`` refuses the model)
         out["design"] = {"degree": [0, 0], "initial": 0.0, "C2": 0.0}
     name = contact.get("name", f"{face_body}-{counter[0] if isinstance(counter, tuple) else 'rigid'}")
@@ -305,7 +324,7 @@ def _sections(raw: dict, bodies: dict, contact: dict, pair, designs: list, probl
     out["assembly"] = {"bodies": [face_body] + ([counter[0]] if isinstance(counter, tuple) else []),
                        "contacts": [{"name": name, "face": f"{face_body}.{_part_name(part)}", "counterpart": other}],
                        "designs": [f"{face_body}.{_part_name(part)}"] if designs else []}
-    return out, renames
+    return out, Assembly.of(out).renames()
 
 
 def _body_keys(name: str, body: dict, keys: tuple, other: str, problems: list) -> dict:
@@ -320,7 +339,7 @@ def _body_keys(name: str, body: dict, keys: tuple, other: str, problems: list) -
 
 
 def _counterpart_body(out, bodies, counter, contact, raw, counter_loads, problems) -> list:
-    """``[foundation]`` of a counterpart body; the renames of its keys."""
+    """``[foundation]`` of a counterpart body."""
     name, part = counter
     c = bodies[name]
     fnd = _body_keys(name, c, COUNTERPART_BODY_KEYS, "a key of the body that carries the contact face; body "
@@ -340,9 +359,6 @@ def _counterpart_body(out, bodies, counter, contact, raw, counter_loads, problem
     if loads:
         fnd["loads"] = loads
     out["foundation"] = fnd
-    keys = [k for k in FOUNDATION if k not in ("top", "partner")]
-    return ([("foundation.top", "contacts[0].counterpart"), ("foundation.partner", "contacts[0].partner"),
-             ("[foundation]", f"bodies.{name}")] + [(f"foundation.{k}", f"bodies.{name}.{k}") for k in keys])
 
 
 def check_record(data: dict, problems: list) -> None:

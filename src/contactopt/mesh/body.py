@@ -257,20 +257,14 @@ def _check_contact_face(ref: ReferenceMesh, face: Part, tol: float, on_plane: bo
 
 
 def _check_rigid_modes(ref: ReferenceMesh, fixed: np.ndarray, source: str, key: str = "body.clamped") -> None:
-    """The clamped DOFs must remove the six rigid-body motions (else A is singular): an elastic
-    foundation's clamps (the body's may leave motions for contact to hold, :mod:`.rigid`)."""
-    x = ref.points - ref.points.mean(axis=0)
-    nodes, comps = np.nonzero(fixed)
-    # component m of the six rigid modes at node n: translations e_k, rotations e_k × x_n
-    R = np.zeros((nodes.size, 6))
-    R[np.arange(nodes.size), comps] = 1.0
-    R[:, 3:] = np.cross(np.eye(3)[None], x[nodes][:, None, :])[np.arange(nodes.size), :, comps]
-    sv = np.linalg.svd(R, compute_uv=False) if R.size else np.zeros(0)
-    rank = int(np.sum(sv > 1e-9 * max(sv.max(initial=0.0), 1e-300))) if sv.size else 0
-    if rank < 6:
-        raise ConfigError([f"{source}: {key} leaves {6 - rank} rigid-body motion(s) free "
-                           f"({int(fixed.sum())} clamped DOFs): the stiffness would be singular. Clamp a part "
-                           "that holds the body in place; bodies held only by the foundation are not supported yet"])
+    """The clamped components ``fixed`` (n, 3) of a body that must hold itself (an elastic
+    foundation, a counterpart body) remove its six rigid-body motions, else its stiffness is
+    singular; the error names the motions left free (:func:`~contactopt.mesh.rigid.free_modes`)."""
+    free = free_modes(ref.points, fixed)
+    if free.count:
+        raise ConfigError([f"{source}: {key} leaves {free.count} rigid-body motion(s) free, "
+                           f"{', '.join(free.names())} ({int(fixed.sum())} clamped DOFs): the stiffness would be "
+                           "singular. Clamp a part that holds the body in place"])
 
 
 def _fixed_shape(ref, spec, face: Part, tol: float, source: str) -> dict:

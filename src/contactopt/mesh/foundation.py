@@ -112,9 +112,8 @@ def build_foundation_mesh(spec, contact_xy: np.ndarray, source: str, curved: boo
     try:
         _check_rigid_modes(ref, fixed, source, key="foundation.clamped")
     except ConfigError as exc:
-        raise ConfigError([p.replace("bodies held only by the foundation are not supported yet",
-                                     "the foundation must be held in place by its own clamps")
-                           for p in exc.problems]) from None
+        raise ConfigError([f"{p}; a counterpart body is held in place by its own clamps (one held only by its "
+                           "contacts is not solved yet)" for p in exc.problems]) from None
     mat = spec.material
     return FoundationMesh(ref, top, np.flatnonzero(fixed.ravel()), tol, float(mat.E), float(mat.nu), loaded)
 
