@@ -122,3 +122,22 @@ def test_a_run_without_a_target_compares_the_initial_and_the_optimal_design_alon
     plots.plot_stress_comparison(tmp_path / "bars.png", model, p, p, p)
     assert [ax.get_title().split("\n")[0] for ax in figures["bars.png"].axes] == ["target", "initial design",
                                                                                    "optimal design"]
+
+
+def test_a_length_unit_is_written_on_every_length_axis(bore, tmp_path, figures):
+    """``length_unit`` names the meshes' unit on the axes of the maps, the surface and the stress plot;
+    a configuration without one resolves as before (no key) and its labels carry none."""
+    hub = bore.with_updates({"length_unit": "mm"})
+    assert hub.length_unit == "mm" and "length_unit" not in bore.data and bore.length_unit == ""
+    problem = ShapeProblem(hub)
+    model = problem.model
+    write_state(tmp_path / "state", model, problem.solve_state(model.initial_design()))
+    for name in MAPS:
+        assert set(map_labels(figures[name])) == {(ARC + " [mm]", AXIAL + " [mm]")}, name
+    assert ("$x_1$ [mm]", "$x_2$ [mm]") in map_labels(figures["von_mises.png"])
+    plots.plot_surface(tmp_path / "surface.png", model, model.initial_design())
+    surface = figures["surface.png"].axes[0]
+    assert (surface.get_xlabel(), surface.get_zlabel()) == (ARC + " [mm]",
+                                                          "$\\vartheta_\\alpha$ along the inward normal [mm]")
+    with pytest.raises(Exception, match="length_unit"):
+        bore.with_updates({"length_unit": " mm "})

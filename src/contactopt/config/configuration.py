@@ -59,6 +59,7 @@ class Config:
     load_steps: tuple[LoadStep, ...]
     constraints: tuple[ResponseConstraint, ...] = ()     # [[constraints]] (config/constraints.py)
     assembly: Assembly | None = None     # the names of bodies, pairs and designs (config/assembly.py)
+    length_unit: str = ""                # the meshes' length unit, named on the figures' axes
     source: str = "<dict>"
     _data: dict = field(default_factory=dict, repr=False, compare=False)
 
@@ -79,7 +80,7 @@ class Config:
             load_cases=tuple(LoadCase.from_dict(c) for c in data.get("load_cases", [])),
             load_steps=tuple(LoadStep.from_dict(s) for s in data.get("load_steps", [])),
             constraints=tuple(ResponseConstraint.from_dict(c) for c in data.get("constraints", [])),
-            assembly=Assembly.of(data), source=source, _data=data)
+            assembly=Assembly.of(data), length_unit=data.get("length_unit", ""), source=source, _data=data)
 
     @property
     def data(self) -> dict:

@@ -390,7 +390,11 @@ CONTACTS = {
 DESIGNS = {"face": ("", lambda x: isinstance(x, str), _BODY_REF + " (the designed face)"), **SCHEMA["design"]}
 
 TOP_LEVEL = {"name": ("custom", lambda x: isinstance(x, str) and x != "", "a non-empty string"),
-             "description": ("", lambda x: isinstance(x, str), "a string")}
+             "description": ("", lambda x: isinstance(x, str), "a string"),
+             "length_unit": ("", lambda x: isinstance(x, str) and len(x) <= 16 and x == x.strip(),
+                             "the unit of the meshes' coordinates, such as \"mm\" (contactopt computes in whatever "
+                             "consistent units the meshes, material and loads share; this names the length on "
+                             "the axes of the figures); empty: none named")}
 
 
 BLOCK_LOADS = ("top_traction", "right_traction")

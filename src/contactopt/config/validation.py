@@ -513,6 +513,9 @@ def resolve(raw: dict, source: str = "<dict>") -> dict:
         if not check(val):
             problems.append(f"{key} = {val!r}: must be {desc}")
         data[key] = val
+    if not raw.get("length_unit"):
+        # absent: no unit named, and a configuration that does not name one resolves as before the key
+        data.pop("length_unit", None)
     raw = _legacy_backend(raw, source, problems)
     for sec, keys in SCHEMA.items():
         given = raw.get(sec, {})

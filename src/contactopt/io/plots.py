@@ -180,9 +180,16 @@ def _rectangle(model):
     return s.x1lo, s.x1lo + s.a, s.x2lo, s.x2lo + s.b
 
 
+def _unit(model, label: str) -> str:
+    """``label`` of a length with the configuration's ``length_unit``, "label [mm]"; as it is without one."""
+    unit = getattr(model.config, "length_unit", "")
+    return f"{label} [{unit}]" if unit else label
+
+
 def _axis_labels(model) -> tuple[str, str]:
-    """The labels of the chart coordinates ξ1, ξ2 of the face (x1, x2 on the paper's map)."""
-    return chart_axes(model.mesh.chart).labels
+    """The labels of the chart coordinates ξ1, ξ2 of the face (x1, x2 on the paper's map), with the
+    length unit where the configuration names one."""
+    return tuple(_unit(model, label) for label in chart_axes(model.mesh.chart).labels)
 
 
 def _lift_label(model) -> str:
@@ -190,8 +197,8 @@ def _lift_label(model) -> str:
     else ϑ_α along the direction the design moves the face (``[design] motion``)."""
     mesh = model.mesh
     if mesh.directions is not None:
-        return "$\\vartheta_\\alpha$ along the inward normal"
-    return "$x_3$" if mesh.chart is None else "$\\vartheta_\\alpha$ along $x_3$"
+        return _unit(model, "$\\vartheta_\\alpha$ along the inward normal")
+    return _unit(model, "$x_3$" if mesh.chart is None else "$\\vartheta_\\alpha$ along $x_3$")
 
 
 def _label_pad(axis, pad: float = 4.0, chars: int = 5) -> float:
@@ -568,8 +575,8 @@ def plot_peak_stress(path, model, coords, u_full, *, cells=None, fraction: float
         ax.set_xlim(lo[i] - 0.02 * span[i], hi[i] + 0.02 * span[i])
         ax.set_ylim(lo[j] - 0.02 * span[j], hi[j] + 0.02 * span[j])
         ax.set_aspect("equal")
-        ax.set_xlabel(f"$x_{i + 1}$")
-        ax.set_ylabel(f"$x_{j + 1}$")
+        ax.set_xlabel(_unit(model, f"$x_{i + 1}$"))
+        ax.set_ylabel(_unit(model, f"$x_{j + 1}$"))
         ax.set_title(name, fontsize=9)
     fig.colorbar(sc, ax=fig.axes, label="von Mises stress $\\sigma_{vM}$", shrink=0.85)
     p = ", ".join(f"{v:.4g}" for v in x[top])
