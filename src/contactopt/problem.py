@@ -23,7 +23,6 @@ from ._threads import sequential_openblas
 from .config import Config, load_config
 from .contact.balance import check_held
 from .contact.state import State
-from .errors import ConfigError
 from .fem import memory
 from .fem.model import ElasticModel
 from .io import reports
@@ -53,33 +52,35 @@ class ShapeProblem:
 
     def __init__(self, config, *, method: str | None = None, optimizing: bool = False):
         self.config = config if isinstance(config, Config) else load_config(config)
-        try:
-            self._set_up(method, optimizing)
-        except ConfigError as exc:      # in the keys the configuration was written in
-            raise self.config.assembly.rename_error(exc) from None
-
-    def _set_up(self, method, optimizing: bool) -> None:
-        """The model, its solver path, the load cases and steps, the responses."""
-        name, library = self._build_model(optimizing)
-        self.cases, self.combination = build_cases(self.config, self.model, self._design_lambda)
-        self._selected = name, library
-        self.path = make_path(self.config, self.model, name, library, Start(first_loads=self.cases[0].loads))
-        self.friction = self.path.settings.friction
-        self.method = method or self.path.settings.method
-        self.tol = self.path.settings.tol
-        if self.model.body.rigid is not None:
-            self._check_held()
-        self.constraints = make_constraints(self.config, self.model, self.cases, self._design_lambda)
-        warn_pressure_on_linear_tetrahedra(self.config, self.model)
-        contexts = [self.path.new_context() for _ in self.cases]
-        self.steps = [build_path(self.model, case.loads, step_tables(self.config, k if self.has_load_cases else None),
-                                 f"load_cases[{k}].steps" if self.has_load_cases and self.config.load_cases[k].steps
-                                 is not None else "load_steps") for k, case in enumerate(self.cases)]
-        self.step_choice = step_choice(self.config)
-        self._use(self.path, contexts)
-        self._objective = Response("objective", tuple(c.objective for c in self.cases), self.combination,
-                                   self.step_choice)
-        self.response = self._objective          # what evaluate and subgradient answer for
+        with self.config.assembly.named_as_written():      # a problem in the keys the model was written in
+            body = build_body(self.config)
+            # pinned components on an elastic foundation: the foundation checks that they are clamped at
+            # their partners too (fem.foundation), where the condensation takes them
+            name, library = select_path(self.config, memory.free_dofs(body), pinned=int(body.pinned_dofs.size),
+                                        rigid=body.rigid, pinned_held=True)
+            with PATHS[name].library_threads(self.config.linear_solver.threads):   # the morph weight's solve
+                self.model = ElasticModel(self.config, body=body, memory_estimate=PATHS[name].memory_estimate)
+            if optimizing:
+                self.model.check_design_space()
+            self.cases, self.combination = build_cases(self.config, self.model, self._design_lambda)
+            self._selected = name, library
+            self.path = make_path(self.config, self.model, name, library, Start(first_loads=self.cases[0].loads))
+            self.friction = self.path.settings.friction
+            self.method = method or self.path.settings.method
+            self.tol = self.path.settings.tol
+            if self.model.body.rigid is not None:
+                self._check_held()
+            self.constraints = make_constraints(self.config, self.model, self.cases, self._design_lambda)
+            warn_pressure_on_linear_tetrahedra(self.config, self.model)
+            contexts = [self.path.new_context() for _ in self.cases]
+            self.steps = [build_path(self.model, case.loads, step_tables(self.config, k if self.has_load_cases else None),
+                                     f"load_cases[{k}].steps" if self.has_load_cases and self.config.load_cases[k].steps
+                                     is not None else "load_steps") for k, case in enumerate(self.cases)]
+            self.step_choice = step_choice(self.config)
+            self._use(self.path, contexts)
+            self._objective = Response("objective", tuple(c.objective for c in self.cases), self.combination,
+                                       self.step_choice)
+            self.response = self._objective          # what evaluate and subgradient answer for
 
     def _use(self, path, contexts) -> None:
         """Solve on ``path``, each case from its context in ``contexts`` (a load path's later solves
@@ -98,20 +99,6 @@ class ShapeProblem:
         path = make_path(self.config, self.model, *self._selected, Start(first_loads=self.cases[0].loads))
         out._use(path, [path.new_context() for _ in self.cases])
         return out
-
-    def _build_model(self, optimizing: bool) -> tuple[str, str]:
-        """The body, its solver path's (name, library) and the model (``self.model``); with
-        ``optimizing`` the design space checked as a run checks it."""
-        body = build_body(self.config)
-        # pinned components on an elastic foundation: the foundation checks that they are clamped at
-        # their partners too (fem.foundation), where the condensation takes them
-        name, library = select_path(self.config, memory.free_dofs(body), pinned=int(body.pinned_dofs.size),
-                                    rigid=body.rigid, pinned_held=True)
-        with PATHS[name].library_threads(self.config.linear_solver.threads):   # the morph weight's solve
-            self.model = ElasticModel(self.config, body=body, memory_estimate=PATHS[name].memory_estimate)
-        if optimizing:
-            self.model.check_design_space()
-        return name, library
 
     def _check_held(self) -> None:
         """A body held only by contact: ConfigError when no admissible contact force balances a

@@ -21,6 +21,7 @@ that is refused here, naming what it asks for.
 
 from __future__ import annotations
 
+import contextlib
 import copy
 import re
 from dataclasses import dataclass
@@ -115,6 +116,15 @@ class Assembly:
         """``exc`` with its problems in the keys the model was written in (a problem found while the
         meshes are read names the one-body sections the assembly is read as)."""
         return ConfigError(rename(exc.problems, self.renames())) if self.spelled else exc
+
+    @contextlib.contextmanager
+    def named_as_written(self):
+        """A ConfigError raised inside, raised again in the keys the model was written in
+        (:meth:`rename_error`)."""
+        try:
+            yield
+        except ConfigError as exc:
+            raise self.rename_error(exc) from None
 
     def require_design(self, source: str, what: str) -> None:
         """ConfigError when the model has no designed face: ``what`` (an optimization, a gradient
