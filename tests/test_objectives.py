@@ -392,3 +392,14 @@ def test_load_cases_give_their_targets_to_a_target_normal_force_term():
     data["objective"]["terms"] = [{"type": "max_pressure"}]
     with pytest.raises(ConfigError, match="a case's target"):
         load_config(data)
+
+
+def test_a_run_lists_the_linear_tetrahedra_pressure_warning_in_its_summary(tmp_path):
+    """The warning is a run's own too (summary.json ``warnings``), not only a line of the log."""
+    import json
+
+    from contactopt.runner import run_optimization
+    config = uniform_pressure_problem(_box_file(tmp_path, "tetra"), {"type": "max_pressure"}).config
+    run_optimization(config, tmp_path / "run", max_iter=1, plots=False)
+    warnings = json.loads((tmp_path / "run" / "summary.json").read_text())["warnings"]
+    assert [w for w in warnings if "contact face of linear tetrahedra (tetra)" in w and "max_pressure" in w]

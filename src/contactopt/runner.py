@@ -69,6 +69,7 @@ from .optimize._trials import FailedTrials
 from .optimize.bundle import SUCCESS_STATUS
 from .problem import ShapeProblem
 from .sensitivity import adjoint
+from .sensitivity.objectives import linear_tetrahedra_pressure
 from .sensitivity.solution import KeptDesign
 
 log = logging.getLogger(__name__)
@@ -501,7 +502,8 @@ def _warnings(setup: _SetUp, resume: bool) -> list[str]:
     problem = setup.problem
     asked = problem.detached() if resume and problem.friction > 0 else problem
     out = uniqueness_warnings(asked, setup.alpha0)
-    return out + (setup.reduction.warnings if setup.reduction is not None else [])
+    pressure = linear_tetrahedra_pressure(problem.config, problem.model)
+    return out + ([pressure] if pressure else []) + (setup.reduction.warnings if setup.reduction is not None else [])
 
 
 def _optimize(oracle: _Oracle, setup: _SetUp, ckpt: Checkpoint | None, progress):

@@ -531,20 +531,28 @@ def pressure_responses(config) -> list[str]:
     return list(dict.fromkeys(out))
 
 
-def warn_pressure_on_linear_tetrahedra(config, model) -> None:
-    """A warning when a response of the contact pressure (:func:`pressure_responses`) sits on a
-    contact face of linear tetrahedra, whose nodal pressure is coarse: 3.2 % rms of p0 at h = a/10
-    on Gmsh's tetrahedra in the Hertz benchmark, against 0.62 % with ten-node tetrahedra
-    (docs/mortar.md, "Hertz on tetrahedra")."""
+def linear_tetrahedra_pressure(config, model) -> str | None:
+    """The warning of a response of the contact pressure (:func:`pressure_responses`) on a contact
+    face of linear tetrahedra, whose nodal pressure is coarse: 3.2 % rms of p0 at h = a/10 on Gmsh's
+    tetrahedra in the Hertz benchmark, against 0.62 % with ten-node tetrahedra (docs/mortar.md,
+    "Hertz on tetrahedra"); None where it does not apply."""
     if model.body.reference.cell_type != "tetra":
-        return
+        return None
     keys = pressure_responses(config)
-    if keys:
-        log.warning("%s: %s read%s the contact pressure on a contact face of linear tetrahedra (tetra), whose "
-                    "nodal pressure is coarse: 3.2 %% rms of the peak pressure p0 at element size a/10 (a the "
-                    "contact radius) in the Hertz benchmark on Gmsh's tetrahedra, against 0.62 %% with ten-node "
-                    "tetrahedra; mesh the body with tetra10 (Gmsh: Mesh.ElementOrder = 2) or hexahedra",
-                    config.source, ", ".join(keys), "s" if len(keys) == 1 else "")
+    if not keys:
+        return None
+    return (f"{config.source}: {', '.join(keys)} read{'s' if len(keys) == 1 else ''} the contact pressure on a "
+            "contact face of linear tetrahedra (tetra), whose nodal pressure is coarse: 3.2 % rms of the peak "
+            "pressure p0 at element size a/10 (a the contact radius) in the Hertz benchmark on Gmsh's tetrahedra, "
+            "against 0.62 % with ten-node tetrahedra; mesh the body with tetra10 (Gmsh: Mesh.ElementOrder = 2) "
+            "or hexahedra")
+
+
+def warn_pressure_on_linear_tetrahedra(config, model) -> None:
+    """Log :func:`linear_tetrahedra_pressure` where it applies (once, at the problem's set-up)."""
+    message = linear_tetrahedra_pressure(config, model)
+    if message:
+        log.warning("%s", message)
 
 
 def objective_types(config) -> set:
