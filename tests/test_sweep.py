@@ -278,3 +278,31 @@ def test_task_in_a_directory_without_checkpoint_starts_afresh(tmp_path, config_f
     # a different stopping parameter is another task: it continues from the checkpoint
     more = run_task(TaskSpec(task, str(run), str(tmp_path / "sw"), 4, None, {"local": os.cpu_count()}))
     assert more["status"] == "resumed" and more["iterations"] == 4
+
+
+def test_the_surfaces_of_runs_on_a_chart_are_cut_at_the_middle_of_its_coordinates(tmp_path, monkeypatch):
+    """surface.csv holds the chart's ξ (on a cylinder ξ2 ∈ [−L/2, L/2]): the sections are named ξ1, ξ2
+    and cut at the middle of the other coordinate, not at half its largest value; the paper's map keeps
+    x1, x2 at b/2 and a/2."""
+    from pathlib import Path
+
+    import numpy as np
+
+    from contactopt.studies import plots as sweep_plots
+    drawn = {}
+    monkeypatch.setattr(sweep_plots, "_save", lambda fig, path: drawn.setdefault(Path(path).name, fig))
+    xi1, xi2 = np.meshgrid(np.linspace(-1.0, 1.0, 5), np.linspace(-0.5, 0.5, 5))
+    theta = 1e-3 * (1.0 + xi1 ** 2) * (1.0 + 4.0 * xi2)       # ϑ at ξ2 = 0 is 1e-3 (1 + ξ1²)
+    for name, description in (("cyl", "the cylinder of radius 1.5 ..."), ("paper", "the paper's map xi = (x1, x2)")):
+        run = tmp_path / name / "run"
+        run.mkdir(parents=True)
+        (run / "surface.csv").write_text("x1,x2,theta\n" + "".join(
+            f"{a:.17g},{b:.17g},{c:.17g}\n" for a, b, c in zip(xi1.ravel(), xi2.ravel(), theta.ravel())))
+        (run / "summary.json").write_text(json.dumps({"chart": {"description": description, "axes": []}}))
+        sweep_plots.plot_surfaces(tmp_path / f"{name}.png", tmp_path / name, ["k"], [{"run_dir": "run", "k": 1}])
+    ax1, ax2 = drawn["cyl.png"].axes
+    assert (ax1.get_xlabel(), ax2.get_xlabel()) == ("$\\xi_1$ (at the middle of $\\xi_2$)",
+                                                    "$\\xi_2$ (at the middle of $\\xi_1$)")
+    x, y = ax1.lines[0].get_data()
+    assert np.allclose(y, 1e-3 * (1.0 + x ** 2), rtol=1e-12)            # the section at ξ2 = 0
+    assert drawn["paper.png"].axes[0].get_xlabel() == "$x_1$ (at $x_2 = b/2$)"

@@ -3,7 +3,8 @@
 - ``ratio.png``: J/J0 against each swept parameter (one panel per key; with several keys, one
   line per combination of the other keys). Failed tasks are left out.
 - ``surfaces.png``: the optimal contact surfaces ϑ_α of the runs overlaid, as two sections
-  (x2 = b/2 against x1, x1 = a/2 against x2) read from each run's ``surface.csv``.
+  (x2 = b/2 against x1, x1 = a/2 against x2) read from each run's ``surface.csv``; on a face off
+  the paper's map the sections are along its chart's ξ1 and ξ2 (summary.json ``chart``).
 - ``lambda.png``: the normal contact force λ ≥ 0 of the optimal designs overlaid: the contact
   nodes of the row nearest x2 = b/2 against x1, and the sum over each column of nodes (same x1),
   read from each run's ``optimal.vtu`` (point data ``normal_force`` on ``contact_node``).
@@ -12,6 +13,7 @@
 from __future__ import annotations
 
 import csv
+import json
 import logging
 from pathlib import Path
 
@@ -71,6 +73,21 @@ def _read_surface(run_dir: Path):
     return x1, x2, th
 
 
+def _section_labels(outdir, rows) -> tuple[str, str]:
+    """The labels of the two sections of surface.csv, whose columns x1, x2 hold x1, x2 on the
+    paper's map and the chart's ξ1, ξ2 on a face off it (the first finished run's summary.json
+    ``chart``)."""
+    for r in rows:
+        summary = Path(outdir) / r["run_dir"] / "summary.json"
+        if r.get("error") or not summary.exists():
+            continue
+        chart = json.loads(summary.read_text()).get("chart", {})
+        if chart and not chart.get("description", "").startswith("the paper's map"):
+            return "$\\xi_1$ (at the middle of $\\xi_2$)", "$\\xi_2$ (at the middle of $\\xi_1$)"
+        break
+    return "$x_1$ (at $x_2 = b/2$)", "$x_2$ (at $x_1 = a/2$)"
+
+
 def plot_surfaces(path, outdir, keys, rows) -> Path:
     """Sections of the optimal surfaces of every finished run, overlaid."""
     fig = _new_figure((10.0, 3.8))
@@ -80,14 +97,15 @@ def plot_surfaces(path, outdir, keys, rows) -> Path:
         if r.get("error") or not (run / "surface.csv").exists():
             continue
         x1, x2, th = _read_surface(run)
-        mid2 = np.unique(x2)[np.argmin(np.abs(np.unique(x2) - 0.5 * x2.max()))]
-        mid1 = np.unique(x1)[np.argmin(np.abs(np.unique(x1) - 0.5 * x1.max()))]
+        mid2 = np.unique(x2)[np.argmin(np.abs(np.unique(x2) - 0.5 * (x2.min() + x2.max())))]
+        mid1 = np.unique(x1)[np.argmin(np.abs(np.unique(x1) - 0.5 * (x1.min() + x1.max())))]
         s = x2 == mid2
         line, = ax1.plot(x1[s], th[s], label=_label(r, keys))
         s = x1 == mid1
         ax2.plot(x2[s], th[s], color=line.get_color())
-    ax1.set_xlabel("$x_1$ (at $x_2 = b/2$)")
-    ax2.set_xlabel("$x_2$ (at $x_1 = a/2$)")
+    label1, label2 = _section_labels(outdir, rows)
+    ax1.set_xlabel(label1)
+    ax2.set_xlabel(label2)
     for ax in (ax1, ax2):
         ax.set_ylabel(r"$\vartheta_\alpha$")
         ax.grid(True, alpha=0.3)
