@@ -5,7 +5,9 @@ is largest, the peak marked).
 :func:`write_state` is all-or-nothing: every file is first built in a temporary sibling directory
 of ``outdir``; only when all of them succeeded are they moved into ``outdir`` (each by an atomic
 rename; when ``outdir`` does not exist yet, the whole directory is renamed at once). A failure
-part-way leaves ``outdir`` exactly as it was and removes the temporary directory.
+part-way leaves ``outdir`` exactly as it was and removes the temporary directory. Half of the
+figures are drawn in a forked child beside the other files where forking is safe
+(:class:`~contactopt.io.forked.Forked`); the files are the same either way.
 
 Conventions of the stored contact arrays (contact-node order m = 0..p−1, see
 :mod:`contactopt.contact.state`):
@@ -49,6 +51,7 @@ from ..contact.state import CLASS_NAMES, FoundationState, State
 from ..design.chart import chart_summary
 from . import plots, vtk
 from .atomic import atomic_savez, atomic_write_json, fsync_dir, to_jsonable
+from .forked import Forked
 from .pressure import contact_pressure, face_classes, pair_index, pair_reports
 
 log = logging.getLogger(__name__)
@@ -207,24 +210,31 @@ def write_state(outdir, model, state: State, *, config=None, warnings=None, obje
     parent.mkdir(parents=True, exist_ok=True)
     tmpdir = Path(tempfile.mkdtemp(prefix=f".{outdir.name}.", suffix=".tmp", dir=parent))
     try:
-        atomic_write_json(tmpdir / "state.json", state_json(model, state, config, warnings, objective,
-                                                                  constraints))
-        atomic_savez(tmpdir / "state.npz", **_state_arrays(model, state))
-        vtk.write_body_vtu(tmpdir / "body.vtu", model, state)
-        plots.plot_contact_field(tmpdir / "lambda.png", model, state.lam,
-                                 "Normal contact force $\\lambda$", cmap="viridis", label="$\\lambda$")
-        plots.plot_contact_field(tmpdir / "pressure.png", model, contact_pressure(model, state.lam, state.coords),
-                                 "Contact pressure $p = \\lambda / a$", cmap="viridis", label="$p$")
-        plots.plot_node_classes(tmpdir / "classes.png", model, face_classes(model, state))
-        plots.plot_contact_response(tmpdir / "contact.png", model, contact_pressure(model, state.lam, state.coords),
-                                    state.tau, np.asarray(state.u_c)[:, :2], face_classes(model, state))
-        plots.plot_peak_stress(tmpdir / "von_mises.png", model, np.asarray(state.coords, float),
-                               np.asarray(state.u, float))
-        if model.foundation is not None:
-            vtk.write_foundation_vtu(tmpdir / "foundation.vtu", model.foundation, state)
-            plots.plot_contact_field(tmpdir / "foundation.png", model, -np.asarray(state.foundation.u_partner)[:, 2],
-                                     "Indentation of the foundation $-(\\Pi u_f)_3$ under the contact nodes",
-                                     cmap="viridis", label="$-(\\Pi u_f)_3$")
+        pressure = contact_pressure(model, state.lam, state.coords)
+        # half of the figures drawn in a forked child beside the other files (io/forked.py)
+        forked = [lambda: plots.plot_contact_field(tmpdir / "lambda.png", model, state.lam,
+                                                   "Normal contact force $\\lambda$", cmap="viridis",
+                                                   label="$\\lambda$"),
+                  lambda: plots.plot_contact_field(tmpdir / "pressure.png", model, pressure,
+                                                   "Contact pressure $p = \\lambda / a$", cmap="viridis", label="$p$"),
+                  lambda: plots.plot_peak_stress(tmpdir / "von_mises.png", model, np.asarray(state.coords, float),
+                                                 np.asarray(state.u, float))]
+        with Forked(forked, directory=tmpdir) as figures:
+            atomic_write_json(tmpdir / "state.json", state_json(model, state, config, warnings, objective,
+                                                                      constraints))
+            atomic_savez(tmpdir / "state.npz", **_state_arrays(model, state))
+            vtk.write_body_vtu(tmpdir / "body.vtu", model, state)
+            classes = face_classes(model, state)
+            plots.plot_node_classes(tmpdir / "classes.png", model, classes)
+            plots.plot_contact_response(tmpdir / "contact.png", model, pressure, state.tau,
+                                        np.asarray(state.u_c)[:, :2], classes)
+            if model.foundation is not None:
+                vtk.write_foundation_vtu(tmpdir / "foundation.vtu", model.foundation, state)
+                plots.plot_contact_field(tmpdir / "foundation.png", model,
+                                         -np.asarray(state.foundation.u_partner)[:, 2],
+                                         "Indentation of the foundation $-(\\Pi u_f)_3$ under the contact nodes",
+                                         cmap="viridis", label="$-(\\Pi u_f)_3$")
+            figures.join()
         names = state_files(model)
         built = sorted(p.name for p in tmpdir.iterdir())
         if built != sorted(names):
