@@ -196,24 +196,86 @@ def desugar(raw: dict, problems: list) -> tuple[dict, list]:
     faces = [_design_face(d, n, bodies, problems) for n, d in enumerate(designs)]
     if len(problems) > n0:
         return _rest(raw), []
-    if len(contacts) > 1:
-        problems.append(f"contacts: {len(contacts)} contact pairs; contactopt solves one contact pair per model "
-                        "so far (one body against a rigid counterpart or against a second body)")
     face_body, part, counter = pairs[0]
-    used = {face_body} | ({counter[0]} if isinstance(counter, tuple) else set())
+    if len(contacts) > 1:
+        _check_star(pairs, problems)
+    used = {face_body} | {c[0] for _, _, c in pairs if isinstance(c, tuple)}
     for name in bodies:
         if name not in used:
             problems.append(f"bodies.{name}: takes part in no contact pair (a body of an assembly is held by its "
                             "clamps and its contacts with the others)")
     for n, f in enumerate(faces):
-        if f != (face_body, part):
+        if len(contacts) == 1 and f != (face_body, part):
             problems.append(f"designs[{n}].face = {'.'.join(f)!r}: contactopt designs the face of the contact pair "
                             f"({face_body}.{part}) so far, not another face")
+        elif f[0] != face_body:
+            problems.append(f"designs[{n}].face = {'.'.join(map(_part_name, f))!r}: contactopt designs a face of the "
+                            f"body that carries the pairs' faces ({face_body!r}) so far")
     if len(designs) > 1:
         problems.append(f"designs: {len(designs)} designed faces; contactopt designs one face per model so far")
     if len(problems) > n0:
         return _rest(raw), []
-    return _sections(raw, bodies, contacts[0], pairs[0], designs, problems)
+    out, renames = _sections(raw, bodies, contacts[0], pairs[0], designs, problems)
+    if len(contacts) > 1:
+        _more_pairs(out, raw, bodies, contacts, pairs, faces, problems)
+    return out, renames
+
+
+def _check_star(pairs: list, problems: list) -> None:
+    """Several pairs, as the mechanics take them so far: every face on one body (the face body),
+    every counterpart a part of another body, no two pairs on one counterpart body."""
+    face_body = pairs[0][0]
+    seen = {}
+    for n, (body, part, counter) in enumerate(pairs):
+        key = f"contacts[{n}]"
+        if body != face_body:
+            problems.append(f"{key}.face = '{body}.{_part_name(part)}': with several pairs contactopt takes the "
+                            f"faces of every pair on one body so far ({face_body!r}, the face of contacts[0]); "
+                            "write the pair the other way round (face and counterpart swapped) where it can be")
+        if not isinstance(counter, tuple):
+            problems.append(f"{key}.counterpart: a rigid counterpart in a model of several pairs; contactopt takes "
+                            "rigid counterparts in a model of one pair so far (elastic bodies in several)")
+        elif counter[0] in seen:
+            problems.append(f"{key}.counterpart = '{counter[0]}.{_part_name(counter[1])}': body {counter[0]!r} is "
+                            f"already the counterpart of contacts[{seen[counter[0]]}]; contactopt takes one pair "
+                            "per counterpart body so far")
+        else:
+            seen[counter[0]] = n
+
+
+def _more_pairs(out: dict, raw: dict, bodies: dict, contacts: list, pairs: list, faces: list,
+                problems: list) -> None:
+    """The sections of a model of several pairs on one face body: ``pairs`` lists every pair's face
+    part, friction and counterpart body (as ``[foundation]``); ``[body] contact`` is the designed
+    face, or without a design the list of the pairs' faces (the contact nodes are the pairs')."""
+    base = (raw.get("friction") or {}).get("coefficient", SCHEMA["friction"]["coefficient"][0])
+    counter_loads = {}
+    for kind in ("traction", "pressure"):
+        items = (raw.get("loads") or {}).get(kind) if isinstance(raw.get("loads"), dict) else None
+        for n, item in enumerate(items if isinstance(items, list) else []):
+            target = _load_target(item.get("on"), f"loads.{kind}[{n}].on", bodies, []) if isinstance(item, dict) else None
+            if target is not None and target[0] != pairs[0][0]:
+                counter_loads.setdefault(target[0], {}).setdefault(kind, []).append({**item, "on": target[1]})
+    more = []
+    for n, (contact, (_, part, counter)) in enumerate(zip(contacts, pairs)):
+        holder = {}
+        _counterpart_body(holder, bodies, counter, contact, raw, counter_loads.get(counter[0], {}), problems)
+        more.append({"contact": copy.deepcopy(part), "friction": contact.get("friction", base),
+                     "foundation": holder["foundation"]})
+    out.pop("foundation", None)
+    out["pairs"] = more
+    out["friction"] = {**(raw.get("friction") or {}), "coefficient": base}
+    out["body"]["contact"] = copy.deepcopy(faces[0][1]) if faces else [copy.deepcopy(p[1]) for p in pairs]
+    for k in ("interference", "initial_gap"):
+        given = {c[k] for c in contacts if k in c}
+        if len(given) > 1:
+            problems.append(f"contacts: {k} differs between the pairs; contactopt takes one value for the pairs "
+                            "of one face body so far")
+    rec = out["assembly"]
+    rec["bodies"] = [pairs[0][0]] + [c[0] for _, _, c in pairs]
+    rec["contacts"] = [{"name": c.get("name", f"{b}-{o[0]}"), "face": f"{b}.{_part_name(p)}",
+                        "counterpart": f"{o[0]}.{_part_name(o[1])}"} for c, (b, p, o) in zip(contacts, pairs)]
+    rec["designs"] = [f"{b}.{_part_name(p)}" for b, p in faces]
 
 
 def _rest(raw: dict) -> dict:
@@ -232,7 +294,7 @@ def _pair(c: dict, n: int, bodies: dict, raw: dict, problems: list):
     for k in ("face", "counterpart"):
         if k not in c:
             problems.append(f"{key}.{k}: required (\"<body>.<part>\"{', or a rigid counterpart table' if k == 'counterpart' else ''})")
-    face = _split(c["face"], f"{key}.face", bodies, problems) if "face" in c else None
+    face = _load_target(c["face"], f"{key}.face", bodies, problems) if "face" in c else None
     other = c.get("counterpart")
     if isinstance(other, dict):
         counter = other
@@ -376,8 +438,9 @@ def check_record(data: dict, problems: list) -> None:
     sections: one or two bodies as [foundation] says, at most one design."""
     rec = data.get("assembly")
     ok = (isinstance(rec, dict) and set(rec) == {"bodies", "contacts", "designs"}
-          and isinstance(rec["bodies"], list) and len(rec["bodies"]) == 1 + ("foundation" in data)
-          and isinstance(rec["contacts"], list) and len(rec["contacts"]) == 1
+          and isinstance(rec["bodies"], list) and isinstance(rec["contacts"], list)
+          and len(rec["contacts"]) == max(1, len(data.get("pairs") or []))
+          and len(rec["bodies"]) == 1 + ("foundation" in data) + len(data.get("pairs") or [])
           and all(isinstance(p, dict) and set(p) == {"name", "face", "counterpart"} for p in rec["contacts"])
           and isinstance(rec["designs"], list) and len(rec["designs"]) <= 1)
     if not ok:

@@ -47,6 +47,11 @@ def _oneof(*options):
     return check
 
 
+def _part_specs(x):
+    """A part, or (the faces of several contact pairs on one body) a list of two or more parts."""
+    return _part_spec(x) or (isinstance(x, list) and len(x) > 1 and all(_part_spec(p) for p in x))
+
+
 def _part_spec(x):
     """A part: a group name, or a predicate table {x1|x2|x3 = v, box = [[lo, hi]] × 3}."""
     if isinstance(x, str):

@@ -18,6 +18,7 @@ from .assembly import Assembly
 from .constraints import ResponseConstraint
 from .sections import (
     Body,
+    ContactPair,
     Design,
     Foundation,
     Friction,
@@ -58,6 +59,7 @@ class Config:
     load_cases: tuple[LoadCase, ...]
     load_steps: tuple[LoadStep, ...]
     constraints: tuple[ResponseConstraint, ...] = ()     # [[constraints]] (config/constraints.py)
+    pairs: tuple[ContactPair, ...] = ()  # several [[contacts]] on one face body (config/assembly.py)
     assembly: Assembly | None = None     # the names of bodies, pairs and designs (config/assembly.py)
     length_unit: str = ""                # the meshes' length unit, named on the figures' axes
     source: str = "<dict>"
@@ -80,6 +82,8 @@ class Config:
             load_cases=tuple(LoadCase.from_dict(c) for c in data.get("load_cases", [])),
             load_steps=tuple(LoadStep.from_dict(s) for s in data.get("load_steps", [])),
             constraints=tuple(ResponseConstraint.from_dict(c) for c in data.get("constraints", [])),
+            pairs=tuple(ContactPair(p["contact"], float(p["friction"]), Foundation.from_dict(p["foundation"]))
+                        for p in data.get("pairs", [])),
             assembly=Assembly.of(data), length_unit=data.get("length_unit", ""), source=source, _data=data)
 
     @property
@@ -92,7 +96,7 @@ class Config:
         """What the contact face meets, in the words of messages: the foundation plane (x3 = 0,
         the paper's rigid foundation), an elastic foundation's face, or a rigid obstacle's plane,
         sphere, cylinder or surface."""
-        if self.foundation is not None:
+        if self.foundation is not None or self.pairs:
             return "the elastic foundation's face"
         if self.obstacle is not None:
             return f"the obstacle's {self.obstacle.shape}"

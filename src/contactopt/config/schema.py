@@ -17,6 +17,7 @@ from .checks import (
                      _nonneg,
                      _oneof,
                      _part_spec,
+                     _part_specs,
                      _pos,
                      _posint,
                      _unit3,
@@ -42,7 +43,7 @@ SCHEMA = {
                     "with friction in its free direction; a clamped u3 takes it out of the contact set. [] or "
                     "clamps that leave rigid motions free: the contact holds them (a body held only by contact, "
                     "condensation path)"),
-        "contact": ("contact", _part_spec, _PART + " (the designed contact face, on x3 = 0 in the mesh)"),
+        "contact": ("contact", _part_specs, _PART + " (the designed contact face, on x3 = 0 in the mesh)"),
         "fixed_shape": ("auto", lambda x: x == "auto" or (isinstance(x, list) and all(_part_spec(v) for v in x)),
                         "'auto' (the named parts that share no node with the contact face) or a list of parts "
                         "whose shape the morph keeps"),

@@ -457,3 +457,13 @@ class LoadCase:
     def from_dict(cls, d: dict) -> "LoadCase":
         return cls(d["name"], Loads.from_dict(d), Target.from_dict(d["target"]) if "target" in d else None,
                    tuple(LoadStep.from_dict(s) for s in d["steps"]) if "steps" in d else None)
+
+
+@dataclass(frozen=True)
+class ContactPair:
+    """One of several contact pairs on the face body: its face ``contact`` (a part of the body),
+    its Coulomb coefficient ``friction`` and its counterpart body (a ``[foundation]``)."""
+
+    contact: Any
+    friction: float
+    foundation: Foundation

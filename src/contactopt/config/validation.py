@@ -19,6 +19,7 @@ from .checks import (
     _material_spec,
     _natint,
     _nonneg,
+    _part_spec,
     _pos,
     _posint,
     _vec3,
@@ -389,6 +390,31 @@ def _check_foundation(given, data, problems) -> dict:
     return out
 
 
+def _check_pairs(given, data, problems) -> list:
+    """``pairs`` (the resolved spelling of several ``[[contacts]]``, config/assembly.py): per pair its
+    face part, friction coefficient and counterpart body (as [foundation])."""
+    if not (isinstance(given, list) and len(given) > 1 and all(isinstance(p, dict) for p in given)):
+        problems.append("pairs: is the resolved spelling of several [[contacts]]; write them as [[contacts]]")
+        return []
+    out = []
+    for n, pair in enumerate(given):
+        if set(pair) != {"contact", "friction", "foundation"}:
+            problems.append(f"pairs[{n}]: must have the keys contact, friction and foundation")
+            continue
+        mu = pair["friction"]
+        if not (_finite(mu) and mu >= 0):
+            problems.append(f"contacts[{n}].friction = {mu!r}: must be a number ≥ 0")
+        if not _part_spec(pair["contact"]):
+            problems.append(f"contacts[{n}].face: must name a part")
+        sub = []
+        fnd = _check_foundation(pair["foundation"], data, sub)
+        problems += [p.replace("foundation.", f"pairs[{n}].foundation.", 1).replace("[foundation]", f"pairs[{n}].foundation", 1)
+                     for p in sub]
+        out.append({"contact": copy.deepcopy(pair["contact"]), "friction": float(mu) if _finite(mu) else mu,
+                    "foundation": fnd})
+    return out
+
+
 def _check_foundation_control(given, out, problems) -> None:
     """[foundation] control: a `force` other than zero only with 'force' (and there not zero), a
     `displacement` other than zero only with 'displacement', a `loaded` part other than the default
@@ -503,7 +529,7 @@ def resolve(raw: dict, source: str = "<dict>") -> dict:
     data = {}
     raw, renames = desugar(raw, problems)       # [bodies], [[contacts]], [[designs]] (config/assembly.py)
     n_assembly = len(problems)
-    optional = ["foundation", "obstacle", "load_cases", "load_steps", "constraints"]
+    optional = ["foundation", "obstacle", "load_cases", "load_steps", "constraints", "pairs"]
     for key in raw:
         if key not in SCHEMA and key not in TOP_LEVEL and key not in optional and key != "assembly":
             problems.append(f"{key}: unknown section (allowed: "
@@ -546,6 +572,8 @@ def resolve(raw: dict, source: str = "<dict>") -> dict:
         data["foundation"] = _check_foundation(raw["foundation"], data, problems)
     if "obstacle" in raw:
         data["obstacle"] = _check_obstacle(raw["obstacle"], data, problems)
+    if "pairs" in raw:
+        data["pairs"] = _check_pairs(raw["pairs"], data, problems)
     if "mesh" in data:
         _check_graded_block(raw, data, problems)
     dsg = data["design"]

@@ -44,6 +44,7 @@ from ..mesh.morph import JacobianRatio, MorphedMesh
 from ..mesh.obstacle import Obstacle, contact_frames, make_obstacle, tangent_frames
 from .elasticity import BBAR_AUTO_NU, ElasticityAssembler, element_geometry, resolve_formulation
 from .elements import element_type, face_type
+from .counterparts import build_counterparts
 from .foundation import Foundation
 from .loads import face_areas_nodal
 from .loadset import LoadSet, load_set
@@ -174,7 +175,7 @@ class ElasticModel:
         self.pinned_columns = None  # per pinned DOF its frame column, where a pinned u3 is a tangent
         face_frames = self._obstacle(cfg.obstacle, ref, body)
         self.foundation = None      # [foundation]: the elastic foundation under the contact face
-        if cfg.foundation is not None and body.chart is not None:
+        if (cfg.foundation is not None or cfg.pairs) and body.chart is not None:
             self._curved_foundation(cfg, ref, body, check)
         self.admissible = self._admissible_set(ref, body, face_frames)
         self.mesh.ratio = self._jacobian_ratio(ref, body)
@@ -193,6 +194,11 @@ class ElasticModel:
             self.contact_pinned = np.zeros_like(self.contact_pinned_global)
             self.contact_pinned[np.searchsorted(self.contact_nodes, node), self.pinned_columns] = True
         self._pin_mask = None       # ((shape, nnz) of A's pattern, the CSR entries pinning zeroes)
+        # several pairs: each contact node's Coulomb coefficient, its pair's (None: [friction] everywhere)
+        self.contact_friction = None
+        if cfg.pairs:
+            mu = np.array([pr.friction for pr in cfg.pairs])[body.pair_of]
+            self.contact_friction = None if np.all(mu == cfg.friction.coefficient) else mu
         self.gap_matrix = self.mesh.gap_matrix()
         # initial gap of a contact face above x3 = 0 (body.initial_gap = "mesh"); 0 on the plane
         self.gap0 = (ref.points[self.contact_nodes, 2].copy() if cfg.body.initial_gap == "mesh"
@@ -207,6 +213,8 @@ class ElasticModel:
             self.gap0 = self.foundation.gap0.copy()
         self.loads = load_set(body, cfg.loads)
         self.body_force = self.loads.body_force
+        if cfg.pairs and self.foundation is None:
+            self.foundation = build_counterparts([pr.foundation for pr in cfg.pairs], body, cfg.source, check)
         if cfg.foundation is not None and self.foundation is None:
             self.foundation = Foundation(cfg.foundation, body, source=cfg.source, check=check)
             if self.foundation.basis is not None:   # six-node triangles, mortar partners: ĝ = T⁻ᵀ g (fem.mortar)
@@ -345,8 +353,12 @@ class ElasticModel:
                                 comp)
         else:
             self.frames = R
-        self.foundation = Foundation(cfg.foundation, body, source=cfg.source, check=check, normals=n)
-        self.foundation.rotate(self.frames)
+        if cfg.pairs:
+            self.foundation = build_counterparts([pr.foundation for pr in cfg.pairs], body, cfg.source, check,
+                                                 normals=n, frames=self.frames)
+        else:
+            self.foundation = Foundation(cfg.foundation, body, source=cfg.source, check=check, normals=n)
+            self.foundation.rotate(self.frames)
         g = self.foundation.gap0
         deep = np.flatnonzero(g < -body.penetration_tol)
         if deep.size and not cfg.body.interference:

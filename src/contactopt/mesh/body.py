@@ -27,7 +27,7 @@ face is a ConfigError.
 from __future__ import annotations
 
 import logging
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 from scipy.spatial import cKDTree
@@ -65,6 +65,17 @@ class Body(HasParts):
     penetration_tol: float = 0.0  # absolute depth a node may lie inside the counterpart (no interference)
     sizes: tuple | None = field(default=None, compare=False, repr=False)
     # (free DOFs, entries of the stiffness on them), counted once by contactopt.fem.memory
+    pair_faces: tuple = ()        # several contact pairs: each pair's face (Part); the contact nodes are theirs
+    pair_of: np.ndarray | None = None   # (p,) the pair of each contact node, in [[contacts]] order
+
+    def pair_view(self, k: int) -> "Body":
+        """The body as pair k's counterpart sees it: its contact face and nodes those of the pair
+        (the partners and compliance of one pair are built on it, fem.counterparts)."""
+        mine = self.pair_of == k
+        nodes = self.contact_nodes[mine]
+        node = self.pinned_dofs // 3
+        return replace(self, contact_face=self.pair_faces[k], contact_nodes=nodes,
+                       pinned_dofs=self.pinned_dofs[np.isin(node, nodes)], pair_faces=(), pair_of=None)
 
 
 def reference_mesh(cfg):
@@ -103,9 +114,11 @@ def build_body(cfg) -> Body:
         p = part("clamped", clamp.on)
         if p is not None:
             clamped.append((p, sorted({COMPONENTS[c] for c in clamp.components})))
-    face = part("contact", spec.contact)
+    face = _union([part("contact", c) for c in _as_list(spec.contact)])
+    pair_faces = [part("contact", pr.contact) for pr in cfg.pairs]
     if problems:
         raise ConfigError([f"{cfg.source}: {p}" for p in problems])
+    _check_pair_faces(pair_faces, face, cfg.source)
     fixed = np.zeros((ref.n_nodes, 3), bool)
     for p, comps in clamped:
         fixed[np.ix_(p.nodes, comps)] = True
@@ -121,6 +134,14 @@ def build_body(cfg) -> Body:
         # tangent plane (a symmetry plane or an end face through the face) are pinned tangents
         normal_comp = np.abs(chart.outward(ref.points[face.nodes])) > 1e-9
     contact_nodes, pinned, warnings = _contact_nodes(face, fixed, spec.contact, cfg.source, normal_comp)
+    pair_of = None
+    if pair_faces:                        # several pairs: their nodes are the contact nodes
+        pair_of = np.full(ref.n_nodes, -1)
+        for k, pf in enumerate(pair_faces):
+            pair_of[pf.nodes] = k
+        contact_nodes = contact_nodes[pair_of[contact_nodes] >= 0]
+        pinned = pinned[np.isin(pinned // 3, contact_nodes)]
+        pair_of = pair_of[contact_nodes]
     rigid = free_modes(ref.points, fixed)
     if rigid.count:
         log.info("body.clamped leaves %d rigid-body motion(s) free: %s; contact must hold them", rigid.count,
@@ -131,7 +152,8 @@ def build_body(cfg) -> Body:
     eliminated = fixed.copy()
     eliminated.ravel()[pinned] = False
     body = Body(ref, tol, np.flatnonzero(eliminated.ravel()), clamped, face, contact_nodes, fixed_shape, domain,
-                pinned_dofs=pinned, rigid=rigid if rigid.count else None, chart=chart, penetration_tol=ptol)
+                pinned_dofs=pinned, rigid=rigid if rigid.count else None, chart=chart, penetration_tol=ptol,
+                pair_faces=tuple(pair_faces), pair_of=pair_of)
     body.warnings += warnings + _thin_tetrahedra(ref) + _poor_cells(ref)
     for w in body.warnings:
         log.warning("%s", w)
@@ -177,6 +199,38 @@ def _as_list(x):
     return x if isinstance(x, list) else [x]
 
 
+def _union(parts: list) -> Part | None:
+    """One part of several (the faces of several pairs): their nodes and faces together."""
+    if any(p is None for p in parts):
+        return None
+    if len(parts) == 1:
+        return parts[0]
+    faces = np.unique(np.vstack([np.sort(p.faces, axis=1) for p in parts]), axis=0, return_index=True)[1]
+    allf = np.vstack([p.faces for p in parts])
+    return Part(" + ".join(p.name for p in parts), np.unique(np.concatenate([p.nodes for p in parts])),
+                allf[np.sort(faces)], parts[0].origin)
+
+
+def _check_pair_faces(pair_faces: list, face: Part, source: str) -> None:
+    """The faces of several pairs: no node in two of them (a node carries one pair's contact force),
+    each within the designed face."""
+    problems = []
+    seen = {}
+    for k, pf in enumerate(pair_faces):
+        for j, nodes in seen.items():
+            both = np.intersect1d(nodes, pf.nodes)
+            if both.size:
+                problems.append(f"contacts[{k}].face and contacts[{j}].face: {both.size} node(s) are claimed by both "
+                                f"pairs, first node {int(both[0])}; a node belongs to one pair (split the faces)")
+        seen[k] = pf.nodes
+        out = np.setdiff1d(pf.nodes, face.nodes)
+        if out.size:
+            problems.append(f"contacts[{k}].face: {out.size} node(s) lie outside the designed face {face.name!r}, "
+                            f"first node {int(out[0])}: the pairs' faces lie within the designed face")
+    if problems:
+        raise ConfigError([f"{source}: {p}" for p in problems])
+
+
 def _chart(cfg, ref: ReferenceMesh, face: Part, gtol: float):
     """The chart of the contact face (:mod:`contactopt.design.chart`), or None for the paper's
     ξ = (x1, x2): ``design.chart = "auto"`` on a face whose outward normals all point down (−x3),
@@ -191,11 +245,11 @@ def _chart(cfg, ref: ReferenceMesh, face: Part, gtol: float):
     if d.chart == "auto" and not d.axis and not d.origin:
         nf, _ = face_normals(ref.points, face.faces, ref.face_type)
         rigid_plane = obstacle is None or obstacle.shape == "plane"
-        if np.all(nf[:, 2] < 0) or (rigid_plane and cfg.foundation is None):
+        if np.all(nf[:, 2] < 0) or (rigid_plane and cfg.foundation is None and not cfg.pairs):
             return None
     chart = resolve_chart(d, ref.points, face, ref.face_type, gtol, cfg.source)
     flat = chart.kind == "plane" and np.abs(chart.normal - [0.0, 0.0, -1.0]).max() <= 1e-12
-    foundation = cfg.foundation is not None
+    foundation = cfg.foundation is not None or bool(cfg.pairs)
     if not flat and (obstacle is None or obstacle.shape == "plane") and not foundation:
         raise ConfigError([f"{cfg.source}: body.contact = {face.name}: the face lies on a {chart.describe()}, "
                            "not on the foundation plane x3 = 0: its counterpart must be a rigid [obstacle] "

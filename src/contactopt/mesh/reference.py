@@ -210,6 +210,8 @@ def describe_part(spec) -> str:
     """A part spec as the user wrote it, for messages."""
     if isinstance(spec, str):
         return repr(spec)
+    if isinstance(spec, list):
+        return " + ".join(describe_part(s) for s in spec)
     return "{" + ", ".join(f"{k} = {v}" for k, v in spec.items()) + "}"
 
 

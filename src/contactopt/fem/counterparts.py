@@ -1,0 +1,147 @@
+"""Several elastic counterparts of one face body: the pairs of an assembly on the condensation path.
+
+An assembly of K contact pairs whose faces all lie on one body (the face body, the one the design
+moves) and whose counterparts are K other bodies: pair k's face nodes (rows ``rows[k]`` of the
+contact nodes) meet body k's face, as one ``[foundation]`` meets its body
+(:class:`~contactopt.fem.foundation.Foundation`: partners Π_k, compliance C_k = Π_k W_k Π_kᵀ,
+q_k = Π_k K_k⁻¹ f_k). The counterparts share no DOF, so with the relative displacement
+w = u_c − Π u_o of every contact node (DESIGN: W = Σ_b B_b A_b⁻¹ B_bᵀ over the bodies)
+
+    Π = diag_k(Π_k) (rows in contact-node order),   C = diag_k(C_k),   q = (q_k),   S_o = diag_k(S_k),
+
+and the coupling of :class:`~contactopt.fem.foundation.Coupling` takes them as it takes one
+foundation: S_eff = (S⁻¹ + C)⁻¹, each counterpart condensed once per run, the face body once per
+design. One pair is the foundation itself (this class is not built for it).
+
+Contact convention: per contact node (t1, t2, ν) in the node's frame (ν from the counterpart to the
+face body), r the contact force on the face body, λ = r_ν ≥ 0; counterpart k carries −Π_kᵀ r_k.
+"""
+
+from __future__ import annotations
+
+import logging
+
+import numpy as np
+import scipy.linalg as sla
+import scipy.sparse as sp
+
+from ..errors import ConfigError
+
+log = logging.getLogger(__name__)
+
+
+class _BlockCondensation:
+    """The counterparts' condensed stiffnesses as one block-diagonal S (for the coupling's M)."""
+
+    def __init__(self, parts):
+        self.S = sla.block_diag(*[np.asarray(f.condensation.S) for f in parts])
+
+
+def build_counterparts(specs, body, source: str, check=None, normals=None, frames=None) -> Counterparts:
+    """The counterparts of the pairs ``specs`` (``[foundation]`` tables, one per pair) of ``body``,
+    each built on the pair's view of the body (its face and nodes); ``normals`` (p, 3) of a curved
+    face, ``frames`` (p, 3, 3) the contact nodes' frames the coupling is expressed in."""
+    from .foundation import Foundation
+    parts, rows = [], []
+    for k, spec in enumerate(specs):
+        r = np.flatnonzero(body.pair_of == k)
+        view = body.pair_view(k)
+        parts.append(Foundation(spec, view, source=f"{source}: contacts[{k}]", check=check,
+                                normals=None if normals is None else normals[r]))
+        rows.append(r)
+    out = Counterparts(parts, rows, body.contact_nodes.size)
+    if frames is not None:
+        out.rotate(frames)
+    return out
+
+
+class Counterparts:
+    """The K elastic counterparts of one face body (module docstring).
+
+    Attributes as :class:`~contactopt.fem.foundation.Foundation`'s, over all contact nodes: ``P``
+    (3p × m, Π on the counterparts' free support DOFs), ``Pi``, ``C``, ``q_f``, ``gap0`` (curved
+    faces), ``condensation.S``; ``parts`` the pairs' foundations and ``rows`` their contact nodes."""
+
+    basis = None          # mortar partners on six-node triangles: one pair only (Foundation)
+    motion = None         # a counterpart pressed by a force: one pair only (a displacement is in q)
+    translation = None
+
+    def __init__(self, parts: list, rows: list, p: int):
+        self.parts, self.rows, self.p = list(parts), [np.asarray(r) for r in rows], p
+        for f in self.parts:
+            if f.basis is not None:
+                raise ConfigError(["contacts: mortar partners on six-node triangles take one pair per model so far; "
+                                   "use partner = 'point' or linear elements"])
+            if f.control == "force":
+                raise ConfigError(["bodies: a counterpart pressed by control = 'force' takes one pair per model so "
+                                   "far; in a model of several pairs a counterpart is held by its clamps or moved "
+                                   "by control = 'displacement'"])
+        self.gap0 = None
+        if all(f.gap0 is not None for f in self.parts):
+            self.gap0 = np.zeros(p)
+            for f, r in zip(self.parts, self.rows):
+                self.gap0[r] = f.gap0
+        self.memory_parts = {}
+        for f in self.parts:
+            for key, v in f.memory_parts.items():
+                self.memory_parts[key] = self.memory_parts.get(key, 0.0) + v
+        self.condensation = _BlockCondensation(self.parts)
+        self.load_resultant = sum(f.load_resultant for f in self.parts)
+        self._gather()
+
+    def _dofs(self, k: int) -> np.ndarray:
+        return (3 * self.rows[k][:, None] + np.arange(3)).ravel()
+
+    def _gather(self) -> None:
+        """Π, P, C and q over all contact nodes from the pairs' (after a rotation into frames)."""
+        n = 3 * self.p
+        self.P = sp.csr_matrix(self._stack([f.P for f in self.parts]))
+        self.Pi = sp.csr_matrix(self._stack([f.Pi for f in self.parts]))
+        self.C = np.zeros((n, n))
+        self.q_f = np.zeros(n)
+        for k, f in enumerate(self.parts):
+            d = self._dofs(k)
+            self.C[np.ix_(d, d)] = f.C
+            self.q_f[d] = f.q_f
+
+    def _stack(self, blocks: list) -> sp.csr_matrix:
+        """The block-diagonal matrix of the pairs' blocks with its rows moved to their contact DOFs."""
+        B = sp.block_diag(blocks, format="csr")
+        order = np.concatenate([self._dofs(k) for k in range(len(self.parts))])
+        perm = sp.csr_matrix((np.ones(order.size), (order, np.arange(order.size))), shape=(3 * self.p, order.size))
+        return perm @ B
+
+    def rotate(self, R: np.ndarray) -> None:
+        """Into the contact nodes' frames R (p, 3, 3): each pair in its nodes' frames."""
+        for f, r in zip(self.parts, self.rows):
+            f.rotate(R[r])
+        self._gather()
+
+    @property
+    def partner(self) -> str:
+        return ", ".join(sorted({f.partner for f in self.parts}))
+
+    @property
+    def n_nodes(self) -> int:
+        return sum(f.n_nodes for f in self.parts)
+
+    def partner_displacement(self, r: np.ndarray) -> np.ndarray:
+        """Π u_o = q − C r (3p,) for the contact forces r on the face body (per node (t1, t2, ν))."""
+        return self.q_f - self.C @ np.ravel(r)
+
+    def displacements(self, r: np.ndarray) -> list:
+        """Each counterpart's full displacement (3·n_k,) under its loads and −Π_kᵀ r_k."""
+        r = np.ravel(r)
+        return [f.displacement(r[self._dofs(k)]) for k, f in enumerate(self.parts)]
+
+    def displacement(self, r: np.ndarray, s: float = 0.0) -> np.ndarray:
+        """The counterparts' displacements one after the other (their VTU files split them)."""
+        return np.concatenate(self.displacements(r))
+
+    def summary(self) -> dict:
+        return {"pairs": [f.summary() for f in self.parts]}
+
+    def pair_forces(self, r: np.ndarray) -> list:
+        """Σ of the contact forces (per node frame) of each pair: (3,) per pair."""
+        r = np.reshape(r, (-1, 3))
+        return [r[rows].sum(axis=0) for rows in self.rows]
