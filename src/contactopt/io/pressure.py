@@ -141,7 +141,10 @@ def contact_pairs(model) -> list[tuple[object, np.ndarray]]:
     """The contact pairs of ``model`` (:class:`contactopt.config.assembly.Pair`, in ``[[contacts]]``
     order) with the contact-node indices m of each: every contact node belongs to one pair."""
     pairs = model.config.assembly.contacts
-    return [(pair, np.arange(model.n_contact)) for pair in pairs]
+    which = model.body.pair_of
+    if which is None:                       # one pair: every contact node
+        return [(pair, np.arange(model.n_contact)) for pair in pairs]
+    return [(pair, np.flatnonzero(which == k)) for k, pair in enumerate(pairs)]
 
 
 def pair_index(model) -> np.ndarray:

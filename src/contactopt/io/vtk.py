@@ -176,26 +176,44 @@ def cell_stress_data(assembler, coords, u_full) -> dict:
 
 
 def write_foundation_vtu(path, foundation, state) -> Path:
-    """Write the elastic foundation of ``state`` (its reference mesh, module docstring) as a VTU."""
-
+    """Write the elastic foundation of ``state`` (its reference mesh, module docstring) as a VTU;
+    the counterparts of several pairs (:class:`~contactopt.fem.counterparts.Counterparts`) one
+    after the other in one file, each node and cell tagged with its pair's index ``pair``."""
     path = Path(path)
-    ref = foundation.mesh.reference
-    n = ref.n_nodes
-    u = _finite("foundation displacement", np.asarray(state.foundation.displacement, float).reshape(n, 3))
     r = np.zeros(3 * state.lam.size)
     r[0::3], r[1::3], r[2::3] = -state.tau[:, 0], -state.tau[:, 1], state.lam
-    f = np.zeros((n, 3))
-    f[foundation.support] = -(foundation.Pi.T @ r).reshape(-1, 3)
-    data = {"displacement": u, "contact_force": _finite("contact_force", f)}
-    for name, part in ref.parts.items():
-        tag = np.zeros(n, np.int8)
-        tag[part.nodes] = 1
-        data[f"part:{name}"] = tag
-    mesh = meshio.Mesh(ref.points, [(ref.cell_type, ref.cells)], point_data=data,
-                       cell_data=cell_stress_data(foundation.assembler, ref.points, u.ravel()))
+    parts = getattr(foundation, "parts", [foundation])
+    rows = getattr(foundation, "rows", [np.arange(state.lam.size)])
+    u_all = np.asarray(state.foundation.displacement, float)
+    points, blocks, data, cells_data, offset, start = [], [], {}, {}, 0, 0
+    for k, (fnd, nodes) in enumerate(zip(parts, rows)):
+        ref = fnd.mesh.reference
+        n = ref.n_nodes
+        u = _finite("foundation displacement", u_all[3 * start:3 * (start + n)].reshape(n, 3))
+        start += n
+        dofs = (3 * nodes[:, None] + np.arange(3)).ravel()
+        f = np.zeros((n, 3))
+        f[fnd.support] = -(fnd.Pi.T @ r[dofs]).reshape(-1, 3)
+        own = {"displacement": u, "contact_force": _finite("contact_force", f)}
+        if len(parts) > 1:
+            own["pair"] = np.full(n, k, np.int8)
+        for name, part in ref.parts.items():
+            tag = np.zeros(n, np.int8)
+            tag[part.nodes] = 1
+            own[f"part:{name}"] = tag
+        for key, v in own.items():
+            data.setdefault(key, []).append(v)
+        for key, v in cell_stress_data(fnd.assembler, ref.points, u.ravel()).items():
+            cells_data.setdefault(key, []).extend(v)
+        points.append(ref.points)
+        blocks.append((ref.cell_type, ref.cells + offset))
+        offset += n
+    names = set.intersection(*[set(k for k in data if len(data[k]) == len(parts))]) if data else set()
+    point_data = {k: np.concatenate(v) for k, v in data.items() if k in names}
+    mesh = meshio.Mesh(np.vstack(points), blocks, point_data=point_data, cell_data=cells_data)
     with atomic_output(path) as tmp:
         meshio.write(tmp, mesh, file_format="vtu")
-    log.info("wrote %s (the foundation: %d nodes, %d %s cells)", path, n, ref.n_cells, ref.cell_type)
+    log.info("wrote %s (the foundation: %d nodes in %d bodies)", path, offset, len(parts))
     return path
 
 

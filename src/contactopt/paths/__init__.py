@@ -68,6 +68,8 @@ def needs(config, pinned: int = 0, ranks: int = 1, rigid=None) -> dict:
         out["foundation"] = "an elastic [foundation]"
         if config.foundation.control != "fixed":     # its translation's search runs where the foundation is
             out["foundation"] = f"an elastic [foundation] with foundation.control = {config.foundation.control!r}"
+    if config.pairs:                    # several pairs, each its elastic counterpart (fem.counterparts)
+        out["foundation"] = f"{len(config.pairs)} contact pairs against elastic bodies"
     obst = config.obstacle
     obstacle = "plane" if obst is None else obst.shape
     if obst is not None and obst.control == "force":

@@ -1,0 +1,221 @@
+"""Assemblies of several contact pairs on one face body (fem/counterparts.py): a monolithic model
+of three bodies built here, a floating roller between two plates against Hertz, subgradients and
+bad input.
+
+Conventions: per contact node (t1, t2, ν) in the node's frame, ν from the counterpart to the face
+body; r the contact force on the face body, λ = r_ν ≥ 0, τ = −r_t; each counterpart carries −r at
+its partners; w = u_face − u_partner. Pairs in [[contacts]] order.
+"""
+
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+import scipy.sparse as sp
+import scipy.sparse.linalg as sla
+
+from contactopt.cli import main
+from contactopt.config import load_config
+from contactopt.contact.local import solve_local
+from contactopt.contact.state import FROM_FCLIB, TO_FCLIB, classify_nodes
+from contactopt.fem.elasticity import ElasticityAssembler
+from contactopt.problem import ShapeProblem
+from contactopt.sensitivity.check import check_gradient
+
+EXAMPLES = Path(__file__).resolve().parent.parent / "examples"
+
+# a block (Example 1's, 8 × 4 × 4) on two slabs side by side whose top nodes match its face's
+TWO_SLABS = """
+name = "two_slabs"
+[geometry]
+a = 2.0
+b = 1.0
+c = 1.0
+[mesh]
+nx = 8
+ny = 4
+nz = 4
+[material]
+E = 21.19
+nu = 0.277
+[loads]
+top_traction = [0.0, 0.0, -8.0e-2]
+right_traction = [4.0e-2, 0.01, 0.0]
+[bodies.block]
+clamped = "clamped"
+[bodies.left]
+block = { size = [1.5, 2.0, 1.0], cells = [6, 8, 2], origin = [-0.5, -0.5] }
+clamped = "bottom"
+material = { E = 2.119 }
+[bodies.right]
+block = { size = [1.25, 2.0, 0.75], cells = [5, 8, 3], origin = [1.25, -0.5] }
+clamped = "bottom"
+material = { E = 6.0, nu = 0.35 }
+[[contacts]]
+name = "left"
+face = { body = "block", x3 = 0.0, box = [[0.0, 1.1], [0.0, 1.0], [-1.0, 1.0]] }
+counterpart = "left.top"
+friction = 0.3
+[[contacts]]
+name = "right"
+face = { body = "block", x3 = 0.0, box = [[1.1, 2.0], [0.0, 1.0], [-1.0, 1.0]] }
+counterpart = "right.top"
+friction = 0.3
+[state]
+tol = 1.0e-14
+max_iter = 200
+"""
+
+DESIGN = """
+[[designs]]
+face = "block.contact"
+degree = [3, 2]
+C0 = 0.2
+C1 = 0.5
+C2 = 0.05
+initial = 0.01
+"""
+
+
+def _write(tmp_path, text, name="model.toml") -> Path:
+    path = tmp_path / name
+    path.write_text(text)
+    return path
+
+
+def _monolithic_state(pb, alpha):
+    """λ, τ, w and classes of the block on its two slabs, built without contactopt's counterpart
+    code: the three stiffnesses in one block matrix (each slab with its own material), each pair's
+    DOFs changed to (w = u_block − u_slab, u_slab) at the coinciding node, condensed on w, the same
+    local solver with the same coefficient."""
+    model = pb.model
+    asm_b = model.assemble(alpha)
+    nb = model.body.reference.n_nodes
+    blocks, loads, fixed, offset = [], [asm_b.L_full], [model.body.fixed_dofs], 3 * nb
+    mat = pb.config.material
+    blocks.append(ElasticityAssembler(model.body.reference.cells, nb, np.zeros(0, int), mat.E, mat.nu)
+                  .full_stiffness(asm_b.coords))
+    partner = np.full(model.n_contact, -1)
+    x_b = model.body.reference.points[model.contact_nodes]
+    for k, spec in enumerate(pb.config.pairs):
+        ref = model.foundation.parts[k].mesh.reference
+        f = spec.foundation
+        blocks.append(ElasticityAssembler(ref.cells, ref.n_nodes, np.zeros(0, int), f.material.E, f.material.nu)
+                      .full_stiffness(ref.points))
+        loads.append(np.zeros(3 * ref.n_nodes))
+        bottom = np.flatnonzero(np.isclose(ref.points[:, 2], ref.points[:, 2].min()))
+        fixed.append(offset + (3 * bottom[:, None] + np.arange(3)).ravel())
+        rows = np.flatnonzero(model.body.pair_of == k)
+        d = np.linalg.norm(ref.points[None, :, :] - x_b[rows, None, :], axis=2)
+        assert np.allclose(d.min(axis=1), 0.0)           # matching meshes: a node under every contact node
+        partner[rows] = offset // 3 + np.argmin(d, axis=1)
+        offset += 3 * ref.n_nodes
+    K, L = sp.block_diag(blocks).tocsr(), np.concatenate(loads)
+    n = K.shape[0]
+    pb_dofs = (3 * model.contact_nodes[:, None] + np.arange(3)).ravel()
+    pf_dofs = (3 * partner[:, None] + np.arange(3)).ravel()
+    T = sp.lil_matrix((n, n))
+    T.setdiag(1.0)
+    T[pb_dofs, pf_dofs] = 1.0
+    T = T.tocsr()
+    Kt, Lt = (T.T @ K @ T).tocsr(), T.T @ L
+    o = np.setdiff1d(np.setdiff1d(np.arange(n), np.concatenate(fixed)), pb_dofs)
+    lu = sla.splu(Kt[o][:, o].tocsc())
+    X = lu.solve(Kt[o][:, pb_dofs].toarray())
+    S = Kt[pb_dofs][:, pb_dofs].toarray() - Kt[pb_dofs][:, o] @ X
+    ell = Lt[pb_dofs] - X.T @ Lt[o]
+    p = model.n_contact
+    W = np.linalg.inv(S)
+    Wl = W @ ell
+    perm = (3 * np.arange(p)[:, None] + TO_FCLIB).ravel()        # (t1, t2, ν) → (ν, t1, t2)
+    q = Wl[perm]
+    q[0::3] += asm_b.gap
+    res = solve_local(W[np.ix_(perm, perm)], q, pb.friction, tol=1e-14, max_iter=200)
+    r = res.r.reshape(p, 3)[:, FROM_FCLIB]
+    w = (Wl + W @ r.ravel()).reshape(p, 3)
+    lam, tau = r[:, 2], -r[:, :2]
+    return lam, tau, w, classify_nodes(w, lam, tau, asm_b.gap, pb.friction)
+
+
+def test_two_pairs_agree_with_a_monolithic_model_of_three_bodies(tmp_path):
+    """A block on two slabs of other materials, each pair with friction 0.3, at the reference shape
+    and a designed one: λ, τ and w to 1e-10 of a monolithic model of the three bodies; slip, stick
+    and separation all present."""
+    pb = ShapeProblem(load_config(_write(tmp_path, TWO_SLABS + DESIGN)))
+    assert [f.partner for f in pb.model.foundation.parts] == ["point", "point"]
+    rng = np.random.default_rng(2)
+    for alpha in (pb.model.initial_design(), pb.model.initial_design() + 0.004 * rng.standard_normal(pb.model.n_design)):
+        st = pb.solve_state(alpha)
+        lam, tau, w, classes = _monolithic_state(pb, alpha)
+        scale = lam.max()
+        assert np.abs(st.lam - lam).max() <= 1e-10 * scale
+        assert np.abs(st.tau - tau).max() <= 1e-10 * scale
+        assert np.abs(st.u_c - w).max() <= 1e-10 * np.abs(w).max()
+        assert np.array_equal(st.classes, classes)
+    for k in range(2):                       # both pairs carry load
+        assert lam[pb.model.body.pair_of == k].sum() > 0.03 * lam.sum()
+
+
+def test_subgradient_with_two_pairs_matches_central_differences(tmp_path):
+    """ξ·d of a design on the block's face against Richardson central differences to 1e-6, with
+    sliding, sticking and free nodes on both pairs."""
+    pb = ShapeProblem(load_config(_write(tmp_path, TWO_SLABS + DESIGN)))
+    a = pb.model.initial_design()
+    alpha = a + 0.003 * np.random.default_rng(1).standard_normal(a.size)
+    gc = check_gradient(pb, alpha, n_directions=3, seed=0)
+    assert gc.n_degenerate == 0
+    assert gc.passed, gc.rel_errors
+    assert gc.counts["M1"] > 0 and gc.counts["M3+"] > 0 and gc.counts["L"] > 0
+
+
+def _hertz(pb, st):
+    """Per pair (P′, b, p0, b_Hertz, p0_Hertz) of the half model one element long (LEN) in plane
+    strain: P′ = 2Σλ n3 / LEN, (b, p0) fitted to p² = p0²(1 − x1²/b²) (verification.hertz.fit)."""
+    from contactopt.verification.hertz import fit
+    m = pb.model
+    x = m.body.reference.points[m.contact_nodes]
+    p = st.lam / m.contact_areas()
+    n3 = np.abs(m.frames[:, 2, 2])
+    length = np.ptp(m.body.reference.points[:, 1])
+    E, nu = pb.config.material.E, pb.config.material.nu
+    E_star = E / (2 * (1 - nu ** 2))                 # two bodies of one material
+    radius = m.body.chart.radius
+    out = []
+    for k in range(2):
+        s = m.body.pair_of == k
+        P1 = 2 * float(st.lam[s] @ n3[s]) / length
+        b, p0 = fit(np.abs(x[s, 0]), p[s])
+        bH = math.sqrt(4 * P1 * radius / (math.pi * E_star))
+        out.append((P1, b, p0, bH, 2 * P1 / (math.pi * bH)))
+    return out
+
+
+def test_a_floating_roller_between_two_plates_is_hertzian_on_both_sides():
+    """The roller held only by its two contacts (examples/roller_plates.toml): the two pairs' forces
+    equal to 1e-8 (the roller's balance), the half-width and peak pressure on both sides against
+    Hertz's b = √(4P′R/(πE*)), p0 = 2P′/(πb) (measured: b −0.8 %, p0 +2.0 %; docs/assemblies.md)."""
+    pb = ShapeProblem(load_config(EXAMPLES / "roller_plates.toml"))
+    assert pb.model.body.rigid is not None and pb.model.body.rigid.names() == ["the translation along x3"]
+    st = pb.solve_state(pb.model.initial_design())
+    (P0, b0, p00, bH0, pH0), (P1, b1, p01, bH1, pH1) = _hertz(pb, st)
+    assert abs(P0 - P1) <= 1e-8 * P0
+    for b, p0, bH, pH in ((b0, p00, bH0, pH0), (b1, p01, bH1, pH1)):
+        assert abs(b / bH - 1) < 0.015 and abs(p0 / pH - 1) < 0.03
+    assert (st.lam > 0).sum() >= 30
+
+
+def test_a_node_claimed_by_two_pairs_is_refused(tmp_path, capsys):
+    text = TWO_SLABS.replace("box = [[1.1, 2.0]", "box = [[0.9, 2.0]")
+    out = tmp_path / "out"
+    assert main(["state", str(_write(tmp_path, text)), "--out", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert "contacts[1].face and contacts[0].face: 5 node(s) are claimed by both pairs" in err, err
+    assert not out.exists()
+
+
+def test_several_pairs_are_refused_by_the_paths_that_do_not_take_them(tmp_path):
+    from contactopt.errors import ConfigError
+    text = TWO_SLABS + '[linear_solver]\npath = "fullspace"\n'
+    with pytest.raises(ConfigError, match="2 contact pairs against elastic bodies"):
+        ShapeProblem(load_config(_write(tmp_path, text)))
