@@ -65,7 +65,6 @@ class ShapeProblem:
             self.cases, self.combination = build_cases(self.config, self.model, self._design_lambda)
             self._selected = name, library
             self.path = make_path(self.config, self.model, name, library, Start(first_loads=self.cases[0].loads))
-            self.friction = self.path.settings.friction
             self.method = method or self.path.settings.method
             self.tol = self.path.settings.tol
             if self.model.body.rigid is not None:
@@ -99,6 +98,15 @@ class ShapeProblem:
         path = make_path(self.config, self.model, *self._selected, Start(first_loads=self.cases[0].loads))
         out._use(path, [path.new_context() for _ in self.cases])
         return out
+
+    @property
+    def friction(self):
+        """F: a scalar where every contact node has the same coefficient, else (p,) per contact
+        node (the model's ``contact_friction``; :attr:`contactopt.paths.base.SolverPath.friction`)."""
+        mu = self.path.friction
+        if np.ndim(mu) and mu.size and np.all(mu == mu[0]):
+            return float(mu[0])
+        return mu
 
     def _check_held(self) -> None:
         """A body held only by contact: ConfigError when no admissible contact force balances a
