@@ -22,7 +22,7 @@ import numpy as np
 from ._threads import sequential_openblas
 from .config import Config, load_config
 from .contact.balance import check_held
-from .contact.state import State
+from .contact.state import State, one_friction
 from .fem import memory
 from .fem.model import ElasticModel
 from .io import reports
@@ -99,15 +99,6 @@ class ShapeProblem:
         out._use(path, [path.new_context() for _ in self.cases])
         return out
 
-    @property
-    def friction(self):
-        """F: a scalar where every contact node has the same coefficient, else (p,) per contact
-        node (the model's ``contact_friction``; :attr:`contactopt.paths.base.SolverPath.friction`)."""
-        mu = self.path.friction
-        if np.ndim(mu) and mu.size and np.all(mu == mu[0]):
-            return float(mu[0])
-        return mu
-
     def _check_held(self) -> None:
         """A body held only by contact: ConfigError when no admissible contact force balances a
         case's load at the initial design (:mod:`contactopt.contact.balance`)."""
@@ -130,6 +121,7 @@ class ShapeProblem:
     has_load_cases = property(lambda self: bool(self.config.load_cases), doc="Whether [[load_cases]] are listed.")
     has_load_steps = property(lambda self: any(self.steps), doc="Whether a load case has a load path.")
     case_names = property(lambda self: self.combination.names)
+    friction = property(lambda self: one_friction(self.path.friction), doc="F: a scalar if uniform, else (p,) per node.")
     contexts = property(lambda self: [row[0] for row in self.parts.contexts], doc="Each case's own context.")
     step_contexts = property(lambda self: self.parts.contexts, doc="Per case the context of every solve.")
     n_state_solves = property(lambda self: self._last.n_solves, doc="Designs solved (all cases at once).")

@@ -86,6 +86,13 @@ def friction_at(friction, nodes):
     return friction if np.ndim(friction) == 0 else np.asarray(friction)[nodes]
 
 
+def one_friction(friction):
+    """F as one number where every contact node has the same coefficient, else the (p,) array."""
+    if np.ndim(friction) and np.size(friction) and np.all(friction == np.asarray(friction).flat[0]):
+        return float(np.asarray(friction).flat[0])
+    return friction
+
+
 def friction_record(friction):
     """F as JSON holds it: a float, or per contact node a list of floats."""
     return float(friction) if np.ndim(friction) == 0 else [float(f) for f in np.asarray(friction)]
