@@ -1,6 +1,6 @@
 """Hashes of the oracle's output, to show that a change of the evaluation code keeps it bit for bit.
 
-    OMP_NUM_THREADS=1 OPENBLAS_NUM_THREADS=1 MKL_NUM_THREADS=1 python benchmarks/hash_evaluation.py [--only NAME ...]
+    OMP_NUM_THREADS=1 OPENBLAS_NUM_THREADS=1 MKL_NUM_THREADS=1 python benchmarks/hash_evaluation.py [--only NAME ...] [--per-node-friction]
 
 For Examples 1–3 on the condensation, Delassus and full-space paths, and for a few mechanics on a
 small mesh of Example 1 (a 3-step load path with the friction work among the objective's terms,
@@ -9,6 +9,8 @@ evaluates Θ and ξ at α0 and then at α0 + δ (δ = 10⁻³ cos k, so that the
 from the first's warm start and contact zone, as in a run). Each line prints the sha256 of the
 float64 bytes of Θ and of ξ (and of each constraint's value and subgradient), first 16 hex digits.
 Run it before and after a change, with the same BLAS kernel and threads: the lines must be equal.
+``--per-node-friction``: each model's ``contact_friction`` the array of ``[friction] coefficient``
+at every contact node; the lines must equal those of the scalar.
 """
 
 from __future__ import annotations
@@ -86,8 +88,10 @@ def digest(x) -> str:
     return hashlib.sha256(np.ascontiguousarray(np.asarray(x, dtype=np.float64)).tobytes()).hexdigest()[:16]
 
 
-def hashes(config) -> list[str]:
+def hashes(config, per_node_friction: bool = False) -> list[str]:
     problem = ShapeProblem(config)
+    if per_node_friction:
+        problem.model.contact_friction = np.full(problem.model.n_contact, float(config.friction.coefficient))
     alpha0 = problem.model.initial_design()
     out = []
     for tag, alpha in (("a0", alpha0), ("a0+d", alpha0 + 1e-3 * np.cos(np.arange(alpha0.size)))):
@@ -102,6 +106,8 @@ def main(argv=None) -> int:
     table = cases()
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--only", nargs="*", choices=sorted(table), help="these configurations only")
+    ap.add_argument("--per-node-friction", action="store_true",
+                    help="the coefficient as an array, one per contact node (the same value)")
     args = ap.parse_args(argv)
     for name, make in table.items():
         if args.only and name not in args.only:
@@ -109,7 +115,7 @@ def main(argv=None) -> int:
         if "delassus" in name and not pardiso_available():
             print(f"{name}: skipped (the Delassus path needs MKL PARDISO)")
             continue
-        for line in hashes(make()):
+        for line in hashes(make(), args.per_node_friction):
             print(f"{name:24s} {line}", flush=True)
     return 0
 

@@ -211,7 +211,9 @@ def _print_state(state, bound, reason, objective=None, constraints=None) -> None
     print("  nodes: " + ", ".join(f"{k} {v}" for k, v in s['node_classes'].items()))
     print(f"  total normal force {s['total_normal_force']:.6g}, max {s['max_normal_force']:.4g}")
     if bound is not None:
-        print(f"  uniqueness bound (3.16) F0 ≈ {bound:.3g} (F = {state.friction}; pessimistic)")
+        F = (state.friction if np.ndim(state.friction) == 0
+             else f"{np.min(state.friction):g} to {np.max(state.friction):g} per contact node")
+        print(f"  uniqueness bound (3.16) F0 ≈ {bound:.3g} (F = {F}; pessimistic)")
     else:
         print(f"  uniqueness bound (3.16) not computed: {reason}")
     print("  time: " + ", ".join(f"{k} {v:.3f}s" for k, v in state.timings.items()))

@@ -22,7 +22,7 @@ import numpy as np
 from ._threads import sequential_openblas
 from .config import Config, load_config
 from .contact.balance import check_held
-from .contact.state import State
+from .contact.state import State, one_friction
 from .fem import memory
 from .fem.model import ElasticModel
 from .io import reports
@@ -65,7 +65,6 @@ class ShapeProblem:
             self.cases, self.combination = build_cases(self.config, self.model, self._design_lambda)
             self._selected = name, library
             self.path = make_path(self.config, self.model, name, library, Start(first_loads=self.cases[0].loads))
-            self.friction = self.path.settings.friction
             self.method = method or self.path.settings.method
             self.tol = self.path.settings.tol
             if self.model.body.rigid is not None:
@@ -122,6 +121,7 @@ class ShapeProblem:
     has_load_cases = property(lambda self: bool(self.config.load_cases), doc="Whether [[load_cases]] are listed.")
     has_load_steps = property(lambda self: any(self.steps), doc="Whether a load case has a load path.")
     case_names = property(lambda self: self.combination.names)
+    friction = property(lambda self: one_friction(self.path.friction), doc="F: a scalar if uniform, else (p,) per node.")
     contexts = property(lambda self: [row[0] for row in self.parts.contexts], doc="Each case's own context.")
     step_contexts = property(lambda self: self.parts.contexts, doc="Per case the context of every solve.")
     n_state_solves = property(lambda self: self._last.n_solves, doc="Designs solved (all cases at once).")

@@ -325,13 +325,16 @@ def uniqueness_warnings(problem, alpha0) -> list[str]:
 
     ``problem`` should hold the state at α0 already (the bound then costs two extreme eigenvalues
     of the condensed stiffness, no new solve). The estimate is pessimistic: exceeding it does
-    not mean several solutions, only that uniqueness is not guaranteed."""
-    if problem.friction <= 0:
+    not mean several solutions, only that uniqueness is not guaranteed. With a coefficient per
+    contact node the largest is compared."""
+    F = float(np.max(problem.friction))
+    if F <= 0:
         return []
     bound = problem.uniqueness_bound(alpha0)
-    if not np.isfinite(bound) or problem.friction <= bound:     # not computed (Delassus path)
+    if not np.isfinite(bound) or F <= bound:     # not computed (Delassus path)
         return []
-    msg = (f"friction coefficient F = {problem.friction:g} exceeds the uniqueness estimate (3.16) "
+    largest = "" if np.ndim(problem.friction) == 0 else "the largest "
+    msg = (f"{largest}friction coefficient F = {F:g} exceeds the uniqueness estimate (3.16) "
            f"F0 ≈ {bound:.3g} at the initial design: the state may not be unique (the estimate "
            f"is pessimistic)")
     log.warning(msg)
@@ -500,7 +503,7 @@ def _warnings(setup: _SetUp, resume: bool) -> list[str]:
     """The run's warnings at α0 (a resumed run asks a separate problem: its own must continue
     bit for bit)."""
     problem = setup.problem
-    asked = problem.detached() if resume and problem.friction > 0 else problem
+    asked = problem.detached() if resume and np.max(problem.friction) > 0 else problem
     out = uniqueness_warnings(asked, setup.alpha0)
     pressure = linear_tetrahedra_pressure(problem.config, problem.model)
     return out + ([pressure] if pressure else []) + (setup.reduction.warnings if setup.reduction is not None else [])

@@ -32,10 +32,11 @@ from ..mesh.rigid import AXES, mode_name
 SIDES = 64
 
 
-def check_held(rigid, points, contact_nodes, frames, friction: float, loads: list, source: str,
+def check_held(rigid, points, contact_nodes, frames, friction, loads: list, source: str,
                obstacle_force=None) -> None:
     """ConfigError naming the first free rigid motion of ``rigid`` that no admissible contact
-    force holds, for the load vectors ``loads`` (full length 3n, named: [(name, f)]).
+    force holds, for the load vectors ``loads`` (full length 3n, named: [(name, f)]); ``friction``
+    F, a scalar or (p,) per contact node (each node's cone its own).
 
     ``obstacle_force``: a force-controlled obstacle's (``contactopt.fem.model.ObstacleForce``: its
     magnitude |f| and b_m = R_mᵀ f̂ per node frame (t1, t2, n)): the contact forces then also have
@@ -47,15 +48,16 @@ def check_held(rigid, points, contact_nodes, frames, friction: float, loads: lis
     V = rigid.vectors(points)                                                    # (n, 3, k)
     G = np.einsum("mij,mik->mjk", R, V[contact_nodes])                          # (p, 3, k) per node frame
     scale = np.linalg.norm(V.reshape(-1, k), axis=0)
-    if friction > 0:
+    mu = np.broadcast_to(np.asarray(friction, dtype=float), (p,))
+    if np.any(mu > 0):       # per node the polygon's generators (all at the node's normal where F_m = 0)
         th = 2 * np.pi * np.arange(SIDES) / SIDES
-        Fo = friction / np.cos(np.pi / SIDES)
-        gen = np.stack([Fo * np.cos(th), Fo * np.sin(th), np.ones(SIDES)], axis=1)
+        Fo = mu[:, None] / np.cos(np.pi / SIDES)
+        gen = np.stack([Fo * np.cos(th), Fo * np.sin(th), np.ones((p, SIDES))], axis=2)
     else:
-        gen = np.array([[0.0, 0.0, 1.0]])
-    work = np.einsum("jc,mck->mjk", gen, G).reshape(-1, k) / scale             # generator j at node m on y
+        gen = np.broadcast_to([[[0.0, 0.0, 1.0]]], (p, 1, 3))
+    work = np.einsum("mjc,mck->mjk", gen, G).reshape(-1, k) / scale            # generator j at node m on y
     normal = G[:, 2, :] / scale
-    if friction == 0:
+    if not np.any(mu > 0):
         _, s, Vt = np.linalg.svd(normal, full_matrices=True)
         rank = int(np.sum(s > 1e-9 * max(s.max(initial=0.0), 1e-300)))
         if rank < k:
@@ -85,7 +87,7 @@ def _check_force(rigid, points, R, gen, work, b, f, force, where: str) -> None:
     polygons, a superset: a refusal is never wrong) both balance the load on the free motions
     (Σ w_j work_j = −b) and have the force-controlled obstacle's resultant Σ_m b_m·r_m = |f|:
     then the load has a component along a rigid motion that nothing holds."""
-    along = np.einsum("jc,mc->mj", gen, np.asarray(force.b, float)).ravel() / force.magnitude
+    along = np.einsum("mjc,mc->mj", gen, np.asarray(force.b, float)).ravel() / force.magnitude
     res = linprog(np.zeros(work.shape[0]), A_eq=np.vstack([work.T, along]), b_eq=np.r_[-b, 1.0],
                   bounds=(0, None), method="highs")
     if res.status != 2:                    # feasible (or undecided): the solver goes on
@@ -119,8 +121,10 @@ def _named(rigid, y, points) -> str:
 
 
 def _message(rigid, y, points, contact_nodes, R, f, friction) -> str:
-    """Why the motion y is not held (module docstring)."""
+    """Why the motion y is not held (module docstring); with F per node the largest is named."""
     n = R[:, :, 2]
+    uniform = np.ndim(friction) == 0
+    friction = float(np.max(friction))
     P = np.asarray(f, float).reshape(-1, 3).sum(axis=0)
     free_t = _free_translations(rigid)
     if np.allclose(n, n[0], atol=1e-12) and free_t.size:
@@ -134,10 +138,11 @@ def _message(rigid, y, points, contact_nodes, R, f, friction) -> str:
         T = float(np.linalg.norm(Pt_free))
         if T > friction * N and T > 1e-12 * np.linalg.norm(P):
             return (f"the translation along {_axis(Pt_free)} is not held: the tangential load {T:.6g} exceeds "
-                    f"F × the normal load {friction:g} × {N:.6g} = {friction * N:.6g}")
+                    f"{'' if uniform else 'the largest '}F × the normal load {friction:g} × {N:.6g} = "
+                    f"{friction * N:.6g}")
     name = _named(rigid, y, points)
     return (f"{name} is not held: no contact force admissible on the contact face (λ ≥ 0, |τ| ≤ Fλ, "
-            f"F = {friction:g}) balances the load along it (the load's resultant {_fmt(P)} and its moment "
+            f"F {'=' if uniform else '≤'} {friction:g}) balances the load along it (the load's resultant {_fmt(P)} and its moment "
             "cannot both be taken by the contact face)")
 
 

@@ -49,10 +49,11 @@ def displacement_scale(u_c: np.ndarray, gap: np.ndarray, u=None) -> float:
 
 
 def classify_nodes(u_c: np.ndarray, lam: np.ndarray, tau: np.ndarray, gap: np.ndarray,
-                   friction: float, rtol: float = CLASS_RTOL, force_scale: float | None = None,
+                   friction, rtol: float = CLASS_RTOL, force_scale: float | None = None,
                    u=None) -> np.ndarray:
-    """Class code (index into CLASS_NAMES) of every contact node, Table 4.1; ``u`` the body's
-    whole displacement (module docstring: the displacement scale)."""
+    """Class code (index into CLASS_NAMES) of every contact node, Table 4.1; ``friction`` F, a
+    scalar or (p,) per node; ``u`` the body's whole displacement (module docstring: the
+    displacement scale)."""
     u_c = np.asarray(u_c).reshape(-1, 3)
     u_scale = displacement_scale(u_c, gap, u)
     f_scale = force_scale if force_scale is not None else max(np.abs(lam).max(initial=0.0), 1e-300)
@@ -73,10 +74,28 @@ def classify_nodes(u_c: np.ndarray, lam: np.ndarray, tau: np.ndarray, gap: np.nd
     out[strong & stick_strong] = CLASS_CODES["M3+"]
     out[strong & ~slide & ~stick_strong] = CLASS_CODES["M3-"]
     out[weak & ~slide] = CLASS_CODES["M4"]
-    if np.all(np.asarray(friction) == 0.0):
-        # without friction every node in contact "slides" freely: treat sticking as sliding
-        out[strong & ~slide] = CLASS_CODES["M1"]
+    # without friction a node in contact "slides" freely: treat sticking as sliding (per node
+    # where F is given per node, F_m = 0)
+    out[strong & ~slide & (np.asarray(friction) == 0.0)] = CLASS_CODES["M1"]
     return out
+
+
+def friction_at(friction, nodes):
+    """The Coulomb coefficient at the contact nodes ``nodes`` (indices or a mask): a scalar F stays
+    the scalar, a per-node array (p,) is taken at those nodes."""
+    return friction if np.ndim(friction) == 0 else np.asarray(friction)[nodes]
+
+
+def one_friction(friction):
+    """F as one number where every contact node has the same coefficient, else the (p,) array."""
+    if np.ndim(friction) and np.size(friction) and np.all(friction == np.asarray(friction).flat[0]):
+        return float(np.asarray(friction).flat[0])
+    return friction
+
+
+def friction_record(friction):
+    """F as JSON holds it: a float, or per contact node a list of floats."""
+    return float(friction) if np.ndim(friction) == 0 else [float(f) for f in np.asarray(friction)]
 
 
 def class_counts(codes: np.ndarray) -> dict:
@@ -169,7 +188,7 @@ class State:
     tau: np.ndarray               # (p, 2)
     gap: np.ndarray               # (p,)
     classes: np.ndarray           # (p,) codes into CLASS_NAMES
-    friction: float
+    friction: float | np.ndarray  # F used: a scalar, or (p,) per contact node
     method: str
     iterations: int
     residual: float               # Siconos error of the local problem
@@ -243,7 +262,7 @@ class State:
         return {
             "method": self.method, "iterations": int(self.iterations), "converged": bool(self.converged),
             "residual": float(self.residual), "complementarity": float(self.complementarity),
-            "friction": float(self.friction), "node_classes": self.counts,
+            "friction": friction_record(self.friction), "node_classes": self.counts,
             "degenerate_nodes": self.n_degenerate,
             "total_normal_force": float(self.lam.sum()), "max_normal_force": float(self.lam.max(initial=0)),
             "nodes_in_contact": int(np.sum(self.lam > 0)),
@@ -265,7 +284,7 @@ def contact_conditions_violation(u_c, lam, tau, gap, friction) -> float:
     """Largest violation of the contact conditions (3.17), relative to the force/displacement scales.
 
     λ ≥ 0, u_ν + g ≥ 0, λ(u_ν + g) = 0, ‖τ‖ ≤ Fλ, and ‖τ‖·‖u_t‖ = Fλ·‖u_t‖ with τ ∥ u_t
-    (i.e. τ‖u_t‖ − Fλ u_t = 0).
+    (i.e. τ‖u_t‖ − Fλ u_t = 0); F a scalar or (p,) per node.
     """
     u_c = np.asarray(u_c).reshape(-1, 3)
     fs = max(np.abs(lam).max(initial=0.0), 1e-300)
@@ -277,5 +296,5 @@ def contact_conditions_violation(u_c, lam, tau, gap, friction) -> float:
          np.max(-clear, initial=0.0) / us,
          np.max(np.abs(lam * clear), initial=0.0) / (fs * us),
          np.max(np.linalg.norm(tau, axis=1) - friction * lam, initial=0.0) / fs,
-         np.max(np.linalg.norm(tau * nut[:, None] - friction * lam[:, None] * ut, axis=1), initial=0.0) / (fs * us)]
+         np.max(np.linalg.norm(tau * nut[:, None] - (friction * lam)[:, None] * ut, axis=1), initial=0.0) / (fs * us)]
     return float(max(v))

@@ -123,6 +123,7 @@ class ElasticModel:
     pinned_columns: np.ndarray | None   # per pinned DOF its frame column, where a pinned u3 is a tangent
     contact_pinned: np.ndarray       # (p, 3) True on the pinned components (t1, t2, ν)
     contact_pinned_global: np.ndarray   # ... in global components (u1, u2, u3)
+    contact_friction: np.ndarray | None  # (p,) Coulomb coefficient F_m per contact node; None: [friction]'s
     gap_matrix: object               # g = gap_matrix α + gap0 at the contact nodes
     gap0: np.ndarray
     loads: LoadSet
@@ -180,6 +181,8 @@ class ElasticModel:
         self.admissible = self._admissible_set(ref, body, face_frames)
         self.mesh.ratio = self._jacobian_ratio(ref, body)
         self.contact_nodes = body.contact_nodes
+        # per contact node its pair's coefficient F_m (several pairs); None: [friction] coefficient on all
+        self.contact_friction = None
         full = (3 * self.contact_nodes[:, None] + np.arange(3)).ravel()
         self.contact_dofs = self.assembler.full_to_free[full]
         assert np.all(self.contact_dofs >= 0)

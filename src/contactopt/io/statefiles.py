@@ -144,7 +144,7 @@ def _state_arrays(model, state: State) -> dict:
         "contact_points": np.asarray(model.mesh.contact_points(), float),
         "contact_coords": np.asarray(model.body.reference.points[model.contact_nodes], float),
         "contact_pair": pair_index(model),
-        "friction": np.float64(state.friction),
+        "friction": np.asarray(state.friction, np.float64),     # 0-d, or (p,) per contact node
         "method": np.array(str(state.method)),
         "iterations": np.int64(state.iterations),
         "residual": np.float64(state.residual),
@@ -251,6 +251,11 @@ _NPZ_KEYS = ("alpha", "coords", "u", "u_c", "lam", "tau", "gap", "classes", "fri
              "iterations", "residual", "complementarity", "converged", "timings_json", "info_json")
 
 
+def _friction(stored: np.ndarray):
+    """F as a state holds it: a float, or (p,) per contact node."""
+    return float(stored) if stored.ndim == 0 else np.asarray(stored, np.float64)
+
+
 def read_state_npz(path) -> State:
     """Read a state.npz written by :func:`write_state` back into a :class:`State` (no pickles).
 
@@ -270,7 +275,7 @@ def read_state_npz(path) -> State:
                                          displacement=z["foundation_u"])
         return State(
             alpha=z["alpha"], coords=z["coords"], u=z["u"], u_c=z["u_c"], lam=z["lam"], tau=z["tau"],
-            gap=z["gap"], classes=z["classes"].astype(int), friction=float(z["friction"]),
+            gap=z["gap"], classes=z["classes"].astype(int), friction=_friction(z["friction"]),
             method=str(z["method"]), iterations=int(z["iterations"]), residual=float(z["residual"]),
             complementarity=float(z["complementarity"]), converged=bool(z["converged"]),
             timings=json.loads(str(z["timings_json"])), foundation=foundation, **State.fields_of_info(info))

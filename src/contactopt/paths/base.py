@@ -37,7 +37,7 @@ from ..contact.state import (
     contact_conditions_violation,
     displacement_scale,
 )
-from ..errors import CheckpointError
+from ..errors import CheckpointError, ProblemDataError
 from .transforms import Mechanics
 
 log = logging.getLogger(__name__)
@@ -238,6 +238,13 @@ class SolverPath:
         return Mechanics.of(self.model)
 
     @property
+    def friction(self):
+        """The Coulomb coefficient F this path solves with: the model's ``contact_friction`` ((p,),
+        per contact node in contact-node order) where set, else ``[friction] coefficient`` (a
+        scalar). Every solve, classification and adjoint of the path reads it here."""
+        return node_friction(self.model, self.settings.friction)
+
+    @property
     def first_loads(self):
         """The loads of the first load case: a checkpoint's design is assembled with them."""
         return self.start.first_loads
@@ -401,19 +408,38 @@ class SolverPath:
         if slip_ref is not None:        # the friction law's displacement: the slip increment
             law_u = u_c.copy()
             law_u[:, :2] -= slip_ref
-        classes = classify_nodes(law_u, lam, tau, gap, self.settings.friction,
+        friction = self.friction
+        classes = classify_nodes(law_u, lam, tau, gap, friction,
                                  force_scale=fscale if lam.max(initial=0) <= 0 else None, u=u)
         timings["total"] = sum(timings.values())
         state = State(alpha=alpha, coords=coords, u=u, u_c=u_c, lam=lam, tau=tau, gap=gap, classes=classes,
-                      friction=self.settings.friction, method=method, iterations=outcome[0],
+                      friction=friction, method=method, iterations=outcome[0],
                       residual=outcome[1],
-                      complementarity=contact_conditions_violation(law_u, lam, tau, gap, self.settings.friction),
+                      complementarity=contact_conditions_violation(law_u, lam, tau, gap, friction),
                       converged=outcome[2], timings=timings, stats=SolveStats.of({"path": self.name, **stats}), slip_ref=slip_ref,
                       foundation=foundation)
         if self.settings.use_zone:
             ctx.next_zone = zone_rules.near_nodes(lam, u_c[:, 2] + gap, displacement_scale(u_c, gap),
                                                   self.settings.zone_margin)
         return state
+
+
+def node_friction(model, coefficient: float):
+    """F of ``model``'s contact: its ``contact_friction`` (p,) where set (checked: finite, ≥ 0, one
+    per contact node), else the scalar ``coefficient``."""
+    mu = getattr(model, "contact_friction", None)
+    if mu is None:
+        return coefficient
+    mu = np.asarray(mu)
+    p = model.n_contact
+    if mu.shape != (p,) or not np.issubdtype(mu.dtype, np.number):
+        raise ProblemDataError(f"contact_friction must hold one coefficient per contact node, shape ({p},); "
+                               f"got shape {mu.shape} of {mu.dtype}")
+    if not np.all(np.isfinite(mu)) or np.any(mu < 0):
+        bad = np.flatnonzero(~np.isfinite(mu) | (mu < 0))
+        raise ProblemDataError(f"contact_friction must be finite and ≥ 0: {bad.size} contact node(s) are not, "
+                               f"the first {int(bad[0])} with F = {mu[bad[0]]}")
+    return mu.astype(np.float64, copy=False)
 
 
 def check_node_set(nodes, n_contact: int, where: str, what: str) -> np.ndarray:

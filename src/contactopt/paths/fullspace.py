@@ -272,7 +272,7 @@ class FullSpacePath(FullSpaceCommon):
         # on an obstacle: the contact DOFs in the nodes' frames (A → TᵀAT), and a tangential translation
         # as the reference of the slip (the law's displacement is w = u_c − shift, as on the condensation path)
         law_ref = slip_ref if system.shift is None else (system.shift if slip_ref is None else slip_ref + system.shift)
-        res = solve_fullspace_with_fallbacks(system.law_A, system.law_L, self.model.contact_dofs, system.gap, self.settings.friction,
+        res = solve_fullspace_with_fallbacks(system.law_A, system.law_L, self.model.contact_dofs, system.gap, self.friction,
                               coords=asm.coords, free=self.model.assembler.free, r0=warm, u0=u0,
                               hierarchy=self._hierarchy, slip_ref=law_ref,
                               force_scale=self.fit_scale(float(np.linalg.norm(system.law_L)), lambda: self.contact_diagonal(system),
@@ -300,7 +300,7 @@ class FullSpacePath(FullSpaceCommon):
         if system.T is not None and np.asarray(y_u).size == system.T.shape[0]:
             y_u = system.T.T @ y_u        # ∂J/∂u on the free DOFs into the nodes' frames
         adj = solve_adjoint_fullspace(system.law_A, self.model.contact_dofs, state.classes, u_law,
-                                      state.lam, y_u, y_lam, self.settings.friction, hierarchy=self._hierarchy,
+                                      state.lam, y_u, y_lam, self.friction, hierarchy=self._hierarchy,
                                       choices=choices)
         ctx.adjoint_v = adj.v
         v = adj.v if system.T is None else system.T @ adj.v

@@ -246,7 +246,7 @@ class PetscPath(FullSpaceCommon):
             u0 = self.newton.A.createVecRight()
             u0.getArray()[:] = self.dist.owned(ctx.u_all)
         scale = self.fit_scale(system.L.norm(), self.newton._diag_at_contact, system.gap)   # collective: every rank
-        res = run_chain(PetscProblem(self.newton, self._hier, system.L, system.gap, self.settings.friction, r0=warm,
+        res = run_chain(PetscProblem(self.newton, self._hier, system.L, system.gap, self.friction, r0=warm,
                                      u0=u0, slip_ref=slip_ref, force_scale=scale,
                                      **self.newton_options(ctx, tol, warm_start)))
         system.u_all = ctx.u_all = res.u_all
@@ -286,7 +286,7 @@ class PetscPath(FullSpaceCommon):
     def _adjoint(self, skey, classes, u_law, lam, y_u, y_lam):
         system = self._systems[skey]
         v_all, v_u, v_lam, its, force = self.newton.adjoint(self._hier, *adjoint_classes(classes), u_law, lam, y_u,
-                                                            y_lam, self.settings.friction, rtol=ADJOINT_RTOL)
+                                                            y_lam, self.friction, rtol=ADJOINT_RTOL)
         system.v_all = v_all
         return v_u, v_lam, its, force
 

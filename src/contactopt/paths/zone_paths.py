@@ -27,7 +27,7 @@ from .._threads import sequential_openblas
 from ..contact import zone as zone_rules
 from ..contact.fallback import solve_with_fallbacks
 from ..contact.newton import solve_newton
-from ..contact.state import FROM_FCLIB, displacement_scale
+from ..contact.state import FROM_FCLIB, displacement_scale, friction_at
 from ..errors import CheckpointError, ContactOptError
 from .base import Context, SolverPath, check_design, check_node_set
 
@@ -191,13 +191,14 @@ class ZonePath(SolverPath):
             q[1::3] -= slip_ref[zp.zone, 0]
             q[2::3] -= slip_ref[zp.zone, 1]
         r0 = warm[zp.zone].ravel() if warm is not None else None
+        mu = friction_at(self.friction, zp.zone)
         tol = tol or s.tol
         if method == "newton" and s.reuse_delassus and not zp.has_W:
             W_old = None if ctx.jacobian is None else zp.block_from(
                 ctx.jacobian.zone, ctx.jacobian.W, **self.max_new(zp.zone, self.new_fraction))
             eta = np.inf if W_old is None else zp.relative_gap(W_old, r0 if self.probe_warm else None)
             if eta <= REUSE_MAX_GAP:
-                res = solve_newton(W_old, q, s.friction, tol=tol * self.reuse_tol_factor, max_iter=s.max_iter,
+                res = solve_newton(W_old, q, mu, tol=tol * self.reuse_tol_factor, max_iter=s.max_iter,
                                    r0=r0, product=zp.product, chord=eta > CHORD_MIN_GAP, raise_on_failure=False)
                 if res.converged or (self.accept_at_tol and res.error <= tol):
                     if res.iterations > REUSE_MAX_STEPS:
@@ -216,7 +217,7 @@ class ZonePath(SolverPath):
         self.n_delassus += 1
         if keep:
             ctx.jacobian = KeptBlock(alpha, zp.zone, W.astype(JACOBIAN_DTYPE))
-        res = solve_with_fallbacks(W, q, s.friction, method=method, tol=tol, max_iter=s.max_iter, r0=r0,
+        res = solve_with_fallbacks(W, q, mu, method=method, tol=tol, max_iter=s.max_iter, r0=r0,
                                    gap=system.gap[zp.zone])
         return res, t_inv, "formed"
 

@@ -95,7 +95,7 @@ def solve_adjoint(S: np.ndarray, state: State, y_u: np.ndarray, y_lam: np.ndarra
     """Solve the adjoint system (4.15) on the condensed contact system; returns (v_u, v_λ)."""
     choices = check_choices(choices)
     p = state.lam.size
-    F = state.friction
+    F = np.broadcast_to(np.asarray(state.friction, dtype=np.float64), (p,))     # F_i per node
     eff = effective_classes(state.classes, choices)
     c = CLASS_CODES
     ut = state.slip_increment      # u_t, or its increment in a load step (sensitivity/steps.py)
@@ -121,20 +121,20 @@ def solve_adjoint(S: np.ndarray, state: State, y_u: np.ndarray, y_lam: np.ndarra
             ahat = ut[i] / nut[i] if nut[i] > 0 else np.zeros(2)
             for m in range(2):
                 Zr.append(base + m), Zc.append(nz + m), Zv.append(1.0)
-                Zr.append(base + 2), Zc.append(nz + m), Zv.append(F * ahat[m])
+                Zr.append(base + 2), Zc.append(nz + m), Zv.append(F[i] * ahat[m])
                 Rr.append(base + m), Rc.append(nz + m), Rv.append(1.0)
             if e == c["M1"] and nut[i] > 0:      # u_t = 0 only without friction (C = 0)
-                Cb = F * state.lam[i] / nut[i] * (np.eye(2) - np.outer(ahat, ahat))
+                Cb = F[i] * state.lam[i] / nut[i] * (np.eye(2) - np.outer(ahat, ahat))
                 Cblocks.append((nz, Cb))
             nz += 2
             continue
         if e == -2:
-            wbar = state.tau[i] / (F * state.lam[i])
+            wbar = state.tau[i] / (F[i] * state.lam[i])
             wbar = wbar / np.linalg.norm(wbar)
             for m in range(2):
                 Zr.append(base + m), Zc.append(nz), Zv.append(wbar[m])
                 Rr.append(base + m), Rc.append(nz), Rv.append(wbar[m])
-            Zr.append(base + 2), Zc.append(nz), Zv.append(F)
+            Zr.append(base + 2), Zc.append(nz), Zv.append(F[i])
             nz += 1
             continue
         raise AssertionError(e)
@@ -201,10 +201,10 @@ def solve_adjoint_delassus(apply, W_approx, state: State, y_u: np.ndarray, y_lam
     rtol = ADJOINT_RTOL if rtol is None else rtol
     choices = check_choices(choices)
     p = state.lam.size
-    F = state.friction
     c = CLASS_CODES
     eff = effective_classes(state.classes, choices)
     K = np.flatnonzero(eff != c["L"])
+    FK = np.broadcast_to(np.asarray(state.friction, dtype=np.float64), (p,))[K]     # F per node of K
     s = -np.asarray(y_u, dtype=np.float64).copy()
     s.reshape(p, 3)[K] = 0.0
     k = K.size
@@ -234,11 +234,11 @@ def solve_adjoint_delassus(apply, W_approx, state: State, y_u: np.ndarray, y_lam
         nut = np.linalg.norm(ut, axis=1)
         ahat = np.where(nut[:, None] > 0, ut / np.where(nut > 0, nut, 1.0)[:, None], 0.0)
         C = np.where((ek[m1] == c["M1"])[:, None, None],
-                     (F * state.lam[K[m1]] / np.where(nut > 0, nut, 1.0))[:, None, None]
+                     (FK[m1] * state.lam[K[m1]] / np.where(nut > 0, nut, 1.0))[:, None, None]
                      * (np.eye(2) - ahat[:, :, None] * ahat[:, None, :]), 0.0)
         E1 = np.zeros((m1.sum(), 3, 3))
         E1[:, :2, :2] = C
-        E1[:, 2, :2] = -F * ahat
+        E1[:, 2, :2] = -FK[m1, None] * ahat
         E1[:, 2, 2] = 1.0
         E[m1] = E1
         D[m1, 0, 0] = D[m1, 1, 1] = 1.0
@@ -250,7 +250,7 @@ def solve_adjoint_delassus(apply, W_approx, state: State, y_u: np.ndarray, y_lam
         wbar = tau / np.linalg.norm(tau, axis=1)[:, None]
         E3 = np.zeros((m3l.sum(), 3, 3))
         E3[:, 0, 0], E3[:, 0, 1] = -wbar[:, 1], wbar[:, 0]
-        E3[:, 1, :2] = -F * wbar
+        E3[:, 1, :2] = -FK[m3l, None] * wbar
         E3[:, 1, 2] = 1.0
         E[m3l] = E3
         D3 = np.zeros_like(E3)

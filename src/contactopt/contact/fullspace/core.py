@@ -343,21 +343,21 @@ def finish(backend: NewtonBackend, out: NewtonOutcome, *, u_c, tol, t_start, tim
 
 
 # ----------------------------------------------------------------------------- the adjoint
-def sliding_frame(u_c, lam, slide: np.ndarray, friction: float):
+def sliding_frame(u_c, lam, slide: np.ndarray, friction):
     """(t, k, c) of the adjoint (4.15) at the sliding nodes ``slide`` (class M1) of a state:
     the transpose of its Newton system at the solution, with n = −â (â = u_t/‖u_t‖), μ = F and
     K_t = C = k t tᵀ, t ⊥ â, k = Fλ/‖u_t‖; c = −Fâ the friction coupling (per node (t1, t2)).
-    Without friction a node in contact is M1 even where u_t = 0 (both tangential components
-    pinned, or none moving): â and C = 0 there."""
-    F = float(friction)
+    ``friction`` F is a scalar or (p,) per node. Without friction a node in contact is M1 even
+    where u_t = 0 (both tangential components pinned, or none moving): â and C = 0 there."""
     ut = np.asarray(u_c)[slide, :2]
+    F = np.broadcast_to(np.asarray(friction, dtype=np.float64), np.shape(lam))[slide]
     nut = np.linalg.norm(ut, axis=1)
-    if F > 0 and np.any(nut <= 0):
+    if np.any((F > 0) & (nut <= 0)):
         raise SolverError("a sliding node (M1) without slip")
     safe = np.where(nut > 0, nut, 1.0)
     ahat = np.where(nut[:, None] > 0, ut / safe[:, None], 0.0)
     tvec = np.column_stack((-ahat[:, 1], ahat[:, 0]))
-    return tvec, F * np.asarray(lam)[slide] / safe, -F * ahat
+    return tvec, F * np.asarray(lam)[slide] / safe, -F[:, None] * ahat
 
 
 def known_adjoint_part(p: int, stick: np.ndarray, slide: np.ndarray, y_lam) -> np.ndarray:
