@@ -181,8 +181,6 @@ class ElasticModel:
         self.admissible = self._admissible_set(ref, body, face_frames)
         self.mesh.ratio = self._jacobian_ratio(ref, body)
         self.contact_nodes = body.contact_nodes
-        # per contact node its pair's coefficient F_m (several pairs); None: [friction] coefficient on all
-        self.contact_friction = None
         full = (3 * self.contact_nodes[:, None] + np.arange(3)).ravel()
         self.contact_dofs = self.assembler.full_to_free[full]
         assert np.all(self.contact_dofs >= 0)
