@@ -138,11 +138,16 @@ def _monolithic_state(pb, alpha):
     return lam, tau, w, classify_nodes(w, lam, tau, asm_b.gap, pb.friction)
 
 
-def test_two_pairs_agree_with_a_monolithic_model_of_three_bodies(tmp_path):
-    """A block on two slabs of other materials, each pair with friction 0.3, at the reference shape
-    and a designed one: λ, τ and w to 1e-10 of a monolithic model of the three bodies; slip, stick
-    and separation all present."""
-    pb = ShapeProblem(load_config(_write(tmp_path, TWO_SLABS + DESIGN)))
+@pytest.mark.parametrize("left", [0.3, 0.0])
+def test_two_pairs_agree_with_a_monolithic_model_of_three_bodies(left, tmp_path):
+    """A block on two slabs of other materials, the right pair with friction 0.3 and the left one
+    with 0.3 or none, at the reference shape and a designed one: λ, τ and w to 1e-10 of a
+    monolithic model of the three bodies (its local solver given the same coefficient per node);
+    slip, stick and separation all present; no tangential force on a frictionless pair."""
+    text = TWO_SLABS.replace("friction = 0.3", f"friction = {left}", 1)
+    pb = ShapeProblem(load_config(_write(tmp_path, text + DESIGN)))
+    pair = pb.model.body.pair_of
+    assert np.array_equal(np.atleast_1d(pb.friction) * np.ones(pair.size), np.where(pair == 0, left, 0.3))
     assert [f.partner for f in pb.model.foundation.parts] == ["point", "point"]
     rng = np.random.default_rng(2)
     for alpha in (pb.model.initial_design(), pb.model.initial_design() + 0.004 * rng.standard_normal(pb.model.n_design)):
@@ -154,7 +159,9 @@ def test_two_pairs_agree_with_a_monolithic_model_of_three_bodies(tmp_path):
         assert np.abs(st.u_c - w).max() <= 1e-10 * np.abs(w).max()
         assert np.array_equal(st.classes, classes)
     for k in range(2):                       # both pairs carry load
-        assert lam[pb.model.body.pair_of == k].sum() > 0.03 * lam.sum()
+        assert lam[pair == k].sum() > 0.03 * lam.sum()
+    if left == 0.0:
+        assert np.all(st.tau[pair == 0] == 0.0) and np.abs(st.tau[pair == 1]).max() > 0.1 * scale
 
 
 def test_subgradient_with_two_pairs_matches_central_differences(tmp_path):
