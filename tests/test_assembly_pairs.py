@@ -73,7 +73,7 @@ face = "block.contact"
 degree = [3, 2]
 C0 = 0.2
 C1 = 0.5
-C2 = 0.05
+C2 = 0.01
 initial = 0.01
 """
 

@@ -54,8 +54,22 @@ def force_obstacle():
                      "force": [0.0, 0.0, 1.2]}}).to_dict()
 
 
+def assembly_path():
+    """A block on two slabs, a pair each (friction 0.3 and 0.1), its face designed, pressed and
+    then sheared along a load path (tests/test_assembly_pairs.py)."""
+    import tomllib
+
+    from test_assembly_pairs import DESIGN, TWO_SLABS
+    text = TWO_SLABS.replace("friction = 0.3", "friction = 0.1", 1) + DESIGN + (
+        '[[load_steps]]\nname = "press"\ntop_traction = [0.0, 0.0, -8.0e-2]\n'
+        '[[load_steps]]\nname = "shear"\ntop_traction = [0.0, 0.0, -8.0e-2]\nright_traction = [4.0e-2, 0.01, 0.0]\n')
+    data = tomllib.loads(text)
+    data["loads"] = {}
+    return data
+
+
 KINDS = {"load_cases": (load_cases, 14), "load_path": (load_path, 12), "constrained": (constrained, 14),
-         "force_obstacle": (force_obstacle, 12)}
+         "force_obstacle": (force_obstacle, 12), "assembly_path": (assembly_path, 12)}
 
 
 def what_the_checkpoint_holds(ckpt: Checkpoint) -> dict:
@@ -77,7 +91,8 @@ def test_a_run_killed_at_random_moments_resumes_bit_for_bit(tmp_path, kind):
     ref = result(ref_dir)
     holds = what_the_checkpoint_holds(Checkpoint.read(ref_dir / "checkpoint.npz"))
     assert {"load_cases": holds["cases"] == 2, "load_path": len(holds["steps"]) == 1 and holds["steps"][0] >= 2,
-            "constrained": holds["penalty"], "force_obstacle": holds["steps"] == [1]}[kind], holds
+            "constrained": holds["penalty"], "force_obstacle": holds["steps"] == [1],
+            "assembly_path": holds["steps"] == [2]}[kind], holds
     print(f"\n[{kind}] uninterrupted: {ref['iterations']} iterations, {ref['evaluations']} evaluations, "
           f"{ref_wall:.1f} s; the checkpoint holds {holds}")
     rng = random.Random(f"kill -9 a {kind} run")
