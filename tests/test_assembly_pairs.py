@@ -226,3 +226,92 @@ def test_several_pairs_are_refused_by_the_paths_that_do_not_take_them(tmp_path):
     text = TWO_SLABS + '[linear_solver]\npath = "fullspace"\n'
     with pytest.raises(ConfigError, match="2 contact pairs against elastic bodies"):
         ShapeProblem(load_config(_write(tmp_path, text)))
+
+
+# ------------------------------------------------------------------ the contact patch test across two interfaces
+def _box_file(path, size, cells, origin, lift):
+    """A generated box ([foundation] block's, parts top, bottom, left, right, front, back) lifted by
+    ``lift`` along x3, as a Gmsh file: a body above another."""
+    import meshio
+
+    from contactopt.mesh.foundation import foundation_block
+    ref = foundation_block(size, cells, origin)
+    names = ("top", "bottom", "left", "right", "front", "back")
+    blocks = [("quad", ref.parts[n].faces) for n in names] + [(ref.cell_type, ref.cells)]
+    phys = [np.full(len(b[1]), t) for t, b in enumerate(blocks, start=1)]
+    fd = {n: np.array([t, 2]) for t, n in enumerate(names, start=1)} | {"box": np.array([len(blocks), 3])}
+    meshio.write(path, meshio.Mesh(ref.points + [0.0, 0.0, lift], blocks, cell_data={"gmsh:physical": phys},
+                                   field_data=fd), file_format="gmsh22", binary=False)
+    return path
+
+
+def _rollers(left="left", extra=""):
+    """u1 = 0 on the faces x1 = 0, 1 and u2 = 0 on x2 = 0, 1 (symmetry rollers), as a TOML list."""
+    return (f'[ {extra}{{ on = "{left}", components = [1] }}, {{ on = "right", components = [1] }}, '
+            '{ on = "front", components = [2] }, { on = "back", components = [2] } ]')
+
+
+def _stack(tmp_path, friction):
+    """Three unit blocks stacked, each its own grid (5 × 4, 7 × 6 and 4 × 5 cells across, their nodes
+    offset): the lower held at its bottom, the middle and the upper held in x3 only by their
+    contacts, rollers on every side; a pressure p = 0.01 on the top. Mortar partners."""
+    _box_file(tmp_path / "upper.msh", [1.0, 1.0, 1.0], [4, 5, 2], [0.0, 0.0], 2.0)
+    text = f"""
+name = "stack"
+[geometry]
+a = 1.0
+b = 1.0
+c = 1.0
+[mesh]
+nx = 7
+ny = 6
+nz = 3
+[material]
+E = 1.0
+nu = 0.3
+[bodies.middle]
+clamped = {_rollers("clamped")}
+[bodies.lower]
+block = {{ size = [1.0, 1.0, 1.0], cells = [5, 4, 3], origin = [0.0, 0.0] }}
+clamped = {_rollers(extra='{ on = "bottom", components = [1, 2, 3] }, ')}
+material = {{ E = 2.0, nu = 0.25 }}
+[bodies.upper]
+mesh = "upper.msh"
+clamped = {_rollers()}
+material = {{ E = 0.5, nu = 0.35 }}
+[[loads.pressure]]
+on = "upper.top"
+value = 0.01
+[[contacts]]
+face = "middle.contact"
+counterpart = "lower.top"
+friction = {friction}
+partner = "mortar"
+[[contacts]]
+face = "middle.top"
+counterpart = "upper.bottom"
+friction = {friction}
+partner = "mortar"
+[state]
+tol = 1.0e-14
+max_iter = 200
+"""
+    return ShapeProblem(load_config(_write(tmp_path, text)))
+
+
+@pytest.mark.parametrize("friction", [0.0, 0.3])
+def test_the_contact_patch_test_passes_across_two_interfaces(friction, tmp_path):
+    """Uniform pressure p on both interfaces to 1e-8 relative and ‖τ‖ ≤ 1e-8 λ at every node, with
+    non-matching and offset grids, the middle and upper blocks held in x3 only by their contacts."""
+    pb = _stack(tmp_path, friction)
+    m = pb.model
+    assert m.body.rigid is not None and m.foundation.kernel()[1] == [
+        "the translation along x3 of the counterpart of contacts[1]"]
+    assert [f.partner for f in m.foundation.parts] == ["mortar", "mortar"]
+    st = pb.solve_state(m.initial_design())
+    p = st.lam / m.contact_areas()
+    for k in range(2):
+        mine = m.body.pair_of == k
+        assert np.abs(p[mine] / 0.01 - 1).max() <= 1e-8, (k, p[mine])
+        assert st.lam[mine].sum() == pytest.approx(0.01, rel=1e-10)
+    assert np.all(np.linalg.norm(st.tau, axis=1) <= 1e-8 * st.lam)

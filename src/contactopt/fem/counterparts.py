@@ -47,7 +47,7 @@ def build_counterparts(specs, body, source: str, check=None, normals=None, frame
         r = np.flatnonzero(body.pair_of == k)
         view = body.pair_view(k)
         parts.append(Foundation(spec, view, source=f"{source}: contacts[{k}]", check=check,
-                                normals=None if normals is None else normals[r]))
+                                normals=None if normals is None else normals[r], floating=True))
         rows.append(r)
     out = Counterparts(parts, rows, body.contact_nodes.size)
     if frames is not None:
@@ -93,16 +93,42 @@ class Counterparts:
         return (3 * self.rows[k][:, None] + np.arange(3)).ravel()
 
     def _gather(self) -> None:
-        """Π, P, C and q over all contact nodes from the pairs' (after a rotation into frames)."""
+        """Π, P, C, q and ℓ_o over all contact nodes from the pairs' (after a rotation into frames):
+        q holds only the prescribed translations Π d, the loads enter as ℓ_o (Coupling.ell_eff);
+        C is None where a counterpart is held only by its contacts (its compliance is infinite
+        along its rigid motions)."""
         n = 3 * self.p
         self.P = sp.csr_matrix(self._stack([f.P for f in self.parts]))
         self.Pi = sp.csr_matrix(self._stack([f.Pi for f in self.parts]))
-        self.C = np.zeros((n, n))
+        self.C = None if any(f.C is None for f in self.parts) else np.zeros((n, n))
         self.q_f = np.zeros(n)
         for k, f in enumerate(self.parts):
             d = self._dofs(k)
-            self.C[np.ix_(d, d)] = f.C
-            self.q_f[d] = f.q_f
+            if self.C is not None:
+                self.C[np.ix_(d, d)] = f.C
+            if f.motion is not None:
+                self.q_f[d] = f.motion
+        self.ell_o = np.concatenate([f.ell_f for f in self.parts])
+
+    def kernel(self):
+        """(R (3p, k), names) of the counterparts held only by their contacts: the relative
+        displacement −Π R_o of each free rigid motion R_o (on its free support DOFs), along which
+        the coupled stiffness S_eff is singular and the contact forces must balance the body's
+        loads (paths/rigid.py); None when every counterpart is held."""
+        cols, names = [], []
+        start = 0
+        for k, f in enumerate(self.parts):
+            m = f.P.shape[1]
+            if f.rigid is not None:
+                V = f.rigid.vectors(f.mesh.reference.points).reshape(-1, f.rigid.count)[f.assembler.free]
+                R = np.zeros((self.P.shape[1], f.rigid.count))
+                R[start:start + m] = V[f._support_free]
+                cols.append(-(self.P @ R))
+                names += [f"{n} of the counterpart of contacts[{k}]" for n in f.rigid.names()]
+            start += m
+        if not cols:
+            return None
+        return np.column_stack(cols), names
 
     def _stack(self, blocks: list) -> sp.csr_matrix:
         """The block-diagonal matrix of the pairs' blocks with its rows moved to their contact DOFs."""
@@ -125,18 +151,21 @@ class Counterparts:
     def n_nodes(self) -> int:
         return sum(f.n_nodes for f in self.parts)
 
-    def partner_displacement(self, r: np.ndarray) -> np.ndarray:
-        """Π u_o = q − C r (3p,) for the contact forces r on the face body (per node (t1, t2, ν))."""
-        return self.q_f - self.C @ np.ravel(r)
+    def displacements(self, r: np.ndarray, coupling, w) -> list:
+        """Each counterpart's full displacement (3·n_k,): its support DOFs from the coupling's
+        :meth:`~contactopt.fem.foundation.Coupling.support_displacement` of the law's w, its interior
+        recovered under its own loads, plus its prescribed translation."""
+        o = coupling.support_displacement(w)
+        out, start = [], 0
+        for f in self.parts:
+            m = f.P.shape[1]
+            out.append(f.displacement(None, support=o[start:start + m]))
+            start += m
+        return out
 
-    def displacements(self, r: np.ndarray) -> list:
-        """Each counterpart's full displacement (3·n_k,) under its loads and −Π_kᵀ r_k."""
-        r = np.ravel(r)
-        return [f.displacement(r[self._dofs(k)]) for k, f in enumerate(self.parts)]
-
-    def displacement(self, r: np.ndarray, s: float = 0.0) -> np.ndarray:
-        """The counterparts' displacements one after the other (their VTU files split them)."""
-        return np.concatenate(self.displacements(r))
+    def displacement(self, r: np.ndarray, s: float = 0.0, coupling=None, w=None) -> np.ndarray:
+        """The counterparts' displacements one after the other (their VTU file tags each pair's)."""
+        return np.concatenate(self.displacements(r, coupling, w))
 
     def summary(self) -> dict:
         return {"pairs": [f.summary() for f in self.parts]}

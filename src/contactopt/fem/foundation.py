@@ -65,7 +65,8 @@ class Foundation:
     (on the free support DOFs), ``C`` (3p × 3p), ``q_f`` (3p,), ``condensation`` (of K_f onto the
     free support DOFs: the foundation's displacement for outputs)."""
 
-    def __init__(self, spec, body, source: str = "<dict>", backend: str = "auto", check=None, normals=None):
+    def __init__(self, spec, body, source: str = "<dict>", backend: str = "auto", check=None, normals=None,
+                 floating: bool = False):
         """``spec`` the ``[foundation]`` section of the configuration read from ``source``;
         ``check(parts)``: called with :attr:`memory_parts` before K_f is assembled and
         condensed (the model's memory check), so that a foundation too large is refused first.
@@ -74,7 +75,8 @@ class Foundation:
         from .linsolve import condense
         contact_nodes = body.contact_nodes
         contact_xy = body.reference.points[contact_nodes, :2]
-        self.mesh = fm = build_foundation_mesh(spec, contact_xy, source, curved=normals is not None)
+        self.mesh = fm = build_foundation_mesh(spec, contact_xy, source, curved=normals is not None,
+                                               floating=floating)
         ref = fm.reference
         self.partner = spec.partner
         self.loads = load_set(fm, spec.loads, where=f"{source}: foundation.loads")
@@ -126,23 +128,37 @@ class Foundation:
             self._support_free.size, 3 * p)
         if check is not None:
             check(self.memory_parts)
+        self.rigid = fm.rigid     # held only by its contacts: K_f singular, no W_f, C, q_f (fem.counterparts)
         with task(f"the foundation's compliance at {3 * p} contact unknowns"):
             K = self.assembler.stiffness(ref.points)
+            if self.rigid is not None:          # K_f + γ I_s: its Schur complement is S_f + γ I (paths/rigid.py)
+                from ..paths.rigid import with_contact_diagonal
+                K, shift = with_contact_diagonal(K, self._support_free)
             if self._support_free.size < K.shape[0]:
                 self.condensation = condense(K, self._support_free, backend=backend)
             else:                       # a slab one cell thick: every free DOF carries a partner
                 self.condensation = _WholeMatrix(K, self._support_free)
-            self.W_f = spd_inverse(self.condensation.S)
             P = self.Pi.tocsc()[:, np.flatnonzero(keep)]
-            PW = (P @ self.W_f)                                      # (3p, n) dense
-            C = np.asarray((P @ PW.T).T)
-            self.C = 0.5 * (C + C.T)
+            if self.rigid is not None:
+                self.condensation.S = self.condensation.S - shift * np.eye(self._support_free.size)
+                self.W_f = self.C = None
+            else:
+                self.W_f = spd_inverse(self.condensation.S)
+                PW = (P @ self.W_f)                                      # (3p, n) dense
+                C = np.asarray((P @ PW.T).T)
+                self.C = 0.5 * (C + C.T)
         self.P = P                # Π on the free support DOFs (the clamped ones do not move)
         f_full = self.loads.vector(ref.points, self.assembler)
         self.load_resultant = f_full.reshape(-1, 3).sum(axis=0)
         self.f_f = f_full[self.assembler.free]                    # K_f u_f0 = f_f
-        self._u0 = self.condensation.solve(self.f_f) if np.any(self.f_f) else np.zeros_like(self.f_f)
-        self.q_f = P @ self._u0[self._support_free]               # Π K_f⁻¹ f_f (3p,)
+        # the loads condensed onto the free support DOFs: ℓ_f = f_s − K_si K_ii⁻¹ f_i
+        self.ell_f = self.condensation.condense_load(self.f_f)
+        if self.rigid is not None:
+            self._u0 = None
+            self.q_f = np.zeros(3 * p)
+        else:
+            self._u0 = self.condensation.solve(self.f_f) if np.any(self.f_f) else np.zeros_like(self.f_f)
+            self.q_f = P @ self._u0[self._support_free]               # Π K_f⁻¹ f_f (3p,)
         # control = 'displacement' | 'force': the part `loaded` and the foundation with it translate
         # rigidly by d (mesh.foundation checks that the clamps allow it): the partners move by Π d
         self.control = spec.control
@@ -183,8 +199,9 @@ class Foundation:
         Q = sp.block_diag([np.asarray(r).T for r in R], format="csr")
         self.Pi = sp.csr_matrix(Q @ self.Pi)
         self.P = sp.csr_matrix(Q @ self.P)
-        C = np.asarray(Q @ (Q @ self.C).T)
-        self.C = 0.5 * (C + C.T)
+        if self.C is not None:          # (none where the counterpart is held only by its contacts)
+            C = np.asarray(Q @ (Q @ self.C).T)
+            self.C = 0.5 * (C + C.T)
         self.q_f = Q @ self.q_f
         if self.motion is not None:
             self.motion = Q @ self.motion
@@ -197,13 +214,22 @@ class Foundation:
         """Π u_f = Π q_f − C r (3p,) for the contact forces r on the body (3p, per node (t1, t2, ν))."""
         return self.q_f - self.C @ np.ravel(r)
 
-    def displacement(self, r: np.ndarray, s: float = 0.0) -> np.ndarray:
+    def kernel(self):
+        """None: the one foundation is held by its clamps (fem.counterparts: several pairs)."""
+        return None
+
+    def displacement(self, r: np.ndarray, s: float = 0.0, support=None, coupling=None, w=None) -> np.ndarray:
         """The foundation's full displacement (3·n_f,) under its own loads f_f and −Πᵀ r (zero on
         its clamped DOFs), plus its rigid translation: d with control = 'displacement', s f̂ with
-        control = 'force' (``s`` the state's translation)."""
-        f = np.zeros(self.assembler.n_free)
-        f[self._support_free] = -(self.P.T @ np.ravel(r))
-        u = self.assembler.to_full(self.condensation.solve(f) + self._u0)
+        control = 'force' (``s`` the state's translation). ``support``: its displacement on the free
+        support DOFs where the coupling gives it (a counterpart held only by contact: the interior
+        is recovered from it)."""
+        if support is not None:          # (``coupling``, ``w``: Counterparts' signature)
+            u = self.assembler.to_full(self.condensation.recover(self.f_f, support))
+        else:
+            f = np.zeros(self.assembler.n_free)
+            f[self._support_free] = -(self.P.T @ np.ravel(r))
+            u = self.assembler.to_full(self.condensation.solve(f) + self._u0)
         if self.translation is not None:
             scale = 1.0 if self.control == "displacement" else s
             u = u + scale * np.tile(self.translation, self.n_nodes)
@@ -244,6 +270,14 @@ class _WholeMatrix:
         x[self._order] = sla.cho_solve(self._factor, f[self._order])
         return x
 
+    def condense_load(self, f: np.ndarray) -> np.ndarray:
+        return np.ascontiguousarray(f[self._order])
+
+    def recover(self, f: np.ndarray, u_c: np.ndarray) -> np.ndarray:
+        x = np.zeros_like(f)
+        x[self._order] = u_c
+        return x
+
 
 class Coupling:
     """The body's condensed stiffness S(α) of one design coupled with the foundation (module
@@ -282,19 +316,41 @@ class Coupling:
         return x - self._G @ self._solve_M(self._P.T @ x)
 
     def ell_eff(self, ell: np.ndarray) -> np.ndarray:
-        """ℓ_eff = S_eff (S⁻¹ℓ − Π q_f) (3p,)."""
+        """ℓ_eff = S_eff (S⁻¹ℓ − Π q_f) (3p,). Counterparts of several pairs
+        (:mod:`contactopt.fem.counterparts`) give their loads condensed on their support DOFs, ℓ_o,
+        and q = Π d of their prescribed translations: ℓ_eff = S_eff S⁻¹ℓ − G M⁻¹ ℓ_o − S_eff q, the
+        same where a counterpart is held (S_eff Π S_o⁻¹ = G M⁻¹) and defined where it is held only
+        by its contacts (S_o singular)."""
         out = self.to_eff(ell)
-        if np.any(self.foundation.q_f):
-            out -= self.S_eff @ self.foundation.q_f
+        f = self.foundation
+        ell_o = getattr(f, "ell_o", None)
+        if ell_o is not None:
+            self._ell = ell
+            if np.any(ell_o):
+                out -= self._G @ self._solve_M(ell_o)
+        if np.any(f.q_f):
+            out -= self.S_eff @ f.q_f
         return out
+
+    def support_displacement(self, w: np.ndarray) -> np.ndarray:
+        """Counterparts of several pairs: their displacement o on the free support DOFs (less their
+        prescribed translations) for the law's w, M o = Pᵀ(ℓ − S (w + q)) + ℓ_o, with the ℓ of the
+        last :meth:`ell_eff`."""
+        f = self.foundation
+        u = np.ravel(w) + f.q_f
+        return self._solve_M(self._P.T @ self._ell - self._G.T @ u + f.ell_o)
 
     def adjoint_z(self, v_u: np.ndarray) -> np.ndarray:
         """z = S⁻¹ S_eff v_u (3p,): the design terms' adjoint on the body's contact DOFs."""
         return v_u - self._P @ self._solve_M(self._G.T @ v_u)
 
     def body_displacement(self, w: np.ndarray, r: np.ndarray) -> np.ndarray:
-        """The body's contact displacement u_c = w + Π u_f = w + Π q_f − C r (3p,)."""
-        return np.ravel(w) + self.foundation.partner_displacement(r)
+        """The body's contact displacement u_c = w + Π u_f = w + Π q_f − C r (3p,); with the
+        counterparts of several pairs w + Π o + q (:meth:`support_displacement`)."""
+        f = self.foundation
+        if getattr(f, "ell_o", None) is not None:
+            return np.ravel(w) + self._P @ self.support_displacement(w) + f.q_f
+        return np.ravel(w) + f.partner_displacement(r)
 
 
 def locate_partners(points: np.ndarray, faces: np.ndarray, ftype: str, xy: np.ndarray, contact_nodes, where: str,

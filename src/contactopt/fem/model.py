@@ -176,7 +176,7 @@ class ElasticModel:
         self.pinned_columns = None  # per pinned DOF its frame column, where a pinned u3 is a tangent
         face_frames = self._obstacle(cfg.obstacle, ref, body)
         self.foundation = None      # [foundation]: the elastic foundation under the contact face
-        if (cfg.foundation is not None or cfg.pairs) and body.chart is not None:
+        if (cfg.foundation is not None or cfg.pairs) and (body.chart is not None or body.pair_charts):
             self._curved_foundation(cfg, ref, body, check)
         self.admissible = self._admissible_set(ref, body, face_frames)
         self.mesh.ratio = self._jacobian_ratio(ref, body)
@@ -346,7 +346,7 @@ class ElasticModel:
         (t1, t2, n_m) with the clamped components as tangents, the partners and initial gaps along
         n_m; an overlap deeper than the penetration tolerance needs ``body.interference``."""
         x = ref.points[body.contact_nodes]
-        n = -body.chart.outward(x)
+        n = -body.contact_outward()
         R = tangent_frames(n)
         if body.pinned_dofs.size:
             node, comp = np.divmod(body.pinned_dofs, 3)

@@ -28,6 +28,7 @@ from __future__ import annotations
 
 import logging
 from dataclasses import dataclass, field, replace
+from types import SimpleNamespace
 
 import numpy as np
 from scipy.spatial import cKDTree
@@ -67,6 +68,18 @@ class Body(HasParts):
     # (free DOFs, entries of the stiffness on them), counted once by contactopt.fem.memory
     pair_faces: tuple = ()        # several contact pairs: each pair's face (Part); the contact nodes are theirs
     pair_of: np.ndarray | None = None   # (p,) the pair of each contact node, in [[contacts]] order
+    pair_charts: tuple = ()       # several pairs without a chart of them all: each pair's face's chart
+
+    def contact_outward(self) -> np.ndarray:
+        """(p, 3) the outward unit normal of the face at each contact node, from the chart of the
+        contact face or, where the pairs' faces have no common chart, from each pair's."""
+        x = self.reference.points[self.contact_nodes]
+        if self.chart is not None:
+            return self.chart.outward(x)
+        out = np.zeros((x.shape[0], 3))
+        for k, c in enumerate(self.pair_charts):
+            out[self.pair_of == k] = c.outward(x[self.pair_of == k])
+        return out
 
     def pair_view(self, k: int) -> "Body":
         """The body as pair k's counterpart sees it: its contact face and nodes those of the pair
@@ -74,8 +87,10 @@ class Body(HasParts):
         mine = self.pair_of == k
         nodes = self.contact_nodes[mine]
         node = self.pinned_dofs // 3
-        return replace(self, contact_face=self.pair_faces[k], contact_nodes=nodes,
-                       pinned_dofs=self.pinned_dofs[np.isin(node, nodes)], pair_faces=(), pair_of=None)
+        chart = self.pair_charts[k] if self.pair_charts else self.chart
+        return replace(self, contact_face=self.pair_faces[k], contact_nodes=nodes, chart=chart,
+                       pinned_dofs=self.pinned_dofs[np.isin(node, nodes)], pair_faces=(), pair_of=None,
+                       pair_charts=())
 
 
 def reference_mesh(cfg):
@@ -122,8 +137,21 @@ def build_body(cfg) -> Body:
     fixed = np.zeros((ref.n_nodes, 3), bool)
     for p, comps in clamped:
         fixed[np.ix_(p.nodes, comps)] = True
-    chart = _chart(cfg, ref, face, gtol)
-    if chart is None:
+    pair_charts = ()
+    try:
+        chart = _chart(cfg, ref, face, gtol)
+    except ConfigError:
+        if not pair_faces or cfg.assembly.designs:
+            raise
+        # several pairs and no design whose faces have no common chart (a block between two
+        # others): each pair's face its own chart, which gives the frames of its nodes
+        auto = SimpleNamespace(chart="auto", axis=None, origin=None)
+        pair_charts = tuple(resolve_chart(auto, ref.points, pf, ref.face_type, gtol, cfg.source)
+                            for pf in pair_faces)
+        chart = None
+    if pair_charts:
+        face = Part(face.name, np.unique(face.faces), face.faces, face.origin)
+    elif chart is None:
         face = _check_contact_face(ref, face, ptol, on_plane=spec.initial_gap == "zero", graph_tol=gtol,
                                    interference=spec.interference, plane=_plane_name(cfg))
     else:
@@ -133,6 +161,8 @@ def build_body(cfg) -> Body:
         # on a chart the components clamped along the face's normal take a node out, those in its
         # tangent plane (a symmetry plane or an end face through the face) are pinned tangents
         normal_comp = np.abs(chart.outward(ref.points[face.nodes])) > 1e-9
+    elif pair_charts:
+        normal_comp = np.abs(_pair_outward(ref.points, face.nodes, pair_faces, pair_charts)) > 1e-9
     contact_nodes, pinned, warnings = _contact_nodes(face, fixed, spec.contact, cfg.source, normal_comp)
     pair_of = None
     if pair_faces:                        # several pairs: their nodes are the contact nodes
@@ -153,7 +183,7 @@ def build_body(cfg) -> Body:
     eliminated.ravel()[pinned] = False
     body = Body(ref, tol, np.flatnonzero(eliminated.ravel()), clamped, face, contact_nodes, fixed_shape, domain,
                 pinned_dofs=pinned, rigid=rigid if rigid.count else None, chart=chart, penetration_tol=ptol,
-                pair_faces=tuple(pair_faces), pair_of=pair_of)
+                pair_faces=tuple(pair_faces), pair_of=pair_of, pair_charts=pair_charts)
     body.warnings += warnings + _thin_tetrahedra(ref) + _poor_cells(ref)
     for w in body.warnings:
         log.warning("%s", w)
@@ -197,6 +227,15 @@ def _contact_nodes(face: Part, fixed: np.ndarray, contact, source: str, normal_c
 
 def _as_list(x):
     return x if isinstance(x, list) else [x]
+
+
+def _pair_outward(points, nodes, pair_faces, charts) -> np.ndarray:
+    """(len(nodes), 3) outward normals at ``nodes`` from the chart of the pair each lies in."""
+    out = np.zeros((nodes.size, 3))
+    for pf, c in zip(pair_faces, charts):
+        mine = np.isin(nodes, pf.nodes)
+        out[mine] = c.outward(points[nodes[mine]])
+    return out
 
 
 def _union(parts: list) -> Part | None:

@@ -22,6 +22,7 @@ import numpy as np
 from ..errors import ConfigError, MeshError
 from .block import block_mesh
 from .body import COMPONENTS, _check_rigid_modes
+from .rigid import free_modes
 from .reference import FACE_CORNERS, HasParts, Part, ReferenceMesh, describe_part, part_selector
 from .tetsplit import hex_to_tets
 
@@ -38,6 +39,7 @@ class FoundationMesh(HasParts):
     E: float
     nu: float
     loaded: np.ndarray | None = None     # control ≠ 'fixed': the nodes of the part `loaded` (all 3 DOFs fixed)
+    rigid: object = None                 # a counterpart held only by its contacts: its free rigid motions
 
 
 def foundation_block(size, cells, origin=(0.0, 0.0), element: str = "hexahedron") -> ReferenceMesh:
@@ -61,7 +63,8 @@ def foundation_block(size, cells, origin=(0.0, 0.0), element: str = "hexahedron"
     return mesh
 
 
-def build_foundation_mesh(spec, contact_xy: np.ndarray, source: str, curved: bool = False) -> FoundationMesh:
+def build_foundation_mesh(spec, contact_xy: np.ndarray, source: str, curved: bool = False,
+                          floating: bool = False) -> FoundationMesh:
     """Resolve ``[foundation]`` (``spec``, of the configuration read from ``source``) against the
     body's contact face, given by the (x1, x2) of its nodes ``contact_xy`` (p, 2). ConfigError
     names every problem. ``curved``: the contact face lies on a chart other than x3 = 0 and the top
@@ -109,13 +112,18 @@ def build_foundation_mesh(spec, contact_xy: np.ndarray, source: str, curved: boo
     else:
         top = _check_top(ref, top, tol, describe_part(spec.top), where)
         _check_overlap(ref, contact_xy, tol, where)
-    try:
-        _check_rigid_modes(ref, fixed, source, key="foundation.clamped")
-    except ConfigError as exc:
-        raise ConfigError([f"{p}; a counterpart body is held in place by its own clamps (one held only by its "
-                           "contacts is not solved yet)" for p in exc.problems]) from None
+    rigid = None
+    if floating:                        # a counterpart of several pairs may be held by its contacts alone
+        rigid = free_modes(ref.points, fixed)
+        rigid = rigid if rigid.count else None
+    else:
+        try:
+            _check_rigid_modes(ref, fixed, source, key="foundation.clamped")
+        except ConfigError as exc:
+            raise ConfigError([f"{p}; a counterpart body is held in place by its own clamps (one held only by its "
+                               "contacts is solved in a model of several [[contacts]])" for p in exc.problems]) from None
     mat = spec.material
-    return FoundationMesh(ref, top, np.flatnonzero(fixed.ravel()), tol, float(mat.E), float(mat.nu), loaded)
+    return FoundationMesh(ref, top, np.flatnonzero(fixed.ravel()), tol, float(mat.E), float(mat.nu), loaded, rigid)
 
 
 def _check_translation(ref: ReferenceMesh, fixed: np.ndarray, loaded: np.ndarray, direction: np.ndarray, where: str,

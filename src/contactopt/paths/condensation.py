@@ -47,6 +47,7 @@ from scipy.sparse.linalg import eigsh
 
 from ..contact import zone as zone_rules
 from ..contact.state import FoundationState
+from ..errors import SolverError
 from ..fem import memory
 from ..fem.dense import mkl_threads, spd_inverse
 from ..fem.foundation import Coupling
@@ -159,8 +160,9 @@ class CondensationPath(ZonePath):
         if mech.couple is not None:
             system.coupling = Coupling(system.S, mech.couple)
             system.ell_eff = system.coupling.ell_eff(system.ell)
-        if mech.anchor is not None:
-            system.rigid = anchor(self.model, mech.anchor, asm, system.contact_S, mech.frames, mech.basis)
+        extra = None if mech.couple is None else mech.couple.kernel()   # counterparts held by contact
+        if mech.anchor is not None or extra is not None:
+            system.rigid = anchor(self.model, mech.anchor, asm, system.contact_S, mech.frames, mech.basis, extra)
         system.timings["schur"] = time.perf_counter() - t1
         return system
 
@@ -243,7 +245,8 @@ class CondensationPath(ZonePath):
         if system.moved:         # a force-controlled foundation: u_c's normal part omits the translation's
             partner = partner + system.moved * self.model.obstacle_force.gap_rate[:, None] * [0.0, 0.0, 1.0]
         return FoundationState(u_body_c=body, u_partner=partner,
-                               displacement=self.foundation.displacement(r, system.moved))
+                               displacement=self.foundation.displacement(r, system.moved, coupling=system.coupling,
+                                                                         w=np.ravel(u_c)))
 
     def load_scale(self, system):
         return system.contact_ell
@@ -282,6 +285,9 @@ class CondensationPath(ZonePath):
         if system.coupling is None:
             z = v_u
         else:
+            if y_c is not None and self.foundation.C is None:
+                raise SolverError("an objective of the body's whole displacement needs the compliance of its "
+                                  "counterparts, and a counterpart held only by its contacts has none")
             z = system.coupling.adjoint_z(v_u if y_c is None else v_u - self.foundation.C @ y_c)
         if self.mechanics.basis is not None:
             z = self.mechanics.basis.back(z)

@@ -92,10 +92,16 @@ def kernel_on_free(model, modes, coords) -> np.ndarray:
     return V[model.assembler.free]
 
 
-def anchor(model, modes, asm, S: np.ndarray, frames, basis=None) -> Anchor:
+def anchor(model, modes, asm, S: np.ndarray, frames, basis=None, extra=None) -> Anchor:
     """The :class:`Anchor` of a design; SolverError when A R ≠ 0 (a clamp that moves with the
     design, for instance). ``frames``: the nodes' frames of the contact DOFs, ``basis`` their
-    transformed basis (:class:`~contactopt.paths.transforms.Basis`), or None."""
+    transformed basis (:class:`~contactopt.paths.transforms.Basis`), or None. ``extra``: (R, names)
+    of counterparts held only by contact (their motions on the contact DOFs, in the nodes' frames,
+    :meth:`contactopt.fem.counterparts.Counterparts.kernel`); ``modes`` None when the body is held."""
+    if modes is None:
+        R, names = extra
+        Q, _ = np.linalg.qr(R)
+        return anchored(S, R, Q, list(names), GAMMA_FACTOR)
     R_free = kernel_on_free(model, modes, asm.coords)
     AR = asm.A @ R_free
     bound = KERNEL_RTOL * abs(asm.A).max() * np.abs(R_free).max()
@@ -107,8 +113,11 @@ def anchor(model, modes, asm, S: np.ndarray, frames, basis=None) -> Anchor:
         Rc = np.einsum("mij,mik->mjk", frames, Rc.reshape(-1, 3, modes.count)).reshape(-1, modes.count)
     if basis is not None:           # rigid motions are displacements: û = V⁻ᵀ u
         Rc = np.column_stack([basis.displacement(Rc[:, k]) for k in range(modes.count)])
+    names = modes.names()
+    if extra is not None:
+        Rc, names = np.column_stack([Rc, extra[0]]), names + list(extra[1])
     Q, _ = np.linalg.qr(Rc)
-    return anchored(S, Rc, Q, modes.names(), GAMMA_FACTOR)
+    return anchored(S, Rc, Q, names, GAMMA_FACTOR)
 
 
 def held_state(solve, system, tol: float, method: str = "newton"):
