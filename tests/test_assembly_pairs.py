@@ -315,3 +315,24 @@ def test_the_contact_patch_test_passes_across_two_interfaces(friction, tmp_path)
         assert np.abs(p[mine] / 0.01 - 1).max() <= 1e-8, (k, p[mine])
         assert st.lam[mine].sum() == pytest.approx(0.01, rel=1e-10)
     assert np.all(np.linalg.norm(st.tau, axis=1) <= 1e-8 * st.lam)
+
+
+def test_a_pressure_objective_of_one_pair_reads_its_nodes_alone(tmp_path):
+    """max_pressure (KS) over the pair "left" alone: its value that of the pair's nodes, the
+    subgradient against central differences; an unknown pair is refused by name."""
+    obj = '[objective]\ntype = "max_pressure"\naggregate = "ks"\nrho = 200.0\ncontacts = ["left"]\n'
+    pb = ShapeProblem(load_config(_write(tmp_path, TWO_SLABS + DESIGN + obj)))
+    alpha = pb.model.initial_design()
+    st = pb.solve_state(alpha)
+    p = st.lam / pb.model.contact_areas()
+    left, right = p[pb.model.body.pair_of == 0], p[pb.model.body.pair_of == 1]
+    assert right.max() > 10 * left.max()             # the objective is not the peak of all pairs
+    value = pb.evaluate_value(alpha)
+    assert left.max() < value <= left.max() + np.log(left.size) / 200.0
+    gc = check_gradient(pb, alpha + 0.002 * np.random.default_rng(3).standard_normal(alpha.size),
+                        n_directions=2, seed=1)
+    assert gc.passed, gc.rel_errors
+    bad = obj.replace('["left"]', '["left", "middle", 7]')
+    with pytest.raises(Exception, match=r"objective.contacts: 'middle', 7 is no contact pair of the model \(pairs: "
+                                        r"0 'left', 1 'right'\)"):
+        ShapeProblem(load_config(_write(tmp_path, TWO_SLABS + DESIGN + bad)))

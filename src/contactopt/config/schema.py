@@ -182,6 +182,10 @@ SCHEMA = {
         "region": ("", lambda x: x == "" or _part_spec(x),
                    "empty (the whole body) or " + _PART_SHORT + " (peak_stress: the elements with every "
                    "node in the part, or with a node in it for a boundary part)"),
+        "contacts": ([], lambda x: isinstance(x, list) and all(
+            (isinstance(v, str) and v) or (isinstance(v, int) and not isinstance(v, bool) and v >= 0) for v in x),
+                     "a list of contact pairs by name or index in [[contacts]] (the pressure objectives "
+                     "pressure_uniformity and max_pressure: the nodes of those pairs; empty: every pair)"),
         "aggregate": ("max", _oneof("max", "ks", "pnorm"),
                       "'max' (nonsmooth, exact), 'ks' (max + ln Σ exp(ρ(x − max))/ρ) or 'pnorm' "
                       "((Σ x^p)^(1/p)): how peak_stress and max_pressure take the largest value"),
@@ -400,7 +404,7 @@ TOP_LEVEL = {"name": ("custom", lambda x: isinstance(x, str) and x != "", "a non
 
 BLOCK_LOADS = ("top_traction", "right_traction")
 CASE_NAME = re.compile(r"[A-Za-z0-9_.+-]+")
-TERM_KEYS = {"type", "weight", "region", "aggregate", "rho", "p", "target"}
+TERM_KEYS = {"type", "weight", "region", "aggregate", "rho", "p", "target", "contacts"}
 # keys of the arrays of tables: a term's weight (its other keys as in [objective]), a step's substeps
 TERM_WEIGHT = (1.0, _nonneg, "a number ≥ 0")
 SUBSTEPS = (1, _posint, "an integer ≥ 1 (equal increments of the loads from the previous step's)")

@@ -260,11 +260,12 @@ class ObjectiveTerm:
     rho: float
     p: float
     target: Target | None
+    contacts: tuple = ()
 
     @classmethod
     def from_dict(cls, d: dict) -> "ObjectiveTerm":
         return cls(d["type"], d["weight"], copy.deepcopy(d["region"]), d["aggregate"], d["rho"], d["p"],
-                   Target.from_dict(d["target"]) if "target" in d else None)
+                   Target.from_dict(d["target"]) if "target" in d else None, tuple(d.get("contacts", ())))
 
 
 @dataclass(frozen=True)
@@ -283,11 +284,13 @@ class Objective:
     weights: Any
     steps: Any
     active_tol: float
+    contacts: tuple = ()
 
     @classmethod
     def from_dict(cls, d: dict) -> "Objective":
         return _build(cls, d, _defaults("objective"), target=Target.from_dict(d["target"]),
-                      terms=tuple(ObjectiveTerm.from_dict(t) for t in d.get("terms", [])))
+                      terms=tuple(ObjectiveTerm.from_dict(t) for t in d.get("terms", [])),
+                      contacts=tuple(d.get("contacts", ())))
 
     @property
     def types(self) -> set:

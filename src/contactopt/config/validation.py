@@ -273,7 +273,9 @@ def _check_objective(raw, data, d1d2, problems):
             problems.append(f"{key}.type = {t.get('type')!r}: must be one of "
                             f"{', '.join(repr(v) for v in OBJECTIVE_TYPES)}")
         term = {"type": t.get("type")}
-        for k in ("weight", "region", "aggregate", "rho", "p"):
+        for k in ("weight", "region", "aggregate", "rho", "p", "contacts"):
+            if k == "contacts" and k not in t:      # absent: every pair (resolved as before the key)
+                continue
             default, check, desc = TERM_WEIGHT if k == "weight" else SCHEMA["objective"][k]
             val = t.get(k, default)
             _check_value(f"{key}.{k}", val, check, desc, problems)
@@ -549,6 +551,8 @@ def resolve(raw: dict, source: str = "<dict>") -> dict:
             problems.append(f"[{sec}]: must be a table")
             given = {}
         data[sec] = _check_table(given, keys, sec, problems)
+    if not (isinstance(raw.get("objective"), dict) and "contacts" in raw["objective"]):
+        data["objective"].pop("contacts", None)      # absent: every pair (resolved as before the key)
     if not (isinstance(raw.get("material"), dict) and "formulation" in raw["material"]):
         # absent means 'auto': a configuration that does not name it resolves as it did before the key
         data["material"].pop("formulation", None)

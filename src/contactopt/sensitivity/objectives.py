@@ -108,9 +108,9 @@ class PressureUniformity(Objective):
 
     name = "pressure_uniformity"
 
-    def __init__(self, model, scale: float = 1.0):
+    def __init__(self, model, scale: float = 1.0, contacts=()):
         super().__init__(model, scale)
-        self.areas, self.used = node_areas(model)
+        self.areas, self.used = node_areas(model, contacts)
 
     def evaluate(self, state, cond, loads=None):
         a, m = self.areas[self.used], self.used
@@ -123,11 +123,38 @@ class PressureUniformity(Objective):
                              np.zeros(state.alpha.size))
 
 
-def node_areas(model):
-    """(a (p,), the contact nodes of positive area): :meth:`ElasticModel.contact_areas`."""
+def node_areas(model, contacts=(), key: str = "objective.contacts"):
+    """(a (p,), the contact nodes of positive area): :meth:`ElasticModel.contact_areas`; with
+    ``contacts`` (pair names or indices in ``[[contacts]]``) only the nodes of those pairs."""
     a = np.asarray(model.contact_areas(), float)
     used = np.flatnonzero(a > 1e-12 * a.max())
+    if contacts:
+        used = used[np.isin(pair_index_of(model)[used], pair_numbers(model, contacts, key))]
     return a, used
+
+
+def pair_index_of(model) -> np.ndarray:
+    """(p,) each contact node's pair, in ``[[contacts]]`` order (0 where the model has one pair)."""
+    return np.zeros(model.n_contact, int) if model.body.pair_of is None else model.body.pair_of
+
+
+def pair_numbers(model, contacts, key: str) -> list[int]:
+    """The indices of the pairs ``contacts`` names (a name or an index in ``[[contacts]]``);
+    ConfigError naming those that are none."""
+    pairs = model.config.assembly.contacts
+    names = [p.name for p in pairs]
+    out, bad = [], []
+    for c in contacts:
+        if isinstance(c, int) and c < len(pairs):
+            out.append(c)
+        elif isinstance(c, str) and c in names:
+            out.append(names.index(c))
+        else:
+            bad.append(repr(c))
+    if bad:
+        raise ConfigError([f"{model.config.source}: {key}: {', '.join(bad)} is no contact pair of the model (pairs: "
+                           + ", ".join(f"{k} {n!r}" for k, n in enumerate(names)) + ")"])
+    return out
 
 
 def aggregate(x: np.ndarray, kind: str, rho: float, p: float):
@@ -161,9 +188,10 @@ class MaxPressure(Objective):
 
     name = "max_pressure"
 
-    def __init__(self, model, scale: float = 1.0, kind: str = "max", rho: float = 50.0, p: float = 8.0):
+    def __init__(self, model, scale: float = 1.0, kind: str = "max", rho: float = 50.0, p: float = 8.0,
+                 contacts=()):
         super().__init__(model, scale)
-        self.areas, self.used = node_areas(model)
+        self.areas, self.used = node_areas(model, contacts)
         self.kind, self.rho, self.p = kind, float(rho), float(p)
 
     def evaluate(self, state, cond, loads=None):
@@ -500,8 +528,13 @@ def _one_objective(model, table, scale, key, target, case, solve) -> Objective:
     if cls is TargetNormalForce:
         return cls(model, table.target if target is None else target, scale, case, solve)
     agg = (table.aggregate, table.rho, table.p)
+    if table.contacts and cls not in (MaxPressure, PressureUniformity):
+        raise ConfigError([f"{model.config.source}: {key}.contacts: the pressure objectives (max_pressure, "
+                           f"pressure_uniformity) take a subset of the pairs; {table.type} acts on every pair"])
     if cls is MaxPressure:
-        return cls(model, scale, *agg)
+        return cls(model, scale, *agg, contacts=table.contacts)
+    if cls is PressureUniformity:
+        return cls(model, scale, contacts=table.contacts)
     if cls is PeakStress:
         return cls(model, scale, *agg, region=table.region or None, key=f"{key}.region")
     return cls(model, scale)
