@@ -336,3 +336,20 @@ def test_a_pressure_objective_of_one_pair_reads_its_nodes_alone(tmp_path):
     with pytest.raises(Exception, match=r"objective.contacts: 'middle', 7 is no contact pair of the model \(pairs: "
                                         r"0 'left', 1 'right'\)"):
         ShapeProblem(load_config(_write(tmp_path, TWO_SLABS + DESIGN + bad)))
+
+
+def test_a_floating_body_whose_motion_nothing_holds_is_refused_by_name(tmp_path, capsys):
+    """The right slab held only in x3 at its bottom, both pairs without friction: exit 2 naming the
+    body and each motion no contact force holds, nothing written."""
+    text = TWO_SLABS.replace("friction = 0.3", "friction = 0.0")
+    text = text.replace('[bodies.right]\nblock = { size = [1.25, 2.0, 0.75], cells = [5, 8, 3], origin = [1.25, -0.5] }\n'
+                        'clamped = "bottom"', '[bodies.right]\nblock = { size = [1.25, 2.0, 0.75], cells = [5, 8, 3], '
+                        'origin = [1.25, -0.5] }\nclamped = [ { on = "bottom", components = [3] } ]')
+    out = tmp_path / "out"
+    assert main(["state", str(_write(tmp_path, text)), "--out", str(out)]) == 2
+    err = capsys.readouterr().err
+    for motion in ("the translation along x1", "the translation along x2"):
+        assert f"bodies.right: {motion} is not held: the body is held only by its contacts, and no contact force " \
+               "of contacts[1] acts along it" in err, err
+    assert "bodies.left" not in err
+    assert not out.exists()

@@ -110,6 +110,33 @@ class Counterparts:
                 self.q_f[d] = f.motion
         self.ell_o = np.concatenate([f.ell_f for f in self.parts])
 
+    def check_held(self, friction, names: list, source: str) -> None:
+        """ConfigError naming each rigid motion of a counterpart held only by its contacts that no
+        contact force can hold: one that moves no contact node along its normal, where its pair
+        has no friction (``friction`` F per contact node, a scalar or (p,); ``names`` the
+        counterparts' bodies in pair order)."""
+        mu = np.broadcast_to(np.asarray(friction, float), (self.p,))
+        problems, start = [], 0
+        for k, f in enumerate(self.parts):
+            m = f.P.shape[1]
+            if f.rigid is not None:
+                V = f.rigid.vectors(f.mesh.reference.points).reshape(-1, f.rigid.count)[f.assembler.free]
+                R = np.zeros((self.P.shape[1], f.rigid.count))
+                R[start:start + m] = V[f._support_free]
+                G = np.asarray(self.P @ R).reshape(self.p, 3, -1)
+                scale = np.abs(G).max(initial=0.0)
+                for j, motion in enumerate(f.rigid.names()):
+                    normal = np.abs(G[:, 2, j]).max(initial=0.0) > 1e-9 * max(scale, 1e-300)
+                    rubbed = np.any((np.abs(G[:, :2, j]).max(axis=1) > 1e-9 * scale) & (mu > 0))
+                    if not (normal or rubbed):
+                        problems.append(f"{source}: bodies.{names[k]}: {motion} is not held: the body is held only by "
+                                        f"its contacts, and no contact force of contacts[{k}] acts along it (it moves "
+                                        "no contact node along its normal, and the pair has no friction); clamp it "
+                                        "in bodies." + names[k] + ".clamped")
+            start += m
+        if problems:
+            raise ConfigError(problems)
+
     def kernel(self):
         """(R (3p, k), names) of the counterparts held only by their contacts: the relative
         displacement −Π R_o of each free rigid motion R_o (on its free support DOFs), along which

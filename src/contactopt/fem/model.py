@@ -216,6 +216,9 @@ class ElasticModel:
         self.body_force = self.loads.body_force
         if cfg.pairs and self.foundation is None:
             self.foundation = build_counterparts([pr.foundation for pr in cfg.pairs], body, cfg.source, check)
+        if cfg.pairs:
+            held = cfg.friction.coefficient if self.contact_friction is None else self.contact_friction
+            self.foundation.check_held(held, [p.counterpart.split(".")[0] for p in cfg.assembly.contacts], cfg.source)
         if cfg.foundation is not None and self.foundation is None:
             self.foundation = Foundation(cfg.foundation, body, source=cfg.source, check=check)
             if self.foundation.basis is not None:   # six-node triangles, mortar partners: ĝ = T⁻ᵀ g (fem.mortar)
