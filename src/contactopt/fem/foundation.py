@@ -214,9 +214,21 @@ class Foundation:
         """Π u_f = Π q_f − C r (3p,) for the contact forces r on the body (3p, per node (t1, t2, ν))."""
         return self.q_f - self.C @ np.ravel(r)
 
+    ell_o = None          # the loads of several pairs' counterparts on their support (fem.counterparts)
+
     def kernel(self):
         """None: the one foundation is held by its clamps (fem.counterparts: several pairs)."""
         return None
+
+    @property
+    def parts(self) -> list:
+        """The counterparts one per pair: this one (fem.counterparts: several)."""
+        return [self]
+
+    @property
+    def rows(self) -> list:
+        """The contact nodes of each pair: all (fem.counterparts: several)."""
+        return [np.arange(self.P.shape[0] // 3)]
 
     def displacement(self, r: np.ndarray, s: float = 0.0, support=None, coupling=None, w=None) -> np.ndarray:
         """The foundation's full displacement (3·n_f,) under its own loads f_f and −Πᵀ r (zero on
@@ -323,7 +335,7 @@ class Coupling:
         by its contacts (S_o singular)."""
         out = self.to_eff(ell)
         f = self.foundation
-        ell_o = getattr(f, "ell_o", None)
+        ell_o = f.ell_o
         if ell_o is not None:
             self._ell = ell
             if np.any(ell_o):
@@ -348,7 +360,7 @@ class Coupling:
         """The body's contact displacement u_c = w + Π u_f = w + Π q_f − C r (3p,); with the
         counterparts of several pairs w + Π o + q (:meth:`support_displacement`)."""
         f = self.foundation
-        if getattr(f, "ell_o", None) is not None:
+        if f.ell_o is not None:
             return np.ravel(w) + self._P @ self.support_displacement(w) + f.q_f
         return np.ravel(w) + f.partner_displacement(r)
 

@@ -182,8 +182,7 @@ def write_foundation_vtu(path, foundation, state) -> Path:
     path = Path(path)
     r = np.zeros(3 * state.lam.size)
     r[0::3], r[1::3], r[2::3] = -state.tau[:, 0], -state.tau[:, 1], state.lam
-    parts = getattr(foundation, "parts", [foundation])
-    rows = getattr(foundation, "rows", [np.arange(state.lam.size)])
+    parts, rows = foundation.parts, foundation.rows
     u_all = np.asarray(state.foundation.displacement, float)
     points, blocks, data, cells_data, offset, start = [], [], {}, {}, 0, 0
     for k, (fnd, nodes) in enumerate(zip(parts, rows)):

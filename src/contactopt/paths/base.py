@@ -427,7 +427,7 @@ class SolverPath:
 def node_friction(model, coefficient: float):
     """F of ``model``'s contact: its ``contact_friction`` (p,) where set (checked: finite, ≥ 0, one
     per contact node), else the scalar ``coefficient``."""
-    mu = getattr(model, "contact_friction", None)
+    mu = model.contact_friction
     if mu is None:
         return coefficient
     mu = np.asarray(mu)
