@@ -257,7 +257,7 @@ def _more_pairs(out: dict, raw: dict, bodies: dict, contacts: list, pairs: list,
             if target is not None and target[0] != pairs[0][0]:
                 counter_loads.setdefault(target[0], {}).setdefault(kind, []).append({**item, "on": target[1]})
     more = []
-    for n, (contact, (_, part, counter)) in enumerate(zip(contacts, pairs)):
+    for contact, (_, part, counter) in zip(contacts, pairs):
         holder = {}
         _counterpart_body(holder, bodies, counter, contact, raw, counter_loads.get(counter[0], {}), problems)
         more.append({"contact": copy.deepcopy(part), "friction": contact.get("friction", base),

@@ -276,6 +276,7 @@ class Objective:
     target: Target
     scale: float
     region: Any
+    contacts: tuple
     aggregate: str
     rho: float
     p: float
@@ -284,7 +285,6 @@ class Objective:
     weights: Any
     steps: Any
     active_tol: float
-    contacts: tuple = ()
 
     @classmethod
     def from_dict(cls, d: dict) -> "Objective":

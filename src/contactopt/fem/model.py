@@ -42,9 +42,9 @@ from ..mesh.body import Body, build_body
 from ..mesh.hexmesh import HexMesh
 from ..mesh.morph import JacobianRatio, MorphedMesh
 from ..mesh.obstacle import Obstacle, contact_frames, make_obstacle, tangent_frames
+from .counterparts import build_counterparts
 from .elasticity import BBAR_AUTO_NU, ElasticityAssembler, element_geometry, resolve_formulation
 from .elements import element_type, face_type
-from .counterparts import build_counterparts
 from .foundation import Foundation
 from .loads import face_areas_nodal
 from .loadset import LoadSet, load_set

@@ -251,11 +251,42 @@ def plot_contact_field(path, model, values, title, cmap="viridis", label=None, *
     grid = np.asarray(_contact_values(model, values), float)
     if not np.all(np.isfinite(grid)):
         raise ValueError(f"plot_contact_field({title!r}): the field has non-finite values")
+    if model.body.pair_faces:
+        return _pair_maps(path, model, grid, title, cmap, label, vmin, vmax)
     fig = _new_figure(_figsize_map(model))
     ax = _map_axes(fig, model)
     mesh = _field(ax, model, grid, cmap=cmap, vmin=vmin, vmax=vmax)
     fig.colorbar(mesh, ax=ax, label=label or "", shrink=0.9)
     ax.set_title(f"{title}\nmin {grid.min():.4g}, max {grid.max():.4g}", fontsize=10)
+    return _save(fig, path)
+
+
+def _pair_maps(path, model, values, title, cmap, label, vmin, vmax) -> Path:
+    """Several contact pairs: one panel per pair over its own face, in the chart's coordinates
+    (each pair's extent), one colour scale for all."""
+    pairs = model.config.assembly.contacts
+    xy = np.asarray(model.mesh.contact_points(), float)
+    lo = float(values.min()) if vmin is None else vmin
+    hi = float(values.max()) if vmax is None else vmax
+    fig = _new_figure((3.2 * len(pairs) + 1.6, 5.0))
+    xlabel, ylabel = _axis_labels(model)
+    for k, pair in enumerate(pairs):
+        rows = np.flatnonzero(model.body.pair_of == k)
+        index = np.full(model.mesh.n_nodes, -1)
+        index[model.contact_nodes[rows]] = np.arange(rows.size)
+        faces = np.asarray(model.body.pair_faces[k].faces)
+        corners = faces[:, :4] if faces.shape[1] == 4 else faces[:, :3]
+        tris = np.vstack([corners[:, [0, 1, 2]], corners[:, [0, 2, 3]]]) if corners.shape[1] == 4 else corners
+        tris = index[tris]
+        tris = tris[np.all(tris >= 0, axis=1)]
+        ax = fig.add_subplot(1, len(pairs), k + 1)
+        tri = Triangulation(xy[rows, 0], xy[rows, 1], tris)
+        mesh = ax.tripcolor(tri, values[rows], shading="gouraud", cmap=cmap, vmin=lo, vmax=hi)
+        ax.set_xlabel(xlabel, fontsize=8)
+        ax.set_ylabel(ylabel if k == 0 else "", fontsize=8)
+        ax.set_title(f"{pair.name}: {pair.face} on {pair.counterpart}\nmax {values[rows].max():.4g}", fontsize=8)
+    fig.colorbar(mesh, ax=fig.axes, label=label or "", shrink=0.9)
+    fig.suptitle(f"{title}, min {values.min():.4g}, max {values.max():.4g}", fontsize=10)
     return _save(fig, path)
 
 

@@ -22,8 +22,8 @@ import numpy as np
 from ..errors import ConfigError, MeshError
 from .block import block_mesh
 from .body import COMPONENTS, _check_rigid_modes
-from .rigid import free_modes
 from .reference import FACE_CORNERS, HasParts, Part, ReferenceMesh, describe_part, part_selector
+from .rigid import free_modes
 from .tetsplit import hex_to_tets
 
 
