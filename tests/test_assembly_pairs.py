@@ -353,3 +353,88 @@ def test_a_floating_body_whose_motion_nothing_holds_is_refused_by_name(tmp_path,
                "of contacts[1] acts along it" in err, err
     assert "bodies.left" not in err
     assert not out.exists()
+
+
+# ------------------------------------------------------------------ a joint slips as a whole at Q = F·N
+def _joint(q_ratio, cells, friction=0.2, p=0.01):
+    """A plate (1 × 1 × 0.25) on a slab, held in x1 and x3 only by its contact (u2 = 0 on its front
+    and back faces and the slab's), pressed by p on its top, then sheared along x1 by a traction
+    on its end face whose resultant is q_ratio·F·N (N = p, the plate's area 1): a load path of two
+    steps. Returns the state of its end, or the error that says the plate is not held."""
+    from contactopt.errors import ContactOptError
+    n, nz = cells
+    shear = q_ratio * friction * p / 0.25
+    text = f"""
+name = "joint"
+[geometry]
+a = 1.0
+b = 1.0
+c = 0.25
+[mesh]
+nx = {n}
+ny = {n}
+nz = {nz}
+[material]
+E = 1.0
+nu = 0.3
+[bodies.plate]
+clamped = [ {{ on = "front", components = [2] }}, {{ on = "back", components = [2] }} ]
+[bodies.base]
+block = {{ size = [1.2, 1.0, 0.5], cells = [{n + 1}, {n}, {nz}], origin = [-0.1, 0.0] }}
+clamped = [ {{ on = "bottom", components = [1, 2, 3] }}, {{ on = "front", components = [2] }},
+            {{ on = "back", components = [2] }} ]
+[[contacts]]
+face = "plate.contact"
+counterpart = "base.top"
+friction = {friction}
+partner = "mortar"
+[[load_steps]]
+name = "press"
+top_traction = [0.0, 0.0, {-p}]
+[[load_steps]]
+name = "shear"
+top_traction = [0.0, 0.0, {-p}]
+right_traction = [{shear}, 0.0, 0.0]
+[state]
+tol = 1.0e-12
+max_iter = 400
+"""
+    text = text.replace(",\n            {", ", {")
+    try:
+        pb = ShapeProblem(load_config(_write_text(text)))
+        return pb.solve_states(pb.model.initial_design())[-1], pb
+    except ContactOptError as exc:
+        return exc, None
+
+
+def _write_text(text):
+    import tempfile
+    path = Path(tempfile.mkdtemp()) / "joint.toml"
+    path.write_text(text)
+    return path
+
+
+@pytest.mark.parametrize("cells", [(6, 2), (10, 3)])
+def test_a_clamped_joint_slips_as_a_whole_at_the_coulomb_load(cells):
+    """Below Q = F·N the plate is held, and nodes stick; the shear at which it is no longer held
+    (bisection on Q/FN to 2e-3) lies within 1 % of F·N, the sliding nodes' share rising to all
+    of them on the way."""
+    lo, hi = 0.9, 1.1
+    st, pb = _joint(lo, cells)
+    assert pb is not None, st
+    share = [np.mean(st.class_names[st.lam > 0] == "M1")]
+    assert share[0] < 1.0
+    bad, _ = _joint(hi, cells)
+    assert "not held" in str(bad), bad
+    while hi - lo > 2e-3:
+        mid = 0.5 * (lo + hi)
+        st, pb = _joint(mid, cells)
+        if pb is None:
+            assert "not held" in str(st), st
+            hi = mid
+        else:
+            lo = mid
+            share.append(np.mean(st.class_names[st.lam > 0] == "M1"))
+            assert np.sum(st.lam) == pytest.approx(0.01, rel=1e-9)      # N, the pressure's resultant
+    assert abs(0.5 * (lo + hi) - 1.0) < 0.01, (lo, hi)
+    assert share[-1] == 1.0 and share[-1] > share[0]

@@ -584,7 +584,8 @@ def resolve(raw: dict, source: str = "<dict>") -> dict:
     if _finite(dsg["lower"]) and _pos(dsg["C0"]) and dsg["lower"] > dsg["C0"]:
         problems.append(f"design.lower = {dsg['lower']}: must be ≤ design.C0 = {dsg['C0']} (the control "
                         "points' lower bound above their upper bound leaves no admissible design)")
-    if "geometry" in data:
+    designed = not (isinstance(raw.get("assembly"), dict) and raw["assembly"].get("designs") == [])
+    if "geometry" in data and designed:          # (a model without designs moves no node)
         g = data["geometry"]
         if _pos(g["c"]) and _pos(data["design"]["C0"]) and data["design"]["C0"] >= g["c"]:
             problems.append(f"design.C0 = {data['design']['C0']}: must be < geometry.c = {g['c']} "
