@@ -438,3 +438,25 @@ def test_a_clamped_joint_slips_as_a_whole_at_the_coulomb_load(cells):
             assert np.sum(st.lam) == pytest.approx(0.01, rel=1e-9)      # N, the pressure's resultant
     assert abs(0.5 * (lo + hi) - 1.0) < 0.01, (lo, hi)
     assert share[-1] == 1.0 and share[-1] > share[0]
+
+
+def test_a_run_writes_a_file_per_body_and_maps_per_pair(tmp_path):
+    """bodies.pvd holds the face body and each counterpart body as its own part, each counterpart's
+    file its own mesh; summary.json reports each pair."""
+    import json
+
+    import meshio
+    cfg = _write(tmp_path, TWO_SLABS + DESIGN)
+    out = tmp_path / "run"
+    assert main(["run", str(cfg), "--out", str(out), "--max-iter", "1"]) == 0
+    pvd = (out / "bodies.pvd").read_text()
+    for name, part in (("initial.vtu", 0), ("initial_left.vtu", 1), ("optimal_right.vtu", 2)):
+        assert f'part="{part}" file="{name}"' in pvd, pvd
+    pb = ShapeProblem(load_config(cfg))
+    for k, name in enumerate(("left", "right")):
+        mesh = meshio.read(out / f"optimal_{name}.vtu")
+        assert mesh.points.shape[0] == pb.model.foundation.parts[k].n_nodes
+        assert "pair" not in mesh.point_data and "displacement" in mesh.point_data
+    summary = json.loads((out / "summary.json").read_text())
+    assert [c["name"] for c in summary["contacts"]["optimal"]] == ["left", "right"]
+    assert sum(c["nodes"] for c in summary["contacts"]["optimal"]) == pb.model.n_contact

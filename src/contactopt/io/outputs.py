@@ -99,7 +99,13 @@ def _write_files(out: Path, problem, x, res, oracle, t0, at, figures, plots) -> 
     write_body_vtu(out / "initial.vtu", model, s0)
     write_body_vtu(out / "optimal.vtu", model, s1)
     pvd = [(0, "initial.vtu"), (1, "optimal.vtu")]
-    if model.foundation is not None:          # the elastic foundation: part 1 of each time step
+    if model.body.pair_faces:                 # several pairs: each counterpart body its part, 1, 2, …
+        for k, pair in enumerate(model.config.assembly.contacts):
+            name = pair.counterpart.split(".")[0]
+            write_foundation_vtu(out / f"initial_{name}.vtu", model.foundation, s0, pair=k)
+            write_foundation_vtu(out / f"optimal_{name}.vtu", model.foundation, s1, pair=k)
+            pvd += [(0, f"initial_{name}.vtu", k + 1), (1, f"optimal_{name}.vtu", k + 1)]
+    elif model.foundation is not None:        # the elastic foundation: part 1 of each time step
         write_foundation_vtu(out / "initial_foundation.vtu", model.foundation, s0)
         write_foundation_vtu(out / "optimal_foundation.vtu", model.foundation, s1)
         pvd += [(0, "initial_foundation.vtu", 1), (1, "optimal_foundation.vtu", 1)]

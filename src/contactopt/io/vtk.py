@@ -175,10 +175,11 @@ def cell_stress_data(assembler, coords, u_full) -> dict:
     return {"stress": [s], "von_mises": [vm], "von_mises_max": [peak]}
 
 
-def write_foundation_vtu(path, foundation, state) -> Path:
+def write_foundation_vtu(path, foundation, state, pair: int | None = None) -> Path:
     """Write the elastic foundation of ``state`` (its reference mesh, module docstring) as a VTU;
     the counterparts of several pairs (:class:`~contactopt.fem.counterparts.Counterparts`) one
-    after the other in one file, each node and cell tagged with its pair's index ``pair``."""
+    after the other in one file, each node and cell tagged with its pair's index ``pair``, or the
+    counterpart of pair ``pair`` alone."""
     path = Path(path)
     r = np.zeros(3 * state.lam.size)
     r[0::3], r[1::3], r[2::3] = -state.tau[:, 0], -state.tau[:, 1], state.lam
@@ -190,11 +191,13 @@ def write_foundation_vtu(path, foundation, state) -> Path:
         n = ref.n_nodes
         u = _finite("foundation displacement", u_all[3 * start:3 * (start + n)].reshape(n, 3))
         start += n
+        if pair is not None and k != pair:
+            continue
         dofs = (3 * nodes[:, None] + np.arange(3)).ravel()
         f = np.zeros((n, 3))
         f[fnd.support] = -(fnd.Pi.T @ r[dofs]).reshape(-1, 3)
         own = {"displacement": u, "contact_force": _finite("contact_force", f)}
-        if len(parts) > 1:
+        if len(parts) > 1 and pair is None:
             own["pair"] = np.full(n, k, np.int8)
         for name, part in ref.parts.items():
             tag = np.zeros(n, np.int8)
@@ -207,7 +210,7 @@ def write_foundation_vtu(path, foundation, state) -> Path:
         points.append(ref.points)
         blocks.append((ref.cell_type, ref.cells + offset))
         offset += n
-    names = set.intersection(*[set(k for k in data if len(data[k]) == len(parts))]) if data else set()
+    names = {k for k in data if len(data[k]) == len(blocks)}
     point_data = {k: np.concatenate(v) for k, v in data.items() if k in names}
     mesh = meshio.Mesh(np.vstack(points), blocks, point_data=point_data, cell_data=cells_data)
     with atomic_output(path) as tmp:
