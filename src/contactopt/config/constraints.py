@@ -13,7 +13,8 @@ from .schema import SCHEMA
 
 CONSTRAINT_TYPES = ("peak_stress", "max_pressure", "compliance", "frictional_dissipation")
 # the keys of the objective of each type that a constraint of that type takes
-CONSTRAINT_KEYS = {"peak_stress": ("region", "aggregate", "rho", "p"), "max_pressure": ("aggregate", "rho", "p"),
+CONSTRAINT_KEYS = {"peak_stress": ("region", "aggregate", "rho", "p"),
+                   "max_pressure": ("aggregate", "rho", "p", "contacts"),
                    "compliance": (), "frictional_dissipation": ()}
 CONSTRAINT_TOL = (1e-4, lambda x: _pos(x) and x < 1,
                   "a number in (0, 1): the largest violation (value − max)/max a result may keep")
@@ -39,13 +40,14 @@ class ResponseConstraint:
     rho: float
     p: float
     steps: Any = CONSTRAINT_STEPS[0]
+    contacts: tuple = ()          # max_pressure: the pairs whose nodes it reads (empty: every pair)
 
     @classmethod
     def from_dict(cls, d: dict) -> "ResponseConstraint":
         obj = SCHEMA["objective"]
         return cls(d["type"], d["max"], d["tol"],
                    *(copy.deepcopy(d.get(k, obj[k][0])) for k in ("region", "aggregate", "rho", "p")),
-                   copy.deepcopy(d.get("steps", CONSTRAINT_STEPS[0])))
+                   copy.deepcopy(d.get("steps", CONSTRAINT_STEPS[0])), tuple(d.get("contacts", ())))
 
 
 def check_constraints(given, data, problems) -> list:
@@ -81,6 +83,8 @@ def check_constraints(given, data, problems) -> list:
         _check_step_list(steps, f"{key}.steps", data, problems)
         row["steps"] = copy.deepcopy(steps)
         for k in CONSTRAINT_KEYS.get(kind, ()):
+            if k == "contacts" and k not in t:       # absent: every pair (resolved as before the key)
+                continue
             default, check, desc = SCHEMA["objective"][k]
             val = t.get(k, default)
             _check_value(f"{key}.{k}", val, check, desc, problems)
@@ -95,7 +99,7 @@ def json_schema(objective_properties: dict) -> dict:
              "max": {"type": "number", "exclusiveMinimum": 0, "description": "the limit (the response ≤ max)"},
              "tol": {"type": "number", "exclusiveMinimum": 0, "exclusiveMaximum": 1, "default": CONSTRAINT_TOL[0],
                      "description": CONSTRAINT_TOL[2]}}
-    props.update({k: objective_properties[k] for k in ("region", "aggregate", "rho", "p")})
+    props.update({k: objective_properties[k] for k in ("region", "aggregate", "rho", "p", "contacts")})
     props["steps"] = {**objective_properties["steps"], "default": CONSTRAINT_STEPS[0],
                       "description": CONSTRAINT_STEPS[2]}
     return {"type": "array", "description": "limits on responses of the state (docs/objectives.md)",
