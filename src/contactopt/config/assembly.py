@@ -318,7 +318,7 @@ def _design_face(d: dict, n: int, bodies: dict, problems: list):
     if "face" not in d:
         problems.append(f"designs[{n}].face: required (\"<body>.<part>\", the designed face)")
         return None
-    return _split(d["face"], f"designs[{n}].face", bodies, problems)
+    return _load_target(d["face"], f"designs[{n}].face", bodies, problems)
 
 
 def _sections(raw: dict, bodies: dict, contact: dict, pair, designs: list, problems: list) -> tuple[dict, list]:

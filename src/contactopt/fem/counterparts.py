@@ -178,11 +178,11 @@ class Counterparts:
     def n_nodes(self) -> int:
         return sum(f.n_nodes for f in self.parts)
 
-    def displacements(self, r: np.ndarray, coupling, w) -> list:
+    def displacements(self, r: np.ndarray, coupling, w, ell) -> list:
         """Each counterpart's full displacement (3·n_k,): its support DOFs from the coupling's
-        :meth:`~contactopt.fem.foundation.Coupling.support_displacement` of the law's w, its interior
-        recovered under its own loads, plus its prescribed translation."""
-        o = coupling.support_displacement(w)
+        :meth:`~contactopt.fem.foundation.Coupling.support_displacement` of the law's w under the
+        face body's load ℓ, its interior recovered under its own loads, plus its prescribed translation."""
+        o = coupling.support_displacement(w, ell)
         out, start = [], 0
         for f in self.parts:
             m = f.P.shape[1]
@@ -190,9 +190,9 @@ class Counterparts:
             start += m
         return out
 
-    def displacement(self, r: np.ndarray, s: float = 0.0, coupling=None, w=None) -> np.ndarray:
+    def displacement(self, r: np.ndarray, s: float = 0.0, coupling=None, w=None, ell=None) -> np.ndarray:
         """The counterparts' displacements one after the other (their VTU file tags each pair's)."""
-        return np.concatenate(self.displacements(r, coupling, w))
+        return np.concatenate(self.displacements(r, coupling, w, ell))
 
     def summary(self) -> dict:
         return {"pairs": [f.summary() for f in self.parts]}

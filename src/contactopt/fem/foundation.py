@@ -230,13 +230,14 @@ class Foundation:
         """The contact nodes of each pair: all (fem.counterparts: several)."""
         return [np.arange(self.P.shape[0] // 3)]
 
-    def displacement(self, r: np.ndarray, s: float = 0.0, support=None, coupling=None, w=None) -> np.ndarray:
+    def displacement(self, r: np.ndarray, s: float = 0.0, support=None, coupling=None, w=None,
+                     ell=None) -> np.ndarray:
         """The foundation's full displacement (3·n_f,) under its own loads f_f and −Πᵀ r (zero on
         its clamped DOFs), plus its rigid translation: d with control = 'displacement', s f̂ with
         control = 'force' (``s`` the state's translation). ``support``: its displacement on the free
         support DOFs where the coupling gives it (a counterpart held only by contact: the interior
         is recovered from it)."""
-        if support is not None:          # (``coupling``, ``w``: Counterparts' signature)
+        if support is not None:          # (``coupling``, ``w``, ``ell``: Counterparts' signature)
             u = self.assembler.to_full(self.condensation.recover(self.f_f, support))
         else:
             f = np.zeros(self.assembler.n_free)
@@ -337,31 +338,31 @@ class Coupling:
         f = self.foundation
         ell_o = f.ell_o
         if ell_o is not None:
-            self._ell = ell
             if np.any(ell_o):
                 out -= self._G @ self._solve_M(ell_o)
         if np.any(f.q_f):
             out -= self.S_eff @ f.q_f
         return out
 
-    def support_displacement(self, w: np.ndarray) -> np.ndarray:
+    def support_displacement(self, w: np.ndarray, ell: np.ndarray) -> np.ndarray:
         """Counterparts of several pairs: their displacement o on the free support DOFs (less their
-        prescribed translations) for the law's w, M o = Pᵀ(ℓ − S (w + q)) + ℓ_o, with the ℓ of the
-        last :meth:`ell_eff`."""
+        prescribed translations) for the law's w under the body's load ℓ (that of the solve, per
+        load case and step), M o = Pᵀ(ℓ − S (w + q)) + ℓ_o."""
         f = self.foundation
         u = np.ravel(w) + f.q_f
-        return self._solve_M(self._P.T @ self._ell - self._G.T @ u + f.ell_o)
+        return self._solve_M(self._P.T @ ell - self._G.T @ u + f.ell_o)
 
     def adjoint_z(self, v_u: np.ndarray) -> np.ndarray:
         """z = S⁻¹ S_eff v_u (3p,): the design terms' adjoint on the body's contact DOFs."""
         return v_u - self._P @ self._solve_M(self._G.T @ v_u)
 
-    def body_displacement(self, w: np.ndarray, r: np.ndarray) -> np.ndarray:
+    def body_displacement(self, w: np.ndarray, r: np.ndarray, ell: np.ndarray | None = None) -> np.ndarray:
         """The body's contact displacement u_c = w + Π u_f = w + Π q_f − C r (3p,); with the
-        counterparts of several pairs w + Π o + q (:meth:`support_displacement`)."""
+        counterparts of several pairs w + Π o + q (:meth:`support_displacement`, ``ell`` the
+        body's condensed load of the solve)."""
         f = self.foundation
         if f.ell_o is not None:
-            return np.ravel(w) + self._P @ self.support_displacement(w) + f.q_f
+            return np.ravel(w) + self._P @ self.support_displacement(w, ell) + f.q_f
         return np.ravel(w) + f.partner_displacement(r)
 
 

@@ -201,6 +201,8 @@ class ElasticModel:
             mu = np.array([pr.friction for pr in cfg.pairs])[body.pair_of]
             self.contact_friction = None if np.all(mu == cfg.friction.coefficient) else mu
         self.gap_matrix = self.mesh.gap_matrix()
+        if body.pair_charts and cfg.assembly.designs:   # pairs off the designed face: the morph leaves them
+            self.gap_matrix = self.weight[self.contact_nodes][:, None] * self.gap_matrix
         # initial gap of a contact face above x3 = 0 (body.initial_gap = "mesh"); 0 on the plane
         self.gap0 = (ref.points[self.contact_nodes, 2].copy() if cfg.body.initial_gap == "mesh"
                      else np.zeros(self.contact_nodes.size))
@@ -550,7 +552,7 @@ class ElasticModel:
         those of the transformed basis N̂ = T N (:mod:`contactopt.fem.mortar`), and the areas
         ∫N̂_m dS = (T a)_m, positive at every node."""
         ref = self.body.reference
-        areas = face_areas_nodal(ref.points, self.body.contact_face.faces, face=self.assembler.element.face)
+        areas = face_areas_nodal(ref.points, self.body.contact_faces, face=self.assembler.element.face)
         areas = areas[self.contact_nodes]
         if self.foundation is not None and self.foundation.basis is not None:
             return self.foundation.basis @ areas

@@ -82,7 +82,7 @@ def contact_pressure(model, lam, coords) -> np.ndarray:
     nodes = np.asarray(model.contact_nodes, np.int64)
     if lam.shape != nodes.shape:
         raise ValueError(f"expected one force per contact node ({nodes.size},), got shape {lam.shape}")
-    faces = np.asarray(model.body.contact_face.faces, np.int64)
+    faces = np.asarray(model.body.contact_faces, np.int64)
     coords = np.asarray(coords, float)
     if face_for(faces).degree == 1:
         return lam / contact_areas(coords, faces, nodes)
@@ -121,7 +121,7 @@ def face_classes(model, state) -> np.ndarray:
 
     Sign convention: as the state's, per contact node (t1, t2, ν): λ ≥ 0 pushes the body off its
     counterpart, τ = −r_t, u_ν + g ≥ 0 the clearance."""
-    faces = np.asarray(model.body.contact_face.faces, np.int64)
+    faces = np.asarray(model.body.contact_faces, np.int64)
     if face_for(faces).degree == 1 or (model.foundation is not None and model.foundation.basis is not None):
         return np.asarray(state.classes)
     nodes = np.asarray(model.contact_nodes, np.int64)

@@ -68,13 +68,21 @@ class Body(HasParts):
     # (free DOFs, entries of the stiffness on them), counted once by contactopt.fem.memory
     pair_faces: tuple = ()        # several contact pairs: each pair's face (Part); the contact nodes are theirs
     pair_of: np.ndarray | None = None   # (p,) the pair of each contact node, in [[contacts]] order
-    pair_charts: tuple = ()       # several pairs without a chart of them all: each pair's face's chart
+    pair_charts: tuple = ()       # several pairs, some off the designed face's chart: each pair's face's chart
+
+    @property
+    def contact_faces(self) -> np.ndarray:
+        """The faces of the contact nodes: the contact face's, and with several pairs those of the
+        pairs' faces off it as well (the tributary areas, the pressure)."""
+        if not self.pair_faces:
+            return self.contact_face.faces
+        return np.unique(np.vstack([self.contact_face.faces] + [pf.faces for pf in self.pair_faces]), axis=0)
 
     def contact_outward(self) -> np.ndarray:
         """(p, 3) the outward unit normal of the face at each contact node, from the chart of the
         contact face or, where the pairs' faces have no common chart, from each pair's."""
         x = self.reference.points[self.contact_nodes]
-        if self.chart is not None:
+        if not self.pair_charts:
             return self.chart.outward(x)
         out = np.zeros((x.shape[0], 3))
         for k, c in enumerate(self.pair_charts):
@@ -133,23 +141,25 @@ def build_body(cfg) -> Body:
     pair_faces = [part("contact", pr.contact) for pr in cfg.pairs]
     if problems:
         raise ConfigError([f"{cfg.source}: {p}" for p in problems])
-    _check_pair_faces(pair_faces, face, cfg.source)
+    _check_pair_faces(pair_faces, cfg.source)
     fixed = np.zeros((ref.n_nodes, 3), bool)
     for p, comps in clamped:
         fixed[np.ix_(p.nodes, comps)] = True
     pair_charts = ()
+    outside = [k for k, pf in enumerate(pair_faces) if not np.all(np.isin(pf.nodes, face.nodes))]
     try:
         chart = _chart(cfg, ref, face, gtol)
     except ConfigError:
         if not pair_faces or cfg.assembly.designs:
             raise
-        # several pairs and no design whose faces have no common chart (a block between two
-        # others): each pair's face its own chart, which gives the frames of its nodes
+        chart, outside = None, list(range(len(pair_faces)))   # no design, and the faces share no chart
+    if outside:
+        # pairs off the designed face (or, without a design, faces that share no chart: a block
+        # between two others): each pair's face its own chart, which gives the frames of its nodes
         auto = SimpleNamespace(chart="auto", axis=None, origin=None)
         pair_charts = tuple(resolve_chart(auto, ref.points, pf, ref.face_type, gtol, cfg.source)
                             for pf in pair_faces)
-        chart = None
-    if pair_charts:
+    if pair_charts and not cfg.assembly.designs:
         face = Part(face.name, np.unique(face.faces), face.faces, face.origin)
     elif chart is None:
         face = _check_contact_face(ref, face, ptol, on_plane=spec.initial_gap == "zero", graph_tol=gtol,
@@ -157,13 +167,16 @@ def build_body(cfg) -> Body:
     else:
         face = Part(face.name, np.unique(face.faces), face.faces, face.origin)
     normal_comp = None
-    if chart is not None:
+    faces_all = face
+    if outside and cfg.assembly.designs:   # the contact nodes are the pairs', on and off the designed face
+        faces_all = _union([face] + [pair_faces[k] for k in outside])
+    if pair_charts:
+        normal_comp = np.abs(_pair_outward(ref.points, faces_all.nodes, pair_faces, pair_charts)) > 1e-9
+    elif chart is not None:
         # on a chart the components clamped along the face's normal take a node out, those in its
         # tangent plane (a symmetry plane or an end face through the face) are pinned tangents
         normal_comp = np.abs(chart.outward(ref.points[face.nodes])) > 1e-9
-    elif pair_charts:
-        normal_comp = np.abs(_pair_outward(ref.points, face.nodes, pair_faces, pair_charts)) > 1e-9
-    contact_nodes, pinned, warnings = _contact_nodes(face, fixed, spec.contact, cfg.source, normal_comp)
+    contact_nodes, pinned, warnings = _contact_nodes(faces_all, fixed, spec.contact, cfg.source, normal_comp)
     pair_of = None
     if pair_faces:                        # several pairs: their nodes are the contact nodes
         pair_of = np.full(ref.n_nodes, -1)
@@ -177,6 +190,13 @@ def build_body(cfg) -> Body:
         log.info("body.clamped leaves %d rigid-body motion(s) free: %s; contact must hold them", rigid.count,
                  ", ".join(rigid.names()))
     fixed_shape = _fixed_shape(ref, spec.fixed_shape, face, tol, cfg.source)
+    for k in outside if cfg.assembly.designs else ():
+        shared = np.intersect1d(pair_faces[k].nodes, face.nodes)
+        if shared.size:
+            raise ConfigError([f"{cfg.source}: contacts[{k}].face: shares {shared.size} node(s) with the designed face "
+                               f"{face.name!r} without lying within it, first node {int(shared[0])}: a pair's face lies "
+                               "on the designed face or apart from it"])
+        fixed_shape[f"contacts[{k}].face"] = pair_faces[k].nodes      # off the design: the morph leaves it
     xi = ref.points[face.nodes, :2] if chart is None else chart.parameters(ref.points[face.nodes])
     domain = _domain(cfg.design.domain, xi, face, tol, cfg.source)
     eliminated = fixed.copy()
@@ -250,9 +270,8 @@ def _union(parts: list) -> Part | None:
                 allf[np.sort(faces)], parts[0].origin)
 
 
-def _check_pair_faces(pair_faces: list, face: Part, source: str) -> None:
-    """The faces of several pairs: no node in two of them (a node carries one pair's contact force),
-    each within the designed face."""
+def _check_pair_faces(pair_faces: list, source: str) -> None:
+    """The faces of several pairs: no node in two of them (a node carries one pair's contact force)."""
     problems = []
     seen = {}
     for k, pf in enumerate(pair_faces):
@@ -262,10 +281,6 @@ def _check_pair_faces(pair_faces: list, face: Part, source: str) -> None:
                 problems.append(f"contacts[{k}].face and contacts[{j}].face: {both.size} node(s) are claimed by both "
                                 f"pairs, first node {int(both[0])}; a node belongs to one pair (split the faces)")
         seen[k] = pf.nodes
-        out = np.setdiff1d(pf.nodes, face.nodes)
-        if out.size:
-            problems.append(f"contacts[{k}].face: {out.size} node(s) lie outside the designed face {face.name!r}, "
-                            f"first node {int(out[0])}: the pairs' faces lie within the designed face")
     if problems:
         raise ConfigError([f"{source}: {p}" for p in problems])
 

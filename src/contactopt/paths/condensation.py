@@ -225,7 +225,7 @@ class CondensationPath(ZonePath):
         if system.shift is not None:
             u_c = np.ravel(u_c) + system.shift
         if system.coupling is not None:      # (in the nodes' frames on a curved face)
-            u_c = system.coupling.body_displacement(u_c, r)
+            u_c = system.coupling.body_displacement(u_c, r, system.ell)
         if self.mechanics.basis is not None:
             return self.mechanics.basis.back(u_c)
         if self.mechanics.rotate is not None:
@@ -246,7 +246,7 @@ class CondensationPath(ZonePath):
             partner = partner + system.moved * self.model.obstacle_force.gap_rate[:, None] * [0.0, 0.0, 1.0]
         return FoundationState(u_body_c=body, u_partner=partner,
                                displacement=self.foundation.displacement(r, system.moved, coupling=system.coupling,
-                                                                         w=np.ravel(u_c)))
+                                                                         w=np.ravel(u_c), ell=system.ell))
 
     def load_scale(self, system):
         return system.contact_ell

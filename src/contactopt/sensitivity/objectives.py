@@ -240,20 +240,21 @@ class FrictionalDissipation(Objective):
         ut = np.asarray(state.u_c)[:, :2]
         if state.slip_ref is not None:
             ut = ut - state.slip_ref
-        full = (3 * model.contact_nodes[:, None] + np.arange(2)).ravel()
+        contact = (3 * model.contact_nodes[:, None] + np.arange(3)).ravel()
+        tau3 = np.zeros((p, 3))
+        tau3[:, :2] = state.tau
+        slip3 = np.zeros((p, 3))
+        slip3[:, :2] = ut
         u_t = np.zeros(asm.n_full)
-        u_t[full] = ut.ravel()
+        u_t[contact] = _global(model, slip3.ravel())
         coupling = None if cond is None else cond.coupling
         c_ref = None
         if coupling is not None:                  # an elastic foundation (class docstring)
-            tau3 = np.zeros((p, 3))
-            tau3[:, :2] = state.tau
-            contact = (3 * model.contact_nodes[:, None] + np.arange(3)).ravel()
             c_ref = np.zeros(asm.n_full)
-            c_ref[contact] = coupling.foundation.C @ tau3.ravel()
+            c_ref[contact] = _global(model, coupling.foundation.C @ tau3.ravel())
             u_t -= c_ref
         tau = np.zeros(asm.n_full)
-        tau[full] = np.asarray(state.tau).ravel()
+        tau[contact] = _global(model, tau3.ravel())
         dJ_du = tau - asm.to_full(stiffness_product(cond, asm, state.coords, u_t[asm.free]))
         dalpha = -model.design_contraction(state.coords, state.u, u_t, loads)
         value = float(np.sum(np.asarray(state.tau) * ut))
@@ -391,6 +392,7 @@ class Compliance(Objective):
             z = -coupling.adjoint_z(coupling.foundation.C @ cond.ell)
             if cond.basis is not None:   # transformed nodal values back to the nodes'
                 z = cond.basis.back(z)
+            z = _global(model, z)        # the nodes' frames back to global components
             dalpha += dc(asm.coords, state.u, model.assembler.to_full(cond.factor.extend(z)))
         return self.partials(self.scale * value, self.scale * dw, np.zeros(state.lam.size), self.scale * dalpha)
 
@@ -405,6 +407,14 @@ class Compliance(Objective):
         return Partials(self.scale * float(asm.L_full @ state.u),
                         {0: Derivatives(self.scale * np.asarray(asm.L_full, float), np.zeros(state.lam.size),
                                         self.scale * dalpha, FULL)})
+
+
+def _global(model, v: np.ndarray) -> np.ndarray:
+    """A (3p,) contact vector per node frame (t1, t2, n) in global components, Q v (the model's
+    frames; unchanged where the frames are the axes)."""
+    if model.frames is None:
+        return np.asarray(v, float)
+    return np.einsum("mij,mj->mi", model.frames, np.reshape(v, (-1, 3))).ravel()
 
 
 class WeightedSum(Objective):
