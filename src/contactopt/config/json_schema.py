@@ -42,7 +42,8 @@ _PART = {"anyOf": [
 _CLAMP_TABLE = {"type": "object", "required": ["on"], "additionalProperties": False,
                 "properties": {"on": _PART, "components": {"type": "array", "minItems": 1, "items": {
                     "enum": [1, 2, 3, "x1", "x2", "x3"]}}}}
-_CLAMP = {"anyOf": [_PART, _CLAMP_TABLE, {"type": "array", "minItems": 1, "items": {"anyOf": [_PART, _CLAMP_TABLE]}}]}
+# (an empty list: no clamp, a body held by its contacts alone)
+_CLAMP = {"anyOf": [_PART, _CLAMP_TABLE, {"type": "array", "items": {"anyOf": [_PART, _CLAMP_TABLE]}}]}
 
 
 def _part_loads(value):
@@ -145,7 +146,9 @@ def _assembly(props: dict) -> dict:
     contact["required"] = ["face", "counterpart"]
     contact["properties"]["counterpart"] = {"anyOf": [{"type": "string", "pattern": "^[^.]+[.].+$"},
                                                       props["obstacle"]], "description": CONTACTS["counterpart"][2]}
-    contact["properties"]["face"] = {"type": "string", "pattern": "^[^.]+[.].+$", "description": CONTACTS["face"][2]}
+    contact["properties"]["face"] = {"anyOf": [{"type": "string", "pattern": "^[^.]+[.].+$"},
+                                               {**_PART["anyOf"][1], "required": ["body"]}],
+                                     "description": CONTACTS["face"][2]}
     design = {**props["design"], "description": ASSEMBLY_DOCS["designs"], "required": ["face"],
               "properties": {**props["design"]["properties"], "face": contact["properties"]["face"]}}
     record = {"type": "object", "description": "the names of a resolved assembly's bodies, pairs and designed "

@@ -383,7 +383,8 @@ BODIES = {
 CONTACTS = {
     "name": ("", lambda x: isinstance(x, str), "a name of letters, digits, _ and - (default: \"<face body>-<counterpart "
              "body>\", or \"<face body>-rigid\")"),
-    "face": ("", lambda x: isinstance(x, str), _BODY_REF + " (the side whose nodes carry the contact forces)"),
+    "face": ("", lambda x: isinstance(x, (str, dict)), _BODY_REF + ", or a predicate table with body = \"<name>\" "
+             "(the side whose nodes carry the contact forces)"),
     "counterpart": ("", lambda x: isinstance(x, (str, dict)),
                     _BODY_REF + " (an elastic counterpart), or a table with the keys of [obstacle] (a rigid one: "
                     "{ shape = \"plane\" } is the fixed plane x3 = 0)"),
@@ -392,7 +393,8 @@ CONTACTS = {
     "interference": SCHEMA["body"]["interference"],
     "initial_gap": SCHEMA["body"]["initial_gap"],
 }
-DESIGNS = {"face": ("", lambda x: isinstance(x, str), _BODY_REF + " (the designed face)"), **SCHEMA["design"]}
+DESIGNS = {"face": ("", lambda x: isinstance(x, (str, dict)), _BODY_REF + ", or a predicate table with body = "
+                    "\"<name>\" (the designed face)"), **SCHEMA["design"]}
 
 TOP_LEVEL = {"name": ("custom", lambda x: isinstance(x, str) and x != "", "a non-empty string"),
              "description": ("", lambda x: isinstance(x, str), "a string"),
