@@ -86,9 +86,9 @@ def _write(tmp_path, text, name="model.toml") -> Path:
 
 def _monolithic_state(pb, alpha):
     """λ, τ, w and classes of the block on its two slabs, built without contactopt's counterpart
-    code: the three stiffnesses in one block matrix (each slab with its own material), each pair's
-    DOFs changed to (w = u_block − u_slab, u_slab) at the coinciding node, condensed on w, the same
-    local solver with the same coefficient."""
+    code and in the other form: the three stiffnesses in one block matrix (each slab with its own
+    material), the Delassus operator W = B K⁻¹ Bᵀ of the relative displacements w = u_block − u_slab
+    at the coinciding nodes by sparse solves, the same local solver with the same coefficient."""
     model = pb.model
     asm_b = model.assemble(alpha)
     nb = model.body.reference.n_nodes
@@ -112,28 +112,28 @@ def _monolithic_state(pb, alpha):
         partner[rows] = offset // 3 + np.argmin(d, axis=1)
         offset += 3 * ref.n_nodes
     K, L = sp.block_diag(blocks).tocsr(), np.concatenate(loads)
-    n = K.shape[0]
+    free = np.setdiff1d(np.arange(K.shape[0]), np.concatenate(fixed))
+    index = np.full(K.shape[0], -1)
+    index[free] = np.arange(free.size)
+    # the compliance form: w = B u with B = (the block's DOF − its partner's DOF) per contact DOF,
+    # W = B K⁻¹ Bᵀ and the relative displacement without contact forces w0 = B K⁻¹ L
+    p = model.n_contact
     pb_dofs = (3 * model.contact_nodes[:, None] + np.arange(3)).ravel()
     pf_dofs = (3 * partner[:, None] + np.arange(3)).ravel()
-    T = sp.lil_matrix((n, n))
-    T.setdiag(1.0)
-    T[pb_dofs, pf_dofs] = 1.0
-    T = T.tocsr()
-    Kt, Lt = (T.T @ K @ T).tocsr(), T.T @ L
-    o = np.setdiff1d(np.setdiff1d(np.arange(n), np.concatenate(fixed)), pb_dofs)
-    lu = sla.splu(Kt[o][:, o].tocsc())
-    X = lu.solve(Kt[o][:, pb_dofs].toarray())
-    S = Kt[pb_dofs][:, pb_dofs].toarray() - Kt[pb_dofs][:, o] @ X
-    ell = Lt[pb_dofs] - X.T @ Lt[o]
-    p = model.n_contact
-    W = np.linalg.inv(S)
-    Wl = W @ ell
+    rows = np.arange(3 * p)
+    B = sp.csr_matrix((np.r_[np.ones(3 * p), -np.ones(3 * p)], (np.r_[rows, rows], np.r_[index[pb_dofs],
+                                                                                            index[pf_dofs]])),
+                      shape=(3 * p, free.size))
+    lu = sla.splu(K[free][:, free].tocsc())
+    W = B @ lu.solve(B.T.toarray())
+    W = 0.5 * (W + W.T)
+    w0 = B @ lu.solve(L[free])
     perm = (3 * np.arange(p)[:, None] + TO_FCLIB).ravel()        # (t1, t2, ν) → (ν, t1, t2)
-    q = Wl[perm]
+    q = w0[perm]
     q[0::3] += asm_b.gap
     res = solve_local(W[np.ix_(perm, perm)], q, pb.friction, tol=1e-14, max_iter=200)
     r = res.r.reshape(p, 3)[:, FROM_FCLIB]
-    w = (Wl + W @ r.ravel()).reshape(p, 3)
+    w = (w0 + W @ r.ravel()).reshape(p, 3)
     lam, tau = r[:, 2], -r[:, :2]
     return lam, tau, w, classify_nodes(w, lam, tau, asm_b.gap, pb.friction)
 

@@ -116,24 +116,18 @@ class Counterparts:
         has no friction (``friction`` F per contact node, a scalar or (p,); ``names`` the
         counterparts' bodies in pair order)."""
         mu = np.broadcast_to(np.asarray(friction, float), (self.p,))
-        problems, start = [], 0
-        for k, f in enumerate(self.parts):
-            m = f.P.shape[1]
-            if f.rigid is not None:
-                V = f.rigid.vectors(f.mesh.reference.points).reshape(-1, f.rigid.count)[f.assembler.free]
-                R = np.zeros((self.P.shape[1], f.rigid.count))
-                R[start:start + m] = V[f._support_free]
-                G = np.asarray(self.P @ R).reshape(self.p, 3, -1)
-                scale = np.abs(G).max(initial=0.0)
-                for j, motion in enumerate(f.rigid.names()):
-                    normal = np.abs(G[:, 2, j]).max(initial=0.0) > 1e-9 * max(scale, 1e-300)
-                    rubbed = np.any((np.abs(G[:, :2, j]).max(axis=1) > 1e-9 * scale) & (mu > 0))
-                    if not (normal or rubbed):
-                        problems.append(f"{source}: bodies.{names[k]}: {motion} is not held: the body is held only by "
-                                        f"its contacts, and no contact force of contacts[{k}] acts along it (it moves "
-                                        "no contact node along its normal, and the pair has no friction); clamp it "
-                                        "in bodies." + names[k] + ".clamped")
-            start += m
+        problems = []
+        for k, f, R in self._floating():
+            G = np.asarray(self.P @ R).reshape(self.p, 3, -1)
+            scale = np.abs(G).max(initial=0.0)
+            for j, motion in enumerate(f.rigid.names()):
+                normal = np.abs(G[:, 2, j]).max(initial=0.0) > 1e-9 * max(scale, 1e-300)
+                rubbed = np.any((np.abs(G[:, :2, j]).max(axis=1) > 1e-9 * scale) & (mu > 0))
+                if not (normal or rubbed):
+                    problems.append(f"{source}: bodies.{names[k]}: {motion} is not held: the body is held only by "
+                                    f"its contacts, and no contact force of contacts[{k}] acts along it (it moves "
+                                    "no contact node along its normal, and the pair has no friction); clamp it "
+                                    "in bodies." + names[k] + ".clamped")
         if problems:
             raise ConfigError(problems)
 
@@ -143,6 +137,16 @@ class Counterparts:
         the coupled stiffness S_eff is singular and the contact forces must balance the body's
         loads (paths/rigid.py); None when every counterpart is held."""
         cols, names = [], []
+        for k, f, R in self._floating():
+            cols.append(-(self.P @ R))
+            names += [f"{n} of the counterpart of contacts[{k}]" for n in f.rigid.names()]
+        if not cols:
+            return None
+        return np.column_stack(cols), names
+
+    def _floating(self):
+        """(k, foundation, R) of each counterpart held only by its contacts: R (m, k_b) its free
+        rigid motions on the free support DOFs of all counterparts (zero off its own)."""
         start = 0
         for k, f in enumerate(self.parts):
             m = f.P.shape[1]
@@ -150,12 +154,8 @@ class Counterparts:
                 V = f.rigid.vectors(f.mesh.reference.points).reshape(-1, f.rigid.count)[f.assembler.free]
                 R = np.zeros((self.P.shape[1], f.rigid.count))
                 R[start:start + m] = V[f._support_free]
-                cols.append(-(self.P @ R))
-                names += [f"{n} of the counterpart of contacts[{k}]" for n in f.rigid.names()]
+                yield k, f, R
             start += m
-        if not cols:
-            return None
-        return np.column_stack(cols), names
 
     def _stack(self, blocks: list) -> sp.csr_matrix:
         """The block-diagonal matrix of the pairs' blocks with its rows moved to their contact DOFs."""
