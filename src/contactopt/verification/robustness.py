@@ -54,9 +54,12 @@ def solve_at(problem, alpha) -> dict:
 def random_design_solves(config, n: int, seed: int = 0, name: str | None = None) -> dict:
     """The state at α0 and at ``n`` random designs of the box of ``config``: one summary row
     (``name`` its ``config``, else the configuration's path or name as given). The box is checked
-    as a run checks it (every design of it keeps the mesh valid)."""
+    as a run checks it (every design of it keeps the mesh valid). A model without designs has no
+    box: its row is the state at α0 alone (``designs`` 0)."""
     problem = ShapeProblem(config, optimizing=True)
     base = solve_at(problem, problem.model.initial_design())
+    if not problem.config.assembly.designs:     # a model of states only: no box to draw from
+        n = 0
     rows = [solve_at(problem, alpha) for alpha in box_designs(problem.model, n, seed)]
     ok = [r for r in rows if r["converged"]]
     return {"config": name or str(config), "designs": n, "converged": len(ok), "alpha0_converged": base["converged"],
@@ -64,7 +67,7 @@ def random_design_solves(config, n: int, seed: int = 0, name: str | None = None)
             "fallbacks_used": sorted({f for r in rows for f in r.get("fallbacks", ())}),
             "newton_steps_max": max((r["newton_steps"] for r in ok), default=None),
             "time_alpha0_s": base["time_s"],
-            "time_mean_s": float(np.mean([r["time_s"] for r in rows])) if rows else None,
+            "time_mean_s": float(np.mean([r["time_s"] for r in rows])) if rows else base["time_s"],
             "failures": [r["error"] for r in rows if not r["converged"]][:3]}
 
 
