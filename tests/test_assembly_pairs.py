@@ -502,3 +502,16 @@ def test_whole_displacement_objectives_of_the_lap_joint_match_central_difference
         f2 = (pb.evaluate_value(alpha + 2 * h * d) - pb.evaluate_value(alpha - 2 * h * d)) / (4 * h)
         fd = (4 * f1 - f2) / 3
         assert abs(xi @ d - fd) <= 1e-6 * max(abs(fd), np.abs(xi).max() * 1e-3), (xi @ d, fd)
+
+
+def test_the_peak_stress_region_names_its_body(tmp_path):
+    """region = "block.right" is the block's part "right", "block" the whole block; a counterpart body's
+    part is refused by name."""
+    def value(region):
+        obj = f'[objective]\ntype = "peak_stress"\nregion = "{region}"\n'
+        pb = ShapeProblem(load_config(_write(tmp_path, TWO_SLABS + DESIGN + obj)))
+        return pb.evaluate_value(pb.model.initial_design())
+    assert value("block.right") == value("right") < value("block") == value("")
+    with pytest.raises(Exception, match=r"objective.region = 'left.top': the peak stress is taken on the body that "
+                                        r"carries the contact faces \('block'\)"):
+        value("left.top")

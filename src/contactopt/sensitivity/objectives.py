@@ -338,8 +338,20 @@ class PeakStress(Objective):
 
 
 def region_cells(model, region, key: str) -> np.ndarray:
-    """The elements of a region (:class:`PeakStress`); ConfigError naming ``key`` if it has none."""
+    """The elements of a region (:class:`PeakStress`); ConfigError naming ``key`` if it has none.
+    In a model written as an assembly the region may name its body, ``"<body>"`` (all of it) or
+    ``"<body>.<part>"``: the body that carries the contact faces (the stress of a counterpart body
+    is not an objective yet); a name without a dot is a part of that body."""
     cells = model.assembler.elements
+    assembly = model.config.assembly
+    if assembly.spelled and isinstance(region, str) and region:
+        body, dot, part = region.partition(".")
+        if dot and body in assembly.bodies and body != assembly.bodies[0]:
+            raise ConfigError([f"{model.config.source}: {key} = {region!r}: the peak stress is taken on the body that "
+                               f"carries the contact faces ({assembly.bodies[0]!r}); the stress of a counterpart body "
+                               "is not an objective yet"])
+        if body == assembly.bodies[0]:
+            region = part
     if region in (None, "", {}):
         return np.arange(cells.shape[0])
     try:
