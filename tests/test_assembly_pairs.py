@@ -417,8 +417,11 @@ def _write_text(text):
 @pytest.mark.parametrize("cells", [(6, 2), (10, 3)])
 def test_a_clamped_joint_slips_as_a_whole_at_the_coulomb_load(cells):
     """Below Q = F·N the plate is held, and nodes stick; the shear at which it is no longer held
-    (bisection on Q/FN to 2e-3) lies within 1 % of F·N, the sliding nodes' share rising to all
-    of them on the way."""
+    (bisection on Q/FN to 2e-3) lies within 1 % of F·N, the sliding nodes' share rising on the way
+    and, at the last shear held, every node carrying nearly its whole Coulomb limit. (Whether Q =
+    F·N itself is held, with every node sliding, is decided by round-off: under some BLAS kernels
+    the last shear held is 0.998 F·N, with 91 % of the nodes sliding and the others at ≥ 96 % of
+    their limit.)"""
     lo, hi = 0.9, 1.1
     st, pb = _joint(lo, cells)
     assert pb is not None, st
@@ -434,10 +437,12 @@ def test_a_clamped_joint_slips_as_a_whole_at_the_coulomb_load(cells):
             hi = mid
         else:
             lo = mid
-            share.append(np.mean(st.class_names[st.lam > 0] == "M1"))
+            touching = st.lam > 0
+            share.append(np.mean(st.class_names[touching] == "M1"))
+            mobilized = np.linalg.norm(st.tau, axis=1)[touching] / (0.2 * st.lam[touching])
             assert np.sum(st.lam) == pytest.approx(0.01, rel=1e-9)      # N, the pressure's resultant
     assert abs(0.5 * (lo + hi) - 1.0) < 0.01, (lo, hi)
-    assert share[-1] == 1.0 and share[-1] > share[0]
+    assert share[-1] >= 0.9 and share[-1] > share[0] and mobilized.min() >= 0.95, (share, mobilized.min())
 
 
 def test_a_run_writes_a_file_per_body_and_maps_per_pair(tmp_path):
