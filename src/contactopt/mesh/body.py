@@ -81,13 +81,9 @@ class Body(HasParts):
     def contact_outward(self) -> np.ndarray:
         """(p, 3) the outward unit normal of the face at each contact node, from the chart of the
         contact face or, where the pairs' faces have no common chart, from each pair's."""
-        x = self.reference.points[self.contact_nodes]
         if not self.pair_charts:
-            return self.chart.outward(x)
-        out = np.zeros((x.shape[0], 3))
-        for k, c in enumerate(self.pair_charts):
-            out[self.pair_of == k] = c.outward(x[self.pair_of == k])
-        return out
+            return self.chart.outward(self.reference.points[self.contact_nodes])
+        return _pair_outward(self.reference.points, self.contact_nodes, self.pair_faces, self.pair_charts)
 
     def pair_view(self, k: int) -> "Body":
         """The body as pair k's counterpart sees it: its contact face and nodes those of the pair

@@ -426,7 +426,8 @@ def _global(model, v: np.ndarray) -> np.ndarray:
     frames; unchanged where the frames are the axes)."""
     if model.frames is None:
         return np.asarray(v, float)
-    return np.einsum("mij,mj->mi", model.frames, np.reshape(v, (-1, 3))).ravel()
+    from ..paths.transforms import from_frames
+    return from_frames(np.asarray(v, float), model.frames)
 
 
 class WeightedSum(Objective):
