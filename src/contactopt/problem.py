@@ -59,7 +59,8 @@ class ShapeProblem:
             name, library = select_path(self.config, memory.free_dofs(body), pinned=int(body.pinned_dofs.size),
                                         rigid=body.rigid, pinned_held=True)
             with PATHS[name].library_threads(self.config.linear_solver.threads):   # the morph weight's solve
-                self.model = ElasticModel(self.config, body=body, memory_estimate=PATHS[name].memory_estimate)
+                self.model = ElasticModel(self.config, body=body, memory_estimate=PATHS[name].memory_estimate,
+                                          condensed=PATHS[name].condenses_counterparts)
             if optimizing:
                 self.model.check_design_space()
             self.cases, self.combination = build_cases(self.config, self.model, self._design_lambda)

@@ -132,11 +132,13 @@ class ElasticModel:
     _det_ref: np.ndarray             # det J of the reference mesh at its quadrature points
     _pin_mask: tuple | None          # ((shape, nnz) of A's pattern, the CSR entries pinning zeroes)
 
-    def __init__(self, config, *, body=None, memory_estimate=None):
+    def __init__(self, config, *, body=None, memory_estimate=None, condensed: bool = True):
         """``body``: the configuration's body if already built; ``memory_estimate``: the peak
         memory estimate (a function of the body) of the solver path that will run, checked
         against the memory available before anything costly is built (the condensation's by
-        default)."""
+        default); ``condensed=False``: an elastic foundation is kept assembled, not condensed
+        onto its support (the full-space path's, :class:`~contactopt.fem.foundation.Foundation`)."""
+        self._condensed = condensed
         cfg = load_config(config) if not isinstance(config, Config) else config
         self.config = cfg
         self.body = body = build_body(cfg) if body is None else body
@@ -222,7 +224,8 @@ class ElasticModel:
             held = cfg.friction.coefficient if self.contact_friction is None else self.contact_friction
             self.foundation.check_held(held, [p.counterpart.split(".")[0] for p in cfg.assembly.contacts], cfg.source)
         if cfg.foundation is not None and self.foundation is None:
-            self.foundation = Foundation(cfg.foundation, body, source=cfg.source, check=check)
+            self.foundation = Foundation(cfg.foundation, body, source=cfg.source, check=check,
+                                         condensed=condensed)
             if self.foundation.basis is not None:   # six-node triangles, mortar partners: ĝ = T⁻ᵀ g (fem.mortar)
                 lu = spla.splu(sp.csc_matrix(self.foundation.basis.transpose()))
                 self.gap_matrix = lu.solve(np.asarray(self.gap_matrix, float))
@@ -363,7 +366,8 @@ class ElasticModel:
             self.foundation = build_counterparts([pr.foundation for pr in cfg.pairs], body, cfg.source, check,
                                                  normals=n, frames=self.frames)
         else:
-            self.foundation = Foundation(cfg.foundation, body, source=cfg.source, check=check, normals=n)
+            self.foundation = Foundation(cfg.foundation, body, source=cfg.source, check=check, normals=n,
+                                         condensed=self._condensed)
             self.foundation.rotate(self.frames)
         g = self.foundation.gap0
         deep = np.flatnonzero(g < -body.penetration_tol)

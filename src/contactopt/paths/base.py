@@ -75,6 +75,12 @@ class Capabilities:
     foundation: bool = _feature(
         "an elastic [foundation]",
         "linear_solver.path = '{path}': {detail} is solved on {on} only; use path {takers} or 'auto'")
+    pairs: bool = _feature(
+        "several contact pairs",
+        "linear_solver.path = '{path}': {detail} are solved on {on} only so far; use path {takers} or 'auto'")
+    counterpart_force: bool = _feature(
+        "an elastic counterpart pressed by a force",
+        "linear_solver.path = '{path}': {detail} is solved on {on} only so far; use path {takers} or 'auto'")
     obstacle: bool = _feature(
         "a rigid [obstacle] other than the fixed plane",
         "linear_solver.path = '{path}': a {detail} [obstacle] is solved on {on} only (one process); "
@@ -222,6 +228,7 @@ class SolverPath:
     name = ""
     capabilities = Capabilities()
     takes_steps = _Takes("load_steps")    # whether solve_state takes ``slip_ref`` (sensitivity/steps.py)
+    condenses_counterparts = True         # an elastic foundation condensed onto its support (fem.foundation)
 
     def __init__(self, model, settings: Settings, start: Start | None = None):
         self.model = model
