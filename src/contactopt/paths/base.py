@@ -160,9 +160,25 @@ class SystemParts:
     six-node triangles with mortar partners (:class:`~contactopt.paths.transforms.Basis`)."""
 
     coupling = None
+    couple = None
     product = None
     force = None
     basis = None
+
+    @property
+    def relative(self) -> bool:
+        """Whether the state's u_c is the relative displacement w of an elastic counterpart (the
+        condensation's ``coupling`` or the full space's ``couple``, :mod:`.coupled`)."""
+        return self.coupling is not None or self.couple is not None
+
+    def counterpart_compliance(self, x: np.ndarray) -> np.ndarray | None:
+        """C x (3p, per node (t1, t2, ν)): the elastic counterpart's compliance on the contact
+        forces x, from its condensed C or by a solve with its K_f; None without a counterpart."""
+        if self.coupling is not None:
+            return self.coupling.foundation.C @ np.ravel(x)
+        if self.couple is not None:
+            return self.couple.compliance(x)
+        return None
 
 
 class Adjoint(NamedTuple):

@@ -62,11 +62,12 @@ class FullSpaceCouple:
         self._R, self._Pf, self._cols_f = R, Pf, cols_f
         q = np.zeros(3 * p) if f.q_f is None else np.asarray(f.q_f, float)
         self.offset = q.reshape(-1, 3).copy()
+        self._kf_amg = None      # K_f's AMG solver (compliance), built on first use
 
     def system(self, A, L) -> tuple[sp.csr_matrix, np.ndarray]:
         """(Tᵀ diag(A, K_f) T, Tᵀ (L, f_f)): the Newton system of both bodies in u_loc."""
         big = sp.block_diag([A, self.foundation.K], format="csr")
-        law_A = sp.csr_matrix(self.T.T @ big @ self.T)
+        law_A = with_contact_blocks(sp.csr_matrix(self.T.T @ big @ self.T), self.cd)
         law_A.sort_indices()
         return law_A, self.T.T @ self.load(L)
 
@@ -104,6 +105,33 @@ class FullSpaceCouple:
             u = u + np.tile(f.translation, f.n_nodes)
         return u
 
+    def compliance(self, x: np.ndarray) -> np.ndarray:
+        """C x = Π_loc K_f⁻¹ Π_locᵀ x (3p, per node (t1, t2, ν)): the partners' displacement under
+        the contact forces −x on the foundation, by conjugate gradients on K_f preconditioned by
+        smoothed aggregation (built once), to a relative residual of 1e-13 — C itself, dense on
+        the support, is never formed."""
+        f = self.foundation
+        b = np.zeros(f.assembler.n_free)
+        b[self._cols_f - self.n_body] = self._Pf.T @ np.ravel(x)
+        if not np.any(b):
+            return np.zeros(np.size(x))
+        if self._kf_amg is None:
+            import pyamg
+            self._kf_amg = pyamg.smoothed_aggregation_solver(
+                f.K, B=rigid_body_modes(f.mesh.reference.points, f.assembler.free), max_coarse=500)
+        y = self._kf_amg.solve(b, tol=1e-13, accel="cg", maxiter=500)
+        return self._Pf @ y[self._cols_f - self.n_body]
+
     def partner(self, u_f: np.ndarray) -> np.ndarray:
         """(p, 3) the partners' displacement Π_loc u_f + q per node (t1, t2, ν)."""
         return (self._Pf @ u_f[self._cols_f - self.n_body]).reshape(-1, 3) + self.offset
+
+
+def with_contact_blocks(A, contact_dofs: np.ndarray) -> sp.csr_matrix:
+    """A with every contact node's 3×3 block in its sparsity pattern (explicit zeros where a
+    product dropped them): the Newton system adds its Robin blocks there."""
+    cd = np.asarray(contact_dofs).reshape(-1, 3)
+    r, c = np.repeat(cd, 3, axis=1).ravel(), np.tile(cd, (1, 3)).ravel()
+    A = A.tocoo()
+    return sp.coo_matrix((np.r_[A.data, np.zeros(r.size)], (np.r_[A.row, r], np.r_[A.col, c])),
+                         shape=A.shape).tocsr()

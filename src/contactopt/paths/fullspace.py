@@ -39,14 +39,14 @@ from ..contact.fullspace import solve_fullspace_with_fallbacks
 from ..contact.fullspace.core import overlap_force
 from ..contact.fullspace.pyamg import sorted_csr
 from ..contact.state import FoundationState
-from ..errors import CheckpointError
+from ..errors import CheckpointError, ConfigError
 from ..fem import memory
 from ..fem.amg import ContactHierarchy, rigid_body_modes
 from ..fem.model import Assembled
 from ..sensitivity.adjoint_fullspace import solve_adjoint_fullspace
 from .base import Adjoint, Capabilities, Context, SolverPath, SystemParts, check_design
 from .force import normal_stiffness
-from .coupled import FullSpaceCouple
+from .coupled import FullSpaceCouple, with_contact_blocks
 from .transforms import frame_rotation
 
 log = logging.getLogger(__name__)
@@ -83,9 +83,12 @@ class FullSystem(SystemParts):
 
 @dataclass
 class FullContext(Context):
-    """Also ``u_free``: the case's last displacement (free DOFs), Newton's warm start."""
+    """Also ``u_free``: the case's last displacement (free DOFs), Newton's warm start;
+    ``adjoint_rhs_c`` the contact DOFs' part of the last adjoint's right-hand side in u_loc (an
+    elastic foundation, :meth:`FullSpacePath.adjoint_carry`)."""
 
     u_free: np.ndarray | None = None
+    adjoint_rhs_c: np.ndarray | None = None
 
 
 class FullSpaceCommon(SolverPath):
@@ -193,6 +196,10 @@ class FullSpacePath(FullSpaceCommon):
         self._hierarchy = None          # the AMG hierarchy of an earlier A(α) ...
         self.hierarchy_alpha = None     # ... built at this design (checkpoints rebuild it)
         self._couple = None             # an elastic foundation's change of unknowns (.coupled)
+        if model.foundation is not None and model.foundation.basis is not None:
+            raise ConfigError([f"{model.config.source}: linear_solver.path = 'fullspace': an elastic [foundation] "
+                               "with mortar partners on six-node triangles (a transformed basis) is solved on the "
+                               "'condensation' path only so far; use path 'condensation' or partner = 'point'"])
 
     newton_label = "full-space Newton"
 
@@ -231,11 +238,7 @@ class FullSpacePath(FullSpaceCommon):
         if self.model.pinned_dofs.size:
             # the product drops the exact zeros of pinned rows: keep every contact node's 3×3 block
             # in the pattern (the Robin blocks are added there)
-            cd = self.model.contact_dofs.reshape(-1, 3)
-            r, c = np.repeat(cd, 3, axis=1).ravel(), np.tile(cd, (1, 3)).ravel()
-            A = A.tocoo()
-            A = sp.coo_matrix((np.r_[A.data, np.zeros(r.size)], (np.r_[A.row, r], np.r_[A.col, c])),
-                              shape=A.shape).tocsr()
+            A = with_contact_blocks(A, self.model.contact_dofs)
         A.sort_indices()
         return FullSystem(asm, asm.gap, {}, T, A, T.T @ asm.L, shift)
 
@@ -344,15 +347,22 @@ class FullSpacePath(FullSpaceCommon):
         return FoundationState(u_body_c=u_c, u_partner=couple.partner(u_f),
                                displacement=couple.foundation_displacement(u_f))
 
-    def adjoint(self, system, ctx, state, y_u, y_lam, choices=None):
-        if self.is_full(y_u):          # ∂J/∂u on every DOF: the free DOFs' part
+    def adjoint(self, system, ctx, state, y_u, y_lam, choices=None, carry=None):
+        """As :meth:`SolverPath.adjoint`; with an elastic foundation (:mod:`.coupled`) in the
+        unknowns u_loc of both bodies, ``carry`` (∂J/∂w of a later load step, with ∂J/∂u on every
+        DOF of the body) joining at the contact DOFs, which hold w."""
+        full = self.is_full(y_u)
+        if full:                       # ∂J/∂u on every DOF: the free DOFs' part
             y_u = np.asarray(y_u, float)[self.model.assembler.free]
         u_law = state.u_c                # the friction law's: the slip increment in a load step
         if state.slip_ref is not None:
             u_law = state.u_c.copy()
             u_law[:, :2] = state.slip_increment
-        if system.couple is not None and np.asarray(y_u).size == self.model.assembler.n_free:
+        if system.couple is not None and full:
             y_u = system.couple.extend(y_u)   # ∂J/∂u of the body into both bodies' u_loc
+            ctx.adjoint_rhs_c = y_u[self.model.contact_dofs].copy()
+            if carry is not None:
+                y_u[self.model.contact_dofs] += carry
         elif system.T is not None and np.asarray(y_u).size == system.T.shape[0]:
             y_u = system.T.T @ y_u        # ∂J/∂u on the free DOFs into the nodes' frames
         adj = solve_adjoint_fullspace(system.law_A, self.model.contact_dofs, state.classes, u_law,
@@ -367,6 +377,13 @@ class FullSpacePath(FullSpaceCommon):
     def adjoint_force(self, system, ctx, v_u):
         """S v_u = (A ṽ)_c: ṽ, the last adjoint's A-harmonic extension of v_u, has A ṽ = Bᵀ S v_u."""
         return (system.law_A @ ctx.adjoint_v)[self.model.contact_dofs]
+
+    def adjoint_carry(self, system, ctx, v_u, v_full, y_u):
+        """As :meth:`SolverPath.adjoint_carry`; with an elastic foundation in u_loc, where the
+        contact DOFs hold w: (Tᵀ diag(A, K_f) T ṽ_loc)_c + (Tᵀ(g, 0))_c for ∂J/∂u = g on every DOF."""
+        if system.couple is None or not self.is_full(y_u):
+            return super().adjoint_carry(system, ctx, v_u, v_full, y_u)
+        return self.adjoint_force(system, ctx, v_u) + ctx.adjoint_rhs_c
 
     # ------------------------------------------------------------------ checkpoints
     def last_displacement(self, ctx):
