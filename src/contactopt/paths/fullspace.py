@@ -45,8 +45,8 @@ from ..fem.amg import ContactHierarchy, rigid_body_modes
 from ..fem.model import Assembled
 from ..sensitivity.adjoint_fullspace import solve_adjoint_fullspace
 from .base import Adjoint, Capabilities, Context, SolverPath, SystemParts, check_design
-from .force import normal_stiffness
 from .coupled import FullSpaceCouple, with_contact_blocks
+from .force import normal_stiffness
 from .transforms import frame_rotation
 
 log = logging.getLogger(__name__)
