@@ -76,14 +76,18 @@ class FullSpaceCouple:
         return np.concatenate([np.asarray(L, float), self.foundation.f_f])
 
     def modes(self, coords_body: np.ndarray, free_body: np.ndarray) -> np.ndarray:
-        """T⁻¹ (both bodies' rigid-body modes) (n × 12): the AMG near-null space in u_loc. T⁻¹ is
-        the identity but at the contact DOFs, where w + q = Qᵀ u_c − Π_loc u_f."""
+        """T⁻¹ (the rigid-body modes of both bodies moving as one) (n × 6): the AMG near-null
+        space in u_loc. T⁻¹ is the identity but at the contact DOFs, where w + q = Qᵀ u_c − Π_loc u_f
+        (≈ 0 for a motion of both bodies together). One set of six, not six per body: an
+        aggregate lies in one body (or across the contact, where the bodies move together), so
+        six columns per aggregate suffice, where twelve would double the coarse levels."""
         f = self.foundation
-        M = np.zeros((self.n, 12))
-        M[:self.n_body, :6] = rigid_body_modes(coords_body, free_body)
-        M[self.n_body:, 6:] = rigid_body_modes(f.mesh.reference.points, f.assembler.free)
-        Mc = M[self.cd].reshape(-1, 3, 12)
-        local = np.einsum("mij,mik->mjk", self._R, Mc).reshape(-1, 12)
+        pts = np.concatenate([coords_body, f.mesh.reference.points])
+        nb = coords_body.shape[0]
+        free = np.concatenate([np.asarray(free_body), 3 * nb + np.asarray(f.assembler.free)])
+        M = rigid_body_modes(pts, free)
+        Mc = M[self.cd].reshape(-1, 3, 6)
+        local = np.einsum("mij,mik->mjk", self._R, Mc).reshape(-1, 6)
         M[self.cd] = local - self._Pf @ M[self._cols_f]
         return M
 
