@@ -74,6 +74,22 @@ def split_design(surface, alpha) -> list[np.ndarray]:
     return surface.split(alpha) if isinstance(surface, DesignSurfaces) else [surface.as_vector(alpha)]
 
 
+def alpha_record(surface, alpha):
+    """α as written to result files: the control-point matrix (nested lists) of one design, a list
+    of them, one per design in ``[[designs]]`` order, for several."""
+    if isinstance(surface, DesignSurfaces):
+        return [m.tolist() for m in surface.as_matrices(alpha)]
+    return surface.as_matrix(alpha).tolist()
+
+
+def flat_design(surface, value) -> np.ndarray:
+    """A design read from a result file (:func:`alpha_record`) or given flat, as one flat vector."""
+    if isinstance(surface, DesignSurfaces) and isinstance(value, list) and len(value) == len(surface.surfaces) \
+            and all(isinstance(v, list) for v in value):
+        return np.concatenate([np.asarray(v, float).reshape(-1) for v in value])
+    return np.asarray(value, float).reshape(-1)
+
+
 class ProductAdmissible:
     """U = U_1 × … × U_D: each design's constraints on its own block of α, the optimizer's box and
     rows the blocks' side by side (block-diagonal rows). Violations are named per design

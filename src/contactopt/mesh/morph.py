@@ -173,6 +173,7 @@ class SeveralMorphs:
         first = self.morphs[0]
         self.reference, self.contact_nodes, self.fixed_shape = first.reference, first.contact_nodes, first.fixed_shape
         self.elements = first.elements
+        self.chart = first.chart          # the first design's (each design's: ``morphs``)
         self.offsets = surface.offsets
         self.weights = np.array([m.weight for m in self.morphs])        # (D, n_nodes)
         # per node the design whose weight is largest there: its chart and direction at contact nodes
