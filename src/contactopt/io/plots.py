@@ -176,8 +176,12 @@ def _dual_edges(nodes: np.ndarray, lo: float, hi: float) -> np.ndarray:
 
 
 def _rectangle(model):
-    """(x1lo, x1hi, x2lo, x2hi) of the design rectangle."""
+    """(x1lo, x1hi, x2lo, x2hi) of the design rectangle; several designs: the bounding rectangle of
+    the contact nodes' chart coordinates (each node on its design's chart)."""
     s = model.surface
+    if len(surfaces_of(s)) > 1:
+        xy = np.asarray(model.mesh.contact_points(), float)
+        return float(xy[:, 0].min()), float(xy[:, 0].max()), float(xy[:, 1].min()), float(xy[:, 1].max())
     return s.x1lo, s.x1lo + s.a, s.x2lo, s.x2lo + s.b
 
 
@@ -230,7 +234,8 @@ def _pcolor(ax, model, grid, **kw):
 
 
 def _figsize_map(model, extra_width=1.6):
-    ratio = model.surface.b / model.surface.a
+    x1lo, x1hi, x2lo, x2hi = _rectangle(model)
+    ratio = (x2hi - x2lo) / (x1hi - x1lo)
     w = 6.0
     return (w + extra_width, max(2.6, w * ratio + 1.1))
 
