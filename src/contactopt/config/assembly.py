@@ -213,6 +213,9 @@ def desugar(raw: dict, problems: list) -> tuple[dict, list]:
         elif f[0] != face_body:
             problems.append(f"designs[{n}].face = {'.'.join(map(_part_name, f))!r}: contactopt designs a face of the "
                             f"body that carries the pairs' faces ({face_body!r}) so far")
+    if len(designs) > 1 and len(contacts) == 1:
+        problems.append(f"designs: {len(designs)} designed faces in a model of one pair; contactopt designs several "
+                        "faces of the face body in a model of several pairs so far (each designed face a pair's face)")
     if len(problems) > n0:
         return _rest(raw), []
     out, renames = _sections(raw, bodies, contacts[0], pairs[0], designs, faces, problems)
