@@ -16,7 +16,6 @@ from contactopt.config import load_config
 from contactopt.errors import ConfigError
 from contactopt.problem import ShapeProblem
 from contactopt.sensitivity.check import check_gradient
-
 from test_assembly_pairs import TWO_SLABS
 
 LEFT = '{ body = "block", x3 = 0.0, box = [[0.0, 1.1], [0.0, 1.0], [-1.0, 1.0]] }'

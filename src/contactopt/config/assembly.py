@@ -54,8 +54,9 @@ ASSEMBLY_DOCS = {
                 "forces), `counterpart = \"<body>.<part>\"` (an elastic counterpart) or a table with the keys of "
                 "[obstacle] (a rigid one), `friction` (else [friction] coefficient), `partner` (as "
                 "foundation.partner), `interference`, `initial_gap` (as in [body]), an optional `name`.",
-    "designs": "A designed face, `[[designs]]`: `face = \"<body>.<part>\"` and the keys of [design]. A model "
-               "without designs solves states only.",
+    "designs": "A designed face, `[[designs]]`: `face = \"<body>.<part>\"` and the keys of [design]. Several "
+               "entries design several faces of the face body in a model of several pairs, each a pair's face (α "
+               "their control points one after the other). A model without designs solves states only.",
 }
 
 
