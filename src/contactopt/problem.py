@@ -54,8 +54,7 @@ class ShapeProblem:
         self.config = config if isinstance(config, Config) else load_config(config)
         with self.config.assembly.named_as_written():      # a problem in the keys the model was written in
             body = build_body(self.config)
-            # pinned components on an elastic foundation: the foundation checks that they are clamped at
-            # their partners too (fem.foundation), where the condensation takes them
+            # pinned components on a foundation: fem.foundation checks they are clamped at their partners too
             name, library = select_path(self.config, memory.free_dofs(body), pinned=int(body.pinned_dofs.size),
                                         rigid=body.rigid, pinned_held=True)
             with PATHS[name].library_threads(self.config.linear_solver.threads):   # the morph weight's solve
