@@ -46,6 +46,7 @@ from ..fem.model import Assembled
 from ..sensitivity.adjoint_fullspace import solve_adjoint_fullspace
 from .base import Adjoint, Capabilities, Context, SolverPath, SystemParts, check_design
 from .coupled import FullSpaceCouple, with_contact_blocks
+from .coupled import force_terms as coupled_force_terms
 from .force import normal_stiffness
 from .transforms import frame_rotation
 
@@ -70,6 +71,7 @@ class FullSystem(SystemParts):
     shift: np.ndarray | None = None    # an obstacle's tangential translation (p, 2) per node frame, or None
     force: float | None = None         # a load step's |f| of a force-controlled obstacle (None: the model's)
     couple: FullSpaceCouple | None = None   # an elastic foundation: both bodies in one system (.coupled)
+    moved: float = 0.0                 # a force-controlled foundation's translation s (.force)
 
     @property
     def law_A(self):
@@ -248,10 +250,19 @@ class FullSpacePath(FullSpaceCommon):
         if np.any(e):
             e2 = e.reshape(-1, 3)[:, :2]
             shift = s * e2 if shift is None else shift + s * e2
-        return replace(system, gap=system.gap - s * c, shift=shift)
+        return replace(system, gap=system.gap - s * c, shift=shift, moved=s)
 
     def normal_stiffness(self, system):
+        if system.couple is not None:       # the Newton system's own rows, in the nodes' frames
+            return normal_stiffness(system.law_A, self.model.contact_dofs, None)
         return normal_stiffness(system.assembled.A, self.model.contact_dofs, self.frames)
+
+    def force_terms(self, system, ctx, state, v_lam, loads=None, *, v=None, y_u=None):
+        """As :meth:`SolverPath.force_terms`; a foundation pressed by a force in the two bodies'
+        unknowns (:func:`.coupled.force_terms`)."""
+        if system.couple is None:
+            return super().force_terms(system, ctx, state, v_lam, loads, v=v, y_u=y_u)
+        return coupled_force_terms(self, system, ctx, state, v_lam, loads, y_u)
 
     def for_load(self, system, asm) -> FullSystem:
         out = replace(system, assembled=asm, timings={})
@@ -354,10 +365,6 @@ class FullSpacePath(FullSpaceCommon):
         full = self.is_full(y_u)
         if full:                       # ∂J/∂u on every DOF: the free DOFs' part
             y_u = np.asarray(y_u, float)[self.model.assembler.free]
-        u_law = state.u_c                # the friction law's: the slip increment in a load step
-        if state.slip_ref is not None:
-            u_law = state.u_c.copy()
-            u_law[:, :2] = state.slip_increment
         if system.couple is not None and full:
             y_u = system.couple.extend(y_u)   # ∂J/∂u of the body into both bodies' u_loc
             ctx.adjoint_rhs_c = y_u[self.model.contact_dofs].copy()
@@ -365,6 +372,15 @@ class FullSpacePath(FullSpaceCommon):
                 y_u[self.model.contact_dofs] += carry
         elif system.T is not None and np.asarray(y_u).size == system.T.shape[0]:
             y_u = system.T.T @ y_u        # ∂J/∂u on the free DOFs into the nodes' frames
+        return self.local_adjoint(system, ctx, state, y_u, y_lam, choices)
+
+    def local_adjoint(self, system, ctx, state, y_u, y_lam, choices=None):
+        """The adjoint of the Newton system's own unknowns: ``y_u`` on the contact DOFs (3p) or on
+        every unknown of the system (in the nodes' frames, both bodies' with a foundation)."""
+        u_law = state.u_c                # the friction law's: the slip increment in a load step
+        if state.slip_ref is not None:
+            u_law = state.u_c.copy()
+            u_law[:, :2] = state.slip_increment
         adj = solve_adjoint_fullspace(system.law_A, self.model.contact_dofs, state.classes, u_law,
                                       state.lam, y_u, y_lam, self.friction, hierarchy=self._hierarchy,
                                       choices=choices)
