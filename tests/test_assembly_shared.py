@@ -254,3 +254,40 @@ def test_a_run_writes_one_file_per_body_and_reports_each_pair(tmp_path):
     summary = json.loads((out / "summary.json").read_text())
     assert [c["name"] for c in summary["contacts"]["optimal"]] == ["left", "right"]
     assert sum(c["nodes"] for c in summary["contacts"]["optimal"]) == pb.model.n_contact
+
+
+def test_the_dovetail_flanks_carry_mirror_forces():
+    """examples/dovetail.toml at its reference shape: the blade held by both flanks against the one
+    slot body; by the mirror symmetry of the meshes the flanks' normal forces agree to 1e-10 (and
+    their tangential ones up to the sign along the slope), and λ at mirror nodes to 1e-10; both
+    flanks' resultants together hold the body force."""
+    from scipy.spatial import cKDTree
+    pb = ShapeProblem(load_config(EXAMPLES / "dovetail.toml"))
+    m = pb.model
+    assert m.foundation.pairs == [[0, 1]] and m.body.rigid is not None
+    st = pb.solve_state(m.initial_design())
+    left, right = (m.body.pair_of == k for k in range(2))
+    assert st.lam[left].sum() == pytest.approx(st.lam[right].sum(), rel=1e-10)
+    assert st.tau[left].sum(axis=0)[1] == pytest.approx(-st.tau[right].sum(axis=0)[1], rel=1e-10)
+    x = m.body.reference.points[m.contact_nodes]
+    mirror = cKDTree(x).query(x * [-1.0, 1.0, 1.0])[1]
+    assert np.abs(st.lam - st.lam[mirror]).max() <= 1e-10 * st.lam.max()
+    r = np.column_stack([-st.tau, st.lam])                       # the contact forces in the nodes' frames
+    lift = np.einsum("pij,pj->i", m.frames, r)                    # their resultant on the blade
+    assert lift[2] == pytest.approx(-0.002 * 1.1, rel=1e-9)      # the body force times the blade's volume
+    assert abs(lift[0]) <= 1e-12
+
+
+def test_the_face_body_s_body_force_is_read_without_a_loads_table(tmp_path):
+    """bodies.<face body>.body_force in a model without [loads] is the body's load (it was dropped)."""
+    _base_file(tmp_path / "base.msh")
+    text = BLOCK.format(bases=BASE.format(name="base"),
+                        contacts=PAIR.format(name="left", lo=0.0, hi=1.1, counterpart="base.top_left", friction=0.3)
+                        + PAIR.format(name="right", lo=1.1, hi=2.0, counterpart="copy.top_right", friction=0.3))
+    text = text.replace("[[contacts]]", BASE.format(name="copy") + "[[contacts]]", 1)
+    start = text.index("[loads]")
+    text = text[:start] + text[text.index("[bodies.block]"):]
+    text = text.replace('clamped = "clamped"\n', 'clamped = "clamped"\nbody_force = [0.0, 0.0, -0.5]\n', 1)
+    path = tmp_path / "weight.toml"
+    path.write_text(text)
+    assert load_config(path).loads.body_force == [0.0, 0.0, -0.5]

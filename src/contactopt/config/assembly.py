@@ -340,6 +340,8 @@ def _sections(raw: dict, bodies: dict, contact: dict, pair, designs: list, probl
     if "friction" in contact:
         out["friction"] = {**(raw.get("friction") or {}), "coefficient": contact["friction"]}
     loads = copy.deepcopy(raw.get("loads", {})) if isinstance(raw.get("loads"), dict) else raw.get("loads")
+    if loads is None and "body_force" in b:          # the face body's own body force, without [loads]
+        loads = {}
     counter_loads = {}
     if isinstance(loads, dict):
         if "body_force" in loads:
