@@ -3,8 +3,8 @@
     python examples/dovetail/make_mesh.py      # writes blade.msh and slot.msh here
 
 A dovetail joint in the x1–x3 plane, extruded along x2 (0 ≤ x2 ≤ 0.5): the blade's root is the
-trapezoid of half-width 1 at x3 = 0 and 0.6 at x3 = 1, its flanks x1 = ±(1 − 0.4 x3), under a neck
-of half-width 0.6 up to x3 = 1.5; the slot is the block [−2, 2] × [0, 0.5] × [−1, 1] less the
+trapezoid of half-width 1 at x3 = 0 and 0.5 at x3 = 0.5, its flanks x1 = ±(1 − x3) at 45°, under a neck
+of half-width 0.5 up to x3 = 1; the slot is the block [−2, 2] × [0, 0.5] × [−1, 0.5] less the
 trapezoid continued down to its floor x3 = −0.25 (a clearance under the blade). Both meshes are
 mirror-symmetric about x1 = 0, and the flanks' nodes coincide (point partners node to node).
 Groups: blade — flank_left, flank_right, top; slot — flank_left, flank_right (x3 ≥ 0, the part the
@@ -18,7 +18,7 @@ import meshio
 import numpy as np
 
 HERE = Path(__file__).resolve().parent
-WB, WT, H, NECK, LENGTH = 1.0, 0.6, 1.0, 1.5, 0.5       # root half-widths, root height, neck top, x2 length
+WB, WT, H, NECK, LENGTH = 1.0, 0.5, 0.5, 1.0, 0.5       # root half-widths, root height, neck top, x2 length
 WIDTH, DEPTH, CLEAR = 2.0, 1.0, 0.25                    # the slot block's half-width and depth, the clearance
 
 
