@@ -3,7 +3,8 @@ uninterrupted one, with the checkpoint format of contactopt.io.checkpoint.
 
 The kinds: a run over two load cases (each case's warm start and zone in the checkpoint), a load
 path (each step's context), a run with [[constraints]] (the penalty state beside the bundle's)
-and a force-controlled obstacle (the translation of its last solve rides in the warm start).
+a force-controlled obstacle (the translation of its last solve rides in the warm start), a block on
+two slabs along a load path and the same block with a design on each of its two contact faces.
 Each is killed three times, a random delay of up to a third of one iteration's share of the wall time after
 the progress line of a random iteration (so mostly mid-evaluation), and resumed as a user would
 (no ``--max-iter``: the checkpoint's is kept). J, α, iterations.csv and the counts must equal the
@@ -68,8 +69,32 @@ def assembly_path():
     return data
 
 
+def foundation_fullspace():
+    """Example 1 on an elastic slab on the full-space path (both bodies' DOFs in its Newton
+    system and in the checkpoint), pressed and then sheared along a load path."""
+    data = load_config("example1").with_updates({
+        **SMALL, "linear_solver": {"path": "fullspace"}, "friction": {"coefficient": 0.2},
+        "foundation": {"block": {"size": [3.0, 2.0, 1.0], "cells": [6, 4, 2], "origin": [-0.5, -0.5]},
+                       "material": {"E": 2.0}},
+        "load_steps": [{"name": "press", "top_traction": [0.0, 0.0, -8.0e-2]},
+                       {"name": "shear", "top_traction": [0.0, 0.0, -8.0e-2], "right_traction": [4.0e-2, 0.01, 0.0]}],
+        "loads": {"top_traction": [0.0, 0.0, 0.0], "right_traction": [0.0, 0.0, 0.0]}}).to_dict()
+    return data
+
+
+def two_designs():
+    """The block on two slabs with a design on each of its two contact faces
+    (tests/test_several_designs.py): α of two designs in the checkpoint."""
+    import tomllib
+
+    from test_assembly_pairs import TWO_SLABS
+    from test_several_designs import FIRST, SECOND
+    return tomllib.loads(TWO_SLABS + FIRST + SECOND)
+
+
 KINDS = {"load_cases": (load_cases, 14), "load_path": (load_path, 12), "constrained": (constrained, 14),
-         "force_obstacle": (force_obstacle, 12), "assembly_path": (assembly_path, 12)}
+         "force_obstacle": (force_obstacle, 12), "assembly_path": (assembly_path, 12),
+         "foundation_fullspace": (foundation_fullspace, 12), "two_designs": (two_designs, 14)}
 
 
 def what_the_checkpoint_holds(ckpt: Checkpoint) -> dict:
@@ -92,7 +117,8 @@ def test_a_run_killed_at_random_moments_resumes_bit_for_bit(tmp_path, kind):
     holds = what_the_checkpoint_holds(Checkpoint.read(ref_dir / "checkpoint.npz"))
     assert {"load_cases": holds["cases"] == 2, "load_path": len(holds["steps"]) == 1 and holds["steps"][0] >= 2,
             "constrained": holds["penalty"], "force_obstacle": holds["steps"] == [1],
-            "assembly_path": holds["steps"] == [2]}[kind], holds
+            "assembly_path": holds["steps"] == [2], "foundation_fullspace": holds["steps"] == [2],
+            "two_designs": holds["steps"] == [1]}[kind], holds
     print(f"\n[{kind}] uninterrupted: {ref['iterations']} iterations, {ref['evaluations']} evaluations, "
           f"{ref_wall:.1f} s; the checkpoint holds {holds}")
     rng = random.Random(f"kill -9 a {kind} run")

@@ -28,6 +28,7 @@ import numpy as np
 from ._mpi import world_size
 from ._progress import LiveLine
 from .config import json_schema, load_config
+from .design.several import flat_design, surfaces_of
 from .errors import ConfigError, ContactOptError, Interrupted, MeshError
 from .io.atomic import WriteError, atomic_write_json, atomic_write_text, write_error
 from .io.examples import copy_examples, list_examples
@@ -82,15 +83,16 @@ def _read_alpha(path: str, model) -> np.ndarray:
                 arr = z["alpha"]
         elif p.suffix == ".json":
             obj = json.loads(p.read_text())
-            arr = np.asarray(obj["alpha"] if isinstance(obj, dict) else obj, float)
+            arr = flat_design(model.surface, obj["alpha"] if isinstance(obj, dict) else obj)
         else:
             arr = np.loadtxt(p, ndmin=1)
     except (ValueError, KeyError, OSError) as exc:
         raise ConfigError([f"--alpha {path}: cannot read a design from it ({exc})"]) from None
     arr = np.asarray(arr, float)
     if arr.size != model.n_design:
+        shapes = " + ".join(f"{s.shape[0]}×{s.shape[1]}" for s in surfaces_of(model.surface))
         raise ConfigError([f"--alpha {path}: has {arr.size} numbers, the design has {model.n_design} "
-                           f"control points ({model.surface.shape[0]}×{model.surface.shape[1]})"])
+                           f"control points ({shapes})"])
     return arr.reshape(-1)
 
 

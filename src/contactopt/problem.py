@@ -54,12 +54,12 @@ class ShapeProblem:
         self.config = config if isinstance(config, Config) else load_config(config)
         with self.config.assembly.named_as_written():      # a problem in the keys the model was written in
             body = build_body(self.config)
-            # pinned components on an elastic foundation: the foundation checks that they are clamped at
-            # their partners too (fem.foundation), where the condensation takes them
+            # pinned components on a foundation: fem.foundation checks they are clamped at their partners too
             name, library = select_path(self.config, memory.free_dofs(body), pinned=int(body.pinned_dofs.size),
                                         rigid=body.rigid, pinned_held=True)
             with PATHS[name].library_threads(self.config.linear_solver.threads):   # the morph weight's solve
-                self.model = ElasticModel(self.config, body=body, memory_estimate=PATHS[name].memory_estimate)
+                self.model = ElasticModel(self.config, body=body, memory_estimate=PATHS[name].memory_estimate,
+                                          condensed=PATHS[name].condenses_counterparts)
             if optimizing:
                 self.model.check_design_space()
             self.cases, self.combination = build_cases(self.config, self.model, self._design_lambda)

@@ -14,9 +14,11 @@ body, per node (t1, t2, ν) with ν the normal from the counterpart to the face)
 a part of another body (an elastic counterpart, its partners below the face's nodes) or a rigid
 counterpart, a table with the keys of ``[obstacle]``.
 
-The mechanics take, so far, one contact pair: one body against a rigid counterpart, or a body
-against a second, undesigned body; at most one design, on the pair's face. A configuration beyond
-that is refused here, naming what it asks for.
+Several designs (``[[designs]]`` with more than one entry) are faces of the face body, each the
+face of one of several pairs: the first is ``[design]`` on ``[body] contact``, the others are
+``more_designs`` (each its face and the keys of ``[design]``), α the concatenation of their
+control points in ``[[designs]]`` order. A configuration beyond what the mechanics take is refused
+here, naming what it asks for.
 """
 
 from __future__ import annotations
@@ -52,8 +54,9 @@ ASSEMBLY_DOCS = {
                 "forces), `counterpart = \"<body>.<part>\"` (an elastic counterpart) or a table with the keys of "
                 "[obstacle] (a rigid one), `friction` (else [friction] coefficient), `partner` (as "
                 "foundation.partner), `interference`, `initial_gap` (as in [body]), an optional `name`.",
-    "designs": "A designed face, `[[designs]]`: `face = \"<body>.<part>\"` and the keys of [design]. A model "
-               "without designs solves states only.",
+    "designs": "A designed face, `[[designs]]`: `face = \"<body>.<part>\"` and the keys of [design]. Several "
+               "entries design several faces of the face body in a model of several pairs, each a pair's face (α "
+               "their control points one after the other). A model without designs solves states only.",
 }
 
 
@@ -211,11 +214,12 @@ def desugar(raw: dict, problems: list) -> tuple[dict, list]:
         elif f[0] != face_body:
             problems.append(f"designs[{n}].face = {'.'.join(map(_part_name, f))!r}: contactopt designs a face of the "
                             f"body that carries the pairs' faces ({face_body!r}) so far")
-    if len(designs) > 1:
-        problems.append(f"designs: {len(designs)} designed faces; contactopt designs one face per model so far")
+    if len(designs) > 1 and len(contacts) == 1:
+        problems.append(f"designs: {len(designs)} designed faces in a model of one pair; contactopt designs several "
+                        "faces of the face body in a model of several pairs so far (each designed face a pair's face)")
     if len(problems) > n0:
         return _rest(raw), []
-    out, renames = _sections(raw, bodies, contacts[0], pairs[0], designs, problems)
+    out, renames = _sections(raw, bodies, contacts[0], pairs[0], designs, faces, problems)
     if len(contacts) > 1:
         _more_pairs(out, raw, bodies, contacts, pairs, faces, problems)
     return out, renames
@@ -323,7 +327,8 @@ def _design_face(d: dict, n: int, bodies: dict, problems: list):
     return _load_target(d["face"], f"designs[{n}].face", bodies, problems)
 
 
-def _sections(raw: dict, bodies: dict, contact: dict, pair, designs: list, problems: list) -> tuple[dict, list]:
+def _sections(raw: dict, bodies: dict, contact: dict, pair, designs: list, faces: list,
+              problems: list) -> tuple[dict, list]:
     """The one- and two-body sections of a checked assembly of one pair (module docstring)."""
     face_body, part, counter = pair
     out = _rest(raw)
@@ -392,6 +397,9 @@ def _sections(raw: dict, bodies: dict, contact: dict, pair, designs: list, probl
             out["obstacle"] = copy.deepcopy(counter)       # the fixed plane x3 = 0 is the model without one
     if designs:
         out["design"] = {k: copy.deepcopy(v) for k, v in designs[0].items() if k != "face"}
+        if len(designs) > 1:          # the designs after the first, each with its face (resolved spelling)
+            out["more_designs"] = [{**copy.deepcopy(d), "face": copy.deepcopy(f[1])}
+                                   for d, f in zip(designs[1:], faces[1:])]
     else:                               # no design: the reference shape, ϑ = 0 (``run`` refuses the model)
         out["design"] = {"degree": [0, 0], "initial": 0.0, "C2": 0.0}
     name = contact.get("name", f"{face_body}-{counter[0] if isinstance(counter, tuple) else 'rigid'}")
@@ -439,7 +447,7 @@ def _counterpart_body(out, bodies, counter, contact, raw, counter_loads, problem
 
 def check_record(data: dict, problems: list) -> None:
     """``[assembly]`` of a resolved configuration (written back and read again) agrees with its
-    sections: one or two bodies as [foundation] says, at most one design."""
+    sections: one or two bodies as [foundation] says, one design and one per ``more_designs`` entry."""
     rec = data.get("assembly")
     ok = (isinstance(rec, dict) and set(rec) == {"bodies", "contacts", "designs"}
           and isinstance(rec["bodies"], list) and isinstance(rec["contacts"], list)
@@ -449,7 +457,9 @@ def check_record(data: dict, problems: list) -> None:
         others = {str(p.get("counterpart", "")).split(".")[0] for p in rec["contacts"]} if data.get("pairs") else ()
         ok = len(rec["bodies"]) == 1 + ("foundation" in data) + len(others)
     ok = (ok and all(isinstance(p, dict) and set(p) == {"name", "face", "counterpart"} for p in rec["contacts"])
-          and isinstance(rec["designs"], list) and len(rec["designs"]) <= 1)
+          and isinstance(rec["designs"], list)
+          and (len(rec["designs"]) == 1 + len(data["more_designs"]) if data.get("more_designs")
+               else len(rec["designs"]) <= 1))
     if not ok:
         problems.append("[assembly]: is the record of a resolved assembly (bodies, contacts, designs); write the "
                         "model with [bodies], [[contacts]] and [[designs]] instead")

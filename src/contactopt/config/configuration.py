@@ -20,6 +20,7 @@ from .sections import (
     Body,
     ContactPair,
     Design,
+    DesignFace,
     Foundation,
     Friction,
     Geometry,
@@ -61,6 +62,7 @@ class Config:
     constraints: tuple[ResponseConstraint, ...] = ()     # [[constraints]] (config/constraints.py)
     pairs: tuple[ContactPair, ...] = ()  # several [[contacts]] on one face body (config/assembly.py)
     assembly: Assembly | None = None     # the names of bodies, pairs and designs (config/assembly.py)
+    more_designs: tuple[DesignFace, ...] = ()   # the designed faces after [design]'s (config/assembly.py)
     length_unit: str = ""                # the meshes' length unit, named on the figures' axes
     source: str = "<dict>"
     _data: dict = field(default_factory=dict, repr=False, compare=False)
@@ -84,12 +86,19 @@ class Config:
             constraints=tuple(ResponseConstraint.from_dict(c) for c in data.get("constraints", [])),
             pairs=tuple(ContactPair(p["contact"], float(p["friction"]), Foundation.from_dict(p["foundation"]))
                         for p in data.get("pairs", [])),
+            more_designs=tuple(DesignFace(d["face"], Design.from_dict({k: v for k, v in d.items() if k != "face"}))
+                               for d in data.get("more_designs", [])),
             assembly=Assembly.of(data), length_unit=data.get("length_unit", ""), source=source, _data=data)
 
     @property
     def data(self) -> dict:
         """The resolved nested dict (as validated; for writing it back, use :meth:`to_dict`)."""
         return self._data
+
+    @property
+    def designs(self) -> tuple[Design, ...]:
+        """Every design of the model in ``[[designs]]`` order: ``[design]`` and those of ``more_designs``."""
+        return (self.design,) + tuple(d.design for d in self.more_designs)
 
     @property
     def counterpart(self) -> str:

@@ -470,3 +470,12 @@ class ContactPair:
     contact: Any
     friction: float
     foundation: Foundation
+
+
+@dataclass(frozen=True)
+class DesignFace:
+    """A designed face after the first (``[[designs]]`` with more than one entry): its ``face`` (a
+    part of the face body) and its ``design``, a [design] of its own."""
+
+    face: Any
+    design: Design

@@ -417,6 +417,35 @@ def _check_pairs(given, data, problems) -> list:
     return out
 
 
+def _check_more_designs(given, data, problems) -> list:
+    """``more_designs`` (the resolved spelling of the second and further ``[[designs]]``,
+    config/assembly.py): per design its face part and the keys of [design], checked as [design]'s
+    and named ``designs[n]``."""
+    if not (isinstance(given, list) and given and all(isinstance(d, dict) and "face" in d for d in given)):
+        problems.append("more_designs: is the resolved spelling of several [[designs]]; write them as [[designs]]")
+        return []
+    out = []
+    for n, d in enumerate(given, start=1):
+        key = f"designs[{n}]"
+        sub = []
+        dsg = _check_table({k: v for k, v in d.items() if k != "face"}, SCHEMA["design"], "design", sub)
+        deg = dsg["degree"]
+        d1d2 = deg if isinstance(deg, list) and len(deg) == 2 and all(_natint(v) for v in deg) else None
+        _check_matrix(dsg["initial"], d1d2, "design.initial", sub)
+        _check_design_constraints(dsg, d1d2, sub)
+        if _finite(dsg["lower"]) and _pos(dsg["C0"]) and dsg["lower"] > dsg["C0"]:
+            sub.append(f"design.lower = {dsg['lower']}: must be ≤ design.C0 = {dsg['C0']}")
+        g = data.get("geometry")
+        if g is not None and _pos(g["c"]) and _pos(dsg["C0"]) and dsg["C0"] >= g["c"]:
+            sub.append(f"design.C0 = {dsg['C0']}: must be < geometry.c = {g['c']} (a surface reaching the top "
+                       "face inverts the mesh)")
+        if not _part_spec(d["face"]):
+            sub.append("design.face: must name a part")
+        problems += [p.replace("design.", f"{key}.", 1) for p in sub]
+        out.append({"face": copy.deepcopy(d["face"]), **dsg})
+    return out
+
+
 def _check_foundation_control(given, out, problems) -> None:
     """[foundation] control: a `force` other than zero only with 'force' (and there not zero), a
     `displacement` other than zero only with 'displacement', a `loaded` part other than the default
@@ -531,7 +560,7 @@ def resolve(raw: dict, source: str = "<dict>") -> dict:
     data = {}
     raw, renames = desugar(raw, problems)       # [bodies], [[contacts]], [[designs]] (config/assembly.py)
     n_assembly = len(problems)
-    optional = ["foundation", "obstacle", "load_cases", "load_steps", "constraints", "pairs"]
+    optional = ["foundation", "obstacle", "load_cases", "load_steps", "constraints", "pairs", "more_designs"]
     for key in raw:
         if key not in SCHEMA and key not in TOP_LEVEL and key not in optional and key != "assembly":
             problems.append(f"{key}: unknown section (allowed: "
@@ -578,6 +607,8 @@ def resolve(raw: dict, source: str = "<dict>") -> dict:
         data["obstacle"] = _check_obstacle(raw["obstacle"], data, problems)
     if "pairs" in raw:
         data["pairs"] = _check_pairs(raw["pairs"], data, problems)
+    if "more_designs" in raw:
+        data["more_designs"] = _check_more_designs(raw["more_designs"], data, problems)
     if "mesh" in data:
         _check_graded_block(raw, data, problems)
     dsg = data["design"]

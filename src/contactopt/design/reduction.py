@@ -237,6 +237,10 @@ def reduction_of(problem, alpha0):
     not symmetric (:func:`symmetry_warnings`)."""
     d = problem.config.design
     symmetry, fixed = d.symmetry, d.fixed
+    more = [k for k, dk in enumerate(problem.config.designs) if dk.symmetry or dk.fixed]
+    if len(problem.config.designs) > 1 and more:
+        raise ConfigError([f"{problem.config.source}: designs[{more[0]}]: symmetry and fixed control points are "
+                           "taken in a model of one design so far; with several [[designs]] drop them"])
     if not symmetry and not fixed:
         return None
     model = problem.model

@@ -47,7 +47,7 @@ from .dense import cholesky_lower, cholesky_solve, spd_inverse, symmetrize_lower
 from .elasticity import ElasticityAssembler
 from .elements import element_type, face_type, tri_rule
 from .loadset import load_set
-from .memory import foundation_parts, matrix_entries
+from .memory import counterpart_fullspace_parts, foundation_parts, matrix_entries
 from .mortar import MortarCoupling, mortar_matrices, transformed_basis
 
 log = logging.getLogger(__name__)
@@ -66,12 +66,14 @@ class Foundation:
     free support DOFs: the foundation's displacement for outputs)."""
 
     def __init__(self, spec, body, source: str = "<dict>", backend: str = "auto", check=None, normals=None,
-                 floating: bool = False, shared=None):
+                 floating: bool = False, condensed: bool = True, shared=None):
         """``spec`` the ``[foundation]`` section of the configuration read from ``source``;
         ``check(parts)``: called with :attr:`memory_parts` before K_f is assembled and
         condensed (the model's memory check), so that a foundation too large is refused first.
         ``normals`` (p, 3): the contact normals of a curved contact face (module docstring), whose
         partners lie along them; None: the face on x3 = 0, partners below the nodes.
+        ``condensed=False``: K_f is assembled and kept as it is (``K``, the full-space path's
+        block, paths/fullspace.py), nothing is factorized and C, W_f, ``condensation`` are None.
 
         ``shared``: a counterpart body of several pairs (fem.counterparts), ``[(spec_k, body_k,
         normals_k)]`` per pair, ``body_k`` the face body as pair k sees it (its contact nodes the
@@ -79,7 +81,6 @@ class Foundation:
         each pair's partners are searched on its own top part alone, and the body is condensed once
         onto the union of their supports, its rows the pairs' contact nodes one pair after the
         other. ``spec``, ``body`` and ``normals`` are then the first pair's."""
-        from .linsolve import condense
         views = [(spec, body, normals)] if shared is None else list(shared)
         contact_xy = body.reference.points[body.contact_nodes, :2]
         self.mesh = fm = build_foundation_mesh(spec, contact_xy, source, curved=normals is not None,
@@ -119,12 +120,41 @@ class Foundation:
         self._support_free = free[keep]
         free_per_node = np.ones(3 * ref.n_nodes, bool)
         free_per_node[fm.fixed_dofs] = False
-        self.memory_parts = foundation_parts(
-            self.assembler.n_free, matrix_entries(ref.cells, ref.n_nodes, free_per_node.reshape(-1, 3).sum(axis=1)),
-            self._support_free.size, 3 * p)
+        nnz_K = matrix_entries(ref.cells, ref.n_nodes, free_per_node.reshape(-1, 3).sum(axis=1))
+        self.memory_parts = (foundation_parts(self.assembler.n_free, nnz_K, self._support_free.size, 3 * p)
+                             if condensed else counterpart_fullspace_parts(self.assembler.n_free, nnz_K))
         if check is not None:
             check(self.memory_parts)
         self.rigid = fm.rigid     # held only by its contacts: K_f singular, no W_f, C, q_f (fem.counterparts)
+        self.K = None             # K_f on the free DOFs where it is not condensed
+        P = self.Pi.tocsc()[:, np.flatnonzero(keep)]
+        if not condensed:
+            self.K = sp.csr_matrix(self.assembler.stiffness(ref.points))
+            self.condensation = self.W_f = self.C = None
+        else:
+            self._condense(backend, P, p)
+        self.P = P                # Π on the free support DOFs (the clamped ones do not move)
+        f_full = self.loads.vector(ref.points, self.assembler)
+        self.load_resultant = f_full.reshape(-1, 3).sum(axis=0)
+        self.f_f = f_full[self.assembler.free]                    # K_f u_f0 = f_f
+        # the loads condensed onto the free support DOFs: ℓ_f = f_s − K_si K_ii⁻¹ f_i
+        self.ell_f = None if not condensed else self.condensation.condense_load(self.f_f)
+        if self.rigid is not None or not condensed:     # (uncondensed: f_f is the full-space load's)
+            self._u0 = None
+            self.q_f = np.zeros(3 * p)
+        else:
+            self._u0 = self.condensation.solve(self.f_f) if np.any(self.f_f) else np.zeros_like(self.f_f)
+            self.q_f = P @ self._u0[self._support_free]               # Π K_f⁻¹ f_f (3p,)
+        self._motion(spec)
+        log.info("elastic foundation %s: %d nodes, %d free DOFs, E = %g, nu = %g; %d top-face nodes carry "
+                 "the partners of %d contact nodes", ref.source, ref.n_nodes, self.assembler.n_free, fm.E, fm.nu,
+                 self.support.size, p)
+
+    def _condense(self, backend, P, p: int) -> None:
+        """K_f condensed onto the free support DOFs: ``condensation``, W_f and C = Π W_f Πᵀ (none
+        for a counterpart held only by its contacts, whose K_f is shifted by γ I_s)."""
+        from .linsolve import condense
+        ref = self.mesh.reference
         with task(f"the foundation's compliance at {3 * p} contact unknowns"):
             K = self.assembler.stiffness(ref.points)
             if self.rigid is not None:          # K_f + γ I_s: its Schur complement is S_f + γ I (paths/rigid.py)
@@ -134,7 +164,6 @@ class Foundation:
                 self.condensation = condense(K, self._support_free, backend=backend)
             else:                       # a slab one cell thick: every free DOF carries a partner
                 self.condensation = _WholeMatrix(K, self._support_free)
-            P = self.Pi.tocsc()[:, np.flatnonzero(keep)]
             if self.rigid is not None:
                 self.condensation.S = self.condensation.S - shift * np.eye(self._support_free.size)
                 self.W_f = self.C = None
@@ -143,18 +172,10 @@ class Foundation:
                 PW = (P @ self.W_f)                                      # (3p, n) dense
                 C = np.asarray((P @ PW.T).T)
                 self.C = 0.5 * (C + C.T)
-        self.P = P                # Π on the free support DOFs (the clamped ones do not move)
-        f_full = self.loads.vector(ref.points, self.assembler)
-        self.load_resultant = f_full.reshape(-1, 3).sum(axis=0)
-        self.f_f = f_full[self.assembler.free]                    # K_f u_f0 = f_f
-        # the loads condensed onto the free support DOFs: ℓ_f = f_s − K_si K_ii⁻¹ f_i
-        self.ell_f = self.condensation.condense_load(self.f_f)
-        if self.rigid is not None:
-            self._u0 = None
-            self.q_f = np.zeros(3 * p)
-        else:
-            self._u0 = self.condensation.solve(self.f_f) if np.any(self.f_f) else np.zeros_like(self.f_f)
-            self.q_f = P @ self._u0[self._support_free]               # Π K_f⁻¹ f_f (3p,)
+
+    def _motion(self, spec) -> None:
+        """The prescribed or force-driven translation of the foundation (its ``motion`` Π d)."""
+        fm = self.mesh
         # control = 'displacement' | 'force': the part `loaded` and the foundation with it translate
         # rigidly by d (mesh.foundation checks that the clamps allow it): the partners move by Π d
         self.control = spec.control
@@ -164,9 +185,6 @@ class Foundation:
             self.motion = np.asarray(self.Pi @ np.tile(self.translation, self.support.size))
             if spec.control == "displacement":
                 self.q_f = self.q_f + self.motion
-        log.info("elastic foundation %s: %d nodes, %d free DOFs, E = %g, nu = %g; %d top-face nodes carry "
-                 "the partners of %d contact nodes", ref.source, ref.n_nodes, self.assembler.n_free, fm.E, fm.nu,
-                 self.support.size, p)
 
     def _partners(self, spec, body, fm, normals, where: str, source: str):
         """(rows, cols, values) of the partners of ``body``'s contact nodes on ``fm``'s top face

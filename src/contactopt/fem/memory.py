@@ -153,6 +153,13 @@ def fullspace_parts(n_dofs: int, n_contact_dofs: int, nnz_A: int) -> tuple[dict,
     return {"sparse": AMG_SPARSE_COPIES * 12.0 * nnz_A, "krylov": KRYLOV_VECTORS * 8.0 * n_dofs}, 0
 
 
+def counterpart_fullspace_parts(n_dofs: int, nnz_K: int) -> dict:
+    """An elastic counterpart on the full-space path (bytes): its K_f as a block of the Newton
+    system (in the system's copies and the AMG hierarchy, as the body's A) and its part of the
+    Krylov basis; nothing factorized, nothing dense."""
+    return {"foundation": AMG_SPARSE_COPIES * 12.0 * nnz_K + KRYLOV_VECTORS * 8.0 * n_dofs}
+
+
 def foundation_parts(n_dofs: int, nnz_K: int, n_support_dofs: int, n_contact_dofs: int) -> dict:
     """The elastic foundation's part (bytes), held for the whole run beside an evaluation's: its
     sparse K_f and Schur-mode factor (``n_dofs`` free DOFs, ``nnz_K`` entries) and the dense

@@ -36,6 +36,7 @@ from ..config import Config, load_config
 from ..design.admissible import AdmissibleSet
 from ..design.bezier import BezierSurface
 from ..design.chart import motion_directions
+from ..design.several import ProductAdmissible
 from ..errors import ConfigError
 from ..mesh.block import block_axes
 from ..mesh.body import Body, build_body
@@ -43,6 +44,7 @@ from ..mesh.hexmesh import HexMesh
 from ..mesh.morph import JacobianRatio, MorphedMesh
 from ..mesh.obstacle import Obstacle, contact_frames, make_obstacle, tangent_frames
 from .counterparts import build_counterparts
+from .designs import design_surfaces, design_weights, initial_designs, several_morphs
 from .elasticity import BBAR_AUTO_NU, ElasticityAssembler, element_geometry, resolve_formulation
 from .elements import element_type, face_type
 from .foundation import Foundation
@@ -132,11 +134,13 @@ class ElasticModel:
     _det_ref: np.ndarray             # det J of the reference mesh at its quadrature points
     _pin_mask: tuple | None          # ((shape, nnz) of A's pattern, the CSR entries pinning zeroes)
 
-    def __init__(self, config, *, body=None, memory_estimate=None):
+    def __init__(self, config, *, body=None, memory_estimate=None, condensed: bool = True):
         """``body``: the configuration's body if already built; ``memory_estimate``: the peak
         memory estimate (a function of the body) of the solver path that will run, checked
         against the memory available before anything costly is built (the condensation's by
-        default)."""
+        default); ``condensed=False``: an elastic foundation is kept assembled, not condensed
+        onto its support (the full-space path's, :class:`~contactopt.fem.foundation.Foundation`)."""
+        self._condensed = condensed
         cfg = load_config(config) if not isinstance(config, Config) else config
         self.config = cfg
         self.body = body = build_body(cfg) if body is None else body
@@ -151,20 +155,25 @@ class ElasticModel:
         d1, d2 = cfg.design.degree
         (x1lo, x1hi), (x2lo, x2hi) = body.domain
         a, b = x1hi - x1lo, x2hi - x2lo
-        self.surface = BezierSurface(d1, d2, a, b, x1lo, x2lo)
+        self.surface = BezierSurface(d1, d2, a, b, x1lo, x2lo) if not body.designs else design_surfaces(cfg, body)
         mat = cfg.material
         self.assembler = ElasticityAssembler(ref.cells, ref.n_nodes, body.fixed_dofs, mat.E, mat.nu,
                                              element=element_type(ref.cell_type),
                                              formulation=formulation)
         self._check_reference(ref)
         zero = np.concatenate([np.asarray(v, np.int64) for v in body.fixed_shape.values()] or [np.zeros(0, np.int64)])
-        self.weight = harmonic_weight(self.assembler, ref.points, body.contact_face.nodes, zero)
+        if body.designs:          # several designed faces: a weight per face, one morph (fem.designs)
+            self.weight = design_weights(self.assembler, body, zero)
+        else:
+            self.weight = harmonic_weight(self.assembler, ref.points, body.contact_face.nodes, zero)
         chart = {}            # a chart of the face and normal motion (design.chart); none: the paper's map
         if body.chart is not None:
             chart["chart"] = body.chart
         if cfg.design.motion == "normal":
             chart["directions"] = motion_directions(ref.points, body.contact_face, ref.face_type, body.chart)
-        if cfg.body.mesh:
+        if body.designs:
+            self.mesh = several_morphs(cfg, body, self.surface, self.weight)
+        elif cfg.body.mesh:
             self.mesh = MorphedMesh(ref, self.surface, self.weight, body.contact_nodes,
                                     fixed_shape=tuple(body.fixed_shape), **chart)
         else:
@@ -201,7 +210,7 @@ class ElasticModel:
             mu = np.array([pr.friction for pr in cfg.pairs])[body.pair_of]
             self.contact_friction = None if np.all(mu == cfg.friction.coefficient) else mu
         self.gap_matrix = self.mesh.gap_matrix()
-        if body.pair_charts and cfg.assembly.designs:   # pairs off the designed face: the morph leaves them
+        if body.pair_charts and cfg.assembly.designs and not body.designs:   # pairs off the designed face: the morph leaves them
             self.gap_matrix = self.weight[self.contact_nodes][:, None] * self.gap_matrix
         # initial gap of a contact face above x3 = 0 (body.initial_gap = "mesh"); 0 on the plane
         self.gap0 = (ref.points[self.contact_nodes, 2].copy() if cfg.body.initial_gap == "mesh"
@@ -223,7 +232,8 @@ class ElasticModel:
             held = cfg.friction.coefficient if self.contact_friction is None else self.contact_friction
             self.foundation.check_held(held, [p.counterpart.split(".")[0] for p in cfg.assembly.contacts], cfg.source)
         if cfg.foundation is not None and self.foundation is None:
-            self.foundation = Foundation(cfg.foundation, body, source=cfg.source, check=check)
+            self.foundation = Foundation(cfg.foundation, body, source=cfg.source, check=check,
+                                         condensed=condensed)
             if self.foundation.basis is not None:   # six-node triangles, mortar partners: ĝ = T⁻ᵀ g (fem.mortar)
                 lu = spla.splu(sp.csc_matrix(self.foundation.basis.transpose()))
                 self.gap_matrix = lu.solve(np.asarray(self.gap_matrix, float))
@@ -365,7 +375,8 @@ class ElasticModel:
                                                  normals=n, frames=self.frames,
                                                  names=[c.counterpart.split(".")[0] for c in cfg.assembly.contacts])
         else:
-            self.foundation = Foundation(cfg.foundation, body, source=cfg.source, check=check, normals=n)
+            self.foundation = Foundation(cfg.foundation, body, source=cfg.source, check=check, normals=n,
+                                         condensed=self._condensed)
             self.foundation.rotate(self.frames)
         g = self.foundation.gap0
         deep = np.flatnonzero(g < -body.penetration_tol)
@@ -460,12 +471,21 @@ class ElasticModel:
         (g0 the face's height in the mesh with ``initial_gap = "mesh"``, else 0); on an obstacle
         other than the plane (n_m·e3) ϑ_α + d_m ≥ 0, d_m the node's distance to it (mesh.obstacle).
         Built for every configuration (a state reports the constraints its design breaks); whether
-        U is fit for an optimization on this mesh is :meth:`design_space_problems`."""
-        d, s = self.config.design, self.surface
+        U is fit for an optimization on this mesh is :meth:`design_space_problems`. Several designs:
+        the product of each design's U on its face (:class:`~contactopt.design.several.ProductAdmissible`)."""
+        if not body.designs:
+            return self._admissible_one(self.config.design, self.surface, self.mesh, body.contact_face.nodes,
+                                        self.initial_design(), "design", ref, frames)
+        init = self.surface.split(self.initial_design())
+        return ProductAdmissible([self._admissible_one(d, s, m, df.face.nodes, a0, f"designs[{k}]", ref)
+                                  for k, (d, s, m, df, a0) in enumerate(zip(self.config.designs, self.surface.surfaces,
+                                                                            self.mesh.morphs, body.designs, init))])
+
+    def _admissible_one(self, d, s, mesh, nodes, initial, key, ref, frames=None) -> AdmissibleSet:
+        """U of one design ``d`` (its surface ``s``, morph ``mesh``, face ``nodes``; ``key`` names it)."""
         gap = {}
         if d.nonnegative_gap and not self.config.body.interference:
-            nodes = body.contact_face.nodes
-            xy = self.mesh._in_domain(self.mesh.chart_points(ref.points[nodes]))
+            xy = mesh._in_domain(mesh.chart_points(ref.points[nodes]))
             g0 = (ref.points[nodes, 2].copy() if self.config.body.initial_gap == "mesh"
                   else np.zeros(nodes.size))
             B = s.basis_matrix(xy[:, 0], xy[:, 1])
@@ -475,14 +495,14 @@ class ElasticModel:
                        gap_points=ref.points[nodes, :2], counterpart=self.config.counterpart)
         extra = {}             # [design] direction and [[design.linear]] (absent: the paper's U)
         if d.direction != "both":
-            extra.update(direction=d.direction, initial=self.initial_design())
+            extra.update(direction=d.direction, initial=initial)
         if d.linear:
             extra["linear"] = tuple((r.coefficients, "upper" if r.upper is not None else "equal", r.bound)
                                     for r in d.linear)
         U = AdmissibleSet(s.d1, s.d2, s.a, s.b, d.C0, d.C1, d.C2, d.slope_divisor,
                           lower=d.lower, **gap, **extra)
         if extra and not U.nonempty():      # a contradiction within [design], refused as lower > C0 is
-            raise ConfigError([f"{self.config.source}: design.direction / design.linear leave no admissible "
+            raise ConfigError([f"{self.config.source}: {key}.direction / {key}.linear leave no admissible "
                                "design: the bounds, slopes, mean value and these rows have no common point"])
         return U
 
@@ -494,7 +514,7 @@ class ElasticModel:
         jr = JacobianRatio(ref.cells, self.mesh.ratio_gradient(G), self.mesh.dx3_dalpha(),
                            self.config.body.min_jacobian_ratio, qpoints=centroids,
                            fixed_parts={name: nodes for name, nodes in body.fixed_shape.items()})
-        self.safe_C0 = jr.safe_C0(self.config.design.lower)
+        self.safe_C0 = jr.safe_C0(self.config.design.lower) if not body.designs else np.nan
         return jr
 
     # ------------------------------------------------------------------ the design space
@@ -506,6 +526,8 @@ class ElasticModel:
         ``coordinates`` refuse the others)."""
         d, src, jr = self.config.design, self.config.source, self.mesh.ratio
         problems = []
+        if self.body.designs:
+            return self._designs_space_problems()
         worst, e, _, _ = jr.worst_on_box(d.C0, d.lower)
         if worst <= jr.threshold:
             what = f"design.C0 = {d.C0:g}" + (f" with design.lower = {d.lower:g}" if d.lower else "")
@@ -516,6 +538,23 @@ class ElasticModel:
                             f"body.min_jacobian_ratio = {jr.threshold:g}); {safe}")
         return problems
 
+    def _designs_space_problems(self) -> list[str]:
+        """:meth:`design_space_problems` of several designs: the Jacobian ratio on the product of
+        their boxes [lower_d, C0_d]."""
+        jr, U = self.mesh.ratio, self.admissible
+        lo = np.concatenate([np.full(s.size, float(d.lower)) for d, s in zip(self.config.designs, self.surface.surfaces)])
+        hi = np.concatenate([np.full(s.size, float(d.C0)) for d, s in zip(self.config.designs, self.surface.surfaces)])
+        worst, e, scale = jr.worst_on_bounds(lo, hi)
+        if worst > jr.threshold:
+            return []
+        what = ", ".join(f"{name}.C0 = {d.C0:g}" + (f" (lower {d.lower:g})" if d.lower else "")
+                         for name, d in zip(U.names, self.config.designs))
+        safe = (f"the C0 scaled by {scale:.4g} or less keep it valid" if scale > 0
+                else "no C0 is safe with these lower bounds: raise them towards 0")
+        return [f"{self.config.source}: {what} let admissible designs {'invert' if worst <= 0 else 'distort'} "
+                f"element {e} at {_fmt(jr.qpoints[e])} (Jacobian ratio down to {worst:.3g} ≤ "
+                f"body.min_jacobian_ratio = {jr.threshold:g}); {safe}"]
+
     def check_design_space(self) -> None:
         """Before an optimization: ConfigError listing :meth:`design_space_problems`; a warning
         when U lets the contact face overlap its counterpart (``design.lower < 0`` without
@@ -523,12 +562,14 @@ class ElasticModel:
         problems = self.design_space_problems()
         if problems:
             raise ConfigError(problems)
-        d, cfg = self.config.design, self.config
-        if d.lower < 0 and not d.nonnegative_gap and not cfg.body.interference:
-            where = "below" if cfg.counterpart == "the foundation plane" else "into"
-            log.warning("%s: design.lower = %g < 0 with design.nonnegative_gap = false: admissible designs may "
-                        "put the contact face %s %s (an initial penetration; body.interference = true where "
-                        "the overlap is intended)", cfg.source, d.lower, where, cfg.counterpart)
+        cfg = self.config
+        for k, d in enumerate(cfg.designs):
+            if d.lower < 0 and not d.nonnegative_gap and not cfg.body.interference:
+                where = "below" if cfg.counterpart == "the foundation plane" else "into"
+                key = f"designs[{k}]" if self.body.designs else "design"
+                log.warning("%s: %s.lower = %g < 0 with %s.nonnegative_gap = false: admissible designs may "
+                            "put the contact face %s %s (an initial penetration; body.interference = true where "
+                            "the overlap is intended)", cfg.source, key, d.lower, key, where, cfg.counterpart)
 
     # ------------------------------------------------------------------ sizes
     @property
@@ -541,6 +582,8 @@ class ElasticModel:
 
     def initial_design(self) -> np.ndarray:
         """α0 of the configuration (a scalar fills every control point)."""
+        if self.body.designs:
+            return initial_designs(self.config, self.surface)
         init = self.config.design.initial
         if np.isscalar(init):
             return np.full(self.n_design, float(init))

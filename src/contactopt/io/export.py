@@ -580,6 +580,17 @@ def export_design(model, alpha, outdir, formats=None, *, unit: str = "mm", stric
                 formats.remove(f)
                 skipped[f] = "no CAD kernel: " + CAD_HINT
                 log.warning("export: %s skipped (no CAD kernel; %s)", f.upper(), CAD_HINT)
+    if model.body.designs:
+        # several designed faces: the round-trip configuration and the CAD surface are one design's
+        several = [f for f in formats if f in ("mesh", "step", "iges")]
+        if several and strict:
+            raise ExportError(f"export {', '.join(several)}: the model has {len(model.body.designs)} designed faces; "
+                              "the exported body with its configuration and the CAD surface are written for a "
+                              "model of one design so far (export stl)")
+        for f in several:
+            formats.remove(f)
+            skipped[f] = "several designed faces (written for one design so far)"
+            log.info("export: %s skipped (%s)", f.upper(), skipped[f])
     if model.body.chart is not None and not strict:
         # ϑ_α on a chart is not a graph over (x1, x2): the body's mesh and STL carry the designed face
         for f in ("step", "iges"):

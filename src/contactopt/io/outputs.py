@@ -17,6 +17,7 @@ from pathlib import Path
 import numpy as np
 
 from ..design.chart import chart_summary
+from ..design.several import alpha_record, split_design, surfaces_of
 from ..errors import ContactOptError
 from ..sensitivity.solution import KeptDesign
 from .atomic import WriteError, atomic_write_json, atomic_write_text
@@ -115,20 +116,23 @@ def _write_files(out: Path, problem, x, res, oracle, t0, at, figures, plots) -> 
     atomic_write_text(out / "iterations.csv", "iteration,J,step,t,stationarity,evaluations\n" + "".join(
         f"{r['iteration']},{r['f'] * oracle.scale!r},{r['step']},{r['t']:.6e},{r['stationarity']:.6e},"
         f"{r['nfev']}\n" for r in res.history))
-    amat = model.surface.as_matrix(x)
-    atomic_write_json(out / "alpha.json", {"alpha": amat.tolist(), "shape": list(amat.shape)})
-    sf = model.surface
-    g1, g2 = np.meshgrid(np.linspace(sf.x1lo, sf.x1lo + sf.a, 41), np.linspace(sf.x2lo, sf.x2lo + sf.b, 21))
-    h = model.surface.evaluate(x, g1.ravel(), g2.ravel())
-    atomic_write_text(out / "surface.csv", "x1,x2,theta\n" + "".join(
-        f"{a:.6g},{b:.6g},{c:.10g}\n" for a, b, c in zip(g1.ravel(), g2.ravel(), h)))
+    amat = alpha_record(model.surface, x)
+    shapes = [list(s.shape) for s in surfaces_of(model.surface)]
+    atomic_write_json(out / "alpha.json", {"alpha": amat, "shape": shapes[0] if len(shapes) == 1 else shapes})
+    several = len(shapes) > 1           # several designs: surface.csv per design (design, x1, x2, theta)
+    rows = []
+    for k, (sf, xk) in enumerate(zip(surfaces_of(model.surface), split_design(model.surface, x))):
+        g1, g2 = np.meshgrid(np.linspace(sf.x1lo, sf.x1lo + sf.a, 41), np.linspace(sf.x2lo, sf.x2lo + sf.b, 21))
+        h = sf.evaluate(xk, g1.ravel(), g2.ravel())
+        rows += [(f"{k}," if several else "") + f"{a:.6g},{b:.6g},{c:.10g}\n" for a, b, c in zip(g1.ravel(), g2.ravel(), h)]
+    atomic_write_text(out / "surface.csv", ("design," if several else "") + "x1,x2,theta\n" + "".join(rows))
     wall = time.perf_counter() - oracle.t_start
     summary = {
         "name": problem.config.name, "J0": J0, "J": J, "ratio": J / J0 if J0 else None,
         "iterations": int(res.nit), "evaluations": int(oracle.count), "serious_steps": int(res.n_serious),
         "null_steps": int(res.n_null), "success": bool(res.success), "message": str(res.message),
         "status": int(res.status), "stopping": _stopping(res, problem.config.optimizer),
-        "alpha": amat.tolist(), "admissible": bool(model.admissible.is_feasible(x, tol=1e-8)),
+        "alpha": amat, "admissible": bool(model.admissible.is_feasible(x, tol=1e-8)),
         "wall_time_s": wall,
         "time_breakdown_s": {**oracle.time, "outputs": time.perf_counter() - t0},
         "final_state": s1.summary(),

@@ -38,6 +38,7 @@ from matplotlib.tri import Triangulation
 
 from ..contact.state import CLASS_NAMES
 from ..design.chart import chart_axes
+from ..design.several import split_design, surfaces_of
 from ..fem.stress import quadrature_points, von_mises_points
 from .atomic import atomic_output
 
@@ -175,8 +176,12 @@ def _dual_edges(nodes: np.ndarray, lo: float, hi: float) -> np.ndarray:
 
 
 def _rectangle(model):
-    """(x1lo, x1hi, x2lo, x2hi) of the design rectangle."""
+    """(x1lo, x1hi, x2lo, x2hi) of the design rectangle; several designs: the bounding rectangle of
+    the contact nodes' chart coordinates (each node on its design's chart)."""
     s = model.surface
+    if len(surfaces_of(s)) > 1:
+        xy = np.asarray(model.mesh.contact_points(), float)
+        return float(xy[:, 0].min()), float(xy[:, 0].max()), float(xy[:, 1].min()), float(xy[:, 1].max())
     return s.x1lo, s.x1lo + s.a, s.x2lo, s.x2lo + s.b
 
 
@@ -192,10 +197,10 @@ def _axis_labels(model) -> tuple[str, str]:
     return tuple(_unit(model, label) for label in chart_axes(model.mesh.chart).labels)
 
 
-def _lift_label(model) -> str:
+def _lift_label(model, mesh=None) -> str:
     """The label of ϑ_α in a plot of the surface: x3 on the paper's map (the face lies at x3 = ϑ_α),
     else ϑ_α along the direction the design moves the face (``[design] motion``)."""
-    mesh = model.mesh
+    mesh = model.mesh if mesh is None else mesh
     if mesh.directions is not None:
         return _unit(model, "$\\vartheta_\\alpha$ along the inward normal")
     return _unit(model, "$x_3$" if mesh.chart is None else "$\\vartheta_\\alpha$ along $x_3$")
@@ -229,7 +234,8 @@ def _pcolor(ax, model, grid, **kw):
 
 
 def _figsize_map(model, extra_width=1.6):
-    ratio = model.surface.b / model.surface.a
+    x1lo, x1hi, x2lo, x2hi = _rectangle(model)
+    ratio = (x2hi - x2lo) / (x1hi - x1lo)
     w = 6.0
     return (w + extra_width, max(2.6, w * ratio + 1.1))
 
@@ -440,49 +446,69 @@ def plot_load_cases(path, model, names, initial, optimal, values0=None, values1=
 
 def plot_surface(path, model, alpha, *, resolution=(81, 41), title="Contact surface $\\vartheta_\\alpha$") -> Path:
     """The contact surface ϑ_α(ξ1, ξ2) as a 3D surface with the Bézier control points and net, over
-    the chart coordinates of the face ((x1, x2) on the paper's map).
+    the chart coordinates of the face ((x1, x2) on the paper's map); several designs: one panel per
+    designed face, each over its own chart.
 
     Control point α_ij is drawn at (a·i/d1, b·j/d2, α_ij), where the linear-precision property of
     Bernstein polynomials puts it (the surface of a planar control net is that plane).
     """
-    surf = model.surface
-    A = surf.as_matrix(alpha)
-    if not np.all(np.isfinite(A)):
+    surfaces = surfaces_of(model.surface)
+    blocks = split_design(model.surface, alpha)
+    if not all(np.all(np.isfinite(a)) for a in blocks):
         raise ValueError("plot_surface: the design has non-finite entries")
-    x1lo, x1hi, x2lo, x2hi = _rectangle(model)
+    D = len(surfaces)
+    if D == 1:
+        fig = _new_figure((9.0, 6.0), layout=None)
+        ax = fig.add_axes((0.0, 0.02, 0.84, 0.9), projection="3d")
+        sm = _surface_panel(ax, model, surfaces[0], blocks[0], model.body.contact_face.faces, model.mesh,
+                            resolution, title, _has_grid(model))
+        fig.colorbar(sm, cax=fig.add_axes((0.86, 0.22, 0.025, 0.56)), label="$\\vartheta_\\alpha$")
+        return _save(fig, path)
+    fig = _new_figure((6.0 * D, 5.5), layout=None)
+    names = model.config.assembly.designs
+    for k, (surf, a, df, morph) in enumerate(zip(surfaces, blocks, model.body.designs, model.mesh.morphs)):
+        ax = fig.add_subplot(1, D, k + 1, projection="3d")
+        sm = _surface_panel(ax, model, surf, a, df.face.faces, morph, resolution, f"designs[{k}]: {names[k]}", False)
+        fig.colorbar(sm, ax=ax, shrink=0.6, label="$\\vartheta_\\alpha$")
+    fig.suptitle(title, fontsize=11)
+    return _save(fig, path)
+
+
+def _surface_panel(ax, model, surf, alpha, faces, morph, resolution, title, grid):
+    """One design's surface on ``ax``: ϑ over its design rectangle (over its face only unless the
+    face is the block's whole grid), the control net, labels; returns the surface for a colour bar."""
+    A = surf.as_matrix(alpha)
+    x1lo, x1hi, x2lo, x2hi = surf.x1lo, surf.x1lo + surf.a, surf.x2lo, surf.x2lo + surf.b
     x1 = np.linspace(x1lo, x1hi, resolution[0])
     x2 = np.linspace(x2lo, x2hi, resolution[1])
     G1, G2 = np.meshgrid(x1, x2)
     Z = surf.evaluate(A, G1.ravel(), G2.ravel()).reshape(G1.shape)
-    if not _has_grid(model):
+    if not grid:
         # the surface over the contact face only (a disc, an L: the rectangle carries the net)
-        corners = np.asarray(model.body.contact_face.faces)
+        corners = np.asarray(faces)
         corners = corners[:, :4] if corners.shape[1] == 4 else corners[:, :3]
         tris = np.vstack([corners[:, [0, 1, 2]], corners[:, [0, 2, 3]]]) if corners.shape[1] == 4 else corners
-        xy = model.mesh.chart_points(model.body.reference.points)     # the face unrolled on its chart
+        xy = morph.chart_points(model.body.reference.points)     # the face unrolled on its chart
         inside = Triangulation(xy[:, 0], xy[:, 1], tris).get_trifinder()(G1, G2) >= 0
         Z = np.where(inside, Z, np.nan)
     c1 = x1lo + surf.a * np.arange(surf.d1 + 1) / max(surf.d1, 1)
     c2 = x2lo + surf.b * np.arange(surf.d2 + 1) / max(surf.d2, 1)
     C1, C2 = np.meshgrid(c1, c2, indexing="ij")
-    fig = _new_figure((9.0, 6.0), layout=None)
-    ax = fig.add_axes((0.0, 0.02, 0.84, 0.9), projection="3d")
     sm = ax.plot_surface(G1, G2, Z, cmap="terrain", linewidth=0, antialiased=True, alpha=0.85)
     ax.plot_wireframe(C1, C2, A, color="0.25", linewidth=0.6)
     ax.scatter(C1.ravel(), C2.ravel(), A.ravel(), color="crimson", s=14, depthshade=False,
                label=f"control points ({A.shape[0]}×{A.shape[1]})")
-    xlabel, ylabel = _axis_labels(model)
+    xlabel, ylabel = (_unit(model, label) for label in chart_axes(morph.chart).labels)
     ax.set_xlabel(xlabel)
     ax.set_ylabel(ylabel)
     lo, hi = min(0.0, np.nanmin(Z), A.min()), max(np.nanmax(Z), A.max())
     ax.set_zlim(lo, hi + 0.05 * (hi - lo) if hi > lo else lo + 1.0)
-    ax.set_zlabel(_lift_label(model), labelpad=_label_pad(ax.zaxis))
+    ax.set_zlabel(_lift_label(model, morph), labelpad=_label_pad(ax.zaxis))
     ax.set_box_aspect((surf.a, surf.b, 0.6 * max(surf.a, surf.b)))
     ax.legend(loc="upper left", fontsize=8)
-    fig.colorbar(sm, cax=fig.add_axes((0.86, 0.22, 0.025, 0.56)), label="$\\vartheta_\\alpha$")
     ax.set_title(f"{title}\nmin {np.nanmin(Z):.4g}, max {np.nanmax(Z):.4g}", fontsize=10)
     ax.view_init(elev=25, azim=-60)
-    return _save(fig, path)
+    return sm
 
 
 def plot_history(path, history_rows, *, title="Convergence history") -> Path:

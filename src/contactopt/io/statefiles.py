@@ -49,6 +49,7 @@ import numpy as np
 
 from ..contact.state import CLASS_NAMES, FoundationState, State
 from ..design.chart import chart_summary
+from ..design.several import alpha_record
 from . import plots, vtk
 from .atomic import atomic_savez, atomic_write_json, fsync_dir, to_jsonable
 from .forked import Forked
@@ -87,7 +88,7 @@ def state_json(model, state: State, config=None, warnings=None, objective=None, 
     doc = {
         "format_version": FORMAT_VERSION,
         "summary": state.summary(),
-        "alpha": model.surface.as_matrix(state.alpha).tolist(),
+        "alpha": alpha_record(model.surface, state.alpha),
         "n_nodes": int(model.mesh.n_nodes),
         "n_contact": int(model.n_contact),
         "class_names": list(CLASS_NAMES),

@@ -69,6 +69,7 @@ class Body(HasParts):
     pair_faces: tuple = ()        # several contact pairs: each pair's face (Part); the contact nodes are theirs
     pair_of: np.ndarray | None = None   # (p,) the pair of each contact node, in [[contacts]] order
     pair_charts: tuple = ()       # several pairs, some off the designed face's chart: each pair's face's chart
+    designs: tuple = ()           # several designs: every designed face (DesignedFace), the first the contact face
 
     @property
     def contact_faces(self) -> np.ndarray:
@@ -95,6 +96,16 @@ class Body(HasParts):
         return replace(self, contact_face=self.pair_faces[k], contact_nodes=nodes, chart=chart,
                        pinned_dofs=self.pinned_dofs[np.isin(node, nodes)], pair_faces=(), pair_of=None,
                        pair_charts=())
+
+
+@dataclass(frozen=True)
+class DesignedFace:
+    """One of several designed faces (``[[designs]]``): its part of the body, its chart (None: the
+    paper's ξ = (x1, x2)) and its design rectangle ((x1lo, x1hi), (x2lo, x2hi)) on the chart."""
+
+    face: Part
+    chart: object
+    domain: tuple
 
 
 def reference_mesh(cfg):
@@ -138,11 +149,13 @@ def build_body(cfg) -> Body:
     if problems:
         raise ConfigError([f"{cfg.source}: {p}" for p in problems])
     _check_pair_faces(pair_faces, cfg.source)
+    more = _more_design_faces(cfg, ref, tol, face)
     fixed = np.zeros((ref.n_nodes, 3), bool)
     for p, comps in clamped:
         fixed[np.ix_(p.nodes, comps)] = True
     pair_charts = ()
     outside = [k for k, pf in enumerate(pair_faces) if not np.all(np.isin(pf.nodes, face.nodes))]
+    designed = [face] + more            # every designed face (one but for several [[designs]])
     try:
         chart = _chart(cfg, ref, face, gtol)
     except ConfigError:
@@ -185,25 +198,79 @@ def build_body(cfg) -> Body:
     if rigid.count:
         log.info("body.clamped leaves %d rigid-body motion(s) free: %s; contact must hold them", rigid.count,
                  ", ".join(rigid.names()))
-    fixed_shape = _fixed_shape(ref, spec.fixed_shape, face, tol, cfg.source)
+    fixed_shape = _fixed_shape(ref, spec.fixed_shape, _union(designed), tol, cfg.source)
     for k in outside if cfg.assembly.designs else ():
-        shared = np.intersect1d(pair_faces[k].nodes, face.nodes)
-        if shared.size:
-            raise ConfigError([f"{cfg.source}: contacts[{k}].face: shares {shared.size} node(s) with the designed face "
-                               f"{face.name!r} without lying within it, first node {int(shared[0])}: a pair's face lies "
-                               "on the designed face or apart from it"])
-        fixed_shape[f"contacts[{k}].face"] = pair_faces[k].nodes      # off the design: the morph leaves it
+        within = False
+        for n, f in enumerate(designed):
+            shared = np.intersect1d(pair_faces[k].nodes, f.nodes)
+            within |= shared.size == pair_faces[k].nodes.size
+            if shared.size and shared.size < pair_faces[k].nodes.size:
+                what = f"designs[{n}].face" if more else "the designed face"
+                raise ConfigError([f"{cfg.source}: contacts[{k}].face: shares {shared.size} node(s) with {what} "
+                                   f"{f.name!r} without lying within it, first node {int(shared[0])}: a pair's face "
+                                   "lies on the designed face or apart from it"])
+        if not within:
+            fixed_shape[f"contacts[{k}].face"] = pair_faces[k].nodes      # off the designs: the morph leaves it
     xi = ref.points[face.nodes, :2] if chart is None else chart.parameters(ref.points[face.nodes])
     domain = _domain(cfg.design.domain, xi, face, tol, cfg.source)
+    designs = ()
+    if more:
+        designs = (DesignedFace(face, chart, domain),) + tuple(
+            _designed_face(cfg, n, ref, f, gtol, ptol, tol) for n, f in enumerate(more, start=1))
     eliminated = fixed.copy()
     eliminated.ravel()[pinned] = False
     body = Body(ref, tol, np.flatnonzero(eliminated.ravel()), clamped, face, contact_nodes, fixed_shape, domain,
                 pinned_dofs=pinned, rigid=rigid if rigid.count else None, chart=chart, penetration_tol=ptol,
-                pair_faces=tuple(pair_faces), pair_of=pair_of, pair_charts=pair_charts)
+                pair_faces=tuple(pair_faces), pair_of=pair_of, pair_charts=pair_charts, designs=designs)
     body.warnings += warnings + _thin_tetrahedra(ref) + _poor_cells(ref)
     for w in body.warnings:
         log.warning("%s", w)
     return body
+
+
+def _more_design_faces(cfg, ref: ReferenceMesh, tol: float, face: Part) -> list:
+    """The parts of the designs after the first (``cfg.more_designs``); ConfigError naming a face
+    that is no part of the body, or two designed faces that share nodes (a node is moved by one
+    design: each face's harmonic weight is 1 on it and 0 on the others)."""
+    problems, parts = [], []
+    for n, d in enumerate(cfg.more_designs, start=1):
+        try:
+            parts.append(select_part(ref, d.face, tol))
+        except MeshError as exc:
+            problems.append(f"designs[{n}].face = {describe_part(d.face)}: {exc}")
+    if problems:
+        raise ConfigError([f"{cfg.source}: {p}" for p in problems])
+    for n, p in enumerate(parts, start=1):
+        if p.faces.shape[0] == 0:
+            problems.append(f"designs[{n}].face = {p.name}: has no boundary faces (a designed face is a surface "
+                            "of the body)")
+        for m, q in enumerate([face] + parts[:n - 1]):
+            both = np.intersect1d(p.nodes, q.nodes)
+            if both.size:
+                problems.append(f"designs[{n}].face and designs[{m}].face: share {both.size} node(s), first node "
+                                f"{int(both[0])} at {_fmt(ref.points[both[0]])}; designed faces must not share "
+                                "nodes (a node is moved by one design): split the faces")
+    if problems:
+        raise ConfigError([f"{cfg.source}: {p}" for p in problems])
+    return parts
+
+
+def _designed_face(cfg, n: int, ref: ReferenceMesh, face: Part, gtol: float, ptol: float, tol: float):
+    """Design n ≥ 1 of several: its face, chart and design rectangle, as the first design's."""
+    dsg = cfg.more_designs[n - 1].design
+    chart = _chart(cfg, ref, face, gtol, dsg)
+    if chart is None:
+        face = _check_contact_face(ref, face, ptol, on_plane=cfg.body.initial_gap == "zero", graph_tol=gtol,
+                                   interference=cfg.body.interference, plane=_plane_name(cfg))
+    else:
+        face = Part(face.name, np.unique(face.faces), face.faces, face.origin)
+    xi = ref.points[face.nodes, :2] if chart is None else chart.parameters(ref.points[face.nodes])
+    try:
+        domain = _domain(dsg.domain, xi, face, tol, cfg.source)
+    except ConfigError as exc:
+        raise ConfigError([p.replace("design.", f"designs[{n}].").replace("body.contact", f"designs[{n}].face")
+                           for p in exc.problems]) from None
+    return DesignedFace(face, chart, domain)
 
 
 def _contact_nodes(face: Part, fixed: np.ndarray, contact, source: str, normal_comp=None):
@@ -281,14 +348,15 @@ def _check_pair_faces(pair_faces: list, source: str) -> None:
         raise ConfigError([f"{source}: {p}" for p in problems])
 
 
-def _chart(cfg, ref: ReferenceMesh, face: Part, gtol: float):
+def _chart(cfg, ref: ReferenceMesh, face: Part, gtol: float, design=None):
     """The chart of the contact face (:mod:`contactopt.design.chart`), or None for the paper's
     ξ = (x1, x2): ``design.chart = "auto"`` on a face whose outward normals all point down (−x3),
     or whose counterpart is the plane x3 = 0, which :func:`_check_contact_face` then checks as before.
 
     A chart other than a plane with outward normal −e3 needs a counterpart that gives each contact
-    node its frame: a rigid ``[obstacle]`` other than the plane x3 = 0."""
-    d = cfg.design
+    node its frame: a rigid ``[obstacle]`` other than the plane x3 = 0. ``design``: the design of
+    the face (default ``[design]``)."""
+    d = cfg.design if design is None else design
     if face.faces.shape[0] == 0:
         return None                       # _check_contact_face names it
     obstacle = cfg.obstacle

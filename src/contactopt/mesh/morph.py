@@ -153,6 +153,98 @@ class MorphedMesh:
         return self.surface.basis_matrix(xy[:, 0], xy[:, 1])
 
 
+class SeveralMorphs:
+    """The morph of several designed faces (:mod:`contactopt.design.several`): one displacement
+    field of the body,
+
+        x(α) = x_ref + Σ_d ϑ_d(ξ_d(x_ref))·w_d(x_ref)·d_d(x_ref),
+
+    one :class:`MorphedMesh` per design d (its surface, harmonic weight w_d — 1 on its face, 0 on
+    the other designed faces and the parts fixed in shape —, chart ξ_d and directions d_d), α the
+    designs' control points concatenated. Still affine in α: ∂x/∂α of design d's block is
+    design d's own, and the design derivatives contract each block with its own directions.
+
+    A contact node lies on one designed face at most (the faces share no node,
+    :func:`contactopt.mesh.body.build_body`): its gap takes the columns of that design alone."""
+
+    def __init__(self, morphs, surface):
+        self.morphs = tuple(morphs)
+        self.surface = surface                       # design.several.DesignSurfaces
+        first = self.morphs[0]
+        self.reference, self.contact_nodes, self.fixed_shape = first.reference, first.contact_nodes, first.fixed_shape
+        self.elements = first.elements
+        self.chart = first.chart          # the first design's (each design's: ``morphs``)
+        self.offsets = surface.offsets
+        self.weights = np.array([m.weight for m in self.morphs])        # (D, n_nodes)
+        # per node the design whose weight is largest there: its chart and direction at contact nodes
+        self.owner = np.argmax(self.weights, axis=0)
+        if all(m.directions is None for m in self.morphs):
+            self.directions = None
+        else:
+            dirs = np.array([np.broadcast_to([0.0, 0.0, 1.0], (self.n_nodes, 3)) if m.directions is None
+                             else m.directions for m in self.morphs])
+            self.directions = dirs[self.owner, np.arange(self.n_nodes)]
+        self.ratio = None          # JacobianRatio, attached by the model
+
+    n_nodes = MorphedMesh.n_nodes
+    n_elements = MorphedMesh.n_elements
+    cell_type = MorphedMesh.cell_type
+    parts = MorphedMesh.parts
+
+    def _blocks(self, alpha):
+        a = self.surface.as_vector(alpha)
+        o = self.offsets
+        return [a[o[d]:o[d + 1]] for d in range(len(self.morphs))]
+
+    def coordinates(self, alpha) -> np.ndarray:
+        """Node coordinates (n_nodes, 3) of Ω(α) (as :meth:`MorphedMesh.coordinates`)."""
+        alpha = self.surface.as_vector(alpha)
+        if not np.all(np.isfinite(alpha)):
+            raise MeshError("design produces non-finite surface heights")
+        if self.ratio is not None:
+            self.ratio.check(alpha)
+        x = self.reference.points.copy()
+        for m, a in zip(self.morphs, self._blocks(alpha)):
+            if m.directions is None:
+                x[m.moving, 2] += m.lift(a)
+            else:
+                x[m.moving] += m.lift(a)[:, None] * m.directions[m.moving]
+        return x
+
+    def dx3_dalpha(self) -> list:
+        """Per design the (n_nodes, its size) amplitudes of ∂x/∂α (:class:`JacobianRatio` takes the list)."""
+        return [m.dx3_dalpha() for m in self.morphs]
+
+    def contract_dx(self, d: np.ndarray) -> np.ndarray:
+        """Σ_n (∂x_n/∂α)·d_n, each design's block along its own directions."""
+        return np.concatenate([m.contract_dx(d) for m in self.morphs])
+
+    def ratio_gradient(self, G: np.ndarray) -> list:
+        """Per design the (E, Q, n) ∇N_a·d_a of its directions (:meth:`MorphedMesh.ratio_gradient`)."""
+        return [m.ratio_gradient(G) for m in self.morphs]
+
+    def chart_points(self, x) -> np.ndarray:
+        """Chart coordinates of points x on the first design's chart (per design: ``morphs``)."""
+        return self.morphs[0].chart_points(x)
+
+    def contact_points(self) -> np.ndarray:
+        """Chart coordinates of the contact nodes, each on the chart of the design that moves it
+        (the first design's where none does)."""
+        nodes = self.contact_nodes
+        x = self.reference.points[nodes]
+        out = self.morphs[0].chart_points(x).astype(float)
+        for d, m in enumerate(self.morphs[1:], start=1):
+            mine = (self.owner[nodes] == d) & (m.weight[nodes] > 0)
+            if np.any(mine):
+                out[mine] = m.chart_points(x[mine])
+        return out
+
+    def gap_matrix(self) -> np.ndarray:
+        """G with g = G α at the contact nodes: per node the columns of the design whose face it lies
+        on (w_d = 1 there, 0 on the other designed faces and on faces no design moves)."""
+        return np.hstack([m.weight[self.contact_nodes][:, None] * m.gap_matrix() for m in self.morphs])
+
+
 class JacobianRatio:
     """det J(α) / det J_ref = 1 + R α at every quadrature point (see the module docstring).
 
@@ -163,6 +255,12 @@ class JacobianRatio:
     def __init__(self, elements, grad3, dx3, threshold, *, qpoints=None, fixed_parts=None, chunk=20000):
         self.elements = elements
         self.threshold = float(threshold)
+        if isinstance(grad3, list):        # several designs (SeveralMorphs): per design its grad3 and dx3
+            parts = [JacobianRatio(elements, g, x, threshold, chunk=chunk) for g, x in zip(grad3, dx3)]
+            self.shape = parts[0].shape
+            self.R = np.hstack([p.R for p in parts])
+            self.qpoints, self.fixed_parts = qpoints, fixed_parts or {}
+            return
         E, Q, _ = grad3.shape
         self.shape = (E, Q)
         nd = dx3.shape[1]
@@ -209,6 +307,20 @@ class JacobianRatio:
         worst = 1.0 + C0 * neg + lower * np.maximum(self.R, 0.0).sum(axis=1, dtype=np.float64)
         q = int(np.argmin(worst))
         return float(worst[q]), q // self.shape[1], q % self.shape[1], float(-neg[q])
+
+    def worst_on_bounds(self, lower: np.ndarray, upper: np.ndarray):
+        """(smallest ratio, element, safe scale) over designs with lower ≤ α ≤ upper per design
+        variable (several designs, each its own box): 1 + Σ_k min(0, R_qk) upper_k + max(0, R_qk)
+        lower_k, and the largest t for which the box [lower, t·upper] keeps every ratio above the
+        threshold (≤ 0: none)."""
+        neg = np.minimum(self.R, 0.0).astype(np.float64) @ np.asarray(upper, float)
+        pos = np.maximum(self.R, 0.0).astype(np.float64) @ np.asarray(lower, float)
+        worst = 1.0 + neg + pos
+        q = int(np.argmin(worst))
+        room = 1.0 - self.threshold + pos
+        with np.errstate(divide="ignore", invalid="ignore"):
+            scale = float(np.min(np.where(neg < 0, room / -neg, np.inf))) if np.all(room > 0) else 0.0
+        return float(worst[q]), q // self.shape[1], scale
 
     def safe_C0(self, lower: float = 0.0) -> float:
         """Largest C0 for which every design of the box [lower, C0] keeps the ratio above the

@@ -66,10 +66,12 @@ def needs(config, pinned: int = 0, ranks: int = 1, rigid=None) -> dict:
     types = objective_types(config) | constraint_types(config)     # [[constraints]] are objectives too
     if foundation:
         out["foundation"] = "an elastic [foundation]"
-        if config.foundation.control != "fixed":     # its translation's search runs where the foundation is
+        if config.foundation.control != "fixed":
             out["foundation"] = f"an elastic [foundation] with foundation.control = {config.foundation.control!r}"
+        if config.foundation.control == "force":     # its translation's search runs where the foundation is
+            out["counterpart_force"] = "an elastic [foundation] with foundation.control = 'force'"
     if config.pairs:                    # several pairs, each its elastic counterpart (fem.counterparts)
-        out["foundation"] = f"{len(config.pairs)} contact pairs against elastic bodies"
+        out["foundation"] = out["pairs"] = f"{len(config.pairs)} contact pairs against elastic bodies"
     obst = config.obstacle
     obstacle = "plane" if obst is None else obst.shape
     if obst is not None and obst.control == "force":

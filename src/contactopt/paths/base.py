@@ -75,6 +75,12 @@ class Capabilities:
     foundation: bool = _feature(
         "an elastic [foundation]",
         "linear_solver.path = '{path}': {detail} is solved on {on} only; use path {takers} or 'auto'")
+    pairs: bool = _feature(
+        "several contact pairs",
+        "linear_solver.path = '{path}': {detail} are solved on {on} only so far; use path {takers} or 'auto'")
+    counterpart_force: bool = _feature(
+        "an elastic counterpart pressed by a force",
+        "linear_solver.path = '{path}': {detail} is solved on {on} only so far; use path {takers} or 'auto'")
     obstacle: bool = _feature(
         "a rigid [obstacle] other than the fixed plane",
         "linear_solver.path = '{path}': a {detail} [obstacle] is solved on {on} only (one process); "
@@ -154,9 +160,25 @@ class SystemParts:
     six-node triangles with mortar partners (:class:`~contactopt.paths.transforms.Basis`)."""
 
     coupling = None
+    couple = None
     product = None
     force = None
     basis = None
+
+    @property
+    def relative(self) -> bool:
+        """Whether the state's u_c is the relative displacement w of an elastic counterpart (the
+        condensation's ``coupling`` or the full space's ``couple``, :mod:`.coupled`)."""
+        return self.coupling is not None or self.couple is not None
+
+    def counterpart_compliance(self, x: np.ndarray) -> np.ndarray | None:
+        """C x (3p, per node (t1, t2, ν)): the elastic counterpart's compliance on the contact
+        forces x, from its condensed C or by a solve with its K_f; None without a counterpart."""
+        if self.coupling is not None:
+            return self.coupling.foundation.C @ np.ravel(x)
+        if self.couple is not None:
+            return self.couple.compliance(x)
+        return None
 
 
 class Adjoint(NamedTuple):
@@ -222,6 +244,7 @@ class SolverPath:
     name = ""
     capabilities = Capabilities()
     takes_steps = _Takes("load_steps")    # whether solve_state takes ``slip_ref`` (sensitivity/steps.py)
+    condenses_counterparts = True         # an elastic foundation condensed onto its support (fem.foundation)
 
     def __init__(self, model, settings: Settings, start: Start | None = None):
         self.model = model

@@ -119,7 +119,7 @@ class CondensationPath(ZonePath):
     """``[linear_solver] path = "condensation"`` (module docstring)."""
 
     name = "condensation"
-    capabilities = Capabilities(foundation=True, obstacle=True, obstacle_steps=True,
+    capabilities = Capabilities(foundation=True, pairs=True, counterpart_force=True, obstacle=True, obstacle_steps=True,
                                 held_by_contact=True, pinned=True,
                                 compliance=True,
                                 whole_displacement=True, load_steps=True, auto="small")

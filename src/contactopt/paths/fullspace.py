@@ -38,12 +38,14 @@ from .._threads import sequential_openblas
 from ..contact.fullspace import solve_fullspace_with_fallbacks
 from ..contact.fullspace.core import overlap_force
 from ..contact.fullspace.pyamg import sorted_csr
-from ..errors import CheckpointError
+from ..contact.state import FoundationState
+from ..errors import CheckpointError, ConfigError
 from ..fem import memory
 from ..fem.amg import ContactHierarchy, rigid_body_modes
 from ..fem.model import Assembled
 from ..sensitivity.adjoint_fullspace import solve_adjoint_fullspace
 from .base import Adjoint, Capabilities, Context, SolverPath, SystemParts, check_design
+from .coupled import FullSpaceCouple, with_contact_blocks
 from .force import normal_stiffness
 from .transforms import frame_rotation
 
@@ -67,6 +69,7 @@ class FullSystem(SystemParts):
     L: np.ndarray | None = None
     shift: np.ndarray | None = None    # an obstacle's tangential translation (p, 2) per node frame, or None
     force: float | None = None         # a load step's |f| of a force-controlled obstacle (None: the model's)
+    couple: FullSpaceCouple | None = None   # an elastic foundation: both bodies in one system (.coupled)
 
     @property
     def law_A(self):
@@ -80,9 +83,12 @@ class FullSystem(SystemParts):
 
 @dataclass
 class FullContext(Context):
-    """Also ``u_free``: the case's last displacement (free DOFs), Newton's warm start."""
+    """Also ``u_free``: the case's last displacement (free DOFs), Newton's warm start;
+    ``adjoint_rhs_c`` the contact DOFs' part of the last adjoint's right-hand side in u_loc (an
+    elastic foundation, :meth:`FullSpacePath.adjoint_carry`)."""
 
     u_free: np.ndarray | None = None
+    adjoint_rhs_c: np.ndarray | None = None
 
 
 class FullSpaceCommon(SolverPath):
@@ -115,7 +121,13 @@ class FullSpaceCommon(SolverPath):
             return None
         return overlap_force(diag_c(), gap)
 
-    def state_of(self, ctx, system, alpha, res, *, u_free, t0, t_setup, stats, label, slip_ref=None, u_c=None):
+    @property
+    def n_unknowns(self) -> int:
+        """The Newton system's unknowns (a checkpoint's displacement): the body's free DOFs."""
+        return self.model.assembler.n_free
+
+    def state_of(self, ctx, system, alpha, res, *, u_free, t0, t_setup, stats, label, slip_ref=None, u_c=None,
+                 foundation=None):
         """The :class:`~contactopt.contact.state.State` of a full-space result ``res``
         (:class:`~contactopt.contact.fullspace.FullSpaceResult`; ``u_free`` its displacement on
         the model's free DOFs; ``u_c`` the contact nodes' displacement where it is not the
@@ -131,7 +143,7 @@ class FullSpaceCommon(SolverPath):
                                   outcome=(res.newton_steps, res.error, res.converged), timings=timings,
                                   stats={**stats, "zone_nodes": int(res.zone.size), "zone_misses": int(res.zone_growths),
                                         "delassus": "none", "krylov_iterations": int(sum(res.krylov_iterations))},
-                                  slip_ref=slip_ref)
+                                  slip_ref=slip_ref, foundation=foundation)
         ctx.warm = res.r.copy()
         log.debug("state%s: %s %d steps, %d GMRES iterations, error %.2e, %.2f s", label, self.newton_label,
                   res.newton_steps, sum(res.krylov_iterations), res.error, timings["total"])
@@ -159,7 +171,7 @@ class FullSpaceCommon(SolverPath):
     def import_context(self, ctx, arrays: dict, where: str, others=()) -> None:
         """Also the case's last displacement, and the hierarchy rebuilt at its design."""
         super().import_context(ctx, arrays, where, others)
-        n_free = self.model.assembler.n_free
+        n_free = self.n_unknowns
         u = arrays.get("u_free")
         if u is not None and (u.shape != (n_free,) or not np.all(np.isfinite(u))):
             raise CheckpointError(f"{where}: its displacement does not fit the mesh ({u.shape[0] if u.ndim else 0} "
@@ -173,15 +185,21 @@ class FullSpacePath(FullSpaceCommon):
     """``[linear_solver] path = "fullspace"`` (module docstring)."""
 
     name = "fullspace"
-    capabilities = Capabilities(obstacle=True, pinned=True, whole_displacement=True,
+    capabilities = Capabilities(foundation=True, obstacle=True, pinned=True, whole_displacement=True,
                                 load_steps=True, libraries=("pyamg",), sparse="pyamg", auto="large", auto_order=0,
                                 auto_avoids=("obstacle",))
+    condenses_counterparts = False      # an elastic foundation joins the Newton system (.coupled)
 
     def __init__(self, model, settings, start=None):
         super().__init__(model, settings, start)
         self.library = "pyamg"
         self._hierarchy = None          # the AMG hierarchy of an earlier A(α) ...
         self.hierarchy_alpha = None     # ... built at this design (checkpoints rebuild it)
+        self._couple = None             # an elastic foundation's change of unknowns (.coupled)
+        if model.foundation is not None and model.foundation.basis is not None:
+            raise ConfigError([f"{model.config.source}: linear_solver.path = 'fullspace': an elastic [foundation] "
+                               "with mortar partners on six-node triangles (a transformed basis) is solved on the "
+                               "'condensation' path only so far; use path 'condensation' or partner = 'point'"])
 
     newton_label = "full-space Newton"
 
@@ -193,8 +211,26 @@ class FullSpacePath(FullSpaceCommon):
         """(p, 3, 3) contact frames on an obstacle other than the plane, else None."""
         return self.mechanics.frames
 
+    @property
+    def couple(self) -> FullSpaceCouple | None:
+        """The change of unknowns of an elastic foundation (:mod:`.coupled`), built once; None without one."""
+        if self.model.foundation is None:
+            return None
+        if self._couple is None:
+            self._couple = FullSpaceCouple(self.model.foundation, self.model.contact_dofs, self.model.assembler.n_free,
+                                           self.frames)
+        return self._couple
+
+    @property
+    def n_unknowns(self) -> int:
+        """The Newton system's unknowns: the body's free DOFs, and the foundation's."""
+        return self.model.assembler.n_free if self.couple is None else self.couple.n
+
     def prepare(self, asm) -> FullSystem:
         shift = None if self.mechanics.shift is None else self.mechanics.shift.tangential
+        if self.couple is not None:
+            A, L = self.couple.system(asm.A, asm.L)
+            return FullSystem(asm, asm.gap, {}, self.couple.T, A, L, shift, couple=self.couple)
         if self.frames is None:
             return FullSystem(asm, asm.gap, {}, shift=shift)
         T = frame_rotation(self.model.contact_dofs, self.frames, self.model.assembler.n_free)
@@ -202,11 +238,7 @@ class FullSpacePath(FullSpaceCommon):
         if self.model.pinned_dofs.size:
             # the product drops the exact zeros of pinned rows: keep every contact node's 3×3 block
             # in the pattern (the Robin blocks are added there)
-            cd = self.model.contact_dofs.reshape(-1, 3)
-            r, c = np.repeat(cd, 3, axis=1).ravel(), np.tile(cd, (1, 3)).ravel()
-            A = A.tocoo()
-            A = sp.coo_matrix((np.r_[A.data, np.zeros(r.size)], (np.r_[A.row, r], np.r_[A.col, c])),
-                              shape=A.shape).tocsr()
+            A = with_contact_blocks(A, self.model.contact_dofs)
         A.sort_indices()
         return FullSystem(asm, asm.gap, {}, T, A, T.T @ asm.L, shift)
 
@@ -223,6 +255,8 @@ class FullSpacePath(FullSpaceCommon):
 
     def for_load(self, system, asm) -> FullSystem:
         out = replace(system, assembled=asm, timings={})
+        if out.couple is not None:
+            return replace(out, L=out.T.T @ out.couple.load(asm.L))
         return out if out.T is None else replace(out, L=out.T.T @ asm.L)
 
     def contact_diagonal(self, system) -> np.ndarray:
@@ -243,9 +277,12 @@ class FullSpacePath(FullSpaceCommon):
         np.random.seed(HIERARCHY_SEED)
         try:
             with sequential_openblas():
-                modes = rigid_body_modes(asm.coords, self.model.assembler.free)
-                if system.T is not None:
-                    modes = np.asarray(system.T.T @ modes)
+                if system.couple is not None:
+                    modes = system.couple.modes(asm.coords, self.model.assembler.free)
+                else:
+                    modes = rigid_body_modes(asm.coords, self.model.assembler.free)
+                    if system.T is not None:
+                        modes = np.asarray(system.T.T @ modes)
                 return ContactHierarchy(A, modes, contact_dofs=self.model.contact_dofs)
         finally:
             np.random.set_state(saved)
@@ -271,44 +308,82 @@ class FullSpacePath(FullSpaceCommon):
             t_setup = time.perf_counter() - t0
         # on an obstacle: the contact DOFs in the nodes' frames (A → TᵀAT), and a tangential translation
         # as the reference of the slip (the law's displacement is w = u_c − shift, as on the condensation path)
-        law_ref = slip_ref if system.shift is None else (system.shift if slip_ref is None else slip_ref + system.shift)
-        res = solve_fullspace_with_fallbacks(system.law_A, system.law_L, self.model.contact_dofs, system.gap, self.friction,
+        shift, gap = system.shift, system.gap
+        if system.couple is not None:     # the foundation's translation q: gap g − q_ν, the slip's reference q_t
+            q = system.couple.offset
+            gap = gap - q[:, 2]
+            if np.any(q[:, :2]):
+                shift = q[:, :2] if shift is None else shift + q[:, :2]
+        law_ref = slip_ref if shift is None else (shift if slip_ref is None else slip_ref + shift)
+        res = solve_fullspace_with_fallbacks(system.law_A, system.law_L, self.model.contact_dofs, gap, self.friction,
                               coords=asm.coords, free=self.model.assembler.free, r0=warm, u0=u0,
                               hierarchy=self._hierarchy, slip_ref=law_ref,
                               force_scale=self.fit_scale(float(np.linalg.norm(system.law_L)), lambda: self.contact_diagonal(system),
-                                                         system.gap),
+                                                         gap),
                               **self.newton_options(ctx, tol, warm_start))
         self._hierarchy = res.hierarchy
         ctx.u_free = res.u
-        u_free, u_c = res.u, None
-        if system.T is not None:
+        u_free, u_c, found = res.u, None, None
+        if system.couple is not None:
+            u_free, u_f = system.couple.split(res.u)
+            u_c = res.u_c - system.couple.offset          # the law's w
+            found = self._foundation_state(system.couple, u_free, u_f, u_c)
+        elif system.T is not None:
             u_free = system.T @ res.u
         if system.shift is not None:
-            u_c = res.u_c.copy()
+            u_c = (res.u_c if u_c is None else u_c).copy()
             u_c[:, :2] -= system.shift
         return self.state_of(ctx, system, alpha, res, u_free=u_free, u_c=u_c, t0=t0, t_setup=t_setup,
                              stats={"backend": "pyamg", **({"fallback": res.fallback} if res.fallback else {})},
-                             label=label, slip_ref=slip_ref)
+                             label=label, slip_ref=slip_ref, foundation=found)
 
-    def adjoint(self, system, ctx, state, y_u, y_lam, choices=None):
-        if self.is_full(y_u):          # ∂J/∂u on every DOF: the free DOFs' part
+    def _foundation_state(self, couple, u_free, u_f, w):
+        """The :class:`~contactopt.contact.state.FoundationState` of a two-body solve: the body's
+        contact displacement and its partners' per node (t1, t2, ν) (their difference the law's
+        w) and the foundation's whole displacement."""
+        u_c = u_free[self.model.contact_dofs].reshape(-1, 3)
+        if self.frames is not None:
+            u_c = np.einsum("mij,mi->mj", self.frames, u_c)
+        return FoundationState(u_body_c=u_c, u_partner=couple.partner(u_f),
+                               displacement=couple.foundation_displacement(u_f))
+
+    def adjoint(self, system, ctx, state, y_u, y_lam, choices=None, carry=None):
+        """As :meth:`SolverPath.adjoint`; with an elastic foundation (:mod:`.coupled`) in the
+        unknowns u_loc of both bodies, ``carry`` (∂J/∂w of a later load step, with ∂J/∂u on every
+        DOF of the body) joining at the contact DOFs, which hold w."""
+        full = self.is_full(y_u)
+        if full:                       # ∂J/∂u on every DOF: the free DOFs' part
             y_u = np.asarray(y_u, float)[self.model.assembler.free]
         u_law = state.u_c                # the friction law's: the slip increment in a load step
         if state.slip_ref is not None:
             u_law = state.u_c.copy()
             u_law[:, :2] = state.slip_increment
-        if system.T is not None and np.asarray(y_u).size == system.T.shape[0]:
+        if system.couple is not None and full:
+            y_u = system.couple.extend(y_u)   # ∂J/∂u of the body into both bodies' u_loc
+            ctx.adjoint_rhs_c = y_u[self.model.contact_dofs].copy()
+            if carry is not None:
+                y_u[self.model.contact_dofs] += carry
+        elif system.T is not None and np.asarray(y_u).size == system.T.shape[0]:
             y_u = system.T.T @ y_u        # ∂J/∂u on the free DOFs into the nodes' frames
         adj = solve_adjoint_fullspace(system.law_A, self.model.contact_dofs, state.classes, u_law,
                                       state.lam, y_u, y_lam, self.friction, hierarchy=self._hierarchy,
                                       choices=choices)
         ctx.adjoint_v = adj.v
         v = adj.v if system.T is None else system.T @ adj.v
+        if system.couple is not None:
+            v = v[:self.model.assembler.n_free]       # ∂A/∂α touches the body's block only
         return Adjoint(adj.v_u, adj.v_lam, self.model.assembler.to_full(v), int(adj.iterations))
 
     def adjoint_force(self, system, ctx, v_u):
         """S v_u = (A ṽ)_c: ṽ, the last adjoint's A-harmonic extension of v_u, has A ṽ = Bᵀ S v_u."""
         return (system.law_A @ ctx.adjoint_v)[self.model.contact_dofs]
+
+    def adjoint_carry(self, system, ctx, v_u, v_full, y_u):
+        """As :meth:`SolverPath.adjoint_carry`; with an elastic foundation in u_loc, where the
+        contact DOFs hold w: (Tᵀ diag(A, K_f) T ṽ_loc)_c + (Tᵀ(g, 0))_c for ∂J/∂u = g on every DOF."""
+        if system.couple is None or not self.is_full(y_u):
+            return super().adjoint_carry(system, ctx, v_u, v_full, y_u)
+        return self.adjoint_force(system, ctx, v_u) + ctx.adjoint_rhs_c
 
     # ------------------------------------------------------------------ checkpoints
     def last_displacement(self, ctx):

@@ -247,11 +247,10 @@ class FrictionalDissipation(Objective):
         slip3[:, :2] = ut
         u_t = np.zeros(asm.n_full)
         u_t[contact] = _global(model, slip3.ravel())
-        coupling = None if cond is None else cond.coupling
         c_ref = None
-        if coupling is not None:                  # an elastic foundation (class docstring)
+        if cond is not None and cond.relative:    # an elastic foundation (class docstring)
             c_ref = np.zeros(asm.n_full)
-            c_ref[contact] = _global(model, coupling.foundation.C @ tau3.ravel())
+            c_ref[contact] = _global(model, cond.counterpart_compliance(tau3.ravel()))
             u_t -= c_ref
         tau = np.zeros(asm.n_full)
         tau[contact] = _global(model, tau3.ravel())

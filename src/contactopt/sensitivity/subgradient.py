@@ -87,7 +87,7 @@ def case_subgradient(parts, k: int, case, rhs: dict, choices):
         late = {}                       # a carry that joins the adjoint after ∂J/∂u's map
         if carry is not None:           # on every DOF: y_u's global components
             full = j in rhs and rhs[j].space == FULL
-            if full and system.coupling is not None:   # on a foundation: ∂/∂w, not ∂/∂u_c of the body
+            if full and system.relative:    # on a foundation: ∂/∂w, not ∂/∂u_c of the body
                 late = {"carry": carry}
             else:
                 y_u = add_at_contact(y_u, path.global_contact(carry) if full else carry, contact, full)

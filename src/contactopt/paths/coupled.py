@@ -1,0 +1,141 @@
+"""An elastic counterpart in full space: two bodies as one Newton system, nothing condensed.
+
+The condensation path condenses an elastic foundation onto its support once per run
+(:mod:`contactopt.fem.foundation`: C = Π W_f Πᵀ, a dense matrix on the support). In full space the
+foundation's DOFs join the body's instead (DESIGN §20): with the body's free DOFs u, the
+foundation's u_f (its clamped DOFs eliminated) and, per contact node m, the relative displacement
+in the node's frame R_m = (t1, t2, n)
+
+    w_m = R_mᵀ u_c,m − (Π_loc u_f)_m − q_m,     Π_loc = R_mᵀ Π (:attr:`Foundation.P`),
+
+the change of unknowns u_loc = (u_i, w + q, u_f) ↦ (u_i, u_c, u_f),
+
+    u_c = Q (w + q + Π_loc u_f),   T = the identity but T[c, c] = Q, T[c, f] = Q Π_loc,
+
+turns the energy of both bodies, ½ uᵀA u − Lᵀu + ½ u_fᵀK_f u_f − f_fᵀu_f, into one in u_loc with
+the stiffness Tᵀ diag(A, K_f) T and the load Tᵀ(L, f_f). Its rows at the contact DOFs are the
+contact force on the body in the node's frame, r = (Tᵀ(diag(A, K_f) u − (L, f_f)))_c — the body's
+(A u − L)_c seen from w, the foundation's rows balance K_f u_f = f_f − Π_locᵀ r — so the
+full-space Newton method of one body (:mod:`contactopt.contact.fullspace`) solves two bodies
+unchanged: the contact law on w with the gap g − q_ν and the slip's reference q_t
+(q = Π d, the prescribed translation d of the foundation in the nodes' frames; zero when it is
+fixed). The AMG near-null space is T⁻¹ times both bodies' rigid-body modes; the adjoint (4.15) is
+the transposed Newton system in u_loc, its extension T ṽ_loc, and ∂A/∂α touches the body's block
+only.
+
+Contact convention: per contact node (t1, t2, ν), ν from the foundation to the body, r the
+contact force on the body, λ = r_ν ≥ 0; the foundation carries −Π_locᵀ r.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import scipy.sparse as sp
+
+from ..fem.amg import rigid_body_modes
+
+
+class FullSpaceCouple:
+    """The change of unknowns T of a model with one elastic foundation (module docstring).
+
+    ``n_body`` the body's free DOFs, ``n`` those of both bodies; ``T`` (n × n, sparse);
+    ``offset`` (p, 3) q per node (t1, t2, ν): the foundation's prescribed translation Π d."""
+
+    def __init__(self, foundation, contact_dofs: np.ndarray, n_body: int, frames: np.ndarray | None):
+        f = foundation
+        self.foundation = f
+        self.n_body, self.n = n_body, n_body + f.assembler.n_free
+        p = contact_dofs.size // 3
+        R = np.broadcast_to(np.eye(3), (p, 3, 3)) if frames is None else np.asarray(frames)
+        self.cd = np.asarray(contact_dofs, np.int64)
+        Q = sp.block_diag(list(R), format="csr")
+        Pf = sp.csr_matrix(f.P)                       # Π_loc on the foundation's free support DOFs
+        cols_f = self.n_body + np.asarray(f._support_free, np.int64)
+        QP = (Q @ Pf).tocoo()
+        other = np.setdiff1d(np.arange(self.n), self.cd)
+        Qc = Q.tocoo()
+        rows = np.concatenate([other, self.cd[Qc.row], self.cd[QP.row]])
+        cols = np.concatenate([other, self.cd[Qc.col], cols_f[QP.col]])
+        vals = np.concatenate([np.ones(other.size), Qc.data, QP.data])
+        self.T = sp.csr_matrix((vals, (rows, cols)), shape=(self.n, self.n))
+        self.T.sort_indices()
+        self._R, self._Pf, self._cols_f = R, Pf, cols_f
+        q = np.zeros(3 * p) if f.q_f is None else np.asarray(f.q_f, float)
+        self.offset = q.reshape(-1, 3).copy()
+        self._kf_amg = None      # K_f's AMG solver (compliance), built on first use
+
+    def system(self, A, L) -> tuple[sp.csr_matrix, np.ndarray]:
+        """(Tᵀ diag(A, K_f) T, Tᵀ (L, f_f)): the Newton system of both bodies in u_loc."""
+        big = sp.block_diag([A, self.foundation.K], format="csr")
+        law_A = with_contact_blocks(sp.csr_matrix(self.T.T @ big @ self.T), self.cd)
+        law_A.sort_indices()
+        return law_A, self.T.T @ self.load(L)
+
+    def load(self, L) -> np.ndarray:
+        """(L, f_f) on both bodies' free DOFs."""
+        return np.concatenate([np.asarray(L, float), self.foundation.f_f])
+
+    def modes(self, coords_body: np.ndarray, free_body: np.ndarray) -> np.ndarray:
+        """T⁻¹ (the rigid-body modes of both bodies moving as one) (n × 6): the AMG near-null
+        space in u_loc. T⁻¹ is the identity but at the contact DOFs, where w + q = Qᵀ u_c − Π_loc u_f
+        (≈ 0 for a motion of both bodies together). One set of six, not six per body: an
+        aggregate lies in one body (or across the contact, where the bodies move together), so
+        six columns per aggregate suffice, where twelve would double the coarse levels."""
+        f = self.foundation
+        pts = np.concatenate([coords_body, f.mesh.reference.points])
+        nb = coords_body.shape[0]
+        free = np.concatenate([np.asarray(free_body), 3 * nb + np.asarray(f.assembler.free)])
+        M = rigid_body_modes(pts, free)
+        Mc = M[self.cd].reshape(-1, 3, 6)
+        local = np.einsum("mij,mik->mjk", self._R, Mc).reshape(-1, 6)
+        M[self.cd] = local - self._Pf @ M[self._cols_f]
+        return M
+
+    def split(self, u_loc: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(u on the body's free DOFs, u_f on the foundation's) of a solution in u_loc."""
+        u = self.T @ u_loc
+        return u[:self.n_body], u[self.n_body:]
+
+    def extend(self, y_body: np.ndarray) -> np.ndarray:
+        """Tᵀ (y, 0): a derivative with respect to the body's free DOFs into u_loc."""
+        return self.T.T @ np.concatenate([np.asarray(y_body, float), np.zeros(self.n - self.n_body)])
+
+    def foundation_displacement(self, u_f: np.ndarray) -> np.ndarray:
+        """The foundation's full displacement (3·n_f,): u_f, zero on its clamps, plus its
+        prescribed translation d (control = 'displacement')."""
+        f = self.foundation
+        u = f.assembler.to_full(u_f)
+        if f.translation is not None and f.control == "displacement":
+            u = u + np.tile(f.translation, f.n_nodes)
+        return u
+
+    def compliance(self, x: np.ndarray) -> np.ndarray:
+        """C x = Π_loc K_f⁻¹ Π_locᵀ x (3p, per node (t1, t2, ν)): the partners' displacement under
+        the contact forces −x on the foundation, by conjugate gradients on K_f preconditioned by
+        smoothed aggregation (built once), to a relative residual of 1e-13 — C itself, dense on
+        the support, is never formed."""
+        f = self.foundation
+        b = np.zeros(f.assembler.n_free)
+        b[self._cols_f - self.n_body] = self._Pf.T @ np.ravel(x)
+        if not np.any(b):
+            return np.zeros(np.size(x))
+        if self._kf_amg is None:
+            import pyamg
+            self._kf_amg = pyamg.smoothed_aggregation_solver(
+                f.K, B=rigid_body_modes(f.mesh.reference.points, f.assembler.free), max_coarse=500)
+        y = self._kf_amg.solve(b, tol=1e-13, accel="cg", maxiter=500)
+        return self._Pf @ y[self._cols_f - self.n_body]
+
+    def partner(self, u_f: np.ndarray) -> np.ndarray:
+        """(p, 3) the partners' displacement Π_loc u_f + q per node (t1, t2, ν)."""
+        return (self._Pf @ u_f[self._cols_f - self.n_body]).reshape(-1, 3) + self.offset
+
+
+def with_contact_blocks(A, contact_dofs: np.ndarray) -> sp.csr_matrix:
+    """A with every contact node's 3×3 block in its sparsity pattern (explicit zeros where a
+    product dropped them): the Newton system adds its Robin blocks there."""
+    cd = np.asarray(contact_dofs).reshape(-1, 3)
+    r, c = np.repeat(cd, 3, axis=1).ravel(), np.tile(cd, (1, 3)).ravel()
+    A = A.tocoo()
+    return sp.coo_matrix((np.r_[A.data, np.zeros(r.size)], (np.r_[A.row, r], np.r_[A.col, c])),
+                         shape=A.shape).tocsr()
