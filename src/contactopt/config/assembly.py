@@ -227,7 +227,8 @@ def desugar(raw: dict, problems: list) -> tuple[dict, list]:
 
 def _check_star(pairs: list, problems: list) -> None:
     """Several pairs, as the mechanics take them so far: every face on one body (the face body),
-    every counterpart a part of another body, no two pairs on one counterpart body."""
+    every counterpart a part of another body; a body may be the counterpart of several pairs
+    (condensed once onto all their supports, fem.counterparts), each on a part of its own."""
     face_body = pairs[0][0]
     seen = {}
     for n, (body, part, counter) in enumerate(pairs):
@@ -239,12 +240,13 @@ def _check_star(pairs: list, problems: list) -> None:
         if not isinstance(counter, tuple):
             problems.append(f"{key}.counterpart: a rigid counterpart in a model of several pairs; contactopt takes "
                             "rigid counterparts in a model of one pair so far (elastic bodies in several)")
-        elif counter[0] in seen:
-            problems.append(f"{key}.counterpart = '{counter[0]}.{_part_name(counter[1])}': body {counter[0]!r} is "
-                            f"already the counterpart of contacts[{seen[counter[0]]}]; contactopt takes one pair "
-                            "per counterpart body so far")
+        elif counter in seen.values():
+            first = next(m for m, c in seen.items() if c == counter)
+            problems.append(f"{key}.counterpart = '{counter[0]}.{_part_name(counter[1])}': is already the "
+                            f"counterpart of contacts[{first}]; two pairs on one body meet it on two parts "
+                            "(each pair's partners are searched on its own part)")
         else:
-            seen[counter[0]] = n
+            seen[n] = counter
 
 
 def _more_pairs(out: dict, raw: dict, bodies: dict, contacts: list, pairs: list, faces: list,
@@ -276,7 +278,7 @@ def _more_pairs(out: dict, raw: dict, bodies: dict, contacts: list, pairs: list,
             problems.append(f"contacts: {k} differs between the pairs; contactopt takes one value for the pairs "
                             "of one face body so far")
     rec = out["assembly"]
-    rec["bodies"] = [pairs[0][0]] + [c[0] for _, _, c in pairs]
+    rec["bodies"] = [pairs[0][0]] + list(dict.fromkeys(c[0] for _, _, c in pairs))
     rec["contacts"] = [{"name": c.get("name", f"{b}-{o[0]}"), "face": f"{b}.{_part_name(p)}",
                         "counterpart": f"{o[0]}.{_part_name(o[1])}"} for c, (b, p, o) in zip(contacts, pairs)]
     rec["designs"] = [f"{b}.{_part_name(p)}" for b, p in faces]
@@ -343,6 +345,8 @@ def _sections(raw: dict, bodies: dict, contact: dict, pair, designs: list, faces
     if "friction" in contact:
         out["friction"] = {**(raw.get("friction") or {}), "coefficient": contact["friction"]}
     loads = copy.deepcopy(raw.get("loads", {})) if isinstance(raw.get("loads"), dict) else raw.get("loads")
+    if loads is None and "body_force" in b:          # the face body's own body force, without [loads]
+        loads = {}
     counter_loads = {}
     if isinstance(loads, dict):
         if "body_force" in loads:
@@ -448,8 +452,11 @@ def check_record(data: dict, problems: list) -> None:
     ok = (isinstance(rec, dict) and set(rec) == {"bodies", "contacts", "designs"}
           and isinstance(rec["bodies"], list) and isinstance(rec["contacts"], list)
           and len(rec["contacts"]) == max(1, len(data.get("pairs") or []))
-          and len(rec["bodies"]) == 1 + ("foundation" in data) + len(data.get("pairs") or [])
-          and all(isinstance(p, dict) and set(p) == {"name", "face", "counterpart"} for p in rec["contacts"])
+          and all(isinstance(p, dict) for p in rec["contacts"]))
+    if ok:        # the counterpart bodies of several pairs, each once (a body may hold several pairs)
+        others = {str(p.get("counterpart", "")).split(".")[0] for p in rec["contacts"]} if data.get("pairs") else ()
+        ok = len(rec["bodies"]) == 1 + ("foundation" in data) + len(others)
+    ok = (ok and all(isinstance(p, dict) and set(p) == {"name", "face", "counterpart"} for p in rec["contacts"])
           and isinstance(rec["designs"], list)
           and (len(rec["designs"]) == 1 + len(data["more_designs"]) if data.get("more_designs")
                else len(rec["designs"]) <= 1))
