@@ -132,12 +132,15 @@ def test_auto_takes_the_full_space_for_two_bodies_from_the_crossover_on():
     assert select_path(cfg, crossover)[0] == "fullspace"
 
 
-def test_what_the_full_space_does_not_take_yet_is_refused_by_name():
-    forced = {**FOUNDATIONS["point partners"], "control": "force", "loaded": "bottom", "force": [0.0, 0.0, 0.1]}
-    with pytest.raises(ConfigError, match="pressed by a force|control = 'force'.*'condensation'"):
-        ShapeProblem(_config(forced, "fullspace"))
-    # auto keeps it where it is solved
-    assert select_path(_config(forced, "auto"), 10**7)[0] == "condensation"
+def test_what_the_full_space_does_not_take_yet_is_refused_by_name(tmp_path):
+    """Several pairs stay on the condensation path so far: refused by name on the full space."""
+    import tomllib
+
+    from test_assembly_pairs import TWO_SLABS
+    pairs = load_config(tomllib.loads(TWO_SLABS)).with_updates({"linear_solver": {"path": "fullspace"}})
+    with pytest.raises(ConfigError, match="contact pairs against elastic bodies are solved on the 'condensation'"):
+        ShapeProblem(pairs)
+    assert select_path(pairs.with_updates({"linear_solver": {"path": "auto"}}), 10**7)[0] == "condensation"
 
 
 def test_a_resumed_full_space_run_on_a_foundation_repeats_the_uninterrupted_one(tmp_path):
@@ -154,3 +157,26 @@ def test_a_resumed_full_space_run_on_a_foundation_repeats_the_uninterrupted_one(
     assert resumed.summary["J"] == full.summary["J"]
     assert (json.loads((tmp_path / "part" / "alpha.json").read_text())
             == json.loads((tmp_path / "full" / "alpha.json").read_text()))
+
+
+@pytest.mark.parametrize("sideways", [0.0, 0.4])
+def test_a_foundation_pressed_by_a_force_agrees_and_its_subgradient_matches(sideways):
+    """The foundation pressed up by f = (f1, 0, 3) on its bottom face (the translation's search
+    around the full-space solve; f1 ≠ 0 drags the partners tangentially): Θ, ξ, λ, the
+    translation, both bodies' displacements against the condensation; ξ·d against central
+    differences (measured 3e-8)."""
+    f = {"block": _block(), "material": {"E": 2.0}, "control": "force", "force": [sideways, 0.0, 3.0]}
+    out = {}
+    for path in ("condensation", "fullspace"):
+        pb = ShapeProblem(_config(f, path))
+        a = _design(pb.model)
+        theta, xi = pb.evaluate(a)
+        out[path] = theta, xi, pb.solve_state(a)
+    (t0, x0, s0), (t1, x1, s1) = out["condensation"], out["fullspace"]
+    assert abs(t1 - t0) <= 1e-9 * abs(t0) and _rel(x1, x0) <= 1e-8
+    assert _rel(s1.lam, s0.lam) <= 1e-9 and _rel(s1.u_c, s0.u_c) <= 1e-8
+    assert abs(s1.obstacle.translation - s0.obstacle.translation) <= 1e-9 * abs(s0.obstacle.translation)
+    assert _rel(s1.foundation.displacement, s0.foundation.displacement) <= 1e-8
+    assert _rel(s1.foundation.u_partner, s0.foundation.u_partner) <= 1e-8
+    gc = check_gradient(pb, a, n_directions=2, seed=0, h=1e-2)
+    assert gc.n_degenerate == 0 and max(gc.rel_errors) <= 1e-6, gc.rel_errors

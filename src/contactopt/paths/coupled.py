@@ -100,13 +100,13 @@ class FullSpaceCouple:
         """Tᵀ (y, 0): a derivative with respect to the body's free DOFs into u_loc."""
         return self.T.T @ np.concatenate([np.asarray(y_body, float), np.zeros(self.n - self.n_body)])
 
-    def foundation_displacement(self, u_f: np.ndarray) -> np.ndarray:
+    def foundation_displacement(self, u_f: np.ndarray, moved: float = 0.0) -> np.ndarray:
         """The foundation's full displacement (3·n_f,): u_f, zero on its clamps, plus its
-        prescribed translation d (control = 'displacement')."""
+        translation: d with control = 'displacement', s f̂ with control = 'force' (``moved`` = s)."""
         f = self.foundation
         u = f.assembler.to_full(u_f)
-        if f.translation is not None and f.control == "displacement":
-            u = u + np.tile(f.translation, f.n_nodes)
+        if f.translation is not None:
+            u = u + (1.0 if f.control == "displacement" else moved) * np.tile(f.translation, f.n_nodes)
         return u
 
     def compliance(self, x: np.ndarray) -> np.ndarray:
@@ -126,9 +126,14 @@ class FullSpaceCouple:
         y = self._kf_amg.solve(b, tol=1e-13, accel="cg", maxiter=500)
         return self._Pf @ y[self._cols_f - self.n_body]
 
-    def partner(self, u_f: np.ndarray) -> np.ndarray:
-        """(p, 3) the partners' displacement Π_loc u_f + q per node (t1, t2, ν)."""
-        return (self._Pf @ u_f[self._cols_f - self.n_body]).reshape(-1, 3) + self.offset
+    def partner(self, u_f: np.ndarray, moved: float = 0.0) -> np.ndarray:
+        """(p, 3) the partners' displacement Π_loc u_f + q per node (t1, t2, ν), and s Π f̂ of a
+        foundation pressed by a force (``moved`` = s)."""
+        out = (self._Pf @ u_f[self._cols_f - self.n_body]).reshape(-1, 3) + self.offset
+        f = self.foundation
+        if moved and f.control == "force":
+            out = out + moved * f.motion.reshape(-1, 3)
+        return out
 
 
 def with_contact_blocks(A, contact_dofs: np.ndarray) -> sp.csr_matrix:

@@ -187,7 +187,7 @@ class FullSpacePath(FullSpaceCommon):
     """``[linear_solver] path = "fullspace"`` (module docstring)."""
 
     name = "fullspace"
-    capabilities = Capabilities(foundation=True, obstacle=True, pinned=True, whole_displacement=True,
+    capabilities = Capabilities(foundation=True, counterpart_force=True, obstacle=True, pinned=True, whole_displacement=True,
                                 load_steps=True, libraries=("pyamg",), sparse="pyamg", auto="large", auto_order=0,
                                 auto_avoids=("obstacle",))
     condenses_counterparts = False      # an elastic foundation joins the Newton system (.coupled)
@@ -338,7 +338,7 @@ class FullSpacePath(FullSpaceCommon):
         if system.couple is not None:
             u_free, u_f = system.couple.split(res.u)
             u_c = res.u_c - system.couple.offset          # the law's w
-            found = self._foundation_state(system.couple, u_free, u_f, u_c)
+            found = self._foundation_state(system.couple, u_free, u_f, u_c, system.moved)
         elif system.T is not None:
             u_free = system.T @ res.u
         if system.shift is not None:
@@ -348,15 +348,15 @@ class FullSpacePath(FullSpaceCommon):
                              stats={"backend": "pyamg", **({"fallback": res.fallback} if res.fallback else {})},
                              label=label, slip_ref=slip_ref, foundation=found)
 
-    def _foundation_state(self, couple, u_free, u_f, w):
+    def _foundation_state(self, couple, u_free, u_f, w, moved=0.0):
         """The :class:`~contactopt.contact.state.FoundationState` of a two-body solve: the body's
         contact displacement and its partners' per node (t1, t2, ν) (their difference the law's
         w) and the foundation's whole displacement."""
         u_c = u_free[self.model.contact_dofs].reshape(-1, 3)
         if self.frames is not None:
             u_c = np.einsum("mij,mi->mj", self.frames, u_c)
-        return FoundationState(u_body_c=u_c, u_partner=couple.partner(u_f),
-                               displacement=couple.foundation_displacement(u_f))
+        return FoundationState(u_body_c=u_c, u_partner=couple.partner(u_f, moved),
+                               displacement=couple.foundation_displacement(u_f, moved))
 
     def adjoint(self, system, ctx, state, y_u, y_lam, choices=None, carry=None):
         """As :meth:`SolverPath.adjoint`; with an elastic foundation (:mod:`.coupled`) in the
