@@ -223,7 +223,7 @@ def test_a_node_claimed_by_two_pairs_is_refused(tmp_path, capsys):
 
 def test_several_pairs_are_refused_by_the_paths_that_do_not_take_them(tmp_path):
     from contactopt.errors import ConfigError
-    text = TWO_SLABS + '[linear_solver]\npath = "fullspace"\n'
+    text = TWO_SLABS + '[linear_solver]\npath = "delassus"\n'
     with pytest.raises(ConfigError, match="2 contact pairs against elastic bodies"):
         ShapeProblem(load_config(_write(tmp_path, text)))
 

@@ -132,15 +132,67 @@ def test_auto_takes_the_full_space_for_two_bodies_from_the_crossover_on():
     assert select_path(cfg, crossover)[0] == "fullspace"
 
 
-def test_what_the_full_space_does_not_take_yet_is_refused_by_name(tmp_path):
-    """Several pairs stay on the condensation path so far: refused by name on the full space."""
+def _agree(make, seed=1, amp=0.003):
+    """Θ, ξ, λ, w, the classes and the counterparts' displacements of one evaluation on both paths
+    (``make(path)`` the problem): their relative differences."""
+    out = {}
+    for path in ("condensation", "fullspace"):
+        pb = make(path)
+        assert pb.path.name == path
+        a = pb.model.initial_design()
+        d = np.random.default_rng(seed).standard_normal(a.size)
+        a = a + amp * (d - d.mean())
+        theta, xi = pb.evaluate(a)
+        out[path] = theta, xi, pb.solve_state(a)
+    (t0, x0, s0), (t1, x1, s1) = out["condensation"], out["fullspace"]
+    assert np.array_equal(s1.classes, s0.classes)
+    return {"Theta": abs(t1 - t0) / abs(t0), "xi": _rel(x1, x0), "lambda": _rel(s1.lam, s0.lam),
+            "w": _rel(s1.u_c, s0.u_c), "bodies": _rel(s1.foundation.displacement, s0.foundation.displacement)}
+
+
+@pytest.mark.parametrize("objective", ["target_force", "frictional_dissipation"])
+def test_several_pairs_on_two_slabs_agree(objective):
+    """Example 1's block on two slabs (a pair each, friction 0.3 and 0.3, its face designed,
+    tests/test_assembly_pairs.py): both slabs' DOFs in the Newton system."""
     import tomllib
 
-    from test_assembly_pairs import TWO_SLABS
-    pairs = load_config(tomllib.loads(TWO_SLABS)).with_updates({"linear_solver": {"path": "fullspace"}})
-    with pytest.raises(ConfigError, match="contact pairs against elastic bodies are solved on the 'condensation'"):
-        ShapeProblem(pairs)
-    assert select_path(pairs.with_updates({"linear_solver": {"path": "auto"}}), 10**7)[0] == "condensation"
+    from test_assembly_pairs import DESIGN, TWO_SLABS
+
+    def make(path):
+        cfg = load_config(tomllib.loads(TWO_SLABS + DESIGN)).with_updates(
+            {"linear_solver": {"path": path}, "state": {"tol": 1e-12}})
+        if objective != "target_force":
+            cfg = cfg.with_updates({"objective": {"type": objective}})
+        return ShapeProblem(cfg)
+    d = _agree(make)
+    assert d["Theta"] <= 1e-9 and d["xi"] <= 1e-8 and d["lambda"] <= 1e-9 and d["w"] <= 1e-8 and d["bodies"] <= 1e-8, d
+
+
+def test_a_body_under_two_pairs_agrees(tmp_path):
+    """The block on one base through two pairs (the base's top_left and top_right,
+    tests/test_assembly_shared.py): the base's compliance couples the pairs."""
+    from test_assembly_shared import _problem
+
+    def make(path):
+        pb = _problem(tmp_path, "shared")
+        return ShapeProblem(pb.config.with_updates({"linear_solver": {"path": path}, "state": {"tol": 1e-12}}))
+    d = _agree(make)
+    assert d["Theta"] <= 1e-9 and d["xi"] <= 1e-8 and d["lambda"] <= 1e-9 and d["w"] <= 1e-8 and d["bodies"] <= 1e-8, d
+
+
+def test_what_the_full_space_does_not_take_yet_is_refused_by_name():
+    """A counterpart held only by its contacts (the right slab clamped along x3 only, its
+    tangential motions held by friction) stays on the condensation path so far: refused by name
+    on the full space."""
+    import tomllib
+
+    from test_assembly_pairs import DESIGN, TWO_SLABS
+    text = TWO_SLABS.replace('clamped = "bottom"\nmaterial = { E = 6.0',
+                             'clamped = { on = "bottom", components = [3] }\nmaterial = { E = 6.0')
+    assert text != TWO_SLABS
+    cfg = load_config(tomllib.loads(text + DESIGN)).with_updates({"linear_solver": {"path": "fullspace"}})
+    with pytest.raises(ConfigError, match=r"the counterpart of contacts\[1\] is held only by its contacts"):
+        ShapeProblem(cfg)
 
 
 def test_a_resumed_full_space_run_on_a_foundation_repeats_the_uninterrupted_one(tmp_path):

@@ -42,7 +42,7 @@ class _BlockCondensation:
 
 
 def build_counterparts(specs, body, source: str, check=None, normals=None, frames=None,
-                       names=None) -> Counterparts:
+                       names=None, condensed: bool = True) -> Counterparts:
     """The counterparts of the pairs ``specs`` (``[foundation]`` tables, one per pair) of ``body``:
     one :class:`~contactopt.fem.foundation.Foundation` per counterpart body, named per pair by
     ``names`` (None: each pair its own body), built on the pairs' views of the body (their faces
@@ -60,7 +60,7 @@ def build_counterparts(specs, body, source: str, check=None, normals=None, frame
         where = f"{source}: {_which(pairs)}"
         spec, view, n = views[0]
         parts.append(Foundation(spec, view, source=where, check=check, normals=n, floating=True,
-                                shared=views if len(pairs) > 1 else None))
+                                shared=views if len(pairs) > 1 else None, condensed=condensed))
         rows.append(np.concatenate([np.flatnonzero(body.pair_of == k) for k in pairs]))
     out = Counterparts(parts, rows, body.contact_nodes.size, pairs=list(groups.values()),
                        pair_rows=[np.flatnonzero(body.pair_of == k) for k in range(len(specs))])
@@ -109,7 +109,8 @@ class Counterparts:
         for f in self.parts:
             for key, v in f.memory_parts.items():
                 self.memory_parts[key] = self.memory_parts.get(key, 0.0) + v
-        self.condensation = _BlockCondensation(self.parts)
+        # (none where the bodies are kept assembled: the full-space path, paths/coupled.py)
+        self.condensation = None if any(f.condensation is None for f in self.parts) else _BlockCondensation(self.parts)
         self.load_resultant = sum(f.load_resultant for f in self.parts)
         self._gather()
 
@@ -132,7 +133,7 @@ class Counterparts:
                 self.C[np.ix_(d, d)] = f.C
             if f.motion is not None:
                 self.q_f[d] = f.motion
-        self.ell_o = np.concatenate([f.ell_f for f in self.parts])
+        self.ell_o = None if any(f.ell_f is None for f in self.parts) else np.concatenate([f.ell_f for f in self.parts])
 
     def check_held(self, friction, names: list, source: str) -> None:
         """ConfigError naming each rigid motion of a counterpart held only by its contacts that no

@@ -278,6 +278,11 @@ class Foundation:
         return [self]
 
     @property
+    def pairs(self) -> list:
+        """The pairs of each counterpart body: the one pair (fem.counterparts: several)."""
+        return [[0]]
+
+    @property
     def rows(self) -> list:
         """The contact nodes of each pair: all (fem.counterparts: several)."""
         return [np.arange(self.P.shape[0] // 3)]

@@ -227,7 +227,8 @@ class ElasticModel:
         self.body_force = self.loads.body_force
         if cfg.pairs and self.foundation is None:
             self.foundation = build_counterparts([pr.foundation for pr in cfg.pairs], body, cfg.source, check,
-                                                 names=[c.counterpart.split(".")[0] for c in cfg.assembly.contacts])
+                                                 names=[c.counterpart.split(".")[0] for c in cfg.assembly.contacts],
+                                                 condensed=self._condensed)
         if cfg.pairs:
             held = cfg.friction.coefficient if self.contact_friction is None else self.contact_friction
             self.foundation.check_held(held, [p.counterpart.split(".")[0] for p in cfg.assembly.contacts], cfg.source)
@@ -372,7 +373,7 @@ class ElasticModel:
             self.frames = R
         if cfg.pairs:
             self.foundation = build_counterparts([pr.foundation for pr in cfg.pairs], body, cfg.source, check,
-                                                 normals=n, frames=self.frames,
+                                                 normals=n, frames=self.frames, condensed=self._condensed,
                                                  names=[c.counterpart.split(".")[0] for c in cfg.assembly.contacts])
         else:
             self.foundation = Foundation(cfg.foundation, body, source=cfg.source, check=check, normals=n,

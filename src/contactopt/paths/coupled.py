@@ -1,4 +1,4 @@
-"""An elastic counterpart in full space: two bodies as one Newton system, nothing condensed.
+"""Elastic counterparts in full space: two bodies and more as one Newton system, nothing condensed.
 
 The condensation path condenses an elastic foundation onto its support once per run
 (:mod:`contactopt.fem.foundation`: C = Π W_f Πᵀ, a dense matrix on the support). In full space the
@@ -23,6 +23,11 @@ fixed). The AMG near-null space is T⁻¹ times both bodies' rigid-body modes; t
 the transposed Newton system in u_loc, its extension T ṽ_loc, and ∂A/∂α touches the body's block
 only.
 
+Several pairs against counterpart bodies (:mod:`contactopt.fem.counterparts`) are the same with
+u_f the bodies' DOFs one body after the other, diag(A, K_1, …, K_B) and Π stacked by contact node
+(a body under several pairs takes all its pairs' rows). A counterpart held only by its contacts
+stays on the condensation path so far (its rigid motions are the anchor's rows there).
+
 Contact convention: per contact node (t1, t2, ν), ν from the foundation to the body, r the
 contact force on the body, λ = r_ν ≥ 0; the foundation carries −Π_locᵀ r.
 """
@@ -36,21 +41,26 @@ from ..fem.amg import rigid_body_modes
 
 
 class FullSpaceCouple:
-    """The change of unknowns T of a model with one elastic foundation (module docstring).
+    """The change of unknowns T of a model with elastic counterparts (module docstring): one
+    ``[foundation]``, or the counterpart bodies of several pairs (:mod:`contactopt.fem.counterparts`,
+    each with its block of u_f, their Π stacked by contact node).
 
-    ``n_body`` the body's free DOFs, ``n`` those of both bodies; ``T`` (n × n, sparse);
-    ``offset`` (p, 3) q per node (t1, t2, ν): the foundation's prescribed translation Π d."""
+    ``n_body`` the body's free DOFs, ``n`` those of all bodies; ``T`` (n × n, sparse);
+    ``offset`` (p, 3) q per node (t1, t2, ν): the counterparts' prescribed translations Π d."""
 
     def __init__(self, foundation, contact_dofs: np.ndarray, n_body: int, frames: np.ndarray | None):
         f = foundation
-        self.foundation = f
-        self.n_body, self.n = n_body, n_body + f.assembler.n_free
+        self.foundation, self.parts = f, list(f.parts)
+        sizes = [part.assembler.n_free for part in self.parts]
+        self._starts = np.concatenate([[0], np.cumsum(sizes)]).astype(np.int64)
+        self.n_body, self.n = n_body, n_body + int(self._starts[-1])
         p = contact_dofs.size // 3
         R = np.broadcast_to(np.eye(3), (p, 3, 3)) if frames is None else np.asarray(frames)
         self.cd = np.asarray(contact_dofs, np.int64)
         Q = sp.block_diag(list(R), format="csr")
-        Pf = sp.csr_matrix(f.P)                       # Π_loc on the foundation's free support DOFs
-        cols_f = self.n_body + np.asarray(f._support_free, np.int64)
+        Pf = sp.csr_matrix(f.P)                       # Π_loc on the counterparts' free support DOFs
+        cols_f = self.n_body + np.concatenate([start + np.asarray(part._support_free, np.int64)
+                                               for start, part in zip(self._starts, self.parts)])
         QP = (Q @ Pf).tocoo()
         other = np.setdiff1d(np.arange(self.n), self.cd)
         Qc = Q.tocoo()
@@ -62,18 +72,18 @@ class FullSpaceCouple:
         self._R, self._Pf, self._cols_f = R, Pf, cols_f
         q = np.zeros(3 * p) if f.q_f is None else np.asarray(f.q_f, float)
         self.offset = q.reshape(-1, 3).copy()
-        self._kf_amg = None      # K_f's AMG solver (compliance), built on first use
+        self._kf_amg = [None] * len(self.parts)      # each K_f's AMG solver (compliance), built on first use
 
     def system(self, A, L) -> tuple[sp.csr_matrix, np.ndarray]:
         """(Tᵀ diag(A, K_f) T, Tᵀ (L, f_f)): the Newton system of both bodies in u_loc."""
-        big = sp.block_diag([A, self.foundation.K], format="csr")
+        big = sp.block_diag([A] + [part.K for part in self.parts], format="csr")
         law_A = with_contact_blocks(sp.csr_matrix(self.T.T @ big @ self.T), self.cd)
         law_A.sort_indices()
         return law_A, self.T.T @ self.load(L)
 
     def load(self, L) -> np.ndarray:
         """(L, f_f) on both bodies' free DOFs."""
-        return np.concatenate([np.asarray(L, float), self.foundation.f_f])
+        return np.concatenate([np.asarray(L, float)] + [part.f_f for part in self.parts])
 
     def modes(self, coords_body: np.ndarray, free_body: np.ndarray) -> np.ndarray:
         """T⁻¹ (the rigid-body modes of both bodies moving as one) (n × 6): the AMG near-null
@@ -81,11 +91,12 @@ class FullSpaceCouple:
         (≈ 0 for a motion of both bodies together). One set of six, not six per body: an
         aggregate lies in one body (or across the contact, where the bodies move together), so
         six columns per aggregate suffice, where twelve would double the coarse levels."""
-        f = self.foundation
-        pts = np.concatenate([coords_body, f.mesh.reference.points])
-        nb = coords_body.shape[0]
-        free = np.concatenate([np.asarray(free_body), 3 * nb + np.asarray(f.assembler.free)])
-        M = rigid_body_modes(pts, free)
+        pts, free, nodes = [coords_body], [np.asarray(free_body)], coords_body.shape[0]
+        for part in self.parts:
+            pts.append(part.mesh.reference.points)
+            free.append(3 * nodes + np.asarray(part.assembler.free))
+            nodes += part.mesh.reference.n_nodes
+        M = rigid_body_modes(np.concatenate(pts), np.concatenate(free))
         Mc = M[self.cd].reshape(-1, 3, 6)
         local = np.einsum("mij,mik->mjk", self._R, Mc).reshape(-1, 6)
         M[self.cd] = local - self._Pf @ M[self._cols_f]
@@ -101,29 +112,33 @@ class FullSpaceCouple:
         return self.T.T @ np.concatenate([np.asarray(y_body, float), np.zeros(self.n - self.n_body)])
 
     def foundation_displacement(self, u_f: np.ndarray, moved: float = 0.0) -> np.ndarray:
-        """The foundation's full displacement (3·n_f,): u_f, zero on its clamps, plus its
-        translation: d with control = 'displacement', s f̂ with control = 'force' (``moved`` = s)."""
-        f = self.foundation
-        u = f.assembler.to_full(u_f)
-        if f.translation is not None:
-            u = u + (1.0 if f.control == "displacement" else moved) * np.tile(f.translation, f.n_nodes)
-        return u
+        """The counterparts' full displacements one body after the other (3·n_f each): u_f, zero
+        on the clamps, plus each body's translation: d with control = 'displacement', s f̂ with
+        control = 'force' (``moved`` = s)."""
+        out = []
+        for start, stop, part in zip(self._starts[:-1], self._starts[1:], self.parts):
+            u = part.assembler.to_full(u_f[start:stop])
+            if part.translation is not None:
+                u = u + (1.0 if part.control == "displacement" else moved) * np.tile(part.translation, part.n_nodes)
+            out.append(u)
+        return np.concatenate(out)
 
     def compliance(self, x: np.ndarray) -> np.ndarray:
         """C x = Π_loc K_f⁻¹ Π_locᵀ x (3p, per node (t1, t2, ν)): the partners' displacement under
-        the contact forces −x on the foundation, by conjugate gradients on K_f preconditioned by
-        smoothed aggregation (built once), to a relative residual of 1e-13 — C itself, dense on
-        the support, is never formed."""
-        f = self.foundation
-        b = np.zeros(f.assembler.n_free)
+        the contact forces −x on the counterparts, by conjugate gradients on each K_f
+        preconditioned by smoothed aggregation (built once), to a relative residual of 1e-13 — C
+        itself, dense on the support, is never formed."""
+        b = np.zeros(self.n - self.n_body)
         b[self._cols_f - self.n_body] = self._Pf.T @ np.ravel(x)
-        if not np.any(b):
-            return np.zeros(np.size(x))
-        if self._kf_amg is None:
-            import pyamg
-            self._kf_amg = pyamg.smoothed_aggregation_solver(
-                f.K, B=rigid_body_modes(f.mesh.reference.points, f.assembler.free), max_coarse=500)
-        y = self._kf_amg.solve(b, tol=1e-13, accel="cg", maxiter=500)
+        y = np.zeros_like(b)
+        for k, (start, stop, part) in enumerate(zip(self._starts[:-1], self._starts[1:], self.parts)):
+            if not np.any(b[start:stop]):
+                continue
+            if self._kf_amg[k] is None:
+                import pyamg
+                self._kf_amg[k] = pyamg.smoothed_aggregation_solver(
+                    part.K, B=rigid_body_modes(part.mesh.reference.points, part.assembler.free), max_coarse=500)
+            y[start:stop] = self._kf_amg[k].solve(b[start:stop], tol=1e-13, accel="cg", maxiter=500)
         return self._Pf @ y[self._cols_f - self.n_body]
 
     def partner(self, u_f: np.ndarray, moved: float = 0.0) -> np.ndarray:
@@ -131,7 +146,7 @@ class FullSpaceCouple:
         foundation pressed by a force (``moved`` = s)."""
         out = (self._Pf @ u_f[self._cols_f - self.n_body]).reshape(-1, 3) + self.offset
         f = self.foundation
-        if moved and f.control == "force":
+        if moved and f.motion is not None and f.control == "force":
             out = out + moved * f.motion.reshape(-1, 3)
         return out
 

@@ -187,7 +187,7 @@ class FullSpacePath(FullSpaceCommon):
     """``[linear_solver] path = "fullspace"`` (module docstring)."""
 
     name = "fullspace"
-    capabilities = Capabilities(foundation=True, counterpart_force=True, obstacle=True, pinned=True, whole_displacement=True,
+    capabilities = Capabilities(foundation=True, pairs=True, counterpart_force=True, obstacle=True, pinned=True, whole_displacement=True,
                                 load_steps=True, libraries=("pyamg",), sparse="pyamg", auto="large", auto_order=0,
                                 auto_avoids=("obstacle",))
     condenses_counterparts = False      # an elastic foundation joins the Newton system (.coupled)
@@ -198,6 +198,14 @@ class FullSpacePath(FullSpaceCommon):
         self._hierarchy = None          # the AMG hierarchy of an earlier A(α) ...
         self.hierarchy_alpha = None     # ... built at this design (checkpoints rebuild it)
         self._couple = None             # an elastic foundation's change of unknowns (.coupled)
+        floating = [] if model.foundation is None else [
+            f"contacts[{k}]" for part, pairs in zip(model.foundation.parts, model.foundation.pairs)
+            if part.rigid is not None for k in pairs]
+        if floating:
+            raise ConfigError([f"{model.config.source}: linear_solver.path = 'fullspace': the counterpart of "
+                               f"{', '.join(floating)} is held only by its contacts, which is solved on the "
+                               "'condensation' path only so far (its rigid motions as the anchor's rows); use path "
+                               "'condensation' or clamp the body"])
         if model.foundation is not None and model.foundation.basis is not None:
             raise ConfigError([f"{model.config.source}: linear_solver.path = 'fullspace': an elastic [foundation] "
                                "with mortar partners on six-node triangles (a transformed basis) is solved on the "
