@@ -288,6 +288,7 @@ def _more_pairs(out: dict, raw: dict, bodies: dict, contacts: list, pairs: list,
         more.append({"contact": copy.deepcopy(part), "friction": contact.get("friction", base),
                      "foundation": holder["foundation"]})
     out.pop("foundation", None)
+    out.pop("obstacle", None)          # (the first pair's rigid counterpart is its own, not the model's)
     out["pairs"] = more
     out["friction"] = {**(raw.get("friction") or {}), "coefficient": base}
     out["body"]["contact"] = copy.deepcopy(faces[0][1]) if faces else [copy.deepcopy(p[1]) for p in pairs]
