@@ -153,11 +153,15 @@ def test_a_rigid_plane_is_the_limit_of_a_stiff_slab(tmp_path):
         assert 8 < d6 / d7 < 12
 
 
-def test_subgradient_with_a_rigid_pair_matches_central_differences(tmp_path):
-    """ξ·d of a design on the block's face over the rigid plane and the slab, friction on both
-    pairs, against Richardson central differences to 1e-6 (sliding, sticking and free nodes)."""
-    pb = _problem(tmp_path, _rigid('{ shape = "plane", control = "displacement", displacement = [0.002, 0.0, 0.0] }')
-                  + DESIGN)
+@pytest.mark.parametrize("counterpart", [
+    '{ shape = "plane", control = "displacement", displacement = [0.002, 0.0, 0.0] }',
+    '{ shape = "sphere", center = [0.5, 0.5, -20.0], radius = 20.0, control = "displacement", '
+    'displacement = [0.001, 0.0, 0.004] }'])
+def test_subgradient_with_a_rigid_pair_matches_central_differences(counterpart, tmp_path):
+    """ξ·d of a design on the block's face over a rigid counterpart (the plane moved along x1, or a
+    sphere, whose frames are not the axes) and the slab, friction on both pairs, against Richardson
+    central differences to 1e-6 (sliding, sticking and free nodes)."""
+    pb = _problem(tmp_path, _rigid(counterpart) + DESIGN)
     a = pb.model.initial_design()
     alpha = a + 0.003 * np.random.default_rng(1).standard_normal(a.size)
     gc = check_gradient(pb, alpha, n_directions=3, seed=0)
@@ -165,3 +169,93 @@ def test_subgradient_with_a_rigid_pair_matches_central_differences(tmp_path):
     assert gc.passed, gc.rel_errors
     assert max(gc.rel_errors) <= 1e-6
     assert gc.counts["M1"] > 0 and gc.counts["M3+"] > 0 and gc.counts["L"] > 0
+
+
+@pytest.mark.parametrize("friction", [0.0, 0.3])
+def test_the_patch_test_passes_on_a_rigid_plane_under_a_floating_stack(friction, tmp_path):
+    """The stack of tests/test_assembly_pairs.py with its lower block replaced by the rigid plane:
+    the middle block (the face body) and the upper one held in x3 only by their contacts, a pressure
+    p on the top: the pressure on both interfaces is p to 1e-8, τ = 0 (the floating counterpart
+    beside the rigid pair, its rigid motion in the anchored problem)."""
+    from test_assembly_pairs import _stack
+    _stack(tmp_path, friction)                      # writes upper.msh and model.toml
+    src = (tmp_path / "model.toml").read_text()
+    start = src.index("[bodies.lower]")
+    src = src[:start] + src[src.index("[bodies.upper]"):]
+    src = src.replace('counterpart = "lower.top"\nfriction', 'counterpart = { shape = "plane" }\nfriction')
+    src = src.replace('partner = "mortar"\n', "", 1)
+    pb = _problem(tmp_path, src, "rigid.toml")
+    m = pb.model
+    assert [f.partner for f in m.foundation.parts] == ["rigid", "mortar"]
+    assert m.body.rigid is not None and m.foundation.kernel()[1] == [
+        "the translation along x3 of the counterpart of contacts[1]"]
+    st = pb.solve_state(m.initial_design())
+    p = st.lam / m.contact_areas()
+    for k in range(2):
+        mine = m.body.pair_of == k
+        assert np.abs(p[mine] / 0.01 - 1).max() <= 1e-8, (k, p[mine])
+    assert np.all(np.linalg.norm(st.tau, axis=1) <= 1e-8 * st.lam)
+
+
+def _roller_on_a_plane(tmp_path, friction=0.2) -> ShapeProblem:
+    """examples/roller_plates.toml with the lower plate replaced by the rigid plane x3 = 0: the roller
+    held only by its contacts, the plane below (pair "bottom") and the elastic upper plate pressed
+    down by a displacement (pair "top"), friction on both."""
+    text = (EXAMPLES / "roller_plates.toml").read_text().replace('mesh = "roller_plates/',
+                                                                 f'mesh = "{EXAMPLES}/roller_plates/')
+    start = text.index("[bodies.lower]")
+    text = text[:start] + text[text.index("[bodies.upper]"):]
+    text = text.replace('counterpart = "lower.top"\npartner = "mortar"', 'counterpart = { shape = "plane" }')
+    return _problem(tmp_path, text.replace("coefficient = 0.0", f"coefficient = {friction}"))
+
+
+def test_a_floating_roller_on_a_rigid_plane_under_an_elastic_plate(tmp_path):
+    """The roller on the rigid plane under the elastic plate, friction 0.2: the vertical resultants of
+    the two pairs (λ and τ in global components) balance to 1e-8; on each side the half-width and peak
+    pressure against Hertz's b = √(4P′R/(πE*)), p0 = 2P′/(πb) with that side's E*: E/(1 − ν²) on the
+    rigid plane, E/(2(1 − ν²)) against the plate (measured: b −0.7 % and −0.6 %, p0 +5.8 % on 7 nodes
+    across the half-width on the plane and +1.8 %)."""
+    from contactopt.verification.hertz import fit
+    pb = _roller_on_a_plane(tmp_path)
+    m = pb.model
+    assert [f.partner for f in m.foundation.parts] == ["rigid", "mortar"]
+    bottom = m.body.pair_of == 0
+    assert np.abs(m.frames[bottom, :, 2] - [0.0, 0.0, 1.0]).max() == 0.0      # the plane's normal e3
+    st = pb.solve_state(m.initial_design())
+    g = np.einsum("mij,mj->mi", m.frames, np.c_[-st.tau, st.lam])      # the forces on the roller, global
+    F0, F1 = g[bottom].sum(axis=0), g[~bottom].sum(axis=0)
+    assert abs(F0[2] + F1[2]) <= 1e-8 * F0[2] and F0[2] > 0
+    assert np.abs(st.tau[bottom]).max() > 0.05 * st.lam.max()       # friction acts on the plane
+    x = m.body.reference.points[m.contact_nodes]
+    p = st.lam / m.contact_areas()
+    length = np.ptp(m.body.reference.points[:, 1])
+    E, nu = pb.config.material.E, pb.config.material.nu
+    for k, E_star in ((0, E / (1 - nu ** 2)), (1, E / (2 * (1 - nu ** 2)))):
+        s = m.body.pair_of == k
+        P1 = 2 * float(st.lam[s] @ np.abs(m.frames[s, 2, 2])) / length
+        b, p0 = fit(np.abs(x[s, 0]), p[s])
+        bH = math.sqrt(4 * P1 * m.body.chart.radius / (math.pi * E_star))
+        assert abs(b / bH - 1) < 0.015 and abs(p0 / (2 * P1 / (math.pi * bH)) - 1) < 0.07, (k, b / bH, p0)
+
+
+@pytest.mark.parametrize("change, needle", [
+    ('counterpart = { shape = "plane", control = "force", force = [0.0, 0.0, 1.0] }',
+     "contacts[0].counterpart: a rigid counterpart pressed by control = 'force' in a model of several pairs"),
+    ('counterpart = { shape = "plane", weighting = "mortar" }',
+     "contacts[0].counterpart.weighting = 'mortar': the mortar-weighted gap of a rigid counterpart takes a model of "
+     "one pair so far"),
+    ('counterpart = { shape = "plane" }\npartner = "mortar"', "contacts[0].partner: a rigid counterpart has no partners"),
+    ('counterpart = { shape = "sphere", center = [0.5, 0.5, -20.0] }', "contacts[0].counterpart.radius: required"),
+])
+def test_what_a_rigid_pair_does_not_take_is_refused_by_name(change, needle, tmp_path):
+    text = _rigid().replace('counterpart = { shape = "plane" }', change)
+    with pytest.raises(ConfigError) as exc:
+        load_config(_write(tmp_path, text + DESIGN))
+    assert needle in str(exc.value)
+
+
+def test_a_model_whose_counterparts_are_all_rigid_is_refused_by_name(tmp_path):
+    text = _rigid().replace('counterpart = "right.top"', 'counterpart = { shape = "plane" }')
+    text = text[:text.index("[bodies.right]")] + text[text.index("[[contacts]]"):]
+    with pytest.raises(ConfigError, match="contacts: every pair's counterpart is rigid"):
+        load_config(_write(tmp_path, text + DESIGN))

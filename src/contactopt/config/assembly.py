@@ -219,7 +219,7 @@ def desugar(raw: dict, problems: list) -> tuple[dict, list]:
                         "faces of the face body in a model of several pairs so far (each designed face a pair's face)")
     if len(problems) > n0:
         return _rest(raw), []
-    out, renames = _sections(raw, bodies, contacts[0], pairs[0], designs, faces, problems)
+    out, renames = _sections(raw, bodies, contacts[0], pairs[0], designs, faces, problems, several=len(contacts) > 1)
     if len(contacts) > 1:
         _more_pairs(out, raw, bodies, contacts, pairs, faces, problems)
     return out, renames
@@ -246,6 +246,10 @@ def _check_star(pairs: list, problems: list) -> None:
                             "(each pair's partners are searched on its own part)")
         else:
             seen[n] = counter
+    if not any(isinstance(c, tuple) for _, _, c in pairs):
+        problems.append("contacts: every pair's counterpart is rigid; a model of several pairs takes rigid "
+                        "counterparts beside at least one elastic counterpart body so far (the coupling of the "
+                        "pairs is built on the elastic ones)")
 
 
 def _check_rigid_pair(counter: dict, key: str, problems: list) -> None:
@@ -356,8 +360,9 @@ def _design_face(d: dict, n: int, bodies: dict, problems: list):
 
 
 def _sections(raw: dict, bodies: dict, contact: dict, pair, designs: list, faces: list,
-              problems: list) -> tuple[dict, list]:
-    """The one- and two-body sections of a checked assembly of one pair (module docstring)."""
+              problems: list, several: bool = False) -> tuple[dict, list]:
+    """The one- and two-body sections of a checked assembly of one pair (module docstring);
+    ``several``: the first of several pairs (the loads on counterpart bodies are read with them)."""
     face_body, part, counter = pair
     out = _rest(raw)
     b = bodies[face_body]
@@ -419,7 +424,7 @@ def _sections(raw: dict, bodies: dict, contact: dict, pair, designs: list, faces
     if isinstance(counter, tuple):
         _counterpart_body(out, bodies, counter, contact, raw, counter_loads, problems)
     else:
-        if counter_loads:
+        if counter_loads and not several:
             problems.append("loads: a load on a body that takes part in no pair")
         if any(k not in OBSTACLE or OBSTACLE[k][0] != v for k, v in counter.items()):
             out["obstacle"] = copy.deepcopy(counter)       # the fixed plane x3 = 0 is the model without one
