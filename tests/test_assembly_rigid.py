@@ -15,7 +15,6 @@ import numpy as np
 import pytest
 import scipy.sparse as sp
 import scipy.sparse.linalg as sla
-from test_assembly_pairs import DESIGN, TWO_SLABS
 
 from contactopt.config import load_config
 from contactopt.contact.local import solve_local
@@ -24,6 +23,7 @@ from contactopt.errors import ConfigError
 from contactopt.fem.elasticity import ElasticityAssembler
 from contactopt.problem import ShapeProblem
 from contactopt.sensitivity.check import check_gradient
+from test_assembly_pairs import DESIGN, TWO_SLABS
 
 EXAMPLES = Path(__file__).resolve().parent.parent / "examples"
 LEFT = """[bodies.left]
