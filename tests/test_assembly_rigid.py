@@ -104,6 +104,9 @@ def _monolithic_state(pb, alpha, shift=(0.0, 0.0, 0.0)):
     r = res.r.reshape(p, 3)[:, FROM_FCLIB]
     w = (w0 + W @ r.ravel()).reshape(p, 3)
     lam, tau = r[:, 2], -r[:, :2]
+    u = np.zeros(K.shape[0])                     # every body's displacement: K u = L + Bᵀ r
+    u[free] = lu.solve(L[free] + B.T @ r.ravel())
+    _monolithic_state.u = u[3 * nb:]             # the slab's (the bodies after the block, in pair order)
     return lam, tau, w, classify_nodes(w, lam, tau, gap, pb.friction)
 
 
@@ -259,3 +262,47 @@ def test_a_model_whose_counterparts_are_all_rigid_is_refused_by_name(tmp_path):
     text = text[:text.index("[bodies.right]")] + text[text.index("[[contacts]]"):]
     with pytest.raises(ConfigError, match="contacts: every pair's counterpart is rigid"):
         load_config(_write(tmp_path, text + DESIGN))
+
+
+PEAK = '[objective]\ntype = "peak_stress"\nregion = "{region}"\naggregate = "{aggregate}"\n'
+
+
+@pytest.mark.parametrize("region", ["right.", "right.top"])
+def test_the_peak_stress_of_a_counterpart_body_is_that_of_a_monolithic_model(region, tmp_path):
+    """The peak von Mises stress of the right slab (all of it, or its elements on its top face)
+    beside the rigid plane, at a designed shape, against the stress fem/stress.py computes from the
+    slab's displacement in the monolithic model: to 1e-9."""
+    from contactopt.fem.stress import von_mises_points
+    from contactopt.sensitivity.objectives import counterpart_region
+    pb = _problem(tmp_path, _rigid() + DESIGN + PEAK.format(region=region, aggregate="max"))
+    a = pb.model.initial_design()
+    alpha = a + 0.004 * np.random.default_rng(5).standard_normal(a.size)
+    _monolithic_state(pb, alpha)
+    slab = pb.model.foundation.parts[1]
+    b, cells = counterpart_region(pb.model, region, "objective.region")
+    assert b == 1 and 0 < cells.size <= slab.assembler.elements.shape[0]
+    assert (cells.size == slab.assembler.elements.shape[0]) == (region == "right.")
+    peak = von_mises_points(slab.assembler, slab.mesh.reference.points, _monolithic_state.u, cells).max()
+    assert abs(pb.evaluate_value(alpha) - peak) <= 1e-9 * peak
+
+
+@pytest.mark.parametrize("text, region, aggregate", [(None, "right.", "max"), (None, "right.top", "ks"),
+                                                     (TWO_SLABS, "left.", "ks")])
+def test_subgradient_of_a_counterpart_peak_stress_matches_central_differences(text, region, aggregate, tmp_path):
+    """ξ·d of the peak stress of a counterpart body (beside the rigid plane, or of the left slab of
+    the two), through its recovery from the contact forces, against central differences to 1e-6."""
+    pb = _problem(tmp_path, (text or _rigid()) + DESIGN + PEAK.format(region=region, aggregate=aggregate))
+    a = pb.model.initial_design()
+    alpha = a + 0.003 * np.random.default_rng(1).standard_normal(a.size)
+    gc = check_gradient(pb, alpha, n_directions=3, seed=0)
+    assert gc.n_degenerate == 0 and gc.passed, gc.rel_errors
+    assert max(gc.rel_errors) <= 1e-6
+
+
+def test_the_peak_stress_of_a_floating_counterpart_is_refused_by_name(tmp_path):
+    """A counterpart held only by its contacts: its displacement is not one of the contact forces alone."""
+    from test_assembly_pairs import _stack
+    _stack(tmp_path, 0.0)
+    text = (tmp_path / "model.toml").read_text() + PEAK.format(region="upper.", aggregate="max")
+    with pytest.raises(ConfigError, match="objective.region = 'upper.': body 'upper' is held only by its contacts"):
+        _problem(tmp_path, text, "peak.toml").evaluate_value(np.zeros(1))
