@@ -159,7 +159,7 @@ def test_a_rigid_plane_is_the_limit_of_a_stiff_slab(tmp_path):
 @pytest.mark.parametrize("counterpart", [
     '{ shape = "plane", control = "displacement", displacement = [0.002, 0.0, 0.0] }',
     '{ shape = "sphere", center = [0.5, 0.5, -20.0], radius = 20.0, control = "displacement", '
-    'displacement = [0.001, 0.0, 0.004] }'])
+    'displacement = [0.001, 0.0, 0.004] }'], ids=["plane", "sphere"])
 def test_subgradient_with_a_rigid_pair_matches_central_differences(counterpart, tmp_path):
     """ξ·d of a design on the block's face over a rigid counterpart (the plane moved along x1, or a
     sphere, whose frames are not the axes) and the slab, friction on both pairs, against Richardson
@@ -287,7 +287,8 @@ def test_the_peak_stress_of_a_counterpart_body_is_that_of_a_monolithic_model(reg
 
 
 @pytest.mark.parametrize("text, region, aggregate", [(None, "right.", "max"), (None, "right.top", "ks"),
-                                                     (TWO_SLABS, "left.", "ks")])
+                                                     (TWO_SLABS, "left.", "ks")],
+                         ids=["beside-plane", "beside-plane-top", "two-slabs"])
 def test_subgradient_of_a_counterpart_peak_stress_matches_central_differences(text, region, aggregate, tmp_path):
     """ξ·d of the peak stress of a counterpart body (beside the rigid plane, or of the left slab of
     the two), through its recovery from the contact forces, against central differences to 1e-6."""
