@@ -307,3 +307,13 @@ def test_the_peak_stress_of_a_floating_counterpart_is_refused_by_name(tmp_path):
     text = (tmp_path / "model.toml").read_text() + PEAK.format(region="upper.", aggregate="max")
     with pytest.raises(ConfigError, match="objective.region = 'upper.': body 'upper' is held only by its contacts"):
         _problem(tmp_path, text, "peak.toml").evaluate_value(np.zeros(1))
+
+
+def test_the_peak_stress_of_the_one_pair_foundation_is_refused_by_name():
+    """The slab of examples/block_on_slab.toml (one pair): not taken so far, and said so."""
+    text = (EXAMPLES / "block_on_slab.toml").read_text()
+    text = text[:text.index("[objective]")] + PEAK.format(region="slab.top", aggregate="ks") + text[text.index("[state]"):]
+    import tempfile
+    with tempfile.TemporaryDirectory() as tmp:
+        with pytest.raises(ConfigError, match="the peak stress of a counterpart body takes a model of several pairs"):
+            ShapeProblem(load_config(_write(Path(tmp), text))).evaluate_value(np.zeros(1))

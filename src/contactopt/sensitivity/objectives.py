@@ -405,8 +405,10 @@ def counterpart_region(model, region, key: str):
         return None
     fnd = model.foundation
     src = model.config.source
-    names = [assembly.bodies[1]] if len(fnd.parts) == 1 and not model.config.pairs else \
-        [assembly.contacts[pairs[0]].counterpart.split(".")[0] for pairs in fnd.pairs]
+    if not model.config.pairs:
+        raise ConfigError([f"{src}: {key} = {region!r}: the peak stress of a counterpart body takes a model of "
+                           "several pairs so far, not the elastic foundation of one pair"])
+    names = [assembly.contacts[pairs[0]].counterpart.split(".")[0] for pairs in fnd.pairs]
     b = names.index(name)
     f = fnd.parts[b]
     if f.rigid is not None:
