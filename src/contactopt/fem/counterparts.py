@@ -41,20 +41,75 @@ class _BlockCondensation:
         self.S = sla.block_diag(*[np.asarray(f.condensation.S) for f in parts])
 
 
+class RigidCounterpart:
+    """A rigid counterpart of one of several pairs (``[[contacts]] counterpart`` a table of
+    ``[obstacle]``): a counterpart block with no DOFs. Its partners and compliance are empty
+    (Π_k has no columns, C_k = 0), its gaps ``gap0`` the distances of the pair's contact nodes to
+    the obstacle along its normal (as the one-pair obstacle's, fem.model), and a prescribed
+    translation d (``control = "displacement"``) its ``motion`` R_mᵀ d per contact node (t1, t2, ν):
+    the law's relative displacement is w = u_c − R_mᵀ d, as with an elastic counterpart moved by d."""
+
+    basis = None
+    rigid = None          # no rigid motions free: it is held
+    condensed = True
+    n_nodes = 0
+    partner = "rigid"
+    memory_parts: dict = {}
+
+    def __init__(self, spec, gap0: np.ndarray):
+        self.spec, self.control = spec, spec.control
+        p = np.asarray(gap0).size
+        self.gap0 = np.asarray(gap0, float).copy()
+        self.translation = np.asarray(spec.displacement, float) if spec.control == "displacement" else None
+        self.P = sp.csr_matrix((3 * p, 0))
+        self.Pi = sp.csr_matrix((3 * p, 0))
+        self.C = np.zeros((3 * p, 3 * p))
+        self.ell_f = np.zeros(0)
+        self.load_resultant = np.zeros(3)
+        self.condensation = type("Empty", (), {"S": np.zeros((0, 0))})()
+        self.rotate(np.broadcast_to(np.eye(3), (p, 3, 3)))
+
+    def rotate(self, R: np.ndarray) -> None:
+        """Its translation in the contact nodes' frames R (p, 3, 3), columns (t1, t2, n)."""
+        self.motion = None
+        if self.translation is not None and np.any(self.translation):
+            self.motion = np.einsum("mij,i->mj", R, self.translation).ravel()
+        self.q_f = np.zeros(self.P.shape[0]) if self.motion is None else self.motion.copy()
+
+    def displacement(self, r=None, s: float = 0.0, support=None, **_) -> np.ndarray:
+        """No DOFs: an empty displacement (the file of the counterpart bodies leaves it out)."""
+        return np.zeros(0)
+
+    def summary(self) -> dict:
+        sp_ = self.spec
+        out = {"rigid": sp_.shape, "control": sp_.control}
+        if sp_.control == "displacement":
+            out["displacement"] = list(map(float, sp_.displacement))
+        return out
+
+
 def build_counterparts(specs, body, source: str, check=None, normals=None, frames=None,
-                       names=None, condensed: bool = True) -> Counterparts:
+                       names=None, rigid=None, condensed: bool = True) -> Counterparts:
     """The counterparts of the pairs ``specs`` (``[foundation]`` tables, one per pair) of ``body``:
     one :class:`~contactopt.fem.foundation.Foundation` per counterpart body, named per pair by
     ``names`` (None: each pair its own body), built on the pairs' views of the body (their faces
     and nodes); ``normals`` (p, 3) of a curved face, ``frames`` (p, 3, 3) the contact nodes' frames
-    the coupling is expressed in."""
+    the coupling is expressed in. ``rigid``: {pair: (its ``[obstacle]``, the gaps of its contact
+    nodes)} of the pairs against rigid counterparts (:class:`RigidCounterpart`; their ``specs``
+    entries are not read)."""
     from .foundation import Foundation
+    rigid = rigid or {}
     names = list(range(len(specs))) if names is None else list(names)
     groups = {}
     for k, name in enumerate(names):
-        groups.setdefault(name, []).append(k)
+        groups.setdefault(("rigid", k) if k in rigid else name, []).append(k)
     parts, rows = [], []
-    for pairs in groups.values():
+    for key, pairs in groups.items():
+        if isinstance(key, tuple):
+            k = pairs[0]
+            parts.append(RigidCounterpart(*rigid[k]))
+            rows.append(np.flatnonzero(body.pair_of == k))
+            continue
         views = [(specs[k], body.pair_view(k),
                   None if normals is None else normals[np.flatnonzero(body.pair_of == k)]) for k in pairs]
         where = f"{source}: {_which(pairs)}"

@@ -187,6 +187,8 @@ def write_foundation_vtu(path, foundation, state, pair: int | None = None) -> Pa
     u_all = np.asarray(state.foundation.displacement, float)
     points, blocks, data, cells_data, offset, start = [], [], {}, {}, 0, 0
     for k, (fnd, nodes) in enumerate(zip(parts, rows)):
+        if fnd.n_nodes == 0:            # a rigid counterpart of several pairs: no mesh, no displacement
+            continue
         ref = fnd.mesh.reference
         n = ref.n_nodes
         u = _finite("foundation displacement", u_all[3 * start:3 * (start + n)].reshape(n, 3))

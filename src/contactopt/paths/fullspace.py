@@ -42,6 +42,7 @@ from ..contact.state import FoundationState
 from ..errors import CheckpointError, ConfigError
 from ..fem import memory
 from ..fem.amg import ContactHierarchy, rigid_body_modes
+from ..fem.counterparts import RigidCounterpart
 from ..fem.model import Assembled
 from ..sensitivity.adjoint_fullspace import solve_adjoint_fullspace
 from .base import Adjoint, Capabilities, Context, SolverPath, SystemParts, check_design
@@ -201,6 +202,13 @@ class FullSpacePath(FullSpaceCommon):
         floating = [] if model.foundation is None else [
             f"contacts[{k}]" for part, pairs in zip(model.foundation.parts, model.foundation.pairs)
             if part.rigid is not None for k in pairs]
+        rigid = [] if model.foundation is None else [
+            f"contacts[{k}]" for part, pairs in zip(model.foundation.parts, model.foundation.pairs)
+            if isinstance(part, RigidCounterpart) for k in pairs]
+        if rigid:
+            raise ConfigError([f"{model.config.source}: linear_solver.path = 'fullspace': the rigid counterpart of "
+                               f"{', '.join(rigid)} beside elastic ones is solved on the 'condensation' path only so "
+                               "far; use path 'condensation'"])
         if floating:
             raise ConfigError([f"{model.config.source}: linear_solver.path = 'fullspace': the counterpart of "
                                f"{', '.join(floating)} is held only by its contacts, which is solved on the "
