@@ -232,3 +232,14 @@ def test_a_foundation_pressed_by_a_force_agrees_and_its_subgradient_matches(side
     assert _rel(s1.foundation.u_partner, s0.foundation.u_partner) <= 1e-8
     gc = check_gradient(pb, a, n_directions=2, seed=0, h=1e-2)
     assert gc.n_degenerate == 0 and max(gc.rel_errors) <= 1e-6, gc.rel_errors
+
+
+def test_a_rigid_counterpart_beside_an_elastic_one_is_refused_by_name_on_the_full_space():
+    """The block on a rigid plane and an elastic slab (tests/test_assembly_rigid.py): the
+    condensation path only so far."""
+    import tomllib
+
+    from test_assembly_rigid import _rigid
+    cfg = load_config(tomllib.loads(_rigid())).with_updates({"linear_solver": {"path": "fullspace"}})
+    with pytest.raises(ConfigError, match=r"the rigid counterpart of contacts\[0\] beside elastic ones"):
+        ShapeProblem(cfg)
