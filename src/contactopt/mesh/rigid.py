@@ -59,7 +59,9 @@ def free_modes(points: np.ndarray, fixed: np.ndarray, rtol: float = 1e-9) -> Rig
     scale[3:] = max(np.ptp(points, axis=0).max(), 1e-300)      # rotations in units of length
     Ms = M * scale
     if Ms.shape[0]:
-        _, sv, Vt = np.linalg.svd(Ms, full_matrices=True)
+        # Vt is all we need: the thin SVD where the clamps give six rows or more (the full one
+        # forms U of rows × rows, 7 GB for the 30k clamped components of a hub 64 × 128)
+        _, sv, Vt = np.linalg.svd(Ms, full_matrices=Ms.shape[0] < 6)
         rank = int(np.sum(sv > rtol * max(sv.max(initial=0.0), 1e-300)))
     else:
         Vt, rank = np.eye(6), 0
