@@ -165,6 +165,29 @@ def shaft_config(hub_path, shaft_path, *, delta=DELTA, b=B, length=0.25, foundat
             "foundation": {"mesh": str(shaft_path), "top": "surface", "partner": "point", "clamped": clamps}}
 
 
+def edge_relief_config(hub_path, shaft_path, *, delta=DELTA, b=B, degree: int = 4, path="fullspace") -> dict:
+    """A hub shorter than its shaft: the quarter hub of half-length 0.25 (mesh of
+    :func:`quarter_hub_mesh` with ``length=0.25``) on a quarter shaft of half-length 0.5
+    (:func:`quarter_shaft_mesh` with ``length=0.5``), both cut at their common mid-plane x3 = 0
+    (u3 = 0 there, the symmetry planes x1 = 0 and x2 = 0 through both), frictionless, mortar
+    partners. The shaft goes on past the hub's free end, where the fit's pressure peaks (the
+    edge effect the hub's bore is relieved against). The design is an axial profile of the bore
+    (degree 0 around it, ``degree`` along it), moved along the bore's normal within ±δ; the
+    objective the peak contact pressure (a KS aggregate)."""
+    sym = [{"on": {"x1": 0.0}, "components": [1]}, {"on": {"x2": 0.0}, "components": [2]},
+           {"on": {"x3": 0.0}, "components": [3]}]
+    cfg = shaft_config(hub_path, shaft_path, delta=delta, b=b, foundation_clamped=sym)
+    cfg["name"] = "lame-edge-relief"
+    cfg["body"]["clamped"] = sym
+    cfg["foundation"]["partner"] = "mortar"
+    cfg["design"] = {"degree": [0, degree], "initial": 0.0, "lower": -delta, "C0": delta, "C1": 1.0, "C2": 0.0,
+                     "motion": "normal", "nonnegative_gap": False}
+    cfg["objective"] = {"type": "max_pressure", "aggregate": "ks", "rho": 2.0e4}
+    cfg["state"] = {"method": "newton", "tol": 1e-10}
+    cfg["linear_solver"] = {"path": path}
+    return cfg
+
+
 def contact_pressure(problem, alpha=None):
     """(chart coordinates (p, 2), nodal contact pressures λ_m/A_m (p,)) of a state of ``problem``."""
     model = problem.model
