@@ -109,6 +109,20 @@ class Counterparts:
             if f.motion is not None:
                 self.q_f[d] = f.motion
         self.ell_o = np.concatenate([f.ell_f for f in self.parts])
+        # Π W_o ℓ_o: the partners' displacement under the counterparts' own loads (Coupling.free_displacement)
+        self.load_displacement = None
+        if self.C is not None and np.any(self.ell_o):
+            self.load_displacement = np.asarray(self.P @ self.support_compliance(self.ell_o))
+
+    def support_compliance(self, x: np.ndarray) -> np.ndarray:
+        """W_o x = diag_k(W_k) x: the displacement of the counterparts' free support DOFs (in the
+        order of ``P``'s columns) under the forces x on them; every counterpart held."""
+        out, start = np.empty(x.shape), 0
+        for f in self.parts:
+            m = f.P.shape[1]
+            out[start:start + m] = f.W_f @ x[start:start + m]
+            start += m
+        return out
 
     def check_held(self, friction, names: list, source: str) -> None:
         """ConfigError naming each rigid motion of a counterpart held only by its contacts that no
@@ -182,7 +196,7 @@ class Counterparts:
         """Each counterpart's full displacement (3·n_k,): its support DOFs from the coupling's
         :meth:`~contactopt.fem.foundation.Coupling.support_displacement` of the law's w under the
         face body's load ℓ, its interior recovered under its own loads, plus its prescribed translation."""
-        o = coupling.support_displacement(w, ell)
+        o = coupling.support_displacement(w, ell, r)
         out, start = [], 0
         for f in self.parts:
             m = f.P.shape[1]
