@@ -196,7 +196,11 @@ class Counterparts:
         """Each counterpart's full displacement (3·n_k,): its support DOFs from the coupling's
         :meth:`~contactopt.fem.foundation.Coupling.support_displacement` of the law's w under the
         face body's load ℓ, its interior recovered under its own loads, plus its prescribed translation."""
-        o = coupling.support_displacement(w, ell, r)
+        return self.recovered(coupling.support_displacement(w, ell, r))
+
+    def recovered(self, o: np.ndarray) -> list:
+        """Each counterpart's full displacement (3·n_k,) from o on the free support DOFs of all
+        (:meth:`displacements`): its interior recovered under its own loads, plus its translation."""
         out, start = [], 0
         for f in self.parts:
             m = f.P.shape[1]

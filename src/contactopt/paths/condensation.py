@@ -41,6 +41,7 @@ from __future__ import annotations
 
 import time
 from dataclasses import dataclass, replace
+from functools import partial
 
 import numpy as np
 from scipy.sparse.linalg import eigsh
@@ -279,8 +280,18 @@ class CondensationPath(ZonePath):
         if system.moved:         # a force-controlled foundation: u_c's normal part omits the translation's
             partner = partner + system.moved * self.model.obstacle_force.gap_rate[:, None] * [0.0, 0.0, 1.0]
         return FoundationState(u_body_c=body, u_partner=partner,
-                               displacement=self.foundation.displacement(r, system.moved, coupling=system.coupling,
-                                                                         w=np.ravel(u_c), ell=system.ell))
+                               displacement=self._foundation_displacement(system, u_c, r))
+
+    def _foundation_displacement(self, system, u_c, r):
+        """The foundation's displacement of a state as a function of no arguments, computed when an
+        output reads it (:class:`~contactopt.contact.state.FoundationState`): it holds only the
+        run's foundation and a few contact vectors (the counterparts' support displacement o,
+        formed here), not the design's factorizations."""
+        f = self.foundation
+        if f.ell_o is None:            # one foundation: its own solve under −Πᵀr
+            return partial(f.displacement, np.array(r), system.moved)
+        o = system.coupling.support_displacement(np.ravel(u_c), system.ell, r)
+        return lambda: np.concatenate(f.recovered(o))
 
     def load_scale(self, system):
         return system.contact_ell
