@@ -40,8 +40,8 @@ def child(key, path, step, out_dir):
 
     from contactopt._threads import sequential_openblas
     from contactopt.config import load_config
-    from contactopt.sensitivity.adjoint import subgradient
     from contactopt.problem import ShapeProblem
+    from contactopt.sensitivity.adjoint import subgradient
 
     (nx, ny, nz), cells = SIZES[key]
     base = load_config(ELASTIC)

@@ -104,11 +104,12 @@ class CondensedSystem(SystemParts):
 
     @property
     def contact_ell(self) -> np.ndarray:
-        """The load of the contact law's displacement: ℓ, or ℓ_eff on an elastic foundation
-        (formed on first use: the zone and the adjoint need only W ℓ_eff, :attr:`compliant`)."""
-        if self.coupling is None:
-            return self.ell
+        """The load of the contact law's displacement: ℓ, ℓ − S shift on a translated obstacle, or
+        ℓ_eff on an elastic foundation (formed on first use: the zone and the adjoint of a
+        :attr:`compliant` system need only W ℓ_eff)."""
         if self.ell_eff is None:
+            if self.coupling is None:
+                return self.ell
             self.ell_eff = self.coupling.ell_eff(self.ell)
         return self.ell_eff
 
