@@ -325,8 +325,8 @@ class Coupling:
     product W b is a solve with the body's Cholesky factor and a product with C, which is formed
     once per run. The zone's problem (:class:`~contactopt.contact.zone.CoupledZoneProblem`) and
     the adjoint in W-form need nothing else: W_Z = (S⁻¹)_ZZ + C_ZZ on the zone Z, and the law's
-    free displacement W ℓ_eff = S⁻¹ℓ − Π q_f (:meth:`free_displacement`), so that a design adds
-    no dense algebra on all contact DOFs to the body's own (``compliant``; docs/foundation.md).
+    free displacement W ℓ_eff = S⁻¹ℓ − :attr:`offset`, so that a design adds no dense algebra on
+    all contact DOFs to the body's own (``compliant``; docs/foundation.md).
 
     Where S_eff = W⁻¹ itself is asked for (:attr:`S_eff`, ℓ_eff, the transfers; a counterpart held
     only by its contacts, which has no C; a force-controlled foundation; an objective of the whole

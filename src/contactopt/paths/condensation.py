@@ -20,7 +20,12 @@ displacement is u_c = S⁻¹(ℓ + r) = w + Π q_f − C r. The adjoint (4.15) i
 differentiating S_eff w − ℓ_eff at fixed w gives S_eff S⁻¹(∂S u_c − ∂ℓ), so the design terms take
 z = S⁻¹ S_eff v_u in place of v_u: ṽ is the A-harmonic extension of z. S_eff and both
 transfers come from the Woodbury identity (:class:`contactopt.fem.foundation.Coupling`), with no
-inverse of S. Without a foundation (C = 0) nothing of this is formed.
+inverse of S. Where the body and every counterpart are held by their clamps
+(:attr:`CondensedSystem.compliant`) none of S_eff, ℓ_eff is formed: the zone's problem is that of
+the compliance W = S⁻¹ + C on the factor of S (:class:`contactopt.contact.zone.CoupledZoneProblem`),
+with the free displacement W ℓ_eff = S⁻¹ℓ − Π q_f, and (4.15) is solved in W-form for
+s = S_eff v_u, so that z = S⁻¹ s (:func:`contactopt.sensitivity.adjoint.solve_adjoint_compliant`).
+Without a foundation (C = 0) nothing of this is formed.
 
 On a rigid obstacle other than the plane (``[obstacle]``, :mod:`contactopt.mesh.obstacle`) each
 contact node m has a frame R_m with columns (t1, t2, n): the contact DOFs are the local
