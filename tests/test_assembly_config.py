@@ -216,12 +216,14 @@ def test_two_bodies_of_one_name_are_refused_by_the_toml_reader(tmp_path, state_r
 
 def test_what_the_mechanics_do_not_take_yet_is_refused_by_name(tmp_path):
     """Several pairs or designs: refused with the sentence that says what is solved so far."""
-    text = BLOCK_ON_SLAB + '[[contacts]]\nface = "slab.bottom"\ncounterpart = { shape = "plane" }\n'
+    text = BLOCK_ON_SLAB + ('[[contacts]]\nface = "slab.bottom"\ncounterpart = { shape = "plane", control = "force", '
+                            'force = [0.0, 0.0, 1.0] }\n')
     with pytest.raises(ConfigError) as exc:
         load_config(_write(tmp_path, text))
     assert "contacts[1].face = 'slab.bottom': with several pairs contactopt takes the faces of every pair on one " \
            "body so far ('block'" in str(exc.value)
-    assert "contacts[1].counterpart: a rigid counterpart in a model of several pairs" in str(exc.value)
+    assert "contacts[1].counterpart: a rigid counterpart pressed by control = 'force' in a model of several pairs" \
+           in str(exc.value)
     text = BLOCK_ON_SLAB + '[[designs]]\nface = "block.contact"\n'
     with pytest.raises(ConfigError, match="2 designed faces"):
         load_config(_write(tmp_path, text))

@@ -65,8 +65,11 @@ def test_rigid_limit_as_the_foundation_stiffens():
 def test_no_foundation_section_is_the_rigid_case_and_paths_are_checked():
     with pytest.raises(ConfigError, match="condensation"):
         ShapeProblem(_config({"block": _block()}, linear_solver={"path": "delassus"}))
-    pb = ShapeProblem(_config({"block": _block()}, linear_solver={"path": "auto", "crossover": 10}))
+    pb = ShapeProblem(_config({"block": _block()}, linear_solver={"path": "auto"}))
     assert pb.path.name == "condensation"
+    # from the crossover on, "auto" solves two bodies in full space (paths/coupled.py)
+    pb = ShapeProblem(_config({"block": _block()}, linear_solver={"path": "auto", "crossover": 10}))
+    assert pb.path.name == "fullspace"
 
 
 # ------------------------------------------------------------------ a monolithic model

@@ -132,12 +132,67 @@ def test_auto_takes_the_full_space_for_two_bodies_from_the_crossover_on():
     assert select_path(cfg, crossover)[0] == "fullspace"
 
 
+def _agree(make, seed=1, amp=0.003):
+    """Θ, ξ, λ, w, the classes and the counterparts' displacements of one evaluation on both paths
+    (``make(path)`` the problem): their relative differences."""
+    out = {}
+    for path in ("condensation", "fullspace"):
+        pb = make(path)
+        assert pb.path.name == path
+        a = pb.model.initial_design()
+        d = np.random.default_rng(seed).standard_normal(a.size)
+        a = a + amp * (d - d.mean())
+        theta, xi = pb.evaluate(a)
+        out[path] = theta, xi, pb.solve_state(a)
+    (t0, x0, s0), (t1, x1, s1) = out["condensation"], out["fullspace"]
+    assert np.array_equal(s1.classes, s0.classes)
+    return {"Theta": abs(t1 - t0) / abs(t0), "xi": _rel(x1, x0), "lambda": _rel(s1.lam, s0.lam),
+            "w": _rel(s1.u_c, s0.u_c), "bodies": _rel(s1.foundation.displacement, s0.foundation.displacement)}
+
+
+@pytest.mark.parametrize("objective", ["target_force", "frictional_dissipation"])
+def test_several_pairs_on_two_slabs_agree(objective):
+    """Example 1's block on two slabs (a pair each, friction 0.3 and 0.3, its face designed,
+    tests/test_assembly_pairs.py): both slabs' DOFs in the Newton system."""
+    import tomllib
+
+    from test_assembly_pairs import DESIGN, TWO_SLABS
+
+    def make(path):
+        cfg = load_config(tomllib.loads(TWO_SLABS + DESIGN)).with_updates(
+            {"linear_solver": {"path": path}, "state": {"tol": 1e-12}})
+        if objective != "target_force":
+            cfg = cfg.with_updates({"objective": {"type": objective}})
+        return ShapeProblem(cfg)
+    d = _agree(make)
+    assert d["Theta"] <= 1e-9 and d["xi"] <= 1e-8 and d["lambda"] <= 1e-9 and d["w"] <= 1e-8 and d["bodies"] <= 1e-8, d
+
+
+def test_a_body_under_two_pairs_agrees(tmp_path):
+    """The block on one base through two pairs (the base's top_left and top_right,
+    tests/test_assembly_shared.py): the base's compliance couples the pairs."""
+    from test_assembly_shared import _problem
+
+    def make(path):
+        pb = _problem(tmp_path, "shared")
+        return ShapeProblem(pb.config.with_updates({"linear_solver": {"path": path}, "state": {"tol": 1e-12}}))
+    d = _agree(make)
+    assert d["Theta"] <= 1e-9 and d["xi"] <= 1e-8 and d["lambda"] <= 1e-9 and d["w"] <= 1e-8 and d["bodies"] <= 1e-8, d
+
+
 def test_what_the_full_space_does_not_take_yet_is_refused_by_name():
-    forced = {**FOUNDATIONS["point partners"], "control": "force", "loaded": "bottom", "force": [0.0, 0.0, 0.1]}
-    with pytest.raises(ConfigError, match="pressed by a force|control = 'force'.*'condensation'"):
-        ShapeProblem(_config(forced, "fullspace"))
-    # auto keeps it where it is solved
-    assert select_path(_config(forced, "auto"), 10**7)[0] == "condensation"
+    """A counterpart held only by its contacts (the right slab clamped along x3 only, its
+    tangential motions held by friction) stays on the condensation path so far: refused by name
+    on the full space."""
+    import tomllib
+
+    from test_assembly_pairs import DESIGN, TWO_SLABS
+    text = TWO_SLABS.replace('clamped = "bottom"\nmaterial = { E = 6.0',
+                             'clamped = { on = "bottom", components = [3] }\nmaterial = { E = 6.0')
+    assert text != TWO_SLABS
+    cfg = load_config(tomllib.loads(text + DESIGN)).with_updates({"linear_solver": {"path": "fullspace"}})
+    with pytest.raises(ConfigError, match=r"the counterpart of contacts\[1\] is held only by its contacts"):
+        ShapeProblem(cfg)
 
 
 def test_a_resumed_full_space_run_on_a_foundation_repeats_the_uninterrupted_one(tmp_path):
@@ -154,3 +209,37 @@ def test_a_resumed_full_space_run_on_a_foundation_repeats_the_uninterrupted_one(
     assert resumed.summary["J"] == full.summary["J"]
     assert (json.loads((tmp_path / "part" / "alpha.json").read_text())
             == json.loads((tmp_path / "full" / "alpha.json").read_text()))
+
+
+@pytest.mark.parametrize("sideways", [0.0, 0.4])
+def test_a_foundation_pressed_by_a_force_agrees_and_its_subgradient_matches(sideways):
+    """The foundation pressed up by f = (f1, 0, 3) on its bottom face (the translation's search
+    around the full-space solve; f1 ≠ 0 drags the partners tangentially): Θ, ξ, λ, the
+    translation, both bodies' displacements against the condensation; ξ·d against central
+    differences (measured 3e-8)."""
+    f = {"block": _block(), "material": {"E": 2.0}, "control": "force", "force": [sideways, 0.0, 3.0]}
+    out = {}
+    for path in ("condensation", "fullspace"):
+        pb = ShapeProblem(_config(f, path))
+        a = _design(pb.model)
+        theta, xi = pb.evaluate(a)
+        out[path] = theta, xi, pb.solve_state(a)
+    (t0, x0, s0), (t1, x1, s1) = out["condensation"], out["fullspace"]
+    assert abs(t1 - t0) <= 1e-9 * abs(t0) and _rel(x1, x0) <= 1e-8
+    assert _rel(s1.lam, s0.lam) <= 1e-9 and _rel(s1.u_c, s0.u_c) <= 1e-8
+    assert abs(s1.obstacle.translation - s0.obstacle.translation) <= 1e-9 * abs(s0.obstacle.translation)
+    assert _rel(s1.foundation.displacement, s0.foundation.displacement) <= 1e-8
+    assert _rel(s1.foundation.u_partner, s0.foundation.u_partner) <= 1e-8
+    gc = check_gradient(pb, a, n_directions=2, seed=0, h=1e-2)
+    assert gc.n_degenerate == 0 and max(gc.rel_errors) <= 1e-6, gc.rel_errors
+
+
+def test_a_rigid_counterpart_beside_an_elastic_one_is_refused_by_name_on_the_full_space():
+    """The block on a rigid plane and an elastic slab (tests/test_assembly_rigid.py): the
+    condensation path only so far."""
+    import tomllib
+
+    from test_assembly_rigid import _rigid
+    cfg = load_config(tomllib.loads(_rigid())).with_updates({"linear_solver": {"path": "fullspace"}})
+    with pytest.raises(ConfigError, match=r"the rigid counterpart of contacts\[0\] beside elastic ones"):
+        ShapeProblem(cfg)

@@ -219,7 +219,7 @@ def desugar(raw: dict, problems: list) -> tuple[dict, list]:
                         "faces of the face body in a model of several pairs so far (each designed face a pair's face)")
     if len(problems) > n0:
         return _rest(raw), []
-    out, renames = _sections(raw, bodies, contacts[0], pairs[0], designs, faces, problems)
+    out, renames = _sections(raw, bodies, contacts[0], pairs[0], designs, faces, problems, several=len(contacts) > 1)
     if len(contacts) > 1:
         _more_pairs(out, raw, bodies, contacts, pairs, faces, problems)
     return out, renames
@@ -227,7 +227,8 @@ def desugar(raw: dict, problems: list) -> tuple[dict, list]:
 
 def _check_star(pairs: list, problems: list) -> None:
     """Several pairs, as the mechanics take them so far: every face on one body (the face body),
-    every counterpart a part of another body, no two pairs on one counterpart body."""
+    every counterpart a part of another body; a body may be the counterpart of several pairs
+    (condensed once onto all their supports, fem.counterparts), each on a part of its own."""
     face_body = pairs[0][0]
     seen = {}
     for n, (body, part, counter) in enumerate(pairs):
@@ -237,14 +238,31 @@ def _check_star(pairs: list, problems: list) -> None:
                             f"faces of every pair on one body so far ({face_body!r}, the face of contacts[0]); "
                             "write the pair the other way round (face and counterpart swapped) where it can be")
         if not isinstance(counter, tuple):
-            problems.append(f"{key}.counterpart: a rigid counterpart in a model of several pairs; contactopt takes "
-                            "rigid counterparts in a model of one pair so far (elastic bodies in several)")
-        elif counter[0] in seen:
-            problems.append(f"{key}.counterpart = '{counter[0]}.{_part_name(counter[1])}': body {counter[0]!r} is "
-                            f"already the counterpart of contacts[{seen[counter[0]]}]; contactopt takes one pair "
-                            "per counterpart body so far")
+            _check_rigid_pair(counter, key, problems)
+        elif counter in seen.values():
+            first = next(m for m, c in seen.items() if c == counter)
+            problems.append(f"{key}.counterpart = '{counter[0]}.{_part_name(counter[1])}': is already the "
+                            f"counterpart of contacts[{first}]; two pairs on one body meet it on two parts "
+                            "(each pair's partners are searched on its own part)")
         else:
-            seen[counter[0]] = n
+            seen[n] = counter
+    if not any(isinstance(c, tuple) for _, _, c in pairs):
+        problems.append("contacts: every pair's counterpart is rigid; a model of several pairs takes rigid "
+                        "counterparts beside at least one elastic counterpart body so far (the coupling of the "
+                        "pairs is built on the elastic ones)")
+
+
+def _check_rigid_pair(counter: dict, key: str, problems: list) -> None:
+    """A rigid counterpart in a model of several pairs: fixed or moved by a prescribed translation
+    (its motion enters as the counterparts' q, fem.counterparts); a force-controlled one, whose
+    translation is an unknown of the state, and the mortar-weighted gap take a model of one pair."""
+    if counter.get("control") == "force":
+        problems.append(f"{key}.counterpart: a rigid counterpart pressed by control = 'force' in a model of several "
+                        "pairs; contactopt takes it in a model of one pair so far (in several a rigid counterpart "
+                        "is fixed or moved by control = 'displacement')")
+    if counter.get("weighting", "node") != "node":
+        problems.append(f"{key}.counterpart.weighting = {counter['weighting']!r}: the mortar-weighted gap of a rigid "
+                        "counterpart takes a model of one pair so far; use weighting = 'node'")
 
 
 def _more_pairs(out: dict, raw: dict, bodies: dict, contacts: list, pairs: list, faces: list,
@@ -261,12 +279,20 @@ def _more_pairs(out: dict, raw: dict, bodies: dict, contacts: list, pairs: list,
             if target is not None and target[0] != pairs[0][0]:
                 counter_loads.setdefault(target[0], {}).setdefault(kind, []).append({**item, "on": target[1]})
     more = []
-    for contact, (_, part, counter) in zip(contacts, pairs):
+    for n, (contact, (_, part, counter)) in enumerate(zip(contacts, pairs)):
+        if not isinstance(counter, tuple):       # a rigid counterpart: the table of [obstacle]
+            if "partner" in contact:
+                problems.append(f"contacts[{n}].partner: a rigid counterpart has no partners (each contact node's "
+                                "gap is its distance to the obstacle along the obstacle's normal)")
+            more.append({"contact": copy.deepcopy(part), "friction": contact.get("friction", base),
+                         "obstacle": copy.deepcopy(counter)})
+            continue
         holder = {}
         _counterpart_body(holder, bodies, counter, contact, raw, counter_loads.get(counter[0], {}), problems)
         more.append({"contact": copy.deepcopy(part), "friction": contact.get("friction", base),
                      "foundation": holder["foundation"]})
     out.pop("foundation", None)
+    out.pop("obstacle", None)          # (the first pair's rigid counterpart is its own, not the model's)
     out["pairs"] = more
     out["friction"] = {**(raw.get("friction") or {}), "coefficient": base}
     out["body"]["contact"] = copy.deepcopy(faces[0][1]) if faces else [copy.deepcopy(p[1]) for p in pairs]
@@ -276,10 +302,18 @@ def _more_pairs(out: dict, raw: dict, bodies: dict, contacts: list, pairs: list,
             problems.append(f"contacts: {k} differs between the pairs; contactopt takes one value for the pairs "
                             "of one face body so far")
     rec = out["assembly"]
-    rec["bodies"] = [pairs[0][0]] + [c[0] for _, _, c in pairs]
-    rec["contacts"] = [{"name": c.get("name", f"{b}-{o[0]}"), "face": f"{b}.{_part_name(p)}",
-                        "counterpart": f"{o[0]}.{_part_name(o[1])}"} for c, (b, p, o) in zip(contacts, pairs)]
+    rec["bodies"] = [pairs[0][0]] + list(dict.fromkeys(c[0] for _, _, c in pairs if isinstance(c, tuple)))
+    rec["contacts"] = [{"name": c.get("name", f"{b}-{o[0] if isinstance(o, tuple) else 'rigid'}"),
+                        "face": f"{b}.{_part_name(p)}", "counterpart": _counterpart_name(o)}
+                       for c, (b, p, o) in zip(contacts, pairs)]
     rec["designs"] = [f"{b}.{_part_name(p)}" for b, p in faces]
+
+
+def _counterpart_name(counter) -> str:
+    """``"<body>.<part>"`` of an elastic counterpart, ``"rigid <shape>"`` of a rigid one."""
+    if isinstance(counter, tuple):
+        return f"{counter[0]}.{_part_name(counter[1])}"
+    return f"rigid {counter.get('shape', 'plane')}"
 
 
 def _rest(raw: dict) -> dict:
@@ -326,8 +360,9 @@ def _design_face(d: dict, n: int, bodies: dict, problems: list):
 
 
 def _sections(raw: dict, bodies: dict, contact: dict, pair, designs: list, faces: list,
-              problems: list) -> tuple[dict, list]:
-    """The one- and two-body sections of a checked assembly of one pair (module docstring)."""
+              problems: list, several: bool = False) -> tuple[dict, list]:
+    """The one- and two-body sections of a checked assembly of one pair (module docstring);
+    ``several``: the first of several pairs (the loads on counterpart bodies are read with them)."""
     face_body, part, counter = pair
     out = _rest(raw)
     b = bodies[face_body]
@@ -343,6 +378,8 @@ def _sections(raw: dict, bodies: dict, contact: dict, pair, designs: list, faces
     if "friction" in contact:
         out["friction"] = {**(raw.get("friction") or {}), "coefficient": contact["friction"]}
     loads = copy.deepcopy(raw.get("loads", {})) if isinstance(raw.get("loads"), dict) else raw.get("loads")
+    if loads is None and "body_force" in b:          # the face body's own body force, without [loads]
+        loads = {}
     counter_loads = {}
     if isinstance(loads, dict):
         if "body_force" in loads:
@@ -387,7 +424,7 @@ def _sections(raw: dict, bodies: dict, contact: dict, pair, designs: list, faces
     if isinstance(counter, tuple):
         _counterpart_body(out, bodies, counter, contact, raw, counter_loads, problems)
     else:
-        if counter_loads:
+        if counter_loads and not several:
             problems.append("loads: a load on a body that takes part in no pair")
         if any(k not in OBSTACLE or OBSTACLE[k][0] != v for k, v in counter.items()):
             out["obstacle"] = copy.deepcopy(counter)       # the fixed plane x3 = 0 is the model without one
@@ -448,8 +485,12 @@ def check_record(data: dict, problems: list) -> None:
     ok = (isinstance(rec, dict) and set(rec) == {"bodies", "contacts", "designs"}
           and isinstance(rec["bodies"], list) and isinstance(rec["contacts"], list)
           and len(rec["contacts"]) == max(1, len(data.get("pairs") or []))
-          and len(rec["bodies"]) == 1 + ("foundation" in data) + len(data.get("pairs") or [])
-          and all(isinstance(p, dict) and set(p) == {"name", "face", "counterpart"} for p in rec["contacts"])
+          and all(isinstance(p, dict) for p in rec["contacts"]))
+    if ok:        # the counterpart bodies of several pairs, each once (a body may hold several pairs)
+        others = ({str(p.get("counterpart", "")).split(".")[0] for p in rec["contacts"]
+                   if not str(p.get("counterpart", "")).startswith("rigid ")} if data.get("pairs") else ())
+        ok = len(rec["bodies"]) == 1 + ("foundation" in data) + len(others)
+    ok = (ok and all(isinstance(p, dict) and set(p) == {"name", "face", "counterpart"} for p in rec["contacts"])
           and isinstance(rec["designs"], list)
           and (len(rec["designs"]) == 1 + len(data["more_designs"]) if data.get("more_designs")
                else len(rec["designs"]) <= 1))

@@ -84,7 +84,9 @@ class Config:
             load_cases=tuple(LoadCase.from_dict(c) for c in data.get("load_cases", [])),
             load_steps=tuple(LoadStep.from_dict(s) for s in data.get("load_steps", [])),
             constraints=tuple(ResponseConstraint.from_dict(c) for c in data.get("constraints", [])),
-            pairs=tuple(ContactPair(p["contact"], float(p["friction"]), Foundation.from_dict(p["foundation"]))
+            pairs=tuple(ContactPair(p["contact"], float(p["friction"]),
+                                    Foundation.from_dict(p["foundation"]) if "foundation" in p else None,
+                                    Obstacle.from_dict(p["obstacle"]) if "obstacle" in p else None)
                         for p in data.get("pairs", [])),
             more_designs=tuple(DesignFace(d["face"], Design.from_dict({k: v for k, v in d.items() if k != "face"}))
                                for d in data.get("more_designs", [])),

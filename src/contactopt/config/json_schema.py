@@ -82,6 +82,8 @@ _FORMS = {
         "properties": {"coefficients": _MATRIX, "upper": _NUMBER, "equal": _NUMBER}}},
     ("objective", "target"): _target(),
     ("objective", "region"): {"anyOf": [{"const": ""}, _PART]},
+    ("objective", "contacts"): {"type": "array", "items": {"anyOf": [{"type": "string", "minLength": 1},
+                                                                     {"type": "integer", "minimum": 0}]}},
     ("objective", "weights"): {"anyOf": [_NUMBERS, {"type": "object", "additionalProperties": _NUMBER}]},
     ("objective", "steps"): {"anyOf": [{"enum": ["last", "max", "sum"]},
                                        {"type": "array", "items": {"type": "string"}, "minItems": 1}]},

@@ -181,7 +181,8 @@ SCHEMA = {
         "scale": (1.0, _pos, "a number > 0 (multiplies the objective)"),
         "region": ("", lambda x: x == "" or _part_spec(x),
                    "empty (the whole body) or " + _PART_SHORT + " (peak_stress: the elements with every "
-                   "node in the part, or with a node in it for a boundary part)"),
+                   "node in the part, or with a node in it for a boundary part; in an assembly \"<body>.<part>\" "
+                   "or \"<body>\", also of a counterpart body held by its clamps)"),
         "contacts": ([], lambda x: isinstance(x, list) and all(
             (isinstance(v, str) and v) or (isinstance(v, int) and not isinstance(v, bool) and v >= 0) for v in x),
                      "a list of contact pairs by name or index in [[contacts]] (the pressure objectives "

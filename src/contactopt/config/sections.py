@@ -465,11 +465,18 @@ class LoadCase:
 @dataclass(frozen=True)
 class ContactPair:
     """One of several contact pairs on the face body: its face ``contact`` (a part of the body),
-    its Coulomb coefficient ``friction`` and its counterpart body (a ``[foundation]``)."""
+    its Coulomb coefficient ``friction`` and its counterpart: a body (a ``[foundation]``) or a rigid
+    ``obstacle`` (``foundation`` None)."""
 
     contact: Any
     friction: float
-    foundation: Foundation
+    foundation: Foundation | None
+    obstacle: Obstacle | None = None
+
+    @property
+    def rigid(self) -> bool:
+        """Whether the counterpart is rigid (an ``[obstacle]``'s table)."""
+        return self.obstacle is not None
 
 
 @dataclass(frozen=True)

@@ -400,8 +400,9 @@ def _check_pairs(given, data, problems) -> list:
         return []
     out = []
     for n, pair in enumerate(given):
-        if set(pair) != {"contact", "friction", "foundation"}:
-            problems.append(f"pairs[{n}]: must have the keys contact, friction and foundation")
+        if set(pair) not in ({"contact", "friction", "foundation"}, {"contact", "friction", "obstacle"}):
+            problems.append(f"pairs[{n}]: must have the keys contact, friction and foundation (an elastic "
+                            "counterpart) or obstacle (a rigid one)")
             continue
         mu = pair["friction"]
         if not (_finite(mu) and mu >= 0):
@@ -409,6 +410,13 @@ def _check_pairs(given, data, problems) -> list:
         if not _part_spec(pair["contact"]):
             problems.append(f"contacts[{n}].face: must name a part")
         sub = []
+        if "obstacle" in pair:          # a rigid counterpart (config/assembly.py takes it fixed or displaced)
+            obst = _check_obstacle(pair["obstacle"], {k: v for k, v in data.items() if k != "foundation"}, sub)
+            problems += [p.replace("obstacle.", f"contacts[{n}].counterpart.", 1)
+                         .replace("[obstacle]", f"contacts[{n}].counterpart", 1) for p in sub]
+            out.append({"contact": copy.deepcopy(pair["contact"]), "friction": float(mu) if _finite(mu) else mu,
+                        "obstacle": obst})
+            continue
         fnd = _check_foundation(pair["foundation"], data, sub)
         problems += [p.replace("foundation.", f"pairs[{n}].foundation.", 1).replace("[foundation]", f"pairs[{n}].foundation", 1)
                      for p in sub]

@@ -285,13 +285,22 @@ class AdmissibleSet:
         return out + self.gap_violations(x, tol)
 
     def is_feasible(self, alpha, tol: float = 1e-9) -> bool:
-        return not self.violations(alpha, tol)
+        return feasible(self, alpha, tol)
 
     def require_feasible(self, alpha, tol: float = 1e-9) -> np.ndarray:
         """Return α as a vector, or raise :class:`InfeasibleDesignError` naming every violation."""
-        v = self.violations(alpha, tol)
-        if v:
-            shown = v[:10] + ([f"... and {len(v) - 10} more"] if len(v) > 10 else [])
-            raise InfeasibleDesignError("design is not in the admissible set U:\n  "
-                                        + "\n  ".join(shown))
-        return np.asarray(alpha, float).reshape(-1).copy()
+        return required(self, alpha, tol)
+
+
+def feasible(admissible, alpha, tol: float = 1e-9) -> bool:
+    """Whether α lies in an admissible set (one with ``violations``), to ``tol``."""
+    return not admissible.violations(alpha, tol)
+
+
+def required(admissible, alpha, tol: float = 1e-9) -> np.ndarray:
+    """α as a vector, or :class:`InfeasibleDesignError` naming every violation of ``admissible``."""
+    v = admissible.violations(alpha, tol)
+    if v:
+        shown = v[:10] + ([f"... and {len(v) - 10} more"] if len(v) > 10 else [])
+        raise InfeasibleDesignError("design is not in the admissible set U:\n  " + "\n  ".join(shown))
+    return np.asarray(alpha, float).reshape(-1).copy()

@@ -18,7 +18,7 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.linalg as sla
 
-from ..errors import InfeasibleDesignError
+from .admissible import feasible, required
 from .bezier import BezierSurface
 
 
@@ -131,15 +131,11 @@ class ProductAdmissible:
                 for v in U.violations(a, tol)]
 
     def is_feasible(self, alpha, tol: float = 1e-9) -> bool:
-        return not self.violations(alpha, tol)
+        return feasible(self, alpha, tol)
 
     def require_feasible(self, alpha, tol: float = 1e-9) -> np.ndarray:
         """Return α as a vector, or raise :class:`InfeasibleDesignError` naming every violation."""
-        v = self.violations(alpha, tol)
-        if v:
-            shown = v[:10] + ([f"... and {len(v) - 10} more"] if len(v) > 10 else [])
-            raise InfeasibleDesignError("design is not in the admissible set U:\n  " + "\n  ".join(shown))
-        return np.asarray(alpha, float).reshape(-1).copy()
+        return required(self, alpha, tol)
 
 
 def _block_rows(blocks, sizes) -> np.ndarray:

@@ -1,20 +1,24 @@
 """Several elastic counterparts of one face body: the pairs of an assembly on the condensation path.
 
 An assembly of K contact pairs whose faces all lie on one body (the face body, the one the design
-moves) and whose counterparts are K other bodies: pair k's face nodes (rows ``rows[k]`` of the
-contact nodes) meet body k's face, as one ``[foundation]`` meets its body
-(:class:`~contactopt.fem.foundation.Foundation`: partners Π_k, compliance C_k = Π_k W_k Π_kᵀ,
-q_k = Π_k K_k⁻¹ f_k). The counterparts share no DOF, so with the relative displacement
-w = u_c − Π u_o of every contact node (DESIGN: W = Σ_b B_b A_b⁻¹ B_bᵀ over the bodies)
+moves) and whose counterparts are parts of B ≤ K other bodies: pair k's face nodes (rows
+``pair_rows[k]`` of the contact nodes) meet its counterpart part, as one ``[foundation]`` meets its
+body (:class:`~contactopt.fem.foundation.Foundation`: partners Π_b, compliance C_b = Π_b W_b Π_bᵀ,
+q_b = Π_b K_b⁻¹ f_b). A body that is the counterpart of several pairs (the slot of a dovetail under
+both flanks of the blade, a race under two rollers) is condensed once, onto the union of its
+pairs' supports: its rows ``rows[b]`` are its pairs' contact nodes one pair after the other, each
+pair's partners searched on its own counterpart part alone, and its compliance block couples its
+pairs' nodes (the flanks talk through the slot). The bodies share no DOF, so with the relative
+displacement w = u_c − Π u_o of every contact node (DESIGN: W = Σ_b B_b A_b⁻¹ B_bᵀ over the bodies)
 
-    Π = diag_k(Π_k) (rows in contact-node order),   C = diag_k(C_k),   q = (q_k),   S_o = diag_k(S_k),
+    Π = diag_b(Π_b) (rows in contact-node order),   C = diag_b(C_b),   q = (q_b),   S_o = diag_b(S_b),
 
 and the coupling of :class:`~contactopt.fem.foundation.Coupling` takes them as it takes one
-foundation: S_eff = (S⁻¹ + C)⁻¹, each counterpart condensed once per run, the face body once per
-design. One pair is the foundation itself (this class is not built for it).
+foundation: S_eff = (S⁻¹ + C)⁻¹, each counterpart body condensed once per run, the face body once
+per design. One pair is the foundation itself (this class is not built for it).
 
 Contact convention: per contact node (t1, t2, ν) in the node's frame (ν from the counterpart to the
-face body), r the contact force on the face body, λ = r_ν ≥ 0; counterpart k carries −Π_kᵀ r_k.
+face body), r the contact force on the face body, λ = r_ν ≥ 0; counterpart body b carries −Π_bᵀ r_b.
 """
 
 from __future__ import annotations
@@ -37,37 +41,112 @@ class _BlockCondensation:
         self.S = sla.block_diag(*[np.asarray(f.condensation.S) for f in parts])
 
 
-def build_counterparts(specs, body, source: str, check=None, normals=None, frames=None) -> Counterparts:
-    """The counterparts of the pairs ``specs`` (``[foundation]`` tables, one per pair) of ``body``,
-    each built on the pair's view of the body (its face and nodes); ``normals`` (p, 3) of a curved
-    face, ``frames`` (p, 3, 3) the contact nodes' frames the coupling is expressed in."""
+class RigidCounterpart:
+    """A rigid counterpart of one of several pairs (``[[contacts]] counterpart`` a table of
+    ``[obstacle]``): a counterpart block with no DOFs. Its partners and compliance are empty
+    (Π_k has no columns, C_k = 0), its gaps ``gap0`` the distances of the pair's contact nodes to
+    the obstacle along its normal (as the one-pair obstacle's, fem.model), and a prescribed
+    translation d (``control = "displacement"``) its ``motion`` R_mᵀ d per contact node (t1, t2, ν):
+    the law's relative displacement is w = u_c − R_mᵀ d, as with an elastic counterpart moved by d."""
+
+    basis = None
+    rigid = None          # no rigid motions free: it is held
+    condensed = True
+    n_nodes = 0
+    partner = "rigid"
+    memory_parts: dict = {}
+
+    def __init__(self, spec, gap0: np.ndarray):
+        self.spec, self.control = spec, spec.control
+        p = np.asarray(gap0).size
+        self.gap0 = np.asarray(gap0, float).copy()
+        self.translation = np.asarray(spec.displacement, float) if spec.control == "displacement" else None
+        self.P = sp.csr_matrix((3 * p, 0))
+        self.Pi = sp.csr_matrix((3 * p, 0))
+        self.C = np.zeros((3 * p, 3 * p))
+        self.ell_f = np.zeros(0)
+        self.load_resultant = np.zeros(3)
+        self.condensation = type("Empty", (), {"S": np.zeros((0, 0))})()
+        self.rotate(np.broadcast_to(np.eye(3), (p, 3, 3)))
+
+    def rotate(self, R: np.ndarray) -> None:
+        """Its translation in the contact nodes' frames R (p, 3, 3), columns (t1, t2, n)."""
+        self.motion = None
+        if self.translation is not None and np.any(self.translation):
+            self.motion = np.einsum("mij,i->mj", R, self.translation).ravel()
+        self.q_f = np.zeros(self.P.shape[0]) if self.motion is None else self.motion.copy()
+
+    def displacement(self, r=None, s: float = 0.0, support=None, **_) -> np.ndarray:
+        """No DOFs: an empty displacement (the file of the counterpart bodies leaves it out)."""
+        return np.zeros(0)
+
+    def summary(self) -> dict:
+        sp_ = self.spec
+        out = {"rigid": sp_.shape, "control": sp_.control}
+        if sp_.control == "displacement":
+            out["displacement"] = list(map(float, sp_.displacement))
+        return out
+
+
+def build_counterparts(specs, body, source: str, check=None, normals=None, frames=None,
+                       names=None, rigid=None, condensed: bool = True) -> Counterparts:
+    """The counterparts of the pairs ``specs`` (``[foundation]`` tables, one per pair) of ``body``:
+    one :class:`~contactopt.fem.foundation.Foundation` per counterpart body, named per pair by
+    ``names`` (None: each pair its own body), built on the pairs' views of the body (their faces
+    and nodes); ``normals`` (p, 3) of a curved face, ``frames`` (p, 3, 3) the contact nodes' frames
+    the coupling is expressed in. ``rigid``: {pair: (its ``[obstacle]``, the gaps of its contact
+    nodes)} of the pairs against rigid counterparts (:class:`RigidCounterpart`; their ``specs``
+    entries are not read)."""
     from .foundation import Foundation
+    rigid = rigid or {}
+    names = list(range(len(specs))) if names is None else list(names)
+    groups = {}
+    for k, name in enumerate(names):
+        groups.setdefault(("rigid", k) if k in rigid else name, []).append(k)
     parts, rows = [], []
-    for k, spec in enumerate(specs):
-        r = np.flatnonzero(body.pair_of == k)
-        view = body.pair_view(k)
-        parts.append(Foundation(spec, view, source=f"{source}: contacts[{k}]", check=check,
-                                normals=None if normals is None else normals[r], floating=True))
-        rows.append(r)
-    out = Counterparts(parts, rows, body.contact_nodes.size)
+    for key, pairs in groups.items():
+        if isinstance(key, tuple):
+            k = pairs[0]
+            parts.append(RigidCounterpart(*rigid[k]))
+            rows.append(np.flatnonzero(body.pair_of == k))
+            continue
+        views = [(specs[k], body.pair_view(k),
+                  None if normals is None else normals[np.flatnonzero(body.pair_of == k)]) for k in pairs]
+        where = f"{source}: {_which(pairs)}"
+        spec, view, n = views[0]
+        parts.append(Foundation(spec, view, source=where, check=check, normals=n, floating=True,
+                                shared=views if len(pairs) > 1 else None, condensed=condensed))
+        rows.append(np.concatenate([np.flatnonzero(body.pair_of == k) for k in pairs]))
+    out = Counterparts(parts, rows, body.contact_nodes.size, pairs=list(groups.values()),
+                       pair_rows=[np.flatnonzero(body.pair_of == k) for k in range(len(specs))])
     if frames is not None:
         out.rotate(frames)
     return out
 
 
+def _which(pairs: list) -> str:
+    """The pairs of one counterpart body in words: ``contacts[1]``, ``contacts[0] and contacts[1]``."""
+    words = [f"contacts[{k}]" for k in pairs]
+    return words[0] if len(words) == 1 else ", ".join(words[:-1]) + " and " + words[-1]
+
+
 class Counterparts:
-    """The K elastic counterparts of one face body (module docstring).
+    """The elastic counterpart bodies of one face body's K pairs (module docstring).
 
     Attributes as :class:`~contactopt.fem.foundation.Foundation`'s, over all contact nodes: ``P``
     (3p × m, Π on the counterparts' free support DOFs), ``Pi``, ``C``, ``q_f``, ``gap0`` (curved
-    faces), ``condensation.S``; ``parts`` the pairs' foundations and ``rows`` their contact nodes."""
+    faces), ``condensation.S``; ``parts`` the counterpart bodies' foundations, ``rows`` their
+    contact nodes (a body's pairs one after the other) and ``pairs`` their pairs' indices;
+    ``pair_rows`` the contact nodes of each pair."""
 
     basis = None          # mortar partners on six-node triangles: one pair only (Foundation)
     motion = None         # a counterpart pressed by a force: one pair only (a displacement is in q)
     translation = None
 
-    def __init__(self, parts: list, rows: list, p: int):
+    def __init__(self, parts: list, rows: list, p: int, pairs=None, pair_rows=None):
         self.parts, self.rows, self.p = list(parts), [np.asarray(r) for r in rows], p
+        self.pairs = [[k] for k in range(len(self.parts))] if pairs is None else [list(x) for x in pairs]
+        self.pair_rows = self.rows if pair_rows is None else [np.asarray(r) for r in pair_rows]
         for f in self.parts:
             if f.basis is not None:
                 raise ConfigError(["contacts: mortar partners on six-node triangles take one pair per model so far; "
@@ -85,7 +164,8 @@ class Counterparts:
         for f in self.parts:
             for key, v in f.memory_parts.items():
                 self.memory_parts[key] = self.memory_parts.get(key, 0.0) + v
-        self.condensation = _BlockCondensation(self.parts)
+        # (none where the bodies are kept assembled: the full-space path, paths/coupled.py)
+        self.condensation = None if any(f.condensation is None for f in self.parts) else _BlockCondensation(self.parts)
         self.load_resultant = sum(f.load_resultant for f in self.parts)
         self._gather()
 
@@ -108,40 +188,43 @@ class Counterparts:
                 self.C[np.ix_(d, d)] = f.C
             if f.motion is not None:
                 self.q_f[d] = f.motion
-        self.ell_o = np.concatenate([f.ell_f for f in self.parts])
-        # Π W_o ℓ_o: the partners' displacement under the counterparts' own loads (Coupling.free_displacement)
+        self.ell_o = None if any(f.ell_f is None for f in self.parts) else np.concatenate([f.ell_f for f in self.parts])
+        # Π W_o ℓ_o: the partners' displacement under the counterparts' own loads (Coupling.offset)
         self.load_displacement = None
-        if self.C is not None and np.any(self.ell_o):
+        if self.C is not None and self.ell_o is not None and np.any(self.ell_o):
             self.load_displacement = np.asarray(self.P @ self.support_compliance(self.ell_o))
 
     def support_compliance(self, x: np.ndarray) -> np.ndarray:
-        """W_o x = diag_k(W_k) x: the displacement of the counterparts' free support DOFs (in the
-        order of ``P``'s columns) under the forces x on them; every counterpart held."""
+        """W_o x = diag_b(W_b) x: the displacement of the counterparts' free support DOFs (in the
+        order of ``P``'s columns) under the forces x on them; every counterpart held (a rigid one
+        has no support DOFs)."""
         out, start = np.empty(x.shape), 0
         for f in self.parts:
             m = f.P.shape[1]
-            out[start:start + m] = f.W_f @ x[start:start + m]
+            if m:
+                out[start:start + m] = f.W_f @ x[start:start + m]
             start += m
         return out
 
     def check_held(self, friction, names: list, source: str) -> None:
         """ConfigError naming each rigid motion of a counterpart held only by its contacts that no
-        contact force can hold: one that moves no contact node along its normal, where its pair
-        has no friction (``friction`` F per contact node, a scalar or (p,); ``names`` the
+        contact force can hold: one that moves no contact node along its normal, where its pairs
+        have no friction (``friction`` F per contact node, a scalar or (p,); ``names`` the
         counterparts' bodies in pair order)."""
         mu = np.broadcast_to(np.asarray(friction, float), (self.p,))
         problems = []
-        for k, f, R in self._floating():
+        for b, f, R in self._floating():
             G = np.asarray(self.P @ R).reshape(self.p, 3, -1)
             scale = np.abs(G).max(initial=0.0)
+            name, pairs = names[self.pairs[b][0]], self.pairs[b]
             for j, motion in enumerate(f.rigid.names()):
                 normal = np.abs(G[:, 2, j]).max(initial=0.0) > 1e-9 * max(scale, 1e-300)
                 rubbed = np.any((np.abs(G[:, :2, j]).max(axis=1) > 1e-9 * scale) & (mu > 0))
                 if not (normal or rubbed):
-                    problems.append(f"{source}: bodies.{names[k]}: {motion} is not held: the body is held only by "
-                                    f"its contacts, and no contact force of contacts[{k}] acts along it (it moves "
-                                    "no contact node along its normal, and the pair has no friction); clamp it "
-                                    "in bodies." + names[k] + ".clamped")
+                    problems.append(f"{source}: bodies.{name}: {motion} is not held: the body is held only by "
+                                    f"its contacts, and no contact force of {_which(pairs)} acts along it (it moves "
+                                    f"no contact node along its normal, and {'the pair has' if len(pairs) == 1 else 'its pairs have'} "
+                                    "no friction); clamp it in bodies." + name + ".clamped")
         if problems:
             raise ConfigError(problems)
 
@@ -151,9 +234,9 @@ class Counterparts:
         the coupled stiffness S_eff is singular and the contact forces must balance the body's
         loads (paths/rigid.py); None when every counterpart is held."""
         cols, names = [], []
-        for k, f, R in self._floating():
+        for b, f, R in self._floating():
             cols.append(-(self.P @ R))
-            names += [f"{n} of the counterpart of contacts[{k}]" for n in f.rigid.names()]
+            names += [f"{n} of the counterpart of {_which(self.pairs[b])}" for n in f.rigid.names()]
         if not cols:
             return None
         return np.column_stack(cols), names
@@ -193,7 +276,7 @@ class Counterparts:
         return sum(f.n_nodes for f in self.parts)
 
     def displacements(self, r: np.ndarray, coupling, w, ell) -> list:
-        """Each counterpart's full displacement (3·n_k,): its support DOFs from the coupling's
+        """Each counterpart body's full displacement (3·n_k,): its support DOFs from the coupling's
         :meth:`~contactopt.fem.foundation.Coupling.support_displacement` of the law's w under the
         face body's load ℓ, its interior recovered under its own loads, plus its prescribed translation."""
         return self.recovered(coupling.support_displacement(w, ell, r))
@@ -209,7 +292,7 @@ class Counterparts:
         return out
 
     def displacement(self, r: np.ndarray, s: float = 0.0, coupling=None, w=None, ell=None) -> np.ndarray:
-        """The counterparts' displacements one after the other (their VTU file tags each pair's)."""
+        """The counterpart bodies' displacements one after the other (their VTU file tags each body's)."""
         return np.concatenate(self.displacements(r, coupling, w, ell))
 
     def summary(self) -> dict:
@@ -218,4 +301,4 @@ class Counterparts:
     def pair_forces(self, r: np.ndarray) -> list:
         """Σ of the contact forces (per node frame) of each pair: (3,) per pair."""
         r = np.reshape(r, (-1, 3))
-        return [r[rows].sum(axis=0) for rows in self.rows]
+        return [r[rows].sum(axis=0) for rows in self.pair_rows]

@@ -41,7 +41,7 @@ from scipy.linalg.blas import dsyrk
 
 from .._progress import task
 from ..errors import ConfigError
-from ..mesh.foundation import build_foundation_mesh
+from ..mesh.foundation import build_foundation_mesh, other_top
 from ..mesh.reference import FACE_CORNERS
 from .dense import cholesky_lower, cholesky_solve, spd_inverse, symmetrize_lower
 from .elasticity import ElasticityAssembler
@@ -66,54 +66,50 @@ class Foundation:
     free support DOFs: the foundation's displacement for outputs)."""
 
     def __init__(self, spec, body, source: str = "<dict>", backend: str = "auto", check=None, normals=None,
-                 floating: bool = False, condensed: bool = True):
+                 floating: bool = False, condensed: bool = True, shared=None):
         """``spec`` the ``[foundation]`` section of the configuration read from ``source``;
         ``check(parts)``: called with :attr:`memory_parts` before K_f is assembled and
         condensed (the model's memory check), so that a foundation too large is refused first.
         ``normals`` (p, 3): the contact normals of a curved contact face (module docstring), whose
         partners lie along them; None: the face on x3 = 0, partners below the nodes.
         ``condensed=False``: K_f is assembled and kept as it is (``K``, the full-space path's
-        block, paths/fullspace.py), nothing is factorized and C, W_f, ``condensation`` are None."""
-        contact_nodes = body.contact_nodes
-        contact_xy = body.reference.points[contact_nodes, :2]
+        block, paths/fullspace.py), nothing is factorized and C, W_f, ``condensation`` are None.
+
+        ``shared``: a counterpart body of several pairs (fem.counterparts), ``[(spec_k, body_k,
+        normals_k)]`` per pair, ``body_k`` the face body as pair k sees it (its contact nodes the
+        pair's) and ``spec_k`` its ``[foundation]`` (the body's, ``top`` and ``partner`` the pair's):
+        each pair's partners are searched on its own top part alone, and the body is condensed once
+        onto the union of their supports, its rows the pairs' contact nodes one pair after the
+        other. ``spec``, ``body`` and ``normals`` are then the first pair's."""
+        views = [(spec, body, normals)] if shared is None else list(shared)
+        contact_xy = body.reference.points[body.contact_nodes, :2]
         self.mesh = fm = build_foundation_mesh(spec, contact_xy, source, curved=normals is not None,
                                                floating=floating)
         ref = fm.reference
-        self.partner = spec.partner
         self.loads = load_set(fm, spec.loads, where=f"{source}: foundation.loads")
         self.assembler = ElasticityAssembler(ref.cells, ref.n_nodes, fm.fixed_dofs, fm.E, fm.nu,
                                              element=element_type(ref.cell_type))
         where = f"{source}: foundation.top"
-        p = contact_xy.shape[0]
-        self.gap0 = None            # a curved face: the initial gaps along the contact normals
         self.basis = None           # mortar partners on six-node triangles: T on the contact nodes (fem.mortar)
-        if normals is None:
-            faces, weights = locate_partners(ref.points, fm.top.faces, ref.face_type, contact_xy, contact_nodes,
-                                             where)
-        else:
-            if self.partner == "average":
-                raise ConfigError([f"{where}: foundation.partner = 'average' takes a contact face on x3 = 0; "
-                                   "a curved face's partners are points along its normals (partner = 'point') "
-                                   "or its mortar partners on the face's chart (partner = 'mortar')"])
-            x = body.reference.points[contact_nodes]
-            faces, weights, self.gap0 = ray_partners(ref.points, fm.top.faces, ref.face_type, x, normals,
-                                                     contact_nodes, where)
-            smooth = smooth_gaps(ref.points, fm.top, ref.face_type, x, normals, fm.tol)
-            if smooth is not None:
-                self.gap0 = smooth
-        self._check_pinned(body, fm, faces, weights, source)
-        if self.partner == "auto":
-            self.partner = auto_partner(weights, face_type(body.reference.face_type).degree, curved=normals is not None)
-            if self.partner == "mortar" and open_edges(body).size:
-                self.partner = "point"      # the transformed basis needs whole edges in contact
-            log.info("foundation.partner = 'auto': %r", self.partner)
-        if self.partner == "point":
-            rows, cols, vals = np.repeat(np.arange(p), weights.shape[1]), fm.top.faces[faces].ravel(), weights.ravel()
-        elif self.partner == "mortar":
-            rows, cols, vals, self.basis = mortar_partners(body, fm, where,
-                                                           chart=None if normals is None else body.chart)
-        else:
-            rows, cols, vals = averaged_partners(body, fm, where)
+        parts, kinds, gaps, start = [], [], [], 0
+        for k, (spec_k, body_k, normals_k) in enumerate(views):
+            fm_k = fm
+            if k:
+                xy = body_k.reference.points[body_k.contact_nodes, :2]
+                fm_k = other_top(fm, spec_k.top, xy, source, curved=normals_k is not None)
+            rows, cols, vals, gap, kind, basis = self._partners(spec_k, body_k, fm_k, normals_k, where, source)
+            if basis is not None and len(views) > 1:
+                raise ConfigError([f"{where}: mortar partners on six-node triangles take one pair per counterpart "
+                                   "body so far; use partner = 'point' or linear elements"])
+            self.basis = basis
+            parts.append((rows + start, cols, vals))
+            kinds.append(kind)
+            gaps.append(gap)
+            start += body_k.contact_nodes.size
+        rows, cols, vals = (np.concatenate(x) for x in zip(*parts))
+        self.partner = kinds[0] if len(set(kinds)) == 1 else ", ".join(kinds)
+        self.gap0 = None if any(g is None for g in gaps) else np.concatenate(gaps)   # a curved face's gaps
+        p = start
         Pn = sp.csr_matrix((vals, (rows, cols)), shape=(p, ref.n_nodes))
         Pn.sum_duplicates()
         Pn.eliminate_zeros()
@@ -190,6 +186,44 @@ class Foundation:
             if spec.control == "displacement":
                 self.q_f = self.q_f + self.motion
 
+    def _partners(self, spec, body, fm, normals, where: str, source: str):
+        """(rows, cols, values) of the partners of ``body``'s contact nodes on ``fm``'s top face
+        (rows the contact nodes, columns the foundation's nodes), the initial gaps along the contact
+        normals (None on x3 = 0), the partner kind and the transformed basis (module docstring)."""
+        contact_nodes = body.contact_nodes
+        contact_xy = body.reference.points[contact_nodes, :2]
+        ref = fm.reference
+        p = contact_xy.shape[0]
+        gap0 = basis = None
+        partner = spec.partner
+        if normals is None:
+            faces, weights = locate_partners(ref.points, fm.top.faces, ref.face_type, contact_xy, contact_nodes,
+                                             where)
+        else:
+            if partner == "average":
+                raise ConfigError([f"{where}: foundation.partner = 'average' takes a contact face on x3 = 0; "
+                                   "a curved face's partners are points along its normals (partner = 'point') "
+                                   "or its mortar partners on the face's chart (partner = 'mortar')"])
+            x = body.reference.points[contact_nodes]
+            faces, weights, gap0 = ray_partners(ref.points, fm.top.faces, ref.face_type, x, normals,
+                                                contact_nodes, where)
+            smooth = smooth_gaps(ref.points, fm.top, ref.face_type, x, normals, fm.tol)
+            if smooth is not None:
+                gap0 = smooth
+        self._check_pinned(body, fm, faces, weights, source)
+        if partner == "auto":
+            partner = auto_partner(weights, face_type(body.reference.face_type).degree, curved=normals is not None)
+            if partner == "mortar" and open_edges(body).size:
+                partner = "point"      # the transformed basis needs whole edges in contact
+            log.info("foundation.partner = 'auto': %r", partner)
+        if partner == "point":
+            rows, cols, vals = np.repeat(np.arange(p), weights.shape[1]), fm.top.faces[faces].ravel(), weights.ravel()
+        elif partner == "mortar":
+            rows, cols, vals, basis = mortar_partners(body, fm, where, chart=None if normals is None else body.chart)
+        else:
+            rows, cols, vals = averaged_partners(body, fm, where)
+        return np.asarray(rows), np.asarray(cols), np.asarray(vals), gap0, partner, basis
+
     def _check_pinned(self, body, fm, faces, weights, source) -> None:
         """A clamped component of a contact node (a symmetry plane through the contact face) must be
         clamped at its partners too: the plane runs through both bodies, so that the foundation's
@@ -247,6 +281,11 @@ class Foundation:
     def parts(self) -> list:
         """The counterparts one per pair: this one (fem.counterparts: several)."""
         return [self]
+
+    @property
+    def pairs(self) -> list:
+        """The pairs of each counterpart body: the one pair (fem.counterparts: several)."""
+        return [[0]]
 
     @property
     def rows(self) -> list:

@@ -185,8 +185,12 @@ class ElasticModel:
         self.pinned_columns = None  # per pinned DOF its frame column, where a pinned u3 is a tangent
         face_frames = self._obstacle(cfg.obstacle, ref, body)
         self.foundation = None      # [foundation]: the elastic foundation under the contact face
+        rigid = self._rigid_pairs(cfg, ref, body)      # several pairs, some against rigid counterparts
         if (cfg.foundation is not None or cfg.pairs) and (body.chart is not None or body.pair_charts):
-            self._curved_foundation(cfg, ref, body, check)
+            self._curved_foundation(cfg, ref, body, check, rigid)
+        elif rigid and any(np.abs(R - np.eye(3)).max() > 0 for _, rows, R, _ in rigid.values()):
+            self._set_frames(ref, body, np.broadcast_to(np.eye(3), (body.contact_nodes.size, 3, 3)).copy(), rigid,
+                             "rigid counterpart")
         self.admissible = self._admissible_set(ref, body, face_frames)
         self.mesh.ratio = self._jacobian_ratio(ref, body)
         self.contact_nodes = body.contact_nodes
@@ -223,10 +227,18 @@ class ElasticModel:
             n = self.frames[:, :, 2]
             self.gap_matrix = self._gap_factor(n, self.contact_nodes)[:, None] * self.gap_matrix
             self.gap0 = self.foundation.gap0.copy()
+        elif rigid:                              # on x3 = 0: the rigid pairs' gaps along their obstacles' normals
+            for _, rows, R, dist in rigid.values():
+                self.gap_matrix[rows] = self._gap_factor(R[:, :, 2], self.contact_nodes[rows])[:, None] * \
+                    self.gap_matrix[rows]
+                self.gap0[rows] = dist
         self.loads = load_set(body, cfg.loads)
         self.body_force = self.loads.body_force
         if cfg.pairs and self.foundation is None:
-            self.foundation = build_counterparts([pr.foundation for pr in cfg.pairs], body, cfg.source, check)
+            self.foundation = build_counterparts([pr.foundation for pr in cfg.pairs], body, cfg.source, check,
+                                                 frames=self.frames, rigid=self._rigid_specs(rigid),
+                                                 names=[c.counterpart.split(".")[0] for c in cfg.assembly.contacts],
+                                                 condensed=self._condensed)
         if cfg.pairs:
             held = cfg.friction.coefficient if self.contact_friction is None else self.contact_friction
             self.foundation.check_held(held, [p.counterpart.split(".")[0] for p in cfg.assembly.contacts], cfg.source)
@@ -355,7 +367,43 @@ class ElasticModel:
                 self.pinned_columns[i] = order.index(int(comp[i])) if len(ks) == 2 else 0
         self.frames = R
 
-    def _curved_foundation(self, cfg, ref, body, check) -> None:
+    def _rigid_pairs(self, cfg, ref, body) -> dict:
+        """{pair k: (its [obstacle], its rows of the contact nodes, their frames R (p_k, 3, 3) with
+        columns (t1, t2, n) and their distances to the obstacle along n)} of the pairs of a model of
+        several pairs whose counterpart is rigid; each pair's nodes meet their own obstacle as the
+        contact face of one pair does (:meth:`_obstacle`), an overlap deeper than the penetration
+        tolerance refused unless ``body.interference``."""
+        out = {}
+        for k, pr in enumerate(cfg.pairs):
+            if not pr.rigid:
+                continue
+            rows = np.flatnonzero(body.pair_of == k)
+            nodes = body.contact_nodes[rows]
+            try:
+                fr = contact_frames(make_obstacle(pr.obstacle), ref.points, nodes, body.penetration_tol,
+                                    cfg.source, interference=cfg.body.interference)
+            except ConfigError as exc:
+                raise ConfigError([q.replace("obstacle", f"contacts[{k}].counterpart", 1) for q in exc.problems]) from None
+            out[k] = (pr.obstacle, rows, np.array(fr.R), np.array(fr.distance))
+        return out
+
+    @staticmethod
+    def _rigid_specs(rigid: dict) -> dict:
+        """The rigid pairs as :func:`~contactopt.fem.counterparts.build_counterparts` takes them."""
+        return {k: (spec, dist) for k, (spec, _, _, dist) in rigid.items()}
+
+    def _set_frames(self, ref, body, R, rigid, what) -> None:
+        """The contact nodes' frames R (p, 3, 3), the rigid pairs' rows those of their obstacles, the
+        clamped components of contact nodes made tangents of theirs (:meth:`_pinned_frames`)."""
+        for _, rows, Rk, _ in rigid.values():
+            R[rows] = Rk
+        if body.pinned_dofs.size:
+            node, comp = np.divmod(body.pinned_dofs, 3)
+            self._pinned_frames(what, ref, body, R, np.searchsorted(body.contact_nodes, node), comp)
+        else:
+            self.frames = R
+
+    def _curved_foundation(self, cfg, ref, body, check, rigid=None) -> None:
         """An elastic foundation under a curved contact face (fem.foundation): contact normals
         n_m = the chart's inward normal at the node (from the foundation to the body), frames
         (t1, t2, n_m) with the clamped components as tangents, the partners and initial gaps along
@@ -363,7 +411,10 @@ class ElasticModel:
         x = ref.points[body.contact_nodes]
         n = -body.contact_outward()
         R = tangent_frames(n)
-        if body.pinned_dofs.size:
+        rigid = rigid or {}
+        if rigid:                  # the rigid pairs' nodes take their obstacles' frames
+            self._set_frames(ref, body, R.copy(), rigid, "counterpart")
+        elif body.pinned_dofs.size:
             node, comp = np.divmod(body.pinned_dofs, 3)
             self._pinned_frames("elastic foundation", ref, body, R.copy(), np.searchsorted(body.contact_nodes, node),
                                 comp)
@@ -371,7 +422,9 @@ class ElasticModel:
             self.frames = R
         if cfg.pairs:
             self.foundation = build_counterparts([pr.foundation for pr in cfg.pairs], body, cfg.source, check,
-                                                 normals=n, frames=self.frames)
+                                                 normals=n, frames=self.frames, rigid=self._rigid_specs(rigid),
+                                                 condensed=self._condensed,
+                                                 names=[c.counterpart.split(".")[0] for c in cfg.assembly.contacts])
         else:
             self.foundation = Foundation(cfg.foundation, body, source=cfg.source, check=check, normals=n,
                                          condensed=self._condensed)

@@ -101,8 +101,10 @@ def _write_files(out: Path, problem, x, res, oracle, t0, at, figures, plots) -> 
     write_body_vtu(out / "optimal.vtu", model, s1)
     pvd = [(0, "initial.vtu"), (1, "optimal.vtu")]
     if model.body.pair_faces:                 # several pairs: each counterpart body its part, 1, 2, …
-        for k, pair in enumerate(model.config.assembly.contacts):
-            name = pair.counterpart.split(".")[0]
+        for k, pairs in enumerate(model.foundation.pairs):
+            if model.foundation.parts[k].n_nodes == 0:      # a rigid counterpart: no mesh of its own
+                continue
+            name = model.config.assembly.contacts[pairs[0]].counterpart.split(".")[0]
             write_foundation_vtu(out / f"initial_{name}.vtu", model.foundation, s0, pair=k)
             write_foundation_vtu(out / f"optimal_{name}.vtu", model.foundation, s1, pair=k)
             pvd += [(0, f"initial_{name}.vtu", k + 1), (1, f"optimal_{name}.vtu", k + 1)]

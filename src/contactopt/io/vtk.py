@@ -177,9 +177,9 @@ def cell_stress_data(assembler, coords, u_full) -> dict:
 
 def write_foundation_vtu(path, foundation, state, pair: int | None = None) -> Path:
     """Write the elastic foundation of ``state`` (its reference mesh, module docstring) as a VTU;
-    the counterparts of several pairs (:class:`~contactopt.fem.counterparts.Counterparts`) one
-    after the other in one file, each node and cell tagged with its pair's index ``pair``, or the
-    counterpart of pair ``pair`` alone."""
+    the counterpart bodies of several pairs (:class:`~contactopt.fem.counterparts.Counterparts`) one
+    after the other in one file, each node tagged with its body's index ``pair`` (the pair's where
+    each body is the counterpart of one pair), or the counterpart body ``pair`` alone."""
     path = Path(path)
     r = np.zeros(3 * state.lam.size)
     r[0::3], r[1::3], r[2::3] = -state.tau[:, 0], -state.tau[:, 1], state.lam
@@ -187,6 +187,8 @@ def write_foundation_vtu(path, foundation, state, pair: int | None = None) -> Pa
     u_all = np.asarray(state.foundation.displacement, float)
     points, blocks, data, cells_data, offset, start = [], [], {}, {}, 0, 0
     for k, (fnd, nodes) in enumerate(zip(parts, rows)):
+        if fnd.n_nodes == 0:            # a rigid counterpart of several pairs: no mesh, no displacement
+            continue
         ref = fnd.mesh.reference
         n = ref.n_nodes
         u = _finite("foundation displacement", u_all[3 * start:3 * (start + n)].reshape(n, 3))

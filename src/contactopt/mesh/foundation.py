@@ -15,7 +15,7 @@ are computed in :mod:`contactopt.fem.foundation`.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -104,14 +104,7 @@ def build_foundation_mesh(spec, contact_xy: np.ndarray, source: str, curved: boo
     if loaded is not None:
         _check_translation(ref, fixed, loaded, np.asarray(direction, float), where, spec)
         fixed[loaded] = True
-    if curved:
-        if top.faces.shape[0] == 0:
-            raise ConfigError([f"{where}.top = {describe_part(spec.top)}: has no boundary faces (it must be the "
-                               "foundation's face the contact face touches)"])
-        top = Part(top.name, np.unique(top.faces), top.faces, top.origin)
-    else:
-        top = _check_top(ref, top, tol, describe_part(spec.top), where)
-        _check_overlap(ref, contact_xy, tol, where)
+    top = _checked_top(ref, top, spec.top, tol, contact_xy, where, curved)
     rigid = None
     if floating:                        # a counterpart of several pairs may be held by its contacts alone
         rigid = free_modes(ref.points, fixed)
@@ -124,6 +117,33 @@ def build_foundation_mesh(spec, contact_xy: np.ndarray, source: str, curved: boo
                                "contacts is solved in a model of several [[contacts]])" for p in exc.problems]) from None
     mat = spec.material
     return FoundationMesh(ref, top, np.flatnonzero(fixed.ravel()), tol, float(mat.E), float(mat.nu), loaded, rigid)
+
+
+def other_top(fm: FoundationMesh, top, contact_xy: np.ndarray, source: str, curved: bool = False) -> FoundationMesh:
+    """The foundation mesh ``fm`` with the part ``top`` as its top face, checked as
+    :func:`build_foundation_mesh` checks ``[foundation] top`` against the contact face of the
+    nodes ``contact_xy``: another pair's face on a counterpart body shared by several pairs
+    (fem.counterparts), whose partners are searched on it alone."""
+    where = f"{source}: foundation"
+    problems = []
+    part = part_selector(fm.reference, fm.tol, where, problems)
+    found = part("top", top)
+    if problems:
+        raise ConfigError(problems)
+    return replace(fm, top=_checked_top(fm.reference, found, top, fm.tol, contact_xy, where, curved))
+
+
+def _checked_top(ref: ReferenceMesh, top: Part, spec, tol: float, contact_xy, where: str, curved: bool) -> Part:
+    """The top face ``top`` (the part ``spec``): any boundary faces on a curved contact face, else
+    the face on x3 = 0 with the foundation below it and under the contact face (``contact_xy``)."""
+    if curved:
+        if top.faces.shape[0] == 0:
+            raise ConfigError([f"{where}.top = {describe_part(spec)}: has no boundary faces (it must be the "
+                               "foundation's face the contact face touches)"])
+        return Part(top.name, np.unique(top.faces), top.faces, top.origin)
+    top = _check_top(ref, top, tol, describe_part(spec), where)
+    _check_overlap(ref, contact_xy, tol, where)
+    return top
 
 
 def _check_translation(ref: ReferenceMesh, fixed: np.ndarray, loaded: np.ndarray, direction: np.ndarray, where: str,

@@ -104,16 +104,9 @@ class MorphedMesh:
     def coordinates(self, alpha) -> np.ndarray:
         """Node coordinates (n_nodes, 3) of Ω(α); raises MeshError if an element would invert or
         fall below the Jacobian-ratio threshold (checked before any assembly)."""
-        alpha = self.surface.as_vector(alpha)
-        if not np.all(np.isfinite(alpha)):
-            raise MeshError("design produces non-finite surface heights")
-        if self.ratio is not None:
-            self.ratio.check(alpha)
+        alpha = checked_design(self, alpha)
         x = self.reference.points.copy()
-        if self.directions is None:
-            x[self.moving, 2] += self.lift(alpha)
-        else:
-            x[self.moving] += self.lift(alpha)[:, None] * self.directions[self.moving]
+        moved(x, self, alpha)
         return x
 
     def dx3_dalpha(self) -> np.ndarray:
@@ -198,17 +191,10 @@ class SeveralMorphs:
 
     def coordinates(self, alpha) -> np.ndarray:
         """Node coordinates (n_nodes, 3) of Ω(α) (as :meth:`MorphedMesh.coordinates`)."""
-        alpha = self.surface.as_vector(alpha)
-        if not np.all(np.isfinite(alpha)):
-            raise MeshError("design produces non-finite surface heights")
-        if self.ratio is not None:
-            self.ratio.check(alpha)
+        alpha = checked_design(self, alpha)
         x = self.reference.points.copy()
         for m, a in zip(self.morphs, self._blocks(alpha)):
-            if m.directions is None:
-                x[m.moving, 2] += m.lift(a)
-            else:
-                x[m.moving] += m.lift(a)[:, None] * m.directions[m.moving]
+            moved(x, m, a)
         return x
 
     def dx3_dalpha(self) -> list:
@@ -243,6 +229,25 @@ class SeveralMorphs:
         """G with g = G α at the contact nodes: per node the columns of the design whose face it lies
         on (w_d = 1 there, 0 on the other designed faces and on faces no design moves)."""
         return np.hstack([m.weight[self.contact_nodes][:, None] * m.gap_matrix() for m in self.morphs])
+
+
+def checked_design(mesh, alpha) -> np.ndarray:
+    """α of a morphed mesh as a vector, after the checks that come before any assembly: finite,
+    and (where the mesh has one) the Jacobian-ratio threshold; MeshError otherwise."""
+    alpha = mesh.surface.as_vector(alpha)
+    if not np.all(np.isfinite(alpha)):
+        raise MeshError("design produces non-finite surface heights")
+    if mesh.ratio is not None:
+        mesh.ratio.check(alpha)
+    return alpha
+
+
+def moved(x: np.ndarray, morph, alpha) -> None:
+    """Move the nodes ``x`` by one morph's lift at α: along x3, or along its direction field."""
+    if morph.directions is None:
+        x[morph.moving, 2] += morph.lift(alpha)
+    else:
+        x[morph.moving] += morph.lift(alpha)[:, None] * morph.directions[morph.moving]
 
 
 class JacobianRatio:

@@ -42,10 +42,12 @@ from ..contact.state import FoundationState
 from ..errors import CheckpointError, ConfigError
 from ..fem import memory
 from ..fem.amg import ContactHierarchy, rigid_body_modes
+from ..fem.counterparts import RigidCounterpart
 from ..fem.model import Assembled
 from ..sensitivity.adjoint_fullspace import solve_adjoint_fullspace
 from .base import Adjoint, Capabilities, Context, SolverPath, SystemParts, check_design
 from .coupled import FullSpaceCouple, with_contact_blocks
+from .coupled import force_terms as coupled_force_terms
 from .force import normal_stiffness
 from .transforms import frame_rotation
 
@@ -70,6 +72,7 @@ class FullSystem(SystemParts):
     shift: np.ndarray | None = None    # an obstacle's tangential translation (p, 2) per node frame, or None
     force: float | None = None         # a load step's |f| of a force-controlled obstacle (None: the model's)
     couple: FullSpaceCouple | None = None   # an elastic foundation: both bodies in one system (.coupled)
+    moved: float = 0.0                 # a force-controlled foundation's translation s (.force)
 
     @property
     def law_A(self):
@@ -185,7 +188,7 @@ class FullSpacePath(FullSpaceCommon):
     """``[linear_solver] path = "fullspace"`` (module docstring)."""
 
     name = "fullspace"
-    capabilities = Capabilities(foundation=True, obstacle=True, pinned=True, whole_displacement=True,
+    capabilities = Capabilities(foundation=True, pairs=True, counterpart_force=True, obstacle=True, pinned=True, whole_displacement=True,
                                 load_steps=True, libraries=("pyamg",), sparse="pyamg", auto="large", auto_order=0,
                                 auto_avoids=("obstacle",))
     condenses_counterparts = False      # an elastic foundation joins the Newton system (.coupled)
@@ -196,6 +199,21 @@ class FullSpacePath(FullSpaceCommon):
         self._hierarchy = None          # the AMG hierarchy of an earlier A(α) ...
         self.hierarchy_alpha = None     # ... built at this design (checkpoints rebuild it)
         self._couple = None             # an elastic foundation's change of unknowns (.coupled)
+        floating = [] if model.foundation is None else [
+            f"contacts[{k}]" for part, pairs in zip(model.foundation.parts, model.foundation.pairs)
+            if part.rigid is not None for k in pairs]
+        rigid = [] if model.foundation is None else [
+            f"contacts[{k}]" for part, pairs in zip(model.foundation.parts, model.foundation.pairs)
+            if isinstance(part, RigidCounterpart) for k in pairs]
+        if rigid:
+            raise ConfigError([f"{model.config.source}: linear_solver.path = 'fullspace': the rigid counterpart of "
+                               f"{', '.join(rigid)} beside elastic ones is solved on the 'condensation' path only so "
+                               "far; use path 'condensation'"])
+        if floating:
+            raise ConfigError([f"{model.config.source}: linear_solver.path = 'fullspace': the counterpart of "
+                               f"{', '.join(floating)} is held only by its contacts, which is solved on the "
+                               "'condensation' path only so far (its rigid motions as the anchor's rows); use path "
+                               "'condensation' or clamp the body"])
         if model.foundation is not None and model.foundation.basis is not None:
             raise ConfigError([f"{model.config.source}: linear_solver.path = 'fullspace': an elastic [foundation] "
                                "with mortar partners on six-node triangles (a transformed basis) is solved on the "
@@ -248,10 +266,19 @@ class FullSpacePath(FullSpaceCommon):
         if np.any(e):
             e2 = e.reshape(-1, 3)[:, :2]
             shift = s * e2 if shift is None else shift + s * e2
-        return replace(system, gap=system.gap - s * c, shift=shift)
+        return replace(system, gap=system.gap - s * c, shift=shift, moved=s)
 
     def normal_stiffness(self, system):
+        if system.couple is not None:       # the Newton system's own rows, in the nodes' frames
+            return normal_stiffness(system.law_A, self.model.contact_dofs, None)
         return normal_stiffness(system.assembled.A, self.model.contact_dofs, self.frames)
+
+    def force_terms(self, system, ctx, state, v_lam, loads=None, *, v=None, y_u=None):
+        """As :meth:`SolverPath.force_terms`; a foundation pressed by a force in the two bodies'
+        unknowns (:func:`.coupled.force_terms`)."""
+        if system.couple is None:
+            return super().force_terms(system, ctx, state, v_lam, loads, v=v, y_u=y_u)
+        return coupled_force_terms(self, system, ctx, state, v_lam, loads, y_u)
 
     def for_load(self, system, asm) -> FullSystem:
         out = replace(system, assembled=asm, timings={})
@@ -327,7 +354,7 @@ class FullSpacePath(FullSpaceCommon):
         if system.couple is not None:
             u_free, u_f = system.couple.split(res.u)
             u_c = res.u_c - system.couple.offset          # the law's w
-            found = self._foundation_state(system.couple, u_free, u_f, u_c)
+            found = self._foundation_state(system.couple, u_free, u_f, u_c, system.moved)
         elif system.T is not None:
             u_free = system.T @ res.u
         if system.shift is not None:
@@ -337,15 +364,15 @@ class FullSpacePath(FullSpaceCommon):
                              stats={"backend": "pyamg", **({"fallback": res.fallback} if res.fallback else {})},
                              label=label, slip_ref=slip_ref, foundation=found)
 
-    def _foundation_state(self, couple, u_free, u_f, w):
+    def _foundation_state(self, couple, u_free, u_f, w, moved=0.0):
         """The :class:`~contactopt.contact.state.FoundationState` of a two-body solve: the body's
         contact displacement and its partners' per node (t1, t2, ν) (their difference the law's
         w) and the foundation's whole displacement."""
         u_c = u_free[self.model.contact_dofs].reshape(-1, 3)
         if self.frames is not None:
             u_c = np.einsum("mij,mi->mj", self.frames, u_c)
-        return FoundationState(u_body_c=u_c, u_partner=couple.partner(u_f),
-                               displacement=couple.foundation_displacement(u_f))
+        return FoundationState(u_body_c=u_c, u_partner=couple.partner(u_f, moved),
+                               displacement=couple.foundation_displacement(u_f, moved))
 
     def adjoint(self, system, ctx, state, y_u, y_lam, choices=None, carry=None):
         """As :meth:`SolverPath.adjoint`; with an elastic foundation (:mod:`.coupled`) in the
@@ -354,10 +381,6 @@ class FullSpacePath(FullSpaceCommon):
         full = self.is_full(y_u)
         if full:                       # ∂J/∂u on every DOF: the free DOFs' part
             y_u = np.asarray(y_u, float)[self.model.assembler.free]
-        u_law = state.u_c                # the friction law's: the slip increment in a load step
-        if state.slip_ref is not None:
-            u_law = state.u_c.copy()
-            u_law[:, :2] = state.slip_increment
         if system.couple is not None and full:
             y_u = system.couple.extend(y_u)   # ∂J/∂u of the body into both bodies' u_loc
             ctx.adjoint_rhs_c = y_u[self.model.contact_dofs].copy()
@@ -365,6 +388,15 @@ class FullSpacePath(FullSpaceCommon):
                 y_u[self.model.contact_dofs] += carry
         elif system.T is not None and np.asarray(y_u).size == system.T.shape[0]:
             y_u = system.T.T @ y_u        # ∂J/∂u on the free DOFs into the nodes' frames
+        return self.local_adjoint(system, ctx, state, y_u, y_lam, choices)
+
+    def local_adjoint(self, system, ctx, state, y_u, y_lam, choices=None):
+        """The adjoint of the Newton system's own unknowns: ``y_u`` on the contact DOFs (3p) or on
+        every unknown of the system (in the nodes' frames, both bodies' with a foundation)."""
+        u_law = state.u_c                # the friction law's: the slip increment in a load step
+        if state.slip_ref is not None:
+            u_law = state.u_c.copy()
+            u_law[:, :2] = state.slip_increment
         adj = solve_adjoint_fullspace(system.law_A, self.model.contact_dofs, state.classes, u_law,
                                       state.lam, y_u, y_lam, self.friction, hierarchy=self._hierarchy,
                                       choices=choices)

@@ -25,7 +25,9 @@ force vanishes, the anchored state satisfies S u − ℓ = r exactly, and so it 
 body held only by contact. The iteration β ← Qᵀu(β) (a proximal point iteration on the rigid
 motions) starts from β = 0, the body where the mesh puts it; while contact holds a motion
 (closed gaps, sticking nodes) u(β) hardly depends on β along it, and the iteration converges in
-a few zone solves. It stops when ‖Qᵀ(ℓ + r)‖ ≤ tol · max(‖ℓ‖, ‖r‖) (``tol`` of ``[state]``); the
+a few zone solves. It stops when ‖Qᵀ(ℓ + r)‖ ≤ tol · max(‖ℓ‖, ‖r‖) (``tol`` of ``[state]``), or
+when that ratio, below :data:`ROUNDOFF_FLOOR`, no longer halves in a step (a tolerance under the
+round-off of the zone solves, such as a gradient check's 1e-14, is met as far as it can be); the
 state's ``rigid`` (:class:`~contactopt.contact.state.RigidAnchor`) holds the iterations and that ratio.
 
 The adjoint (4.15) is solved with the singular S itself (the equation rows of
@@ -48,6 +50,7 @@ from ..errors import SolverError
 
 log = logging.getLogger(__name__)
 
+ROUNDOFF_FLOOR = 1e-11    # an imbalance below it that stops falling is round-off: the state is held
 MAX_ANCHOR_STEPS = 200
 KERNEL_RTOL = 1e-9
 GAMMA_FACTOR = 1e-3   # γ = GAMMA_FACTOR · mean diag S: a soft anchor, the iteration contracts by about γ/(γ + k)
@@ -138,8 +141,8 @@ def held_state(solve, system, tol: float, method: str = "newton"):
         unbalanced = an.Q.T @ (ell + r)                       # = γ(Qᵀu − β), the anchor's force
         rel = float(np.linalg.norm(unbalanced) / max(np.linalg.norm(ell), np.linalg.norm(r), 1e-300))
         history.append(rel)
-        if rel <= tol:
-            break
+        if rel <= tol or (rel <= ROUNDOFF_FLOOR and len(history) > 1 and rel >= 0.5 * history[-2]):
+            break       # (below the floor, a step that no longer halves the imbalance: round-off)
         beta = an.Q.T @ np.ravel(st.u_c)
     else:
         worst = an.R.T @ (ell + r)

@@ -65,15 +65,25 @@ class _Kink(Exception):
 
 
 def check_gradient(problem, alpha, *, seed: int = 0, n_directions: int = 10, h: float = 1e-3,
-                   tol: float = 1e-6, directions=None, state_method: str = "fixed-point",
-                   state_tol: float = 1e-14) -> GradientCheck:
+                   tol: float = 1e-6, directions=None, state_method: str | None = None,
+                   state_tol: float | None = None) -> GradientCheck:
     """Compare ξᵀd with central differences in seeded random directions; Taylor table in d_0.
 
     The step is h·max(|α|) so it is relative to the design's size. A difference quotient divides
     the state error by h, so every state of the check is solved to ``state_tol`` with
-    ``state_method`` (the successive approximations reach 1e-14; the Newton solver stops at its
-    round-off floor, about 1e-13, which costs the quotient a digit).
+    ``state_method``: by default the successive approximations to 1e-14, and where a body is held
+    only by contact the Newton solver to its round-off floor, 1e-13 (which costs the quotient a
+    digit): the anchor of a floating body (paths/rigid.py) contracts slowly under the projected
+    fixed-point solver's stiffer anchor, hundreds of zone solves per state at 1e-14.
     """
+    if state_method is None:
+        model = problem.model
+        floating = model.body.rigid is not None or (model.foundation is not None
+                                                    and model.foundation.kernel() is not None)
+        state_method, default_tol = ("newton", 1e-13) if floating else ("fixed-point", 1e-14)
+        state_tol = default_tol if state_tol is None else state_tol
+    elif state_tol is None:
+        state_tol = 1e-14
     saved = (problem.method, problem.tol)
     problem.method, problem.tol = state_method, state_tol
     problem.clear_cache()

@@ -336,6 +336,103 @@ class PeakStress(Objective):
         return self.partials(self.scale * value, self.scale * g_u, np.zeros(state.lam.size), self.scale * dalpha)
 
 
+class CounterpartPeakStress(Objective):
+    """The largest von Mises stress over a region of a counterpart body (``region = "<body>"`` or
+    ``"<body>.<part>"`` of a body other than the face body), aggregated as :class:`PeakStress`.
+
+    A counterpart body held by its clamps has the displacement u_o = K_o⁻¹(f_o − Π_oᵀ r_o) on its free
+    DOFs (:meth:`~contactopt.fem.foundation.Foundation.displacement`, plus its prescribed
+    translation), r_o the contact forces of its pairs per node frame (t1, t2, ν) = (−τ, λ): linear in
+    r alone, its mesh fixed. So ∂J/∂r_o = −Π_o K_o⁻¹ ∂J/∂u_o, and since r = (A u − L) on the body's
+    contact DOFs (in global components, ŷ = Q ∂J/∂r there and zero elsewhere), J is a function of
+    the body's u: ∂J/∂u = A ŷ on every DOF and, at fixed u, ∂J/∂α = ŷᵀ(∂A/∂α u − ∂L/∂α), as the
+    friction work passes its τ (:class:`FrictionalDissipation`). A counterpart held only by its
+    contacts (its u_o depends on the relative displacement as well) is refused by name."""
+
+    name = "peak_stress"
+    full_space = True
+
+    def __init__(self, model, body: int, cells: np.ndarray, scale: float = 1.0, kind: str = "max",
+                 rho: float = 50.0, p: float = 8.0):
+        super().__init__(model, scale)
+        self.kind, self.rho, self.p = kind, float(rho), float(p)
+        self.part, self.cells = model.foundation.parts[body], np.asarray(cells)
+        self.rows = model.foundation.rows[body]
+
+    def displacement(self, state) -> np.ndarray:
+        """u_o (3·n_o,) of the state, from its contact forces."""
+        r = np.c_[-np.asarray(state.tau), state.lam][self.rows]
+        return self.part.displacement(r.ravel())
+
+    def values(self, state) -> np.ndarray:
+        """σ_vM (len(cells), Q) of the counterpart in the state."""
+        f = self.part
+        return von_mises_points(f.assembler, f.mesh.reference.points, self.displacement(state), self.cells)
+
+    def evaluate(self, state, cond, loads=None):
+        model, f = self.model, self.part
+        asm = model.assembler
+        u_o = self.displacement(state)
+        vm = von_mises_points(f.assembler, f.mesh.reference.points, u_o, self.cells)
+        value, w = aggregate(vm.ravel(), self.kind, self.rho, self.p)
+        w = w.reshape(vm.shape)
+        rows = np.flatnonzero(np.any(w != 0, axis=1))
+        g_o, _ = von_mises_gradients(f.assembler, f.mesh.reference.points, u_o, self.cells[rows], w[rows])
+        x = f.condensation.solve(g_o[f.assembler.free])
+        y = np.zeros((state.lam.size, 3))
+        y[self.rows] = -(f.P @ x[f._support_free]).reshape(-1, 3)          # ∂J/∂r per node frame
+        contact = (3 * model.contact_nodes[:, None] + np.arange(3)).ravel()
+        yhat = np.zeros(asm.n_full)
+        yhat[contact] = _global(model, y.ravel())
+        yhat = model.unpin(yhat)
+        dJ_du = asm.to_full(stiffness_product(cond, asm, state.coords, yhat[asm.free]))
+        dalpha = model.design_contraction(state.coords, state.u, yhat, self.loads if loads is None else loads)
+        return self.partials(self.scale * value, self.scale * dJ_du, np.zeros(state.lam.size), self.scale * dalpha)
+
+
+def counterpart_region(model, region, key: str):
+    """(counterpart body index, its elements) of a peak-stress region on a counterpart body
+    (``"<body>.<part>"``, or ``"<body>"`` where the face body has no part of that name: a name
+    without a dot is the face body's part first), or None for a region of the face body. ConfigError naming ``key`` where the counterpart's stress
+    is not taken: a counterpart held only by its contacts, or not condensed (the full-space path)."""
+    assembly = model.config.assembly
+    if not (assembly.spelled and isinstance(region, str) and region):
+        return None
+    name, dot, part = region.partition(".")
+    if name not in assembly.bodies or name == assembly.bodies[0]:
+        return None
+    if not dot and name in model.body.reference.parts:      # a name without a dot: the face body's part first
+        return None
+    fnd = model.foundation
+    src = model.config.source
+    if not model.config.pairs:
+        raise ConfigError([f"{src}: {key} = {region!r}: the peak stress of a counterpart body takes a model of "
+                           "several pairs so far, not the elastic foundation of one pair"])
+    names = [assembly.contacts[pairs[0]].counterpart.split(".")[0] for pairs in fnd.pairs]
+    b = names.index(name)
+    f = fnd.parts[b]
+    if f.rigid is not None:
+        raise ConfigError([f"{src}: {key} = {region!r}: body {name!r} is held only by its contacts; the peak stress "
+                           "of a counterpart is taken on one held by its clamps (its displacement a function of "
+                           "the contact forces alone)"])
+    if f.condensation is None:
+        raise ConfigError([f"{src}: {key} = {region!r}: the peak stress of a counterpart body is computed on its "
+                           "condensation; use linear_solver.path = 'condensation'"])
+    ref = f.mesh.reference
+    cells = f.assembler.elements
+    if not part:
+        return b, np.arange(cells.shape[0])
+    if part not in ref.parts:
+        raise ConfigError([f"{src}: {key} = {region!r}: body {name!r} has no part {part!r} (parts: "
+                           f"{', '.join(sorted(ref.parts))})"])
+    inside = np.zeros(ref.n_nodes, bool)
+    inside[ref.parts[part].nodes] = True
+    found = np.flatnonzero(inside[cells].all(axis=1))
+    if found.size == 0:
+        found = np.flatnonzero(inside[cells].any(axis=1))
+    return b, found
+
+
 def region_cells(model, region, key: str) -> np.ndarray:
     """The elements of a region (:class:`PeakStress`); ConfigError naming ``key`` if it has none.
     In a model written as an assembly the region may name its body, ``"<body>"`` (all of it) or
@@ -558,6 +655,9 @@ def _one_objective(model, table, scale, key, target, case, solve) -> Objective:
     if cls is PressureUniformity:
         return cls(model, scale, contacts=table.contacts)
     if cls is PeakStress:
+        on = counterpart_region(model, table.region or None, f"{key}.region")
+        if on is not None:
+            return CounterpartPeakStress(model, *on, scale, *agg)
         return cls(model, scale, *agg, region=table.region or None, key=f"{key}.region")
     return cls(model, scale)
 
