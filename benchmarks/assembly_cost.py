@@ -100,7 +100,7 @@ def main(repeats: int = 5, parts: bool = False) -> None:
     print(f"evaluation (state and subgradient), median of {repeats}: three bodies {np.median(times['three']):.3f} s, "
           f"the block alone {np.median(times['alone']):.3f} s; ratio median {np.median(ratio):.3f} "
           f"(min {ratio.min():.3f}, max {ratio.max():.3f})")
-    for name, d in split.items():
+    for name, d in split.items() if parts else ():
         print(f"{name}: " + ", ".join(f"{PARTS.get(k, k)} {np.median(v):.3g}" + (" s" if k in PARTS else "")
                                     for k, v in d.items()))
 
