@@ -102,16 +102,26 @@ def class_counts(codes: np.ndarray) -> dict:
     return {name: int(np.sum(codes == k)) for k, name in enumerate(CLASS_NAMES)}
 
 
-@dataclass(frozen=True)
 class FoundationState:
     """What a state on an elastic foundation adds (:mod:`contactopt.fem.foundation`): the state's
     ``u_c`` is then the relative displacement w = u_body − u_partner, and here are the body's own
     contact displacement ``u_body_c`` and its partners' ``u_partner`` ((p, 3) per node (t1, t2, ν))
-    and the foundation's displacement ``displacement`` (3 per node of its mesh)."""
+    and the foundation's displacement ``displacement`` (3 per node of its mesh).
 
-    u_body_c: np.ndarray
-    u_partner: np.ndarray
-    displacement: np.ndarray
+    ``displacement`` may be given as a function of no arguments: it is then called on first read
+    (the outputs read it, an evaluation does not: its sparse solves on the foundation's interior
+    are left to the states that are written)."""
+
+    __slots__ = ("u_body_c", "u_partner", "_displacement")
+
+    def __init__(self, u_body_c: np.ndarray, u_partner: np.ndarray, displacement):
+        self.u_body_c, self.u_partner, self._displacement = u_body_c, u_partner, displacement
+
+    @property
+    def displacement(self) -> np.ndarray:
+        if callable(self._displacement):
+            self._displacement = np.asarray(self._displacement())
+        return self._displacement
 
 
 @dataclass

@@ -216,6 +216,62 @@ class ZoneProblem:
         return W
 
 
+class CoupledZoneProblem(ZoneProblem):
+    """The zone's local problem of a body coupled with elastic counterparts
+    (:class:`~contactopt.fem.foundation.Coupling`): its contact law has the compliance
+    W = S⁻¹ + C (C the counterparts' condensed compliance, the same for every design) and the
+    free displacement W ℓ_eff = S⁻¹ℓ − ``offset`` (:meth:`~contactopt.fem.foundation.Coupling.free_displacement`).
+
+    The same problem as :class:`ZoneProblem` on S_eff = W⁻¹, without S_eff: the Cholesky factor
+    of the body's S (in S's order, or ordered (N, Z)) gives the products W b = S⁻¹b + C b and the
+    block W_Z = (S⁻¹)_ZZ + C_ZZ, from the factor's trailing block as in :class:`ZoneProblem`.
+    :meth:`body_solve` is S⁻¹b with the same factor (the adjoint's S⁻¹ S_eff v_u = S⁻¹ s).
+    Conventions as :class:`ZoneProblem`; ``S``, ``C``, ``ell`` and ``offset`` per node (t1, t2, ν)."""
+
+    def __init__(self, S: np.ndarray, C: np.ndarray, ell: np.ndarray, offset: np.ndarray, zone: np.ndarray, *,
+                 ordered: bool = True):
+        self._C = C
+        self.p = ell.size // 3
+        self._S = S
+        zone = np.asarray(zone)
+        if ordered:
+            self._order, self._start, self._L = self._ordered_factor(zone)
+        else:
+            self._order, self._start = None, 0
+            self._L = cholesky_lower(np.array(S, dtype=np.float64, order="C"))
+        self._factor_zone = zone if ordered else None
+        self._parent = None
+        self._set_zone(zone, None, self.body_solve(ell) - offset)
+
+    def on_load(self, ell: np.ndarray, offset: np.ndarray, zone: np.ndarray) -> "CoupledZoneProblem":
+        """The problem of another load ℓ (and offset) and zone on this factor."""
+        out = object.__new__(type(self))
+        out.__dict__.update(self.__dict__)
+        out._parent = None
+        out._set_zone(np.asarray(zone), None, self.body_solve(ell) - offset)
+        return out
+
+    def body_solve(self, b: np.ndarray) -> np.ndarray:
+        """S⁻¹ b (the body's own compliance) for b of length 3p (or (3p, m))."""
+        return ZoneProblem.solve(self, b)
+
+    def solve(self, b: np.ndarray) -> np.ndarray:
+        """W b = S⁻¹ b + C b for b of length 3p (or (3p, m)), per node (t1, t2, ν)."""
+        b = np.asarray(b, dtype=np.float64)
+        return self.body_solve(b) + self._C @ b
+
+    def _zone_inverse(self) -> np.ndarray:
+        """W_Z = (S̃)⁻¹ + C_ZZ, S̃ from the factor of S ordered (N, Z) (ordered anew for another zone)."""
+        if self._factor_zone is not None and np.array_equal(self._factor_zone, self.zone):
+            inv = inverse_from_cholesky(self._L, self._start)
+        else:
+            _, start, L = self._ordered_factor(self.zone)
+            inv = inverse_from_cholesky(L, start)
+        dof = self._dof_z
+        inv += self._C.take(dof, axis=0).take(dof, axis=1)
+        return inv
+
+
 class DelassusZoneProblem(ZoneProblem):
     """The zone's local problem without the condensed stiffness S (large meshes, issue #16).
 

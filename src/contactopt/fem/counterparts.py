@@ -189,6 +189,22 @@ class Counterparts:
             if f.motion is not None:
                 self.q_f[d] = f.motion
         self.ell_o = None if any(f.ell_f is None for f in self.parts) else np.concatenate([f.ell_f for f in self.parts])
+        # Π W_o ℓ_o: the partners' displacement under the counterparts' own loads (Coupling.offset)
+        self.load_displacement = None
+        if self.C is not None and self.ell_o is not None and np.any(self.ell_o):
+            self.load_displacement = np.asarray(self.P @ self.support_compliance(self.ell_o))
+
+    def support_compliance(self, x: np.ndarray) -> np.ndarray:
+        """W_o x = diag_b(W_b) x: the displacement of the counterparts' free support DOFs (in the
+        order of ``P``'s columns) under the forces x on them; every counterpart held (a rigid one
+        has no support DOFs)."""
+        out, start = np.empty(x.shape), 0
+        for f in self.parts:
+            m = f.P.shape[1]
+            if m:
+                out[start:start + m] = f.W_f @ x[start:start + m]
+            start += m
+        return out
 
     def check_held(self, friction, names: list, source: str) -> None:
         """ConfigError naming each rigid motion of a counterpart held only by its contacts that no
@@ -263,7 +279,11 @@ class Counterparts:
         """Each counterpart body's full displacement (3·n_k,): its support DOFs from the coupling's
         :meth:`~contactopt.fem.foundation.Coupling.support_displacement` of the law's w under the
         face body's load ℓ, its interior recovered under its own loads, plus its prescribed translation."""
-        o = coupling.support_displacement(w, ell)
+        return self.recovered(coupling.support_displacement(w, ell, r))
+
+    def recovered(self, o: np.ndarray) -> list:
+        """Each counterpart's full displacement (3·n_k,) from o on the free support DOFs of all
+        (:meth:`displacements`): its interior recovered under its own loads, plus its translation."""
         out, start = [], 0
         for f in self.parts:
             m = f.P.shape[1]

@@ -267,6 +267,11 @@ class Foundation:
         return self.q_f - self.C @ np.ravel(r)
 
     ell_o = None          # the loads of several pairs' counterparts on their support (fem.counterparts)
+    load_displacement = None   # ... and their partners' displacement under them (here in q_f)
+
+    def support_compliance(self, x: np.ndarray) -> np.ndarray:
+        """W_f x: the displacement of the free support DOFs under the forces x on them."""
+        return self.W_f @ x
 
     def kernel(self):
         """None: the one foundation is held by its clamps (fem.counterparts: several pairs)."""
@@ -351,8 +356,20 @@ class _WholeMatrix:
 
 class Coupling:
     """The body's condensed stiffness S(α) of one design coupled with the foundation (module
-    docstring): S_eff = (S⁻¹ + C)⁻¹ by the Woodbury identity, with C = P W_f Pᵀ, W_f = S_f⁻¹
-    (S_f the foundation's stiffness condensed on its free support DOFs, P = Π on them):
+    docstring). The contact law's compliance is
+
+        W = S⁻¹ + C,   C = P W_f Pᵀ,   W_f = S_f⁻¹
+
+    (S_f the foundation's stiffness condensed on its free support DOFs, P = Π on them): a
+    product W b is a solve with the body's Cholesky factor and a product with C, which is formed
+    once per run. The zone's problem (:class:`~contactopt.contact.zone.CoupledZoneProblem`) and
+    the adjoint in W-form need nothing else: W_Z = (S⁻¹)_ZZ + C_ZZ on the zone Z, and the law's
+    free displacement W ℓ_eff = S⁻¹ℓ − :attr:`offset`, so that a design adds no dense algebra on
+    all contact DOFs to the body's own (``compliant``; docs/foundation.md).
+
+    Where S_eff = W⁻¹ itself is asked for (:attr:`S_eff`, ℓ_eff, the transfers; a counterpart held
+    only by its contacts, which has no C; a force-controlled foundation; an objective of the whole
+    displacement), it comes from the Woodbury identity, formed on first use:
 
         S_eff = S − G M⁻¹ Gᵀ,   G = S P,   M = S_f + Pᵀ S P   (m × m, m = free support DOFs),
 
@@ -365,24 +382,55 @@ class Coupling:
     give ℓ_eff = S_eff (S⁻¹ℓ − Π q_f) and the adjoint's z = S⁻¹ S_eff v_u. Per contact node the
     order is (t1, t2, ν); r is the contact force on the body."""
 
-    def __init__(self, S: np.ndarray, foundation: Foundation):
-
+    def __init__(self, S: np.ndarray, foundation: Foundation, anchored: bool = False):
+        """``anchored``: the body is held only by contact (paths/rigid.py), its law that of
+        S_eff + γQQᵀ: not ``compliant``."""
         self.foundation = f = foundation
-        P = f.P
-        self._P = P
-        G = np.ascontiguousarray((P.T @ S).T)                    # S P, S symmetric
-        M = np.array(f.condensation.S, dtype=np.float64, order="C") + np.asarray(P.T @ G)
+        self._P = f.P
+        self.S = S
+        # W = S⁻¹ + C and r = S_eff w − ℓ_eff: every body held by its clamps (a counterpart held
+        # only by its contacts has no C; an anchored body's law is another)
+        self.compliant = f.C is not None and not anchored
+        self._G = self._L = self._S_eff = None
+        self.zone_problem = None     # the last zone problem on this design's factor of S (paths/condensation.py)
+
+    def _woodbury(self) -> None:
+        """G = S P and the Cholesky factor of M = S_f + Pᵀ S P, once per design (class docstring)."""
+        if self._L is not None:
+            return
+        P = self._P
+        G = np.ascontiguousarray((P.T @ self.S).T)                # S P, S symmetric
+        M = np.array(self.foundation.condensation.S, dtype=np.float64, order="C") + np.asarray(P.T @ G)
         self._L = cholesky_lower(0.5 * (M + M.T))
         self._G = G
-        Y = solve_triangular(self._L.T, G.T, lower=False, trans="T", check_finite=False)   # L_M⁻¹ Gᵀ
-        YtY = dsyrk(1.0, Y.T, trans=0, lower=1)                  # lower triangle of YᵀY (half a product)
-        self.S_eff = symmetrize_lower(np.ascontiguousarray(np.tril(S) - YtY))
+
+    @property
+    def S_eff(self) -> np.ndarray:
+        """S_eff = (S⁻¹ + C)⁻¹ (3p × 3p), formed on first use (class docstring)."""
+        if self._S_eff is None:
+            self._woodbury()
+            Y = solve_triangular(self._L.T, self._G.T, lower=False, trans="T", check_finite=False)   # L_M⁻¹ Gᵀ
+            YtY = dsyrk(1.0, Y.T, trans=0, lower=1)              # lower triangle of YᵀY (half a product)
+            self._S_eff = symmetrize_lower(np.ascontiguousarray(np.tril(self.S) - YtY))
+        return self._S_eff
 
     def _solve_M(self, b: np.ndarray) -> np.ndarray:
+        self._woodbury()
         return cholesky_solve(self._L, b)
+
+    @property
+    def offset(self) -> np.ndarray:
+        """Π q_f + Π W_f ℓ_o (3p,): the partners' displacement under no contact force, so that the
+        contact law's free displacement is W ℓ_eff = S⁻¹ℓ − offset (``compliant`` only; ℓ_eff
+        itself is :meth:`ell_eff`). W G M⁻¹ = Π W_f turns the loads ℓ_o of the counterparts of
+        several pairs into Π W_f ℓ_o (:attr:`~contactopt.fem.counterparts.Counterparts.load_displacement`)."""
+        f = self.foundation
+        loads = f.load_displacement
+        return f.q_f if loads is None else f.q_f + loads
 
     def to_eff(self, x: np.ndarray) -> np.ndarray:
         """S_eff S⁻¹ x (3p,)."""
+        self._woodbury()
         return x - self._G @ self._solve_M(self._P.T @ x)
 
     def ell_eff(self, ell: np.ndarray) -> np.ndarray:
@@ -401,16 +449,21 @@ class Coupling:
             out -= self.S_eff @ f.q_f
         return out
 
-    def support_displacement(self, w: np.ndarray, ell: np.ndarray) -> np.ndarray:
+    def support_displacement(self, w: np.ndarray, ell: np.ndarray, r: np.ndarray | None = None) -> np.ndarray:
         """Counterparts of several pairs: their displacement o on the free support DOFs (less their
         prescribed translations) for the law's w under the body's load ℓ (that of the solve, per
-        load case and step), M o = Pᵀ(ℓ − S (w + q)) + ℓ_o."""
+        load case and step), M o = Pᵀ(ℓ − S (w + q)) + ℓ_o. Given the contact forces ``r`` of that
+        state on the body (3p or (p, 3)) and every counterpart held, the same o is
+        S_f⁻¹(ℓ_o − Pᵀ r) (M o − Pᵀ S P o = S_f o), with no factorization per design."""
         f = self.foundation
+        if r is not None and self.compliant:
+            return f.support_compliance(f.ell_o - self._P.T @ np.ravel(r))
         u = np.ravel(w) + f.q_f
         return self._solve_M(self._P.T @ ell - self._G.T @ u + f.ell_o)
 
     def adjoint_z(self, v_u: np.ndarray) -> np.ndarray:
         """z = S⁻¹ S_eff v_u (3p,): the design terms' adjoint on the body's contact DOFs."""
+        self._woodbury()
         return v_u - self._P @ self._solve_M(self._G.T @ v_u)
 
     def body_displacement(self, w: np.ndarray, r: np.ndarray, ell: np.ndarray | None = None) -> np.ndarray:
@@ -419,7 +472,7 @@ class Coupling:
         body's condensed load of the solve)."""
         f = self.foundation
         if f.ell_o is not None:
-            return np.ravel(w) + self._P @ self.support_displacement(w, ell) + f.q_f
+            return np.ravel(w) + self._P @ self.support_displacement(w, ell, r) + f.q_f
         return np.ravel(w) + f.partner_displacement(r)
 
 

@@ -425,15 +425,17 @@ class SolverPath:
             r, u_c = np.where(pinned, 0.0, r), np.where(pinned, 0.0, u_c)
             u = self.model.unpin(u)
         lam, tau = r[:, 2].copy(), -r[:, :2]
-        # with nothing in contact, forces count as zero against the load scale
-        fscale = max(np.abs(lam).max(initial=0.0), np.abs(load).max(initial=0.0))
+        fscale = None
+        if lam.max(initial=0) <= 0:     # nothing in contact: forces count as zero against the load scale
+            load = load() if callable(load) else load       # (a function that forms the load: only here)
+            fscale = max(np.abs(lam).max(initial=0.0), np.abs(load).max(initial=0.0))
         law_u = u_c
         if slip_ref is not None:        # the friction law's displacement: the slip increment
             law_u = u_c.copy()
             law_u[:, :2] -= slip_ref
         friction = self.friction
         classes = classify_nodes(law_u, lam, tau, gap, friction,
-                                 force_scale=fscale if lam.max(initial=0) <= 0 else None, u=u)
+                                 force_scale=fscale, u=u)
         timings["total"] = sum(timings.values())
         state = State(alpha=alpha, coords=coords, u=u, u_c=u_c, lam=lam, tau=tau, gap=gap, classes=classes,
                       friction=friction, method=method, iterations=outcome[0],

@@ -20,7 +20,12 @@ displacement is u_c = S⁻¹(ℓ + r) = w + Π q_f − C r. The adjoint (4.15) i
 differentiating S_eff w − ℓ_eff at fixed w gives S_eff S⁻¹(∂S u_c − ∂ℓ), so the design terms take
 z = S⁻¹ S_eff v_u in place of v_u: ṽ is the A-harmonic extension of z. S_eff and both
 transfers come from the Woodbury identity (:class:`contactopt.fem.foundation.Coupling`), with no
-inverse of S. Without a foundation (C = 0) nothing of this is formed.
+inverse of S. Where the body and every counterpart are held by their clamps
+(:attr:`CondensedSystem.compliant`) none of S_eff, ℓ_eff is formed: the zone's problem is that of
+the compliance W = S⁻¹ + C on the factor of S (:class:`contactopt.contact.zone.CoupledZoneProblem`),
+with the free displacement W ℓ_eff = S⁻¹ℓ − Π q_f, and (4.15) is solved in W-form for
+s = S_eff v_u, so that z = S⁻¹ s (:func:`contactopt.sensitivity.adjoint.solve_adjoint_compliant`).
+Without a foundation (C = 0) nothing of this is formed.
 
 On a rigid obstacle other than the plane (``[obstacle]``, :mod:`contactopt.mesh.obstacle`) each
 contact node m has a frame R_m with columns (t1, t2, n): the contact DOFs are the local
@@ -41,18 +46,20 @@ from __future__ import annotations
 
 import time
 from dataclasses import dataclass, replace
+from functools import partial
 
 import numpy as np
 from scipy.sparse.linalg import eigsh
 
 from ..contact import zone as zone_rules
-from ..contact.state import FoundationState
+from ..contact.state import CLASS_CODES, FROM_FCLIB, FoundationState
+from ..contact.zone import CoupledZoneProblem
 from ..errors import SolverError
 from ..fem import memory
 from ..fem.dense import mkl_threads, spd_inverse
 from ..fem.foundation import Coupling
 from ..fem.model import Assembled, ElasticModel
-from ..sensitivity.adjoint import solve_adjoint
+from ..sensitivity.adjoint import solve_adjoint, solve_adjoint_compliant
 from .base import Adjoint, Capabilities, SystemParts
 from .rigid import Anchor, anchor, held_state, with_contact_diagonal
 from .zone_paths import ZonePath
@@ -69,8 +76,8 @@ class CondensedSystem(SystemParts):
     ell: np.ndarray
     gap: np.ndarray
     timings: dict
-    coupling: Coupling | None = None   # on an elastic foundation: S_eff ...
-    ell_eff: np.ndarray | None = None  # ... and ℓ_eff = S_eff (S⁻¹ℓ − Π q_f) (module docstring)
+    coupling: Coupling | None = None   # on an elastic foundation: W = S⁻¹ + C, S_eff = W⁻¹ ...
+    ell_eff: np.ndarray | None = None  # ... and ℓ_eff = S_eff (S⁻¹ℓ − Π q_f) (module docstring; None: not formed yet)
     shift: np.ndarray | None = None    # an obstacle's tangential translation (3p,) per node frame: ℓ_eff = ℓ − S shift
     rigid: Anchor | None = None        # a body held only by contact: the kernel of S (module docstring)
     beta: np.ndarray | None = None     # ... and the anchor's position β of this solve
@@ -102,7 +109,28 @@ class CondensedSystem(SystemParts):
 
     @property
     def contact_ell(self) -> np.ndarray:
-        return self.ell if self.ell_eff is None else self.ell_eff
+        """The load of the contact law's displacement: ℓ, ℓ − S shift on a translated obstacle, or
+        ℓ_eff on an elastic foundation (formed on first use: the zone and the adjoint of a
+        :attr:`compliant` system need only W ℓ_eff)."""
+        if self.ell_eff is None:
+            if self.coupling is None:
+                return self.ell
+            self.ell_eff = self.coupling.ell_eff(self.ell)
+        return self.ell_eff
+
+    @property
+    def compliant(self) -> bool:
+        """Whether the contact law is that of a foundation or held counterparts on a body held by
+        its clamps: the zone and the adjoint then work with W = S⁻¹ + C and the factor of S alone
+        (:class:`~contactopt.contact.zone.CoupledZoneProblem`), never with S_eff."""
+        return self.coupling is not None and self.coupling.compliant
+
+    @property
+    def law_offset(self) -> np.ndarray:
+        """``offset`` of W ℓ_eff = S⁻¹ℓ − offset (:attr:`compliant` systems): the partners'
+        displacement under no contact force, plus an obstacle's tangential translation."""
+        offset = self.coupling.offset
+        return offset if self.shift is None else offset + self.shift
 
 
 def on_factor(zp, ell: np.ndarray, zone: np.ndarray):
@@ -158,8 +186,7 @@ class CondensationPath(ZonePath):
         if mech.shift is not None:
             system = shifted(system, mech.shift.vector)
         if mech.couple is not None:
-            system.coupling = Coupling(system.S, mech.couple)
-            system.ell_eff = system.coupling.ell_eff(system.ell)
+            system.coupling = Coupling(system.S, mech.couple, anchored=mech.anchor is not None)
         extra = None if mech.couple is None else mech.couple.kernel()   # counterparts held by contact
         if mech.anchor is not None or extra is not None:
             system.rigid = anchor(self.model, mech.anchor, asm, system.contact_S, mech.frames, mech.basis, extra)
@@ -184,9 +211,7 @@ class CondensationPath(ZonePath):
             ell = self.mechanics.rotate.vector(ell)
         if self.mechanics.basis is not None:
             ell = self.mechanics.basis.vector(ell)
-        out = replace(system, assembled=asm, ell=ell, timings={})
-        if out.coupling is not None:
-            out.ell_eff = out.coupling.ell_eff(ell)
+        out = replace(system, assembled=asm, ell=ell, ell_eff=None, timings={})
         if out.shift is not None:
             out = shifted(out, out.shift)
         out.timings["schur"] = time.perf_counter() - t1
@@ -209,12 +234,28 @@ class CondensationPath(ZonePath):
                           kw.get("tol") or self.settings.tol, kw.get("method", self.settings.method))
 
     def zone_problem(self, system, zone, warm, reuse, shared):
+        if system.compliant:
+            return self._coupled_zone(system, zone, reuse, shared), zone
         if reuse and "zone" in shared:
             return on_factor(shared["zone"], system.law_ell, zone), zone
         zp = zone_rules.ZoneProblem(system.law_S, system.law_ell, zone, ordered=not reuse)
         if reuse:
             shared["zone"] = zp
         return zp, zone
+
+    def _coupled_zone(self, system, zone, reuse: bool = False, shared: dict | None = None) -> CoupledZoneProblem:
+        """The zone problem of a :attr:`~CondensedSystem.compliant` system: the factor of S ordered
+        (N, Z) serves the state's products and W_Z, which the adjoint then needs (its block on the
+        nodes in contact); the load cases of a design share it (``reuse``). Kept on the coupling
+        for the adjoint."""
+        if reuse and shared is not None and "zone" in shared:
+            zp = shared["zone"].on_load(system.ell, system.law_offset, zone)
+        else:
+            zp = CoupledZoneProblem(system.S, self.foundation.C, system.ell, system.law_offset, zone)
+            if reuse and shared is not None:
+                shared["zone"] = zp
+        system.coupling.zone_problem = zp
+        return zp
 
     def free_displacement(self, system, zp, r_loc, u_body):
         return system.factor.recover(system.assembled.L, u_body)
@@ -245,13 +286,25 @@ class CondensationPath(ZonePath):
         if system.moved:         # a force-controlled foundation: u_c's normal part omits the translation's
             partner = partner + system.moved * self.model.obstacle_force.gap_rate[:, None] * [0.0, 0.0, 1.0]
         return FoundationState(u_body_c=body, u_partner=partner,
-                               displacement=self.foundation.displacement(r, system.moved, coupling=system.coupling,
-                                                                         w=np.ravel(u_c), ell=system.ell))
+                               displacement=self._foundation_displacement(system, u_c, r))
+
+    def _foundation_displacement(self, system, u_c, r):
+        """The foundation's displacement of a state as a function of no arguments, computed when an
+        output reads it (:class:`~contactopt.contact.state.FoundationState`): it holds only the
+        run's foundation and a few contact vectors (the counterparts' support displacement o,
+        formed here), not the design's factorizations."""
+        f = self.foundation
+        if f.ell_o is None:            # one foundation: its own solve under −Πᵀr
+            return partial(f.displacement, np.array(r), system.moved)
+        o = system.coupling.support_displacement(np.ravel(u_c), system.ell, r)
+        return lambda: np.concatenate(f.recovered(o))
 
     def load_scale(self, system):
         return system.contact_ell
 
     def own_block(self, system, zone):
+        if system.compliant:
+            return CoupledZoneProblem(system.S, self.foundation.C, system.ell, system.law_offset, zone).W
         return zone_rules.ZoneProblem(system.law_S, system.law_ell, zone).W
 
     def adjoint(self, system, ctx, state, y_u, y_lam, choices=None, carry=None):
@@ -265,7 +318,12 @@ class CondensationPath(ZonePath):
         z = S⁻¹S_eff (v_u − C y_c) (docs/foundation.md). ``carry`` (3p, per node (t1, t2, ν)), with
         g on every DOF on a foundation: what a later load step passes down, a derivative with
         respect to w itself (the next step's slip reference is w_t), which joins y*_u after that
-        map, not g (:meth:`SolverPath.adjoint`)."""
+        map, not g (:meth:`SolverPath.adjoint`).
+
+        A :attr:`~CondensedSystem.compliant` system with ∂J/∂u on the contact DOFs solves (4.15)
+        in W-form instead (:meth:`_compliant_adjoint`): the same v_u, v_λ without S_eff."""
+        if system.compliant and not self.is_full(y_u):
+            return self._compliant_adjoint(system, ctx, state, y_u, y_lam, choices)
         zhat = y_c = None
         if self.is_full(y_u):          # ∂J/∂u on every DOF (SolverPath.adjoint): ẑ = (0, A_ii⁻¹g_i)
             fac, asm = system.factor, self.model.assembler
@@ -298,6 +356,35 @@ class CondensationPath(ZonePath):
             v = v - zhat
         return Adjoint(v_u, v_lam, self.model.assembler.to_full(v))
 
+    def _compliant_adjoint(self, system, ctx, state, y_u, y_lam, choices) -> Adjoint:
+        """(4.15) in W-form, solved directly (:func:`~contactopt.sensitivity.adjoint.solve_adjoint_compliant`):
+        its unknown s = S_eff v_u on the nodes in contact K, v_u = W s = S⁻¹s + C s, and the design
+        terms' z = S⁻¹ S_eff v_u = S⁻¹ s, all with the factor of S of the state's zone problem, whose
+        block W_Z holds W_KK (K lies in the zone: every node outside it is of class L)."""
+        coupling = system.coupling
+        zp = coupling.zone_problem
+        if zp is None:                 # no state solved on this design's factor here
+            zp = self._coupled_zone(system, np.flatnonzero(state.classes != CLASS_CODES["L"]))
+        C = self.foundation.C
+
+        def apply(s):
+            x = zp.body_solve(s)
+            return x + C @ s, x
+
+        def block(K):
+            src = zp if np.all(np.isin(K, zp.zone, assume_unique=True)) else zp.grow(K)
+            pos = np.searchsorted(src.zone, K)
+            dof = (3 * pos[:, None] + FROM_FCLIB).ravel()        # FCLIB -> (t1, t2, ν)
+            return src.W[np.ix_(dof, dof)]
+
+        v_u, v_lam, s, z = solve_adjoint_compliant(block, apply, state, y_u, y_lam, choices)
+        ctx.adjoint_s = (v_u, s)           # S_eff v_u, for the previous load step (adjoint_force)
+        if self.mechanics.basis is not None:
+            z = self.mechanics.basis.back(z)
+        if self.mechanics.rotate is not None:
+            z = self.mechanics.rotate.back(z)
+        return Adjoint(v_u, v_lam, self.model.assembler.to_full(system.factor.extend(z)))
+
     def law_extension(self, system, x: np.ndarray) -> np.ndarray:
         """The A-harmonic extension, on every DOF, of the body's contact displacement that the
         law's displacement x (3p, per node frame) gives at fixed forces: S⁻¹ S_eff x on a
@@ -308,6 +395,9 @@ class CondensationPath(ZonePath):
         return self.model.assembler.to_full(system.factor.extend(z))
 
     def adjoint_force(self, system, ctx, v_u):
+        kept = getattr(ctx, "adjoint_s", None)      # the W-form adjoint's s = S_eff v_u
+        if kept is not None and kept[0] is v_u:
+            return kept[1]
         return system.contact_S @ v_u
 
     def global_contact(self, v):

@@ -155,7 +155,7 @@ class ZonePath(SolverPath):
                 "delassus": reused[-1], **self.solve_counts(zp),
                 **({"fallback": res.stats["fallback"]} if "fallback" in res.stats else {})}
         state = self.finish_state(ctx, alpha=alpha, coords=system.assembled.coords, u=u, u_c=u3, r=r,
-                                  gap=system.gap, load=self.load_scale(system), method=method,
+                                  gap=system.gap, load=lambda: self.load_scale(system), method=method,
                                   outcome=(res.iterations, res.error, res.converged),
                                   timings=timings, stats=stats, slip_ref=slip_ref,
                                   foundation=self.foundation_state(system, u3, r, u_body))

@@ -174,31 +174,11 @@ def check_choices(choices):
     return choices
 
 
-def solve_adjoint_delassus(apply, W_approx, state: State, y_u: np.ndarray, y_lam: np.ndarray,
-                           choices=None, *, rtol: float | None = None, shift=None, out: dict | None = None):
-    """The adjoint system (4.15) in W-form, for the Delassus path (no S on all contact DOFs).
-
-    The unknown is the contact force s = S v_u (per node (t1, t2, ν)), so v_u = W s. The rows of
-    (4.15) that hold on a node of class L fix s there: s_i = −y*_u,i; on the other nodes K
-    (all in the contact zone: outside it every node is of class L) the per-class conditions of
-    :func:`solve_adjoint` become, with v = W s,
-
-        M3+            v_i = (0, 0, y*_λ)
-        M1 (C; C = 0 for the limit of M2)   s_t + C v_t = −y*_t,   v_ν − F âᵀv_t = y*_λ
-        M3− limit (w̄, w̄⊥ = (−w̄2, w̄1))       w̄⊥ᵀv_t = 0,  v_ν − F w̄ᵀv_t = y*_λ,  w̄ᵀs_t = −w̄ᵀy*_t
-
-    i.e. (E W_KK + D) s_K = h − E (W s_L)_K with 3×3 blocks E, D per node. It is solved by GMRES
-    whose products are exact (``apply(s)`` returns (W s, A⁻¹Bᵀs) by one sparse solve),
-    preconditioned by the LU of the same matrix with ``W_approx`` (≈ W_KK, e.g. the kept Delassus
-    block of an earlier design, per node (t1, t2, ν)); then v_λ = −(s + y*_u)_ν on K, and the
-    A-harmonic extension of v_u is ṽ = A⁻¹Bᵀs, the by-product of the last product. Returns
-    (v_u (3p), v_λ (p), ṽ on the free DOFs, GMRES result); ``out["force"]`` = s when ``out`` is given.
-
-    ``shift`` = (d (3p), d_full (free DOFs)) for an objective of the whole displacement: then
-    v_u = W s + d and ṽ = A⁻¹Bᵀs + d_full with d_full = −A⁻¹g₀ (g₀ = ∂J/∂u off the contact
-    DOFs), and ``y_u`` is ∂J/∂u on the contact DOFs; the equations above hold with this v.
-    """
-    rtol = ADJOINT_RTOL if rtol is None else rtol
+def w_form(state: State, y_u: np.ndarray, y_lam: np.ndarray, choices=None):
+    """The adjoint system (4.15) in W-form (:func:`solve_adjoint_delassus`): (K, s, E, D, h) with K
+    the nodes not of class L, s (3p) the force S v_u with its known rows s_i = −y*_u,i on the nodes
+    of class L and zero on K, and the 3×3 blocks E, D (k, 3, 3) and h (k, 3) per node of K of
+    (E W_KK + D) s_K = h − E (W s)_K."""
     choices = check_choices(choices)
     p = state.lam.size
     c = CLASS_CODES
@@ -208,17 +188,6 @@ def solve_adjoint_delassus(apply, W_approx, state: State, y_u: np.ndarray, y_lam
     s = -np.asarray(y_u, dtype=np.float64).copy()
     s.reshape(p, 3)[K] = 0.0
     k = K.size
-    if shift is not None:
-        plain = apply
-
-        def apply(f):                     # noqa: F811 - the affine map s -> (W s + d, ṽ)
-            v, vf = plain(f)
-            return v + shift[0], vf + shift[1]
-    if out is not None:
-        out["force"] = s                  # filled in place below
-    if k == 0:
-        v_u, v_full = apply(s)
-        return v_u, np.zeros(p), v_full, None
     E = np.zeros((k, 3, 3))
     D = np.zeros((k, 3, 3))
     h = np.zeros((k, 3))
@@ -258,6 +227,86 @@ def solve_adjoint_delassus(apply, W_approx, state: State, y_u: np.ndarray, y_lam
         D[m3l] = D3
         h[m3l, 1] = yl[m3l]
         h[m3l, 2] = -np.einsum("ij,ij->i", wbar, yt[m3l])
+    return K, s, E, D, h
+
+
+def solve_adjoint_compliant(block, apply, state: State, y_u: np.ndarray, y_lam: np.ndarray, choices=None):
+    """The adjoint system (4.15) in W-form (:func:`solve_adjoint_delassus`), solved directly: for a
+    law whose compliance W is cheap to apply and whose blocks are at hand but whose stiffness
+    S = W⁻¹ is not formed (a body on elastic counterparts, W = S_body⁻¹ + C: paths/condensation.py).
+
+    ``block(K)`` returns W_KK (3k × 3k, per node (t1, t2, ν)) of the nodes K not of class L,
+    ``apply(s)`` returns (W s, x) for a force s (3p), x what the caller needs along with it (there
+    S_body⁻¹ s, whose A-harmonic extension is the design terms' adjoint). The matrix E W_KK + D of
+    the nodes of K is factorized by LU. Returns (v_u (3p), v_λ (p), s (3p), x) with v_u = W s,
+    v_λ = −(s + y*_u)_ν on K, and x of ``apply`` at the solution s. The same v_u, v_λ as
+    :func:`solve_adjoint` with S = W⁻¹, up to round-off."""
+    K, s, E, D, h = w_form(state, y_u, y_lam, choices)
+    p = state.lam.size
+    k = K.size
+    v_lam = np.zeros(p)
+    if k:
+        dofK = (3 * K[:, None] + np.arange(3)).ravel()
+        rhs = h.ravel()
+        if np.any(s):                     # y*_u = 0 (objectives of λ alone): no known part
+            rhs = rhs - np.einsum("kij,kj->ki", E, apply(s)[0][dofK].reshape(k, 3)).ravel()
+        W = block(K)
+        M = np.einsum("kij,kjn->kin", E, W.reshape(k, 3, 3 * k)).reshape(3 * k, 3 * k)
+        diag = (3 * np.arange(k)[:, None, None] + np.arange(3)[None, :, None],
+                3 * np.arange(k)[:, None, None] + np.arange(3)[None, None, :])
+        M[diag] += D
+        if not np.all(np.isfinite(M)):
+            raise SolverError("adjoint system (4.15) has non-finite entries")
+        lu = LUFactor(np.ascontiguousarray(M))
+        if lu.info != 0:
+            raise SolverError(f"adjoint system (4.15) is singular (getrf info {lu.info})")
+        s[dofK] = lu.solve(rhs)
+        v_lam[K] = -(s + y_u)[3 * K + 2]
+    v_u, x = apply(s)
+    if not (np.all(np.isfinite(v_u)) and np.all(np.isfinite(x))):
+        raise SolverError("adjoint system (4.15) has a non-finite solution")
+    return v_u, v_lam, s, x
+
+
+def solve_adjoint_delassus(apply, W_approx, state: State, y_u: np.ndarray, y_lam: np.ndarray,
+                           choices=None, *, rtol: float | None = None, shift=None, out: dict | None = None):
+    """The adjoint system (4.15) in W-form, for the Delassus path (no S on all contact DOFs).
+
+    The unknown is the contact force s = S v_u (per node (t1, t2, ν)), so v_u = W s. The rows of
+    (4.15) that hold on a node of class L fix s there: s_i = −y*_u,i; on the other nodes K
+    (all in the contact zone: outside it every node is of class L) the per-class conditions of
+    :func:`solve_adjoint` become, with v = W s,
+
+        M3+            v_i = (0, 0, y*_λ)
+        M1 (C; C = 0 for the limit of M2)   s_t + C v_t = −y*_t,   v_ν − F âᵀv_t = y*_λ
+        M3− limit (w̄, w̄⊥ = (−w̄2, w̄1))       w̄⊥ᵀv_t = 0,  v_ν − F w̄ᵀv_t = y*_λ,  w̄ᵀs_t = −w̄ᵀy*_t
+
+    i.e. (E W_KK + D) s_K = h − E (W s_L)_K with 3×3 blocks E, D per node. It is solved by GMRES
+    whose products are exact (``apply(s)`` returns (W s, A⁻¹Bᵀs) by one sparse solve),
+    preconditioned by the LU of the same matrix with ``W_approx`` (≈ W_KK, e.g. the kept Delassus
+    block of an earlier design, per node (t1, t2, ν)); then v_λ = −(s + y*_u)_ν on K, and the
+    A-harmonic extension of v_u is ṽ = A⁻¹Bᵀs, the by-product of the last product. Returns
+    (v_u (3p), v_λ (p), ṽ on the free DOFs, GMRES result); ``out["force"]`` = s when ``out`` is given.
+
+    ``shift`` = (d (3p), d_full (free DOFs)) for an objective of the whole displacement: then
+    v_u = W s + d and ṽ = A⁻¹Bᵀs + d_full with d_full = −A⁻¹g₀ (g₀ = ∂J/∂u off the contact
+    DOFs), and ``y_u`` is ∂J/∂u on the contact DOFs; the equations above hold with this v.
+    """
+    rtol = ADJOINT_RTOL if rtol is None else rtol
+    K, s, E, D, h = w_form(state, y_u, y_lam, choices)
+    p = state.lam.size
+    k = K.size
+    if shift is not None:
+        plain = apply
+
+        def apply(f):                     # noqa: F811 - the affine map s -> (W s + d, ṽ)
+            v, vf = plain(f)
+            return v + shift[0], vf + shift[1]
+    if out is not None:
+        out["force"] = s                  # filled in place below
+    if k == 0:
+        v_u, v_full = apply(s)
+        return v_u, np.zeros(p), v_full, None
     dofK = (3 * K[:, None] + np.arange(3)).ravel()
     Eb = sp.block_diag(list(E), format="csr")
     Db = sp.block_diag(list(D), format="csr")
