@@ -84,12 +84,17 @@ def foundation_fullspace():
 
 def two_designs():
     """The block on two slabs with a design on each of its two contact faces
-    (tests/test_several_designs.py): α of two designs in the checkpoint."""
+    (tests/test_several_designs.py), pressed and then sheared along a load path: α of two
+    designs and each step's context in the checkpoint."""
     import tomllib
 
     from test_assembly_pairs import TWO_SLABS
     from test_several_designs import FIRST, SECOND
-    return tomllib.loads(TWO_SLABS + FIRST + SECOND)
+    data = tomllib.loads(TWO_SLABS + FIRST + SECOND + (
+        '[[load_steps]]\nname = "press"\ntop_traction = [0.0, 0.0, -8.0e-2]\n'
+        '[[load_steps]]\nname = "shear"\ntop_traction = [0.0, 0.0, -8.0e-2]\nright_traction = [4.0e-2, 0.01, 0.0]\n'))
+    data["loads"] = {}
+    return data
 
 
 KINDS = {"load_cases": (load_cases, 14), "load_path": (load_path, 12), "constrained": (constrained, 14),
@@ -118,7 +123,7 @@ def test_a_run_killed_at_random_moments_resumes_bit_for_bit(tmp_path, kind):
     assert {"load_cases": holds["cases"] == 2, "load_path": len(holds["steps"]) == 1 and holds["steps"][0] >= 2,
             "constrained": holds["penalty"], "force_obstacle": holds["steps"] == [1],
             "assembly_path": holds["steps"] == [2], "foundation_fullspace": holds["steps"] == [2],
-            "two_designs": holds["steps"] == [1]}[kind], holds
+            "two_designs": holds["steps"] == [2]}[kind], holds
     print(f"\n[{kind}] uninterrupted: {ref['iterations']} iterations, {ref['evaluations']} evaluations, "
           f"{ref_wall:.1f} s; the checkpoint holds {holds}")
     rng = random.Random(f"kill -9 a {kind} run")
