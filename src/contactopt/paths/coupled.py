@@ -77,8 +77,10 @@ class FullSpaceCouple:
     def system(self, A, L) -> tuple[sp.csr_matrix, np.ndarray]:
         """(Tᵀ diag(A, K_f) T, Tᵀ (L, f_f)): the Newton system of both bodies in u_loc."""
         big = sp.block_diag([A] + [part.K for part in self.parts], format="csr")
-        law_A = with_contact_blocks(sp.csr_matrix(self.T.T @ big @ self.T), self.cd)
-        law_A.sort_indices()
+        half = self.T.T @ big
+        del big
+        law_A = with_contact_blocks(half @ self.T, self.cd)
+        del half
         return law_A, self.T.T @ self.load(L)
 
     def load(self, L) -> np.ndarray:
@@ -153,13 +155,31 @@ class FullSpaceCouple:
 
 
 def with_contact_blocks(A, contact_dofs: np.ndarray) -> sp.csr_matrix:
-    """A with every contact node's 3×3 block in its sparsity pattern (explicit zeros where a
-    product dropped them): the Newton system adds its Robin blocks there."""
-    cd = np.asarray(contact_dofs).reshape(-1, 3)
-    r, c = np.repeat(cd, 3, axis=1).ravel(), np.tile(cd, (1, 3)).ravel()
-    A = A.tocoo()
-    return sp.coo_matrix((np.r_[A.data, np.zeros(r.size)], (np.r_[A.row, r], np.r_[A.col, c])),
-                         shape=A.shape).tocsr()
+    """A (CSR, sorted indices) with every contact node's 3×3 block in its sparsity pattern:
+    explicit zeros inserted where a product dropped exact zeros; the Newton system adds its Robin
+    blocks there. The missing entries are inserted into A's arrays (one copy of them), not
+    through a COO form of the whole matrix."""
+    A = sp.csr_matrix(A)
+    A.sort_indices()
+    cd = np.asarray(contact_dofs, np.int64).reshape(-1, 3)
+    r = np.repeat(cd, 3, axis=1).ravel()
+    c = np.tile(cd, (1, 3)).ravel()
+    n = np.int64(A.shape[1])
+    rows = np.repeat(np.arange(A.shape[0], dtype=np.int64), np.diff(A.indptr))
+    have = rows * n + A.indices                      # globally sorted: rows ascending, columns sorted
+    want = np.unique(r * n + c)
+    pos = np.searchsorted(have, want)
+    found = (pos < have.size) & (have[np.minimum(pos, have.size - 1)] == want)
+    if found.all():
+        return A
+    miss, at = want[~found], pos[~found]
+    data = np.insert(A.data, at, 0.0)
+    indices = np.insert(A.indices, at, (miss % n).astype(A.indices.dtype))
+    extra = np.bincount(miss // n, minlength=A.shape[0])
+    indptr = A.indptr + np.concatenate([[0], np.cumsum(extra)]).astype(A.indptr.dtype)
+    out = sp.csr_matrix((data, indices, indptr), shape=A.shape)
+    out.has_sorted_indices = True
+    return out
 
 
 def force_terms(path, system, ctx, state, v_lam, loads, y_u):
