@@ -19,6 +19,10 @@ times the rigid-body modes, the adjoint is solved on TᵀA T and its extension r
 An obstacle's tangential translation is the slip's reference (``slip_ref``), as a load step's is;
 it is a field of the system, so that a force-controlled obstacle (:mod:`.force`) moves it per trial.
 
+With elastic counterparts (an elastic ``[foundation]``, the counterpart bodies of several pairs)
+their DOFs join the Newton system by the change of unknowns of :mod:`.coupled` (the contact DOFs
+then hold the law's relative displacement), nothing condensed; the system's ``couple`` holds it.
+
 :class:`FullSpaceCommon` is what this path and the PETSc path (:mod:`.petsc`), the two backends of
 one method, share: the options of a solve, the state of its result, and the arrays of a
 checkpoint (the last displacement on the free DOFs and the design of the hierarchy, the same on
