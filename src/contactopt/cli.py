@@ -28,7 +28,6 @@ import numpy as np
 from ._mpi import world_size
 from ._progress import LiveLine
 from .config import json_schema, load_config
-from .design.several import flat_design, surfaces_of
 from .errors import ConfigError, ContactOptError, Interrupted, MeshError
 from .io.atomic import WriteError, atomic_write_json, atomic_write_text, write_error
 from .io.examples import copy_examples, list_examples
@@ -63,6 +62,8 @@ check_gradient = _deferred(".sensitivity.check", "check_gradient")
 parse_settings = _deferred(".studies", "parse_settings")
 run_sweep = _deferred(".studies", "run_sweep")
 _shape_problem = _deferred(".problem", "ShapeProblem")
+flat_design = _deferred(".design.several", "flat_design")
+surfaces_of = _deferred(".design.several", "surfaces_of")
 
 
 def ShapeProblem(config, **kw):

@@ -154,7 +154,8 @@ def shrink_fit_config(mesh_path, *, delta=DELTA, b=B, length=0.25, degree=(2, 1)
     return cfg
 
 
-def shaft_config(hub_path, shaft_path, *, delta=DELTA, b=B, length=0.25, foundation_clamped=None, **kw) -> dict:
+def shaft_config(hub_path, shaft_path, *, delta=DELTA, b=B, length=0.25, foundation_clamped=None,
+                 partner: str = "point", **kw) -> dict:
     """The quarter hub (bore radius b) on an elastic quarter shaft of radius b + δ of the same
     material (``[foundation]``), both in plane strain with the symmetry planes through both
     (``foundation_clamped``: the shaft's clamps in place of those)."""
@@ -162,7 +163,7 @@ def shaft_config(hub_path, shaft_path, *, delta=DELTA, b=B, length=0.25, foundat
     clamps = foundation_clamped or [{"on": {"x1": 0.0}, "components": [1]}, {"on": {"x2": 0.0}, "components": [2]},
                                     {"on": {"x3": 0.0}, "components": [3]}, {"on": {"x3": length}, "components": [3]}]
     return {**{k: v for k, v in hub.items() if k != "obstacle"},
-            "foundation": {"mesh": str(shaft_path), "top": "surface", "partner": "point", "clamped": clamps}}
+            "foundation": {"mesh": str(shaft_path), "top": "surface", "partner": partner, "clamped": clamps}}
 
 
 def edge_relief_config(hub_path, shaft_path, *, delta=DELTA, b=B, degree: int = 4, path="fullspace") -> dict:
@@ -176,16 +177,12 @@ def edge_relief_config(hub_path, shaft_path, *, delta=DELTA, b=B, degree: int = 
     objective the peak contact pressure (a KS aggregate)."""
     sym = [{"on": {"x1": 0.0}, "components": [1]}, {"on": {"x2": 0.0}, "components": [2]},
            {"on": {"x3": 0.0}, "components": [3]}]
-    cfg = shaft_config(hub_path, shaft_path, delta=delta, b=b, foundation_clamped=sym)
-    cfg["name"] = "lame-edge-relief"
-    cfg["body"]["clamped"] = sym
-    cfg["foundation"]["partner"] = "mortar"
-    cfg["design"] = {"degree": [0, degree], "initial": 0.0, "lower": -delta, "C0": delta, "C1": 1.0, "C2": 0.0,
-                     "motion": "normal", "nonnegative_gap": False}
-    cfg["objective"] = {"type": "max_pressure", "aggregate": "ks", "rho": 2.0e4}
-    cfg["state"] = {"method": "newton", "tol": 1e-10}
-    cfg["linear_solver"] = {"path": path}
-    return cfg
+    return shaft_config(hub_path, shaft_path, delta=delta, b=b, foundation_clamped=sym, partner="mortar",
+                        body={"clamped": sym},
+                        design={"degree": [0, degree], "initial": 0.0, "lower": -delta, "C0": delta, "C1": 1.0,
+                                "C2": 0.0, "motion": "normal", "nonnegative_gap": False},
+                        objective={"type": "max_pressure", "aggregate": "ks", "rho": 2.0e4},
+                        state={"method": "newton", "tol": 1e-10}, linear_solver={"path": path})
 
 
 def contact_pressure(problem, alpha=None):
