@@ -71,18 +71,23 @@ class ZoneProblem:
 
     def __init__(self, S: np.ndarray, ell: np.ndarray, zone: np.ndarray, *, ordered: bool = True):
         self.p = ell.size // 3
+        zone = self._factor(S, zone, ordered)
+        self._parent = None
+        self._set_zone(zone, None, self.solve(ell))
+
+    def _factor(self, S: np.ndarray, zone, ordered: bool) -> np.ndarray:
+        """Keep S and its Cholesky factor; the zone as an array. ``ordered``: the factor of S
+        ordered (N, Z), which also gives W_Z; otherwise the factor in S's own order (no reordered
+        copy of S), for solves that use the products only (a W_Z asked for later then costs a
+        second factorization)."""
         self._S = S
         zone = np.asarray(zone)
-        # ordered: the factor of S ordered (N, Z), which also gives W_Z; otherwise the factor in
-        # S's own order (no reordered copy of S), for solves that use the products only (a
-        # W_Z asked for later then costs a second factorization)
         if ordered:
             self._order, self._start, self._L = self._ordered_factor(zone)
         else:
             self._order, self._start = None, 0
             self._L = cholesky_lower(np.array(S, dtype=np.float64, order="C"))
-        self._parent = None
-        self._set_zone(zone, None, self.solve(ell))
+        return zone
 
     def _ordered_factor(self, zone):
         """(order, start, L): the Cholesky factor of S ordered (N, Z), Z from position start."""
@@ -232,13 +237,7 @@ class CoupledZoneProblem(ZoneProblem):
                  ordered: bool = True):
         self._C = C
         self.p = ell.size // 3
-        self._S = S
-        zone = np.asarray(zone)
-        if ordered:
-            self._order, self._start, self._L = self._ordered_factor(zone)
-        else:
-            self._order, self._start = None, 0
-            self._L = cholesky_lower(np.array(S, dtype=np.float64, order="C"))
+        zone = self._factor(S, zone, ordered)
         self._factor_zone = zone if ordered else None
         self._parent = None
         self._set_zone(zone, None, self.body_solve(ell) - offset)
