@@ -210,12 +210,8 @@ class FullSpacePath(FullSpaceCommon):
         self._hierarchy = None          # the AMG hierarchy of an earlier A(α) ...
         self.hierarchy_alpha = None     # ... built at this design (checkpoints rebuild it)
         self._couple = None             # an elastic foundation's change of unknowns (.coupled)
-        floating = [] if model.foundation is None else [
-            f"contacts[{k}]" for part, pairs in zip(model.foundation.parts, model.foundation.pairs)
-            if part.rigid is not None for k in pairs]
-        rigid = [] if model.foundation is None else [
-            f"contacts[{k}]" for part, pairs in zip(model.foundation.parts, model.foundation.pairs)
-            if isinstance(part, RigidCounterpart) for k in pairs]
+        floating = _pairs_whose(model.foundation, lambda part: part.rigid is not None)
+        rigid = _pairs_whose(model.foundation, lambda part: isinstance(part, RigidCounterpart))
         if rigid:
             raise ConfigError([f"{model.config.source}: linear_solver.path = 'fullspace': the rigid counterpart of "
                                f"{', '.join(rigid)} beside elastic ones is solved on the 'condensation' path only so "
@@ -439,3 +435,11 @@ class FullSpacePath(FullSpaceCommon):
         if alpha is not None and (self.hierarchy_alpha is None or not np.array_equal(self.hierarchy_alpha, alpha)):
             self._hierarchy = self.build_hierarchy(alpha)
             self.hierarchy_alpha = alpha
+
+
+def _pairs_whose(counterparts, test) -> list:
+    """``contacts[k]`` of every pair whose counterpart body passes ``test`` (none without counterparts)."""
+    if counterparts is None:
+        return []
+    return [f"contacts[{k}]" for part, pairs in zip(counterparts.parts, counterparts.pairs) if test(part)
+            for k in pairs]
