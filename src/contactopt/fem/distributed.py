@@ -56,6 +56,20 @@ def rcb_partition(centroids: np.ndarray, n_parts: int) -> np.ndarray:
     return part
 
 
+def block_pattern(indptr, lcols, n_cols, nodes):
+    """(block indptr, block columns (PETSc nodes), the position in the values of the owned
+    rows (``indptr``, local columns ``lcols``: rows 3·node + c) of every entry of the 3×3
+    blocks, row-major)."""
+    nnz = lcols.size
+    tag = sp.csr_matrix((np.arange(1, nnz + 1, dtype=np.float64), lcols, indptr),
+                        shape=(indptr.size - 1, n_cols))
+    B = tag.tobsr(blocksize=(3, 3))
+    B.sort_indices()
+    where = B.data.ravel().astype(np.int64) - 1       # −1: an entry outside the CSR pattern
+    where[where < 0] = nnz                             # ... reads the zero kept at the end of the buffer
+    return B.indptr.astype(np.int32), nodes[B.indices].astype(np.int32), where
+
+
 class DistributedBody:
     """The model's mesh over ``size`` ranks, seen from rank ``rank`` (module docstring).
 
@@ -146,24 +160,11 @@ class DistributedBody:
             cols = ldofs[K.indices[lo:hi]]
             self._drop = (self.decoupled[rows] | self.decoupled[cols]) & (rows != cols)
             self._csr = (indptr.astype(np.int32), cols.astype(np.int32))
-            self._bsr = self._block_pattern(self._csr[0], K.indices[lo:hi], K.shape[1], nodes)
+            self._bsr = block_pattern(self._csr[0], K.indices[lo:hi], K.shape[1], nodes)
             self._ext = np.zeros(data.size + 1)
             self._blocks = np.empty(self._bsr[2].size)
         data[self._drop] = 0.0
         return self._csr[0], self._csr[1], data
-
-    def _block_pattern(self, indptr, lcols, n_cols, nodes):
-        """(block indptr, block columns (PETSc nodes), the position in the values of the owned
-        rows (``indptr``, local columns ``lcols``: rows 3·node + c) of every entry of the 3×3
-        blocks, row-major)."""
-        nnz = lcols.size
-        tag = sp.csr_matrix((np.arange(1, nnz + 1, dtype=np.float64), lcols, indptr),
-                            shape=(indptr.size - 1, n_cols))
-        B = tag.tobsr(blocksize=(3, 3))
-        B.sort_indices()
-        where = B.data.ravel().astype(np.int64) - 1       # −1: an entry outside the CSR pattern
-        where[where < 0] = nnz                             # ... reads the zero kept at the end of the buffer
-        return B.indptr.astype(np.int32), nodes[B.indices].astype(np.int32), where
 
     def owned_blocks(self, data: np.ndarray):
         """The values ``data`` of :meth:`owned_stiffness` as 3×3 blocks of the owned rows: (block
@@ -200,3 +201,205 @@ class DistributedBody:
         dx = np.zeros((self.n_nodes, 3))
         dx[old] = d
         return model.mesh.contract_dx(dx)
+
+
+class DistributedBodies:
+    """The body and its elastic counterparts over ``size`` ranks, for the PETSc path's form of two
+    bodies and more (:mod:`contactopt.paths.coupled`): the Newton system Tᵀ diag(A(α), K_1, …, K_B) T
+    in the unknowns u_loc (the contact DOFs hold the relative displacement w), seen from ``rank``.
+
+    Partition and numbering: each body's elements are bisected as :class:`DistributedBody` does,
+    every body into ``size`` parts, so that each rank holds a part of every body; a node belongs to
+    the lowest rank among its elements', and rank r owns the nodes of every body it owns, the
+    body's first and the counterparts' after, one contiguous range of PETSc DOFs 3·node + c. The
+    DOFs outside u_loc (the clamped ones) keep a diagonal entry and nothing else.
+
+    Assembly of the owned rows R: (Tᵀ D T)[R] = T[need, R]ᵀ D[need] T, with ``need`` = R and the
+    contact DOFs (T differs from the identity there only). D[need]: the body's rows from the
+    elements at the owned and the contact nodes (a layer of the neighbours' elements and the
+    contact face's computed here too, with no communication), the counterparts' rows from their
+    stiffness K_f, which every rank holds (it is computed with the model; only the PETSc matrices,
+    the hierarchy and the Krylov vectors are distributed). The pattern is the structural product,
+    formed once, so that every design fills the same one.
+
+    ``petsc_of_free`` and ``free_vector`` map between u_loc (the couple's order: the body's free
+    DOFs, then every counterpart's) and PETSc's; ``contact`` (p, 3) the PETSc DOFs of the contact
+    nodes, per node (t1, t2, ν), where u_loc holds w."""
+
+    def __init__(self, model, T, parts, size: int, rank: int):
+        asm = model.assembler
+        self.size, self.rank = size, rank
+        bodies = [(np.asarray(asm.elements, np.int64), asm.n_nodes, model.body.reference.points, asm.free)]
+        bodies += [(np.asarray(f.assembler.elements, np.int64), f.assembler.n_nodes, f.mesh.reference.points,
+                    f.assembler.free) for f in parts]
+        owners, self._parts_of = [], []
+        for cells, n_nodes, points, _ in bodies:
+            if size > cells.shape[0]:
+                raise ConfigError([f"{size} MPI ranks: a body's mesh has {cells.shape[0]} elements, fewer than "
+                                   "the ranks it would be split over; run on fewer ranks"])
+            part = rcb_partition(points[cells].mean(axis=1), size)
+            owner = np.full(n_nodes, size, dtype=np.int64)
+            np.minimum.at(owner, cells.ravel(), np.repeat(part, cells.shape[1]))
+            owner[owner == size] = 0
+            owners.append(owner)
+            self._parts_of.append(part)
+        body_of = np.concatenate([np.full(o.size, b) for b, o in enumerate(owners)])
+        owner = np.concatenate(owners)
+        counts = np.bincount(owner, minlength=size)
+        if np.any(counts == 0):
+            raise ConfigError([f"{size} MPI ranks: the bodies cannot be split so that every rank owns nodes; "
+                               "run on fewer ranks"])
+        order = np.lexsort((np.arange(owner.size), body_of, owner))     # new node -> (body, node), by rank
+        new_of = np.empty(owner.size, dtype=np.int64)
+        new_of[order] = np.arange(owner.size)
+        node_starts = np.concatenate([[0], np.cumsum([o.size for o in owners])])
+        self.n_nodes = int(owner.size)
+        self.n = 3 * self.n_nodes
+        starts = np.concatenate([[0], np.cumsum(counts)])
+        self.node_range = (int(starts[rank]), int(starts[rank + 1]))
+        self.rstart, self.rend = 3 * self.node_range[0], 3 * self.node_range[1]
+        self.n_local = self.rend - self.rstart
+        self.ranges = 3 * starts
+        # u_loc -> PETSc: every body's free DOFs, in the couple's order
+        self._new_of = [new_of[a:b] for a, b in zip(node_starts[:-1], node_starts[1:])]
+        self.dof_of_free = np.concatenate([3 * nb[free // 3] + free % 3 for nb, (_, _, _, free)
+                                           in zip(self._new_of, bodies)]).astype(np.int64)
+        self.n_free = self.dof_of_free.size
+        self.fixed = np.ones(self.n, dtype=bool)
+        self.fixed[self.dof_of_free] = False
+        cd = np.asarray(model.contact_dofs, np.int64)
+        self.contact = self.dof_of_free[cd].reshape(-1, 3)
+        self.owns_contact = (self.contact[:, 0] >= self.rstart) & (self.contact[:, 0] < self.rend)
+        self._T, self._cd = sp.csr_matrix(T), cd
+        # the owned rows of u_loc, by PETSc DOF, and the rows of D they need
+        own = np.flatnonzero((self.dof_of_free >= self.rstart) & (self.dof_of_free < self.rend))
+        self._R = own[np.argsort(self.dof_of_free[own], kind="stable")]
+        self._need = np.union1d(self._R, cd)
+        # the body's rows of ``need``: the elements at those nodes
+        n_body = asm.n_free
+        body_need = self._need[self._need < n_body]
+        nodes_needed = np.zeros(asm.n_nodes, dtype=bool)
+        nodes_needed[asm.free[body_need] // 3] = True
+        cells = bodies[0][0]
+        touch = np.flatnonzero(nodes_needed[cells].any(axis=1))
+        nodes, local = np.unique(cells[touch], return_inverse=True)
+        E, nu = model.config.material.E, model.config.material.nu
+        self._sub = ElasticityAssembler(local.reshape(-1, cells.shape[1]), nodes.size, np.zeros(0, np.int64), E, nu,
+                                        element=asm.element, formulation=asm.formulation)
+        self._sub_nodes = nodes
+        sub_full = (3 * nodes[:, None] + np.arange(3)).ravel()       # the sub-assembler's DOFs, body-full
+        pinned = np.zeros(asm.n_full, dtype=bool)
+        pinned[np.asarray(model.pinned_dofs, np.int64)] = True
+        self._sub_free = asm.full_to_free[sub_full]                  # −1 on a clamped DOF
+        self._sub_pinned = pinned[sub_full]
+        self._body_rows = np.searchsorted(sub_full, asm.free[body_need])
+        self._body_need = body_need
+        # the counterparts' rows of ``need`` (owned ones only: the contact DOFs are the body's)
+        cp_need = self._need[self._need >= n_body] - n_body
+        starts = np.concatenate([[0], np.cumsum([f.assembler.n_free for f in parts])]).astype(np.int64)
+        blocks = []
+        for f, a, b in zip(parts, starts[:-1], starts[1:]):
+            k = cp_need[(cp_need >= a) & (cp_need < b)]
+            blk = f.K[k - a].tocoo()
+            blocks.append((k[blk.row] + n_body, blk.col + a + n_body, blk.data))
+        r_f, c_f, v_f = (np.concatenate(x) for x in zip(*blocks))       # ``parts``: one or more
+        self._rows_f = (np.searchsorted(self._need, r_f), c_f, v_f)
+        # a clamped DOF's diagonal: the mean of the counterparts' stiffness diagonal (the same on every rank)
+        self._fixed_value = float(np.mean(np.concatenate([f.K.diagonal() for f in parts])))
+        self._fixed_rows = np.flatnonzero(self.fixed[self.rstart:self.rend]) + self.rstart
+        self._pattern = None
+        # the design term: this rank's own elements of the body
+        own_cells = cells[self._parts_of[0] == rank]
+        self.n_elements = int(own_cells.shape[0])
+        self.n_ghost_elements = int(touch.size - np.sum(self._parts_of[0][touch] == rank))
+        onodes, olocal = np.unique(own_cells, return_inverse=True)
+        self._own = (ElasticityAssembler(olocal.reshape(-1, cells.shape[1]), onodes.size, np.zeros(0, np.int64), E,
+                                         nu, element=asm.element, formulation=asm.formulation), onodes)
+        self._n_body_nodes = asm.n_nodes
+
+    def _rows(self, coords: np.ndarray) -> sp.csr_matrix:
+        """D[need] (|need| × n, u_loc columns) of the body at ``coords`` and the counterparts."""
+        K = self._sub.stiffness(coords[self._sub_nodes]).tocsr()
+        K = K[self._body_rows].tocoo()
+        rf, cf = self._sub_free[self._body_rows[K.row]], self._sub_free[K.col]
+        keep = cf >= 0
+        pin = (self._sub_pinned[self._body_rows[K.row]] | self._sub_pinned[K.col]) & (rf != cf)
+        keep &= ~pin
+        rows = np.searchsorted(self._need, rf[keep])
+        n = self._T.shape[0]
+        r_f, c_f, v_f = self._rows_f
+        return sp.csr_matrix((np.concatenate([K.data[keep], v_f]),
+                              (np.concatenate([rows, r_f]), np.concatenate([cf[keep], c_f]))),
+                             shape=(self._need.size, n))
+
+    def owned_stiffness(self, coords: np.ndarray):
+        """The owned rows of Tᵀ diag(A(α), K_f) T as CSR (indptr, PETSc columns, values), body
+        coordinates ``coords`` in the model's node order; every contact node's 3×3 block in the
+        pattern (the Newton systems add their Robin blocks there)."""
+        D = self._rows(coords)
+        Tsub = self._T[self._need][:, self._R]
+        law = (Tsub.T @ D @ self._T).tocsr()
+        if self._pattern is None:
+            self._pattern = self._structure(Tsub, D)
+        keys, indptr, cols, diag_at = self._pattern
+        law.sort_indices()
+        got = self._keys(law)
+        pos = np.searchsorted(keys, got)
+        if np.any(pos >= keys.size) or np.any(keys[np.minimum(pos, keys.size - 1)] != got):
+            raise RuntimeError("an entry of the two bodies' system is outside the pattern formed at the first design")
+        data = np.zeros(keys.size)
+        data[pos] = law.data
+        data[diag_at] = self._fixed_value
+        return indptr, cols, data
+
+    def _keys(self, law) -> np.ndarray:
+        """Sorted keys (PETSc row − rstart)·n + PETSc column of the entries of owned rows ``law``."""
+        rows = self.dof_of_free[self._R][np.repeat(np.arange(law.shape[0]), np.diff(law.indptr))] - self.rstart
+        return rows * np.int64(self.n) + self.dof_of_free[law.indices]
+
+    def _structure(self, Tsub, D):
+        """(sorted keys, indptr, PETSc columns, positions of the clamped DOFs' diagonals) of the owned
+        rows' pattern: the product of the patterns (every stored entry 1: no cancellation, and no
+        entry lost where a design's value is an exact zero), the contact blocks and the clamped diagonals."""
+        S = (_ones(Tsub).T @ _ones(D) @ _ones(self._T)).tocsr()
+        S.sort_indices()
+        keys = [self._keys(S)]
+        cd = self.contact
+        own = cd[self.owns_contact]
+        r = np.repeat(own, 3, axis=1).ravel() - self.rstart
+        c = np.tile(own, (1, 3)).ravel()
+        keys.append(r * np.int64(self.n) + c)
+        fixed = self._fixed_rows - self.rstart
+        keys.append(fixed * np.int64(self.n) + self._fixed_rows)
+        keys = np.unique(np.concatenate(keys))
+        rows = keys // self.n
+        indptr = np.concatenate([[0], np.cumsum(np.bincount(rows, minlength=self.n_local))]).astype(np.int32)
+        cols = (keys % self.n).astype(np.int32)
+        diag_at = np.searchsorted(keys, fixed * np.int64(self.n) + self._fixed_rows)
+        self._bsr = block_pattern(indptr, cols, self.n, np.arange(self.n_nodes))
+        self._ext = np.zeros(keys.size + 1)
+        self._blocks = np.empty(self._bsr[2].size)
+        return keys, indptr, cols, diag_at
+
+    owned_blocks = DistributedBody.owned_blocks
+    owned = DistributedBody.owned
+    petsc_of_free = DistributedBody.petsc_of_free
+    free_vector = DistributedBody.free_vector
+
+    def contraction(self, model, coords, u_full, v_full) -> np.ndarray:
+        """This rank's own elements of the body: their part of vᵀ(∂A/∂α_k)u (u, v the body's
+        full-length displacement and adjoint extension, model order), as
+        :meth:`DistributedBody.contraction` (∂A/∂α touches the body's block only)."""
+        sub, nodes = self._own
+        uu, vv = u_full.reshape(-1, 3)[nodes].ravel(), v_full.reshape(-1, 3)[nodes].ravel()
+        d = sub.stiffness_shape_contraction(coords[nodes], uu, vv)
+        dx = np.zeros((self._n_body_nodes, 3))
+        dx[nodes] = d
+        return model.mesh.contract_dx(dx)
+
+
+def _ones(M) -> sp.csr_matrix:
+    """``M``'s pattern with every stored entry 1 (explicit zeros included)."""
+    M = sp.csr_matrix(M, copy=True)
+    M.data[:] = 1.0
+    return M

@@ -74,6 +74,16 @@ class FullSpaceCouple:
         self.offset = q.reshape(-1, 3).copy()
         self._kf_amg = [None] * len(self.parts)      # each K_f's AMG solver (compliance), built on first use
 
+    def inverse(self) -> sp.csr_matrix:
+        """T⁻¹: the identity but at the contact DOFs, where w + q = Qᵀ u_c − Π_loc u_f."""
+        other = np.setdiff1d(np.arange(self.n), self.cd)
+        Qt = sp.block_diag([R.T for R in self._R], format="coo")
+        Pf = self._Pf.tocoo()
+        rows = np.concatenate([other, self.cd[Qt.row], self.cd[Pf.row]])
+        cols = np.concatenate([other, self.cd[Qt.col], self._cols_f[Pf.col]])
+        vals = np.concatenate([np.ones(other.size), Qt.data, -Pf.data])
+        return sp.csr_matrix((vals, (rows, cols)), shape=(self.n, self.n))
+
     def system(self, A, L) -> tuple[sp.csr_matrix, np.ndarray]:
         """(Tᵀ diag(A, K_f) T, Tᵀ (L, f_f)): the Newton system of both bodies in u_loc."""
         big = sp.block_diag([A] + [part.K for part in self.parts], format="csr")

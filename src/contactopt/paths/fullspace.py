@@ -163,6 +163,16 @@ class FullSpaceCommon(SolverPath):
                   res.newton_steps, sum(res.krylov_iterations), res.error, timings["total"])
         return state
 
+    def _foundation_state(self, couple, u_free, u_f, w, moved=0.0):
+        """The :class:`~contactopt.contact.state.FoundationState` of a two-body solve: the body's
+        contact displacement and its partners' per node (t1, t2, ν) (their difference the law's
+        w) and the foundation's whole displacement."""
+        u_c = u_free[self.model.contact_dofs].reshape(-1, 3)
+        if self.mechanics.frames is not None:
+            u_c = np.einsum("mij,mi->mj", self.mechanics.frames, u_c)
+        return FoundationState(u_body_c=u_c, u_partner=couple.partner(u_f, moved),
+                               displacement=couple.foundation_displacement(u_f, moved))
+
     # ------------------------------------------------------------------ checkpoints
     def last_displacement(self, ctx) -> np.ndarray | None:
         """The case's last displacement on the free DOFs (None before its first state)."""
@@ -210,21 +220,7 @@ class FullSpacePath(FullSpaceCommon):
         self._hierarchy = None          # the AMG hierarchy of an earlier A(α) ...
         self.hierarchy_alpha = None     # ... built at this design (checkpoints rebuild it)
         self._couple = None             # an elastic foundation's change of unknowns (.coupled)
-        floating = _pairs_whose(model.foundation, lambda part: part.rigid is not None)
-        rigid = _pairs_whose(model.foundation, lambda part: isinstance(part, RigidCounterpart))
-        if rigid:
-            raise ConfigError([f"{model.config.source}: linear_solver.path = 'fullspace': the rigid counterpart of "
-                               f"{', '.join(rigid)} beside elastic ones is solved on the 'condensation' path only so "
-                               "far; use path 'condensation'"])
-        if floating:
-            raise ConfigError([f"{model.config.source}: linear_solver.path = 'fullspace': the counterpart of "
-                               f"{', '.join(floating)} is held only by its contacts, which is solved on the "
-                               "'condensation' path only so far (its rigid motions as the anchor's rows); use path "
-                               "'condensation' or clamp the body"])
-        if model.foundation is not None and model.foundation.basis is not None:
-            raise ConfigError([f"{model.config.source}: linear_solver.path = 'fullspace': an elastic [foundation] "
-                               "with mortar partners on six-node triangles (a transformed basis) is solved on the "
-                               "'condensation' path only so far; use path 'condensation' or partner = 'point'"])
+        refuse_counterparts(model, self.name)
 
     newton_label = "full-space Newton"
 
@@ -372,16 +368,6 @@ class FullSpacePath(FullSpaceCommon):
                              stats={"backend": "pyamg", **({"fallback": res.fallback} if res.fallback else {})},
                              label=label, slip_ref=slip_ref, foundation=found)
 
-    def _foundation_state(self, couple, u_free, u_f, w, moved=0.0):
-        """The :class:`~contactopt.contact.state.FoundationState` of a two-body solve: the body's
-        contact displacement and its partners' per node (t1, t2, ν) (their difference the law's
-        w) and the foundation's whole displacement."""
-        u_c = u_free[self.model.contact_dofs].reshape(-1, 3)
-        if self.frames is not None:
-            u_c = np.einsum("mij,mi->mj", self.frames, u_c)
-        return FoundationState(u_body_c=u_c, u_partner=couple.partner(u_f, moved),
-                               displacement=couple.foundation_displacement(u_f, moved))
-
     def adjoint(self, system, ctx, state, y_u, y_lam, choices=None, carry=None):
         """As :meth:`SolverPath.adjoint`; with an elastic foundation (:mod:`.coupled`) in the
         unknowns u_loc of both bodies, ``carry`` (∂J/∂w of a later load step, with ∂J/∂u on every
@@ -443,3 +429,24 @@ def _pairs_whose(counterparts, test) -> list:
         return []
     return [f"contacts[{k}]" for part, pairs in zip(counterparts.parts, counterparts.pairs) if test(part)
             for k in pairs]
+
+
+def refuse_counterparts(model, path: str) -> None:
+    """ConfigError naming the counterparts that the full-space form (:mod:`.coupled`) does not take
+    so far, on ``path`` (the pyamg or the PETSc backend): a rigid counterpart beside elastic ones,
+    a counterpart held only by its contacts, mortar partners on six-node triangles."""
+    floating = _pairs_whose(model.foundation, lambda part: part.rigid is not None)
+    rigid = _pairs_whose(model.foundation, lambda part: isinstance(part, RigidCounterpart))
+    if rigid:
+        raise ConfigError([f"{model.config.source}: linear_solver.path = {path!r}: the rigid counterpart of "
+                           f"{', '.join(rigid)} beside elastic ones is solved on the 'condensation' path only so "
+                           "far; use path 'condensation'"])
+    if floating:
+        raise ConfigError([f"{model.config.source}: linear_solver.path = {path!r}: the counterpart of "
+                           f"{', '.join(floating)} is held only by its contacts, which is solved on the "
+                           "'condensation' path only so far (its rigid motions as the anchor's rows); use path "
+                           "'condensation' or clamp the body"])
+    if model.foundation is not None and model.foundation.basis is not None:
+        raise ConfigError([f"{model.config.source}: linear_solver.path = {path!r}: an elastic [foundation] "
+                           "with mortar partners on six-node triangles (a transformed basis) is solved on the "
+                           "'condensation' path only so far; use path 'condensation' or partner = 'point'"])

@@ -45,7 +45,8 @@ from ..errors import ConfigError
 from ..fem.model import Assembled
 from ..sensitivity.adjoint_fullspace import ADJOINT_RTOL, adjoint_classes, check_default_choices
 from .base import Adjoint, Capabilities, Context, SolverPath, SystemParts
-from .fullspace import FullSpaceCommon
+from .coupled import FullSpaceCouple
+from .fullspace import COUPLED_FORCING, FullSpaceCommon, refuse_counterparts
 from .protocol import Call, Command, Problem, new_path_id, send
 
 log = logging.getLogger(__name__)
@@ -71,6 +72,7 @@ class PetscSystem(SystemParts):
     u_all: np.ndarray | None = None
     v_all: np.ndarray | None = None
     product: object = None
+    couple: FullSpaceCouple | None = None   # elastic counterparts in the Newton system (.coupled)
 
 
 @dataclass
@@ -81,6 +83,7 @@ class PetscContext(Context):
     key: int = 0
     u_all: np.ndarray | None = None
     adjoint_force: np.ndarray | None = None
+    adjoint_rhs_c: np.ndarray | None = None   # with counterparts: the contact part of Tᵀ(∂J/∂u, 0)
 
 
 class PetscPath(FullSpaceCommon):
@@ -88,8 +91,9 @@ class PetscPath(FullSpaceCommon):
 
     name = "petsc"
     newton_label = "PETSc full-space Newton"
-    capabilities = Capabilities(pinned=True, whole_displacement=True, many_ranks=True, load_steps=True,
-                                libraries=("petsc4py",), sparse="petsc", auto="ranks")
+    capabilities = Capabilities(foundation=True, pairs=True, pinned=True, whole_displacement=True, many_ranks=True,
+                                load_steps=True, libraries=("petsc4py",), sparse="petsc", auto="ranks")
+    condenses_counterparts = False      # elastic counterparts join the Newton system (.coupled)
 
     def __init__(self, model, settings, start=None):
         """On rank 0 under mpiexec the other ranks first build the problem of the model's
@@ -99,7 +103,7 @@ class PetscPath(FullSpaceCommon):
         from petsc4py import PETSc
 
         from ..contact.fullspace.petsc import PetscNewton
-        from ..fem.distributed import DistributedBody
+        from ..fem.distributed import DistributedBodies, DistributedBody
         self.library = "petsc"
         self.id = new_path_id()
         comm = PETSc.COMM_WORLD
@@ -109,7 +113,15 @@ class PetscPath(FullSpaceCommon):
             send(Problem(self.id, model.config))
         _set_options(model.config.linear_solver.petsc_options)
         t0 = time.perf_counter()
-        self.dist = dist = DistributedBody(model, self.size, self.rank)
+        self.couple = None              # elastic counterparts: both bodies' change of unknowns (.coupled)
+        if model.foundation is not None:
+            refuse_counterparts(model, self.name)
+            self.couple = FullSpaceCouple(model.foundation, model.contact_dofs, model.assembler.n_free,
+                                          self.mechanics.frames)
+            self.dist = dist = DistributedBodies(model, self.couple.T, self.couple.parts, self.size, self.rank)
+            self._T_inv = None          # T⁻¹, for A(α) x of an objective (built on first use)
+        else:
+            self.dist = dist = DistributedBody(model, self.size, self.rank)
         coords = model.body.reference.points
         indptr, cols, data = dist.owned_stiffness(coords)
         size = ((dist.n_local, dist.n), (dist.n_local, dist.n))
@@ -162,9 +174,22 @@ class PetscPath(FullSpaceCommon):
         return system
 
     def stiffness_product(self, system, x_free) -> np.ndarray:
-        """A(α) x (free DOFs, the model's order) of the system's design, multiplied on the ranks."""
+        """A(α) x (free DOFs, the model's order) of the system's design, multiplied on the ranks;
+        with elastic counterparts as T⁻ᵀ (Tᵀ diag(A, K_f) T) T⁻¹ (x, 0), the body's rows."""
         d = self.dist
-        return d.free_vector(self._call(Command.PRODUCT, system.key, d.petsc_of_free(np.asarray(x_free, dtype=float))))
+        x = np.asarray(x_free, dtype=float)
+        if self.couple is None:
+            return d.free_vector(self._call(Command.PRODUCT, system.key, d.petsc_of_free(x)))
+        if self._T_inv is None:
+            self._T_inv = self.couple.inverse()
+        x_loc = self._T_inv @ np.concatenate([x, np.zeros(self.couple.n - x.size)])
+        y_loc = d.free_vector(self._call(Command.PRODUCT, system.key, d.petsc_of_free(x_loc)))
+        return (self._T_inv.T @ y_loc)[:x.size]
+
+    @property
+    def n_unknowns(self) -> int:
+        """The Newton system's unknowns: the body's free DOFs, and the counterparts' with them."""
+        return self.model.assembler.n_free if self.couple is None else self.couple.n
 
     def _product(self, skey, x_all):
         if self._design_key is None or skey not in self._systems:
@@ -177,7 +202,7 @@ class PetscPath(FullSpaceCommon):
         self._systems.clear()              # the systems of earlier designs are not asked again
         asm = Assembled(np.asarray(alpha), coords, None, L_full, self.model.free_load(L_full), gap)
         self._design_key = key
-        system = PetscSystem(key, asm, gap, self._load(L_full), {})
+        system = PetscSystem(key, asm, gap, self._load(L_full), {}, couple=self.couple)
         system.timings["petsc_assembly"] = time.perf_counter() - t0
         self._systems[key] = system
         return system
@@ -186,7 +211,7 @@ class PetscPath(FullSpaceCommon):
         base = self._systems[base_key]
         asm = Assembled(base.assembled.alpha, base.assembled.coords, None, L_full,
                         self.model.free_load(L_full), base.gap)
-        system = PetscSystem(key, asm, base.gap, self._load(L_full), {})
+        system = PetscSystem(key, asm, base.gap, self._load(L_full), {}, couple=self.couple)
         self._systems[key] = system
         return system
 
@@ -204,9 +229,13 @@ class PetscPath(FullSpaceCommon):
         nw.refresh(indptr, cols, data)
 
     def _load(self, L_full):
+        """L on the free DOFs as a PETSc Vec; with elastic counterparts Tᵀ(L, f_f) (.coupled)."""
         v = self.newton.A.createVecRight()
         d = self.dist
-        v.getArray()[:] = d.owned(d.petsc_of_free(self.model.free_load(L_full)))
+        L = self.model.free_load(L_full)
+        if self.couple is not None:
+            L = self.couple.T.T @ self.couple.load(L)
+        v.getArray()[:] = d.owned(d.petsc_of_free(L))
         return v
 
     def _hierarchy(self, alpha, coords):
@@ -215,9 +244,24 @@ class PetscPath(FullSpaceCommon):
         if self._hier is not None:
             self._hier.destroy()
         self.newton.plain()
-        self._hier = PetscHierarchy(self.newton.G, self.newton.H, self.dist.coordinates(coords), self.dist.contact)
+        if self.couple is None:
+            self._hier = PetscHierarchy(self.newton.G, self.newton.H, self.dist.coordinates(coords), self.dist.contact)
+        else:
+            self._hier = PetscHierarchy(self.newton.G, self.newton.H, None, self.dist.contact,
+                                        modes_local=self._modes(coords))
         self.hierarchy_alpha = np.array(alpha, dtype=float)
         return self._hier.setup_seconds
+
+    def _modes(self, coords) -> np.ndarray:
+        """The owned rows of GAMG's near-null space with elastic counterparts: each body's rigid
+        modes in u_loc (:meth:`~.coupled.FullSpaceCouple.modes`), orthonormalized over all DOFs
+        (every rank holds them whole and takes the same QR)."""
+        d = self.dist
+        M = self.couple.modes(coords, self.model.assembler.free)
+        full = np.zeros((d.n, M.shape[1]))
+        full[d.dof_of_free] = M
+        Q, _ = np.linalg.qr(full)
+        return Q[d.rstart:d.rend]
 
     # ------------------------------------------------------------------ states
     def new_context(self) -> PetscContext:
@@ -245,18 +289,33 @@ class PetscPath(FullSpaceCommon):
         if warm_start and warm is not None and ctx.u_all is not None:
             u0 = self.newton.A.createVecRight()
             u0.getArray()[:] = self.dist.owned(ctx.u_all)
-        scale = self.fit_scale(system.L.norm(), self.newton._diag_at_contact, system.gap)   # collective: every rank
-        res = run_chain(PetscProblem(self.newton, self._hier, system.L, system.gap, self.friction, r0=warm,
-                                     u0=u0, slip_ref=slip_ref, force_scale=scale,
-                                     **self.newton_options(ctx, tol, warm_start)))
+        gap, law_ref, forcing = system.gap, slip_ref, {}
+        if self.couple is not None:      # the counterparts' translation q: gap g − q_ν, the slip's reference q_t
+            q = self.couple.offset
+            gap = gap - q[:, 2]
+            if np.any(q[:, :2]):
+                law_ref = q[:, :2] if slip_ref is None else slip_ref + q[:, :2]
+            forcing = COUPLED_FORCING
+        scale = self.fit_scale(system.L.norm(), self.newton._diag_at_contact, gap)   # collective: every rank
+        res = run_chain(PetscProblem(self.newton, self._hier, system.L, gap, self.friction, r0=warm,
+                                     u0=u0, slip_ref=law_ref, force_scale=scale,
+                                     **self.newton_options(ctx, tol, warm_start), **forcing))
         system.u_all = ctx.u_all = res.u_all
-        return self.state_of(ctx, system, alpha, res, u_free=self.dist.free_vector(res.u_all), t0=t0,
+        u_free, u_c, found = self.dist.free_vector(res.u_all), None, None
+        if self.couple is not None:
+            u_free, u_f = self.couple.split(u_free)
+            u_c = res.u_c - self.couple.offset          # the law's w
+            found = self._foundation_state(self.couple, u_free, u_f, u_c)
+        return self.state_of(ctx, system, alpha, res, u_free=u_free, u_c=u_c, t0=t0,
                              t_setup=t_setup, stats={"backend": "petsc", "ranks": self.size,
-                                                         **({"fallback": res.fallback} if res.fallback else {})}, label=label,
-                             slip_ref=slip_ref)
+                                                     **({"fallback": res.fallback} if res.fallback else {})},
+                             label=label, slip_ref=slip_ref, foundation=found)
 
     # ------------------------------------------------------------------ adjoint and design terms
-    def adjoint(self, system, ctx, state, y_u, y_lam, choices=None):
+    def adjoint(self, system, ctx, state, y_u, y_lam, choices=None, carry=None):
+        """As :meth:`SolverPath.adjoint`; with elastic counterparts in the unknowns u_loc of all
+        bodies (.coupled), ``carry`` (∂J/∂w of a later load step, with ∂J/∂u on every DOF of the
+        body) joining at the contact DOFs, which hold w, and ṽ = (T ṽ_loc) on the body."""
         check_default_choices(choices)
         u_law = state.u_c                # the friction law's: the slip increment in a load step
         if state.slip_ref is not None:
@@ -264,12 +323,22 @@ class PetscPath(FullSpaceCommon):
             u_law[:, :2] = state.slip_increment
         y_u = np.asarray(y_u, dtype=float)
         if self.is_full(y_u):            # ∂J/∂u on every DOF: its free part, in PETSc's order
-            y_u = self.dist.petsc_of_free(y_u[self.model.assembler.free])
+            y_u = y_u[self.model.assembler.free]
+            if self.couple is not None:  # ... of the body, into u_loc
+                y_u = self.couple.extend(y_u)
+                ctx.adjoint_rhs_c = y_u[self.model.contact_dofs].copy()
+                if carry is not None:
+                    y_u[self.model.contact_dofs] += carry
+            y_u = self.dist.petsc_of_free(y_u)
         v_u, v_lam, its, force = self._call(Command.ADJOINT, system.key, np.asarray(state.classes), u_law,
                                             state.lam, y_u, np.asarray(y_lam, dtype=float))
         ctx.adjoint_force = force
-        v_free = self.dist.free_vector(system.v_all)
-        return Adjoint(v_u, v_lam, self.model.assembler.to_full(v_free), int(its))
+        return Adjoint(v_u, v_lam, self.model.assembler.to_full(self._body_free(system.v_all)), int(its))
+
+    def _body_free(self, x_all) -> np.ndarray:
+        """The body's free DOFs of a vector on all PETSc DOFs (with counterparts: of T x_loc)."""
+        x = self.dist.free_vector(x_all)
+        return x if self.couple is None else self.couple.split(x)[0]
 
     def adjoint_force(self, system, ctx, v_u):
         """S v_u = (A ṽ)_c of the last adjoint of ``ctx`` (gathered on every rank by the adjoint)."""
@@ -280,6 +349,8 @@ class PetscPath(FullSpaceCommon):
         ``ctx`` (A(α) is not formed on rank 0)."""
         if not self.is_full(y_u):
             return ctx.adjoint_force + y_u
+        if self.couple is not None:      # in u_loc, where the contact DOFs hold w (.fullspace)
+            return ctx.adjoint_force + ctx.adjoint_rhs_c
         contact = (3 * self.model.contact_nodes[:, None] + np.arange(3)).ravel()
         return ctx.adjoint_force + np.asarray(y_u, float)[contact]
 
@@ -301,9 +372,13 @@ class PetscPath(FullSpaceCommon):
     def _contraction(self, skey):
         from mpi4py import MPI
         system = self._systems[skey]
-        full = self.dist.dof_of_full
         m = self.model
-        part = self.dist.contraction(m, system.assembled.coords, m.unpin(system.u_all[full]), m.unpin(system.v_all[full]))
+        if self.couple is None:
+            full = self.dist.dof_of_full
+            u, v = system.u_all[full], system.v_all[full]
+        else:                            # the body's u and ṽ: T times those of u_loc
+            u, v = (m.assembler.to_full(self._body_free(x)) for x in (system.u_all, system.v_all))
+        part = self.dist.contraction(m, system.assembled.coords, m.unpin(u), m.unpin(v))
         total = np.zeros_like(part)
         _world().Reduce(part, total, op=MPI.SUM, root=0)
         return total

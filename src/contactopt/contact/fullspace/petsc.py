@@ -70,9 +70,9 @@ def petsc():
 
 class PetscHierarchy:
     """A KSP (GMRES, right-preconditioned) with GAMG built on ``H`` = A(α_ref) of one design (the
-    rigid-body modes of ``coords`` — PETSc order, owned nodes — as near-null space), ``G`` its
-    operator at the build (GAMG's finest smoother multiplies with it, later with the values G
-    takes).
+    rigid-body modes of ``coords`` — PETSc order, owned nodes — as near-null space, or the given
+    ``modes_local``: the owned rows of orthonormal near-null vectors), ``G`` its operator at the
+    build (GAMG's finest smoother multiplies with it, later with the values G takes).
 
     GAMG runs once. The coarse operators of a later Newton system with Dirichlet set D and Robin
     blocks K_t are those of H_ref = Π(A(α_ref) + K_t)Π + I_D (Π: the rows and columns of D
@@ -84,14 +84,22 @@ class PetscHierarchy:
     of the contact nodes (every Dirichlet DOF of a Newton system is one of them). A user's
     ``-pc_type`` other than GAMG makes every refresh a set-up of that preconditioner on H."""
 
-    def __init__(self, G, H, coords_local: np.ndarray, contact_rows: np.ndarray, restart: int = 60,
-                 max_iter: int = 400):
+    def __init__(self, G, H, coords_local: np.ndarray | None, contact_rows: np.ndarray, restart: int = 60,
+                 max_iter: int = 400, modes_local: np.ndarray | None = None):
         PETSc = petsc()
         t0 = time.perf_counter()
-        xyz = H.createVecRight()
-        xyz.setBlockSize(3)
-        xyz.getArray()[:] = coords_local.ravel()
-        H.setNearNullSpace(PETSc.NullSpace().createRigidBody(xyz))
+        if modes_local is None:
+            xyz = H.createVecRight()
+            xyz.setBlockSize(3)
+            xyz.getArray()[:] = coords_local.ravel()
+            H.setNearNullSpace(PETSc.NullSpace().createRigidBody(xyz))
+        else:                               # given near-null vectors (owned rows; orthonormal over all ranks)
+            vecs = []
+            for column in np.asarray(modes_local, dtype=np.float64).T:
+                v = H.createVecRight()
+                v.getArray()[:] = column
+                vecs.append(v)
+            H.setNearNullSpace(PETSc.NullSpace().create(vectors=vecs, comm=H.getComm()))
         opts = PETSc.Options()
         for key, value in KSP_DEFAULTS.items():
             if not opts.hasName(key):
