@@ -1,0 +1,175 @@
+"""Two bodies and more on the PETSc path: the elastic counterparts' DOFs in the Newton system of
+all bodies (paths/coupled.py's change of unknowns, each body's rows spread over the ranks by
+fem/distributed.py's DistributedBodies) against the pyamg full-space path — the same method, a
+different linear algebra and numbering — on one process and under ``mpiexec -n 2``: Θ, the state
+(u, λ, τ), ξ and v_λ at two designs (tests/mpi/compare_paths.py), within 1e-9 relative (measured
+≤ 5e-13). Then ξ against central differences on two ranks (friction with sliding nodes, mortar
+partners), an objective of the whole displacement along a load path (the product A(α) x through
+T⁻¹), a resumed two-body run on two ranks bit for bit, and what the path does not take, refused
+by name.
+
+Conventions: per contact node (t1, t2, ν), r the contact force on the body, λ = r_ν ≥ 0, w =
+u_body − u_partner the state's u_c. Skipped without petsc4py/mpi4py; ``.ci/run`` runs this file
+with them installed.
+"""
+
+import json
+import sys
+import tomllib
+from pathlib import Path
+
+import numpy as np
+import pytest
+import tomli_w
+
+from contactopt._mpi import petsc_missing
+from contactopt.config import load_config
+from contactopt.contact.state import CLASS_CODES
+from contactopt.errors import ConfigError
+from contactopt.problem import ShapeProblem
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT / "tests" / "mpi"))
+from compare_paths import evaluations  # noqa: E402
+
+from test_foundation_fullspace import FOUNDATIONS, _config  # noqa: E402
+from test_petsc import mpiexec, run_here  # noqa: E402
+
+MISSING = petsc_missing()
+pytestmark = pytest.mark.skipif(MISSING is not None, reason=f"PETSc path: {MISSING}")
+
+TOL = 1e-9
+
+
+def _two_slabs(path):
+    from test_assembly_pairs import DESIGN, TWO_SLABS
+    return load_config(tomllib.loads(TWO_SLABS + DESIGN)).with_updates(
+        {"linear_solver": {"path": path}, "state": {"tol": 1e-12}})
+
+
+MODELS = {**{kind: (lambda path, kind=kind: _config(FOUNDATIONS[kind], path)) for kind in FOUNDATIONS},
+          "two slabs (two pairs)": _two_slabs,
+          "example1_elastic": lambda path: load_config(ROOT / "examples" / "example1_elastic.toml").with_updates(
+              {"mesh": {"nx": 12, "ny": 6, "nz": 4}, "foundation": {"block": {"size": [3.0, 2.0, 1.0], "cells": [9, 6, 3], "origin": [-0.5, -0.5]}},
+               "linear_solver": {"path": path}})}
+_reference = {}
+
+
+def reference(name):
+    """The pyamg full-space path's evaluations of a model (computed once per session)."""
+    if name not in _reference:
+        _reference[name] = evaluations(MODELS[name]("fullspace"), "fullspace")
+    return _reference[name]
+
+
+def assert_agree(ref, got, what):
+    assert set(ref) == set(got)
+    for key in sorted(ref):
+        x, y = np.atleast_1d(ref[key]), np.atleast_1d(got[key])
+        assert x.shape == y.shape, f"{what}: {key} has shape {y.shape}, expected {x.shape}"
+        err = float(np.abs(x - y).max()) / max(float(np.abs(x).max()), 1e-300)
+        assert err <= TOL, f"{what}: {key} differs from the full-space path by {err:.2e} (relative) > {TOL:g}"
+
+
+def write(tmp_path, cfg, name="bodies"):
+    file = tmp_path / f"{name}.toml"
+    file.write_text(tomli_w.dumps(cfg.data))
+    return file
+
+
+@pytest.mark.parametrize("name", sorted(MODELS))
+def test_one_rank_equals_the_full_space(name):
+    got = evaluations(MODELS[name]("petsc"), "petsc")
+    assert_agree(reference(name), got, f"{name}, PETSc path on 1 rank")
+
+
+@pytest.mark.parametrize("name", ["mortar partners", "prescribed translation", "two slabs (two pairs)"])
+def test_two_ranks_equal_the_full_space(name, tmp_path):
+    out = tmp_path / "petsc.npz"
+    proc = mpiexec(2, str(ROOT / "tests" / "mpi" / "compare_paths.py"), str(write(tmp_path, MODELS[name]("petsc"))),
+                   str(out))
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    with np.load(out) as npz:
+        got = dict(npz)
+    assert int(got.pop("ranks")) == 2
+    assert_agree(reference(name), got, f"{name}, PETSc path on 2 ranks")
+
+
+def test_subgradient_matches_central_differences_on_two_ranks(tmp_path):
+    """Mortar partners, friction 0.3 with sliding and sticking nodes: ξ·d against central
+    differences of Θ (step 1e-6 of α, the states solved to 1e-10) on two ranks."""
+    out = tmp_path / "fd.npz"
+    cfg = MODELS["mortar partners"]("petsc")
+    proc = mpiexec(2, str(ROOT / "tests" / "mpi" / "compare_paths.py"), str(write(tmp_path, cfg)), str(out),
+                   "--differences")
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    with np.load(out) as npz:
+        fd, xi, sliding = npz["fd"], npz["fd_xi"], int(npz["fd_M1"])
+    assert sliding > 0
+    err = np.abs(fd - xi) / np.abs(fd).max()
+    assert err.max() <= 1e-6, (fd, xi)
+
+
+def test_an_objective_of_the_whole_displacement_along_a_load_path_agrees():
+    """Press, then shear, objective the friction work (A(α) ũ multiplied on the ranks through
+    T⁻¹) and then the peak stress (∂J/∂u on every DOF, into u_loc by Tᵀ): Θ and ξ as the full
+    space's."""
+    steps = [{"name": "press", "top_traction": [0.0, 0.0, -8.0e-2]},
+             {"name": "shear", "top_traction": [0.0, 0.0, -8.0e-2], "right_traction": [4.0e-2, 0.01, 0.0]}]
+    for objective in ({"type": "frictional_dissipation"}, {"type": "peak_stress"}):
+        out = {}
+        for path in ("fullspace", "petsc"):
+            pb = ShapeProblem(_config(FOUNDATIONS["point partners"], path, load_steps=steps, objective=objective))
+            a = pb.model.initial_design()
+            a = a + 0.003 * np.random.default_rng(1).standard_normal(a.size)
+            out[path] = pb.evaluate(a), pb.solve_state(a)
+        ((t0, x0), s0), ((t1, x1), s1) = out["fullspace"], out["petsc"]
+        assert np.array_equal(s1.classes, s0.classes), objective
+        assert abs(t1 - t0) <= TOL * abs(t0) and t0 > 0, objective
+        assert np.abs(x1 - x0).max() <= TOL * np.abs(x0).max(), objective
+        assert np.sum(s0.classes == CLASS_CODES["M1"]) > 0
+
+
+def test_a_resumed_two_body_run_repeats_the_uninterrupted_one_on_two_ranks(tmp_path):
+    """Stopped after 2 iterations and resumed to 5 on two ranks: the history of the uninterrupted
+    run bit for bit (the checkpoint holds both bodies' displacement in u_loc)."""
+    cfg = write(tmp_path, MODELS["point partners"]("petsc"))
+    for out, iters, extra in (("whole", "5", ()), ("part", "2", ()), ("part", "5", ("--resume",))):
+        proc = mpiexec(2, "-m", "contactopt.cli", "run", str(cfg), "--out", str(tmp_path / out), "--max-iter",
+                       iters, *extra)
+        assert proc.returncode == 0, proc.stderr[-3000:]
+
+    def values(d):
+        return [",".join(r.split(",")[:4]) for r in (tmp_path / d / "history.csv").read_text().splitlines()]
+    assert len(values("whole")) > 3
+    assert values("part") == values("whole")
+
+
+def test_a_two_body_checkpoint_resumes_on_another_number_of_ranks(tmp_path):
+    """Two iterations on two ranks, continued to four on one process: J as the uninterrupted
+    run's on one process (the checkpoint holds all bodies' displacement in u_loc, in the model's
+    order, not PETSc's)."""
+    file = write(tmp_path, MODELS["point partners"]("petsc"))
+    code, out = run_here("run", file, "--out", tmp_path / "whole", "--max-iter", 4)
+    assert code == 0, out
+    proc = mpiexec(2, "-m", "contactopt.cli", "run", str(file), "--out", str(tmp_path / "a"), "--max-iter", "2")
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    code, out = run_here("run", file, "--out", tmp_path / "a", "--max-iter", 4, "--resume")
+    assert code == 0, out
+    J, got = (json.loads((tmp_path / d / "summary.json").read_text()) for d in ("whole", "a"))
+    assert got["iterations"] == J["iterations"] == 4
+    assert abs(got["J"] - J["J"]) <= 1e-6 * abs(J["J"])
+
+
+def test_what_the_petsc_path_does_not_take_yet_is_refused_by_name():
+    """A counterpart pressed by a force, a counterpart held only by its contacts."""
+    cfg = _config({**FOUNDATIONS["point partners"], "control": "force", "loaded": "bottom", "force": [0, 0, 0.05]},
+                  "petsc")
+    with pytest.raises(ConfigError, match="pressed by a force"):
+        ShapeProblem(cfg)
+    from test_assembly_pairs import DESIGN, TWO_SLABS
+    text = TWO_SLABS.replace('clamped = "bottom"\nmaterial = { E = 6.0',
+                             'clamped = { on = "bottom", components = [3] }\nmaterial = { E = 6.0')
+    cfg = load_config(tomllib.loads(text + DESIGN)).with_updates({"linear_solver": {"path": "petsc"}})
+    with pytest.raises(ConfigError, match=r"'petsc': the counterpart of contacts\[1\] is held only by its contacts"):
+        ShapeProblem(cfg)
