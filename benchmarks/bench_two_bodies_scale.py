@@ -5,6 +5,7 @@ PARDISO Cholesky of a matrix of the same size.
     python benchmarks/bench_two_bodies_scale.py                      # 200k, 367k, fullspace
     python benchmarks/bench_two_bodies_scale.py --sizes 367k --paths condensation fullspace
     python benchmarks/bench_two_bodies_scale.py --sizes 1m
+    python benchmarks/bench_two_bodies_scale.py --paths fullspace petsc     # PETSc on one process
 
 Each (size, path) runs in its own child process (its peak RSS its own). The child builds the
 problem, evaluates at α0, α1 = α0 + h·d and α2 = α0 + 2h·d (an optimization's steps, as
@@ -35,20 +36,25 @@ SIZES = {"15k": ((32, 15, 9), (24, 16, 8)), "200k": ((64, 30, 18), (48, 32, 16))
          "367k": ((80, 37, 22), (60, 40, 20)), "1m": ((112, 52, 31), (84, 56, 28))}
 
 
+def two_bodies(key, path):
+    """The configuration of size ``key`` (``SIZES``) on ``path``, no memory check."""
+    from contactopt.config import load_config
+    (nx, ny, nz), cells = SIZES[key]
+    base = load_config(ELASTIC)
+    return base.with_updates({"mesh": {"nx": nx, "ny": ny, "nz": nz},
+                              "foundation": {**base.to_dict()["foundation"],
+                                             "block": {**base.to_dict()["foundation"]["block"], "cells": list(cells)}},
+                              "linear_solver": {"path": path, "memory_check": False}})
+
+
 def child(key, path, step, out_dir):
     import scipy.sparse as sp
 
     from contactopt._threads import sequential_openblas
-    from contactopt.config import load_config
     from contactopt.problem import ShapeProblem
     from contactopt.sensitivity.adjoint import subgradient
 
-    (nx, ny, nz), cells = SIZES[key]
-    base = load_config(ELASTIC)
-    cfg = base.with_updates({"mesh": {"nx": nx, "ny": ny, "nz": nz},
-                             "foundation": {**base.to_dict()["foundation"],
-                                            "block": {**base.to_dict()["foundation"]["block"], "cells": list(cells)}},
-                             "linear_solver": {"path": path, "memory_check": False}})
+    cfg = two_bodies(key, path)
     t0 = time.perf_counter()
     problem = ShapeProblem(cfg)
     t_setup = time.perf_counter() - t0
@@ -69,6 +75,8 @@ def child(key, path, step, out_dir):
         t_eval = time.perf_counter() - t0
     st = res.state
     A = problem.cached_system(a2).assembled.A
+    if A is None:                      # the PETSc path forms A(α) on its ranks only
+        A = model.assemble(a2).A
     K = fnd.K if fnd.K is not None else fnd.assembler.stiffness(fnd.mesh.reference.points)
     both = sp.block_diag([A, K], format="csr")
     a_file = Path(out_dir) / f"A_{key}_{path}.npz"
@@ -84,7 +92,7 @@ def child(key, path, step, out_dir):
 def main(argv=None) -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--sizes", nargs="+", default=["200k", "367k"], choices=list(SIZES))
-    ap.add_argument("--paths", nargs="+", default=["fullspace"], choices=("condensation", "fullspace", "auto"))
+    ap.add_argument("--paths", nargs="+", default=["fullspace"], choices=("condensation", "fullspace", "petsc", "auto"))
     ap.add_argument("--step", type=float, default=2e-3)
     ap.add_argument("--repeat", type=int, default=3)
     ap.add_argument("--child", nargs=3, help=argparse.SUPPRESS)
