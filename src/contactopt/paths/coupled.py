@@ -193,29 +193,33 @@ def with_contact_blocks(A, contact_dofs: np.ndarray) -> sp.csr_matrix:
 
 
 def force_terms(path, system, ctx, state, v_lam, loads, y_u):
-    """∂Θ/∂s, ∂F/∂s, ∂F/∂α and F's adjoint of a foundation pressed by a force on the full-space
-    path (:mod:`.force`'s terms, in the two bodies' unknowns u_loc). F = bᵀr − |f| with r the
+    """∂Θ/∂s, ∂F/∂s, ∂F/∂α and F's adjoint of a foundation pressed by a force on a full-space
+    backend (:mod:`.force`'s terms, in the two bodies' unknowns u_loc). F = bᵀr − |f| with r the
     Newton system's rows at the contact DOFs, linear in u_loc: ∂F/∂u_loc = Tᵀdiag(A, K_f)T ẽ, ẽ = b
     at the contact DOFs; its adjoint w̃ gives z = w̃ + ẽ, S(b + w_u) = (Tᵀ diag(A, K_f) T z)_c and
     the design term (T z)ᵀ(∂A u − ∂L) of the body. s enters the law only (gap g − s c, slip's
     reference s e), so at fixed u_loc ∂Θ/∂s = (Tᵀ diag(A, K_f) T ṽ + y)_c·e − v_λ·c with ṽ, y the
-    objective's adjoint and right-hand side in u_loc (kept by the last adjoint)."""
+    objective's adjoint and right-hand side in u_loc (kept by the last adjoint).
+
+    The backend gives four hooks: ``law_product(system, x)`` (Tᵀ diag(A, K_f) T x in u_loc),
+    ``last_adjoint(system, ctx)`` (ṽ_loc of the last adjoint), ``local_adjoint`` (the adjoint of
+    a right-hand side in u_loc) and ``local_contraction(system, state, z, loads)`` (the design term
+    of (T z) on the body)."""
     from .force import ForceTerms
-    m, cd, A = path.model, path.model.contact_dofs, system.law_A
+    m, cd = path.model, path.model.contact_dofs
     f = m.obstacle_force
     c, e = f.gap_rate, f.slip
     dT_ds = -float(v_lam @ c)
     if np.any(e):
-        force = (A @ ctx.adjoint_v)[cd]
+        force = path.law_product(system, path.last_adjoint(system, ctx))[cd]
         if y_u is not None and path.is_full(y_u):
             force = force + ctx.adjoint_rhs_c
         dT_ds += float(force @ e)
-    e_loc = np.zeros(A.shape[0])
+    e_loc = np.zeros(system.couple.n)
     e_loc[cd] = np.ravel(f.b)
-    y_F = A @ e_loc
+    y_F = path.law_product(system, e_loc)
     w = path.local_adjoint(system, ctx, state, y_F, np.zeros(c.size))
-    z_loc = ctx.adjoint_v + e_loc
-    z = m.assembler.to_full((system.T @ z_loc)[:system.couple.n_body])
-    dF_da = path.design_contraction(system, state.u, z, loads) + m.gap_matrix.T @ w.v_lam
-    dF_ds = float((A @ z_loc)[cd] @ e - w.v_lam @ c)
+    z_loc = path.last_adjoint(system, ctx) + e_loc
+    dF_da = path.local_contraction(system, state, z_loc, loads) + m.gap_matrix.T @ w.v_lam
+    dF_ds = float(path.law_product(system, z_loc)[cd] @ e - w.v_lam @ c)
     return ForceTerms(dT_ds, dF_ds, dF_da, w, None)

@@ -135,6 +135,16 @@ class FullSpaceCommon(SolverPath):
             return None
         return overlap_force(diag_c(), gap)
 
+    @staticmethod
+    def law_displacement(state) -> np.ndarray:
+        """(p, 3) the friction law's displacement of a state: u_c, in a load step with the slip
+        increment in t1, t2 (the adjoint's sliding frames)."""
+        if state.slip_ref is None:
+            return state.u_c
+        u_law = state.u_c.copy()
+        u_law[:, :2] = state.slip_increment
+        return u_law
+
     @property
     def n_unknowns(self) -> int:
         """The Newton system's unknowns (a checkpoint's displacement): the body's free DOFs."""
@@ -387,10 +397,7 @@ class FullSpacePath(FullSpaceCommon):
     def local_adjoint(self, system, ctx, state, y_u, y_lam, choices=None):
         """The adjoint of the Newton system's own unknowns: ``y_u`` on the contact DOFs (3p) or on
         every unknown of the system (in the nodes' frames, both bodies' with a foundation)."""
-        u_law = state.u_c                # the friction law's: the slip increment in a load step
-        if state.slip_ref is not None:
-            u_law = state.u_c.copy()
-            u_law[:, :2] = state.slip_increment
+        u_law = self.law_displacement(state)
         adj = solve_adjoint_fullspace(system.law_A, self.model.contact_dofs, state.classes, u_law,
                                       state.lam, y_u, y_lam, self.friction, hierarchy=self._hierarchy,
                                       choices=choices)
@@ -399,6 +406,17 @@ class FullSpacePath(FullSpaceCommon):
         if system.couple is not None:
             v = v[:self.model.assembler.n_free]       # ∂A/∂α touches the body's block only
         return Adjoint(adj.v_u, adj.v_lam, self.model.assembler.to_full(v), int(adj.iterations))
+
+    # the hooks of :func:`.coupled.force_terms`
+    def law_product(self, system, x) -> np.ndarray:
+        return system.law_A @ x
+
+    def last_adjoint(self, system, ctx) -> np.ndarray:
+        return ctx.adjoint_v
+
+    def local_contraction(self, system, state, z_loc, loads=None) -> np.ndarray:
+        z = self.model.assembler.to_full((system.T @ z_loc)[:system.couple.n_body])
+        return self.design_contraction(system, state.u, z, loads)
 
     def adjoint_force(self, system, ctx, v_u):
         """S v_u = (A ṽ)_c: ṽ, the last adjoint's A-harmonic extension of v_u, has A ṽ = Bᵀ S v_u."""

@@ -34,7 +34,7 @@ from __future__ import annotations
 import itertools
 import logging
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from types import MappingProxyType
 
 import numpy as np
@@ -46,6 +46,7 @@ from ..fem.model import Assembled
 from ..sensitivity.adjoint_fullspace import ADJOINT_RTOL, adjoint_classes, check_default_choices
 from .base import Adjoint, Capabilities, Context, SolverPath, SystemParts
 from .coupled import FullSpaceCouple
+from .coupled import force_terms as coupled_force_terms
 from .fullspace import COUPLED_FORCING, FullSpaceCommon, refuse_counterparts
 from .protocol import Call, Command, Problem, new_path_id, send
 
@@ -73,6 +74,9 @@ class PetscSystem(SystemParts):
     v_all: np.ndarray | None = None
     product: object = None
     couple: FullSpaceCouple | None = None   # elastic counterparts in the Newton system (.coupled)
+    shift: np.ndarray | None = None    # a force-controlled counterpart's tangential translation (p, 2), or None
+    moved: float = 0.0                 # ... its translation s (.force)
+    normal: np.ndarray | None = None   # (p,) the Newton matrix's diagonal at the contact nodes' normal DOFs
 
 
 @dataclass
@@ -91,8 +95,9 @@ class PetscPath(FullSpaceCommon):
 
     name = "petsc"
     newton_label = "PETSc full-space Newton"
-    capabilities = Capabilities(foundation=True, pairs=True, pinned=True, whole_displacement=True, many_ranks=True,
-                                load_steps=True, libraries=("petsc4py",), sparse="petsc", auto="ranks")
+    capabilities = Capabilities(foundation=True, pairs=True, counterpart_force=True, pinned=True,
+                                whole_displacement=True, many_ranks=True, load_steps=True, libraries=("petsc4py",),
+                                sparse="petsc", auto="ranks")
     condenses_counterparts = False      # elastic counterparts join the Newton system (.coupled)
 
     def __init__(self, model, settings, start=None):
@@ -202,7 +207,8 @@ class PetscPath(FullSpaceCommon):
         self._systems.clear()              # the systems of earlier designs are not asked again
         asm = Assembled(np.asarray(alpha), coords, None, L_full, self.model.free_load(L_full), gap)
         self._design_key = key
-        system = PetscSystem(key, asm, gap, self._load(L_full), {}, couple=self.couple)
+        system = PetscSystem(key, asm, gap, self._load(L_full), {}, couple=self.couple,
+                             normal=self.newton._diag_at_contact()[:, 2])     # collective: every rank
         system.timings["petsc_assembly"] = time.perf_counter() - t0
         self._systems[key] = system
         return system
@@ -211,7 +217,7 @@ class PetscPath(FullSpaceCommon):
         base = self._systems[base_key]
         asm = Assembled(base.assembled.alpha, base.assembled.coords, None, L_full,
                         self.model.free_load(L_full), base.gap)
-        system = PetscSystem(key, asm, base.gap, self._load(L_full), {}, couple=self.couple)
+        system = PetscSystem(key, asm, base.gap, self._load(L_full), {}, couple=self.couple, normal=base.normal)
         self._systems[key] = system
         return system
 
@@ -273,15 +279,44 @@ class PetscPath(FullSpaceCommon):
         return self._contexts[key]
 
     def solve_state(self, system, ctx, alpha, *, method, warm_start, tol, shared, label="", slip_ref=None):
-        """As the full-space path's (:meth:`contactopt.paths.fullspace.FullSpacePath.solve_state`);
-        ``slip_ref`` (p, 2), a load step's reference u_t, goes to every rank with the call."""
+        """As the full-space path's (:meth:`contactopt.paths.fullspace.FullSpacePath.solve_state`):
+        through the force search of a counterpart pressed by a force, else :meth:`fixed_state`."""
+        return self.transformed_state(system, ctx, alpha, method=method, warm_start=warm_start, tol=tol,
+                                      shared=shared, label=label, slip_ref=slip_ref)
+
+    def fixed_state(self, system, ctx, alpha, *, method, warm_start, tol, shared, label="", slip_ref=None):
+        """The state with the counterparts where ``system`` puts them; ``slip_ref`` (p, 2), a load
+        step's reference u_t, the system's gaps and a translated counterpart's shift go to every
+        rank with the call."""
         self._contexts.setdefault(ctx.key, ctx)
         ref = None if slip_ref is None else np.asarray(slip_ref, dtype=float)
+        moved = (system.gap, system.shift, system.moved) if system.moved or system.shift is not None else None
         return self._call(Command.SOLVE, system.key, ctx.key, np.asarray(alpha, dtype=float), bool(warm_start),
-                          tol, label, ref)
+                          tol, label, ref, moved)
 
-    def _solve(self, skey, ckey, alpha, warm_start, tol, label, slip_ref=None):
-        system, ctx = self._systems[skey], self._context(ckey)
+    def translated(self, system, s, c, e):
+        shift = system.shift
+        if np.any(e):
+            e2 = e.reshape(-1, 3)[:, :2]
+            shift = s * e2 if shift is None else shift + s * e2
+        return replace(system, gap=system.gap - s * c, shift=shift, moved=s)
+
+    def normal_stiffness(self, system):
+        """The Newton system's own diagonal at the normal DOFs (in u_loc, with counterparts)."""
+        return system.normal
+
+    def force_terms(self, system, ctx, state, v_lam, loads=None, *, v=None, y_u=None):
+        """As :meth:`SolverPath.force_terms`; a counterpart pressed by a force in the unknowns of
+        all bodies (:func:`.coupled.force_terms`)."""
+        if system.couple is None:
+            return super().force_terms(system, ctx, state, v_lam, loads, v=v, y_u=y_u)
+        return coupled_force_terms(self, system, ctx, state, v_lam, loads, y_u)
+
+    def _solve(self, skey, ckey, alpha, warm_start, tol, label, slip_ref=None, moved=None):
+        stored, ctx = self._systems[skey], self._context(ckey)
+        system = stored
+        if moved is not None:            # a translated counterpart (.force): its gaps, shift and s
+            system = replace(stored, gap=moved[0], shift=moved[1], moved=moved[2])
         t0 = time.perf_counter()
         t_setup = self._hierarchy(alpha, system.assembled.coords) if self._hier is None else 0.0
         warm = ctx.warm if warm_start else None
@@ -293,19 +328,25 @@ class PetscPath(FullSpaceCommon):
         if self.couple is not None:      # the counterparts' translation q: gap g − q_ν, the slip's reference q_t
             q = self.couple.offset
             gap = gap - q[:, 2]
+            shift = system.shift
             if np.any(q[:, :2]):
-                law_ref = q[:, :2] if slip_ref is None else slip_ref + q[:, :2]
+                shift = q[:, :2] if shift is None else shift + q[:, :2]
+            if shift is not None:
+                law_ref = shift if slip_ref is None else slip_ref + shift
             forcing = COUPLED_FORCING
         scale = self.fit_scale(system.L.norm(), self.newton._diag_at_contact, gap)   # collective: every rank
         res = run_chain(PetscProblem(self.newton, self._hier, system.L, gap, self.friction, r0=warm,
                                      u0=u0, slip_ref=law_ref, force_scale=scale,
                                      **self.newton_options(ctx, tol, warm_start), **forcing))
-        system.u_all = ctx.u_all = res.u_all
+        stored.u_all = system.u_all = ctx.u_all = res.u_all
         u_free, u_c, found = self.dist.free_vector(res.u_all), None, None
         if self.couple is not None:
             u_free, u_f = self.couple.split(u_free)
             u_c = res.u_c - self.couple.offset          # the law's w
-            found = self._foundation_state(self.couple, u_free, u_f, u_c)
+            if system.shift is not None:
+                u_c = u_c.copy()
+                u_c[:, :2] -= system.shift
+            found = self._foundation_state(self.couple, u_free, u_f, u_c, system.moved)
         return self.state_of(ctx, system, alpha, res, u_free=u_free, u_c=u_c, t0=t0,
                              t_setup=t_setup, stats={"backend": "petsc", "ranks": self.size,
                                                      **({"fallback": res.fallback} if res.fallback else {})},
@@ -317,10 +358,7 @@ class PetscPath(FullSpaceCommon):
         bodies (.coupled), ``carry`` (∂J/∂w of a later load step, with ∂J/∂u on every DOF of the
         body) joining at the contact DOFs, which hold w, and ṽ = (T ṽ_loc) on the body."""
         check_default_choices(choices)
-        u_law = state.u_c                # the friction law's: the slip increment in a load step
-        if state.slip_ref is not None:
-            u_law = state.u_c.copy()
-            u_law[:, :2] = state.slip_increment
+        u_law = self.law_displacement(state)
         y_u = np.asarray(y_u, dtype=float)
         if self.is_full(y_u):            # ∂J/∂u on every DOF: its free part, in PETSc's order
             y_u = y_u[self.model.assembler.free]
@@ -330,10 +368,36 @@ class PetscPath(FullSpaceCommon):
                 if carry is not None:
                     y_u[self.model.contact_dofs] += carry
             y_u = self.dist.petsc_of_free(y_u)
+        return self._adjoint_of(system, ctx, state, u_law, y_u, y_lam)
+
+    def _adjoint_of(self, system, ctx, state, u_law, y_u, y_lam) -> Adjoint:
+        """The adjoint call on every rank: ``y_u`` on the contact DOFs or on every PETSc DOF."""
         v_u, v_lam, its, force = self._call(Command.ADJOINT, system.key, np.asarray(state.classes), u_law,
                                             state.lam, y_u, np.asarray(y_lam, dtype=float))
         ctx.adjoint_force = force
         return Adjoint(v_u, v_lam, self.model.assembler.to_full(self._body_free(system.v_all)), int(its))
+
+    # the hooks of :func:`.coupled.force_terms` (u_loc in the couple's order)
+    def local_adjoint(self, system, ctx, state, y_loc, y_lam) -> Adjoint:
+        """The adjoint of a right-hand side ``y_loc`` on every unknown of the Newton system."""
+        return self._adjoint_of(system, ctx, state, self.law_displacement(state),
+                                self.dist.petsc_of_free(np.asarray(y_loc, float)), y_lam)
+
+    def law_product(self, system, x_loc) -> np.ndarray:
+        d = self.dist
+        return d.free_vector(self._call(Command.PRODUCT, system.key, d.petsc_of_free(np.asarray(x_loc, float))))
+
+    def last_adjoint(self, system, ctx) -> np.ndarray:
+        return self.dist.free_vector(system.v_all)
+
+    def local_contraction(self, system, state, z_loc, loads=None) -> np.ndarray:
+        """The design term of T z on the body: the stiffness part on the ranks (:meth:`_contraction`
+        with z for ṽ), the load's here."""
+        m = self.model
+        part = self._call(Command.CONTRACTION, system.key, self.dist.petsc_of_free(np.asarray(z_loc, float)),
+                          np.asarray(state.u))
+        z = m.unpin(m.assembler.to_full(self.couple.split(np.asarray(z_loc, float))[0]))
+        return part - m.mesh.contract_dx((loads or m.loads).shape_contraction(system.assembled.coords, z, m.assembler))
 
     def _body_free(self, x_all) -> np.ndarray:
         """The body's free DOFs of a vector on all PETSc DOFs (with counterparts: of T x_loc)."""
@@ -363,21 +427,28 @@ class PetscPath(FullSpaceCommon):
 
     def design_contraction(self, system, u_full, v_full, loads=None) -> np.ndarray:
         """vᵀ(∂A/∂α u − ∂L/∂α): the stiffness part per rank over its own elements, summed on rank 0."""
-        part = self._call(Command.CONTRACTION, system.key)
+        # with counterparts the body's u goes with the call: a force search's last solve need not be the state's
+        part = self._call(Command.CONTRACTION, system.key, None, None if self.couple is None else np.asarray(u_full))
         m = self.model
         coords = system.assembled.coords
         v_full = m.unpin(v_full)            # the pinned DOFs are clamped (fem.model)
         return part - m.mesh.contract_dx((loads or m.loads).shape_contraction(coords, v_full, m.assembler))
 
-    def _contraction(self, skey):
+    def _contraction(self, skey, v_all=None, u_full=None):
+        """This rank's part of ṽᵀ(∂A/∂α)u, summed on rank 0; ``v_all`` (every PETSc DOF) in place of
+        the last adjoint's ṽ, ``u_full`` (the body's, model order) in place of the last state's."""
         from mpi4py import MPI
         system = self._systems[skey]
+        if v_all is not None:
+            system = replace(system, v_all=v_all)
         m = self.model
         if self.couple is None:
             full = self.dist.dof_of_full
             u, v = system.u_all[full], system.v_all[full]
         else:                            # the body's u and ṽ: T times those of u_loc
             u, v = (m.assembler.to_full(self._body_free(x)) for x in (system.u_all, system.v_all))
+            if u_full is not None:
+                u = u_full
         part = self.dist.contraction(m, system.assembled.coords, m.unpin(u), m.unpin(v))
         total = np.zeros_like(part)
         _world().Reduce(part, total, op=MPI.SUM, root=0)
