@@ -174,6 +174,45 @@ def test_subgradient_with_a_rigid_pair_matches_central_differences(counterpart, 
     assert gc.counts["M1"] > 0 and gc.counts["M3+"] > 0 and gc.counts["L"] > 0
 
 
+FULL_SPACE_CASES = {
+    "plane": '{ shape = "plane" }',
+    "plane moved": '{ shape = "plane", control = "displacement", displacement = [0.002, 0.0, 0.0] }',
+    "sphere moved": '{ shape = "sphere", center = [0.5, 0.5, -20.0], radius = 20.0, control = "displacement", '
+                    'displacement = [0.001, 0.0, 0.004] }'}
+
+
+def _on_path(text, path, tol=1e-12) -> ShapeProblem:
+    import tomllib
+    cfg = load_config(tomllib.loads(text)).with_updates({"linear_solver": {"path": path}, "state": {"tol": tol}})
+    return ShapeProblem(cfg)
+
+
+@pytest.mark.parametrize("case", sorted(FULL_SPACE_CASES))
+def test_the_full_space_agrees_with_the_condensation_beside_a_rigid_counterpart(case):
+    """The block on the rigid counterpart (the plane, fixed or moved, or a sphere, whose frames are not
+    the axes) and the elastic slab: the slab's DOFs in the full-space Newton system, none for the
+    rigid pair (its rows of Π zero, its gap and translation from its geometry): Θ, ξ, λ, w and the
+    slab's displacement against the condensation path to 1e-10 (measured 1e-13 to 7e-13)."""
+    from test_foundation_fullspace import _agree
+    d = _agree(lambda path: _on_path(_rigid(FULL_SPACE_CASES[case]) + DESIGN, path))
+    assert max(d.values()) <= 1e-10, d
+
+
+@pytest.mark.parametrize("case", ["plane moved", "sphere moved"])
+def test_subgradient_beside_a_rigid_counterpart_on_the_full_space_matches_central_differences(case):
+    """ξ·d on the full-space path against central differences; its Newton method stops at 1e-10 (its
+    Krylov floor), so the step is h = 1e-2 max|α| (tests/test_foundation_fullspace.py; measured
+    5e-11)."""
+    pb = _on_path(_rigid(FULL_SPACE_CASES[case]) + DESIGN, "fullspace", tol=1e-14)
+    assert pb.path.name == "fullspace"
+    a = pb.model.initial_design()
+    alpha = a + 0.003 * np.random.default_rng(1).standard_normal(a.size)
+    gc = check_gradient(pb, alpha, n_directions=3, seed=0, h=1e-2)
+    assert gc.n_degenerate == 0 and gc.passed, gc.rel_errors
+    assert max(gc.rel_errors) <= 1e-6
+    assert gc.counts["M1"] > 0 and gc.counts["M3+"] > 0 and gc.counts["L"] > 0
+
+
 @pytest.mark.parametrize("friction", [0.0, 0.3])
 def test_the_patch_test_passes_on_a_rigid_plane_under_a_floating_stack(friction, tmp_path):
     """The stack of tests/test_assembly_pairs.py with its lower block replaced by the rigid plane:
