@@ -246,10 +246,6 @@ def _check_star(pairs: list, problems: list) -> None:
                             "(each pair's partners are searched on its own part)")
         else:
             seen[n] = counter
-    if not any(isinstance(c, tuple) for _, _, c in pairs):
-        problems.append("contacts: every pair's counterpart is rigid; a model of several pairs takes rigid "
-                        "counterparts beside at least one elastic counterpart body so far (the coupling of the "
-                        "pairs is built on the elastic ones)")
 
 
 def _check_rigid_pair(counter: dict, key: str, problems: list) -> None:

@@ -128,7 +128,7 @@ class FullSpaceCouple:
             if part.translation is not None:
                 u = u + (1.0 if part.control == "displacement" else moved) * np.tile(part.translation, part.n_nodes)
             out.append(u)
-        return np.concatenate(out)
+        return np.concatenate(out + [np.zeros(0)])
 
     def compliance(self, x: np.ndarray) -> np.ndarray:
         """C x = Π_loc K_f⁻¹ Π_locᵀ x (3p, per node (t1, t2, ν)): the partners' displacement under
