@@ -281,8 +281,6 @@ def test_a_floating_roller_on_a_rigid_plane_under_an_elastic_plate(tmp_path):
 
 
 @pytest.mark.parametrize("change, needle", [
-    ('counterpart = { shape = "plane", control = "force", force = [0.0, 0.0, 1.0] }',
-     "contacts[0].counterpart: a rigid counterpart pressed by control = 'force' in a model of several pairs"),
     ('counterpart = { shape = "plane", weighting = "mortar" }',
      "contacts[0].counterpart.weighting = 'mortar': the mortar-weighted gap of a rigid counterpart takes a model of "
      "one pair so far"),
