@@ -486,3 +486,13 @@ def test_a_block_squeezed_between_two_rigid_counterparts_has_the_uniform_pressur
         mine = m.body.pair_of == k
         assert mine.sum() == 56 and np.abs(p[mine] / expected - 1).max() <= 1e-10, (k, p[mine])
     assert np.abs(st.tau).max() <= 1e-10 * st.lam.max()
+
+
+def test_the_state_of_a_model_of_rigid_counterparts_only_is_written_without_a_foundation(tmp_path):
+    """``contactopt state`` on the block between the plane and the lid: no counterpart body, so no
+    foundation.vtu or foundation.png (there is no mesh to write)."""
+    from contactopt.cli import main
+    _squeezed(tmp_path, 'control = "displacement", displacement = [0.0, 0.0, -0.01]')
+    assert main(["state", str(tmp_path / "squeezed.toml"), "--out", str(tmp_path / "out")]) in (0, None)
+    written = {p.name for p in (tmp_path / "out").iterdir()}
+    assert {"state.json", "body.vtu", "pressure.png"} <= written and not written & {"foundation.vtu", "foundation.png"}
