@@ -174,6 +174,45 @@ def test_subgradient_with_a_rigid_pair_matches_central_differences(counterpart, 
     assert gc.counts["M1"] > 0 and gc.counts["M3+"] > 0 and gc.counts["L"] > 0
 
 
+FULL_SPACE_CASES = {
+    "plane": '{ shape = "plane" }',
+    "plane moved": '{ shape = "plane", control = "displacement", displacement = [0.002, 0.0, 0.0] }',
+    "sphere moved": '{ shape = "sphere", center = [0.5, 0.5, -20.0], radius = 20.0, control = "displacement", '
+                    'displacement = [0.001, 0.0, 0.004] }'}
+
+
+def _on_path(text, path, tol=1e-12) -> ShapeProblem:
+    import tomllib
+    cfg = load_config(tomllib.loads(text)).with_updates({"linear_solver": {"path": path}, "state": {"tol": tol}})
+    return ShapeProblem(cfg)
+
+
+@pytest.mark.parametrize("case", sorted(FULL_SPACE_CASES))
+def test_the_full_space_agrees_with_the_condensation_beside_a_rigid_counterpart(case):
+    """The block on the rigid counterpart (the plane, fixed or moved, or a sphere, whose frames are not
+    the axes) and the elastic slab: the slab's DOFs in the full-space Newton system, none for the
+    rigid pair (its rows of Π zero, its gap and translation from its geometry): Θ, ξ, λ, w and the
+    slab's displacement against the condensation path to 1e-10 (measured 1e-13 to 7e-13)."""
+    from test_foundation_fullspace import _agree
+    d = _agree(lambda path: _on_path(_rigid(FULL_SPACE_CASES[case]) + DESIGN, path))
+    assert max(d.values()) <= 1e-10, d
+
+
+@pytest.mark.parametrize("case", ["plane moved", "sphere moved"])
+def test_subgradient_beside_a_rigid_counterpart_on_the_full_space_matches_central_differences(case):
+    """ξ·d on the full-space path against central differences; its Newton method stops at 1e-10 (its
+    Krylov floor), so the step is h = 1e-2 max|α| (tests/test_foundation_fullspace.py; measured
+    5e-11)."""
+    pb = _on_path(_rigid(FULL_SPACE_CASES[case]) + DESIGN, "fullspace", tol=1e-14)
+    assert pb.path.name == "fullspace"
+    a = pb.model.initial_design()
+    alpha = a + 0.003 * np.random.default_rng(1).standard_normal(a.size)
+    gc = check_gradient(pb, alpha, n_directions=3, seed=0, h=1e-2)
+    assert gc.n_degenerate == 0 and gc.passed, gc.rel_errors
+    assert max(gc.rel_errors) <= 1e-6
+    assert gc.counts["M1"] > 0 and gc.counts["M3+"] > 0 and gc.counts["L"] > 0
+
+
 @pytest.mark.parametrize("friction", [0.0, 0.3])
 def test_the_patch_test_passes_on_a_rigid_plane_under_a_floating_stack(friction, tmp_path):
     """The stack of tests/test_assembly_pairs.py with its lower block replaced by the rigid plane:
@@ -242,8 +281,6 @@ def test_a_floating_roller_on_a_rigid_plane_under_an_elastic_plate(tmp_path):
 
 
 @pytest.mark.parametrize("change, needle", [
-    ('counterpart = { shape = "plane", control = "force", force = [0.0, 0.0, 1.0] }',
-     "contacts[0].counterpart: a rigid counterpart pressed by control = 'force' in a model of several pairs"),
     ('counterpart = { shape = "plane", weighting = "mortar" }',
      "contacts[0].counterpart.weighting = 'mortar': the mortar-weighted gap of a rigid counterpart takes a model of "
      "one pair so far"),
@@ -257,11 +294,83 @@ def test_what_a_rigid_pair_does_not_take_is_refused_by_name(change, needle, tmp_
     assert needle in str(exc.value)
 
 
-def test_a_model_whose_counterparts_are_all_rigid_is_refused_by_name(tmp_path):
-    text = _rigid().replace('counterpart = "right.top"', 'counterpart = { shape = "plane" }')
-    text = text[:text.index("[bodies.right]")] + text[text.index("[[contacts]]"):]
-    with pytest.raises(ConfigError, match="contacts: every pair's counterpart is rigid"):
-        load_config(_write(tmp_path, text + DESIGN))
+def _all_rigid(counterpart='{ shape = "plane" }') -> str:
+    """The block on two slabs with both slabs replaced by the rigid ``counterpart``: two pairs, no
+    counterpart body."""
+    text = _rigid(counterpart).replace('counterpart = "right.top"', f"counterpart = {counterpart}")
+    return text[:text.index("[bodies.right]")] + text[text.index("[[contacts]]"):]
+
+
+def _one_pair(counterpart) -> str:
+    """The same block on one pair, its whole contact face against ``counterpart`` (the one-body model)."""
+    text = _all_rigid(counterpart)
+    start, stop = text.index("[[contacts]]"), text.index("[state]")
+    return text[:start] + f'[[contacts]]\nface = "block.contact"\ncounterpart = {counterpart}\nfriction = 0.3\n' + text[stop:]
+
+
+def test_a_model_whose_counterparts_are_all_rigid_is_taken(tmp_path):
+    """Two pairs, each against the rigid plane: no counterpart body, Π without columns, C = 0."""
+    pb = _problem(tmp_path, _all_rigid() + DESIGN)
+    f = pb.model.foundation
+    assert pb.config.assembly.bodies == ("block",)
+    assert [p.partner for p in f.parts] == ["rigid", "rigid"] and f.P.shape == (3 * pb.model.n_contact, 0)
+    assert not np.any(f.C)
+
+
+ONE_PAIR_CASES = {
+    "plane": '{ shape = "plane" }',
+    "plane moved": '{ shape = "plane", control = "displacement", displacement = [0.002, -0.001, 0.0005] }',
+    "sphere moved": '{ shape = "sphere", center = [1.0, 0.5, -20.0], radius = 20.0, control = "displacement", '
+                    'displacement = [0.001, 0.0, 0.004] }'}
+
+
+@pytest.mark.parametrize("path", ["condensation", "fullspace"])
+@pytest.mark.parametrize("case", sorted(ONE_PAIR_CASES))
+def test_two_pairs_on_one_rigid_counterpart_are_the_one_pair_model(case, path):
+    """The block's face split into two pairs, each against the same rigid counterpart (the plane,
+    fixed or moved with tangential parts, or a sphere), against the one-body model of one pair on
+    that counterpart: Θ, ξ, λ and the classes at a designed shape to 1e-10 on the condensation
+    path (measured 1e-14) and 1e-9 on the full space (two Newton runs at 1e-12, measured 6e-11);
+    the pairs' w is relative to the counterpart's translation R_mᵀ d per node, the one pair's u_c
+    to its tangential parts only (its normal part is in the gap)."""
+    out = []
+    for text in (_all_rigid(ONE_PAIR_CASES[case]), _one_pair(ONE_PAIR_CASES[case])):
+        pb = _on_path(text + DESIGN, path)
+        assert pb.path.name == path
+        a = pb.model.initial_design()
+        alpha = a + 0.003 * np.random.default_rng(1).standard_normal(a.size)
+        theta, xi = pb.evaluate(alpha)
+        out.append((pb, theta, xi, pb.solve_state(alpha)))
+    (pb2, t2, x2, s2), (pb1, t1, x1, s1) = out
+    assert pb1.model.foundation is None and pb2.model.foundation.P.shape[1] == 0
+    assert np.array_equal(pb1.model.contact_nodes, pb2.model.contact_nodes)
+    bound = 1e-10 if path == "condensation" else 1e-9
+    assert abs(t2 - t1) <= bound * abs(t1)
+    assert np.abs(x2 - x1).max() <= bound * np.abs(x1).max()
+    assert np.abs(s2.lam - s1.lam).max() <= bound * s1.lam.max()
+    assert np.array_equal(s2.classes, s1.classes) and s1.counts["M1"] > 0 and s1.counts["L"] > 0
+    w = s1.u_c - pb2.model.foundation.q_f.reshape(-1, 3) * [0.0, 0.0, 1.0]
+    assert np.abs(s2.u_c - w).max() <= bound * np.abs(w).max()
+
+
+@pytest.mark.parametrize("path", ["condensation", "fullspace"])
+def test_subgradient_with_every_counterpart_rigid_matches_central_differences(path):
+    """ξ·d of the block on two rigid counterparts (the plane moved along x1 under the left pair, a
+    sphere under the right one, friction 0.3 and 0.1) against central differences to 1e-6."""
+    sphere = ('{ shape = "sphere", center = [1.5, 0.5, -20.0], radius = 20.0, control = "displacement", '
+              'displacement = [0.0, 0.001, 0.003] }')
+    text = _all_rigid('{ shape = "plane", control = "displacement", displacement = [0.002, 0.0, 0.0] }')
+    start = text.index('name = "right"')
+    text = text[:start] + text[start:].replace(text[start:].split("counterpart = ", 1)[1].split("\n", 1)[0], sphere, 1)
+    text = text[:start] + text[start:].replace("friction = 0.3", "friction = 0.1", 1)
+    pb = _on_path(text + DESIGN, path, tol=1e-14 if path == "condensation" else 1e-12)
+    assert [p.obstacle.shape for p in pb.config.pairs] == ["plane", "sphere"]
+    a = pb.model.initial_design()
+    alpha = a + 0.003 * np.random.default_rng(1).standard_normal(a.size)
+    gc = check_gradient(pb, alpha, n_directions=3, seed=0, **({} if path == "condensation" else {"h": 1e-2}))
+    assert gc.n_degenerate == 0 and gc.passed, gc.rel_errors
+    assert max(gc.rel_errors) <= 1e-6
+    assert gc.counts["M1"] > 0 and gc.counts["L"] > 0
 
 
 PEAK = '[objective]\ntype = "peak_stress"\nregion = "{region}"\naggregate = "{aggregate}"\n'
@@ -317,3 +426,73 @@ def test_the_peak_stress_of_the_one_pair_foundation_is_refused_by_name():
     with tempfile.TemporaryDirectory() as tmp:
         with pytest.raises(ConfigError, match="the peak stress of a counterpart body takes a model of several pairs"):
             ShapeProblem(load_config(_write(Path(tmp), text))).evaluate_value(np.zeros(1))
+
+
+def _squeezed(tmp_path, lid: str, friction: float = 0.0) -> ShapeProblem:
+    """A unit block (7 × 6 × 3 cells, E = 1, ν = 0.3, rollers on its sides, held along x3 only by its
+    contacts, no load of its own) between the rigid plane x3 = 0 under its face (pair 0) and a rigid
+    lid over its top (pair 1): the box x3 ∈ [1, 2] as a closed STL surface, its face on the block's
+    top, pressed by ``lid`` (the keys of its control)."""
+    from test_assembly_pairs import _rollers
+    from test_obstacles import prism
+    box = prism(tmp_path / "lid.stl", [(-1.0, 1.0), (2.0, 1.0), (2.0, 2.0), (-1.0, 2.0)], -1.0, 2.0)
+    return _problem(tmp_path, f"""
+name = "squeezed"
+[geometry]
+a = 1.0
+b = 1.0
+c = 1.0
+[mesh]
+nx = 7
+ny = 6
+nz = 3
+[loads]
+top_traction = [0.0, 0.0, 0.0]
+right_traction = [0.0, 0.0, 0.0]
+[material]
+E = 1.0
+nu = 0.3
+[bodies.middle]
+clamped = {_rollers("clamped")}
+[[contacts]]
+face = "middle.contact"
+counterpart = {{ shape = "plane" }}
+friction = {friction}
+[[contacts]]
+face = "middle.top"
+counterpart = {{ shape = "surface", mesh = "{box}", {lid} }}
+friction = {friction}
+[state]
+tol = 1.0e-12
+max_iter = 200
+""", "squeezed.toml")
+
+
+@pytest.mark.parametrize("friction", [0.0, 0.3])
+def test_a_block_squeezed_between_two_rigid_counterparts_has_the_uniform_pressure(friction, tmp_path):
+    """The lid moved down by δ = 0.01 onto the block held only by its contacts: uniaxial strain δ/h
+    under the rollers, so the pressure on both faces is p = E(1 − ν)/((1 + ν)(1 − 2ν)) δ to 1e-10
+    (measured 2e-13), τ = 0, the block's translation along x3 the anchor's."""
+    pb = _squeezed(tmp_path, 'control = "displacement", displacement = [0.0, 0.0, -0.01]', friction)
+    m = pb.model
+    assert m.body.rigid.names() == ["the translation along x3"]
+    assert [f.partner for f in m.foundation.parts] == ["rigid", "rigid"]
+    assert np.abs(m.frames[m.body.pair_of == 1, :, 2] - [0.0, 0.0, -1.0]).max() <= 1e-12   # the lid's normal
+    st = pb.solve_state(m.initial_design())
+    p = st.lam / m.contact_areas()
+    nu = 0.3
+    expected = (1 - nu) / ((1 + nu) * (1 - 2 * nu)) * 0.01
+    for k in range(2):
+        mine = m.body.pair_of == k
+        assert mine.sum() == 56 and np.abs(p[mine] / expected - 1).max() <= 1e-10, (k, p[mine])
+    assert np.abs(st.tau).max() <= 1e-10 * st.lam.max()
+
+
+def test_the_state_of_a_model_of_rigid_counterparts_only_is_written_without_a_foundation(tmp_path):
+    """``contactopt state`` on the block between the plane and the lid: no counterpart body, so no
+    foundation.vtu or foundation.png (there is no mesh to write)."""
+    from contactopt.cli import main
+    _squeezed(tmp_path, 'control = "displacement", displacement = [0.0, 0.0, -0.01]')
+    assert main(["state", str(tmp_path / "squeezed.toml"), "--out", str(tmp_path / "out")]) in (0, None)
+    written = {p.name for p in (tmp_path / "out").iterdir()}
+    assert {"state.json", "body.vtu", "pressure.png"} <= written and not written & {"foundation.vtu", "foundation.png"}

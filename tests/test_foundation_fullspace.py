@@ -234,15 +234,18 @@ def test_a_foundation_pressed_by_a_force_agrees_and_its_subgradient_matches(side
     assert gc.n_degenerate == 0 and max(gc.rel_errors) <= 1e-6, gc.rel_errors
 
 
-def test_a_rigid_counterpart_beside_an_elastic_one_is_refused_by_name_on_the_full_space():
-    """The block on a rigid plane and an elastic slab (tests/test_assembly_rigid.py): the
-    condensation path only so far."""
+def test_a_rigid_counterpart_beside_an_elastic_one_is_taken_on_the_full_space():
+    """The block on a rigid plane and an elastic slab (tests/test_assembly_rigid.py): the slab's DOFs
+    in the Newton system, none for the plane (its agreement with the condensation is tested there)."""
     import tomllib
 
     from test_assembly_rigid import _rigid
     cfg = load_config(tomllib.loads(_rigid())).with_updates({"linear_solver": {"path": "fullspace"}})
-    with pytest.raises(ConfigError, match=r"the rigid counterpart of contacts\[0\] beside elastic ones"):
-        ShapeProblem(cfg)
+    pb = ShapeProblem(cfg)
+    couple = pb.path.couple
+    slab = pb.model.foundation.parts[1]
+    assert [f.partner for f in pb.model.foundation.parts] == ["rigid", "point"]
+    assert couple.parts == [slab] and couple.n == pb.model.assembler.n_free + slab.assembler.n_free
 
 
 def test_a_shrink_fit_on_meshes_that_do_not_match_is_lames_on_both_paths(tmp_path):

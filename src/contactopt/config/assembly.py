@@ -246,20 +246,18 @@ def _check_star(pairs: list, problems: list) -> None:
                             "(each pair's partners are searched on its own part)")
         else:
             seen[n] = counter
-    if not any(isinstance(c, tuple) for _, _, c in pairs):
-        problems.append("contacts: every pair's counterpart is rigid; a model of several pairs takes rigid "
-                        "counterparts beside at least one elastic counterpart body so far (the coupling of the "
-                        "pairs is built on the elastic ones)")
+    pressed = [f"contacts[{n}]" for n, (_, _, c) in enumerate(pairs) if isinstance(c, dict) and c.get("control") == "force"]
+    if len(pressed) > 1:
+        problems.append(f"{' and '.join(pressed)}: {len(pressed)} rigid counterparts pressed by control = 'force'; "
+                        "contactopt searches the translation of one counterpart per model so far (press the "
+                        "others by control = 'displacement')")
 
 
 def _check_rigid_pair(counter: dict, key: str, problems: list) -> None:
-    """A rigid counterpart in a model of several pairs: fixed or moved by a prescribed translation
-    (its motion enters as the counterparts' q, fem.counterparts); a force-controlled one, whose
-    translation is an unknown of the state, and the mortar-weighted gap take a model of one pair."""
-    if counter.get("control") == "force":
-        problems.append(f"{key}.counterpart: a rigid counterpart pressed by control = 'force' in a model of several "
-                        "pairs; contactopt takes it in a model of one pair so far (in several a rigid counterpart "
-                        "is fixed or moved by control = 'displacement')")
+    """A rigid counterpart in a model of several pairs: fixed, moved by a prescribed translation
+    (its motion enters as the counterparts' q, fem.counterparts) or pressed by a force (its
+    translation an unknown of the state, paths/force.py; one per model, :func:`_check_star`); the
+    mortar-weighted gap takes a model of one pair."""
     if counter.get("weighting", "node") != "node":
         problems.append(f"{key}.counterpart.weighting = {counter['weighting']!r}: the mortar-weighted gap of a rigid "
                         "counterpart takes a model of one pair so far; use weighting = 'node'")

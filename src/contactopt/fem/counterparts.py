@@ -140,7 +140,7 @@ class Counterparts:
     ``pair_rows`` the contact nodes of each pair."""
 
     basis = None          # mortar partners on six-node triangles: one pair only (Foundation)
-    motion = None         # a counterpart pressed by a force: one pair only (a displacement is in q)
+    motion = None         # a counterpart body pressed by a force: one pair only (a displacement is in q)
     translation = None
 
     def __init__(self, parts: list, rows: list, p: int, pairs=None, pair_rows=None):
@@ -151,10 +151,10 @@ class Counterparts:
             if f.basis is not None:
                 raise ConfigError(["contacts: mortar partners on six-node triangles take one pair per model so far; "
                                    "use partner = 'point' or linear elements"])
-            if f.control == "force":
-                raise ConfigError(["bodies: a counterpart pressed by control = 'force' takes one pair per model so "
-                                   "far; in a model of several pairs a counterpart is held by its clamps or moved "
-                                   "by control = 'displacement'"])
+            if f.control == "force" and f.n_nodes:     # (a rigid one's search: fem.model, paths/force.py)
+                raise ConfigError(["bodies: a counterpart body pressed by control = 'force' takes one pair per model "
+                                   "so far; in a model of several pairs a counterpart body is held by its clamps or "
+                                   "moved by control = 'displacement', a rigid counterpart may be pressed by a force"])
         self.gap0 = None
         if all(f.gap0 is not None for f in self.parts):
             self.gap0 = np.zeros(p)

@@ -302,10 +302,13 @@ class DistributedBodies:
             k = cp_need[(cp_need >= a) & (cp_need < b)]
             blk = f.K[k - a].tocoo()
             blocks.append((k[blk.row] + n_body, blk.col + a + n_body, blk.data))
-        r_f, c_f, v_f = (np.concatenate(x) for x in zip(*blocks))       # ``parts``: one or more
+        r_f, c_f, v_f = np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros(0)
+        if blocks:                       # none with rigid counterparts only
+            r_f, c_f, v_f = (np.concatenate(x) for x in zip(*blocks))
         self._rows_f = (np.searchsorted(self._need, r_f), c_f, v_f)
-        # a clamped DOF's diagonal: the mean of the counterparts' stiffness diagonal (the same on every rank)
-        self._fixed_value = float(np.mean(np.concatenate([f.K.diagonal() for f in parts])))
+        # a clamped DOF's diagonal: the mean of the counterparts' stiffness diagonal, or the body's
+        # Young's modulus with rigid counterparts only (the same on every rank; a scale, any value holds)
+        self._fixed_value = float(np.mean(np.concatenate([f.K.diagonal() for f in parts]))) if parts else E
         self._fixed_rows = np.flatnonzero(self.fixed[self.rstart:self.rend]) + self.rstart
         self._pattern = None
         # the design term: this rank's own elements of the body

@@ -399,6 +399,9 @@ class Coupling:
         if self._L is not None:
             return
         P = self._P
+        if P.shape[1] == 0:          # every counterpart rigid (fem.counterparts): no support, S_eff = S
+            self._G, self._L = np.zeros((P.shape[0], 0)), np.zeros((0, 0))
+            return
         G = np.ascontiguousarray((P.T @ self.S).T)                # S P, S symmetric
         M = np.array(self.foundation.condensation.S, dtype=np.float64, order="C") + np.asarray(P.T @ G)
         self._L = cholesky_lower(0.5 * (M + M.T))
@@ -409,6 +412,9 @@ class Coupling:
         """S_eff = (S⁻¹ + C)⁻¹ (3p × 3p), formed on first use (class docstring)."""
         if self._S_eff is None:
             self._woodbury()
+            if self._G.shape[1] == 0:
+                self._S_eff = self.S
+                return self._S_eff
             Y = solve_triangular(self._L.T, self._G.T, lower=False, trans="T", check_finite=False)   # L_M⁻¹ Gᵀ
             YtY = dsyrk(1.0, Y.T, trans=0, lower=1)              # lower triangle of YᵀY (half a product)
             self._S_eff = symmetrize_lower(np.ascontiguousarray(np.tril(self.S) - YtY))
@@ -416,6 +422,8 @@ class Coupling:
 
     def _solve_M(self, b: np.ndarray) -> np.ndarray:
         self._woodbury()
+        if self._L.shape[0] == 0:
+            return np.zeros(b.shape)
         return cholesky_solve(self._L, b)
 
     @property

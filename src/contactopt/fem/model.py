@@ -242,6 +242,8 @@ class ElasticModel:
         if cfg.pairs:
             held = cfg.friction.coefficient if self.contact_friction is None else self.contact_friction
             self.foundation.check_held(held, [p.counterpart.split(".")[0] for p in cfg.assembly.contacts], cfg.source)
+        if cfg.pairs:
+            self._pair_force(rigid)
         if cfg.foundation is not None and self.foundation is None:
             self.foundation = Foundation(cfg.foundation, body, source=cfg.source, check=check,
                                          condensed=condensed)
@@ -271,6 +273,27 @@ class ElasticModel:
         if not np.any(self.obstacle_force.gap_rate > 0):
             raise ConfigError([f"{self.config.source}: foundation.force = {spec.force}: no contact node's normal has "
                                "a component along the force: the foundation cannot press the body"])
+
+    def _pair_force(self, rigid: dict) -> None:
+        """A rigid counterpart of one of several pairs pressed by a force (its table's control =
+        "force"): it translates by s f̂ as the one obstacle does (:class:`ObstacleForce`, no
+        ``motion``), with b_m = R_mᵀ f̂ and c_m = f̂·n_m on its pair's contact nodes and zero on the
+        others', so that Σ_m b_m·r_m is the resultant along f̂ of its pair alone."""
+        p = self.contact_nodes.size
+        R = self.frames if self.frames is not None else np.broadcast_to(np.eye(3), (p, 3, 3))
+        for k, (spec, rows, _, _) in rigid.items():
+            if spec.control != "force":
+                continue
+            f = np.asarray(spec.force, float)
+            fhat = f / np.linalg.norm(f)
+            b, c = np.zeros((p, 3)), np.zeros(p)
+            b[rows] = np.einsum("mij,i->mj", R[rows], fhat)
+            c[rows] = R[rows, :, 2] @ fhat
+            self.obstacle_force = ObstacleForce(float(np.linalg.norm(f)), b, c)
+            if not np.any(c > 0):
+                raise ConfigError([f"{self.config.source}: contacts[{k}].counterpart.force = {spec.force}: no contact "
+                                   "node's normal has a component along the force: the counterpart cannot press the "
+                                   "body"])
 
     @property
     def force(self) -> float | None:

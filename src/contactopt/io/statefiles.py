@@ -170,8 +170,14 @@ def _check_finite(state: State) -> None:
 
 
 def state_files(model) -> tuple:
-    """The files :func:`write_state` writes for ``model``'s states."""
-    return STATE_FILES + (FOUNDATION_FILES if model.foundation is not None else ())
+    """The files :func:`write_state` writes for ``model``'s states (the foundation's where a
+    counterpart has a mesh: not where every counterpart of several pairs is rigid)."""
+    return STATE_FILES + (FOUNDATION_FILES if _counterpart_bodies(model) else ())
+
+
+def _counterpart_bodies(model) -> bool:
+    """Whether ``model`` has an elastic counterpart (a [foundation], or a counterpart body of its pairs)."""
+    return model.foundation is not None and any(f.n_nodes for f in model.foundation.parts)
 
 
 def _move_into(tmpdir: Path, outdir: Path, names=STATE_FILES) -> None:
@@ -229,7 +235,7 @@ def write_state(outdir, model, state: State, *, config=None, warnings=None, obje
             plots.plot_node_classes(tmpdir / "classes.png", model, classes)
             plots.plot_contact_response(tmpdir / "contact.png", model, pressure, state.tau,
                                         np.asarray(state.u_c)[:, :2], classes)
-            if model.foundation is not None:
+            if _counterpart_bodies(model):
                 vtk.write_foundation_vtu(tmpdir / "foundation.vtu", model.foundation, state)
                 plots.plot_contact_field(tmpdir / "foundation.png", model,
                                          -np.asarray(state.foundation.u_partner)[:, 2],

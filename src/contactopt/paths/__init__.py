@@ -70,8 +70,11 @@ def needs(config, pinned: int = 0, ranks: int = 1, rigid=None) -> dict:
             out["foundation"] = f"an elastic [foundation] with foundation.control = {config.foundation.control!r}"
         if config.foundation.control == "force":     # its translation's search runs where the foundation is
             out["counterpart_force"] = "an elastic [foundation] with foundation.control = 'force'"
-    if config.pairs:                    # several pairs, each its elastic counterpart (fem.counterparts)
-        out["foundation"] = out["pairs"] = f"{len(config.pairs)} contact pairs against elastic bodies"
+    if config.pairs:                    # several pairs, each its elastic or rigid counterpart (fem.counterparts)
+        kind = "rigid counterparts" if all(pr.rigid for pr in config.pairs) else "elastic bodies"
+        out["foundation"] = out["pairs"] = f"{len(config.pairs)} contact pairs against {kind}"
+        if any(pr.rigid and pr.obstacle.control == "force" for pr in config.pairs):    # its translation's search
+            out["counterpart_force"] = "a rigid counterpart of several pairs pressed by control = 'force'"
     obst = config.obstacle
     obstacle = "plane" if obst is None else obst.shape
     if obst is not None and obst.control == "force":

@@ -25,7 +25,8 @@ only.
 
 Several pairs against counterpart bodies (:mod:`contactopt.fem.counterparts`) are the same with
 u_f the bodies' DOFs one body after the other, diag(A, K_1, …, K_B) and Π stacked by contact node
-(a body under several pairs takes all its pairs' rows). A counterpart held only by its contacts
+(a body under several pairs takes all its pairs' rows); a rigid counterpart's pair has zero rows of
+Π and no block of u_f, its translation R_mᵀ d in q. A counterpart held only by its contacts
 stays on the condensation path so far (its rigid motions are the anchor's rows there).
 
 Contact convention: per contact node (t1, t2, ν), ν from the foundation to the body, r the
@@ -50,7 +51,9 @@ class FullSpaceCouple:
 
     def __init__(self, foundation, contact_dofs: np.ndarray, n_body: int, frames: np.ndarray | None):
         f = foundation
-        self.foundation, self.parts = f, list(f.parts)
+        # the bodies with DOFs: a rigid counterpart (fem.counterparts.RigidCounterpart) has none, its
+        # pair's rows of Π are zero and its prescribed translation is in q
+        self.foundation, self.parts = f, [part for part in f.parts if part.n_nodes]
         sizes = [part.assembler.n_free for part in self.parts]
         self._starts = np.concatenate([[0], np.cumsum(sizes)]).astype(np.int64)
         self.n_body, self.n = n_body, n_body + int(self._starts[-1])
@@ -60,7 +63,8 @@ class FullSpaceCouple:
         Q = sp.block_diag(list(R), format="csr")
         Pf = sp.csr_matrix(f.P)                       # Π_loc on the counterparts' free support DOFs
         cols_f = self.n_body + np.concatenate([start + np.asarray(part._support_free, np.int64)
-                                               for start, part in zip(self._starts, self.parts)])
+                                               for start, part in zip(self._starts, self.parts)]
+                                              + [np.zeros(0, np.int64)])
         QP = (Q @ Pf).tocoo()
         other = np.setdiff1d(np.arange(self.n), self.cd)
         Qc = Q.tocoo()
@@ -134,7 +138,7 @@ class FullSpaceCouple:
             if part.translation is not None:
                 u = u + (1.0 if part.control == "displacement" else moved) * np.tile(part.translation, part.n_nodes)
             out.append(u)
-        return np.concatenate(out)
+        return np.concatenate(out + [np.zeros(0)])
 
     def compliance(self, x: np.ndarray) -> np.ndarray:
         """C x = Π_loc K_f⁻¹ Π_locᵀ x (3p, per node (t1, t2, ν)): the partners' displacement under

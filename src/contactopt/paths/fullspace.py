@@ -22,6 +22,9 @@ it is a field of the system, so that a force-controlled obstacle (:mod:`.force`)
 With elastic counterparts (an elastic ``[foundation]``, the counterpart bodies of several pairs)
 their DOFs join the Newton system by the change of unknowns of :mod:`.coupled` (the contact DOFs
 then hold the law's relative displacement), nothing condensed; the system's ``couple`` holds it.
+A rigid counterpart of one of several pairs adds no DOFs: its pair's contact nodes have no
+partners (their rows of Π are zero), their gaps and frames are its geometry's and its prescribed
+translation is in the offset q.
 
 :class:`FullSpaceCommon` is what this path and the PETSc path (:mod:`.petsc`), the two backends of
 one method, share: the options of a solve, the state of its result, and the arrays of a
@@ -47,7 +50,6 @@ from ..contact.state import FoundationState
 from ..errors import CheckpointError, ConfigError
 from ..fem import memory
 from ..fem.amg import ContactHierarchy, rigid_body_modes
-from ..fem.counterparts import RigidCounterpart
 from ..fem.model import Assembled
 from ..sensitivity.adjoint_fullspace import solve_adjoint_fullspace
 from .base import Adjoint, Capabilities, Context, SolverPath, SystemParts, check_design
@@ -451,14 +453,9 @@ def _pairs_whose(counterparts, test) -> list:
 
 def refuse_counterparts(model, path: str) -> None:
     """ConfigError naming the counterparts that the full-space form (:mod:`.coupled`) does not take
-    so far, on ``path`` (the pyamg or the PETSc backend): a rigid counterpart beside elastic ones,
-    a counterpart held only by its contacts, mortar partners on six-node triangles."""
+    so far, on ``path`` (the pyamg or the PETSc backend): a counterpart held only by its contacts,
+    mortar partners on six-node triangles."""
     floating = _pairs_whose(model.foundation, lambda part: part.rigid is not None)
-    rigid = _pairs_whose(model.foundation, lambda part: isinstance(part, RigidCounterpart))
-    if rigid:
-        raise ConfigError([f"{model.config.source}: linear_solver.path = {path!r}: the rigid counterpart of "
-                           f"{', '.join(rigid)} beside elastic ones is solved on the 'condensation' path only so "
-                           "far; use path 'condensation'"])
     if floating:
         raise ConfigError([f"{model.config.source}: linear_solver.path = {path!r}: the counterpart of "
                            f"{', '.join(floating)} is held only by its contacts, which is solved on the "
