@@ -53,6 +53,39 @@ MODELS = {**{kind: (lambda path, kind=kind: _config(FOUNDATIONS[kind], path)) fo
           "example1_elastic": lambda path: load_config(ROOT / "examples" / "example1_elastic.toml").with_updates(
               {"mesh": {"nx": 12, "ny": 6, "nz": 4}, "foundation": {"block": {"size": [3.0, 2.0, 1.0], "cells": [9, 6, 3], "origin": [-0.5, -0.5]}},
                "linear_solver": {"path": path}})}
+def _pressed(sideways, path):
+    """The slab pressed up by f = (f1, 0, 3) on its bottom face (tests/test_foundation_fullspace.py)."""
+    return _config({"block": _block(), "material": {"E": 2.0}, "control": "force", "force": [sideways, 0.0, 3.0]},
+                   path)
+
+
+MODELS["pressed sideways by a force"] = lambda path: _pressed(0.5, path)
+
+
+def _rigid_pairs(make):
+    """A model of tests/test_assembly_rigid.py: the block on a rigid counterpart beside the slab, or
+    on rigid counterparts only (no counterpart body: T the nodes' frames, q their translations)."""
+    def config(path):
+        from test_assembly_pairs import DESIGN
+        return load_config(tomllib.loads(make() + DESIGN)).with_updates(
+            {"linear_solver": {"path": path}, "state": {"tol": 1e-12}})
+    return config
+
+
+def _sphere_beside_slab():
+    from test_assembly_rigid import FULL_SPACE_CASES, _rigid
+    return _rigid(FULL_SPACE_CASES["sphere moved"])
+
+
+def _spheres_only():
+    from test_assembly_rigid import ONE_PAIR_CASES, _all_rigid
+    return _all_rigid(ONE_PAIR_CASES["sphere moved"])
+
+
+MODELS["a moved rigid sphere beside the slab"] = _rigid_pairs(_sphere_beside_slab)
+MODELS["rigid spheres only (two pairs)"] = _rigid_pairs(_spheres_only)
+
+
 _reference = {}
 
 
@@ -161,15 +194,6 @@ def test_a_two_body_checkpoint_resumes_on_another_number_of_ranks(tmp_path):
     J, got = (json.loads((tmp_path / d / "summary.json").read_text()) for d in ("whole", "a"))
     assert got["iterations"] == J["iterations"] == 4
     assert abs(got["J"] - J["J"]) <= 1e-6 * abs(J["J"])
-
-
-def _pressed(sideways, path):
-    """The slab pressed up by f = (f1, 0, 3) on its bottom face (tests/test_foundation_fullspace.py)."""
-    return _config({"block": _block(), "material": {"E": 2.0}, "control": "force", "force": [sideways, 0.0, 3.0]},
-                   path)
-
-
-MODELS["pressed sideways by a force"] = lambda path: _pressed(0.5, path)
 
 
 @pytest.mark.parametrize("sideways", [0.0, 0.5])
