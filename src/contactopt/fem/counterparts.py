@@ -155,6 +155,12 @@ class Counterparts:
                 raise ConfigError(["bodies: a counterpart pressed by control = 'force' takes one pair per model so "
                                    "far; in a model of several pairs a counterpart is held by its clamps or moved "
                                    "by control = 'displacement'"])
+        self.refresh()
+
+    def refresh(self) -> None:
+        """What is gathered from the parts (after one of them changed: a designed counterpart,
+        fem.cpdesigns): gaps, memory, the block condensation, the loads' resultant, Π, C, q, ℓ_o."""
+        p = self.p
         self.gap0 = None
         if all(f.gap0 is not None for f in self.parts):
             self.gap0 = np.zeros(p)
