@@ -285,7 +285,8 @@ def test_subgradient_with_a_floating_roller_and_a_designed_plate_matches_central
 
 @pytest.mark.parametrize("face, words", [
     ('"ground.top"', "no body is named 'ground'"),
-    ('"left.bottom"', "or a counterpart body's part that is a pair's counterpart face"),
+    ('"left.bottom"', "or after it a counterpart body's part that is a pair's counterpart face (here: left.top, "
+                      "right.top)"),
 ])
 def test_a_design_on_no_counterpart_face_is_refused(face, words, tmp_path):
     """A design on a part of no body, or on a counterpart body's part no pair meets: ConfigError."""
@@ -312,6 +313,10 @@ def test_the_paths_that_do_not_form_it_refuse_a_counterpart_design(tmp_path):
         assert "a design on a counterpart body (left.top)" in str(exc.value)
 
 
-def test_check_gradient_of_the_designed_block_on_slab_example(capsys):
-    """``contactopt check-gradient`` on examples/block_on_slab_designed.toml passes."""
-    assert main(["check-gradient", str(EXAMPLES / "block_on_slab_designed.toml"), "--directions", "2"]) == 0
+def test_check_gradient_of_two_designs_on_two_bodies_from_the_command_line(tmp_path, capsys):
+    """``contactopt check-gradient`` on the block on its slab with both designed: passes, Taylor order 2."""
+    path = tmp_path / "both.toml"
+    path.write_text(ONE_SLAB + TOP_DESIGN)
+    assert main(["check-gradient", str(path), "--directions", "2"]) == 0
+    out = capsys.readouterr().out
+    assert "PASSED" in out and "observed order 2.0" in out

@@ -215,7 +215,8 @@ def desugar(raw: dict, problems: list) -> tuple[dict, list]:
     own = [n for n, f in enumerate(faces) if f[0] == face_body]
     for n, f in enumerate(faces):
         if f[0] != face_body:
-            _check_counterpart_design(n, f, face_body, counters, own, problems)
+            _check_counterpart_design(n, f, (face_body, part) if len(contacts) == 1 else face_body, counters, own,
+                                      problems)
         elif len(contacts) == 1 and f != (face_body, part):
             problems.append(f"designs[{n}].face = {'.'.join(f)!r}: contactopt designs the face of the contact pair "
                             f"({face_body}.{part}) so far, not another face")
@@ -231,19 +232,22 @@ def desugar(raw: dict, problems: list) -> tuple[dict, list]:
     return out, renames
 
 
-def _check_counterpart_design(n: int, face, face_body: str, counters: list, own: list, problems: list) -> None:
+def _check_counterpart_design(n: int, face, owner, counters: list, own: list, problems: list) -> None:
     """A design on a counterpart body (fem.cpdesigns): its face is a pair's counterpart part, and it
-    comes after every design of the face body (α: the face body's designs, then the counterparts')."""
+    comes after every design of the face body (α: the face body's designs, then the counterparts').
+    ``owner``: the face body's name, or (body, face) of a model of one pair."""
     name = '.'.join(map(_part_name, face))
+    face_body = owner if isinstance(owner, str) else owner[0]
+    first = (f"contactopt designs the face of the contact pair ({face_body}.{_part_name(owner[1])}) so far"
+             if isinstance(owner, tuple) else
+             f"contactopt designs a face of the body that carries the pairs' faces ({face_body!r}) so far")
     if face not in counters:
         others = ", ".join(f"{b}.{_part_name(p)}" for b, p in counters) or "none"
-        problems.append(f"designs[{n}].face = {name!r}: contactopt designs a face of the body that carries the pairs' "
-                        f"faces ({face_body!r}) or a counterpart body's part that is a pair's counterpart face "
-                        f"(here: {others}) so far")
+        problems.append(f"designs[{n}].face = {name!r}: {first}, or after it a counterpart body's part that is a "
+                        f"pair's counterpart face (here: {others})")
     elif not own or n < max(own):
-        problems.append(f"designs[{n}].face = {name!r}: a design of a counterpart body comes after the designs of "
-                        f"the face body {face_body!r} in [[designs]] (the first [[designs]] designs a face of "
-                        f"{face_body!r})")
+        problems.append(f"designs[{n}].face = {name!r}: {first}, first: a design of a counterpart body comes after "
+                        f"the designs of the face body {face_body!r} in [[designs]]")
 
 
 def _check_star(pairs: list, problems: list) -> None:
