@@ -644,7 +644,7 @@ class ElasticModel:
         for k, d in enumerate(cfg.designs):
             if d.lower < 0 and not d.nonnegative_gap and not cfg.body.interference:
                 where = "below" if cfg.counterpart == "the foundation plane" else "into"
-                key = f"designs[{k}]" if self.body.designs else "design"
+                key = f"designs[{k}]" if len(cfg.designs) > 1 else "design"
                 log.warning("%s: %s.lower = %g < 0 with %s.nonnegative_gap = false: admissible designs may "
                             "put the contact face %s %s (an initial penetration; body.interference = true where "
                             "the overlap is intended)", cfg.source, key, d.lower, key, where, cfg.counterpart)

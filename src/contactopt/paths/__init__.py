@@ -95,9 +95,6 @@ def needs(config, pinned: int = 0, ranks: int = 1, rigid=None) -> dict:
             out["obstacle_steps"] = out["obstacle"]
     if ranks > 1:
         out["many_ranks"] = str(ranks)
-    if config.counterpart_designs:      # K_f(α) condensed per design (fem.cpdesigns)
-        out["counterpart_design"] = "a design on a counterpart body (" + ", ".join(
-            config.assembly.designs[n] for n, _ in config.counterpart_designs) + ")"
     return out
 
 

@@ -112,10 +112,6 @@ class Capabilities:
         "more than one MPI rank",
         "linear_solver.path = '{path}' runs on one process, and this run has {detail} MPI ranks: use path "
         "{takers} (or 'auto'), or run without mpiexec")
-    counterpart_design: bool = _feature(
-        "a design on a counterpart body",
-        "linear_solver.path = '{path}': {detail} is formed per design on {on} only so far; use path {takers} "
-        "or 'auto'")
     libraries: tuple = ()
     sparse: str | None = None
     auto: str = ""

@@ -84,6 +84,7 @@ class CondensedSystem(SystemParts):
     force: float | None = None         # a load step's |f| of a force-controlled obstacle (None: the model's)
     moved: float = 0.0                 # the force search's translation s of the counterpart (.force)
     basis: object = None               # the transformed basis of quadratic faces (transforms.Basis): u_c = Vᵀ û
+    counterpart_terms: tuple | None = None   # (ṽ, the designed counterparts' design terms) of its last adjoint
 
     @property
     def law_S(self) -> np.ndarray:
@@ -149,7 +150,7 @@ class CondensationPath(ZonePath):
     name = "condensation"
     capabilities = Capabilities(foundation=True, pairs=True, counterpart_force=True, obstacle=True, obstacle_steps=True,
                                 held_by_contact=True, pinned=True,
-                                compliance=True, counterpart_design=True,
+                                compliance=True,
                                 whole_displacement=True, load_steps=True, auto="small")
 
     def __init__(self, model, settings, start=None):
@@ -214,7 +215,7 @@ class CondensationPath(ZonePath):
             ell = self.mechanics.rotate.vector(ell)
         if self.mechanics.basis is not None:
             ell = self.mechanics.basis.vector(ell)
-        out = replace(system, assembled=asm, ell=ell, ell_eff=None, timings={})
+        out = replace(system, assembled=asm, ell=ell, ell_eff=None, timings={}, counterpart_terms=None)
         if out.shift is not None:
             out = shifted(out, out.shift)
         out.timings["schur"] = time.perf_counter() - t1
@@ -406,7 +407,7 @@ class CondensationPath(ZonePath):
     def design_contraction(self, system, u_full, v_full, loads=None) -> np.ndarray:
         """The face body's design terms, plus the counterparts' designs' of the adjoint ``v_full``."""
         out = super().design_contraction(system, u_full, v_full, loads)
-        kept = getattr(system, "counterpart_terms", None)
+        kept = system.counterpart_terms
         if kept is not None and kept[0] is v_full:
             out = out + kept[1]
         return out
