@@ -158,6 +158,7 @@ class ElasticModel:
         (x1lo, x1hi), (x2lo, x2hi) = body.domain
         a, b = x1hi - x1lo, x2hi - x2lo
         self.surface = BezierSurface(d1, d2, a, b, x1lo, x2lo) if not body.designs else design_surfaces(cfg, body)
+        self.face_surface = self.surface      # the face body's designs (α's first block, fem.cpdesigns)
         mat = cfg.material
         self.assembler = ElasticityAssembler(ref.cells, ref.n_nodes, body.fixed_dofs, mat.E, mat.nu,
                                              element=element_type(ref.cell_type),
@@ -263,6 +264,7 @@ class ElasticModel:
         (fem.cpdesigns)."""
         cp = self.cp_designs = build_counterpart_designs(self, cfg, self.foundation)
         face = surfaces_of(self.surface)
+        self.face_surface = self.surface
         self.surface = DesignSurfaces(tuple(face) + tuple(d.surface for d in cp.designs))
         ratio = self.mesh.ratio
         self.mesh = PaddedMorph(self.mesh, self.surface, cp.n_face)
@@ -666,6 +668,19 @@ class ElasticModel:
         if np.isscalar(init):
             return np.full(self.n_design, float(init))
         return self.surface.as_vector(init)
+
+    def design_faces(self) -> list:
+        """(faces, morph, reference points of its body) of each design in ``[[designs]]`` order: the
+        face body's, then the counterparts' (fem.cpdesigns)."""
+        ref = self.body.reference.points
+        mesh = self.mesh if self.cp_designs is None else self.mesh.inner
+        if self.body.designs:
+            out = [(df.face.faces, m, ref) for df, m in zip(self.body.designs, mesh.morphs)]
+        else:
+            out = [(self.body.contact_face.faces, mesh, ref)]
+        for d in (self.cp_designs.designs if self.cp_designs is not None else ()):
+            out.append((d.face.faces, d.morph, d.morph.reference.points))
+        return out
 
     def contact_areas(self) -> np.ndarray:
         """Tributary areas ∫N_m dS of the contact nodes on the (flat) reference contact face, which
