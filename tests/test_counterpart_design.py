@@ -314,6 +314,29 @@ def test_the_paths_that_do_not_form_it_refuse_a_counterpart_design(tmp_path):
             "path so far; use linear_solver.path = 'condensation'") in str(exc.value)
 
 
+@pytest.mark.parametrize("objective", ["max_pressure", "peak_stress"])
+def test_pressure_and_stress_objectives_of_a_designed_slab_match_central_differences(objective, tmp_path):
+    """The peak pressure (KS) and the peak von Mises stress of the block (∂J/∂u on every DOF) with the
+    slab's top designed: ξ·d along the slab's design alone against Richardson central differences."""
+    pb = _problem(tmp_path, ONE_SLAB + TOP_DESIGN + f'[objective]\ntype = "{objective}"\nscale = 1.0e4\n')
+    alpha = _alpha(pb, 3)
+    value, xi = pb.evaluate(alpha)
+    d = np.random.default_rng(0).standard_normal(alpha.size)
+    d[:pb.model.cp_designs.n_face] = 0.0
+    h = 1e-6
+    f1 = (pb.evaluate_value(alpha + h * d) - pb.evaluate_value(alpha - h * d)) / (2 * h)
+    f2 = (pb.evaluate_value(alpha + 2 * h * d) - pb.evaluate_value(alpha - 2 * h * d)) / (4 * h)
+    fd = (4 * f1 - f2) / 3
+    assert abs(xi @ d - fd) <= 1e-6 * abs(fd), (xi @ d, fd)
+
+
+@pytest.mark.parametrize("objective", ["compliance", "frictional_dissipation"])
+def test_objectives_through_the_counterparts_compliance_are_refused(objective, tmp_path):
+    with pytest.raises(ConfigError) as exc:
+        _problem(tmp_path, ONE_SLAB + TOP_DESIGN + f'[objective]\ntype = "{objective}"\n')
+    assert f"objective {objective!r} with a design on a counterpart body (slab.top)" in str(exc.value)
+
+
 def test_check_gradient_of_two_designs_on_two_bodies_from_the_command_line(tmp_path, capsys):
     """``contactopt check-gradient`` on the block on its slab with both designed: passes, Taylor order 2."""
     path = tmp_path / "both.toml"
