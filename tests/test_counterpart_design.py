@@ -330,6 +330,22 @@ def test_pressure_and_stress_objectives_of_a_designed_slab_match_central_differe
     assert abs(xi @ d - fd) <= 1e-6 * abs(fd), (xi @ d, fd)
 
 
+def test_subgradient_along_a_load_path_with_a_designed_slab_matches_central_differences():
+    """Pressed, then sheared (the slip of the first step the second's reference): ξ·d of the pressure
+    uniformity with the block's face and the left slab's top designed, to 1e-6."""
+    import tomllib
+    text = TWO_SLABS + DESIGN + SLAB_DESIGN + (
+        '[[load_steps]]\nname = "press"\ntop_traction = [0.0, 0.0, -8.0e-2]\n'
+        '[[load_steps]]\nname = "shear"\ntop_traction = [0.0, 0.0, -8.0e-2]\nright_traction = [4.0e-2, 0.01, 0.0]\n'
+        '[objective]\ntype = "pressure_uniformity"\n')
+    data = tomllib.loads(text)
+    data["loads"] = {}
+    pb = ShapeProblem(load_config(data))
+    gc = check_gradient(pb, _alpha(pb, 0), n_directions=2, seed=0)
+    assert gc.n_degenerate == 0 and gc.passed, gc.rel_errors
+    assert gc.counts["M1"] > 0 and gc.counts["M3+"] > 0
+
+
 @pytest.mark.parametrize("objective", ["compliance", "frictional_dissipation"])
 def test_objectives_through_the_counterparts_compliance_are_refused(objective, tmp_path):
     with pytest.raises(ConfigError) as exc:
