@@ -23,19 +23,13 @@ from ._threads import sequential_openblas
 from .config import Config, load_config
 from .contact.balance import check_held
 from .contact.state import State, one_friction
-from .errors import ConfigError
 from .fem import memory
 from .fem.model import ElasticModel
 from .io import reports
 from .mesh.body import build_body
 from .paths import PATHS, Start, make_path, select_path
 from .sensitivity.cases import build_cases
-from .sensitivity.objectives import (
-    constraint_types,
-    make_constraints,
-    objective_types,
-    warn_pressure_on_linear_tetrahedra,
-)
+from .sensitivity.objectives import make_constraints, warn_pressure_on_linear_tetrahedra
 from .sensitivity.responses import Response, evaluate_response, max_combination
 from .sensitivity.solution import KeptDesign, LastDesign, Parts, export_contexts, import_contexts
 from .sensitivity.steps import build_path, step_choice, step_tables
@@ -59,7 +53,6 @@ class ShapeProblem:
     def __init__(self, config, *, method: str | None = None, optimizing: bool = False):
         self.config = config if isinstance(config, Config) else load_config(config)
         with self.config.assembly.named_as_written():      # a problem in the keys the model was written in
-            _check_counterpart_designs(self.config)
             body = build_body(self.config.face_body_designs())
             # pinned components on a foundation: fem.foundation checks they are clamped at their partners too
             name, library = select_path(self.config, memory.free_dofs(body), pinned=int(body.pinned_dofs.size),
@@ -295,23 +288,3 @@ class ShapeProblem:
 
     def step_columns(self) -> list[str]:
         return reports.step_columns(self)
-
-
-# objectives whose ∂J/∂α at a fixed state holds the counterparts' compliance C (the body's u_c = w + Π u_f)
-_COMPLIANCE_TERMS = ("compliance", "frictional_dissipation")
-
-
-def _check_counterpart_designs(config) -> None:
-    """ConfigError naming each objective or constraint that a design on a counterpart body does not
-    take so far: those whose ∂J/∂α at a fixed state goes through the counterpart's compliance C(β)
-    (fem.cpdesigns differentiates the state's law, not these)."""
-    if not config.counterpart_designs:
-        return
-    which = ", ".join(config.assembly.designs[n] for n, _ in config.counterpart_designs)
-    problems = [f"{config.source}: {where} {t!r} with a design on a counterpart body ({which}): its derivative "
-                "through the counterpart's compliance C(α) is not formed so far; use another objective (the "
-                "target forces, the pressure objectives, peak_stress)"
-                for where, types in (("objective", objective_types(config)), ("constraints", constraint_types(config)))
-                for t in sorted(types) if t in _COMPLIANCE_TERMS]
-    if problems:
-        raise ConfigError(problems)

@@ -148,6 +148,8 @@ class PaddedMorph:
         self.ratio = None
 
     def __getattr__(self, name):
+        if name == "inner":            # (not set yet: a copy or an unpickling in progress)
+            raise AttributeError(name)
         return getattr(self.inner, name)
 
     @property
@@ -182,6 +184,7 @@ def build_counterpart_designs(model, cfg, foundation) -> CounterpartDesigns:
     """The counterpart designs of ``cfg`` (``cfg.counterpart_designs``) on the model's counterparts
     ``foundation``; ConfigError naming what is not taken so far."""
     from ..mesh.body import _domain
+    _check_objectives(cfg)
     names = [c.counterpart for c in cfg.assembly.contacts]
     parts = foundation.parts
     n_face = sum(s.size for s in surfaces_of(model.surface))
@@ -214,7 +217,7 @@ def build_counterpart_designs(model, cfg, foundation) -> CounterpartDesigns:
             continue
         d1, d2 = df.design.degree
         surface = BezierSurface(d1, d2, x1hi - x1lo, x2hi - x2lo, x1lo, x2lo)
-        zero = _held_nodes(f, b, foundation, face.nodes)
+        zero = _held_nodes(f, face.nodes)
         if np.intersect1d(zero, face.nodes).size:
             problems.append(f"{cfg.source}: {key}.face = {cfg.assembly.designs[n]!r}: its nodes are clamped along x3 "
                             "or lie on the loaded part, so the design cannot move them")
@@ -228,6 +231,24 @@ def build_counterpart_designs(model, cfg, foundation) -> CounterpartDesigns:
     return CounterpartDesigns(out, n_face, foundation, backend=cfg.linear_solver.library)
 
 
+# objectives whose ∂J/∂α at a fixed state holds the counterparts' compliance C (the body's u_c = w + Π u_f)
+THROUGH_COMPLIANCE = ("compliance", "frictional_dissipation")
+
+
+def _check_objectives(cfg) -> None:
+    """ConfigError naming each objective or constraint not taken with a counterpart design so far:
+    those whose ∂J/∂α at a fixed state goes through the counterpart's compliance C(β) (this module
+    differentiates the contact law, not them)."""
+    which = ", ".join(cfg.assembly.designs[n] for n, _ in cfg.counterpart_designs)
+    given = (("objective", cfg.objective.types), ("constraints", {c.type for c in cfg.constraints}))
+    problems = [f"{cfg.source}: {where} {t!r} with a design on a counterpart body ({which}): its derivative "
+                "through the counterpart's compliance C(α) is not formed so far; use another objective (the "
+                "target forces, the pressure objectives, peak_stress)"
+                for where, types in given for t in sorted(types) if t in THROUGH_COMPLIANCE]
+    if problems:
+        raise ConfigError(problems)
+
+
 def _not_taken(f, design) -> str:
     """Why the counterpart ``f`` takes no design so far ('' where it does)."""
     if f.rigid is not None:
@@ -238,14 +259,14 @@ def _not_taken(f, design) -> str:
                 "linear_solver.path = 'condensation'")
     if f.basis is not None:
         return "mortar partners on six-node triangles take no counterpart design so far; use partner = 'point'"
-    if getattr(f, "control", "fixed") == "force":
+    if f.control == "force":
         return "a counterpart pressed by control = 'force' takes no design so far"
     if design.motion != "vertical":
         return "a designed counterpart face moves along x3 (motion = 'vertical') so far"
     return ""
 
 
-def _held_nodes(f, b: int, foundation, face_nodes) -> np.ndarray:
+def _held_nodes(f, face_nodes) -> np.ndarray:
     """The nodes of counterpart f a design does not move: x3 clamped, the loaded part, and the
     faces of its other pairs (their partners stay where they were found)."""
     fm = f.mesh
