@@ -53,7 +53,7 @@ class ShapeProblem:
     def __init__(self, config, *, method: str | None = None, optimizing: bool = False):
         self.config = config if isinstance(config, Config) else load_config(config)
         with self.config.assembly.named_as_written():      # a problem in the keys the model was written in
-            body = build_body(self.config)
+            body = build_body(self.config.face_body_designs())
             # pinned components on a foundation: fem.foundation checks they are clamped at their partners too
             name, library = select_path(self.config, memory.free_dofs(body), pinned=int(body.pinned_dofs.size),
                                         rigid=body.rigid, pinned_held=True)

@@ -17,8 +17,10 @@ counterpart, a table with the keys of ``[obstacle]``.
 Several designs (``[[designs]]`` with more than one entry) are faces of the face body, each the
 face of one of several pairs: the first is ``[design]`` on ``[body] contact``, the others are
 ``more_designs`` (each its face and the keys of ``[design]``), α the concatenation of their
-control points in ``[[designs]]`` order. A configuration beyond what the mechanics take is refused
-here, naming what it asks for.
+control points in ``[[designs]]`` order. A design may also lie on a counterpart body, on the part
+that is a pair's counterpart face (:mod:`contactopt.fem.cpdesigns`): it follows the face body's
+designs, and its ``more_designs`` entry names its body (``body``). A configuration beyond what the
+mechanics take is refused here, naming what it asks for.
 """
 
 from __future__ import annotations
@@ -56,7 +58,9 @@ ASSEMBLY_DOCS = {
                 "foundation.partner), `interference`, `initial_gap` (as in [body]), an optional `name`.",
     "designs": "A designed face, `[[designs]]`: `face = \"<body>.<part>\"` and the keys of [design]. Several "
                "entries design several faces of the face body in a model of several pairs, each a pair's face (α "
-               "their control points one after the other). A model without designs solves states only.",
+               "their control points one after the other); after them, a counterpart body's part that is a "
+               "pair's counterpart face may be designed too (its mesh moves along +x3 with its design). A model "
+               "without designs solves states only.",
 }
 
 
@@ -207,22 +211,43 @@ def desugar(raw: dict, problems: list) -> tuple[dict, list]:
         if name not in used:
             problems.append(f"bodies.{name}: takes part in no contact pair (a body of an assembly is held by its "
                             "clamps and its contacts with the others)")
+    counters = [c for _, _, c in pairs if isinstance(c, tuple)]
+    own = [n for n, f in enumerate(faces) if f[0] == face_body]
     for n, f in enumerate(faces):
-        if len(contacts) == 1 and f != (face_body, part):
+        if f[0] != face_body:
+            _check_counterpart_design(n, f, (face_body, part) if len(contacts) == 1 else face_body, counters, own,
+                                      problems)
+        elif len(contacts) == 1 and f != (face_body, part):
             problems.append(f"designs[{n}].face = {'.'.join(f)!r}: contactopt designs the face of the contact pair "
                             f"({face_body}.{part}) so far, not another face")
-        elif f[0] != face_body:
-            problems.append(f"designs[{n}].face = {'.'.join(map(_part_name, f))!r}: contactopt designs a face of the "
-                            f"body that carries the pairs' faces ({face_body!r}) so far")
-    if len(designs) > 1 and len(contacts) == 1:
-        problems.append(f"designs: {len(designs)} designed faces in a model of one pair; contactopt designs several "
-                        "faces of the face body in a model of several pairs so far (each designed face a pair's face)")
+    if len(own) > 1 and len(contacts) == 1:
+        problems.append(f"designs: {len(own)} designed faces of {face_body!r} in a model of one pair; contactopt "
+                        "designs several faces of the face body in a model of several pairs so far (each designed "
+                        "face a pair's face)")
     if len(problems) > n0:
         return _rest(raw), []
     out, renames = _sections(raw, bodies, contacts[0], pairs[0], designs, faces, problems, several=len(contacts) > 1)
     if len(contacts) > 1:
         _more_pairs(out, raw, bodies, contacts, pairs, faces, problems)
     return out, renames
+
+
+def _check_counterpart_design(n: int, face, owner, counters: list, own: list, problems: list) -> None:
+    """A design on a counterpart body (fem.cpdesigns): its face is a pair's counterpart part, and it
+    comes after every design of the face body (α: the face body's designs, then the counterparts').
+    ``owner``: the face body's name, or (body, face) of a model of one pair."""
+    name = '.'.join(map(_part_name, face))
+    face_body = owner if isinstance(owner, str) else owner[0]
+    first = (f"contactopt designs the face of the contact pair ({face_body}.{_part_name(owner[1])}) so far"
+             if isinstance(owner, tuple) else
+             f"contactopt designs a face of the body that carries the pairs' faces ({face_body!r}) so far")
+    if face not in counters:
+        others = ", ".join(f"{b}.{_part_name(p)}" for b, p in counters) or "none"
+        problems.append(f"designs[{n}].face = {name!r}: {first}, or after it a counterpart body's part that is a "
+                        f"pair's counterpart face (here: {others})")
+    elif not own or n < max(own):
+        problems.append(f"designs[{n}].face = {name!r}: {first}, first: a design of a counterpart body comes after "
+                        f"the designs of the face body {face_body!r} in [[designs]]")
 
 
 def _check_star(pairs: list, problems: list) -> None:
@@ -429,7 +454,8 @@ def _sections(raw: dict, bodies: dict, contact: dict, pair, designs: list, faces
     if designs:
         out["design"] = {k: copy.deepcopy(v) for k, v in designs[0].items() if k != "face"}
         if len(designs) > 1:          # the designs after the first, each with its face (resolved spelling)
-            out["more_designs"] = [{**copy.deepcopy(d), "face": copy.deepcopy(f[1])}
+            out["more_designs"] = [{**copy.deepcopy(d), "face": copy.deepcopy(f[1]),
+                                    **({"body": f[0]} if f[0] != face_body else {})}
                                    for d, f in zip(designs[1:], faces[1:])]
     else:                               # no design: the reference shape, ϑ = 0 (``run`` refuses the model)
         out["design"] = {"degree": [0, 0], "initial": 0.0, "C2": 0.0}
@@ -438,7 +464,8 @@ def _sections(raw: dict, bodies: dict, contact: dict, pair, designs: list, faces
              else f"rigid {counter.get('shape', 'plane')}")
     out["assembly"] = {"bodies": [face_body] + ([counter[0]] if isinstance(counter, tuple) else []),
                        "contacts": [{"name": name, "face": f"{face_body}.{_part_name(part)}", "counterpart": other}],
-                       "designs": [f"{face_body}.{_part_name(part)}"] if designs else []}
+                       "designs": [f"{face_body}.{_part_name(part)}"] + [f"{b}.{_part_name(p)}" for b, p in faces[1:]]
+                       if designs else []}
     return out, Assembly.of(out).renames()
 
 

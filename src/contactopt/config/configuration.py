@@ -10,7 +10,7 @@ derive a new one from it.
 from __future__ import annotations
 
 import copy
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import tomli_w
 
@@ -88,7 +88,8 @@ class Config:
                                     Foundation.from_dict(p["foundation"]) if "foundation" in p else None,
                                     Obstacle.from_dict(p["obstacle"]) if "obstacle" in p else None)
                         for p in data.get("pairs", [])),
-            more_designs=tuple(DesignFace(d["face"], Design.from_dict({k: v for k, v in d.items() if k != "face"}))
+            more_designs=tuple(DesignFace(d["face"], Design.from_dict({k: v for k, v in d.items()
+                                                                       if k not in ("face", "body")}), d.get("body"))
                                for d in data.get("more_designs", [])),
             assembly=Assembly.of(data), length_unit=data.get("length_unit", ""), source=source, _data=data)
 
@@ -101,6 +102,19 @@ class Config:
     def designs(self) -> tuple[Design, ...]:
         """Every design of the model in ``[[designs]]`` order: ``[design]`` and those of ``more_designs``."""
         return (self.design,) + tuple(d.design for d in self.more_designs)
+
+    @property
+    def counterpart_designs(self) -> tuple:
+        """(index in [[designs]], :class:`DesignFace`) of each design on a counterpart body
+        (fem.cpdesigns); they follow the face body's designs."""
+        return tuple((n, d) for n, d in enumerate(self.more_designs, start=1) if d.body is not None)
+
+    def face_body_designs(self) -> "Config":
+        """This configuration with the designs of the face body alone (its mesh, morph and
+        admissible set are built from them; the counterparts' designs by fem.cpdesigns)."""
+        if not self.counterpart_designs:
+            return self
+        return replace(self, more_designs=tuple(d for d in self.more_designs if d.body is None))
 
     @property
     def counterpart(self) -> str:

@@ -482,7 +482,9 @@ class ContactPair:
 @dataclass(frozen=True)
 class DesignFace:
     """A designed face after the first (``[[designs]]`` with more than one entry): its ``face`` (a
-    part of the face body) and its ``design``, a [design] of its own."""
+    part of the face body, or of the counterpart body ``body``) and its ``design``, a [design] of
+    its own."""
 
     face: Any
     design: Design
+    body: str | None = None        # a counterpart body's design (fem.cpdesigns); None: the face body's

@@ -436,7 +436,7 @@ def _check_more_designs(given, data, problems) -> list:
     for n, d in enumerate(given, start=1):
         key = f"designs[{n}]"
         sub = []
-        dsg = _check_table({k: v for k, v in d.items() if k != "face"}, SCHEMA["design"], "design", sub)
+        dsg = _check_table({k: v for k, v in d.items() if k not in ("face", "body")}, SCHEMA["design"], "design", sub)
         deg = dsg["degree"]
         d1d2 = deg if isinstance(deg, list) and len(deg) == 2 and all(_natint(v) for v in deg) else None
         _check_matrix(dsg["initial"], d1d2, "design.initial", sub)
@@ -444,13 +444,15 @@ def _check_more_designs(given, data, problems) -> list:
         if _finite(dsg["lower"]) and _pos(dsg["C0"]) and dsg["lower"] > dsg["C0"]:
             sub.append(f"design.lower = {dsg['lower']}: must be ≤ design.C0 = {dsg['C0']}")
         g = data.get("geometry")
-        if g is not None and _pos(g["c"]) and _pos(dsg["C0"]) and dsg["C0"] >= g["c"]:
+        if "body" not in d and g is not None and _pos(g["c"]) and _pos(dsg["C0"]) and dsg["C0"] >= g["c"]:
             sub.append(f"design.C0 = {dsg['C0']}: must be < geometry.c = {g['c']} (a surface reaching the top "
                        "face inverts the mesh)")
         if not _part_spec(d["face"]):
             sub.append("design.face: must name a part")
+        if "body" in d and not isinstance(d["body"], str):
+            sub.append("design.body: must name a counterpart body")
         problems += [p.replace("design.", f"{key}.", 1) for p in sub]
-        out.append({"face": copy.deepcopy(d["face"]), **dsg})
+        out.append({"face": copy.deepcopy(d["face"]), **dsg, **({"body": d["body"]} if "body" in d else {})})
     return out
 
 

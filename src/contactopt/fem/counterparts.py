@@ -155,6 +155,12 @@ class Counterparts:
                 raise ConfigError(["bodies: a counterpart body pressed by control = 'force' takes one pair per model "
                                    "so far; in a model of several pairs a counterpart body is held by its clamps or "
                                    "moved by control = 'displacement', a rigid counterpart may be pressed by a force"])
+        self.refresh()
+
+    def refresh(self) -> None:
+        """What is gathered from the parts (after one of them changed: a designed counterpart,
+        fem.cpdesigns): gaps, memory, the block condensation, the loads' resultant, Π, C, q, ℓ_o."""
+        p = self.p
         self.gap0 = None
         if all(f.gap0 is not None for f in self.parts):
             self.gap0 = np.zeros(p)

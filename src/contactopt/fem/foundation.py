@@ -31,6 +31,7 @@ pressures on its parts and a body force, the same in every load case) give q_f; 
 
 from __future__ import annotations
 
+import copy
 import logging
 
 import numpy as np
@@ -150,13 +151,16 @@ class Foundation:
                  "the partners of %d contact nodes", ref.source, ref.n_nodes, self.assembler.n_free, fm.E, fm.nu,
                  self.support.size, p)
 
-    def _condense(self, backend, P, p: int) -> None:
+    coords = None         # the node coordinates K_f is formed on (None: the reference mesh's)
+
+    def _condense(self, backend, P, p: int, coords=None) -> None:
         """K_f condensed onto the free support DOFs: ``condensation``, W_f and C = Π W_f Πᵀ (none
-        for a counterpart held only by its contacts, whose K_f is shifted by γ I_s)."""
+        for a counterpart held only by its contacts, whose K_f is shifted by γ I_s); on the mesh
+        moved to ``coords`` where given (a designed counterpart, fem.cpdesigns)."""
         from .linsolve import condense
         ref = self.mesh.reference
         with task(f"the foundation's compliance at {3 * p} contact unknowns"):
-            K = self.assembler.stiffness(ref.points)
+            K = self.assembler.stiffness(ref.points if coords is None else coords)
             if self.rigid is not None:          # K_f + γ I_s: its Schur complement is S_f + γ I (paths/rigid.py)
                 from ..paths.rigid import with_contact_diagonal
                 K, shift = with_contact_diagonal(K, self._support_free)
@@ -244,6 +248,30 @@ class Foundation:
                                f"the foundation, first u{int(comp[i]) + 1} of body node {int(node[i])}: clamp the "
                                "same plane of the foundation (foundation.clamped), else its compliance would add "
                                "to the clamped direction"])
+
+    def at_coordinates(self, coords: np.ndarray, backend: str = "auto") -> "Foundation":
+        """A copy of this counterpart on its mesh moved to ``coords`` (a designed counterpart,
+        :mod:`contactopt.fem.cpdesigns`): K_f, its condensation, W_f, C, f_f, ℓ_f and q_f formed
+        there; the partners Π (in the contact nodes' frames), the support and the translation are
+        this one's (found on the reference). MeshError where the moved mesh is inverted."""
+        from ..errors import MeshError
+        det = self.assembler.jacobian_determinants(coords)
+        if not np.all(det > 0):
+            e = int(np.unique(np.nonzero(~(det > 0))[0])[0])
+            raise MeshError(f"the design would leave element {e} of the counterpart {self.mesh.reference.source} "
+                            "inverted (det J ≤ 0)")
+        out = copy.copy(self)
+        out.coords = coords
+        out._condense(backend, self.P, self.P.shape[0] // 3, coords)
+        f_full = self.loads.vector(coords, self.assembler)
+        out.load_resultant = f_full.reshape(-1, 3).sum(axis=0)
+        out.f_f = f_full[self.assembler.free]
+        out.ell_f = out.condensation.condense_load(out.f_f)
+        out._u0 = out.condensation.solve(out.f_f) if np.any(out.f_f) else np.zeros_like(out.f_f)
+        out.q_f = self.P @ out._u0[self._support_free]
+        if self.motion is not None and self.control == "displacement":
+            out.q_f = out.q_f + self.motion
+        return out
 
     def rotate(self, R: np.ndarray) -> None:
         """Express the coupling in the contact nodes' frames R (p, 3, 3), columns (t1, t2, n):

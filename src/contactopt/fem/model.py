@@ -25,7 +25,7 @@ them: the rows and columns of A(α) it differentiates are the clamped ones.
 from __future__ import annotations
 
 import logging
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 import scipy.sparse as sp
@@ -36,7 +36,7 @@ from ..config import Config, load_config
 from ..design.admissible import AdmissibleSet
 from ..design.bezier import BezierSurface
 from ..design.chart import motion_directions
-from ..design.several import ProductAdmissible
+from ..design.several import DesignSurfaces, ProductAdmissible, surfaces_of
 from ..errors import ConfigError
 from ..mesh.block import block_axes
 from ..mesh.body import Body, build_body
@@ -44,6 +44,7 @@ from ..mesh.hexmesh import HexMesh
 from ..mesh.morph import JacobianRatio, MorphedMesh
 from ..mesh.obstacle import Obstacle, contact_frames, make_obstacle, tangent_frames
 from .counterparts import build_counterparts
+from .cpdesigns import PaddedMorph, build_counterpart_designs, padded_ratio
 from .designs import design_surfaces, design_weights, initial_designs, several_morphs
 from .elasticity import BBAR_AUTO_NU, ElasticityAssembler, element_geometry, resolve_formulation
 from .elements import element_type, face_type
@@ -142,7 +143,8 @@ class ElasticModel:
         onto its support (the full-space path's, :class:`~contactopt.fem.foundation.Foundation`)."""
         self._condensed = condensed
         cfg = load_config(config) if not isinstance(config, Config) else config
-        self.config = cfg
+        self.config = given = cfg
+        cfg = cfg.face_body_designs()         # the counterparts' designs: fem.cpdesigns, at the end
         self.body = body = build_body(cfg) if body is None else body
         formulation = _formulation(cfg.material, body.reference.cell_type, cfg.source)
         check = None
@@ -156,6 +158,7 @@ class ElasticModel:
         (x1lo, x1hi), (x2lo, x2hi) = body.domain
         a, b = x1hi - x1lo, x2hi - x2lo
         self.surface = BezierSurface(d1, d2, a, b, x1lo, x2lo) if not body.designs else design_surfaces(cfg, body)
+        self.face_surface = self.surface      # the face body's designs (α's first block, fem.cpdesigns)
         mat = cfg.material
         self.assembler = ElasticityAssembler(ref.cells, ref.n_nodes, body.fixed_dofs, mat.E, mat.nu,
                                              element=element_type(ref.cell_type),
@@ -253,6 +256,32 @@ class ElasticModel:
                 self.gap0 = lu.solve(np.asarray(self.gap0, float))
         if cfg.foundation is not None and cfg.foundation.control == "force":
             self._foundation_force(cfg.foundation)
+        self.cp_designs = None     # designs on counterpart bodies (fem.cpdesigns)
+        if given.counterpart_designs:
+            self._counterpart_designs(given)
+
+    def _counterpart_designs(self, cfg) -> None:
+        """α = (the face body's designs, the counterparts'): the surfaces, the face body's morph and
+        Jacobian ratio padded with the counterparts' columns, their gap columns and admissible sets
+        (fem.cpdesigns)."""
+        cp = self.cp_designs = build_counterpart_designs(self, cfg, self.foundation)
+        face = surfaces_of(self.surface)
+        self.face_surface = self.surface
+        self.surface = DesignSurfaces(tuple(face) + tuple(d.surface for d in cp.designs))
+        ratio = self.mesh.ratio
+        self.mesh = PaddedMorph(self.mesh, self.surface, cp.n_face)
+        self.mesh.ratio = padded_ratio(ratio, self.surface.size - cp.n_face)
+        self.gap_matrix = np.hstack([np.asarray(self.gap_matrix, float),
+                                     np.zeros((self.contact_nodes.size, self.surface.size - cp.n_face))])
+        self.gap_matrix += cp.gap_columns(self.contact_nodes.size, self.surface.size)
+        sets = list(self.admissible.sets) if isinstance(self.admissible, ProductAdmissible) else [self.admissible]
+        init = self.surface.split(self.initial_design())
+        ref = self.body.reference
+        for d in cp.designs:
+            dsg = cfg.designs[d.index]
+            sets.append(self._admissible_one(replace(dsg, nonnegative_gap=False), d.surface, d.morph, d.face.nodes,
+                                             init[d.index], f"designs[{d.index}]", ref))
+        self.admissible = ProductAdmissible(sets)
 
     def _foundation_force(self, spec) -> None:
         """A force-controlled foundation: its loaded part, and the foundation with it, translate by
@@ -600,7 +629,7 @@ class ElasticModel:
         ``coordinates`` refuse the others)."""
         d, src, jr = self.config.design, self.config.source, self.mesh.ratio
         problems = []
-        if self.body.designs:
+        if self.body.designs or self.cp_designs is not None:
             return self._designs_space_problems()
         worst, e, _, _ = jr.worst_on_box(d.C0, d.lower)
         if worst <= jr.threshold:
@@ -640,7 +669,7 @@ class ElasticModel:
         for k, d in enumerate(cfg.designs):
             if d.lower < 0 and not d.nonnegative_gap and not cfg.body.interference:
                 where = "below" if cfg.counterpart == "the foundation plane" else "into"
-                key = f"designs[{k}]" if self.body.designs else "design"
+                key = f"designs[{k}]" if len(cfg.designs) > 1 else "design"
                 log.warning("%s: %s.lower = %g < 0 with %s.nonnegative_gap = false: admissible designs may "
                             "put the contact face %s %s (an initial penetration; body.interference = true where "
                             "the overlap is intended)", cfg.source, key, d.lower, key, where, cfg.counterpart)
@@ -656,12 +685,25 @@ class ElasticModel:
 
     def initial_design(self) -> np.ndarray:
         """α0 of the configuration (a scalar fills every control point)."""
-        if self.body.designs:
+        if self.body.designs or isinstance(self.surface, DesignSurfaces):
             return initial_designs(self.config, self.surface)
         init = self.config.design.initial
         if np.isscalar(init):
             return np.full(self.n_design, float(init))
         return self.surface.as_vector(init)
+
+    def design_faces(self) -> list:
+        """(faces, morph, reference points of its body) of each design in ``[[designs]]`` order: the
+        face body's, then the counterparts' (fem.cpdesigns)."""
+        ref = self.body.reference.points
+        mesh = self.mesh if self.cp_designs is None else self.mesh.inner
+        if self.body.designs:
+            out = [(df.face.faces, m, ref) for df, m in zip(self.body.designs, mesh.morphs)]
+        else:
+            out = [(self.body.contact_face.faces, mesh, ref)]
+        for d in (self.cp_designs.designs if self.cp_designs is not None else ()):
+            out.append((d.face.faces, d.morph, d.morph.reference.points))
+        return out
 
     def contact_areas(self) -> np.ndarray:
         """Tributary areas ∫N_m dS of the contact nodes on the (flat) reference contact face, which

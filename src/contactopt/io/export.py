@@ -580,11 +580,11 @@ def export_design(model, alpha, outdir, formats=None, *, unit: str = "mm", stric
                 formats.remove(f)
                 skipped[f] = "no CAD kernel: " + CAD_HINT
                 log.warning("export: %s skipped (no CAD kernel; %s)", f.upper(), CAD_HINT)
-    if model.body.designs:
+    if model.body.designs or model.cp_designs is not None:
         # several designed faces: the round-trip configuration and the CAD surface are one design's
         several = [f for f in formats if f in ("mesh", "step", "iges")]
         if several and strict:
-            raise ExportError(f"export {', '.join(several)}: the model has {len(model.body.designs)} designed faces; "
+            raise ExportError(f"export {', '.join(several)}: the model has {len(model.config.designs)} designed faces; "
                               "the exported body with its configuration and the CAD surface are written for a "
                               "model of one design so far (export stl)")
         for f in several:

@@ -178,7 +178,7 @@ def _dual_edges(nodes: np.ndarray, lo: float, hi: float) -> np.ndarray:
 def _rectangle(model):
     """(x1lo, x1hi, x2lo, x2hi) of the design rectangle; several designs: the bounding rectangle of
     the contact nodes' chart coordinates (each node on its design's chart)."""
-    s = model.surface
+    s = model.face_surface
     if len(surfaces_of(s)) > 1:
         xy = np.asarray(model.mesh.contact_points(), float)
         return float(xy[:, 0].min()), float(xy[:, 0].max()), float(xy[:, 1].min()), float(xy[:, 1].max())
@@ -228,8 +228,8 @@ def _map_axes(fig, model, pos=None):
 
 def _pcolor(ax, model, grid, **kw):
     X1, X2, _ = contact_grid(model)
-    e1 = _dual_edges(X1[0], 0.0, model.surface.a)
-    e2 = _dual_edges(X2[:, 0], 0.0, model.surface.b)
+    e1 = _dual_edges(X1[0], 0.0, model.face_surface.a)
+    e2 = _dual_edges(X2[:, 0], 0.0, model.face_surface.b)
     return ax.pcolormesh(e1, e2, grid, shading="flat", **kw)
 
 
@@ -343,8 +343,8 @@ def plot_stress_comparison(path, model, target, initial, optimal, *,
         return _stress_maps(path, model, fields, titles, zlabel, suptitle)
     grids = [contact_grid(model, g)[2] for g in fields]
     X1, X2, _ = contact_grid(model)
-    e1 = _dual_edges(X1[0], 0.0, model.surface.a)
-    e2 = _dual_edges(X2[:, 0], 0.0, model.surface.b)
+    e1 = _dual_edges(X1[0], 0.0, model.face_surface.a)
+    e2 = _dual_edges(X2[:, 0], 0.0, model.face_surface.b)
     # each bar fills 80 % of its node's dual cell (clipped to the rectangle), centred in it
     dx, dy = 0.8 * np.diff(e1), 0.8 * np.diff(e2)
     c1, c2 = 0.5 * (e1[1:] + e1[:-1]), 0.5 * (e2[1:] + e2[:-1])
@@ -362,10 +362,10 @@ def plot_stress_comparison(path, model, target, initial, optimal, *,
         ax = fig.add_subplot(1, len(grids), n + 1, projection="3d")
         colors = cm((g.ravel() - zmin) / (zmax - zmin))
         _bars(ax, x0.ravel(), y0.ravel(), DX.ravel(), DY.ravel(), g.ravel(), colors)
-        ax.set_xlim(0.0, model.surface.a)
-        ax.set_ylim(0.0, model.surface.b)
+        ax.set_xlim(0.0, model.face_surface.a)
+        ax.set_ylim(0.0, model.face_surface.b)
         ax.set_zlim(zmin - (pad if zmin < 0 else 0.0), zmax + pad)
-        ax.set_box_aspect((model.surface.a, model.surface.b, 0.8 * max(model.surface.a, model.surface.b)))
+        ax.set_box_aspect((model.face_surface.a, model.face_surface.b, 0.8 * max(model.face_surface.a, model.face_surface.b)))
         xlabel, ylabel = _axis_labels(model)
         ax.set_xlabel(xlabel)
         ax.set_ylabel(ylabel)
@@ -466,17 +466,19 @@ def plot_surface(path, model, alpha, *, resolution=(81, 41), title="Contact surf
         return _save(fig, path)
     fig = _new_figure((6.0 * D, 5.5), layout=None)
     names = model.config.assembly.designs
-    for k, (surf, a, df, morph) in enumerate(zip(surfaces, blocks, model.body.designs, model.mesh.morphs)):
+    for k, (surf, a, (faces, morph, points)) in enumerate(zip(surfaces, blocks, model.design_faces())):
         ax = fig.add_subplot(1, D, k + 1, projection="3d")
-        sm = _surface_panel(ax, model, surf, a, df.face.faces, morph, resolution, f"designs[{k}]: {names[k]}", False)
+        sm = _surface_panel(ax, model, surf, a, faces, morph, resolution, f"designs[{k}]: {names[k]}", False,
+                            points)
         fig.colorbar(sm, ax=ax, shrink=0.6, label="$\\vartheta_\\alpha$")
     fig.suptitle(title, fontsize=11)
     return _save(fig, path)
 
 
-def _surface_panel(ax, model, surf, alpha, faces, morph, resolution, title, grid):
+def _surface_panel(ax, model, surf, alpha, faces, morph, resolution, title, grid, points=None):
     """One design's surface on ``ax``: ϑ over its design rectangle (over its face only unless the
-    face is the block's whole grid), the control net, labels; returns the surface for a colour bar."""
+    face is the block's whole grid), the control net, labels; returns the surface for a colour bar.
+    ``points``: the reference nodes of the body the face lies on (None: the face body's)."""
     A = surf.as_matrix(alpha)
     x1lo, x1hi, x2lo, x2hi = surf.x1lo, surf.x1lo + surf.a, surf.x2lo, surf.x2lo + surf.b
     x1 = np.linspace(x1lo, x1hi, resolution[0])
@@ -488,7 +490,7 @@ def _surface_panel(ax, model, surf, alpha, faces, morph, resolution, title, grid
         corners = np.asarray(faces)
         corners = corners[:, :4] if corners.shape[1] == 4 else corners[:, :3]
         tris = np.vstack([corners[:, [0, 1, 2]], corners[:, [0, 2, 3]]]) if corners.shape[1] == 4 else corners
-        xy = morph.chart_points(model.body.reference.points)     # the face unrolled on its chart
+        xy = morph.chart_points(model.body.reference.points if points is None else points)   # unrolled on its chart
         inside = Triangulation(xy[:, 0], xy[:, 1], tris).get_trifinder()(G1, G2) >= 0
         Z = np.where(inside, Z, np.nan)
     c1 = x1lo + surf.a * np.arange(surf.d1 + 1) / max(surf.d1, 1)

@@ -84,6 +84,7 @@ class CondensedSystem(SystemParts):
     force: float | None = None         # a load step's |f| of a force-controlled obstacle (None: the model's)
     moved: float = 0.0                 # the force search's translation s of the counterpart (.force)
     basis: object = None               # the transformed basis of quadratic faces (transforms.Basis): u_c = Vᵀ û
+    counterpart_terms: tuple | None = None   # (ṽ, the designed counterparts' design terms) of its last adjoint
 
     @property
     def law_S(self) -> np.ndarray:
@@ -185,9 +186,12 @@ class CondensationPath(ZonePath):
         system = CondensedSystem(asm, fac, S, ell, asm.gap, {}, basis=mech.basis)
         if mech.shift is not None:
             system = shifted(system, mech.shift.vector)
-        if mech.couple is not None:
-            system.coupling = Coupling(system.S, mech.couple, anchored=mech.anchor is not None)
-        extra = None if mech.couple is None else mech.couple.kernel()   # counterparts held by contact
+        couple = mech.couple
+        if couple is not None and self.model.cp_designs is not None:   # designed counterparts: formed at α
+            couple = self.model.cp_designs.foundation_at(asm.alpha)
+        if couple is not None:
+            system.coupling = Coupling(system.S, couple, anchored=mech.anchor is not None)
+        extra = None if couple is None else couple.kernel()   # counterparts held by contact
         if mech.anchor is not None or extra is not None:
             system.rigid = anchor(self.model, mech.anchor, asm, system.contact_S, mech.frames, mech.basis, extra)
         system.timings["schur"] = time.perf_counter() - t1
@@ -211,7 +215,7 @@ class CondensationPath(ZonePath):
             ell = self.mechanics.rotate.vector(ell)
         if self.mechanics.basis is not None:
             ell = self.mechanics.basis.vector(ell)
-        out = replace(system, assembled=asm, ell=ell, ell_eff=None, timings={})
+        out = replace(system, assembled=asm, ell=ell, ell_eff=None, timings={}, counterpart_terms=None)
         if out.shift is not None:
             out = shifted(out, out.shift)
         out.timings["schur"] = time.perf_counter() - t1
@@ -251,7 +255,7 @@ class CondensationPath(ZonePath):
         if reuse and shared is not None and "zone" in shared:
             zp = shared["zone"].on_load(system.ell, system.law_offset, zone)
         else:
-            zp = CoupledZoneProblem(system.S, self.foundation.C, system.ell, system.law_offset, zone)
+            zp = CoupledZoneProblem(system.S, system.coupling.foundation.C, system.ell, system.law_offset, zone)
             if reuse and shared is not None:
                 shared["zone"] = zp
         system.coupling.zone_problem = zp
@@ -293,7 +297,7 @@ class CondensationPath(ZonePath):
         output reads it (:class:`~contactopt.contact.state.FoundationState`): it holds only the
         run's foundation and a few contact vectors (the counterparts' support displacement o,
         formed here), not the design's factorizations."""
-        f = self.foundation
+        f = system.coupling.foundation
         if f.ell_o is None:            # one foundation: its own solve under −Πᵀr
             return partial(f.displacement, np.array(r), system.moved)
         o = system.coupling.support_displacement(np.ravel(u_c), system.ell, r)
@@ -304,7 +308,7 @@ class CondensationPath(ZonePath):
 
     def own_block(self, system, zone):
         if system.compliant:
-            return CoupledZoneProblem(system.S, self.foundation.C, system.ell, system.law_offset, zone).W
+            return CoupledZoneProblem(system.S, system.coupling.foundation.C, system.ell, system.law_offset, zone).W
         return zone_rules.ZoneProblem(system.law_S, system.law_ell, zone).W
 
     def adjoint(self, system, ctx, state, y_u, y_lam, choices=None, carry=None):
@@ -343,10 +347,11 @@ class CondensationPath(ZonePath):
         if system.coupling is None:
             z = v_u
         else:
-            if y_c is not None and self.foundation.C is None:
+            C = system.coupling.foundation.C
+            if y_c is not None and C is None:
                 raise SolverError("an objective of the body's whole displacement needs the compliance of its "
                                   "counterparts, and a counterpart held only by its contacts has none")
-            z = system.coupling.adjoint_z(v_u if y_c is None else v_u - self.foundation.C @ y_c)
+            z = system.coupling.adjoint_z(v_u if y_c is None else v_u - C @ y_c)
         if self.mechanics.basis is not None:
             z = self.mechanics.basis.back(z)
         if self.mechanics.rotate is not None:
@@ -354,7 +359,11 @@ class CondensationPath(ZonePath):
         v = system.factor.extend(z)
         if zhat is not None:
             v = v - zhat
-        return Adjoint(v_u, v_lam, self.model.assembler.to_full(v))
+        out = Adjoint(v_u, v_lam, self.model.assembler.to_full(v))
+        if self.model.cp_designs is not None:      # the adjoint's contact force s = S_eff v_u (fem.cpdesigns)
+            s = system.contact_S @ v_u if y_c is None else system.contact_S @ (v_u - C @ y_c) + y_c
+            self._counterpart_terms(system, state, s, out.v)
+        return out
 
     def _compliant_adjoint(self, system, ctx, state, y_u, y_lam, choices) -> Adjoint:
         """(4.15) in W-form, solved directly (:func:`~contactopt.sensitivity.adjoint.solve_adjoint_compliant`):
@@ -365,7 +374,7 @@ class CondensationPath(ZonePath):
         zp = coupling.zone_problem
         if zp is None:                 # no state solved on this design's factor here
             zp = self._coupled_zone(system, np.flatnonzero(state.classes != CLASS_CODES["L"]))
-        C = self.foundation.C
+        C = coupling.foundation.C
 
         def apply(s):
             x = zp.body_solve(s)
@@ -383,7 +392,25 @@ class CondensationPath(ZonePath):
             z = self.mechanics.basis.back(z)
         if self.mechanics.rotate is not None:
             z = self.mechanics.rotate.back(z)
-        return Adjoint(v_u, v_lam, self.model.assembler.to_full(system.factor.extend(z)))
+        out = Adjoint(v_u, v_lam, self.model.assembler.to_full(system.factor.extend(z)))
+        if self.model.cp_designs is not None:
+            self._counterpart_terms(system, state, s, out.v)
+        return out
+
+    def _counterpart_terms(self, system, state, s: np.ndarray, v_full: np.ndarray) -> None:
+        """The design terms of the counterparts' designs at this adjoint (s its contact force per
+        node frame), kept on the system for :meth:`design_contraction` (fem.cpdesigns)."""
+        r = np.column_stack([-state.tau, state.lam])
+        cp = self.model.cp_designs
+        system.counterpart_terms = (v_full, cp.design_terms(system.coupling.foundation, r, s, self.model.n_design))
+
+    def design_contraction(self, system, u_full, v_full, loads=None) -> np.ndarray:
+        """The face body's design terms, plus the counterparts' designs' of the adjoint ``v_full``."""
+        out = super().design_contraction(system, u_full, v_full, loads)
+        kept = system.counterpart_terms
+        if kept is not None and kept[0] is v_full:
+            out = out + kept[1]
+        return out
 
     def law_extension(self, system, x: np.ndarray) -> np.ndarray:
         """The A-harmonic extension, on every DOF, of the body's contact displacement that the
