@@ -352,22 +352,14 @@ def test_a_zero_force_a_foundation_and_the_other_paths_are_refused(tmp_path, cap
              "obstacle.force = [0, 0, 0]", "no component along any free direction")
     with pytest.raises(ConfigError, match="no contact node's normal has a component along the force"):
         ShapeProblem(block({**SPHERE, "control": "force", "force": [0.0, 0.0, -1.0]}))
-    with pytest.raises(ConfigError, match="force-controlled plane"):
-        select_path(block({"shape": "plane", "control": "force", "force": [0.0, 0.0, 1.0]}, path="petsc"), 10)
     with pytest.raises(ConfigError, match=r"\[obstacle\] and \[foundation\] exclude each other"):
         block(SPHERE, foundation={"block": {"size": [3.0, 3.0, 1.0], "cells": [3, 3, 1]}})
-    # force control on the paths that take obstacles; PETSc refuses it, naming them
-    with pytest.raises(ConfigError, match="force-controlled sphere .* solved on the 'condensation', 'delassus' and "
-                                          "'fullspace' paths only") as refused:
-        select_path(block(FORCED["sphere"], path="petsc"), 1000)
-    assert str(refused.value).count("is solved on") == 1
+    # force control on the paths that take obstacles (the PETSc path's: tests/test_petsc_bodies.py)
     for path in ("delassus", "fullspace"):
         assert select_path(block(FORCED["sphere"], path=path), 1000)[0] == path
         assert select_path(block({"shape": "plane", "control": "force", "force": [0.0, 0.0, 1.0]}, path=path),
                            10)[0] == path
     assert select_path(block(FORCED["sphere"], path="auto"), 10 ** 7)[0] == "condensation"
-    with pytest.raises(ConfigError, match="solved on the 'condensation', 'delassus' and 'fullspace' paths"):
-        select_path(block(SPHERE, path="petsc"), 1000)
     for path in ("delassus", "fullspace"):
         assert select_path(block(SPHERE, path=path), 1000)[0] == path
     assert select_path(block(SPHERE, path="auto"), 10 ** 7)[0] == "condensation"

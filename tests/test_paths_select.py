@@ -98,7 +98,7 @@ def test_the_feature_table_is_what_the_paths_linear_algebra_takes():
     table = {f: [n for n, cls in paths.PATHS.items() if getattr(cls.capabilities, f)] for f in Capabilities.features()}
     every = ["condensation", "delassus", "fullspace", "petsc"]
     assert table == {"foundation": ["condensation", "fullspace", "petsc"], "pairs": ["condensation", "fullspace", "petsc"],
-                     "counterpart_force": ["condensation", "fullspace", "petsc"], "obstacle": ["condensation", "delassus", "fullspace"],
+                     "counterpart_force": ["condensation", "fullspace", "petsc"], "obstacle": ["condensation", "delassus", "fullspace", "petsc"],
                      "obstacle_steps": ["condensation"], "held_by_contact": ["condensation"], "pinned": every,
                      "compliance": ["condensation"], "whole_displacement": every, "load_steps": every,
                      "many_ranks": ["petsc"]}

@@ -131,11 +131,13 @@ class ForceSearch:
         m = path.model
         c, b = self.force.gap_rate, self.force.b
         e = self.force.slip
-        A, asm = system.assembled.A, m.assembler
+        asm = m.assembler
+        # A(α) x on the free DOFs: the matrix, or its product on the ranks where it is not formed here
+        Ax = system.product if system.product is not None else system.assembled.A.__matmul__
         frames = m.frames
         dT_ds = -float(v_lam @ c)
         if np.any(e):
-            force = (A @ np.asarray(v)[asm.free])[m.contact_dofs]       # (A ṽ)_c
+            force = Ax(np.asarray(v)[asm.free])[m.contact_dofs]       # (A ṽ)_c
             if y_u is not None and path.is_full(y_u):                    # J of the body's u = w + s e
                 force = force + np.asarray(y_u, float)[asm.free][m.contact_dofs]
             if frames is not None:
@@ -155,10 +157,10 @@ class ForceSearch:
         bg = b.ravel() if frames is None else np.einsum("mij,mj->mi", frames, b).ravel()
         e_free = np.zeros(asm.n_free)
         e_free[m.contact_dofs] = bg
-        y_F = asm.to_full(A @ e_free)                 # ∂F/∂u on every DOF
+        y_F = asm.to_full(Ax(e_free))                 # ∂F/∂u on every DOF
         w = path.adjoint(system, ctx, state, y_F, np.zeros(c.size))
         z = w.v + asm.to_full(e_free)                 # the A-harmonic extension of Q(b + w_u)
-        Sz = (A @ z[asm.free])[m.contact_dofs]
+        Sz = Ax(z[asm.free])[m.contact_dofs]
         if frames is not None:
             Sz = np.einsum("mij,mi->mj", frames, Sz.reshape(-1, 3)).ravel()
         dF_da = path.design_contraction(system, state.u, z, loads) + m.gap_matrix.T @ w.v_lam

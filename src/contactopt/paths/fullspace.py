@@ -137,6 +137,12 @@ class FullSpaceCommon(SolverPath):
             return None
         return overlap_force(diag_c(), gap)
 
+    def local_contraction(self, system, state, z_loc, loads=None) -> np.ndarray:
+        """The design term of (T z_loc) on the body, z_loc in the unknowns of all bodies (a hook of
+        :func:`.coupled.force_terms`)."""
+        z = self.model.assembler.to_full(system.couple.split(np.asarray(z_loc, float))[0])
+        return self.design_contraction(system, state.u, z, loads)
+
     @staticmethod
     def law_displacement(state) -> np.ndarray:
         """(p, 3) the friction law's displacement of a state: u_c, in a load step with the slip
@@ -267,11 +273,9 @@ class FullSpacePath(FullSpaceCommon):
         if self.frames is None:
             return FullSystem(asm, asm.gap, {}, shift=shift)
         T = frame_rotation(self.model.contact_dofs, self.frames, self.model.assembler.n_free)
-        A = sp.csr_matrix(T.T @ asm.A @ T)
-        if self.model.pinned_dofs.size:
-            # the product drops the exact zeros of pinned rows: keep every contact node's 3×3 block
-            # in the pattern (the Robin blocks are added there)
-            A = with_contact_blocks(A, self.model.contact_dofs)
+        # the product drops exact zeros (of pinned rows, or where a frame's zero meets the design's
+        # values): keep every contact node's 3×3 block in the pattern (the Robin blocks are added there)
+        A = with_contact_blocks(sp.csr_matrix(T.T @ asm.A @ T), self.model.contact_dofs)
         A.sort_indices()
         return FullSystem(asm, asm.gap, {}, T, A, T.T @ asm.L, shift)
 
@@ -415,10 +419,6 @@ class FullSpacePath(FullSpaceCommon):
 
     def last_adjoint(self, system, ctx) -> np.ndarray:
         return ctx.adjoint_v
-
-    def local_contraction(self, system, state, z_loc, loads=None) -> np.ndarray:
-        z = self.model.assembler.to_full((system.T @ z_loc)[:system.couple.n_body])
-        return self.design_contraction(system, state.u, z, loads)
 
     def adjoint_force(self, system, ctx, v_u):
         """S v_u = (A ṽ)_c: ṽ, the last adjoint's A-harmonic extension of v_u, has A ṽ = Bᵀ S v_u."""

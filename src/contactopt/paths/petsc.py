@@ -49,6 +49,7 @@ from .coupled import FullSpaceCouple
 from .coupled import force_terms as coupled_force_terms
 from .fullspace import COUPLED_FORCING, FullSpaceCommon, refuse_counterparts
 from .protocol import Call, Command, Problem, new_path_id, send
+from .transforms import FrameChange
 
 log = logging.getLogger(__name__)
 
@@ -95,7 +96,7 @@ class PetscPath(FullSpaceCommon):
 
     name = "petsc"
     newton_label = "PETSc full-space Newton"
-    capabilities = Capabilities(foundation=True, pairs=True, counterpart_force=True, pinned=True,
+    capabilities = Capabilities(foundation=True, pairs=True, counterpart_force=True, obstacle=True, pinned=True,
                                 whole_displacement=True, many_ranks=True, load_steps=True, libraries=("petsc4py",),
                                 sparse="petsc", auto="ranks")
     condenses_counterparts = False      # elastic counterparts join the Newton system (.coupled)
@@ -118,12 +119,17 @@ class PetscPath(FullSpaceCommon):
             send(Problem(self.id, model.config))
         _set_options(model.config.linear_solver.petsc_options)
         t0 = time.perf_counter()
-        self.couple = None              # elastic counterparts: both bodies' change of unknowns (.coupled)
+        # the change of unknowns u = T u_loc of the Newton system: elastic counterparts' (.coupled: both
+        # bodies), an obstacle's nodes' frames (.transforms.FrameChange), or none (the plane)
+        self.couple = self.change = None
         if model.foundation is not None:
             refuse_counterparts(model, self.name)
-            self.couple = FullSpaceCouple(model.foundation, model.contact_dofs, model.assembler.n_free,
-                                          self.mechanics.frames)
-            self.dist = dist = DistributedBodies(model, self.couple.T, self.couple.parts, self.size, self.rank)
+            self.couple = self.change = FullSpaceCouple(model.foundation, model.contact_dofs, model.assembler.n_free,
+                                                        self.mechanics.frames)
+        elif self.mechanics.frames is not None:
+            self.change = FrameChange(model.contact_dofs, self.mechanics.frames, model.assembler.n_free)
+        if self.change is not None:
+            self.dist = dist = DistributedBodies(model, self.change.T, list(self.change.parts), self.size, self.rank)
             self._T_inv = None          # T⁻¹, for A(α) x of an objective (built on first use)
         else:
             self.dist = dist = DistributedBody(model, self.size, self.rank)
@@ -183,18 +189,18 @@ class PetscPath(FullSpaceCommon):
         with elastic counterparts as T⁻ᵀ (Tᵀ diag(A, K_f) T) T⁻¹ (x, 0), the body's rows."""
         d = self.dist
         x = np.asarray(x_free, dtype=float)
-        if self.couple is None:
+        if self.change is None:
             return d.free_vector(self._call(Command.PRODUCT, system.key, d.petsc_of_free(x)))
         if self._T_inv is None:
-            self._T_inv = self.couple.inverse()
-        x_loc = self._T_inv @ np.concatenate([x, np.zeros(self.couple.n - x.size)])
+            self._T_inv = self.change.inverse()
+        x_loc = self._T_inv @ np.concatenate([x, np.zeros(self.change.n - x.size)])
         y_loc = d.free_vector(self._call(Command.PRODUCT, system.key, d.petsc_of_free(x_loc)))
         return (self._T_inv.T @ y_loc)[:x.size]
 
     @property
     def n_unknowns(self) -> int:
         """The Newton system's unknowns: the body's free DOFs, and the counterparts' with them."""
-        return self.model.assembler.n_free if self.couple is None else self.couple.n
+        return self.model.assembler.n_free if self.change is None else self.change.n
 
     def _product(self, skey, x_all):
         if self._design_key is None or skey not in self._systems:
@@ -207,7 +213,8 @@ class PetscPath(FullSpaceCommon):
         self._systems.clear()              # the systems of earlier designs are not asked again
         asm = Assembled(np.asarray(alpha), coords, None, L_full, self.model.free_load(L_full), gap)
         self._design_key = key
-        system = PetscSystem(key, asm, gap, self._load(L_full), {}, couple=self.couple,
+        shift = None if self.mechanics.shift is None else self.mechanics.shift.tangential
+        system = PetscSystem(key, asm, gap, self._load(L_full), {}, couple=self.couple, shift=shift,
                              normal=self.newton._diag_at_contact()[:, 2])     # collective: every rank
         system.timings["petsc_assembly"] = time.perf_counter() - t0
         self._systems[key] = system
@@ -217,7 +224,8 @@ class PetscPath(FullSpaceCommon):
         base = self._systems[base_key]
         asm = Assembled(base.assembled.alpha, base.assembled.coords, None, L_full,
                         self.model.free_load(L_full), base.gap)
-        system = PetscSystem(key, asm, base.gap, self._load(L_full), {}, couple=self.couple, normal=base.normal)
+        system = PetscSystem(key, asm, base.gap, self._load(L_full), {}, couple=self.couple, shift=base.shift,
+                             normal=base.normal)
         self._systems[key] = system
         return system
 
@@ -239,8 +247,8 @@ class PetscPath(FullSpaceCommon):
         v = self.newton.A.createVecRight()
         d = self.dist
         L = self.model.free_load(L_full)
-        if self.couple is not None:
-            L = self.couple.T.T @ self.couple.load(L)
+        if self.change is not None:
+            L = self.change.T.T @ self.change.load(L)
         v.getArray()[:] = d.owned(d.petsc_of_free(L))
         return v
 
@@ -250,7 +258,7 @@ class PetscPath(FullSpaceCommon):
         if self._hier is not None:
             self._hier.destroy()
         self.newton.plain()
-        if self.couple is None:
+        if self.change is None:
             self._hier = PetscHierarchy(self.newton.G, self.newton.H, self.dist.coordinates(coords), self.dist.contact)
         else:
             self._hier = PetscHierarchy(self.newton.G, self.newton.H, None, self.dist.contact,
@@ -263,7 +271,7 @@ class PetscPath(FullSpaceCommon):
         modes in u_loc (:meth:`~.coupled.FullSpaceCouple.modes`), orthonormalized over all DOFs
         (every rank holds them whole and takes the same QR)."""
         d = self.dist
-        M = self.couple.modes(coords, self.model.assembler.free)
+        M = self.change.modes(coords, self.model.assembler.free)
         full = np.zeros((d.n, M.shape[1]))
         full[d.dof_of_free] = M
         Q, _ = np.linalg.qr(full)
@@ -324,29 +332,30 @@ class PetscPath(FullSpaceCommon):
         if warm_start and warm is not None and ctx.u_all is not None:
             u0 = self.newton.A.createVecRight()
             u0.getArray()[:] = self.dist.owned(ctx.u_all)
-        gap, law_ref, forcing = system.gap, slip_ref, {}
-        if self.couple is not None:      # the counterparts' translation q: gap g − q_ν, the slip's reference q_t
+        # the counterparts' translation q: gap g − q_ν, the slip's reference q_t; an obstacle's or a
+        # pressed counterpart's tangential translation (the system's shift) joins the reference too
+        gap, shift, forcing = system.gap, system.shift, {}
+        if self.couple is not None:
             q = self.couple.offset
             gap = gap - q[:, 2]
-            shift = system.shift
             if np.any(q[:, :2]):
                 shift = q[:, :2] if shift is None else shift + q[:, :2]
-            if shift is not None:
-                law_ref = shift if slip_ref is None else slip_ref + shift
             forcing = COUPLED_FORCING
+        law_ref = slip_ref if shift is None else (shift if slip_ref is None else slip_ref + shift)
         scale = self.fit_scale(system.L.norm(), self.newton._diag_at_contact, gap)   # collective: every rank
         res = run_chain(PetscProblem(self.newton, self._hier, system.L, gap, self.friction, r0=warm,
                                      u0=u0, slip_ref=law_ref, force_scale=scale,
                                      **self.newton_options(ctx, tol, warm_start), **forcing))
         stored.u_all = system.u_all = ctx.u_all = res.u_all
         u_free, u_c, found = self.dist.free_vector(res.u_all), None, None
+        if self.change is not None:
+            u_free, u_f = self.change.split(u_free)
         if self.couple is not None:
-            u_free, u_f = self.couple.split(u_free)
             u_c = res.u_c - self.couple.offset          # the law's w
-            if system.shift is not None:
-                u_c = u_c.copy()
-                u_c[:, :2] -= system.shift
             found = self._foundation_state(self.couple, u_free, u_f, u_c, system.moved)
+        if system.shift is not None:
+            u_c = (res.u_c if u_c is None else u_c).copy()
+            u_c[:, :2] -= system.shift
         return self.state_of(ctx, system, alpha, res, u_free=u_free, u_c=u_c, t0=t0,
                              t_setup=t_setup, stats={"backend": "petsc", "ranks": self.size,
                                                      **({"fallback": res.fallback} if res.fallback else {})},
@@ -362,8 +371,8 @@ class PetscPath(FullSpaceCommon):
         y_u = np.asarray(y_u, dtype=float)
         if self.is_full(y_u):            # ∂J/∂u on every DOF: its free part, in PETSc's order
             y_u = y_u[self.model.assembler.free]
-            if self.couple is not None:  # ... of the body, into u_loc
-                y_u = self.couple.extend(y_u)
+            if self.change is not None:  # ... of the body, into u_loc
+                y_u = self.change.extend(y_u)
                 ctx.adjoint_rhs_c = y_u[self.model.contact_dofs].copy()
                 if carry is not None:
                     y_u[self.model.contact_dofs] += carry
@@ -390,19 +399,10 @@ class PetscPath(FullSpaceCommon):
     def last_adjoint(self, system, ctx) -> np.ndarray:
         return self.dist.free_vector(system.v_all)
 
-    def local_contraction(self, system, state, z_loc, loads=None) -> np.ndarray:
-        """The design term of T z on the body: the stiffness part on the ranks (:meth:`_contraction`
-        with z for ṽ), the load's here."""
-        m = self.model
-        part = self._call(Command.CONTRACTION, system.key, self.dist.petsc_of_free(np.asarray(z_loc, float)),
-                          np.asarray(state.u))
-        z = m.unpin(m.assembler.to_full(self.couple.split(np.asarray(z_loc, float))[0]))
-        return part - m.mesh.contract_dx((loads or m.loads).shape_contraction(system.assembled.coords, z, m.assembler))
-
     def _body_free(self, x_all) -> np.ndarray:
         """The body's free DOFs of a vector on all PETSc DOFs (with counterparts: of T x_loc)."""
         x = self.dist.free_vector(x_all)
-        return x if self.couple is None else self.couple.split(x)[0]
+        return x if self.change is None else self.change.split(x)[0]
 
     def adjoint_force(self, system, ctx, v_u):
         """S v_u = (A ṽ)_c of the last adjoint of ``ctx`` (gathered on every rank by the adjoint)."""
@@ -426,30 +426,20 @@ class PetscPath(FullSpaceCommon):
         return v_u, v_lam, its, force
 
     def design_contraction(self, system, u_full, v_full, loads=None) -> np.ndarray:
-        """vᵀ(∂A/∂α u − ∂L/∂α): the stiffness part per rank over its own elements, summed on rank 0."""
-        # with counterparts the body's u goes with the call: a force search's last solve need not be the state's
-        part = self._call(Command.CONTRACTION, system.key, None, None if self.couple is None else np.asarray(u_full))
+        """vᵀ(∂A/∂α u − ∂L/∂α): the stiffness part per rank over its own elements, summed on rank 0
+        (u, v, the body's on every DOF, go with the call: a force search's last solve need not be
+        the state's, and a force's adjoint term is of z = w̃ + ẽ)."""
         m = self.model
-        coords = system.assembled.coords
-        v_full = m.unpin(v_full)            # the pinned DOFs are clamped (fem.model)
-        return part - m.mesh.contract_dx((loads or m.loads).shape_contraction(coords, v_full, m.assembler))
+        u_full, v_full = m.unpin(np.asarray(u_full, float)), m.unpin(np.asarray(v_full, float))   # pinned: clamped
+        part = self._call(Command.CONTRACTION, system.key, u_full, v_full)
+        return part - m.mesh.contract_dx((loads or m.loads).shape_contraction(system.assembled.coords, v_full,
+                                                                                m.assembler))
 
-    def _contraction(self, skey, v_all=None, u_full=None):
-        """This rank's part of ṽᵀ(∂A/∂α)u, summed on rank 0; ``v_all`` (every PETSc DOF) in place of
-        the last adjoint's ṽ, ``u_full`` (the body's, model order) in place of the last state's."""
+    def _contraction(self, skey, u_full, v_full):
+        """This rank's part of vᵀ(∂A/∂α)u (the body's u, v on every DOF, model order), summed on rank 0."""
         from mpi4py import MPI
         system = self._systems[skey]
-        if v_all is not None:
-            system = replace(system, v_all=v_all)
-        m = self.model
-        if self.couple is None:
-            full = self.dist.dof_of_full
-            u, v = system.u_all[full], system.v_all[full]
-        else:                            # the body's u and ṽ: T times those of u_loc
-            u, v = (m.assembler.to_full(self._body_free(x)) for x in (system.u_all, system.v_all))
-            if u_full is not None:
-                u = u_full
-        part = self.dist.contraction(m, system.assembled.coords, m.unpin(u), m.unpin(v))
+        part = self.dist.contraction(self.model, system.assembled.coords, u_full, v_full)
         total = np.zeros_like(part)
         _world().Reduce(part, total, op=MPI.SUM, root=0)
         return total

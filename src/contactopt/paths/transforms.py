@@ -180,3 +180,37 @@ class Mechanics:
     def frames(self) -> np.ndarray | None:
         """(p, 3, 3) the nodes' frames, None on the plane."""
         return None if self.rotate is None else self.rotate.R
+
+
+class FrameChange:
+    """The full-space unknowns of a body on a rigid obstacle other than the plane: u = T u_loc with
+    T = :func:`frame_rotation` (orthogonal), the contact DOFs in the nodes' frames (t1, t2, n). It
+    has the interface of :class:`~contactopt.paths.coupled.FullSpaceCouple` that the PETSc path
+    reads (``T``, ``n``, ``n_body``, ``parts``, ``split``, ``extend``, ``load``, ``modes``,
+    ``inverse``), with no counterpart DOFs."""
+
+    parts = ()
+
+    def __init__(self, contact_dofs: np.ndarray, frames: np.ndarray, n_free: int):
+        self.T = frame_rotation(contact_dofs, frames, n_free)
+        self.T.sort_indices()
+        self.n = self.n_body = n_free
+
+    def split(self, u_loc: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(T u_loc, no counterpart DOFs)."""
+        return self.T @ u_loc, np.zeros(0)
+
+    def extend(self, y: np.ndarray) -> np.ndarray:
+        """Tᵀ y: a derivative with respect to the free DOFs into u_loc."""
+        return self.T.T @ np.asarray(y, float)
+
+    def load(self, L: np.ndarray) -> np.ndarray:
+        return np.asarray(L, float)
+
+    def modes(self, coords: np.ndarray, free: np.ndarray) -> np.ndarray:
+        """Tᵀ (the rigid-body modes): the AMG near-null space in u_loc."""
+        from ..fem.amg import rigid_body_modes
+        return np.asarray(self.T.T @ rigid_body_modes(coords, free))
+
+    def inverse(self) -> sp.csr_matrix:
+        return sp.csr_matrix(self.T.T)
