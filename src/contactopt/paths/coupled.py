@@ -38,6 +38,7 @@ from __future__ import annotations
 import numpy as np
 import scipy.sparse as sp
 
+from .._progress import task
 from ..fem.amg import rigid_body_modes
 
 
@@ -90,11 +91,12 @@ class FullSpaceCouple:
 
     def system(self, A, L) -> tuple[sp.csr_matrix, np.ndarray]:
         """(Tᵀ diag(A, K_f) T, Tᵀ (L, f_f)): the Newton system of both bodies in u_loc."""
-        big = sp.block_diag([A] + [part.K for part in self.parts], format="csr")
-        half = self.T.T @ big
-        del big
-        law_A = with_contact_blocks(half @ self.T, self.cd)
-        del half
+        with task(f"forming the Newton system of {1 + len(self.parts)} bodies ({self.n:,} unknowns)"):
+            big = sp.block_diag([A] + [part.K for part in self.parts], format="csr")
+            half = self.T.T @ big
+            del big
+            law_A = with_contact_blocks(half @ self.T, self.cd)
+            del half
         return law_A, self.T.T @ self.load(L)
 
     def load(self, L) -> np.ndarray:
