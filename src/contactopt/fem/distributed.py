@@ -311,6 +311,7 @@ class DistributedBodies:
         self._fixed_value = float(np.mean(np.concatenate([f.K.diagonal() for f in parts]))) if parts else E
         self._fixed_rows = np.flatnonzero(self.fixed[self.rstart:self.rend]) + self.rstart
         self._pattern = None
+        self._last = None                # (indptr, indices, places in the pattern) of the last product
         # the design term: this rank's own elements of the body
         own_cells = cells[self._parts_of[0] == rank]
         self.n_elements = int(own_cells.shape[0])
@@ -346,10 +347,16 @@ class DistributedBodies:
             self._pattern = self._structure(Tsub, D)
         keys, indptr, cols, diag_at = self._pattern
         law.sort_indices()
-        got = self._keys(law)
-        pos = np.searchsorted(keys, got)
-        if np.any(pos >= keys.size) or np.any(keys[np.minimum(pos, keys.size - 1)] != got):
-            raise RuntimeError("an entry of the two bodies' system is outside the pattern formed at the first design")
+        last = self._last
+        if last is not None and np.array_equal(last[0], law.indptr) and np.array_equal(last[1], law.indices):
+            pos = last[2]                # the product's pattern of the last design: its places kept
+        else:
+            got = self._keys(law)
+            pos = np.searchsorted(keys, got)
+            if np.any(pos >= keys.size) or np.any(keys[np.minimum(pos, keys.size - 1)] != got):
+                raise RuntimeError("an entry of the two bodies' system is outside the pattern formed at the first "
+                                   "design")
+            self._last = (law.indptr.copy(), law.indices.copy(), pos)
         data = np.zeros(keys.size)
         data[pos] = law.data
         data[diag_at] = self._fixed_value
