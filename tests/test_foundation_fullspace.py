@@ -187,9 +187,8 @@ def test_what_the_full_space_does_not_take_yet_is_refused_by_name():
     the refusal."""
     import tomllib
 
-    from test_assembly_pairs import DESIGN, TWO_SLABS
-
     from contactopt.paths.fullspace import refuse_counterparts
+    from test_assembly_pairs import DESIGN, TWO_SLABS
     text = TWO_SLABS.replace('clamped = "bottom"\nmaterial = { E = 6.0',
                              'clamped = { on = "bottom", components = [3] }\nmaterial = { E = 6.0')
     assert text != TWO_SLABS

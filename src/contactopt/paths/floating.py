@@ -67,8 +67,12 @@ class FloatingAnchor:
         return out
 
     def anchored(self, A) -> sp.csr_matrix:
-        """A + γ N Nᵀ (CSR, sorted indices)."""
-        out = sp.csr_matrix(A + self.matrix)
+        """A + γ N Nᵀ (CSR, sorted indices) with every entry of A's pattern, its explicit zeros too
+        (the contact nodes' blocks where the Newton system adds its Robin blocks, .coupled); a
+        sparse sum would drop them."""
+        a, m = sp.coo_matrix(A), self.matrix.tocoo()
+        out = sp.coo_matrix((np.concatenate([a.data, m.data]), (np.concatenate([a.row, m.row]),
+                                                                 np.concatenate([a.col, m.col]))), shape=A.shape).tocsr()
         out.sort_indices()
         return out
 
@@ -122,13 +126,15 @@ def iterate_anchor(solve, anchor: FloatingAnchor, first, load_norm: float, tol: 
     from ``previous``, β ← Nᵀu until the anchor's force is at most ``tol`` relative to
     max(``load_norm``, ‖r‖), or below :data:`~.rigid.ROUNDOFF_FLOOR` no longer halves. ``first``
     is (β₀, its result). Returns (the last result, its
-    :class:`~contactopt.contact.state.RigidAnchor`, the Krylov iterations of every solve)."""
+    :class:`~contactopt.contact.state.RigidAnchor`, the Krylov iterations and the Newton steps of
+    every solve)."""
     beta, res = first
-    history, iterations = [], []
+    history, iterations, steps = [], [], 0
     for step in range(MAX_ANCHOR_STEPS):
         if step:
             res = solve(beta, res)
         iterations += list(res.krylov_iterations)
+        steps += res.newton_steps
         rel = anchor_imbalance(anchor, res.u, beta, max(load_norm, float(np.linalg.norm(res.r))))
         history.append(rel)
         if rel <= tol or (rel <= ROUNDOFF_FLOOR and len(history) > 1 and rel >= 0.5 * history[-2]):
@@ -140,4 +146,4 @@ def iterate_anchor(solve, anchor: FloatingAnchor, first, load_norm: float, tol: 
                           "load unbalanced on its free rigid motions (a load along a motion nothing holds, or near "
                           "the limit of what friction holds; check the body's clamps and loads)")
     log.debug("counterpart held only by its contacts: %d anchor step(s), unbalanced %.2e", len(history), history[-1])
-    return res, RigidAnchor(iterations=len(history), residual=history[-1]), iterations
+    return res, RigidAnchor(iterations=len(history), residual=history[-1]), iterations, steps

@@ -402,7 +402,8 @@ class FullSpacePath(FullSpaceCommon):
         systems regular whatever holds the body), then from its state the Newton method on the
         unanchored system, whose Newton systems the contact now holds (at most
         :data:`FREE_NEWTON_STEPS` steps); where that does not converge, the anchor's iteration
-        β ← Nᵀu on. Returns (the result, its ``krylov_iterations`` those of every solve; the
+        β ← Nᵀu on. Returns (the result, its ``krylov_iterations`` and ``newton_steps`` those of
+        every solve; the
         :class:`~contactopt.contact.state.RigidAnchor`: the anchored solves, the unbalanced load
         relative to ‖L‖)."""
         an, n, cd = system.anchor, system.law_A.shape[0], self.model.contact_dofs
@@ -424,10 +425,12 @@ class FullSpacePath(FullSpaceCommon):
             free = None
         if free is not None and free.converged:
             free.krylov_iterations = list(first.krylov_iterations) + list(free.krylov_iterations)
+            free.newton_steps += first.newton_steps
             free.fallback = first.fallback
             return free, RigidAnchor(iterations=1, residual=float(free.equilibrium))
-        res, held, iterations = iterate_anchor(solve, an, (beta0, first), load_norm, options["tol"])
-        res.krylov_iterations = iterations
+        res, held, iterations, steps = iterate_anchor(solve, an, (beta0, first), load_norm, options["tol"])
+        spent = [] if free is None else list(free.krylov_iterations)     # (the unanchored attempt's)
+        res.krylov_iterations, res.newton_steps = iterations + spent, steps + (0 if free is None else free.newton_steps)
         return res, held
 
     def adjoint(self, system, ctx, state, y_u, y_lam, choices=None, carry=None):
