@@ -26,8 +26,8 @@ only.
 Several pairs against counterpart bodies (:mod:`contactopt.fem.counterparts`) are the same with
 u_f the bodies' DOFs one body after the other, diag(A, K_1, …, K_B) and Π stacked by contact node
 (a body under several pairs takes all its pairs' rows); a rigid counterpart's pair has zero rows of
-Π and no block of u_f, its translation R_mᵀ d in q. A counterpart held only by its contacts
-stays on the condensation path so far (its rigid motions are the anchor's rows there).
+Π and no block of u_f, its translation R_mᵀ d in q. A counterpart held only by its contacts makes
+the system singular along its rigid motions: :mod:`.floating` anchors them.
 
 Contact convention: per contact node (t1, t2, ν), ν from the foundation to the body, r the
 contact force on the body, λ = r_ν ≥ 0; the foundation carries −Π_locᵀ r.

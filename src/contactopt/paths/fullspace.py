@@ -43,11 +43,11 @@ import numpy as np
 import scipy.sparse as sp
 
 from .._threads import sequential_openblas
-from ..contact.fullspace import solve_fullspace_with_fallbacks
+from ..contact.fullspace import solve_fullspace, solve_fullspace_with_fallbacks
 from ..contact.fullspace.core import overlap_force
 from ..contact.fullspace.pyamg import sorted_csr
-from ..contact.state import FoundationState
-from ..errors import CheckpointError, ConfigError
+from ..contact.state import FoundationState, RigidAnchor
+from ..errors import CheckpointError, ConfigError, SolverError
 from ..fem import memory
 from ..fem.amg import ContactHierarchy, rigid_body_modes
 from ..fem.model import Assembled
@@ -55,6 +55,7 @@ from ..sensitivity.adjoint_fullspace import solve_adjoint_fullspace
 from .base import Adjoint, Capabilities, Context, SolverPath, SystemParts, check_design
 from .coupled import FullSpaceCouple, with_contact_blocks
 from .coupled import force_terms as coupled_force_terms
+from .floating import floating_anchor, iterate_anchor
 from .force import normal_stiffness
 from .transforms import frame_rotation
 
@@ -68,6 +69,9 @@ HIERARCHY_SEED = 20090101  # NumPy's global generator while pyamg builds a hiera
 # Lamé's shrink fit on meshes that do not match (mortar partners) stalls at an error of 3e-4 with it
 # (hub 32 × 64), and at 1.1e-10 with the tightest 1e-11 (hub 64 × 128); with this one both converge
 # in 4 Newton steps (26 and 40 Krylov iterations)
+# the unanchored Newton steps from the anchored state of counterparts held only by their contacts
+# (.floating) before the anchor's iteration takes over
+FREE_NEWTON_STEPS = 10
 COUPLED_FORCING = MappingProxyType({"eta_factor": 1e-3, "eta_max": 1e-4, "krylov_rtol": 1e-13})
 
 
@@ -86,6 +90,8 @@ class FullSystem(SystemParts):
     force: float | None = None         # a load step's |f| of a force-controlled obstacle (None: the model's)
     couple: FullSpaceCouple | None = None   # an elastic foundation: both bodies in one system (.coupled)
     moved: float = 0.0                 # a force-controlled foundation's translation s (.force)
+    anchor: object = None              # counterparts held only by their contacts (.floating), or None
+    anchored_A: object = None          # ... and the Newton system's A + γ N Nᵀ
 
     @property
     def law_A(self):
@@ -269,7 +275,9 @@ class FullSpacePath(FullSpaceCommon):
         shift = None if self.mechanics.shift is None else self.mechanics.shift.tangential
         if self.couple is not None:
             A, L = self.couple.system(asm.A, asm.L)
-            return FullSystem(asm, asm.gap, {}, self.couple.T, A, L, shift, couple=self.couple)
+            anchor = floating_anchor(self.couple, A)
+            return FullSystem(asm, asm.gap, {}, self.couple.T, A, L, shift, couple=self.couple, anchor=anchor,
+                              anchored_A=None if anchor is None else anchor.anchored(A))
         if self.frames is None:
             return FullSystem(asm, asm.gap, {}, shift=shift)
         T = frame_rotation(self.model.contact_dofs, self.frames, self.model.assembler.n_free)
@@ -318,7 +326,7 @@ class FullSpacePath(FullSpaceCommon):
         if asm is None:
             asm = self.model.assemble(alpha, self.first_loads)
         system = self.prepare(asm)
-        A = sorted_csr(system.law_A)
+        A = sorted_csr(system.law_A if system.anchor is None else system.anchored_A)
         saved = np.random.get_state()
         np.random.seed(HIERARCHY_SEED)
         try:
@@ -361,13 +369,18 @@ class FullSpacePath(FullSpaceCommon):
             if np.any(q[:, :2]):
                 shift = q[:, :2] if shift is None else shift + q[:, :2]
         law_ref = slip_ref if shift is None else (shift if slip_ref is None else slip_ref + shift)
-        res = solve_fullspace_with_fallbacks(system.law_A, system.law_L, self.model.contact_dofs, gap, self.friction,
-                              coords=asm.coords, free=self.model.assembler.free, r0=warm, u0=u0,
-                              hierarchy=self._hierarchy, slip_ref=law_ref,
-                              force_scale=self.fit_scale(float(np.linalg.norm(system.law_L)), lambda: self.contact_diagonal(system),
-                                                         gap),
-                              **self.newton_options(ctx, tol, warm_start),
-                              **(COUPLED_FORCING if system.couple is not None else {}))
+        load_norm = float(np.linalg.norm(system.law_L))
+        options = dict(coords=asm.coords, free=self.model.assembler.free, slip_ref=law_ref,
+                       force_scale=self.fit_scale(load_norm, lambda: self.contact_diagonal(system), gap),
+                       **self.newton_options(ctx, tol, warm_start),
+                       **(COUPLED_FORCING if system.couple is not None else {}))
+        held = None
+        if system.anchor is None:
+            res = solve_fullspace_with_fallbacks(system.law_A, system.law_L, self.model.contact_dofs, gap,
+                                                 self.friction, r0=warm, u0=u0, hierarchy=self._hierarchy, **options)
+        else:
+            res, held = self.held_solve(system, gap, warm, u0, load_norm or options["force_scale"] or 1.0,
+                                        options)
         self._hierarchy = res.hierarchy
         ctx.u_free = res.u
         u_free, u_c, found = res.u, None, None
@@ -380,9 +393,49 @@ class FullSpacePath(FullSpaceCommon):
         if system.shift is not None:
             u_c = (res.u_c if u_c is None else u_c).copy()
             u_c[:, :2] -= system.shift
-        return self.state_of(ctx, system, alpha, res, u_free=u_free, u_c=u_c, t0=t0, t_setup=t_setup,
-                             stats={"backend": "pyamg", **({"fallback": res.fallback} if res.fallback else {})},
-                             label=label, slip_ref=slip_ref, foundation=found)
+        state = self.state_of(ctx, system, alpha, res, u_free=u_free, u_c=u_c, t0=t0, t_setup=t_setup,
+                              stats={"backend": "pyamg", **({"fallback": res.fallback} if res.fallback else {})},
+                              label=label, slip_ref=slip_ref, foundation=found)
+        if held is not None:
+            state.rigid = held
+        return state
+
+    def held_solve(self, system, gap, warm, u0, load_norm, options):
+        """The full-space result of a model with counterparts held only by their contacts
+        (:mod:`.floating`): the anchored problem at β₀ = Nᵀu₀ (its start solve and first Newton
+        systems regular whatever holds the body), then from its state the Newton method on the
+        unanchored system, whose Newton systems the contact now holds (at most
+        :data:`FREE_NEWTON_STEPS` steps); where that does not converge, the anchor's iteration
+        β ← Nᵀu on. Returns (the result, its ``krylov_iterations`` and ``newton_steps`` those of
+        every solve; the
+        :class:`~contactopt.contact.state.RigidAnchor`: the anchored solves, the unbalanced load
+        relative to ‖L‖)."""
+        an, n, cd = system.anchor, system.law_A.shape[0], self.model.contact_dofs
+
+        def solve(beta, last):
+            kw = dict(options, r0=warm, u0=u0, hierarchy=self._hierarchy)
+            if last is not None:
+                kw.update(r0=last.r, u0=last.u, zone=last.zone, hierarchy=last.hierarchy)
+            return solve_fullspace_with_fallbacks(system.anchored_A, system.law_L + an.load(beta, n), cd, gap,
+                                                  self.friction, **kw)
+        beta0 = an.position(u0) if u0 is not None else np.zeros(an.N.shape[1])
+        first = solve(beta0, None)
+        try:
+            free = solve_fullspace(system.law_A, system.law_L, cd, gap, self.friction,
+                                   **dict(options, r0=first.r, u0=first.u, zone=first.zone, hierarchy=first.hierarchy,
+                                          max_steps=FREE_NEWTON_STEPS, raise_on_failure=False))
+        except SolverError as exc:          # a Newton system the contact does not hold: singular
+            log.debug("counterpart held only by its contacts: the unanchored Newton method stopped (%s)", exc)
+            free = None
+        if free is not None and free.converged:
+            free.krylov_iterations = list(first.krylov_iterations) + list(free.krylov_iterations)
+            free.newton_steps += first.newton_steps
+            free.fallback = first.fallback
+            return free, RigidAnchor(iterations=1, residual=float(free.equilibrium))
+        res, held, iterations, steps = iterate_anchor(solve, an, (beta0, first), load_norm, options["tol"])
+        spent = [] if free is None else list(free.krylov_iterations)     # (the unanchored attempt's)
+        res.krylov_iterations, res.newton_steps = iterations + spent, steps + (0 if free is None else free.newton_steps)
+        return res, held
 
     def adjoint(self, system, ctx, state, y_u, y_lam, choices=None, carry=None):
         """As :meth:`SolverPath.adjoint`; with an elastic foundation (:mod:`.coupled`) in the
@@ -453,14 +506,15 @@ def _pairs_whose(counterparts, test) -> list:
 
 def refuse_counterparts(model, path: str) -> None:
     """ConfigError naming the counterparts that the full-space form (:mod:`.coupled`) does not take
-    so far, on ``path`` (the pyamg or the PETSc backend): a counterpart held only by its contacts,
-    mortar partners on six-node triangles."""
+    so far, on ``path`` (the pyamg or the PETSc backend): a counterpart held only by its contacts on
+    the PETSc backend (the pyamg one anchors it, :mod:`.floating`), mortar partners on six-node
+    triangles."""
     floating = _pairs_whose(model.foundation, lambda part: part.rigid is not None)
-    if floating:
+    if floating and path == "petsc":
         raise ConfigError([f"{model.config.source}: linear_solver.path = {path!r}: the counterpart of "
                            f"{', '.join(floating)} is held only by its contacts, which is solved on the "
-                           "'condensation' path only so far (its rigid motions as the anchor's rows); use path "
-                           "'condensation' or clamp the body"])
+                           "'condensation' and 'fullspace' paths only so far (its rigid motions anchored); use "
+                           "one of them or clamp the body"])
     if model.foundation is not None and model.foundation.basis is not None:
         raise ConfigError([f"{model.config.source}: linear_solver.path = {path!r}: an elastic [foundation] "
                            "with mortar partners on six-node triangles (a transformed basis) is solved on the "
