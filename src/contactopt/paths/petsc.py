@@ -267,11 +267,11 @@ class PetscPath(FullSpaceCommon):
         return self._hier.setup_seconds
 
     def _modes(self, coords) -> np.ndarray:
-        """The owned rows of GAMG's near-null space with elastic counterparts: each body's rigid
-        modes in u_loc (:meth:`~.coupled.FullSpaceCouple.modes`), orthonormalized over all DOFs
-        (every rank holds them whole and takes the same QR)."""
+        """The owned rows of GAMG's near-null space in u_loc: the rigid modes of all bodies moving
+        as one (:meth:`~.coupled.FullSpaceCouple.joint_modes`), orthonormalized over all DOFs (every
+        rank holds them whole and takes the same QR)."""
         d = self.dist
-        M = self.change.modes(coords, self.model.assembler.free)
+        M = self.change.joint_modes(coords, self.model.assembler.free)
         full = np.zeros((d.n, M.shape[1]))
         full[d.dof_of_free] = M
         Q, _ = np.linalg.qr(full)

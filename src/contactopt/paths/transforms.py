@@ -186,7 +186,7 @@ class FrameChange:
     """The full-space unknowns of a body on a rigid obstacle other than the plane: u = T u_loc with
     T = :func:`frame_rotation` (orthogonal), the contact DOFs in the nodes' frames (t1, t2, n). It
     has the interface of :class:`~contactopt.paths.coupled.FullSpaceCouple` that the PETSc path
-    reads (``T``, ``n``, ``n_body``, ``parts``, ``split``, ``extend``, ``load``, ``modes``,
+    reads (``T``, ``n``, ``n_body``, ``parts``, ``split``, ``extend``, ``load``, ``joint_modes``,
     ``inverse``), with no counterpart DOFs."""
 
     parts = ()
@@ -211,6 +211,8 @@ class FrameChange:
         """Tᵀ (the rigid-body modes): the AMG near-null space in u_loc."""
         from ..fem.amg import rigid_body_modes
         return np.asarray(self.T.T @ rigid_body_modes(coords, free))
+
+    joint_modes = modes                 # one body: its six modes
 
     def inverse(self) -> sp.csr_matrix:
         return sp.csr_matrix(self.T.T)
