@@ -6,7 +6,8 @@ different linear algebra and numbering — on one process and under ``mpiexec -n
 ≤ 5e-13). Then ξ against central differences on two ranks (friction with sliding nodes, mortar
 partners), an objective of the whole displacement along a load path (the product A(α) x through
 T⁻¹), a resumed two-body run on two ranks bit for bit, and what the path does not take, refused
-by name. A rigid obstacle other than the plane is the same change of unknowns with no counterpart
+by name. A counterpart held only by its contacts is anchored as on the full space
+(paths/floating.py). A rigid obstacle other than the plane is the same change of unknowns with no counterpart
 DOFs (T the nodes' frames, paths/transforms.py FrameChange); a force-controlled one runs the
 translation's search around the PETSc solve.
 
@@ -84,6 +85,14 @@ def _spheres_only():
     return _all_rigid(ONE_PAIR_CASES["sphere moved"])
 
 
+def _floating_slab():
+    """The right slab held only by its contacts (clamped along x3 only: friction holds it)."""
+    from test_assembly_pairs import TWO_SLABS
+    return TWO_SLABS.replace('clamped = "bottom"\nmaterial = { E = 6.0',
+                             'clamped = { on = "bottom", components = [3] }\nmaterial = { E = 6.0')
+
+
+MODELS["a slab held only by its contacts"] = _rigid_pairs(_floating_slab)
 MODELS["a moved rigid sphere beside the slab"] = _rigid_pairs(_sphere_beside_slab)
 MODELS["rigid spheres only (two pairs)"] = _rigid_pairs(_spheres_only)
 
@@ -141,7 +150,8 @@ def test_one_rank_equals_the_full_space(name):
 
 
 @pytest.mark.parametrize("name", ["mortar partners", "prescribed translation", "two slabs (two pairs)",
-                                  "pressed sideways by a force", "obstacle: cylinder", "obstacle: forced sphere"])
+                                  "pressed sideways by a force", "obstacle: cylinder", "obstacle: forced sphere",
+                                  "a slab held only by its contacts"])
 def test_two_ranks_equal_the_full_space(name, tmp_path):
     out = tmp_path / "petsc.npz"
     proc = mpiexec(2, str(ROOT / "tests" / "mpi" / "compare_paths.py"), str(write(tmp_path, MODELS[name]("petsc"))),
@@ -276,11 +286,22 @@ def test_the_plane_moved_tangentially_equals_the_full_space_and_matches_central_
     assert rep.n_degenerate == 0 and np.max(rep.rel_errors) <= 1e-6, rep.rel_errors
 
 
+def test_a_counterpart_held_only_by_its_contacts_matches_central_differences():
+    """The anchored first solve on the ranks (γ N Nᵀ added to the owned rows and taken out again),
+    the free Newton method after it, the adjoint on the unanchored matrix: ξ·d against central
+    differences, the anchor carrying no force at the state."""
+    pb = ShapeProblem(MODELS["a slab held only by its contacts"]("petsc"))
+    a = pb.model.initial_design()
+    a = a + 0.003 * np.random.default_rng(1).standard_normal(a.size)
+    st = pb.solve_state(a)
+    assert st.rigid is not None and st.rigid.residual <= 1e-10
+    assert st.counts["M1"] > 0 and st.counts["M3+"] > 0
+    gc = check_gradient(pb, a, n_directions=3, seed=0, h=1e-2)
+    assert gc.n_degenerate == 0 and max(gc.rel_errors) <= 1e-6, gc.rel_errors
+
+
 def test_what_the_petsc_path_does_not_take_yet_is_refused_by_name():
-    """A counterpart held only by its contacts."""
-    from test_assembly_pairs import DESIGN, TWO_SLABS
-    text = TWO_SLABS.replace('clamped = "bottom"\nmaterial = { E = 6.0',
-                             'clamped = { on = "bottom", components = [3] }\nmaterial = { E = 6.0')
-    cfg = load_config(tomllib.loads(text + DESIGN)).with_updates({"linear_solver": {"path": "petsc"}})
-    with pytest.raises(ConfigError, match=r"'petsc': the counterpart of contacts\[1\] is held only by its contacts"):
+    """A face body held only by contact (the roller between two plates)."""
+    cfg = load_config(ROOT / "examples" / "roller_plates.toml").with_updates({"linear_solver": {"path": "petsc"}})
+    with pytest.raises(ConfigError, match="a body held only by contact is solved on"):
         ShapeProblem(cfg)

@@ -77,11 +77,10 @@ class FloatingAnchor:
         return out
 
 
-def floating_anchor(couple, law_A) -> FloatingAnchor | None:
+def floating_anchor(couple, diag: np.ndarray) -> FloatingAnchor | None:
     """The :class:`FloatingAnchor` of a :class:`~.coupled.FullSpaceCouple`'s counterparts held only
-    by their contacts (``part.rigid`` not None), on the Newton system ``law_A``; None when every
-    counterpart is held by its clamps."""
-    diag = law_A.diagonal()
+    by their contacts (``part.rigid`` not None), ``diag`` the diagonal of the Newton system (u_loc);
+    None when every counterpart is held by its clamps."""
     dofs, blocks, gammas, names = [], [], [], []
     for b, part in enumerate(couple.parts):
         if part.rigid is None:
@@ -110,7 +109,7 @@ def floating_anchor(couple, law_A) -> FloatingAnchor | None:
     gamma = np.concatenate(gammas)
     dense = (N * gamma) @ N.T
     rows, cols = np.meshgrid(dofs_all, dofs_all, indexing="ij")
-    n = law_A.shape[0]
+    n = diag.size
     M = sp.csr_matrix((dense.ravel(), (rows.ravel(), cols.ravel())), shape=(n, n))
     return FloatingAnchor(dofs_all, N, gamma, names, M)
 

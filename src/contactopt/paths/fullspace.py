@@ -275,7 +275,7 @@ class FullSpacePath(FullSpaceCommon):
         shift = None if self.mechanics.shift is None else self.mechanics.shift.tangential
         if self.couple is not None:
             A, L = self.couple.system(asm.A, asm.L)
-            anchor = floating_anchor(self.couple, A)
+            anchor = floating_anchor(self.couple, A.diagonal())
             return FullSystem(asm, asm.gap, {}, self.couple.T, A, L, shift, couple=self.couple, anchor=anchor,
                               anchored_A=None if anchor is None else anchor.anchored(A))
         if self.frames is None:
@@ -506,15 +506,8 @@ def _pairs_whose(counterparts, test) -> list:
 
 def refuse_counterparts(model, path: str) -> None:
     """ConfigError naming the counterparts that the full-space form (:mod:`.coupled`) does not take
-    so far, on ``path`` (the pyamg or the PETSc backend): a counterpart held only by its contacts on
-    the PETSc backend (the pyamg one anchors it, :mod:`.floating`), mortar partners on six-node
-    triangles."""
-    floating = _pairs_whose(model.foundation, lambda part: part.rigid is not None)
-    if floating and path == "petsc":
-        raise ConfigError([f"{model.config.source}: linear_solver.path = {path!r}: the counterpart of "
-                           f"{', '.join(floating)} is held only by its contacts, which is solved on the "
-                           "'condensation' and 'fullspace' paths only so far (its rigid motions anchored); use "
-                           "one of them or clamp the body"])
+    so far, on ``path`` (the pyamg or the PETSc backend): mortar partners on six-node triangles.
+    (A counterpart held only by its contacts is anchored on both, :mod:`.floating`.)"""
     if model.foundation is not None and model.foundation.basis is not None:
         raise ConfigError([f"{model.config.source}: linear_solver.path = {path!r}: an elastic [foundation] "
                            "with mortar partners on six-node triangles (a transformed basis) is solved on the "

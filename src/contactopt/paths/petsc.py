@@ -41,12 +41,14 @@ import numpy as np
 
 from ..contact.fallback import run_chain
 from ..contact.fullspace.petsc import PetscProblem
+from ..contact.state import RigidAnchor
 from ..errors import ConfigError
 from ..fem.model import Assembled
 from ..sensitivity.adjoint_fullspace import ADJOINT_RTOL, adjoint_classes, check_default_choices
 from .base import Adjoint, Capabilities, Context, SolverPath, SystemParts
 from .coupled import FullSpaceCouple
 from .coupled import force_terms as coupled_force_terms
+from .floating import floating_anchor, iterate_anchor
 from .fullspace import COUPLED_FORCING, FullSpaceCommon, refuse_counterparts
 from .protocol import Call, Command, Problem, new_path_id, send
 from .transforms import FrameChange
@@ -78,6 +80,7 @@ class PetscSystem(SystemParts):
     shift: np.ndarray | None = None    # a force-controlled counterpart's tangential translation (p, 2), or None
     moved: float = 0.0                 # ... its translation s (.force)
     normal: np.ndarray | None = None   # (p,) the Newton matrix's diagonal at the contact nodes' normal DOFs
+    anchor: object = None              # counterparts held only by their contacts (.floating), or None
 
 
 @dataclass
@@ -215,7 +218,8 @@ class PetscPath(FullSpaceCommon):
         self._design_key = key
         shift = None if self.mechanics.shift is None else self.mechanics.shift.tangential
         system = PetscSystem(key, asm, gap, self._load(L_full), {}, couple=self.couple, shift=shift,
-                             normal=self.newton._diag_at_contact()[:, 2])     # collective: every rank
+                             normal=self.newton._diag_at_contact()[:, 2],     # collective: every rank
+                             anchor=self._anchor())
         system.timings["petsc_assembly"] = time.perf_counter() - t0
         self._systems[key] = system
         return system
@@ -225,15 +229,20 @@ class PetscPath(FullSpaceCommon):
         asm = Assembled(base.assembled.alpha, base.assembled.coords, None, L_full,
                         self.model.free_load(L_full), base.gap)
         system = PetscSystem(key, asm, base.gap, self._load(L_full), {}, couple=self.couple, shift=base.shift,
-                             normal=base.normal)
+                             normal=base.normal, anchor=base.anchor)
         self._systems[key] = system
         return system
 
     def _assemble_matrix(self, coords, csr=None):
         """A(α) of ``coords`` into both of the Newton's matrices (block size 3: BAIJ for the
         products, AIJ for GAMG); ``csr`` the owned rows if already computed."""
-        from petsc4py import PETSc
         indptr, cols, data = csr if csr is not None else self.dist.owned_stiffness(coords)
+        self._owned, self._anchor_on = (indptr, cols, data), False
+        self._insert(indptr, cols, data)
+
+    def _insert(self, indptr, cols, data):
+        """Owned rows (CSR, PETSc columns) into both Newton matrices."""
+        from petsc4py import PETSc
         nw = self.newton
         nw.A_aij.setValuesCSR(indptr, cols, data, addv=PETSc.InsertMode.INSERT)
         bip, bcols, bdata = self.dist.owned_blocks(data)
@@ -251,6 +260,34 @@ class PetscPath(FullSpaceCommon):
             L = self.change.T.T @ self.change.load(L)
         v.getArray()[:] = d.owned(d.petsc_of_free(L))
         return v
+
+    # ------------------------------------------------------------------ counterparts held only by their contacts
+    def _anchor(self):
+        """The anchor of the counterparts held only by their contacts (:mod:`.floating`) at the design
+        the matrix holds, or None (every rank: the diagonal is gathered)."""
+        if self.couple is None or all(part.rigid is None for part in self.couple.parts):
+            return None
+        nw = self.newton
+        return floating_anchor(self.couple, self.dist.free_vector(nw.everywhere(nw.A.getDiagonal())))
+
+    def _anchored(self, anchor, on: bool) -> None:
+        """The Newton matrices with (``on``) or without the anchor's γ N Nᵀ (every rank, its owned rows)."""
+        if self._anchor_on == on:
+            return
+        indptr, cols, data = self._owned
+        if on:
+            d, M = self.dist, anchor.matrix.tocoo()
+            rows, cc = d.dof_of_free[M.row], d.dof_of_free[M.col]
+            own = (rows >= d.rstart) & (rows < d.rend)
+            keys = np.repeat(np.arange(indptr.size - 1, dtype=np.int64), np.diff(indptr)) * d.n + cols
+            want = (rows[own] - d.rstart) * np.int64(d.n) + cc[own]
+            pos = np.searchsorted(keys, want)
+            if np.any(pos >= keys.size) or np.any(keys[np.minimum(pos, keys.size - 1)] != want):
+                raise RuntimeError("the anchor of a counterpart held only by its contacts is outside the pattern")
+            data = data.copy()
+            np.add.at(data, pos, M.data[own])
+        self._insert(indptr, cols, data)
+        self._anchor_on = on
 
     def _hierarchy(self, alpha, coords):
         """The GAMG hierarchy of the A(α) the matrix holds now."""
@@ -271,7 +308,10 @@ class PetscPath(FullSpaceCommon):
         as one (:meth:`~.coupled.FullSpaceCouple.joint_modes`), orthonormalized over all DOFs (every
         rank holds them whole and takes the same QR)."""
         d = self.dist
-        M = self.change.joint_modes(coords, self.model.assembler.free)
+        # a counterpart held only by its contacts moves on its own: its own six columns (measured on
+        # two slabs, one held only by its contacts: 654 Krylov iterations of a state against 4027)
+        floating = self.couple is not None and any(part.rigid is not None for part in self.couple.parts)
+        M = (self.change.modes if floating else self.change.joint_modes)(coords, self.model.assembler.free)
         full = np.zeros((d.n, M.shape[1]))
         full[d.dof_of_free] = M
         Q, _ = np.linalg.qr(full)
@@ -326,6 +366,8 @@ class PetscPath(FullSpaceCommon):
         if moved is not None:            # a translated counterpart (.force): its gaps, shift and s
             system = replace(stored, gap=moved[0], shift=moved[1], moved=moved[2])
         t0 = time.perf_counter()
+        if system.anchor is not None:    # the hierarchy of the anchored matrix (.floating)
+            self._anchored(system.anchor, True)
         t_setup = self._hierarchy(alpha, system.assembled.coords) if self._hier is None else 0.0
         warm = ctx.warm if warm_start else None
         u0 = None
@@ -343,9 +385,14 @@ class PetscPath(FullSpaceCommon):
             forcing = COUPLED_FORCING
         law_ref = slip_ref if shift is None else (shift if slip_ref is None else slip_ref + shift)
         scale = self.fit_scale(system.L.norm(), self.newton._diag_at_contact, gap)   # collective: every rank
-        res = run_chain(PetscProblem(self.newton, self._hier, system.L, gap, self.friction, r0=warm,
-                                     u0=u0, slip_ref=law_ref, force_scale=scale,
-                                     **self.newton_options(ctx, tol, warm_start), **forcing))
+        options = dict(slip_ref=law_ref, force_scale=scale, **self.newton_options(ctx, tol, warm_start), **forcing)
+        held = None
+        if system.anchor is None:
+            res = run_chain(PetscProblem(self.newton, self._hier, system.L, gap, self.friction, r0=warm, u0=u0,
+                                         **options))
+        else:
+            res, held = self._held_solve(system, gap, warm, u0, None if u0 is None else self.dist.free_vector(ctx.u_all),
+                                         options)
         stored.u_all = system.u_all = ctx.u_all = res.u_all
         u_free, u_c, found = self.dist.free_vector(res.u_all), None, None
         if self.change is not None:
@@ -356,10 +403,58 @@ class PetscPath(FullSpaceCommon):
         if system.shift is not None:
             u_c = (res.u_c if u_c is None else u_c).copy()
             u_c[:, :2] -= system.shift
-        return self.state_of(ctx, system, alpha, res, u_free=u_free, u_c=u_c, t0=t0,
-                             t_setup=t_setup, stats={"backend": "petsc", "ranks": self.size,
-                                                     **({"fallback": res.fallback} if res.fallback else {})},
-                             label=label, slip_ref=slip_ref, foundation=found)
+        state = self.state_of(ctx, system, alpha, res, u_free=u_free, u_c=u_c, t0=t0,
+                              t_setup=t_setup, stats={"backend": "petsc", "ranks": self.size,
+                                                      **({"fallback": res.fallback} if res.fallback else {})},
+                              label=label, slip_ref=slip_ref, foundation=found)
+        if held is not None:
+            state.rigid = held
+        return state
+
+    def _held_solve(self, system, gap, warm, u0, u0_loc, options):
+        """As the pyamg backend's :meth:`~.fullspace.FullSpacePath.held_solve` (:mod:`.floating`):
+        the anchored problem at β₀ = Nᵀu₀, then from its state the Newton method on the unanchored
+        matrix (at most ``FREE_NEWTON_STEPS`` steps), else the anchor's iteration; the matrices
+        hold the unanchored values when it returns (the adjoint's and the products'). ``u0`` the
+        warm start (a Vec) and ``u0_loc`` the same in u_loc, or None. Every rank."""
+        from ..errors import SolverError
+        from .fullspace import FREE_NEWTON_STEPS
+        an, d, nw = system.anchor, self.dist, self.newton
+
+        def vec(x_loc):
+            v = nw.A.createVecRight()
+            v.getArray()[:] = d.owned(d.petsc_of_free(x_loc))
+            return v
+
+        def solve(beta, last):
+            self._anchored(an, True)
+            L = system.L.copy()
+            L.axpy(1.0, vec(an.load(beta, self.couple.n)))
+            kw = dict(options, r0=warm, u0=u0)
+            if last is not None:
+                kw.update(r0=last.r, u0=vec(last.u), zone=last.zone)
+            res = run_chain(PetscProblem(nw, self._hier, L, gap, self.friction, **kw))
+            return replace(res, u=d.free_vector(res.u_all))      # u_loc: what the anchor reads
+
+        beta0 = np.zeros(an.N.shape[1]) if u0_loc is None else an.position(u0_loc)
+        first = solve(beta0, None)
+        self._anchored(an, False)
+        try:
+            free = nw.solve(self._hier, system.L, gap, self.friction, **dict(
+                options, r0=first.r, u0=vec(first.u), zone=first.zone, max_steps=FREE_NEWTON_STEPS,
+                raise_on_failure=False))
+        except SolverError:              # a Newton system the contact does not hold: singular
+            free = None
+        if free is not None and free.converged:
+            free.krylov_iterations = list(first.krylov_iterations) + list(free.krylov_iterations)
+            free.newton_steps += first.newton_steps
+            return free, RigidAnchor(iterations=1, residual=float(free.equilibrium))
+        load_norm = system.L.norm() or options.get("force_scale") or 1.0
+        res, held, iterations, steps = iterate_anchor(solve, an, (beta0, first), load_norm, options["tol"])
+        self._anchored(an, False)
+        spent = [] if free is None else list(free.krylov_iterations)
+        res.krylov_iterations, res.newton_steps = iterations + spent, steps + (0 if free is None else free.newton_steps)
+        return res, held
 
     # ------------------------------------------------------------------ adjoint and design terms
     def adjoint(self, system, ctx, state, y_u, y_lam, choices=None, carry=None):
@@ -467,7 +562,12 @@ class PetscPath(FullSpaceCommon):
                 coords = self.model.mesh.coordinates(self.model.surface.as_vector(alpha))
                 self._assemble_matrix(coords)
                 self._design_key = None
+                anchor = self._anchor()      # the hierarchy of the anchored matrix, as when it was built
+                if anchor is not None:
+                    self._anchored(anchor, True)
                 self._hierarchy(alpha, coords)
+                if anchor is not None:
+                    self._anchored(anchor, False)
 
     handlers = MappingProxyType({Command.PREPARE: _prepare, Command.FOR_LOAD: _for_load, Command.SOLVE: _solve,
                                  Command.ADJOINT: _adjoint, Command.CONTRACTION: _contraction,
