@@ -307,9 +307,12 @@ class ElasticModel:
         """A rigid counterpart of one of several pairs pressed by a force (its table's control =
         "force"): it translates by s f̂ as the one obstacle does (:class:`ObstacleForce`, no
         ``motion``), with b_m = R_mᵀ f̂ and c_m = f̂·n_m on its pair's contact nodes and zero on the
-        others', so that Σ_m b_m·r_m is the resultant along f̂ of its pair alone."""
+        others', so that Σ_m b_m·r_m is the resultant along f̂ of its pair alone. A counterpart
+        body pressed by a force: :meth:`_body_force`."""
         p = self.contact_nodes.size
         R = self.frames if self.frames is not None else np.broadcast_to(np.eye(3), (p, 3, 3))
+        if self.foundation.pressed is not None:
+            self._body_force(R)
         for k, (spec, rows, _, _) in rigid.items():
             if spec.control != "force":
                 continue
@@ -323,6 +326,33 @@ class ElasticModel:
                 raise ConfigError([f"{self.config.source}: contacts[{k}].counterpart.force = {spec.force}: no contact "
                                    "node's normal has a component along the force: the counterpart cannot press the "
                                    "body"])
+
+    def _body_force(self, R: np.ndarray) -> None:
+        """A counterpart body of several pairs pressed by a force (``bodies.<name>.control =
+        "force"``): its loaded part, and the body with it, translate by s f̂ as a force-controlled
+        ``[foundation]`` does (:meth:`_foundation_force`), its partners by ``motion`` per unit s on
+        its pairs' contact nodes and not at all on the other pairs'; b_m = R_mᵀ f̂ on its pairs'
+        nodes and zero elsewhere, so that Σ_m b_m·r_m, the resultant along f̂ of its pairs alone,
+        balances |f| + f̂·(its own loads' resultant)."""
+        cps = self.foundation
+        k = cps.pressed
+        part, rows = cps.parts[k], cps.rows[k]
+        spec = self.config.pairs[cps.pairs[k][0]].foundation
+        f = np.asarray(spec.force, float)
+        fhat = f / np.linalg.norm(f)
+        b = np.zeros((self.contact_nodes.size, 3))
+        b[rows] = np.einsum("mij,i->mj", R[rows], fhat)
+        motion = cps.motion.reshape(-1, 3)
+        total = float(np.linalg.norm(f) + fhat @ part.load_resultant)
+        where = f"{self.config.source}: the counterpart of {' and '.join(f'contacts[{j}]' for j in cps.pairs[k])}"
+        if not total > 0:
+            raise ConfigError([f"{where}: force = {spec.force}: the body's own loads pull it away from the face body "
+                               f"by more than the force (the contact resultant along the force would be "
+                               f"{total:.6g} ≤ 0)"])
+        self.obstacle_force = ObstacleForce(total, b, motion[:, 2].copy(), motion)
+        if not np.any(self.obstacle_force.gap_rate > 0):
+            raise ConfigError([f"{where}: force = {spec.force}: no contact node's normal has a component along the "
+                               "force: the counterpart cannot press the body"])
 
     @property
     def force(self) -> float | None:

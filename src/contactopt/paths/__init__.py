@@ -75,6 +75,8 @@ def needs(config, pinned: int = 0, ranks: int = 1, rigid=None) -> dict:
         out["foundation"] = out["pairs"] = f"{len(config.pairs)} contact pairs against {kind}"
         if any(pr.rigid and pr.obstacle.control == "force" for pr in config.pairs):    # its translation's search
             out["counterpart_force"] = "a rigid counterpart of several pairs pressed by control = 'force'"
+        if any(not pr.rigid and pr.foundation.control == "force" for pr in config.pairs):
+            out["counterpart_force"] = "a counterpart body of several pairs pressed by control = 'force'"
     obst = config.obstacle
     obstacle = "plane" if obst is None else obst.shape
     if obst is not None and obst.control == "force":

@@ -301,7 +301,7 @@ class CondensationPath(ZonePath):
         if f.ell_o is None:            # one foundation: its own solve under −Πᵀr
             return partial(f.displacement, np.array(r), system.moved)
         o = system.coupling.support_displacement(np.ravel(u_c), system.ell, r)
-        return lambda: np.concatenate(f.recovered(o))
+        return lambda: np.concatenate(f.recovered(o, system.moved))
 
     def load_scale(self, system):
         return system.contact_ell
