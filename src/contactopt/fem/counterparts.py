@@ -54,7 +54,7 @@ class RigidCounterpart:
     condensed = True
     n_nodes = 0
     partner = "rigid"
-    memory_parts: dict = {}
+    memory_sizes: list = []     # no DOFs: nothing to count (fem.memory)
 
     def __init__(self, spec, gap0: np.ndarray):
         self.spec, self.control = spec, spec.control
@@ -165,17 +165,14 @@ class Counterparts:
 
     def refresh(self) -> None:
         """What is gathered from the parts (after one of them changed: a designed counterpart,
-        fem.cpdesigns): gaps, memory, the block condensation, the loads' resultant, Π, C, q, ℓ_o."""
+        fem.cpdesigns): gaps, the bodies' sizes (fem.memory), the block condensation, the loads' resultant, Π, C, q, ℓ_o."""
         p = self.p
         self.gap0 = None
         if all(f.gap0 is not None for f in self.parts):
             self.gap0 = np.zeros(p)
             for f, r in zip(self.parts, self.rows):
                 self.gap0[r] = f.gap0
-        self.memory_parts = {}
-        for f in self.parts:
-            for key, v in f.memory_parts.items():
-                self.memory_parts[key] = self.memory_parts.get(key, 0.0) + v
+        self.memory_sizes = [size for f in self.parts for size in f.memory_sizes]
         # (none where the bodies are kept assembled: the full-space path, paths/coupled.py)
         self.condensation = None if any(f.condensation is None for f in self.parts) else _BlockCondensation(self.parts)
         self.load_resultant = sum(f.load_resultant for f in self.parts)

@@ -51,7 +51,7 @@ from .elements import element_type, face_type
 from .foundation import Foundation
 from .loads import face_areas_nodal
 from .loadset import LoadSet, load_set
-from .memory import check_memory
+from .memory import PathEstimates, check_memory
 from .mortar import dual_weighted
 from .weight import harmonic_weight
 
@@ -137,10 +137,14 @@ class ElasticModel:
 
     def __init__(self, config, *, body=None, memory_estimate=None, condensed: bool = True):
         """``body``: the configuration's body if already built; ``memory_estimate``: the peak
-        memory estimate (a function of the body) of the solver path that will run, checked
-        against the memory available before anything costly is built (the condensation's by
-        default); ``condensed=False``: an elastic foundation is kept assembled, not condensed
-        onto its support (the full-space path's, :class:`~contactopt.fem.foundation.Foundation`)."""
+        memory estimate (a function of the body and its elastic counterparts' sizes, keyword
+        ``counterparts``) of the solver path that will run, or a
+        :class:`~contactopt.fem.memory.PathEstimates` with those of the other paths that take the
+        model (a refusal names them), checked against the memory available before anything costly
+        is built: the body's first, then again as each counterpart's mesh is read, with every
+        counterpart read so far (the condensation's by default); ``condensed=False``: an elastic
+        foundation is kept assembled, not condensed onto its support (the full-space path's,
+        :class:`~contactopt.fem.foundation.Foundation`)."""
         self._condensed = condensed
         cfg = load_config(config) if not isinstance(config, Config) else config
         self.config = given = cfg
@@ -149,10 +153,13 @@ class ElasticModel:
         formulation = _formulation(cfg.material, body.reference.cell_type, cfg.source)
         check = None
         if cfg.linear_solver.memory_check:   # refuse a mesh too large before building on it
-            est = check_memory(body, estimate=memory_estimate)
+            paths = memory_estimate if isinstance(memory_estimate, PathEstimates) else PathEstimates(memory_estimate)
+            check_memory(body, estimate=paths.run, alternatives=paths.others)
+            counted = []
 
-            def check(extra):                      # an elastic foundation's part, held beside it
-                return check_memory(body, estimate=lambda b: est.with_parts(extra))
+            def check(size):                       # an elastic counterpart, with those before it
+                counted.append(size)
+                return check_memory(body, estimate=paths.run, counterparts=counted, alternatives=paths.others)
         ref = body.reference
         d1, d2 = cfg.design.degree
         (x1lo, x1hi), (x2lo, x2hi) = body.domain
