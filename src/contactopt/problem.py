@@ -27,7 +27,7 @@ from .fem import memory
 from .fem.model import ElasticModel
 from .io import reports
 from .mesh.body import build_body
-from .paths import PATHS, Start, make_path, select_path
+from .paths import PATHS, Start, make_path, path_estimates, select_path
 from .sensitivity.cases import build_cases
 from .sensitivity.objectives import make_constraints, warn_pressure_on_linear_tetrahedra
 from .sensitivity.responses import Response, evaluate_response, max_combination
@@ -58,7 +58,7 @@ class ShapeProblem:
             name, library = select_path(self.config, memory.free_dofs(body), pinned=int(body.pinned_dofs.size),
                                         rigid=body.rigid, pinned_held=True)
             with PATHS[name].library_threads(self.config.linear_solver.threads):   # the morph weight's solve
-                self.model = ElasticModel(self.config, body=body, memory_estimate=PATHS[name].memory_estimate,
+                self.model = ElasticModel(self.config, body=body, memory_estimate=path_estimates(self.config, name, body),
                                           condensed=PATHS[name].condenses_counterparts)
             if optimizing:
                 self.model.check_design_space()

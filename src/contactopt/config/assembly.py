@@ -205,7 +205,7 @@ def desugar(raw: dict, problems: list) -> tuple[dict, list]:
         return _rest(raw), []
     face_body, part, counter = pairs[0]
     if len(contacts) > 1:
-        _check_star(pairs, problems)
+        _check_star(pairs, problems, bodies)
     used = {face_body} | {c[0] for _, _, c in pairs if isinstance(c, tuple)}
     for name in bodies:
         if name not in used:
@@ -250,10 +250,12 @@ def _check_counterpart_design(n: int, face, owner, counters: list, own: list, pr
                         f"the designs of the face body {face_body!r} in [[designs]]")
 
 
-def _check_star(pairs: list, problems: list) -> None:
+def _check_star(pairs: list, problems: list, bodies: dict | None = None) -> None:
     """Several pairs, as the mechanics take them so far: every face on one body (the face body),
     every counterpart a part of another body; a body may be the counterpart of several pairs
-    (condensed once onto all their supports, fem.counterparts), each on a part of its own."""
+    (condensed once onto all their supports, fem.counterparts), each on a part of its own. One
+    counterpart per model pressed by a force (a rigid one, or a counterpart body of ``bodies``
+    with control = 'force', once however many pairs it holds): its translation is searched."""
     face_body = pairs[0][0]
     seen = {}
     for n, (body, part, counter) in enumerate(pairs):
@@ -271,9 +273,21 @@ def _check_star(pairs: list, problems: list) -> None:
                             "(each pair's partners are searched on its own part)")
         else:
             seen[n] = counter
-    pressed = [f"contacts[{n}]" for n, (_, _, c) in enumerate(pairs) if isinstance(c, dict) and c.get("control") == "force"]
+    pressed, elastic = [], {}
+    for n, (_, _, c) in enumerate(pairs):
+        if isinstance(c, dict) and c.get("control") == "force":
+            pressed.append(f"contacts[{n}]")
+        elif (isinstance(c, tuple) and isinstance((bodies or {}).get(c[0]), dict)
+              and bodies[c[0]].get("control") == "force"):
+            if c[0] not in elastic:
+                elastic[c[0]] = len(pressed)
+                pressed.append(None)
+            pressed[elastic[c[0]]] = (pressed[elastic[c[0]]] or []) + [f"contacts[{n}]"]
     if len(pressed) > 1:
-        problems.append(f"{' and '.join(pressed)}: {len(pressed)} rigid counterparts pressed by control = 'force'; "
+        what = "rigid counterparts" if not elastic else "counterparts"
+        names = {i: name for name, i in elastic.items()}
+        words = [w if isinstance(w, str) else f"bodies.{names[i]} ({' and '.join(w)})" for i, w in enumerate(pressed)]
+        problems.append(f"{' and '.join(words)}: {len(pressed)} {what} pressed by control = 'force'; "
                         "contactopt searches the translation of one counterpart per model so far (press the "
                         "others by control = 'displacement')")
 

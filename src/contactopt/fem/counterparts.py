@@ -54,7 +54,7 @@ class RigidCounterpart:
     condensed = True
     n_nodes = 0
     partner = "rigid"
-    memory_parts: dict = {}
+    memory_sizes: list = []     # no DOFs: nothing to count (fem.memory)
 
     def __init__(self, spec, gap0: np.ndarray):
         self.spec, self.control = spec, spec.control
@@ -140,7 +140,6 @@ class Counterparts:
     ``pair_rows`` the contact nodes of each pair."""
 
     basis = None          # mortar partners on six-node triangles: one pair only (Foundation)
-    motion = None         # a counterpart body pressed by a force: one pair only (a displacement is in q)
     translation = None
 
     def __init__(self, parts: list, rows: list, p: int, pairs=None, pair_rows=None):
@@ -151,25 +150,29 @@ class Counterparts:
             if f.basis is not None:
                 raise ConfigError(["contacts: mortar partners on six-node triangles take one pair per model so far; "
                                    "use partner = 'point' or linear elements"])
-            if f.control == "force" and f.n_nodes:     # (a rigid one's search: fem.model, paths/force.py)
-                raise ConfigError(["bodies: a counterpart body pressed by control = 'force' takes one pair per model "
-                                   "so far; in a model of several pairs a counterpart body is held by its clamps or "
-                                   "moved by control = 'displacement', a rigid counterpart may be pressed by a force"])
+        # the counterpart body pressed by a force, if any (one per model: config.assembly); a rigid
+        # one's search is fem.model's, on no DOFs
+        pressed = [b for b, f in enumerate(self.parts) if f.control == "force" and f.n_nodes]
+        assert len(pressed) <= 1, "one counterpart body pressed by a force per model (config.assembly)"
+        self.pressed = pressed[0] if pressed else None
         self.refresh()
+
+    @property
+    def control(self) -> str:
+        """'force' where a counterpart body is pressed by a force (its translation s f̂ searched,
+        paths/force.py), else 'fixed' (prescribed translations are in q)."""
+        return "fixed" if self.pressed is None else "force"
 
     def refresh(self) -> None:
         """What is gathered from the parts (after one of them changed: a designed counterpart,
-        fem.cpdesigns): gaps, memory, the block condensation, the loads' resultant, Π, C, q, ℓ_o."""
+        fem.cpdesigns): gaps, the bodies' sizes (fem.memory), the block condensation, the loads' resultant, Π, C, q, ℓ_o."""
         p = self.p
         self.gap0 = None
         if all(f.gap0 is not None for f in self.parts):
             self.gap0 = np.zeros(p)
             for f, r in zip(self.parts, self.rows):
                 self.gap0[r] = f.gap0
-        self.memory_parts = {}
-        for f in self.parts:
-            for key, v in f.memory_parts.items():
-                self.memory_parts[key] = self.memory_parts.get(key, 0.0) + v
+        self.memory_sizes = [size for f in self.parts for size in f.memory_sizes]
         # (none where the bodies are kept assembled: the full-space path, paths/coupled.py)
         self.condensation = None if any(f.condensation is None for f in self.parts) else _BlockCondensation(self.parts)
         self.load_resultant = sum(f.load_resultant for f in self.parts)
@@ -182,18 +185,24 @@ class Counterparts:
         """Π, P, C, q and ℓ_o over all contact nodes from the pairs' (after a rotation into frames):
         q holds only the prescribed translations Π d, the loads enter as ℓ_o (Coupling.ell_eff);
         C is None where a counterpart is held only by its contacts (its compliance is infinite
-        along its rigid motions)."""
+        along its rigid motions). ``motion`` (3p,): the partners' motion Π f̂ per unit s of the
+        body pressed by a force on its contact nodes, zero on the others' (None: none pressed); its
+        translation s f̂ is an unknown of the state (paths/force.py), not in q."""
         n = 3 * self.p
         self.P = sp.csr_matrix(self._stack([f.P for f in self.parts]))
         self.Pi = sp.csr_matrix(self._stack([f.Pi for f in self.parts]))
         self.C = None if any(f.C is None for f in self.parts) else np.zeros((n, n))
         self.q_f = np.zeros(n)
+        self.motion = None if self.pressed is None else np.zeros(n)
         for k, f in enumerate(self.parts):
             d = self._dofs(k)
             if self.C is not None:
                 self.C[np.ix_(d, d)] = f.C
             if f.motion is not None:
-                self.q_f[d] = f.motion
+                if k == self.pressed:
+                    self.motion[d] = f.motion
+                elif f.control == "displacement":
+                    self.q_f[d] = f.motion
         self.ell_o = None if any(f.ell_f is None for f in self.parts) else np.concatenate([f.ell_f for f in self.parts])
         # Π W_o ℓ_o: the partners' displacement under the counterparts' own loads (Coupling.offset)
         self.load_displacement = None
@@ -287,19 +296,20 @@ class Counterparts:
         face body's load ℓ, its interior recovered under its own loads, plus its prescribed translation."""
         return self.recovered(coupling.support_displacement(w, ell, r))
 
-    def recovered(self, o: np.ndarray) -> list:
+    def recovered(self, o: np.ndarray, s: float = 0.0) -> list:
         """Each counterpart's full displacement (3·n_k,) from o on the free support DOFs of all
-        (:meth:`displacements`): its interior recovered under its own loads, plus its translation."""
+        (:meth:`displacements`): its interior recovered under its own loads, plus its translation
+        (s f̂ of the body pressed by a force, ``s`` the state's translation)."""
         out, start = [], 0
         for f in self.parts:
             m = f.P.shape[1]
-            out.append(f.displacement(None, support=o[start:start + m]))
+            out.append(f.displacement(None, s, support=o[start:start + m]))
             start += m
         return out
 
     def displacement(self, r: np.ndarray, s: float = 0.0, coupling=None, w=None, ell=None) -> np.ndarray:
         """The counterpart bodies' displacements one after the other (their VTU file tags each body's)."""
-        return np.concatenate(self.displacements(r, coupling, w, ell))
+        return np.concatenate(self.recovered(coupling.support_displacement(w, ell, r), s))
 
     def summary(self) -> dict:
         return {"pairs": [f.summary() for f in self.parts]}

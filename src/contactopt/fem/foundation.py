@@ -48,7 +48,7 @@ from .dense import cholesky_lower, cholesky_solve, spd_inverse, symmetrize_lower
 from .elasticity import ElasticityAssembler
 from .elements import element_type, face_type, tri_rule
 from .loadset import load_set
-from .memory import counterpart_fullspace_parts, foundation_parts, matrix_entries
+from .memory import CounterpartSize, matrix_entries
 from .mortar import MortarCoupling, mortar_matrices, transformed_basis
 
 log = logging.getLogger(__name__)
@@ -69,8 +69,9 @@ class Foundation:
     def __init__(self, spec, body, source: str = "<dict>", backend: str = "auto", check=None, normals=None,
                  floating: bool = False, condensed: bool = True, shared=None):
         """``spec`` the ``[foundation]`` section of the configuration read from ``source``;
-        ``check(parts)``: called with :attr:`memory_parts` before K_f is assembled and
-        condensed (the model's memory check), so that a foundation too large is refused first.
+        ``check(size)``: called with its :attr:`memory_sizes` (its sizes, counted from its mesh)
+        before K_f is assembled and condensed (the model's memory check, on the path that will run),
+        so that a foundation too large is refused first.
         ``normals`` (p, 3): the contact normals of a curved contact face (module docstring), whose
         partners lie along them; None: the face on x3 = 0, partners below the nodes.
         ``condensed=False``: K_f is assembled and kept as it is (``K``, the full-space path's
@@ -122,10 +123,9 @@ class Foundation:
         free_per_node = np.ones(3 * ref.n_nodes, bool)
         free_per_node[fm.fixed_dofs] = False
         nnz_K = matrix_entries(ref.cells, ref.n_nodes, free_per_node.reshape(-1, 3).sum(axis=1))
-        self.memory_parts = (foundation_parts(self.assembler.n_free, nnz_K, self._support_free.size, 3 * p)
-                             if condensed else counterpart_fullspace_parts(self.assembler.n_free, nnz_K))
+        self.memory_sizes = [CounterpartSize(self.assembler.n_free, nnz_K, self._support_free.size, 3 * p)]
         if check is not None:
-            check(self.memory_parts)
+            check(self.memory_sizes[0])
         self.rigid = fm.rigid     # held only by its contacts: K_f singular, no W_f, C, q_f (fem.counterparts)
         self.K = None             # K_f on the free DOFs where it is not condensed
         P = self.Pi.tocsc()[:, np.flatnonzero(keep)]

@@ -30,7 +30,7 @@ kill the run mid-factorization.
 from __future__ import annotations
 
 import logging
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 import scipy.sparse as sp
@@ -59,6 +59,11 @@ ZONE_FRACTION = 1.0       # the first design's zone (predicted from A⁻¹L) can
 # hierarchy (operator complexity ≈ 1.16) and GMRES's Krylov basis (restart 60).
 AMG_SPARSE_COPIES = 6.0
 KRYLOV_VECTORS = 130
+# ... with elastic counterparts in its Newton system (paths/coupled.py): the products Tᵀ diag(A, K_f) T
+# formed per design beside diag(A, K_f), a system denser than the bodies' blocks and a hierarchy of
+# operator complexity ≈ 1.9 (six near-null vectors per body): COUPLED_SPARSE_COPIES × 12 bytes per
+# entry of every body's stiffness, fitted to the peaks of Example 1 on its slab (docs/foundation.md).
+COUPLED_SPARSE_COPIES = 10.8
 # An elastic foundation (``[foundation]``, condensation path): K_f and the Schur-mode factor of it
 # onto the m free top-face DOFs that carry partners, held once per run, with dense S_f, W_f, M and
 # its Cholesky factor (m × m), C and S_eff (3p × 3p) and the products between them (3p × m).
@@ -109,6 +114,16 @@ class MemoryEstimate:
                 f"({parts} GB)")
 
 
+@dataclass(frozen=True)
+class PathEstimates:
+    """The memory estimate of the solver path that will run (``run``, a function of a body and,
+    keyword ``counterparts``, its elastic counterparts' sizes) and ``others``: {path: its
+    estimate} of the other paths that take the model, which a refusal names."""
+
+    run: object
+    others: dict = field(default_factory=dict)
+
+
 def fill_factor(n_dofs: int) -> float:
     """nnz(L)/nnz(A) of PARDISO's Schur-mode factor, extrapolated from the block's measurements."""
     n0, f0 = FILL_REF
@@ -153,11 +168,43 @@ def fullspace_parts(n_dofs: int, n_contact_dofs: int, nnz_A: int) -> tuple[dict,
     return {"sparse": AMG_SPARSE_COPIES * 12.0 * nnz_A, "krylov": KRYLOV_VECTORS * 8.0 * n_dofs}, 0
 
 
-def counterpart_fullspace_parts(n_dofs: int, nnz_K: int) -> dict:
-    """An elastic counterpart on the full-space path (bytes): its K_f as a block of the Newton
-    system (in the system's copies and the AMG hierarchy, as the body's A) and its part of the
-    Krylov basis; nothing factorized, nothing dense."""
-    return {"foundation": AMG_SPARSE_COPIES * 12.0 * nnz_K + KRYLOV_VECTORS * 8.0 * n_dofs}
+@dataclass(frozen=True)
+class CounterpartSize:
+    """What an estimate counts of an elastic counterpart body, from its mesh (before K_f is
+    assembled): its free DOFs, the entries of K_f on them, its free support DOFs that carry
+    partners and the contact DOFs of its pairs."""
+
+    n_dofs: int
+    nnz: int
+    n_support_dofs: int
+    n_contact_dofs: int
+
+
+def coupled_parts(n_dofs: int, n_contact_dofs: int, nnz_A: int, counterparts=()) -> tuple[dict, int]:
+    """The full-space path with the elastic ``counterparts`` (:class:`CounterpartSize`) in its
+    Newton system: every body's stiffness in the products with T, the system and its AMG
+    hierarchy (COUPLED_SPARSE_COPIES), every body's DOFs in the Krylov basis; the counterparts'
+    share under "foundation". Without counterparts :func:`fullspace_parts`."""
+    if not counterparts:
+        return fullspace_parts(n_dofs, n_contact_dofs, nnz_A)
+    nnz_K = sum(c.nnz for c in counterparts)
+    n_f = sum(c.n_dofs for c in counterparts)
+    return {"sparse": COUPLED_SPARSE_COPIES * 12.0 * nnz_A, "krylov": KRYLOV_VECTORS * 8.0 * n_dofs,
+            "foundation": COUPLED_SPARSE_COPIES * 12.0 * nnz_K + KRYLOV_VECTORS * 8.0 * n_f}, 0
+
+
+def condensed_counterparts(counterparts) -> dict:
+    """The condensation path's part of the elastic ``counterparts``: each one's
+    :func:`foundation_parts`, held for the whole run ({} without counterparts)."""
+    if not counterparts:
+        return {}
+    return {"foundation": sum(foundation_parts(c.n_dofs, c.nnz, c.n_support_dofs, c.n_contact_dofs)["foundation"]
+                              for c in counterparts)}
+
+
+def condensation_estimate(body, counterparts=()) -> MemoryEstimate:
+    """The condensation path's estimate of a body and its elastic counterparts (sizes)."""
+    return estimate_evaluation(body, condensation_parts).with_parts(condensed_counterparts(counterparts))
 
 
 def foundation_parts(n_dofs: int, nnz_K: int, n_support_dofs: int, n_contact_dofs: int) -> dict:
@@ -229,19 +276,40 @@ def available_memory() -> float:
     return float("inf")
 
 
-def check_memory(body, *, margin: float = 0.9, estimate=None) -> MemoryEstimate:
+def check_memory(body, *, margin: float = 0.9, estimate=None, counterparts=(), alternatives=None) -> MemoryEstimate:
     """Refuse (:class:`InsufficientMemoryError`) a body (or model) whose evaluation would need
     more than ``margin`` × the available memory; returns the estimate otherwise (logged at INFO).
-    ``estimate``: the estimate of the solver path that will run (a function of the body; the
-    condensation's by default)."""
-    est = (estimate or estimate_evaluation)(body)
+    ``estimate``: the estimate of the solver path that will run, a function of the body and of
+    its elastic ``counterparts`` (:class:`CounterpartSize`, those built so far; the condensation's
+    by default). ``alternatives``: {path: its estimate} of the other paths that take the model,
+    whose estimates a refusal names (those that fit first)."""
+    est = _estimate(estimate or condensation_estimate, body, counterparts)
     avail = available_memory()
     if est.total > margin * avail:
         raise InsufficientMemoryError(
             f"the mesh is too large for the memory available: one evaluation needs about "
-            f"{est.describe()}, and {avail / GB:.1f} GB are available (MemAvailable). Use a coarser "
+            f"{est.describe()}, and {avail / GB:.1f} GB are available (MemAvailable). "
+            f"{_other_paths(body, counterparts, alternatives, margin * avail)}Use a coarser "
             f"[mesh] (the factor grows like n^{1 + FILL_EXPONENT:.2f}, the dense contact matrices like "
             f"(contact DOFs)²), free memory on this machine, or set [linear_solver] memory_check = false "
             f"to try anyway", est, avail / GB)
     log.info("memory estimate of an evaluation: %s; %.1f GB available", est.describe(), avail / GB)
     return est
+
+
+def _estimate(estimate, body, counterparts) -> MemoryEstimate:
+    return estimate(body, counterparts=list(counterparts)) if counterparts else estimate(body)
+
+
+def _other_paths(body, counterparts, alternatives, limit: float) -> str:
+    """The sentence of a refusal on the other paths that take the model: those whose estimate
+    fits within ``limit`` bytes, else each one's estimate."""
+    if not alternatives:
+        return ""
+    totals = {name: _estimate(f, body, counterparts).total for name, f in alternatives.items()}
+    fit = sorted((t, name) for name, t in totals.items() if t <= limit)
+    if fit:
+        t, name = fit[0]
+        return (f"The '{name}' path would fit (about {t / GB:.1f} GB): set [linear_solver] path = '{name}'. ")
+    said = ", ".join(f"'{name}' {t / GB:.1f} GB" for name, t in totals.items())
+    return f"No other path that takes this model fits either ({said}). "

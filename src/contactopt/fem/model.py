@@ -51,7 +51,7 @@ from .elements import element_type, face_type
 from .foundation import Foundation
 from .loads import face_areas_nodal
 from .loadset import LoadSet, load_set
-from .memory import check_memory
+from .memory import PathEstimates, check_memory
 from .mortar import dual_weighted
 from .weight import harmonic_weight
 
@@ -137,10 +137,14 @@ class ElasticModel:
 
     def __init__(self, config, *, body=None, memory_estimate=None, condensed: bool = True):
         """``body``: the configuration's body if already built; ``memory_estimate``: the peak
-        memory estimate (a function of the body) of the solver path that will run, checked
-        against the memory available before anything costly is built (the condensation's by
-        default); ``condensed=False``: an elastic foundation is kept assembled, not condensed
-        onto its support (the full-space path's, :class:`~contactopt.fem.foundation.Foundation`)."""
+        memory estimate (a function of the body and its elastic counterparts' sizes, keyword
+        ``counterparts``) of the solver path that will run, or a
+        :class:`~contactopt.fem.memory.PathEstimates` with those of the other paths that take the
+        model (a refusal names them), checked against the memory available before anything costly
+        is built: the body's first, then again as each counterpart's mesh is read, with every
+        counterpart read so far (the condensation's by default); ``condensed=False``: an elastic
+        foundation is kept assembled, not condensed onto its support (the full-space path's,
+        :class:`~contactopt.fem.foundation.Foundation`)."""
         self._condensed = condensed
         cfg = load_config(config) if not isinstance(config, Config) else config
         self.config = given = cfg
@@ -149,10 +153,13 @@ class ElasticModel:
         formulation = _formulation(cfg.material, body.reference.cell_type, cfg.source)
         check = None
         if cfg.linear_solver.memory_check:   # refuse a mesh too large before building on it
-            est = check_memory(body, estimate=memory_estimate)
+            paths = memory_estimate if isinstance(memory_estimate, PathEstimates) else PathEstimates(memory_estimate)
+            check_memory(body, estimate=paths.run, alternatives=paths.others)
+            counted = []
 
-            def check(extra):                      # an elastic foundation's part, held beside it
-                return check_memory(body, estimate=lambda b: est.with_parts(extra))
+            def check(size):                       # an elastic counterpart, with those before it
+                counted.append(size)
+                return check_memory(body, estimate=paths.run, counterparts=counted, alternatives=paths.others)
         ref = body.reference
         d1, d2 = cfg.design.degree
         (x1lo, x1hi), (x2lo, x2hi) = body.domain
@@ -307,9 +314,12 @@ class ElasticModel:
         """A rigid counterpart of one of several pairs pressed by a force (its table's control =
         "force"): it translates by s f̂ as the one obstacle does (:class:`ObstacleForce`, no
         ``motion``), with b_m = R_mᵀ f̂ and c_m = f̂·n_m on its pair's contact nodes and zero on the
-        others', so that Σ_m b_m·r_m is the resultant along f̂ of its pair alone."""
+        others', so that Σ_m b_m·r_m is the resultant along f̂ of its pair alone. A counterpart
+        body pressed by a force: :meth:`_body_force`."""
         p = self.contact_nodes.size
         R = self.frames if self.frames is not None else np.broadcast_to(np.eye(3), (p, 3, 3))
+        if self.foundation.pressed is not None:
+            self._body_force(R)
         for k, (spec, rows, _, _) in rigid.items():
             if spec.control != "force":
                 continue
@@ -323,6 +333,33 @@ class ElasticModel:
                 raise ConfigError([f"{self.config.source}: contacts[{k}].counterpart.force = {spec.force}: no contact "
                                    "node's normal has a component along the force: the counterpart cannot press the "
                                    "body"])
+
+    def _body_force(self, R: np.ndarray) -> None:
+        """A counterpart body of several pairs pressed by a force (``bodies.<name>.control =
+        "force"``): its loaded part, and the body with it, translate by s f̂ as a force-controlled
+        ``[foundation]`` does (:meth:`_foundation_force`), its partners by ``motion`` per unit s on
+        its pairs' contact nodes and not at all on the other pairs'; b_m = R_mᵀ f̂ on its pairs'
+        nodes and zero elsewhere, so that Σ_m b_m·r_m, the resultant along f̂ of its pairs alone,
+        balances |f| + f̂·(its own loads' resultant)."""
+        cps = self.foundation
+        k = cps.pressed
+        part, rows = cps.parts[k], cps.rows[k]
+        spec = self.config.pairs[cps.pairs[k][0]].foundation
+        f = np.asarray(spec.force, float)
+        fhat = f / np.linalg.norm(f)
+        b = np.zeros((self.contact_nodes.size, 3))
+        b[rows] = np.einsum("mij,i->mj", R[rows], fhat)
+        motion = cps.motion.reshape(-1, 3)
+        total = float(np.linalg.norm(f) + fhat @ part.load_resultant)
+        where = f"{self.config.source}: the counterpart of {' and '.join(f'contacts[{j}]' for j in cps.pairs[k])}"
+        if not total > 0:
+            raise ConfigError([f"{where}: force = {spec.force}: the body's own loads pull it away from the face body "
+                               f"by more than the force (the contact resultant along the force would be "
+                               f"{total:.6g} ≤ 0)"])
+        self.obstacle_force = ObstacleForce(total, b, motion[:, 2].copy(), motion)
+        if not np.any(self.obstacle_force.gap_rate > 0):
+            raise ConfigError([f"{where}: force = {spec.force}: no contact node's normal has a component along the "
+                               "force: the counterpart cannot press the body"])
 
     @property
     def force(self) -> float | None:

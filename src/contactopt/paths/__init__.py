@@ -28,6 +28,7 @@ from .. import _mpi
 from ..config.validation import check_interactions
 from ..errors import ConfigError
 from ..fem.linsolve import pardiso_available
+from ..fem.memory import PathEstimates
 from ..sensitivity.objectives import FULL_SPACE, constraint_types, objective_types
 from .base import Capabilities, Context, Settings, SolverPath, Start
 from .condensation import CondensationPath
@@ -42,7 +43,7 @@ PATHS = MappingProxyType({cls.name: cls for cls in (CondensationPath, DelassusPa
 NAMES = tuple(PATHS)
 
 __all__ = ("PATHS", "NAMES", "SolverPath", "Settings", "Context", "Capabilities", "Start", "needs",
-           "select_path", "make_path", "library_for")
+           "select_path", "path_estimates", "make_path", "library_for")
 
 
 def library_for(name: str, library: str) -> str:
@@ -75,6 +76,8 @@ def needs(config, pinned: int = 0, ranks: int = 1, rigid=None) -> dict:
         out["foundation"] = out["pairs"] = f"{len(config.pairs)} contact pairs against {kind}"
         if any(pr.rigid and pr.obstacle.control == "force" for pr in config.pairs):    # its translation's search
             out["counterpart_force"] = "a rigid counterpart of several pairs pressed by control = 'force'"
+        if any(not pr.rigid and pr.foundation.control == "force" for pr in config.pairs):
+            out["counterpart_force"] = "a counterpart body of several pairs pressed by control = 'force'"
     obst = config.obstacle
     obstacle = "plane" if obst is None else obst.shape
     if obst is not None and obst.control == "force":
@@ -139,6 +142,16 @@ def select_path(config, n_free: int, pinned: int = 0, rigid=None, pinned_held: b
                            + (f" under mpiexec with {ranks} ranks" if "many_ranks" in need and name == "auto" else "")
                            + f" needs {why}" for why in missing])
     return chosen.name, library_for(chosen.name, ls.library)
+
+
+def path_estimates(config, name: str, body) -> PathEstimates:
+    """The memory estimate of path ``name``, which will run, and those of the other paths that
+    take a configuration and its ``body`` (pinned components, free rigid motions) on this run's
+    ranks (:func:`needs`) with their libraries installed, which a memory refusal names (fem.memory)."""
+    need = needs(config, int(body.pinned_dofs.size), _mpi.world_size(), body.rigid)
+    return PathEstimates(PATHS[name].memory_estimate, {
+        n: cls.memory_estimate for n, cls in PATHS.items() if n != name and not cls.capabilities.lacks(need)
+        and not any(map(missing_library, cls.capabilities.libraries))})
 
 
 def _auto(fit: list, n_free: int, crossover: int, ranks: int, need=()):

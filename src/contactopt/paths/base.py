@@ -38,6 +38,7 @@ from ..contact.state import (
     displacement_scale,
 )
 from ..errors import CheckpointError, ProblemDataError
+from ..fem.model import ElasticModel
 from .transforms import Mechanics
 
 log = logging.getLogger(__name__)
@@ -274,8 +275,10 @@ class SolverPath:
 
     # ------------------------------------------------------------------ the interface
     @classmethod
-    def memory_estimate(cls, body, **kw):
-        """Estimated peak memory of one evaluation (:class:`~contactopt.fem.memory.MemoryEstimate`)."""
+    def memory_estimate(cls, body, counterparts=None, **kw):
+        """Estimated peak memory of one evaluation (:class:`~contactopt.fem.memory.MemoryEstimate`)
+        of a body (or model) with its elastic ``counterparts`` (sizes, :class:`~contactopt.fem.memory.CounterpartSize`;
+        None: a model's own, :func:`counterpart_sizes`)."""
         raise NotImplementedError
 
     def assemble(self, alpha, loads=None):
@@ -481,3 +484,14 @@ def check_design(alpha, n_design: int, where: str, what: str) -> np.ndarray:
     if alpha.shape != (n_design,) or not np.all(np.isfinite(alpha)):
         raise CheckpointError(f"{where}: its {what} has shape {alpha.shape} (expected ({n_design},), finite)")
     return alpha.astype(float)
+
+
+def counterpart_sizes(body, given=None) -> list:
+    """The sizes of the elastic counterparts a memory estimate counts: ``given``, else a model's
+    own (:attr:`~contactopt.fem.counterparts.Counterparts.memory_sizes`), none for a body alone
+    (its counterparts are counted as they are read, fem.model)."""
+    if given is not None:
+        return list(given)
+    if isinstance(body, ElasticModel) and body.foundation is not None:
+        return list(body.foundation.memory_sizes)
+    return []

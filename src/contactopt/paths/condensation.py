@@ -58,9 +58,9 @@ from ..errors import SolverError
 from ..fem import memory
 from ..fem.dense import mkl_threads, spd_inverse
 from ..fem.foundation import Coupling
-from ..fem.model import Assembled, ElasticModel
+from ..fem.model import Assembled
 from ..sensitivity.adjoint import solve_adjoint, solve_adjoint_compliant
-from .base import Adjoint, Capabilities, SystemParts
+from .base import Adjoint, Capabilities, SystemParts, counterpart_sizes
 from .rigid import Anchor, anchor, held_state, with_contact_diagonal
 from .zone_paths import ZonePath
 
@@ -158,11 +158,8 @@ class CondensationPath(ZonePath):
         self._factor = None      # the condensation, refactored in place for each new design
 
     @classmethod
-    def memory_estimate(cls, body, **kw):
-        est = memory.estimate_evaluation(body, memory.condensation_parts)
-        # a model's elastic foundation (a body alone: the foundation's part is checked beside it)
-        foundation = body.foundation if isinstance(body, ElasticModel) else None
-        return est if foundation is None else est.with_parts(foundation.memory_parts)
+    def memory_estimate(cls, body, counterparts=None, **kw):
+        return memory.condensation_estimate(body, counterpart_sizes(body, counterparts))
 
     def prepare(self, asm) -> CondensedSystem:
         from ..fem.linsolve import condense
@@ -301,7 +298,7 @@ class CondensationPath(ZonePath):
         if f.ell_o is None:            # one foundation: its own solve under −Πᵀr
             return partial(f.displacement, np.array(r), system.moved)
         o = system.coupling.support_displacement(np.ravel(u_c), system.ell, r)
-        return lambda: np.concatenate(f.recovered(o))
+        return lambda: np.concatenate(f.recovered(o, system.moved))
 
     def load_scale(self, system):
         return system.contact_ell

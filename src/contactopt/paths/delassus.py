@@ -79,7 +79,7 @@ class DelassusPath(ZonePath):
         self._keep_cholesky = memory.keeps_cholesky(model)
 
     @classmethod
-    def memory_estimate(cls, body, keep_cholesky=None):
+    def memory_estimate(cls, body, counterparts=None, keep_cholesky=None):    # (no counterparts on this path)
         if keep_cholesky is None:
             keep_cholesky = memory.keeps_cholesky(body)
         return memory.estimate_evaluation(body, memory.delassus_parts, keep_cholesky=keep_cholesky)

@@ -52,7 +52,7 @@ from ..fem import memory
 from ..fem.amg import ContactHierarchy, rigid_body_modes
 from ..fem.model import Assembled
 from ..sensitivity.adjoint_fullspace import solve_adjoint_fullspace
-from .base import Adjoint, Capabilities, Context, SolverPath, SystemParts, check_design
+from .base import Adjoint, Capabilities, Context, SolverPath, SystemParts, check_design, counterpart_sizes
 from .coupled import FullSpaceCouple, with_contact_blocks
 from .coupled import force_terms as coupled_force_terms
 from .floating import floating_anchor, iterate_anchor
@@ -121,8 +121,10 @@ class FullSpaceCommon(SolverPath):
     hierarchy_alpha = None        # the design of the hierarchy (an instance's, once built)
 
     @classmethod
-    def memory_estimate(cls, body, **kw):
-        return memory.estimate_evaluation(body, memory.fullspace_parts)
+    def memory_estimate(cls, body, counterparts=None, **kw):
+        """Every body of the Newton system: the body's and its elastic counterparts' (a model's,
+        or those ``counterparts`` given; :func:`~contactopt.fem.memory.coupled_parts`)."""
+        return memory.estimate_evaluation(body, memory.coupled_parts, counterparts=counterpart_sizes(body, counterparts))
 
     def newton_options(self, ctx, tol, warm_start) -> dict:
         """The tolerance (at least :data:`FULLSPACE_TOL`), the case's zone when warm-started, and
