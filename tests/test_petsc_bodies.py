@@ -92,7 +92,22 @@ def _floating_slab():
                              'clamped = { on = "bottom", components = [3] }\nmaterial = { E = 6.0')
 
 
+def _plane_pressed():
+    """The block on two slabs, the left one replaced by the rigid plane pressed by a tilted force."""
+    from test_assembly_rigid import _rigid
+    return _rigid('{ shape = "plane", control = "force", force = [0.015, 0.0, 0.05] }')
+
+
+def _slab_pressed():
+    """The right slab pressed by a tilted force on its bottom, beside the clamped left one."""
+    from test_assembly_pairs import TWO_SLABS
+    return TWO_SLABS.replace('clamped = "bottom"\nmaterial = { E = 6.0',
+                             'control = "force"\nloaded = "bottom"\nforce = [0.01, -0.005, 0.045]\nmaterial = { E = 6.0')
+
+
 MODELS["a slab held only by its contacts"] = _rigid_pairs(_floating_slab)
+MODELS["two pairs, the rigid plane pressed by a force"] = _rigid_pairs(_plane_pressed)
+MODELS["two pairs, a slab pressed by a force"] = _rigid_pairs(_slab_pressed)
 MODELS["a moved rigid sphere beside the slab"] = _rigid_pairs(_sphere_beside_slab)
 MODELS["rigid spheres only (two pairs)"] = _rigid_pairs(_spheres_only)
 
