@@ -44,6 +44,7 @@ from ..design.bezier import BezierSurface
 from ..design.chart import face_normals
 from ..design.several import DesignSurfaces, surfaces_of
 from ..errors import ConfigError, MeshError
+from ..mesh.body import _domain
 from ..mesh.morph import MorphedMesh, moved
 from ..mesh.reference import describe_part, select_part
 from .weight import harmonic_weight
@@ -183,7 +184,6 @@ def padded_ratio(jr, pad: int):
 def build_counterpart_designs(model, cfg, foundation) -> CounterpartDesigns:
     """The counterpart designs of ``cfg`` (``cfg.counterpart_designs``) on the model's counterparts
     ``foundation``; ConfigError naming what is not taken so far."""
-    from ..mesh.body import _domain
     _check_objectives(cfg)
     names = [c.counterpart for c in cfg.assembly.contacts]
     parts = foundation.parts

@@ -42,14 +42,14 @@ import numpy as np
 from ..contact.fallback import run_chain
 from ..contact.fullspace.petsc import PetscProblem
 from ..contact.state import RigidAnchor
-from ..errors import ConfigError
+from ..errors import ConfigError, SolverError
 from ..fem.model import Assembled
 from ..sensitivity.adjoint_fullspace import ADJOINT_RTOL, adjoint_classes, check_default_choices
 from .base import Adjoint, Capabilities, Context, SolverPath, SystemParts
 from .coupled import FullSpaceCouple
 from .coupled import force_terms as coupled_force_terms
 from .floating import floating_anchor, iterate_anchor
-from .fullspace import COUPLED_FORCING, FullSpaceCommon, refuse_counterparts
+from .fullspace import COUPLED_FORCING, FREE_NEWTON_STEPS, FullSpaceCommon, refuse_counterparts
 from .protocol import Call, Command, Problem, new_path_id, send
 from .transforms import FrameChange
 
@@ -417,8 +417,6 @@ class PetscPath(FullSpaceCommon):
         matrix (at most ``FREE_NEWTON_STEPS`` steps), else the anchor's iteration; the matrices
         hold the unanchored values when it returns (the adjoint's and the products'). ``u0`` the
         warm start (a Vec) and ``u0_loc`` the same in u_loc, or None. Every rank."""
-        from ..errors import SolverError
-        from .fullspace import FREE_NEWTON_STEPS
         an, d, nw = system.anchor, self.dist, self.newton
 
         def vec(x_loc):

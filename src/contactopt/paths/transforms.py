@@ -37,6 +37,7 @@ import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
+from ..fem.amg import rigid_body_modes
 from .force import ForceSearch
 
 
@@ -209,7 +210,6 @@ class FrameChange:
 
     def modes(self, coords: np.ndarray, free: np.ndarray) -> np.ndarray:
         """Tᵀ (the rigid-body modes): the AMG near-null space in u_loc."""
-        from ..fem.amg import rigid_body_modes
         return np.asarray(self.T.T @ rigid_body_modes(coords, free))
 
     joint_modes = modes                 # one body: its six modes
