@@ -88,13 +88,22 @@ class Forked:
             with contextlib.suppress(Exception):
                 stream.flush()
         parent = os.getpid()
-        pid = os.fork()
+        # SIGINT and SIGTERM held across the fork: one arriving then would run the parent's handler
+        # in the child's fork hooks (the random module's reseed), where its exception is printed
+        # and lost; the child takes its own handlers first, the parent gets a held signal after
+        mask = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT, signal.SIGTERM})
+        try:
+            pid = os.fork()
+        finally:
+            if os.getpid() == parent:
+                signal.pthread_sigmask(signal.SIG_SETMASK, mask)
         if pid == 0:                                       # the child: the jobs, then _exit
             code = 1
             try:
                 os.close(read)
                 signal.signal(signal.SIGTERM, _stop)
                 signal.signal(signal.SIGINT, _stop)
+                signal.pthread_sigmask(signal.SIG_SETMASK, mask)
                 _end_with(parent)
                 try:
                     for job in self.jobs:
