@@ -49,6 +49,56 @@ def block_positions(A, rows, cols):
     return out
 
 
+def per_body_solver(A, B, body_modes: int, **amg_kw):
+    """pyamg's smoothed aggregation of A with a near-null space B of ``body_modes`` columns per body
+    (each block zero off its body but at the DOFs coupling the bodies), its first tentative
+    prolongator built per aggregate from the columns of the bodies its DOFs belong to only."""
+    import pyamg
+    from pyamg.aggregation.aggregate import standard_aggregation
+    from pyamg.relaxation.utils import relaxation_as_linear_operator
+    from pyamg.strength import symmetric_strength_of_connection
+    A = sp.csr_matrix(A)
+    A.symmetry = "hermitian"
+    B = np.asarray(B, dtype=np.float64)
+    nb = B.shape[1] // body_modes
+    owner = np.stack([np.any(B[:, k * body_modes:(k + 1) * body_modes] != 0, axis=1) for k in range(nb)], axis=1)
+    C = symmetric_strength_of_connection(A)
+    AggOp, _ = standard_aggregation(C)
+    AggOp = sp.csr_matrix(AggOp)
+    relax = relaxation_as_linear_operator(("block_gauss_seidel", {"sweep": "symmetric", "iterations": 4}), A,
+                                          np.zeros((A.shape[0], 1)))
+    B = relax @ B
+    agg = AggOp.indices                  # the aggregate of each DOF (every DOF in one)
+    held = np.zeros((AggOp.shape[1], nb), dtype=bool)
+    for k in range(nb):
+        held[:, k] = np.bincount(agg, weights=owner[:, k], minlength=AggOp.shape[1]) > 0
+    mask = np.repeat(held[agg], body_modes, axis=1)
+    B = np.where(mask, B, 0.0)
+    return pyamg.smoothed_aggregation_solver(
+        A, B=B, strength=[("predefined", {"C": C}), "symmetric"],
+        aggregate=[("predefined", {"AggOp": AggOp}), "standard"], improve_candidates=None, **amg_kw)
+
+
+def drop_zero_columns(P, A):
+    """The hierarchy (prolongations P_l, coarse operators A_l, A[0] unused) without the coarse
+    unknowns whose column of P_l is zero: the same V-cycle, smaller coarse levels."""
+    P = [sp.csr_matrix(P_) for P_ in P]
+    A = [None] + [sp.csr_matrix(A_) for A_ in A[1:]]
+    for lvl in range(len(P)):
+        P_ = P[lvl]
+        P_.eliminate_zeros()
+        keep = np.flatnonzero(np.bincount(P_.indices, minlength=P_.shape[1]) > 0)
+        if keep.size == P_.shape[1]:
+            continue
+        P[lvl] = P_[:, keep]
+        Ac = sp.csr_matrix(A[lvl + 1])[keep][:, keep]
+        Ac.eliminate_zeros()
+        A[lvl + 1] = Ac
+        if lvl + 1 < len(P):
+            P[lvl + 1] = P[lvl + 1][keep]
+    return P, A
+
+
 class ContactHierarchy:
     """The smoothed-aggregation hierarchy of an A(α_ref) (pyamg, rigid-body modes), kept to
     precondition the Newton systems of later steps and designs.
@@ -69,7 +119,7 @@ class ContactHierarchy:
     iteration counts)."""
 
     def __init__(self, A, near_null=None, *, contact_dofs, max_coarse: int = 10,
-                 precision: str = "single", **amg_kw):
+                 precision: str = "single", body_modes: int | None = None, **amg_kw):
         try:
             import pyamg
         except ImportError as exc:
@@ -81,17 +131,26 @@ class ContactHierarchy:
             raise SolverError(f"precision must be 'single' or 'double', got {precision!r}")
         self.dtype = np.float32 if precision == "single" else np.float64
         progress.log(progress_level(A.shape[0], t0), "AMG hierarchy of %d DOFs: set-up started", A.shape[0])
-        ml = pyamg.smoothed_aggregation_solver(A, B=near_null, max_coarse=max_coarse, **amg_kw)
+        if body_modes is None:
+            ml = pyamg.smoothed_aggregation_solver(A, B=near_null, max_coarse=max_coarse, **amg_kw)
+        else:
+            ml = per_body_solver(A, near_null, body_modes, max_coarse=max_coarse, **amg_kw)
         progress.log(progress_level(A.shape[0], t0), "AMG hierarchy of %d DOFs: %d levels in %.1f s",
                      A.shape[0], len(ml.levels), time.perf_counter() - t0)
         self.n = A.shape[0]
-        self.P = [sp.csr_matrix(lvl.P, dtype=self.dtype) for lvl in ml.levels[:-1]]
-        self.R = [sp.csr_matrix(lvl.R, dtype=self.dtype) for lvl in ml.levels[:-1]]
-        self.A = [None] + [sp.csr_matrix(lvl.A) for lvl in ml.levels[1:]]
+        if body_modes is None:
+            self.P = [sp.csr_matrix(lvl.P, dtype=self.dtype) for lvl in ml.levels[:-1]]
+            self.R = [sp.csr_matrix(lvl.R, dtype=self.dtype) for lvl in ml.levels[:-1]]
+            self.A = [None] + [sp.csr_matrix(lvl.A) for lvl in ml.levels[1:]]
+            self.operator_complexity = float(ml.operator_complexity())
+        else:
+            P, self.A = drop_zero_columns([lvl.P for lvl in ml.levels[:-1]], [None] + [lvl.A for lvl in ml.levels[1:]])
+            self.P = [sp.csr_matrix(P_, dtype=self.dtype) for P_ in P]
+            self.R = [sp.csr_matrix(P_.T, dtype=self.dtype) for P_ in P]
+            self.operator_complexity = 1.0 + sum(M_.nnz for M_ in self.A[1:]) / A.nnz
+        del ml
         for M_ in self.A[1:]:
             M_.sort_indices()
-        self.operator_complexity = float(ml.operator_complexity())
-        del ml
         cdofs = np.unique(np.asarray(contact_dofs, dtype=np.int64))
         self.contact_rows = A[cdofs]                 # rows of A(α_ref) at the contact DOFs
         self._row_of = np.full(self.n, -1, dtype=np.int64)
