@@ -62,8 +62,7 @@ def per_body_solver(A, B, body_modes: int, **amg_kw):
     B = np.asarray(B, dtype=np.float64)
     nb = B.shape[1] // body_modes
     owner = np.stack([np.any(B[:, k * body_modes:(k + 1) * body_modes] != 0, axis=1) for k in range(nb)], axis=1)
-    C = symmetric_strength_of_connection(A)
-    AggOp, _ = standard_aggregation(C)
+    AggOp, _ = standard_aggregation(symmetric_strength_of_connection(A))
     AggOp = sp.csr_matrix(AggOp)
     relax = relaxation_as_linear_operator(("block_gauss_seidel", {"sweep": "symmetric", "iterations": 4}), A,
                                           np.zeros((A.shape[0], 1)))
@@ -74,29 +73,57 @@ def per_body_solver(A, B, body_modes: int, **amg_kw):
         held[:, k] = np.bincount(agg, weights=owner[:, k], minlength=AggOp.shape[1]) > 0
     mask = np.repeat(held[agg], body_modes, axis=1)
     B = np.where(mask, B, 0.0)
+    # the strength of the first level served the aggregation only (no filtered smoothing): an empty one
     return pyamg.smoothed_aggregation_solver(
-        A, B=B, strength=[("predefined", {"C": C}), "symmetric"],
+        A, B=B, strength=[("predefined", {"C": sp.csr_matrix(A.shape)}), "symmetric"],
         aggregate=[("predefined", {"AggOp": AggOp}), "standard"], improve_candidates=None, **amg_kw)
 
 
-def drop_zero_columns(P, A):
-    """The hierarchy (prolongations P_l, coarse operators A_l, A[0] unused) without the coarse
-    unknowns whose column of P_l is zero: the same V-cycle, smaller coarse levels."""
-    P = [sp.csr_matrix(P_) for P_ in P]
-    A = [None] + [sp.csr_matrix(A_) for A_ in A[1:]]
-    for lvl in range(len(P)):
-        P_ = P[lvl]
-        P_.eliminate_zeros()
+def drop_zero_columns(levels):
+    """(P_l, A_l) of pyamg's ``levels`` (A_0 None) without the coarse unknowns whose column of
+    P_l is zero — their rows and columns of A_{l+1} and rows of P_{l+1} are zero too: the same
+    V-cycle on smaller coarse levels. Each level's matrices are released as they are taken."""
+    P, A, kept = [], [None], None        # kept: the coarse unknowns kept of the level above, None: all
+    for lvl in range(len(levels) - 1):
+        P_ = _csr_released(levels[lvl], "P")
+        levels[lvl].R = None
+        if kept is not None:
+            P_ = _without_rows(P_, kept)
         keep = np.flatnonzero(np.bincount(P_.indices, minlength=P_.shape[1]) > 0)
-        if keep.size == P_.shape[1]:
-            continue
-        P[lvl] = P_[:, keep]
-        Ac = sp.csr_matrix(A[lvl + 1])[keep][:, keep]
-        Ac.eliminate_zeros()
-        A[lvl + 1] = Ac
-        if lvl + 1 < len(P):
-            P[lvl + 1] = P[lvl + 1][keep]
+        kept = None if keep.size == P_.shape[1] else keep
+        if kept is not None:
+            P_ = _with_columns(P_, kept)
+        P.append(P_)
+        Ac = _csr_released(levels[lvl + 1], "A")
+        A.append(Ac if kept is None else _with_columns(_without_rows(Ac, kept), kept))
     return P, A
+
+
+def _csr_released(level, name):
+    """``level.name`` as CSR without its explicit zeros, the level's reference dropped."""
+    M = sp.csr_matrix(getattr(level, name))
+    setattr(level, name, None)
+    M.eliminate_zeros()
+    return M
+
+
+def _without_rows(M, keep):
+    """The rows ``keep`` of CSR M whose other rows are empty (no copy of the entries)."""
+    lens = np.diff(M.indptr)
+    if lens.sum() != lens[keep].sum():
+        return sp.csr_matrix(M[keep])
+    indptr = np.append(M.indptr[keep], M.indptr[-1])
+    return sp.csr_matrix((M.data, M.indices, indptr), shape=(keep.size, M.shape[1]))
+
+
+def _with_columns(M, keep):
+    """The columns ``keep`` of CSR M whose other columns are empty, renumbered."""
+    new = np.full(M.shape[1], -1, dtype=M.indices.dtype)
+    new[keep] = np.arange(keep.size, dtype=M.indices.dtype)
+    out = sp.csr_matrix((M.data, new[M.indices], M.indptr), shape=(M.shape[0], keep.size))
+    if out.nnz and out.indices.min() < 0:
+        raise SolverError("a dropped coarse unknown has entries")
+    return out
 
 
 class ContactHierarchy:
@@ -144,9 +171,14 @@ class ContactHierarchy:
             self.A = [None] + [sp.csr_matrix(lvl.A) for lvl in ml.levels[1:]]
             self.operator_complexity = float(ml.operator_complexity())
         else:
-            P, self.A = drop_zero_columns([lvl.P for lvl in ml.levels[:-1]], [None] + [lvl.A for lvl in ml.levels[1:]])
-            self.P = [sp.csr_matrix(P_, dtype=self.dtype) for P_ in P]
-            self.R = [sp.csr_matrix(P_.T, dtype=self.dtype) for P_ in P]
+            levels, ml = ml.levels, None
+            P, self.A = drop_zero_columns(levels)
+            del levels
+            self.P, self.R = [], []
+            while P:
+                P_ = sp.csr_matrix(P.pop(0), dtype=self.dtype)
+                self.P.append(P_)
+                self.R.append(sp.csr_matrix(P_.T))
             self.operator_complexity = 1.0 + sum(M_.nnz for M_ in self.A[1:]) / A.nnz
         del ml
         for M_ in self.A[1:]:
