@@ -49,19 +49,28 @@ def block_positions(A, rows, cols):
     return out
 
 
-def per_body_solver(A, B, body_modes: int, **amg_kw):
-    """pyamg's smoothed aggregation of A with a near-null space B of ``body_modes`` columns per body
-    (each block zero off its body but at the DOFs coupling the bodies), its first tentative
-    prolongator built per aggregate from the columns of the bodies its DOFs belong to only."""
+def per_body_solver(A, B, body_modes: int, *, omega: float = 4.0 / 3.0, **amg_kw):
+    """pyamg's smoothed aggregation of A (symmetric) with a near-null space B of ``body_modes``
+    columns per body (each block zero off its body but at the DOFs coupling the bodies), its
+    first tentative prolongator built per aggregate from the columns of the bodies its DOFs belong
+    to only: (the first level's prolongator, pyamg's solver of the first coarse operator).
+
+    The first level is pyamg's (symmetric strength, standard aggregation, four symmetric
+    Gauss–Seidel sweeps on B, Jacobi smoothing of the tentative prolongator with ω/ρ(D⁻¹A)), built
+    here so that its smoothing forms D⁻¹A T and not the two copies of D⁻¹A that pyamg keeps
+    beside A; the coarse operator is handed to pyamg in blocks of the near-null columns."""
     import pyamg
     from pyamg.aggregation.aggregate import standard_aggregation
+    from pyamg.aggregation.tentative import fit_candidates
     from pyamg.relaxation.utils import relaxation_as_linear_operator
     from pyamg.strength import symmetric_strength_of_connection
+    from pyamg.util.linalg import approximate_spectral_radius
+    from scipy.sparse.linalg import LinearOperator
     A = sp.csr_matrix(A)
     A.symmetry = "hermitian"
     B = np.asarray(B, dtype=np.float64)
-    nb = B.shape[1] // body_modes
-    owner = np.stack([np.any(B[:, k * body_modes:(k + 1) * body_modes] != 0, axis=1) for k in range(nb)], axis=1)
+    nb, k = B.shape[1] // body_modes, B.shape[1]
+    owner = np.stack([np.any(B[:, j * body_modes:(j + 1) * body_modes] != 0, axis=1) for j in range(nb)], axis=1)
     AggOp, _ = standard_aggregation(symmetric_strength_of_connection(A))
     AggOp = sp.csr_matrix(AggOp)
     relax = relaxation_as_linear_operator(("block_gauss_seidel", {"sweep": "symmetric", "iterations": 4}), A,
@@ -69,14 +78,25 @@ def per_body_solver(A, B, body_modes: int, **amg_kw):
     B = relax @ B
     agg = AggOp.indices                  # the aggregate of each DOF (every DOF in one)
     held = np.zeros((AggOp.shape[1], nb), dtype=bool)
-    for k in range(nb):
-        held[:, k] = np.bincount(agg, weights=owner[:, k], minlength=AggOp.shape[1]) > 0
-    mask = np.repeat(held[agg], body_modes, axis=1)
-    B = np.where(mask, B, 0.0)
-    # the strength of the first level served the aggregation only (no filtered smoothing): an empty one
-    return pyamg.smoothed_aggregation_solver(
-        A, B=B, strength=[("predefined", {"C": sp.csr_matrix(A.shape)}), "symmetric"],
-        aggregate=[("predefined", {"AggOp": AggOp}), "standard"], improve_candidates=None, **amg_kw)
+    for j in range(nb):
+        held[:, j] = np.bincount(agg, weights=owner[:, j], minlength=AggOp.shape[1]) > 0
+    B = np.where(np.repeat(held[agg], body_modes, axis=1), B, 0.0)
+    T, B1 = fit_candidates(AggOp, B)
+    del B
+    T = sp.csr_matrix(T)
+    d = A.diagonal()
+    d_inv = np.divide(1.0, d, out=np.zeros_like(d), where=d != 0)
+    rho = approximate_spectral_radius(LinearOperator(A.shape, matvec=lambda v: d_inv * (A @ v.ravel()),
+                                                     dtype=A.dtype))
+    U = sp.csr_matrix(A @ T)             # P = T − (ω/ρ) D⁻¹A T
+    U.data *= np.repeat((omega / rho) * d_inv, np.diff(U.indptr))
+    P = sp.csr_matrix(T - U)
+    del T, U
+    A1 = sp.csr_matrix(P.T @ sp.csr_matrix(A @ P)).tobsr(blocksize=(k, k))
+    first = type("Level", (), {})()
+    first.P, first.R, first.A = P, None, None
+    ml = pyamg.smoothed_aggregation_solver(A1, B=B1, improve_candidates=None, **amg_kw)
+    return [first] + list(ml.levels)
 
 
 def drop_zero_columns(levels):
@@ -163,7 +183,7 @@ class ContactHierarchy:
         else:
             ml = per_body_solver(A, near_null, body_modes, max_coarse=max_coarse, **amg_kw)
         progress.log(progress_level(A.shape[0], t0), "AMG hierarchy of %d DOFs: %d levels in %.1f s",
-                     A.shape[0], len(ml.levels), time.perf_counter() - t0)
+                     A.shape[0], len(ml.levels) if body_modes is None else len(ml), time.perf_counter() - t0)
         self.n = A.shape[0]
         if body_modes is None:
             self.P = [sp.csr_matrix(lvl.P, dtype=self.dtype) for lvl in ml.levels[:-1]]
@@ -171,7 +191,7 @@ class ContactHierarchy:
             self.A = [None] + [sp.csr_matrix(lvl.A) for lvl in ml.levels[1:]]
             self.operator_complexity = float(ml.operator_complexity())
         else:
-            levels, ml = ml.levels, None
+            levels, ml = ml, None
             P, self.A = drop_zero_columns(levels)
             del levels
             self.P, self.R = [], []
