@@ -163,7 +163,13 @@ class ContactHierarchy:
     exact, and GMRES keeps its preconditioned directions (flexible GMRES), so the solves reach the
     same tolerances with the same iterations, while the memory traffic of the smoothing sweeps —
     about half of an iteration — drops by a third (measured at 113k: GMRES time −18 %, the same
-    iteration counts)."""
+    iteration counts).
+
+    ``body_modes``: the near-null space holds that many columns per body, each block zero off its
+    body (the two bodies' system of :mod:`contactopt.paths.coupled`); every aggregate then takes
+    the columns of its own bodies only (:func:`per_body_solver`) and the coarse unknowns left zero
+    are dropped (:func:`drop_zero_columns`): half the coarse unknowns of an aggregate inside one
+    body (docs/foundation.md, "At scale")."""
 
     def __init__(self, A, near_null=None, *, contact_dofs, max_coarse: int = 10,
                  precision: str = "single", body_modes: int | None = None, **amg_kw):
