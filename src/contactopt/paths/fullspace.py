@@ -335,7 +335,8 @@ class FullSpacePath(FullSpaceCommon):
             with sequential_openblas():
                 body_modes = None
                 if system.couple is not None:
-                    modes, body_modes = system.couple.modes(asm.coords, self.model.assembler.free), 6
+                    modes = system.couple.modes(asm.coords, self.model.assembler.free)
+                    body_modes = 6 if modes.shape[1] > 6 else None     # six columns per body with DOFs
                 else:
                     modes = rigid_body_modes(asm.coords, self.model.assembler.free)
                     if system.T is not None:
