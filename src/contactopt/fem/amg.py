@@ -49,6 +49,103 @@ def block_positions(A, rows, cols):
     return out
 
 
+def per_body_solver(A, B, body_modes: int, *, omega: float = 4.0 / 3.0, **amg_kw):
+    """pyamg's smoothed aggregation of A (symmetric) with a near-null space B of ``body_modes``
+    columns per body (each block zero off its body but at the DOFs coupling the bodies), its
+    first tentative prolongator built per aggregate from the columns of the bodies its DOFs belong
+    to only: (the first level's prolongator, pyamg's solver of the first coarse operator).
+
+    The first level is pyamg's (symmetric strength, standard aggregation, four symmetric
+    Gauss–Seidel sweeps on B, Jacobi smoothing of the tentative prolongator with ω/ρ(D⁻¹A)), built
+    here so that its smoothing forms D⁻¹A T and not the two copies of D⁻¹A that pyamg keeps
+    beside A; the coarse operator is handed to pyamg in blocks of the near-null columns."""
+    import pyamg
+    from pyamg.aggregation.aggregate import standard_aggregation
+    from pyamg.aggregation.tentative import fit_candidates
+    from pyamg.relaxation.utils import relaxation_as_linear_operator
+    from pyamg.strength import symmetric_strength_of_connection
+    from pyamg.util.linalg import approximate_spectral_radius
+    from scipy.sparse.linalg import LinearOperator
+    A = sp.csr_matrix(A)
+    A.symmetry = "hermitian"
+    B = np.asarray(B, dtype=np.float64)
+    nb, k = B.shape[1] // body_modes, B.shape[1]
+    owner = np.stack([np.any(B[:, j * body_modes:(j + 1) * body_modes] != 0, axis=1) for j in range(nb)], axis=1)
+    AggOp, _ = standard_aggregation(symmetric_strength_of_connection(A))
+    AggOp = sp.csr_matrix(AggOp)
+    relax = relaxation_as_linear_operator(("block_gauss_seidel", {"sweep": "symmetric", "iterations": 4}), A,
+                                          np.zeros((A.shape[0], 1)))
+    B = relax @ B
+    agg = AggOp.indices                  # the aggregate of each DOF (every DOF in one)
+    held = np.zeros((AggOp.shape[1], nb), dtype=bool)
+    for j in range(nb):
+        held[:, j] = np.bincount(agg, weights=owner[:, j], minlength=AggOp.shape[1]) > 0
+    B = np.where(np.repeat(held[agg], body_modes, axis=1), B, 0.0)
+    T, B1 = fit_candidates(AggOp, B)
+    del B
+    T = sp.csr_matrix(T)
+    d = A.diagonal()
+    d_inv = np.divide(1.0, d, out=np.zeros_like(d), where=d != 0)
+    rho = approximate_spectral_radius(LinearOperator(A.shape, matvec=lambda v: d_inv * (A @ v.ravel()),
+                                                     dtype=A.dtype))
+    U = sp.csr_matrix(A @ T)             # P = T − (ω/ρ) D⁻¹A T
+    U.data *= np.repeat((omega / rho) * d_inv, np.diff(U.indptr))
+    P = sp.csr_matrix(T - U)
+    del T, U
+    A1 = sp.csr_matrix(P.T @ sp.csr_matrix(A @ P)).tobsr(blocksize=(k, k))
+    first = type("Level", (), {})()
+    first.P, first.R, first.A = P, None, None
+    ml = pyamg.smoothed_aggregation_solver(A1, B=B1, improve_candidates=None, **amg_kw)
+    return [first] + list(ml.levels)
+
+
+def drop_zero_columns(levels):
+    """(P_l, A_l) of pyamg's ``levels`` (A_0 None) without the coarse unknowns whose column of
+    P_l is zero — their rows and columns of A_{l+1} and rows of P_{l+1} are zero too: the same
+    V-cycle on smaller coarse levels. Each level's matrices are released as they are taken."""
+    P, A, kept = [], [None], None        # kept: the coarse unknowns kept of the level above, None: all
+    for lvl in range(len(levels) - 1):
+        P_ = _csr_released(levels[lvl], "P")
+        levels[lvl].R = None
+        if kept is not None:
+            P_ = _without_rows(P_, kept)
+        keep = np.flatnonzero(np.bincount(P_.indices, minlength=P_.shape[1]) > 0)
+        kept = None if keep.size == P_.shape[1] else keep
+        if kept is not None:
+            P_ = _with_columns(P_, kept)
+        P.append(P_)
+        Ac = _csr_released(levels[lvl + 1], "A")
+        A.append(Ac if kept is None else _with_columns(_without_rows(Ac, kept), kept))
+    return P, A
+
+
+def _csr_released(level, name):
+    """``level.name`` as CSR without its explicit zeros, the level's reference dropped."""
+    M = sp.csr_matrix(getattr(level, name))
+    setattr(level, name, None)
+    M.eliminate_zeros()
+    return M
+
+
+def _without_rows(M, keep):
+    """The rows ``keep`` of CSR M whose other rows are empty (no copy of the entries)."""
+    lens = np.diff(M.indptr)
+    if lens.sum() != lens[keep].sum():
+        return sp.csr_matrix(M[keep])
+    indptr = np.append(M.indptr[keep], M.indptr[-1])
+    return sp.csr_matrix((M.data, M.indices, indptr), shape=(keep.size, M.shape[1]))
+
+
+def _with_columns(M, keep):
+    """The columns ``keep`` of CSR M whose other columns are empty, renumbered."""
+    new = np.full(M.shape[1], -1, dtype=M.indices.dtype)
+    new[keep] = np.arange(keep.size, dtype=M.indices.dtype)
+    out = sp.csr_matrix((M.data, new[M.indices], M.indptr), shape=(M.shape[0], keep.size))
+    if out.nnz and out.indices.min() < 0:
+        raise SolverError("a dropped coarse unknown has entries")
+    return out
+
+
 class ContactHierarchy:
     """The smoothed-aggregation hierarchy of an A(α_ref) (pyamg, rigid-body modes), kept to
     precondition the Newton systems of later steps and designs.
@@ -66,10 +163,16 @@ class ContactHierarchy:
     exact, and GMRES keeps its preconditioned directions (flexible GMRES), so the solves reach the
     same tolerances with the same iterations, while the memory traffic of the smoothing sweeps —
     about half of an iteration — drops by a third (measured at 113k: GMRES time −18 %, the same
-    iteration counts)."""
+    iteration counts).
+
+    ``body_modes``: the near-null space holds that many columns per body, each block zero off its
+    body (the two bodies' system of :mod:`contactopt.paths.coupled`); every aggregate then takes
+    the columns of its own bodies only (:func:`per_body_solver`) and the coarse unknowns left zero
+    are dropped (:func:`drop_zero_columns`): half the coarse unknowns of an aggregate inside one
+    body (docs/foundation.md, "At scale")."""
 
     def __init__(self, A, near_null=None, *, contact_dofs, max_coarse: int = 10,
-                 precision: str = "single", **amg_kw):
+                 precision: str = "single", body_modes: int | None = None, **amg_kw):
         try:
             import pyamg
         except ImportError as exc:
@@ -81,17 +184,31 @@ class ContactHierarchy:
             raise SolverError(f"precision must be 'single' or 'double', got {precision!r}")
         self.dtype = np.float32 if precision == "single" else np.float64
         progress.log(progress_level(A.shape[0], t0), "AMG hierarchy of %d DOFs: set-up started", A.shape[0])
-        ml = pyamg.smoothed_aggregation_solver(A, B=near_null, max_coarse=max_coarse, **amg_kw)
+        if body_modes is None:
+            ml = pyamg.smoothed_aggregation_solver(A, B=near_null, max_coarse=max_coarse, **amg_kw)
+        else:
+            ml = per_body_solver(A, near_null, body_modes, max_coarse=max_coarse, **amg_kw)
         progress.log(progress_level(A.shape[0], t0), "AMG hierarchy of %d DOFs: %d levels in %.1f s",
-                     A.shape[0], len(ml.levels), time.perf_counter() - t0)
+                     A.shape[0], len(ml.levels) if body_modes is None else len(ml), time.perf_counter() - t0)
         self.n = A.shape[0]
-        self.P = [sp.csr_matrix(lvl.P, dtype=self.dtype) for lvl in ml.levels[:-1]]
-        self.R = [sp.csr_matrix(lvl.R, dtype=self.dtype) for lvl in ml.levels[:-1]]
-        self.A = [None] + [sp.csr_matrix(lvl.A) for lvl in ml.levels[1:]]
+        if body_modes is None:
+            self.P = [sp.csr_matrix(lvl.P, dtype=self.dtype) for lvl in ml.levels[:-1]]
+            self.R = [sp.csr_matrix(lvl.R, dtype=self.dtype) for lvl in ml.levels[:-1]]
+            self.A = [None] + [sp.csr_matrix(lvl.A) for lvl in ml.levels[1:]]
+            self.operator_complexity = float(ml.operator_complexity())
+        else:
+            levels, ml = ml, None
+            P, self.A = drop_zero_columns(levels)
+            del levels
+            self.P, self.R = [], []
+            while P:
+                P_ = sp.csr_matrix(P.pop(0), dtype=self.dtype)
+                self.P.append(P_)
+                self.R.append(sp.csr_matrix(P_.T))
+            self.operator_complexity = 1.0 + sum(M_.nnz for M_ in self.A[1:]) / A.nnz
+        del ml
         for M_ in self.A[1:]:
             M_.sort_indices()
-        self.operator_complexity = float(ml.operator_complexity())
-        del ml
         cdofs = np.unique(np.asarray(contact_dofs, dtype=np.int64))
         self.contact_rows = A[cdofs]                 # rows of A(α_ref) at the contact DOFs
         self._row_of = np.full(self.n, -1, dtype=np.int64)

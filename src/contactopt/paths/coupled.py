@@ -74,6 +74,8 @@ class FullSpaceCouple:
         vals = np.concatenate([np.ones(other.size), Qc.data, QP.data])
         self.T = sp.csr_matrix((vals, (rows, cols)), shape=(self.n, self.n))
         self.T.sort_indices()
+        eye_c = sp.csr_matrix((np.ones(self.cd.size), (np.arange(self.cd.size), self.cd)), shape=(self.cd.size, self.n))
+        self._E = sp.csr_matrix(self.T[self.cd] - eye_c)     # E_c: T − I on the contact rows
         self._R, self._Pf, self._cols_f = R, Pf, cols_f
         q = np.zeros(3 * p) if f.q_f is None else np.asarray(f.q_f, float)
         self.offset = q.reshape(-1, 3).copy()
@@ -90,13 +92,20 @@ class FullSpaceCouple:
         return sp.csr_matrix((vals, (rows, cols)), shape=(self.n, self.n))
 
     def system(self, A, L) -> tuple[sp.csr_matrix, np.ndarray]:
-        """(Tᵀ diag(A, K_f) T, Tᵀ (L, f_f)): the Newton system of both bodies in u_loc."""
+        """(Tᵀ diag(A, K_f) T, Tᵀ (L, f_f)): the Newton system of both bodies in u_loc.
+
+        With T = I + E, E nonzero on the contact rows c only (E_c = T_c − I_c) and B = diag(A, K_f),
+        Tᵀ B T = B + Δ, Δ = E_cᵀ B_c + B_{:c} E_c + E_cᵀ B_cc E_c, is supported near the contact
+        DOFs: it is added into the arrays of A and the K_f without forming diag(A, K_f) or a product
+        of the whole matrix — one matrix of the system's size beside A and the K_f (the products
+        took three)."""
         with task(f"forming the Newton system of {1 + len(self.parts)} bodies ({self.n:,} unknowns)"):
-            big = sp.block_diag([A] + [part.K for part in self.parts], format="csr")
-            half = self.T.T @ big
-            del big
-            law_A = with_contact_blocks(half @ self.T, self.cd)
-            del half
+            cd, E = self.cd, self._E
+            A = sp.csr_matrix(A)
+            A_rows = sp.hstack([A[cd], sp.csr_matrix((cd.size, self.n - self.n_body))], format="csr")
+            A_cols = sp.vstack([A[:, cd], sp.csr_matrix((self.n - self.n_body, cd.size))], format="csr")
+            delta = E.T @ A_rows + A_cols @ E + E.T @ (A[cd][:, cd] @ E)
+            law_A = add_to_block_diagonal([A] + [part.K for part in self.parts], delta, self.cd)
         return law_A, self.T.T @ self.load(L)
 
     def load(self, L) -> np.ndarray:
@@ -210,6 +219,72 @@ def with_contact_blocks(A, contact_dofs: np.ndarray) -> sp.csr_matrix:
     extra = np.bincount(miss // n, minlength=A.shape[0])
     indptr = A.indptr + np.concatenate([[0], np.cumsum(extra)]).astype(A.indptr.dtype)
     out = sp.csr_matrix((data, indices, indptr), shape=A.shape)
+    out.has_sorted_indices = True
+    return out
+
+
+def add_to_block_diagonal(blocks, delta, contact_dofs) -> sp.csr_matrix:
+    """diag(blocks) + delta (CSR, sorted indices) with every contact node's 3×3 block in its
+    pattern, built into one new pair of arrays: the blocks' entries copied, delta's added where
+    the blocks have an entry and inserted where they have none (``delta`` sparse, near a few
+    rows). diag(blocks) itself is never formed."""
+    blocks = [sp.csr_matrix(B) for B in blocks]
+    for B in blocks:
+        B.sort_indices()
+    sizes = np.array([B.shape[0] for B in blocks], dtype=np.int64)
+    starts = np.concatenate([[0], np.cumsum(sizes)])
+    nnzs = np.array([B.nnz for B in blocks], dtype=np.int64)
+    n = int(starts[-1])
+    bp = np.concatenate([[0]] + [B.indptr[1:].astype(np.int64) + off
+                                 for B, off in zip(blocks, np.concatenate([[0], np.cumsum(nnzs)]))])
+    # delta with explicit zeros at the contact blocks, canonical (sorted, summed)
+    cdn = np.asarray(contact_dofs, np.int64).reshape(-1, 3)
+    D = sp.coo_matrix(delta)
+    rows = np.concatenate([D.row, np.repeat(cdn, 3, axis=1).ravel()])
+    cols = np.concatenate([D.col, np.tile(cdn, (1, 3)).ravel()])
+    vals = np.concatenate([D.data, np.zeros(9 * cdn.shape[0])])
+    D = sp.csr_matrix((vals, (rows, cols)), shape=(n, n))
+    D.sum_duplicates()
+    d_row = np.repeat(np.arange(n, dtype=np.int64), np.diff(D.indptr))
+    # the blocks' entries of the rows delta touches, as sorted keys (row rank, column)
+    touched = np.unique(d_row)
+    lens = bp[touched + 1] - bp[touched]
+    seg_start = np.concatenate([[0], np.cumsum(lens)])
+    pos = np.repeat(bp[touched] - seg_start[:-1], lens) + np.arange(seg_start[-1])      # global positions
+    which = np.searchsorted(np.concatenate([[0], np.cumsum(nnzs)]), pos, side="right") - 1
+    seg_cols = np.empty(pos.size, dtype=np.int64)
+    for k, B in enumerate(blocks):
+        sel = which == k
+        seg_cols[sel] = B.indices[pos[sel] - (bp[starts[k]])] + starts[k]
+    rank = np.repeat(np.arange(touched.size, dtype=np.int64), lens)
+    keys = rank * n + seg_cols
+    d_rank = np.searchsorted(touched, d_row)
+    at = np.searchsorted(keys, d_rank * n + D.indices)
+    found = at < keys.size
+    found[found] = keys[at[found]] == (d_rank * n + D.indices)[found]
+    add_at = pos[at[found]]                                   # entries of the blocks that delta changes
+    ins_at = bp[d_row[~found]] + (at[~found] - seg_start[d_rank[~found]])   # insert before this entry
+    k_new = ins_at.size
+    total = int(bp[-1]) + k_new
+    new_pos = ins_at + np.arange(k_new)
+    old = np.ones(total, dtype=bool)
+    old[new_pos] = False
+    dtype = np.result_type(*[B.dtype for B in blocks], D.dtype)
+    data = np.empty(total, dtype=dtype)
+    index_dtype = np.int32 if max(total, n) < 2**31 - 1 else np.int64
+    indices = np.empty(total, dtype=index_dtype)
+    ins_row = d_row[~found]
+    cut = np.concatenate([[0], np.cumsum(nnzs) + np.searchsorted(ins_row, starts[1:])])
+    for k, B in enumerate(blocks):
+        a, b = int(cut[k]), int(cut[k + 1])
+        data[a:b][old[a:b]] = B.data
+        indices[a:b][old[a:b]] = B.indices + int(starts[k]) if starts[k] else B.indices
+    data[new_pos] = D.data[~found]
+    indices[new_pos] = D.indices[~found]
+    data[add_at + np.searchsorted(ins_at, add_at, side="right")] += D.data[found]
+    extra = np.bincount(ins_row, minlength=n)
+    indptr = bp + np.concatenate([[0], np.cumsum(extra)])
+    out = sp.csr_matrix((data, indices, indptr.astype(index_dtype)), shape=(n, n))
     out.has_sorted_indices = True
     return out
 

@@ -333,13 +333,15 @@ class FullSpacePath(FullSpaceCommon):
         np.random.seed(HIERARCHY_SEED)
         try:
             with sequential_openblas():
+                body_modes = None
                 if system.couple is not None:
                     modes = system.couple.modes(asm.coords, self.model.assembler.free)
+                    body_modes = 6 if modes.shape[1] > 6 else None     # six columns per body with DOFs
                 else:
                     modes = rigid_body_modes(asm.coords, self.model.assembler.free)
                     if system.T is not None:
                         modes = np.asarray(system.T.T @ modes)
-                return ContactHierarchy(A, modes, contact_dofs=self.model.contact_dofs)
+                return ContactHierarchy(A, modes, contact_dofs=self.model.contact_dofs, body_modes=body_modes)
         finally:
             np.random.set_state(saved)
 
