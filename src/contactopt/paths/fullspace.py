@@ -151,6 +151,15 @@ class FullSpaceCommon(SolverPath):
         z = self.model.assembler.to_full(system.couple.split(np.asarray(z_loc, float))[0])
         return self.design_contraction(system, state.u, z, loads)
 
+    def translated(self, system, s, c, e):
+        """As :meth:`SolverPath.translated`: the system's gaps g − s c, its shift (the slip's
+        reference) plus s e, and s itself (both backends' systems hold ``gap``, ``shift`` and ``moved``)."""
+        shift = system.shift
+        if np.any(e):
+            e2 = e.reshape(-1, 3)[:, :2]
+            shift = s * e2 if shift is None else shift + s * e2
+        return replace(system, gap=system.gap - s * c, shift=shift, moved=s)
+
     @staticmethod
     def law_displacement(state) -> np.ndarray:
         """(p, 3) the friction law's displacement of a state: u_c, in a load step with the slip
@@ -290,13 +299,6 @@ class FullSpacePath(FullSpaceCommon):
         return FullSystem(asm, asm.gap, {}, T, A, T.T @ asm.L, shift)
 
     # ------------------------------------------------------------------ a force-controlled obstacle (.force)
-    def translated(self, system, s, c, e):
-        shift = system.shift
-        if np.any(e):
-            e2 = e.reshape(-1, 3)[:, :2]
-            shift = s * e2 if shift is None else shift + s * e2
-        return replace(system, gap=system.gap - s * c, shift=shift, moved=s)
-
     def normal_stiffness(self, system):
         if system.couple is not None:       # the Newton system's own rows, in the nodes' frames
             return normal_stiffness(system.law_A, self.model.contact_dofs, None)

@@ -342,13 +342,6 @@ class PetscPath(FullSpaceCommon):
         return self._call(Command.SOLVE, system.key, ctx.key, np.asarray(alpha, dtype=float), bool(warm_start),
                           tol, label, ref, moved)
 
-    def translated(self, system, s, c, e):
-        shift = system.shift
-        if np.any(e):
-            e2 = e.reshape(-1, 3)[:, :2]
-            shift = s * e2 if shift is None else shift + s * e2
-        return replace(system, gap=system.gap - s * c, shift=shift, moved=s)
-
     def normal_stiffness(self, system):
         """The Newton system's own diagonal at the normal DOFs (in u_loc, with counterparts)."""
         return system.normal
