@@ -7,8 +7,15 @@ from __future__ import annotations
 import time
 
 import numpy as np
+import pyamg
 import scipy.sparse as sp
+from pyamg.aggregation.aggregate import standard_aggregation
+from pyamg.aggregation.tentative import fit_candidates
 from pyamg.relaxation.relaxation import gauss_seidel, gauss_seidel_indexed
+from pyamg.relaxation.utils import relaxation_as_linear_operator
+from pyamg.strength import symmetric_strength_of_connection
+from pyamg.util.linalg import approximate_spectral_radius
+from scipy.sparse.linalg import LinearOperator
 
 from .._progress import progress, progress_level
 from ..errors import SolverError
@@ -59,13 +66,6 @@ def per_body_solver(A, B, body_modes: int, *, omega: float = 4.0 / 3.0, **amg_kw
     Gauss–Seidel sweeps on B, Jacobi smoothing of the tentative prolongator with ω/ρ(D⁻¹A)), built
     here so that its smoothing forms D⁻¹A T and not the two copies of D⁻¹A that pyamg keeps
     beside A; the coarse operator is handed to pyamg in blocks of the near-null columns."""
-    import pyamg
-    from pyamg.aggregation.aggregate import standard_aggregation
-    from pyamg.aggregation.tentative import fit_candidates
-    from pyamg.relaxation.utils import relaxation_as_linear_operator
-    from pyamg.strength import symmetric_strength_of_connection
-    from pyamg.util.linalg import approximate_spectral_radius
-    from scipy.sparse.linalg import LinearOperator
     A = sp.csr_matrix(A)
     A.symmetry = "hermitian"
     B = np.asarray(B, dtype=np.float64)

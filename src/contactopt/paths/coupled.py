@@ -40,6 +40,7 @@ import scipy.sparse as sp
 
 from .._progress import task
 from ..fem.amg import rigid_body_modes
+from .force import ForceTerms
 
 
 class FullSpaceCouple:
@@ -302,7 +303,6 @@ def force_terms(path, system, ctx, state, v_lam, loads, y_u):
     ``last_adjoint(system, ctx)`` (ṽ_loc of the last adjoint), ``local_adjoint`` (the adjoint of
     a right-hand side in u_loc) and ``local_contraction(system, state, z, loads)`` (the design term
     of (T z) on the body)."""
-    from .force import ForceTerms
     m, cd = path.model, path.model.contact_dofs
     f = m.obstacle_force
     c, e = f.gap_rate, f.slip

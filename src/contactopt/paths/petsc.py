@@ -40,9 +40,10 @@ from types import MappingProxyType
 import numpy as np
 
 from ..contact.fallback import run_chain
-from ..contact.fullspace.petsc import PetscProblem
+from ..contact.fullspace.petsc import PetscHierarchy, PetscNewton, PetscProblem
 from ..contact.state import RigidAnchor
 from ..errors import ConfigError, SolverError
+from ..fem.distributed import DistributedBodies, DistributedBody
 from ..fem.model import Assembled
 from ..sensitivity.adjoint_fullspace import ADJOINT_RTOL, adjoint_classes, check_default_choices
 from .base import Adjoint, Capabilities, Context, SolverPath, SystemParts
@@ -111,8 +112,6 @@ class PetscPath(FullSpaceCommon):
         super().__init__(model, settings, start)
         from petsc4py import PETSc
 
-        from ..contact.fullspace.petsc import PetscNewton
-        from ..fem.distributed import DistributedBodies, DistributedBody
         self.library = "petsc"
         self.id = new_path_id()
         comm = PETSc.COMM_WORLD
@@ -291,7 +290,6 @@ class PetscPath(FullSpaceCommon):
 
     def _hierarchy(self, alpha, coords):
         """The GAMG hierarchy of the A(α) the matrix holds now."""
-        from ..contact.fullspace.petsc import PetscHierarchy
         if self._hier is not None:
             self._hier.destroy()
         self.newton.plain()
