@@ -32,7 +32,7 @@ import scipy.sparse as sp
 from ..errors import ConfigError
 from .elasticity import ElasticityAssembler
 
-__all__ = ["rcb_partition", "DistributedBody"]
+__all__ = ["rcb_partition", "element_owners", "DistributedBody", "DistributedBodies"]
 
 
 def rcb_partition(centroids: np.ndarray, n_parts: int) -> np.ndarray:
@@ -54,6 +54,16 @@ def rcb_partition(centroids: np.ndarray, n_parts: int) -> np.ndarray:
 
     split(np.arange(centroids.shape[0]), 0, n_parts)
     return part
+
+
+def element_owners(cells: np.ndarray, n_nodes: int, points: np.ndarray, size: int):
+    """(part of every element by :func:`rcb_partition` of their centroids, owner of every node: the
+    lowest part among its elements, 0 for a node in no element)."""
+    part = rcb_partition(points[cells].mean(axis=1), size)
+    owner = np.full(n_nodes, size, dtype=np.int64)
+    np.minimum.at(owner, cells.ravel(), np.repeat(part, cells.shape[1]))
+    owner[owner == size] = 0                        # a node in no element (none in practice)
+    return part, owner
 
 
 def block_pattern(indptr, lcols, n_cols, nodes):
@@ -84,10 +94,7 @@ class DistributedBody:
             raise ConfigError([f"{size} MPI ranks: the mesh has {cells.shape[0]} elements, fewer than the "
                                "ranks it would be split over; run on fewer ranks"])
         coords = model.body.reference.points
-        part = rcb_partition(coords[cells].mean(axis=1), size)
-        owner = np.full(n_nodes, size, dtype=np.int64)
-        np.minimum.at(owner, cells.ravel(), np.repeat(part, cells.shape[1]))
-        owner[owner == size] = 0                        # a node in no element (none in practice)
+        part, owner = element_owners(cells, n_nodes, coords, size)
         counts = np.bincount(owner, minlength=size)
         if np.any(counts == 0):
             raise ConfigError([f"{size} MPI ranks: the mesh ({n_nodes} nodes, {cells.shape[0]} elements) "
@@ -237,10 +244,7 @@ class DistributedBodies:
             if size > cells.shape[0]:
                 raise ConfigError([f"{size} MPI ranks: a body's mesh has {cells.shape[0]} elements, fewer than "
                                    "the ranks it would be split over; run on fewer ranks"])
-            part = rcb_partition(points[cells].mean(axis=1), size)
-            owner = np.full(n_nodes, size, dtype=np.int64)
-            np.minimum.at(owner, cells.ravel(), np.repeat(part, cells.shape[1]))
-            owner[owner == size] = 0
+            part, owner = element_owners(cells, n_nodes, points, size)
             owners.append(owner)
             self._parts_of.append(part)
         body_of = np.concatenate([np.full(o.size, b) for b, o in enumerate(owners)])
