@@ -99,7 +99,7 @@ def test_the_feature_table_is_what_the_paths_linear_algebra_takes():
     every = ["condensation", "delassus", "fullspace", "petsc"]
     assert table == {"foundation": ["condensation", "fullspace", "petsc"], "pairs": ["condensation", "fullspace", "petsc"],
                      "counterpart_force": ["condensation", "fullspace", "petsc"], "obstacle": ["condensation", "delassus", "fullspace", "petsc"],
-                     "obstacle_steps": ["condensation"], "held_by_contact": ["condensation"], "pinned": every,
+                     "obstacle_steps": ["condensation"], "held_by_contact": ["condensation", "fullspace", "petsc"], "pinned": every,
                      "compliance": ["condensation"], "whole_displacement": every, "load_steps": every,
                      "many_ranks": ["petsc"]}
     forced = example1(obstacle={"shape": "sphere", "center": [1.5, 0.5, -5.0], "radius": 5.0, "control": "force",

@@ -6,7 +6,7 @@ different linear algebra and numbering — on one process and under ``mpiexec -n
 ≤ 5e-13). Then ξ against central differences on two ranks (friction with sliding nodes, mortar
 partners), an objective of the whole displacement along a load path (the product A(α) x through
 T⁻¹), a resumed two-body run on two ranks bit for bit, and what the path does not take, refused
-by name. A counterpart held only by its contacts is anchored as on the full space
+by name. A counterpart or a face body held only by its contacts is anchored as on the full space
 (paths/floating.py). A rigid obstacle other than the plane is the same change of unknowns with no counterpart
 DOFs (T the nodes' frames, paths/transforms.py FrameChange); a force-controlled one runs the
 translation's search around the PETSc solve.
@@ -28,7 +28,6 @@ import tomli_w
 from contactopt._mpi import petsc_missing
 from contactopt.config import load_config
 from contactopt.contact.state import CLASS_CODES
-from contactopt.errors import ConfigError
 from contactopt.problem import ShapeProblem
 from contactopt.sensitivity.check import check_gradient
 
@@ -128,6 +127,19 @@ def _obstacle(name):
 
 for _name in ("sphere", "cylinder", "forced sphere"):
     MODELS[f"obstacle: {_name}"] = _obstacle(_name)
+
+
+def _free_block(where):
+    """The block with no clamp of tests/test_rigid.py, held only by its contact on the plane or
+    on a slab (the face body anchored on one cell, paths/floating.py)."""
+    from test_fullspace_held_face import SLAB
+    from test_rigid import free_block
+    extra = {} if where == "plane" else {"foundation": SLAB}
+    return lambda path: free_block(linear_solver={"path": path}, **extra)
+
+
+MODELS["the face body held only by contact on the plane"] = _free_block("plane")
+MODELS["the face body held only by contact on a slab"] = _free_block("slab")
 _reference = {}
 
 
@@ -166,7 +178,8 @@ def test_one_rank_equals_the_full_space(name):
 
 @pytest.mark.parametrize("name", ["mortar partners", "prescribed translation", "two slabs (two pairs)",
                                   "pressed sideways by a force", "obstacle: cylinder", "obstacle: forced sphere",
-                                  "a slab held only by its contacts"])
+                                  "a slab held only by its contacts", "the face body held only by contact on the plane",
+                                  "the face body held only by contact on a slab"])
 def test_two_ranks_equal_the_full_space(name, tmp_path):
     out = tmp_path / "petsc.npz"
     proc = mpiexec(2, str(ROOT / "tests" / "mpi" / "compare_paths.py"), str(write(tmp_path, MODELS[name]("petsc"))),
@@ -315,8 +328,35 @@ def test_a_counterpart_held_only_by_its_contacts_matches_central_differences():
     assert gc.n_degenerate == 0 and max(gc.rel_errors) <= 1e-6, gc.rel_errors
 
 
-def test_what_the_petsc_path_does_not_take_yet_is_refused_by_name():
-    """A face body held only by contact (the roller between two plates)."""
-    cfg = load_config(ROOT / "examples" / "roller_plates.toml").with_updates({"linear_solver": {"path": "petsc"}})
-    with pytest.raises(ConfigError, match="a body held only by contact is solved on"):
-        ShapeProblem(cfg)
+def test_a_dovetail_s_blade_held_only_by_its_flanks_agrees_with_the_full_space():
+    """The dovetail example (two flank pairs against one slot, friction 0.3, two designs): its
+    blade floats in the slot; Θ, ξ, λ and τ at a design off the initial one (measured 1e-12)."""
+    out = {}
+    for path in ("fullspace", "petsc"):
+        pb = ShapeProblem(load_config(ROOT / "examples" / "dovetail.toml").with_updates(
+            {"linear_solver": {"path": path}, "state": {"tol": 1e-12}}))
+        d = np.sin(np.arange(pb.model.n_design) + 1.0).reshape(2, -1)     # each design's volume kept
+        a = pb.model.initial_design() + 1e-3 * (d - d.mean(axis=1, keepdims=True)).ravel()
+        assert pb.model.admissible.is_feasible(a)
+        res = pb.subgradient(a)
+        out[path] = res.value, res.gradient, res.state
+    (t0, x0, s0), (t1, x1, s1) = out["fullspace"], out["petsc"]
+    assert s1.rigid is not None and np.array_equal(s0.classes, s1.classes)
+    for got, ref in ((t1, t0), (x1, x0), (s1.lam, s0.lam), (s1.tau, s0.tau)):
+        ref = np.atleast_1d(ref)
+        assert np.abs(np.atleast_1d(got) - ref).max() <= TOL * np.abs(ref).max()
+
+
+def test_a_face_body_held_only_by_contact_matches_central_differences():
+    """The face body's anchor on one of its cells with no contact node (γ N Nᵀ in the owned rows,
+    taken out for the free Newton method and the adjoint): ξ·d against central differences, the
+    block on a slab, sliding and sticking nodes."""
+    pb = ShapeProblem(MODELS["the face body held only by contact on a slab"]("petsc"))
+    a = 0.002 * np.sin(np.arange(pb.model.n_design)) + 0.001
+    st = pb.solve_state(a)
+    assert st.rigid is not None and st.rigid.residual <= 1e-10
+    assert st.counts["M1"] > 0
+    gc = check_gradient(pb, a, n_directions=3, seed=0, h=1e-2)
+    assert gc.n_degenerate == 0 and max(gc.rel_errors) <= 1e-6, gc.rel_errors
+
+

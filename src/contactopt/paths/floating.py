@@ -42,6 +42,8 @@ from .rigid import GAMMA_FACTOR, MAX_ANCHOR_STEPS, ROUNDOFF_FLOOR
 
 log = logging.getLogger(__name__)
 
+STIFFER = 100.0    # the retry's anchor: γ = 100 · GAMMA_FACTOR · the mean diagonal (1e-1)
+
 
 @dataclass(frozen=True)
 class FloatingAnchor:
@@ -66,6 +68,11 @@ class FloatingAnchor:
         out[self.dofs] = self.N @ (self.gamma * beta)
         return out
 
+    def stiffer(self) -> "FloatingAnchor":
+        """The same anchor :data:`STIFFER` times as stiff: the retry of an anchored solve whose
+        Newton method made no progress (module docstring)."""
+        return FloatingAnchor(self.dofs, self.N, STIFFER * self.gamma, self.names, STIFFER * self.matrix)
+
     def anchored(self, A) -> sp.csr_matrix:
         """A + γ N Nᵀ (CSR, sorted indices) with every entry of A's pattern, its explicit zeros too
         (the contact nodes' blocks where the Newton system adds its Robin blocks, .coupled); a
@@ -77,31 +84,47 @@ class FloatingAnchor:
         return out
 
 
-def floating_anchor(couple, diag: np.ndarray) -> FloatingAnchor | None:
-    """The :class:`FloatingAnchor` of a :class:`~.coupled.FullSpaceCouple`'s counterparts held only
-    by their contacts (``part.rigid`` not None), ``diag`` the diagonal of the Newton system (u_loc);
-    None when every counterpart is held by its clamps."""
+def floating_anchor(couple, diag: np.ndarray, face=None) -> FloatingAnchor | None:
+    """The :class:`FloatingAnchor` of the bodies held only by their contacts: a
+    :class:`~.coupled.FullSpaceCouple`'s counterparts (``part.rigid`` not None; ``couple`` None
+    without elastic counterparts) and, given ``face`` (the model, whose ``body.rigid`` is not
+    None), the face body itself; ``diag`` the diagonal of the Newton system (u_loc). The face
+    body's cell is one with no contact node, so that its unknowns in u_loc are the body's own
+    (the contact DOFs hold w); None when every body is held by its clamps."""
     dofs, blocks, gammas, names = [], [], [], []
-    for b, part in enumerate(couple.parts):
-        if part.rigid is None:
-            continue
-        ref = part.mesh.reference
+
+    def add(ref, full_to_free, rigid, start, what, avoid=None):
         cells = np.asarray(ref.cells)
         centroid = ref.points.mean(axis=0)
-        cell = cells[np.argmin(np.linalg.norm(ref.points[cells].mean(axis=1) - centroid, axis=1))]
+        dist = np.linalg.norm(ref.points[cells].mean(axis=1) - centroid, axis=1)
+        if avoid is not None:
+            touched = np.zeros(ref.points.shape[0], bool)
+            touched[avoid] = True
+            dist[touched[cells].any(axis=1)] = np.inf
+            if not np.isfinite(dist).any():
+                raise SolverError(f"the anchor of {what} held only by contact: every cell has a contact node")
+        cell = cells[np.argmin(dist)]
         full = (3 * cell[:, None] + np.arange(3)).ravel()
-        free = part.assembler.full_to_free[full]
+        free = full_to_free[full]
         keep = free >= 0
-        V = part.rigid.vectors(ref.points[cell]).reshape(-1, part.rigid.count)[keep]
+        V = rigid.vectors(ref.points[cell]).reshape(-1, rigid.count)[keep]
         Q, s, _ = np.linalg.svd(V, full_matrices=False)
         if s.size == 0 or s.min() <= 1e-9 * s.max():
-            raise SolverError(f"the anchor of a counterpart held only by its contacts: its cell {cell.tolist()} "
+            raise SolverError(f"the anchor of {what} held only by contact: its cell {cell.tolist()} "
                               "does not determine its free rigid motions")
-        at = couple.n_body + int(couple._starts[b]) + free[keep]
+        at = start + free[keep]
         dofs.append(at)
         blocks.append(Q)
         gammas.append(np.full(Q.shape[1], GAMMA_FACTOR * float(np.mean(diag[at]))))
-        names += part.rigid.names()
+        return rigid.names()
+
+    if face is not None and face.body.rigid is not None:
+        names += [f"{n} of the face body" for n in add(face.body.reference, face.assembler.full_to_free, face.body.rigid, 0,
+                                                       "the face body", avoid=face.body.contact_nodes)]
+    for b, part in enumerate([] if couple is None else couple.parts):
+        if part.rigid is not None:
+            names += add(part.mesh.reference, part.assembler.full_to_free, part.rigid,
+                         couple.n_body + int(couple._starts[b]), "a counterpart")
     if not dofs:
         return None
     dofs_all = np.concatenate(dofs)
@@ -140,7 +163,7 @@ def iterate_anchor(solve, anchor: FloatingAnchor, first, load_norm: float, tol: 
             break
         beta = anchor.position(res.u)
     else:
-        raise SolverError(f"{', '.join(anchor.names)} of a counterpart held only by its contacts: after "
+        raise SolverError(f"{', '.join(anchor.names)}: a body held only by its contacts: after "
                           f"{MAX_ANCHOR_STEPS} anchor steps the contact forces still leave {history[-1]:.3g} of the "
                           "load unbalanced on its free rigid motions (a load along a motion nothing holds, or near "
                           "the limit of what friction holds; check the body's clamps and loads)")

@@ -72,6 +72,9 @@ HIERARCHY_SEED = 20090101  # NumPy's global generator while pyamg builds a hiera
 # the unanchored Newton steps from the anchored state of counterparts held only by their contacts
 # (.floating) before the anchor's iteration takes over
 FREE_NEWTON_STEPS = 10
+# the Newton steps of the first anchored solve (a soft anchor, .floating) before a stiffer anchor takes
+# over: those that converge on the examples take 7 to 16
+SOFT_ANCHOR_STEPS = 25
 COUPLED_FORCING = MappingProxyType({"eta_factor": 1e-3, "eta_max": 1e-4, "krylov_rtol": 1e-13})
 
 
@@ -134,14 +137,15 @@ class FullSpaceCommon(SolverPath):
                 "zone_margin": s.zone_margin}
 
     def fit_scale(self, load_norm: float, diag_c, gap) -> float | None:
-        """The force scale of a press or shrink fit without load: with ``[body] interference`` and
-        L = 0 (``load_norm``), the overlap's force ‖A_νν min(g, 0)‖ (``diag_c()`` gives the (p, 3)
+        """The force scale of an overlap without load (a press or shrink fit by ``[body]
+        interference``, a counterpart's prescribed translation into the body: its q in the gaps):
+        with L = 0 (``load_norm``), the overlap's force ‖A_νν min(g, 0)‖ (``diag_c()`` gives the (p, 3)
         diagonal of the Newton method's A at the contact DOFs, per node (t1, t2, ν); ``gap`` (p,)
-        the gaps, negative inside the counterpart);
-        else None, so that the Newton method measures its residuals against ‖L‖, or 1 as before.
+        the gaps the law sees, negative inside the counterpart);
+        else None (or without overlap), so that the Newton method measures its residuals against ‖L‖, or 1.
         Without it such a fit's forces (E δ per unit area, 1e-4 for E = 1 and δ = 1e-3) would be
         measured against 1, and its Krylov solves would stop before they begin."""
-        if load_norm or not self.model.config.body.interference:
+        if load_norm:
             return None
         return overlap_force(diag_c(), gap)
 
@@ -245,7 +249,7 @@ class FullSpacePath(FullSpaceCommon):
 
     name = "fullspace"
     capabilities = Capabilities(foundation=True, pairs=True, counterpart_force=True, obstacle=True, pinned=True, whole_displacement=True,
-                                load_steps=True, libraries=("pyamg",), sparse="pyamg", auto="large", auto_order=0,
+                                load_steps=True, held_by_contact=True, libraries=("pyamg",), sparse="pyamg", auto="large", auto_order=0,
                                 auto_avoids=("obstacle",))
     condenses_counterparts = False      # an elastic foundation joins the Newton system (.coupled)
 
@@ -284,19 +288,25 @@ class FullSpacePath(FullSpaceCommon):
 
     def prepare(self, asm) -> FullSystem:
         shift = None if self.mechanics.shift is None else self.mechanics.shift.tangential
+        face = self.model if self.mechanics.anchor is not None else None     # the face body held only by contact
         if self.couple is not None:
             A, L = self.couple.system(asm.A, asm.L)
-            anchor = floating_anchor(self.couple, A.diagonal())
+            anchor = floating_anchor(self.couple, A.diagonal(), face)
             return FullSystem(asm, asm.gap, {}, self.couple.T, A, L, shift, couple=self.couple, anchor=anchor,
                               anchored_A=None if anchor is None else anchor.anchored(A))
         if self.frames is None:
-            return FullSystem(asm, asm.gap, {}, shift=shift)
-        T = frame_rotation(self.model.contact_dofs, self.frames, self.model.assembler.n_free)
-        # the product drops exact zeros (of pinned rows, or where a frame's zero meets the design's
-        # values): keep every contact node's 3×3 block in the pattern (the Robin blocks are added there)
-        A = with_contact_blocks(sp.csr_matrix(T.T @ asm.A @ T), self.model.contact_dofs)
-        A.sort_indices()
-        return FullSystem(asm, asm.gap, {}, T, A, T.T @ asm.L, shift)
+            system = FullSystem(asm, asm.gap, {}, shift=shift)
+        else:
+            T = frame_rotation(self.model.contact_dofs, self.frames, self.model.assembler.n_free)
+            # the product drops exact zeros (of pinned rows, or where a frame's zero meets the design's
+            # values): keep every contact node's 3×3 block in the pattern (the Robin blocks are added there)
+            A = with_contact_blocks(sp.csr_matrix(T.T @ asm.A @ T), self.model.contact_dofs)
+            A.sort_indices()
+            system = FullSystem(asm, asm.gap, {}, T, A, T.T @ asm.L, shift)
+        if face is None:
+            return system
+        anchor = floating_anchor(None, system.law_A.diagonal(), face)
+        return replace(system, anchor=anchor, anchored_A=anchor.anchored(system.law_A))
 
     # ------------------------------------------------------------------ a force-controlled obstacle (.force)
     def normal_stiffness(self, system):
@@ -379,7 +389,7 @@ class FullSpacePath(FullSpaceCommon):
         options = dict(coords=asm.coords, free=self.model.assembler.free, slip_ref=law_ref,
                        force_scale=self.fit_scale(load_norm, lambda: self.contact_diagonal(system), gap),
                        **self.newton_options(ctx, tol, warm_start),
-                       **(COUPLED_FORCING if system.couple is not None else {}))
+                       **(COUPLED_FORCING if system.couple is not None or system.anchor is not None else {}))
         held = None
         if system.anchor is None:
             res = solve_fullspace_with_fallbacks(system.law_A, system.law_L, self.model.contact_dofs, gap,
@@ -416,16 +426,32 @@ class FullSpacePath(FullSpaceCommon):
         every solve; the
         :class:`~contactopt.contact.state.RigidAnchor`: the anchored solves, the unbalanced load
         relative to ‖L‖)."""
-        an, n, cd = system.anchor, system.law_A.shape[0], self.model.contact_dofs
+        n, cd = system.law_A.shape[0], self.model.contact_dofs
+        current = {"anchor": system.anchor, "A": system.anchored_A}
 
-        def solve(beta, last):
+        def solve(beta, last, fallbacks=True):
             kw = dict(options, r0=warm, u0=u0, hierarchy=self._hierarchy)
             if last is not None:
                 kw.update(r0=last.r, u0=last.u, zone=last.zone, hierarchy=last.hierarchy)
-            return solve_fullspace_with_fallbacks(system.anchored_A, system.law_L + an.load(beta, n), cd, gap,
-                                                  self.friction, **kw)
+            L = system.law_L + current["anchor"].load(beta, n)
+            if not fallbacks:
+                kw.update(max_steps=SOFT_ANCHOR_STEPS, raise_on_failure=False)
+                return solve_fullspace(current["A"], L, cd, gap, self.friction, **kw)
+            return solve_fullspace_with_fallbacks(current["A"], L, cd, gap, self.friction, **kw)
+        an = system.anchor
         beta0 = an.position(u0) if u0 is not None else np.zeros(an.N.shape[1])
-        first = solve(beta0, None)
+        first = solve(beta0, None, fallbacks=False)
+        if not first.converged:
+            # a soft anchor leaves the Newton steps' Krylov error free along the rigid motions (a
+            # roller pressed into both races by an overlap): the anchor STIFFER times as stiff, with
+            # the fallbacks of every solve
+            log.debug("body held only by its contacts: the anchored solve stopped (%s); a stiffer anchor", first.reason)
+            spent, spent_steps = list(first.krylov_iterations), first.newton_steps
+            an = current["anchor"] = an.stiffer()
+            current["A"] = an.anchored(system.law_A)
+            first = solve(beta0, None)
+            first.krylov_iterations = spent + list(first.krylov_iterations)
+            first.newton_steps += spent_steps
         try:
             free = solve_fullspace(system.law_A, system.law_L, cd, gap, self.friction,
                                    **dict(options, r0=first.r, u0=first.u, zone=first.zone, hierarchy=first.hierarchy,

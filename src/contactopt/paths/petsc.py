@@ -50,7 +50,7 @@ from .base import Adjoint, Capabilities, Context, SolverPath, SystemParts
 from .coupled import FullSpaceCouple
 from .coupled import force_terms as coupled_force_terms
 from .floating import floating_anchor, iterate_anchor
-from .fullspace import COUPLED_FORCING, FREE_NEWTON_STEPS, FullSpaceCommon, refuse_counterparts
+from .fullspace import COUPLED_FORCING, FREE_NEWTON_STEPS, SOFT_ANCHOR_STEPS, FullSpaceCommon, refuse_counterparts
 from .protocol import Call, Command, Problem, new_path_id, send
 from .transforms import FrameChange
 
@@ -101,7 +101,8 @@ class PetscPath(FullSpaceCommon):
     name = "petsc"
     newton_label = "PETSc full-space Newton"
     capabilities = Capabilities(foundation=True, pairs=True, counterpart_force=True, obstacle=True, pinned=True,
-                                whole_displacement=True, many_ranks=True, load_steps=True, libraries=("petsc4py",),
+                                whole_displacement=True, many_ranks=True, load_steps=True, held_by_contact=True,
+                                libraries=("petsc4py",),
                                 sparse="petsc", auto="ranks")
     condenses_counterparts = False      # elastic counterparts join the Newton system (.coupled)
 
@@ -236,7 +237,7 @@ class PetscPath(FullSpaceCommon):
         """A(α) of ``coords`` into both of the Newton's matrices (block size 3: BAIJ for the
         products, AIJ for GAMG); ``csr`` the owned rows if already computed."""
         indptr, cols, data = csr if csr is not None else self.dist.owned_stiffness(coords)
-        self._owned, self._anchor_on = (indptr, cols, data), False
+        self._owned, self._anchor_on = (indptr, cols, data), None
         self._insert(indptr, cols, data)
 
     def _insert(self, indptr, cols, data):
@@ -261,17 +262,25 @@ class PetscPath(FullSpaceCommon):
         return v
 
     # ------------------------------------------------------------------ counterparts held only by their contacts
+    @property
+    def _floating(self) -> bool:
+        """Whether a body moves on its own: the face body or a counterpart held only by its contacts."""
+        return self.mechanics.anchor is not None or (
+            self.couple is not None and any(part.rigid is not None for part in self.couple.parts))
+
     def _anchor(self):
-        """The anchor of the counterparts held only by their contacts (:mod:`.floating`) at the design
-        the matrix holds, or None (every rank: the diagonal is gathered)."""
-        if self.couple is None or all(part.rigid is None for part in self.couple.parts):
+        """The anchor of the bodies held only by their contacts (:mod:`.floating`: the face body's,
+        the counterparts') at the design the matrix holds, or None (every rank: the diagonal is
+        gathered)."""
+        if not self._floating:
             return None
         nw = self.newton
-        return floating_anchor(self.couple, self.dist.free_vector(nw.everywhere(nw.A.getDiagonal())))
+        return floating_anchor(self.couple, self.dist.free_vector(nw.everywhere(nw.A.getDiagonal())),
+                               self.model if self.mechanics.anchor is not None else None)
 
     def _anchored(self, anchor, on: bool) -> None:
         """The Newton matrices with (``on``) or without the anchor's γ N Nᵀ (every rank, its owned rows)."""
-        if self._anchor_on == on:
+        if (self._anchor_on is anchor) if on else (self._anchor_on is None):
             return
         indptr, cols, data = self._owned
         if on:
@@ -286,7 +295,7 @@ class PetscPath(FullSpaceCommon):
             data = data.copy()
             np.add.at(data, pos, M.data[own])
         self._insert(indptr, cols, data)
-        self._anchor_on = on
+        self._anchor_on = anchor if on else None
 
     def _hierarchy(self, alpha, coords):
         """The GAMG hierarchy of the A(α) the matrix holds now."""
@@ -308,8 +317,7 @@ class PetscPath(FullSpaceCommon):
         d = self.dist
         # a counterpart held only by its contacts moves on its own: its own six columns (measured on
         # two slabs, one held only by its contacts: 654 Krylov iterations of a state against 4027)
-        floating = self.couple is not None and any(part.rigid is not None for part in self.couple.parts)
-        M = (self.change.modes if floating else self.change.joint_modes)(coords, self.model.assembler.free)
+        M = (self.change.modes if self._floating else self.change.joint_modes)(coords, self.model.assembler.free)
         full = np.zeros((d.n, M.shape[1]))
         full[d.dof_of_free] = M
         Q, _ = np.linalg.qr(full)
@@ -374,6 +382,8 @@ class PetscPath(FullSpaceCommon):
             if np.any(q[:, :2]):
                 shift = q[:, :2] if shift is None else shift + q[:, :2]
             forcing = COUPLED_FORCING
+        if system.anchor is not None:    # (the Krylov error along a rigid motion the anchor barely holds)
+            forcing = COUPLED_FORCING
         law_ref = slip_ref if shift is None else (shift if slip_ref is None else slip_ref + shift)
         scale = self.fit_scale(system.L.norm(), self.newton._diag_at_contact, gap)   # collective: every rank
         options = dict(slip_ref=law_ref, force_scale=scale, **self.newton_options(ctx, tol, warm_start), **forcing)
@@ -415,18 +425,30 @@ class PetscPath(FullSpaceCommon):
             v.getArray()[:] = d.owned(d.petsc_of_free(x_loc))
             return v
 
-        def solve(beta, last):
-            self._anchored(an, True)
+        current = [an]
+
+        def solve(beta, last, fallbacks=True):
+            self._anchored(current[0], True)
             L = system.L.copy()
-            L.axpy(1.0, vec(an.load(beta, self.couple.n)))
+            L.axpy(1.0, vec(current[0].load(beta, self.n_unknowns)))
             kw = dict(options, r0=warm, u0=u0)
             if last is not None:
                 kw.update(r0=last.r, u0=vec(last.u), zone=last.zone)
-            res = run_chain(PetscProblem(nw, self._hier, L, gap, self.friction, **kw))
+            if fallbacks:
+                res = run_chain(PetscProblem(nw, self._hier, L, gap, self.friction, **kw))
+            else:
+                res = nw.solve(self._hier, L, gap, self.friction, **dict(kw, max_steps=SOFT_ANCHOR_STEPS,
+                                                                            raise_on_failure=False))
             return replace(res, u=d.free_vector(res.u_all))      # u_loc: what the anchor reads
 
         beta0 = np.zeros(an.N.shape[1]) if u0_loc is None else an.position(u0_loc)
-        first = solve(beta0, None)
+        first = solve(beta0, None, fallbacks=False)
+        if not first.converged:          # a stiffer anchor, with the fallbacks (the pyamg backend's held_solve)
+            spent, spent_steps = list(first.krylov_iterations), first.newton_steps
+            an = current[0] = an.stiffer()
+            first = solve(beta0, None)
+            first.krylov_iterations = spent + list(first.krylov_iterations)
+            first.newton_steps += spent_steps
         self._anchored(an, False)
         try:
             free = nw.solve(self._hier, system.L, gap, self.friction, **dict(
