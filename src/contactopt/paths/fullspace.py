@@ -340,17 +340,22 @@ class FullSpacePath(FullSpaceCommon):
         if asm is None:
             asm = self.model.assemble(alpha, self.first_loads)
         system = self.prepare(asm)
-        A = sorted_csr(system.law_A if system.anchor is None else system.anchored_A)
+        return self.hierarchy_of(system, system.law_A if system.anchor is None else system.anchored_A, asm.coords)
+
+    def hierarchy_of(self, system, A, coords):
+        """The AMG hierarchy of the matrix ``A`` of ``system`` (its near-null space the bodies'
+        rigid modes at ``coords``), seeded as :meth:`build_hierarchy` says."""
+        A = sorted_csr(A)
         saved = np.random.get_state()
         np.random.seed(HIERARCHY_SEED)
         try:
             with sequential_openblas():
                 body_modes = None
                 if system.couple is not None:
-                    modes = system.couple.modes(asm.coords, self.model.assembler.free)
+                    modes = system.couple.modes(coords, self.model.assembler.free)
                     body_modes = 6 if modes.shape[1] > 6 else None     # six columns per body with DOFs
                 else:
-                    modes = rigid_body_modes(asm.coords, self.model.assembler.free)
+                    modes = rigid_body_modes(coords, self.model.assembler.free)
                     if system.T is not None:
                         modes = np.asarray(system.T.T @ modes)
                 return ContactHierarchy(A, modes, contact_dofs=self.model.contact_dofs, body_modes=body_modes)
@@ -427,12 +432,13 @@ class FullSpacePath(FullSpaceCommon):
         :class:`~contactopt.contact.state.RigidAnchor`: the anchored solves, the unbalanced load
         relative to ‖L‖)."""
         n, cd = system.law_A.shape[0], self.model.contact_dofs
-        current = {"anchor": system.anchor, "A": system.anchored_A}
+        current = {"anchor": system.anchor, "A": system.anchored_A, "hierarchy": None}
+        shared = self._hierarchy          # (the hierarchy of the soft anchor, kept for later solves)
 
         def solve(beta, last, fallbacks=True):
-            kw = dict(options, r0=warm, u0=u0, hierarchy=self._hierarchy)
+            kw = dict(options, r0=warm, u0=u0, hierarchy=current["hierarchy"] or self._hierarchy)
             if last is not None:
-                kw.update(r0=last.r, u0=last.u, zone=last.zone, hierarchy=last.hierarchy)
+                kw.update(r0=last.r, u0=last.u, zone=last.zone, hierarchy=current["hierarchy"] or last.hierarchy)
             L = system.law_L + current["anchor"].load(beta, n)
             if not fallbacks:
                 kw.update(max_steps=SOFT_ANCHOR_STEPS, raise_on_failure=False)
@@ -449,7 +455,11 @@ class FullSpacePath(FullSpaceCommon):
             spent, spent_steps = list(first.krylov_iterations), first.newton_steps
             an = current["anchor"] = an.stiffer()
             current["A"] = an.anchored(system.law_A)
+            # its own hierarchy, for its solves only (the shared one, the soft anchor's, stays:
+            # a resume rebuilds that one from the design)
+            current["hierarchy"] = self.hierarchy_of(system, current["A"], options["coords"])
             first = solve(beta0, None)
+            first.hierarchy = shared
             first.krylov_iterations = spent + list(first.krylov_iterations)
             first.newton_steps += spent_steps
         try:
@@ -467,6 +477,7 @@ class FullSpacePath(FullSpaceCommon):
         res, held, iterations, steps = iterate_anchor(solve, an, (beta0, first), load_norm, options["tol"])
         spent = [] if free is None else list(free.krylov_iterations)     # (the unanchored attempt's)
         res.krylov_iterations, res.newton_steps = iterations + spent, steps + (0 if free is None else free.newton_steps)
+        res.hierarchy = shared
         return res, held
 
     def adjoint(self, system, ctx, state, y_u, y_lam, choices=None, carry=None):
