@@ -136,16 +136,18 @@ class FullSpaceCommon(SolverPath):
         return {"tol": max(tol or s.tol, FULLSPACE_TOL), "zone": ctx.next_zone if s.use_zone and warm_start else None,
                 "zone_margin": s.zone_margin}
 
-    def fit_scale(self, load_norm: float, diag_c, gap) -> float | None:
-        """The force scale of an overlap without load (a press or shrink fit by ``[body]
-        interference``, a counterpart's prescribed translation into the body: its q in the gaps):
-        with L = 0 (``load_norm``), the overlap's force ‖A_νν min(g, 0)‖ (``diag_c()`` gives the (p, 3)
-        diagonal of the Newton method's A at the contact DOFs, per node (t1, t2, ν); ``gap`` (p,)
-        the gaps the law sees, negative inside the counterpart);
-        else None (or without overlap), so that the Newton method measures its residuals against ‖L‖, or 1.
-        Without it such a fit's forces (E δ per unit area, 1e-4 for E = 1 and δ = 1e-3) would be
-        measured against 1, and its Krylov solves would stop before they begin."""
-        if load_norm:
+    def fit_scale(self, load_norm: float, diag_c, gap, held: bool = False) -> float | None:
+        """The force scale of a press or shrink fit without load: with ``[body] interference``, or
+        for a body held only by its contacts (``held``) pressed by an overlap or by a counterpart's
+        prescribed translation (its q in the gaps), and L = 0 (``load_norm``), the overlap's force
+        ‖A_νν min(g, 0)‖ (``diag_c()`` gives the (p, 3) diagonal of the Newton method's A at the
+        contact DOFs, per node (t1, t2, ν); ``gap`` (p,) the gaps the law sees, negative inside
+        the counterpart); else None (or without overlap), so that the Newton method measures its
+        residuals against ‖L‖, or 1 as before. Without it such a fit's forces (E δ per unit area,
+        1e-4 for E = 1 and δ = 1e-3) would be measured against 1, and its Krylov solves would stop
+        before they begin; a held body's anchored solve then makes no progress at all (the lap
+        joint's preload by the bolt head's displacement)."""
+        if load_norm or not (self.model.config.body.interference or held):
             return None
         return overlap_force(diag_c(), gap)
 
@@ -392,7 +394,8 @@ class FullSpacePath(FullSpaceCommon):
         law_ref = slip_ref if shift is None else (shift if slip_ref is None else slip_ref + shift)
         load_norm = float(np.linalg.norm(system.law_L))
         options = dict(coords=asm.coords, free=self.model.assembler.free, slip_ref=law_ref,
-                       force_scale=self.fit_scale(load_norm, lambda: self.contact_diagonal(system), gap),
+                       force_scale=self.fit_scale(load_norm, lambda: self.contact_diagonal(system), gap,
+                                                  held=system.anchor is not None),
                        **self.newton_options(ctx, tol, warm_start),
                        **(COUPLED_FORCING if system.couple is not None or system.anchor is not None else {}))
         held = None

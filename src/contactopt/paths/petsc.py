@@ -385,7 +385,8 @@ class PetscPath(FullSpaceCommon):
         if system.anchor is not None:    # (the Krylov error along a rigid motion the anchor barely holds)
             forcing = COUPLED_FORCING
         law_ref = slip_ref if shift is None else (shift if slip_ref is None else slip_ref + shift)
-        scale = self.fit_scale(system.L.norm(), self.newton._diag_at_contact, gap)   # collective: every rank
+        scale = self.fit_scale(system.L.norm(), self.newton._diag_at_contact, gap,      # collective: every rank
+                               held=system.anchor is not None)
         options = dict(slip_ref=law_ref, force_scale=scale, **self.newton_options(ctx, tol, warm_start), **forcing)
         held = None
         if system.anchor is None:
