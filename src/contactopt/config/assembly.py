@@ -212,6 +212,12 @@ def desugar(raw: dict, problems: list) -> tuple[dict, list]:
             problems.append(f"bodies.{name}: takes part in no contact pair (a body of an assembly is held by its "
                             "clamps and its contacts with the others)")
     counters = [c for _, _, c in pairs if isinstance(c, tuple)]
+    carriers = {b for b, _, _ in pairs if b != face_body}      # bodies that carry a face off the face body
+    for n, f in enumerate(faces):
+        if f[0] in carriers:
+            problems.append(f"designs[{n}].face = {'.'.join(map(_part_name, f))!r}: body {f[0]!r} carries the face "
+                            "of a pair (off the face body); a design moves the face body or a counterpart body "
+                            "that carries no face so far")
     own = [n for n, f in enumerate(faces) if f[0] == face_body]
     for n, f in enumerate(faces):
         if f[0] != face_body:
@@ -258,12 +264,11 @@ def _check_star(pairs: list, problems: list, bodies: dict | None = None) -> None
     with control = 'force', once however many pairs it holds): its translation is searched."""
     face_body = pairs[0][0]
     seen = {}
+    held = {c[0] for _, _, c in pairs if isinstance(c, tuple)}      # the counterpart bodies
     for n, (body, part, counter) in enumerate(pairs):
         key = f"contacts[{n}]"
         if body != face_body:
-            problems.append(f"{key}.face = '{body}.{_part_name(part)}': with several pairs contactopt takes the "
-                            f"faces of every pair on one body so far ({face_body!r}, the face of contacts[0]); "
-                            "write the pair the other way round (face and counterpart swapped) where it can be")
+            _check_off_face(n, pairs, held, bodies or {}, problems)
         if not isinstance(counter, tuple):
             _check_rigid_pair(counter, key, problems)
         elif counter in seen.values():
@@ -290,6 +295,61 @@ def _check_star(pairs: list, problems: list, bodies: dict | None = None) -> None
         problems.append(f"{' and '.join(words)}: {len(pressed)} {what} pressed by control = 'force'; "
                         "contactopt searches the translation of one counterpart per model so far (press the "
                         "others by control = 'displacement')")
+
+
+def _check_off_face(n: int, pairs: list, held: set, bodies: dict, problems: list) -> None:
+    """A pair whose face lies on a body other than the face body (fem.faces): that body is the
+    counterpart of another pair (condensed once onto its supports, its face's nodes among them), no
+    design moves it and no translation; the pair's counterpart is a part of a third body, elastic
+    (neither the face body, whose contact DOFs are those of its own faces, nor a rigid one). The
+    bodies that carry such faces must not form a cycle with their counterparts (each is condensed
+    before the counterpart of its face)."""
+    face_body = pairs[0][0]
+    body, part, counter = pairs[n]
+    key = f"contacts[{n}]"
+    face = f"{key}.face = '{body}.{_part_name(part)}'"
+    swap = "write the pair the other way round (face and counterpart swapped) where it can be"
+    if body not in held:
+        problems.append(f"{face}: a face off the face body {face_body!r} (the face of contacts[0]) must lie on a "
+                        f"body that is the counterpart of another pair, and {body!r} is none; {swap}")
+    elif not isinstance(counter, tuple):
+        problems.append(f"{face}: a face off the face body {face_body!r} meets an elastic counterpart so far, not "
+                        "a rigid one; make that body the face body or " + swap)
+    elif counter[0] == face_body:
+        problems.append(f"{face}: its counterpart lies on the face body {face_body!r}, whose contact DOFs are those "
+                        f"of its own faces; {swap}")
+    elif isinstance(bodies.get(body), dict) and bodies[body].get("control", "fixed") != "fixed":
+        problems.append(f"{face}: body {body!r} carries a pair's face and is moved by control = "
+                        f"{bodies[body]['control']!r}; a body that carries a face off the face body is fixed or "
+                        "held by its contacts so far")
+    elif isinstance(bodies.get(counter[0]), dict) and bodies[counter[0]].get("control") == "force":
+        problems.append(f"{face}: its counterpart body {counter[0]!r} is pressed by control = 'force'; the "
+                        "counterpart of a face off the face body is fixed or moved by control = 'displacement' so far")
+    elif _cycle(body, pairs):
+        problems.append(f"{face}: the bodies {' → '.join(_cycle(body, pairs))} carry each other's faces in a "
+                        "cycle; contactopt condenses a body that carries a face before the counterpart of that "
+                        "face, so such faces form a chain or a tree so far")
+
+
+def _cycle(start: str, pairs: list) -> list:
+    """The bodies of a cycle through ``start`` of the pairs whose faces lie off the face body (face
+    body → counterpart body), else []."""
+    face_body = pairs[0][0]
+    edges = {}
+    for b, _, c in pairs:
+        if b != face_body and isinstance(c, tuple):
+            edges.setdefault(b, []).append(c[0])
+
+    def walk(path):
+        for nxt in edges.get(path[-1], []):
+            if nxt == start:
+                return path + [nxt]
+            if nxt not in path:
+                found = walk(path + [nxt])
+                if found:
+                    return found
+        return []
+    return walk([start])
 
 
 def _check_rigid_pair(counter: dict, key: str, problems: list) -> None:
@@ -332,7 +392,8 @@ def _more_pairs(out: dict, raw: dict, bodies: dict, contacts: list, pairs: list,
     out.pop("obstacle", None)          # (the first pair's rigid counterpart is its own, not the model's)
     out["pairs"] = more
     out["friction"] = {**(raw.get("friction") or {}), "coefficient": base}
-    out["body"]["contact"] = copy.deepcopy(faces[0][1]) if faces else [copy.deepcopy(p[1]) for p in pairs]
+    out["body"]["contact"] = (copy.deepcopy(faces[0][1]) if faces
+                              else [copy.deepcopy(p[1]) for p in pairs if p[0] == pairs[0][0]])
     for k in ("interference", "initial_gap"):
         given = {c[k] for c in contacts if k in c}
         if len(given) > 1:

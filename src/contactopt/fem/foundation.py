@@ -67,7 +67,7 @@ class Foundation:
     free support DOFs: the foundation's displacement for outputs)."""
 
     def __init__(self, spec, body, source: str = "<dict>", backend: str = "auto", check=None, normals=None,
-                 floating: bool = False, condensed: bool = True, shared=None):
+                 floating: bool = False, condensed: bool = True, shared=None, faces=None):
         """``spec`` the ``[foundation]`` section of the configuration read from ``source``;
         ``check(size)``: called with its :attr:`memory_sizes` (its sizes, counted from its mesh)
         before K_f is assembled and condensed (the model's memory check, on the path that will run),
@@ -82,11 +82,19 @@ class Foundation:
         pair's) and ``spec_k`` its ``[foundation]`` (the body's, ``top`` and ``partner`` the pair's):
         each pair's partners are searched on its own top part alone, and the body is condensed once
         onto the union of their supports, its rows the pairs' contact nodes one pair after the
-        other. ``spec``, ``body`` and ``normals`` are then the first pair's."""
+        other. ``spec``, ``body`` and ``normals`` are then the first pair's.
+
+        ``faces``: {pair k: its face part} of the pairs whose faces lie on this body
+        (:mod:`contactopt.fem.faces`): ``face_views`` {k: the pair's face as a body's contact face},
+        their contact nodes among the support (:meth:`face_columns`)."""
         views = [(spec, body, normals)] if shared is None else list(shared)
         contact_xy = body.reference.points[body.contact_nodes, :2]
         self.mesh = fm = build_foundation_mesh(spec, contact_xy, source, curved=normals is not None,
                                                floating=floating)
+        self.face_views = {}
+        if faces:
+            from .faces import face_view
+            self.face_views = {k: face_view(fm, part, k, source) for k, part in faces.items()}
         ref = fm.reference
         self.loads = load_set(fm, spec.loads, where=f"{source}: foundation.loads")
         self.assembler = ElasticityAssembler(ref.cells, ref.n_nodes, fm.fixed_dofs, fm.E, fm.nu,
@@ -116,10 +124,15 @@ class Foundation:
         Pn.sum_duplicates()
         Pn.eliminate_zeros()
         self.support = np.unique(Pn.indices)                     # top-face nodes carrying partners
+        if self.face_views:             # ... and the nodes of the faces of pairs that lie on this body
+            from .faces import check_apart
+            check_apart(self.support, self.face_views, source)
+            self.support = np.unique(np.concatenate([self.support] + [v.contact_nodes for v in self.face_views.values()]))
         self.Pi = sp.kron(Pn[:, self.support], sp.identity(3), format="csr")
         free = self.assembler.full_to_free[(3 * self.support[:, None] + np.arange(3)).ravel()]
         keep = free >= 0                                         # clamped components do not move
         self._support_free = free[keep]
+        self._column = np.where(keep, np.cumsum(keep) - 1, -1).reshape(-1, 3)   # per support node: P's columns
         free_per_node = np.ones(3 * ref.n_nodes, bool)
         free_per_node[fm.fixed_dofs] = False
         nnz_K = matrix_entries(ref.cells, ref.n_nodes, free_per_node.reshape(-1, 3).sum(axis=1))
@@ -152,6 +165,11 @@ class Foundation:
                  self.support.size, p)
 
     coords = None         # the node coordinates K_f is formed on (None: the reference mesh's)
+
+    def face_columns(self, nodes: np.ndarray) -> np.ndarray:
+        """(len(nodes), 3): the columns of P (free support DOFs) of the support nodes ``nodes`` per
+        global component (u1, u2, u3), −1 where the component is clamped."""
+        return self._column[np.searchsorted(self.support, nodes)]
 
     def _condense(self, backend, P, p: int, coords=None) -> None:
         """K_f condensed onto the free support DOFs: ``condensation``, W_f and C = Π W_f Πᵀ (none

@@ -78,6 +78,9 @@ def needs(config, pinned: int = 0, ranks: int = 1, rigid=None) -> dict:
             out["counterpart_force"] = "a rigid counterpart of several pairs pressed by control = 'force'"
         if any(not pr.rigid and pr.foundation.control == "force" for pr in config.pairs):
             out["counterpart_force"] = "a counterpart body of several pairs pressed by control = 'force'"
+    off = config.off_faces
+    if off:                             # faces on several bodies (fem.faces)
+        out["off_faces"] = ", ".join(f"contacts[{k}].face lies on body {name!r}" for k, name in off.items())
     obst = config.obstacle
     obstacle = "plane" if obst is None else obst.shape
     if obst is not None and obst.control == "force":
