@@ -392,8 +392,8 @@ def _more_pairs(out: dict, raw: dict, bodies: dict, contacts: list, pairs: list,
     out.pop("obstacle", None)          # (the first pair's rigid counterpart is its own, not the model's)
     out["pairs"] = more
     out["friction"] = {**(raw.get("friction") or {}), "coefficient": base}
-    out["body"]["contact"] = (copy.deepcopy(faces[0][1]) if faces
-                              else [copy.deepcopy(p[1]) for p in pairs if p[0] == pairs[0][0]])
+    own = [copy.deepcopy(p[1]) for p in pairs if p[0] == pairs[0][0]]     # (a face off it: fem.faces)
+    out["body"]["contact"] = copy.deepcopy(faces[0][1]) if faces else own if len(own) > 1 else own[0]
     for k in ("interference", "initial_gap"):
         given = {c[k] for c in contacts if k in c}
         if len(given) > 1:
