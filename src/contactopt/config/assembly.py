@@ -307,26 +307,26 @@ def _check_off_face(n: int, pairs: list, held: set, bodies: dict, problems: list
     face_body = pairs[0][0]
     body, part, counter = pairs[n]
     key = f"contacts[{n}]"
-    face = f"{key}.face = '{body}.{_part_name(part)}'"
+    face = (f"{key}.face = '{body}.{_part_name(part)}': with several pairs contactopt takes the faces of every pair "
+            f"on one body so far ({face_body!r}, the face of contacts[0]), or a face on a counterpart body of another "
+            "pair against a third, elastic body (paths: condensation)")
     swap = "write the pair the other way round (face and counterpart swapped) where it can be"
     if body not in held:
-        problems.append(f"{face}: a face off the face body {face_body!r} (the face of contacts[0]) must lie on a "
-                        f"body that is the counterpart of another pair, and {body!r} is none; {swap}")
+        problems.append(f"{face}; {body!r} is the counterpart of no pair: {swap}")
     elif not isinstance(counter, tuple):
-        problems.append(f"{face}: a face off the face body {face_body!r} meets an elastic counterpart so far, not "
-                        "a rigid one; make that body the face body or " + swap)
+        problems.append(f"{face}; this face meets a rigid counterpart: make {body!r} the face body or {swap}")
     elif counter[0] == face_body:
-        problems.append(f"{face}: its counterpart lies on the face body {face_body!r}, whose contact DOFs are those "
-                        f"of its own faces; {swap}")
+        problems.append(f"{face}; its counterpart lies on the face body {face_body!r}, whose contact DOFs are those "
+                        f"of its own faces: {swap}")
     elif isinstance(bodies.get(body), dict) and bodies[body].get("control", "fixed") != "fixed":
-        problems.append(f"{face}: body {body!r} carries a pair's face and is moved by control = "
-                        f"{bodies[body]['control']!r}; a body that carries a face off the face body is fixed or "
-                        "held by its contacts so far")
+        problems.append(f"{face}; body {body!r}, which carries it, is moved by control = "
+                        f"{bodies[body]['control']!r}: a body that carries such a face is fixed or held by its "
+                        "contacts so far")
     elif isinstance(bodies.get(counter[0]), dict) and bodies[counter[0]].get("control") == "force":
-        problems.append(f"{face}: its counterpart body {counter[0]!r} is pressed by control = 'force'; the "
-                        "counterpart of a face off the face body is fixed or moved by control = 'displacement' so far")
+        problems.append(f"{face}; its counterpart body {counter[0]!r} is pressed by control = 'force': the "
+                        "counterpart of such a face is fixed or moved by control = 'displacement' so far")
     elif _cycle(body, pairs):
-        problems.append(f"{face}: the bodies {' → '.join(_cycle(body, pairs))} carry each other's faces in a "
+        problems.append(f"{face}; the bodies {' → '.join(_cycle(body, pairs))} carry each other's faces in a "
                         "cycle; contactopt condenses a body that carries a face before the counterpart of that "
                         "face, so such faces form a chain or a tree so far")
 

@@ -120,6 +120,7 @@ def build_counterparts(specs, body, source: str, check=None, normals=None, frame
         for k in pairs:
             if k in faces:
                 v = views_of[k]
+                v.carrier, v.counter = faces[k][0], key       # (named in messages)
                 views.append((specs[k], v, v.normals))
             else:
                 views.append((specs[k], body.pair_view(k),

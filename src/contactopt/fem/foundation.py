@@ -261,10 +261,13 @@ class Foundation:
         bad = np.flatnonzero(np.any(w & ~fixed[3 * partners + comp[:, None]], axis=1))
         if bad.size:
             i = bad[0]
-            raise ConfigError([f"{source}: body.clamped: {bad.size} tangential component(s) of contact nodes are "
+            # (a face on a counterpart body of another pair, fem.faces: the bodies by their names)
+            mine, theirs = (("body.clamped", "foundation.clamped") if getattr(body, "carrier", None) is None else
+                            (f"bodies.{body.carrier}.clamped", f"bodies.{body.counter}.clamped"))
+            raise ConfigError([f"{source}: {mine}: {bad.size} tangential component(s) of contact nodes are "
                                f"clamped (a symmetry plane through the contact face) but free at their partners on "
                                f"the foundation, first u{int(comp[i]) + 1} of body node {int(node[i])}: clamp the "
-                               "same plane of the foundation (foundation.clamped), else its compliance would add "
+                               f"same plane of the foundation ({theirs}), else its compliance would add "
                                "to the clamped direction"])
 
     def at_coordinates(self, coords: np.ndarray, backend: str = "auto") -> "Foundation":
