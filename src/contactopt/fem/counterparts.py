@@ -283,6 +283,7 @@ class Counterparts:
                     cols.append(starts[id(f)] + col[ok, c])
                     vals.append(Rk[ok, c, i])
         self.frames = R
+        self.off_views = views
         self.face_map = tuple(np.concatenate(x) for x in (rows, cols, vals))
         self.rotate(R)
         self.face_rows = FaceRows.build(self, 3 * p_a)
