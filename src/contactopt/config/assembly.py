@@ -265,7 +265,7 @@ def _check_star(pairs: list, problems: list, bodies: dict | None = None) -> None
     face_body = pairs[0][0]
     seen = {}
     held = {c[0] for _, _, c in pairs if isinstance(c, tuple)}      # the counterpart bodies
-    for n, (body, part, counter) in enumerate(pairs):
+    for n, (body, _, counter) in enumerate(pairs):
         key = f"contacts[{n}]"
         if body != face_body:
             _check_off_face(n, pairs, held, bodies or {}, problems)

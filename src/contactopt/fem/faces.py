@@ -47,7 +47,7 @@ from scipy.linalg import solve_triangular
 from scipy.linalg.blas import dsyrk
 
 from ..errors import ConfigError
-from .dense import cholesky_lower, cholesky_solve, symmetrize_lower
+from .dense import cholesky_lower, symmetrize_lower
 from .elements import face_type
 from .foundation import Coupling
 from .loads import face_areas_nodal
@@ -59,9 +59,9 @@ def face_view(fm, part, k: int, source: str):
     normal), their clamped tangential components (pinned), the face's chart, outward normals and
     nodal areas. ConfigError naming the pair where the part is no face."""
     from ..design.chart import resolve_chart
+    from ..errors import MeshError
     from ..mesh.body import Body, _contact_nodes
     from ..mesh.reference import select_part
-    from ..errors import MeshError
     ref = fm.reference
     where = f"{source}: contacts[{k}].face"
     try:
