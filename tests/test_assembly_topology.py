@@ -252,7 +252,13 @@ def test_the_cli_writes_the_state_of_a_chain(tmp_path, capsys):
      "far ('middle', the face of contacts[0]), or a face on a counterpart body of another pair against a third, "
      "elastic body (paths: condensation); 'top' is the counterpart of no pair"),
     (('face = "upper.top"\ncounterpart = "top.bottom"', 'face = "upper.top"\ncounterpart = "middle.top"'),
-     "contacts[2].face = 'upper.top'"),
+     "contacts[2].face = 'upper.top': with several pairs contactopt takes the faces of every pair on one body so "
+     "far ('middle', the face of contacts[0]), or a face on a counterpart body of another pair against a third, "
+     "elastic body (paths: condensation); its counterpart lies on the face body 'middle'"),
+    (('[state]', '[[contacts]]\nface = "top.front"\ncounterpart = "upper.front"\n[state]'),
+     "contacts[3].face = 'top.front': with several pairs contactopt takes the faces of every pair on one body so "
+     "far ('middle', the face of contacts[0]), or a face on a counterpart body of another pair against a third, "
+     "elastic body (paths: condensation); the bodies top → upper → top carry each other's faces in a cycle"),
     (('face = "upper.top"\ncounterpart = "top.bottom"', 'face = "upper.top"\ncounterpart = { shape = "plane" }'),
      "this face meets a rigid counterpart: make 'upper' the face body"),
     (('[bodies.upper]\n', '[bodies.upper]\ncontrol = "displacement"\nloaded = "top"\ndisplacement = [0.0, 0.0, 0.0]\n'),

@@ -55,7 +55,10 @@ ASSEMBLY_DOCS = {
     "contacts": "A contact pair, `[[contacts]]`: `face = \"<body>.<part>\"` (its nodes carry the contact "
                 "forces), `counterpart = \"<body>.<part>\"` (an elastic counterpart) or a table with the keys of "
                 "[obstacle] (a rigid one), `friction` (else [friction] coefficient), `partner` (as "
-                "foundation.partner), `interference`, `initial_gap` (as in [body]), an optional `name`.",
+                "foundation.partner), `interference`, `initial_gap` (as in [body]), an optional `name`. With several "
+                "pairs every face lies on the face body (the body of the first pair's face), or on a counterpart "
+                "body of another pair against a third, elastic body (a chain such as head, plate, plate, nut; no "
+                "design moves that body; the condensation path only, the others refuse it by name).",
     "designs": "A designed face, `[[designs]]`: `face = \"<body>.<part>\"` and the keys of [design]. Several "
                "entries design several faces of the face body in a model of several pairs, each a pair's face (α "
                "their control points one after the other); after them, a counterpart body's part that is a "
