@@ -138,12 +138,13 @@ def test_the_contact_patch_test_passes_across_a_chain_of_four_bodies(friction, t
 
 
 # ------------------------------------------------------------------ against the stack written with one face body
-def _three(tmp_path, written: str, friction: float, q: float) -> ShapeProblem:
+def _three(tmp_path, written: str, friction: float, q: float, moved=None) -> ShapeProblem:
     """Three unit blocks with matching 4 × 3 grids stacked in x3 (lower held at its bottom, middle
     and upper held in x3 and, with friction, x1 by their contacts alone; u2 = 0 on front and back,
     without friction u1 = 0 on left and right), P on the top of
     upper and a traction q along x1 on its right face. ``written = "star"``: both faces on middle;
-    ``"chain"``: the face body lower, the second pair's face on middle (the counterpart of the first)."""
+    ``"chain"``: the face body lower, the second pair's face on middle (the counterpart of the first).
+    ``moved``: upper's top moved by that translation (``control = "displacement"``) in place of P."""
     for name, lift in (("lower", 0.0), ("middle", 1.0), ("upper", 2.0)):
         _box(tmp_path / f"{name}.msh", [4, 3, 2], lift)
     sides = friction == 0.0                     # without friction rollers hold x1 too
@@ -151,16 +152,20 @@ def _three(tmp_path, written: str, friction: float, q: float) -> ShapeProblem:
     lower = f'mesh = "lower.msh"\nclamped = {held}\nmaterial = {{ E = 2.0, nu = 0.25 }}\n'
     bodies = {"lower": lower, "middle": f'mesh = "middle.msh"\nclamped = {_rollers(sides)}\n',
               "upper": f'mesh = "upper.msh"\nclamped = {_rollers(sides)}\nmaterial = {{ E = 0.5, nu = 0.35 }}\n'}
+    if moved is not None:
+        bodies["upper"] += f'control = "displacement"\nloaded = "top"\ndisplacement = {list(moved)}\n'
     first = "middle" if written == "star" else "lower"
     pair = 'face = "middle.bottom"\ncounterpart = "lower.top"' if written == "star" else \
         'face = "lower.top"\ncounterpart = "middle.bottom"'
     text = 'name = "three"\n[material]\nE = 1.0\nnu = 0.3\n'
     for b in [first] + [b for b in bodies if b != first]:
         text += f"[bodies.{b}]\n{bodies[b]}"
-    text += (f'[[loads.pressure]]\non = "upper.top"\nvalue = {P}\n[[loads.traction]]\non = "upper.right"\n'
+    if moved is None:
+        text += f'[[loads.pressure]]\non = "upper.top"\nvalue = {P}\n'
+    text += (f'[[loads.traction]]\non = "upper.right"\n'
              f'value = [{q}, 0.0, 0.0]\n[[contacts]]\n{pair}\nfriction = {friction}\n[[contacts]]\n'
              f'face = "middle.top"\ncounterpart = "upper.bottom"\nfriction = {friction}\n'
-             '[state]\ntol = 1.0e-14\nmax_iter = 200\n')
+             f'[state]\ntol = {1e-14 if moved is None else 1e-12}\nmax_iter = 200\n')
     return ShapeProblem(load_config(_write(tmp_path, text, f"{written}.toml")))
 
 
@@ -202,6 +207,27 @@ def test_a_chain_agrees_with_the_stack_written_with_every_face_on_one_body(frict
         assert np.abs(sign * rb.sum(axis=0) - (load if k else -load)).max() <= 1e-10 * P
         if friction == 0.0:
             assert np.abs(lb / area / P - 1).max() <= 1e-10
+
+
+@pytest.mark.parametrize("friction, moved", [(0.0, (0.0, 0.0, -0.01)), (0.3, (0.002, 0.0, -0.01))])
+def test_a_chain_pressed_by_a_moved_counterpart_agrees_with_the_stack_with_one_face_body(friction, moved,
+                                                                                        tmp_path):
+    """Upper, the counterpart of the face on middle, moved down (and along x1) by its top: its
+    translation enters the rows of that face; the chain gives the contact forces of the stack
+    written with both faces on middle to 1e-10, and middle's two pairs balance each other."""
+    star = _three(tmp_path, "star", friction, 0.0, moved)
+    chain = _three(tmp_path, "chain", friction, 0.0, moved)
+    held = chain.model.foundation.kernel()[1]            # middle, held only by its contacts
+    assert "the translation along x3 of the counterpart of contacts[0]" in held and len(held) == (
+        1 if friction == 0.0 else 3)
+    a = _rows(star, star.solve_state(star.model.initial_design()))
+    b = _rows(chain, chain.solve_state(chain.model.initial_design()))
+    assert a[1][2].sum() > 1e-3                    # pressed
+    for k, sign in ((0, -1.0), (1, 1.0)):
+        (_, ra, la, _), (_, rb, lb, _) = a[k], b[k]
+        assert np.abs(la - lb).max() <= 1e-10 * la.max()
+        assert np.abs(ra - sign * rb).max() <= 1e-10 * np.abs(ra).max()
+    assert np.abs(b[0][1].sum(axis=0) - b[1][1].sum(axis=0)).max() <= 1e-10 * a[1][2].sum()
 
 
 # ------------------------------------------------------------------ subgradients

@@ -221,6 +221,10 @@ def desugar(raw: dict, problems: list) -> tuple[dict, list]:
             problems.append(f"designs[{n}].face = {'.'.join(map(_part_name, f))!r}: body {f[0]!r} carries the face "
                             "of a pair (off the face body); a design moves the face body or a counterpart body "
                             "that carries no face so far")
+        elif carriers and f[0] != face_body:
+            problems.append(f"designs[{n}].face = {'.'.join(map(_part_name, f))!r}: a design of a counterpart body "
+                            f"in a model whose faces lie on several bodies ({', '.join(sorted(carriers))} carry "
+                            "faces) is not taken so far; design the face body")
     own = [n for n, f in enumerate(faces) if f[0] == face_body]
     for n, f in enumerate(faces):
         if f[0] != face_body:
@@ -291,6 +295,11 @@ def _check_star(pairs: list, problems: list, bodies: dict | None = None) -> None
                 elastic[c[0]] = len(pressed)
                 pressed.append(None)
             pressed[elastic[c[0]]] = (pressed[elastic[c[0]]] or []) + [f"contacts[{n}]"]
+    off = [f"contacts[{n}]" for n, (b, _, _) in enumerate(pairs) if b != face_body]
+    if off and pressed:
+        problems.append(f"{' and '.join(w if isinstance(w, str) else ' and '.join(w) for w in pressed)}: a "
+                        f"counterpart pressed by control = 'force' in a model whose faces lie on several bodies "
+                        f"({', '.join(off)}) is not taken so far; press it by control = 'displacement'")
     if len(pressed) > 1:
         what = "rigid counterparts" if not elastic else "counterparts"
         names = {i: name for name, i in elastic.items()}

@@ -235,7 +235,9 @@ class Counterparts:
         n = 3 * self.p
         self.P = sp.csr_matrix(self._stack([f.P for f in self.parts]))
         self.Pi = sp.csr_matrix(self._stack([f.Pi for f in self.parts]))
-        self.C = None if any(f.C is None for f in self.parts) else np.zeros((n, n))
+        # (faces on several bodies: the law's compliance is not P W Pᵀ, and the coupling forms S_eff, fem.faces)
+        held = self.face_map is None and all(f.C is not None for f in self.parts)
+        self.C = np.zeros((n, n)) if held else None
         self.q_f = np.zeros(n)
         self.motion = None if self.pressed is None else np.zeros(n)
         for k, f in enumerate(self.parts):

@@ -268,12 +268,3 @@ class FacesCoupling(Coupling):
     def body_displacement(self, w: np.ndarray, r: np.ndarray, ell: np.ndarray | None = None) -> np.ndarray:
         """The face body's contact displacement u_A (3p_a,): the rows a of :meth:`face_displacement`."""
         return self.face_displacement(w, ell)[:self.faces.n_a]
-
-
-def coupling(S: np.ndarray, foundation, anchored: bool = False) -> Coupling:
-    """The coupling of one design's S with the counterparts: :class:`FacesCoupling` where a pair's
-    face lies on another body, else :class:`~contactopt.fem.foundation.Coupling`."""
-    if getattr(foundation, "face_rows", None) is not None:
-        return FacesCoupling(S, foundation, anchored)
-    return Coupling(S, foundation, anchored)
-

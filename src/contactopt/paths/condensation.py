@@ -58,7 +58,6 @@ from ..errors import SolverError
 from ..fem import memory
 from ..fem.dense import mkl_threads, spd_inverse
 from ..fem.faces import FacesCoupling
-from ..fem.faces import coupling as make_coupling
 from ..fem.foundation import Coupling
 from ..fem.model import Assembled
 from ..sensitivity.adjoint import solve_adjoint, solve_adjoint_compliant
@@ -189,7 +188,9 @@ class CondensationPath(ZonePath):
         if couple is not None and self.model.cp_designs is not None:   # designed counterparts: formed at α
             couple = self.model.cp_designs.foundation_at(asm.alpha)
         if couple is not None:
-            system.coupling = make_coupling(system.S, couple, anchored=mech.anchor is not None)
+            # faces on several bodies: S_eff of the face body's rows and the others' (fem.faces)
+            kind = Coupling if getattr(couple, "face_rows", None) is None else FacesCoupling
+            system.coupling = kind(system.S, couple, anchored=mech.anchor is not None)
         extra = None if couple is None else couple.kernel()   # counterparts held by contact
         if mech.anchor is not None or extra is not None:
             system.rigid = anchor(self.model, mech.anchor, asm, system.contact_S, mech.frames, mech.basis, extra)
