@@ -19,6 +19,10 @@ per design. One pair is the foundation itself (this class is not built for it).
 
 Contact convention: per contact node (t1, t2, ν) in the node's frame (ν from the counterpart to the
 face body), r the contact force on the face body, λ = r_ν ≥ 0; counterpart body b carries −Π_bᵀ r_b.
+
+A pair's face may also lie on a counterpart body of another pair (:mod:`contactopt.fem.faces`): its
+contact nodes are rows of the law after the face body's (``p`` counts them all), that body's support
+holds them too, and E (``face_map``) maps its support DOFs onto them; such a body carries +Eᵀ r_b.
 """
 
 from __future__ import annotations
