@@ -320,3 +320,10 @@ def test_the_other_paths_refuse_a_face_off_the_face_body_by_name(path, tmp_path)
     assert (f"linear_solver.path = '{path}': contacts[2].face lies on body 'upper'; a pair whose face lies on a "
             "counterpart body of another pair is solved on the 'condensation' path only so far; use path "
             "'condensation' or 'auto'") in str(exc.value)
+
+
+def test_an_objective_of_the_whole_displacement_is_refused_with_faces_on_several_bodies(tmp_path):
+    with pytest.raises(ConfigError, match=r"objective 'frictional_dissipation': an objective of the whole "
+                                          r"displacement in a model whose faces lie on several bodies "
+                                          r"\(contacts\[2\]\) is not taken so far"):
+        _chain(tmp_path, extra='[objective]\ntype = "frictional_dissipation"\n')
