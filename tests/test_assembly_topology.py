@@ -289,6 +289,9 @@ def test_the_cli_writes_the_state_of_a_chain(tmp_path, capsys):
      "this face meets a rigid counterpart: make 'upper' the face body"),
     (('[bodies.upper]\n', '[bodies.upper]\ncontrol = "displacement"\nloaded = "top"\ndisplacement = [0.0, 0.0, 0.0]\n'),
      "body 'upper', which carries it, is moved by control = 'displacement'"),
+    (('[bodies.lower]\n', '[bodies.lower]\ncontrol = "force"\nloaded = "bottom"\nforce = [0.0, 0.0, 0.01]\n'),
+     "bodies.lower (contacts[0]): a counterpart pressed by control = 'force' in a model whose faces lie on several "
+     "bodies (contacts[2]) is not taken so far"),
     (('[state]', '[[designs]]\nface = "upper.top"\n[state]'),
      "designs[0].face = 'upper.top': body 'upper' carries the face of a pair (off the face body)"),
 ])

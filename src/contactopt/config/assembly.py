@@ -272,10 +272,14 @@ def _check_star(pairs: list, problems: list, bodies: dict | None = None) -> None
     face_body = pairs[0][0]
     seen = {}
     held = {c[0] for _, _, c in pairs if isinstance(c, tuple)}      # the counterpart bodies
+    off = []                                                        # the faces off the face body taken
     for n, (body, _, counter) in enumerate(pairs):
         key = f"contacts[{n}]"
         if body != face_body:
+            before = len(problems)
             _check_off_face(n, pairs, held, bodies or {}, problems)
+            if len(problems) == before:
+                off.append(key)
         if not isinstance(counter, tuple):
             _check_rigid_pair(counter, key, problems)
         elif counter in seen.values():
@@ -295,9 +299,10 @@ def _check_star(pairs: list, problems: list, bodies: dict | None = None) -> None
                 elastic[c[0]] = len(pressed)
                 pressed.append(None)
             pressed[elastic[c[0]]] = (pressed[elastic[c[0]]] or []) + [f"contacts[{n}]"]
-    off = [f"contacts[{n}]" for n, (b, _, _) in enumerate(pairs) if b != face_body]
     if off and pressed:
-        problems.append(f"{' and '.join(w if isinstance(w, str) else ' and '.join(w) for w in pressed)}: a "
+        names = {i: name for name, i in elastic.items()}
+        words = [w if isinstance(w, str) else f"bodies.{names[i]} ({' and '.join(w)})" for i, w in enumerate(pressed)]
+        problems.append(f"{' and '.join(words)}: a "
                         f"counterpart pressed by control = 'force' in a model whose faces lie on several bodies "
                         f"({', '.join(off)}) is not taken so far; press it by control = 'displacement'")
     if len(pressed) > 1:
