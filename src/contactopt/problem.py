@@ -109,10 +109,7 @@ class ShapeProblem:
         c = self.config
         # a load path's steps have loads and obstacle forces of their own: the obstacle's force is checked without them
         steps = bool(c.load_steps) or any(case.steps for case in c.load_cases)
-        friction = self.friction        # (the face body's rows: those of faces on other bodies follow, fem.faces)
-        if np.ndim(friction):
-            friction = np.asarray(friction)[:m.contact_nodes.size]
-        check_held(m.body.rigid, coords, m.contact_nodes, m.frames, friction, loads, c.source,
+        check_held(m.body.rigid, coords, m.contact_nodes, m.frames, self.friction, loads, c.source,
                    obstacle_force=None if steps else m.obstacle_force)
 
     def _design_lambda(self, alpha, case: int) -> np.ndarray:

@@ -34,6 +34,8 @@ import scipy.linalg as sla
 import scipy.sparse as sp
 
 from ..errors import ConfigError
+from .faces import FaceRows
+from .faceviews import face_frames
 
 log = logging.getLogger(__name__)
 
@@ -124,7 +126,7 @@ def build_counterparts(specs, body, source: str, check=None, normals=None, frame
         for k in pairs:
             if k in faces:
                 v = views_of[k]
-                v.carrier, v.counter = faces[k][0], key       # (named in messages)
+                v.owner = (faces[k][0], key)                  # (named in messages)
                 views.append((specs[k], v, v.normals))
             else:
                 views.append((specs[k], body.pair_view(k),
@@ -264,7 +266,6 @@ class Counterparts:
         {k: its rows}, ``carriers`` the bodies that carry them (in the order of ``views``), ``frames``
         the face body's rows' frames (None: the axes). Sets every row's frames (``frames``), the rows b's
         pinned frame components (``off_pinned``), areas, E and the coupling's pieces."""
-        from .faces import FaceRows, face_frames
         R = np.zeros((self.p, 3, 3))
         R[:p_a] = np.eye(3) if frames is None else frames
         self.off_pinned = np.zeros((self.p - p_a, 3), bool)

@@ -47,6 +47,7 @@ from ..mesh.reference import FACE_CORNERS
 from .dense import cholesky_lower, cholesky_solve, spd_inverse, symmetrize_lower
 from .elasticity import ElasticityAssembler
 from .elements import element_type, face_type, tri_rule
+from .faceviews import check_apart, face_view
 from .loadset import load_set
 from .memory import CounterpartSize, matrix_entries
 from .mortar import MortarCoupling, mortar_matrices, transformed_basis
@@ -93,7 +94,6 @@ class Foundation:
                                                floating=floating)
         self.face_views = {}
         if faces:
-            from .faces import face_view
             self.face_views = {k: face_view(fm, part, k, source) for k, part in faces.items()}
         ref = fm.reference
         self.loads = load_set(fm, spec.loads, where=f"{source}: foundation.loads")
@@ -125,7 +125,6 @@ class Foundation:
         Pn.eliminate_zeros()
         self.support = np.unique(Pn.indices)                     # top-face nodes carrying partners
         if self.face_views:             # ... and the nodes of the faces of pairs that lie on this body
-            from .faces import check_apart
             check_apart(self.support, self.face_views, source)
             self.support = np.unique(np.concatenate([self.support] + [v.contact_nodes for v in self.face_views.values()]))
         self.Pi = sp.kron(Pn[:, self.support], sp.identity(3), format="csr")
@@ -165,6 +164,7 @@ class Foundation:
                  self.support.size, p)
 
     coords = None         # the node coordinates K_f is formed on (None: the reference mesh's)
+    face_rows = None      # a pair's face on this body: the coupling's pieces are the counterparts' (fem.faces)
 
     def face_columns(self, nodes: np.ndarray) -> np.ndarray:
         """(len(nodes), 3): the columns of P (free support DOFs) of the support nodes ``nodes`` per
@@ -262,8 +262,8 @@ class Foundation:
         if bad.size:
             i = bad[0]
             # (a face on a counterpart body of another pair, fem.faces: the bodies by their names)
-            mine, theirs = (("body.clamped", "foundation.clamped") if getattr(body, "carrier", None) is None else
-                            (f"bodies.{body.carrier}.clamped", f"bodies.{body.counter}.clamped"))
+            mine, theirs = (("body.clamped", "foundation.clamped") if body.owner is None else
+                            (f"bodies.{body.owner[0]}.clamped", f"bodies.{body.owner[1]}.clamped"))
             raise ConfigError([f"{source}: {mine}: {bad.size} tangential component(s) of contact nodes are "
                                f"clamped (a symmetry plane through the contact face) but free at their partners on "
                                f"the foundation, first u{int(comp[i]) + 1} of body node {int(node[i])}: clamp the "

@@ -49,11 +49,13 @@ import logging
 import math
 import os
 import xml.etree.ElementTree as ET
+from dataclasses import replace
 from pathlib import Path, PurePosixPath
 
 import meshio
 import numpy as np
 
+from ..contact.state import FoundationState
 from ..fem.stress import von_mises_points
 from .atomic import atomic_output, atomic_write_text
 from .pressure import contact_pressure, face_classes
@@ -95,9 +97,6 @@ def face_body_rows(model, state):
     p = np.asarray(model.contact_nodes).size
     if np.shape(state.lam)[0] == p:
         return state
-    from dataclasses import replace
-
-    from ..contact.state import FoundationState
     cut = {name: (None if getattr(state, name) is None else np.asarray(getattr(state, name))[:p])
            for name in ("u_c", "lam", "tau", "gap", "classes", "slip_ref", "slip")}
     if np.ndim(state.friction):
@@ -218,7 +217,7 @@ def write_foundation_vtu(path, foundation, state, pair: int | None = None) -> Pa
         dofs = (3 * nodes[:, None] + np.arange(3)).ravel()
         f = np.zeros((n, 3))
         f[fnd.support] = -(fnd.Pi.T @ r[dofs]).reshape(-1, 3)
-        for j, view in getattr(fnd, "face_views", {}).items():   # a pair's face on this body (fem.faces)
+        for j, view in fnd.face_views.items():   # a pair's face on this body (fem.faces)
             mine = foundation.pair_rows[j]
             f[view.contact_nodes] += np.einsum("mij,mj->mi", foundation.frames[mine], r.reshape(-1, 3)[mine])
         own = {"displacement": u, "contact_force": _finite("contact_force", f)}

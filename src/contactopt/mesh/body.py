@@ -70,6 +70,7 @@ class Body(HasParts):
     pair_of: np.ndarray | None = None   # (p,) the pair of each contact node, in [[contacts]] order
     pair_charts: tuple = ()       # several pairs, some off the designed face's chart: each pair's face's chart
     designs: tuple = ()           # several designs: every designed face (DesignedFace), the first the contact face
+    owner: tuple | None = None    # a pair's face on a counterpart body (fem.faces): (that body, its counterpart)
 
     @property
     def contact_faces(self) -> np.ndarray:

@@ -90,10 +90,6 @@ class Capabilities:
         "load steps on a rigid [obstacle] other than the fixed plane",
         "linear_solver.path = '{path}': load steps on a {detail} [obstacle] (the slip's reference per node "
         "frame) are solved on {on} only; use path {takers} or 'auto'")
-    off_faces: bool = _feature(
-        "pairs whose faces lie on several bodies",
-        "linear_solver.path = '{path}': {detail}; a pair whose face lies on a counterpart body of another pair is "
-        "solved on {on} only so far; use path {takers} or 'auto'")
     held_by_contact: bool = _feature(
         "a body held only by contact",
         "linear_solver.path = '{path}': body.clamped leaves rigid motions free ({detail}); a body held only "

@@ -150,7 +150,7 @@ class CondensationPath(ZonePath):
 
     name = "condensation"
     capabilities = Capabilities(foundation=True, pairs=True, counterpart_force=True, obstacle=True, obstacle_steps=True,
-                                held_by_contact=True, pinned=True, off_faces=True,
+                                held_by_contact=True, pinned=True,
                                 compliance=True,
                                 whole_displacement=True, load_steps=True, auto="small")
 
@@ -189,7 +189,7 @@ class CondensationPath(ZonePath):
             couple = self.model.cp_designs.foundation_at(asm.alpha)
         if couple is not None:
             # faces on several bodies: S_eff of the face body's rows and the others' (fem.faces)
-            kind = Coupling if getattr(couple, "face_rows", None) is None else FacesCoupling
+            kind = Coupling if couple.face_rows is None else FacesCoupling
             system.coupling = kind(system.S, couple, anchored=mech.anchor is not None)
         extra = None if couple is None else couple.kernel()   # counterparts held by contact
         if mech.anchor is not None or extra is not None:
