@@ -258,7 +258,8 @@ def test_subgradients_with_a_design_and_sliding_nodes_on_a_face_off_the_face_bod
 
 # ------------------------------------------------------------------ outputs
 def test_the_cli_writes_the_state_of_a_chain(tmp_path, capsys):
-    """contactopt state on the chain: exit 0, state.json with each pair's normal force P."""
+    """contactopt state on the chain: exit 0, state.json with each pair's normal force P and every
+    row of the law named by its node and body."""
     import json
     path = _write(tmp_path, _chain_text(tmp_path))
     out = tmp_path / "out"
@@ -268,6 +269,9 @@ def test_the_cli_writes_the_state_of_a_chain(tmp_path, capsys):
     assert [c["nodes"] for c in report["contacts"]][2] == 30
     for c in report["contacts"]:
         assert c["total_normal_force"] == pytest.approx(P, rel=1e-10)
+    rows = report["contact"]                      # every row, the face body's first, each on its body
+    assert len(rows["node"]) == len(rows["x1"]) == len(rows["lam"]) == report["n_contact"] == 142
+    assert rows["body"][:112] == ["middle"] * 112 and rows["body"][112:] == ["upper"] * 30
     assert (out / "foundation.vtu").exists() and (out / "body.vtu").exists()
 
 

@@ -272,6 +272,7 @@ class Counterparts:
         self.off_areas = np.zeros(self.p - p_a)
         self.off_pairs = np.zeros(self.p - p_a, np.int64)
         self.off_points = np.zeros((self.p - p_a, 3))      # the rows' nodes on their bodies' reference meshes
+        self.off_nodes = np.zeros(self.p - p_a, np.int64)   # ... their numbers there
         starts = {id(f): s for f, s in zip(self.parts, np.cumsum([0] + [f.P.shape[1] for f in self.parts]))}
         rows, cols, vals = [], [], []
         for (k, v), f in zip(views.items(), carriers):
@@ -282,6 +283,7 @@ class Counterparts:
             self.off_areas[mine - p_a] = v.areas
             self.off_pairs[mine - p_a] = k
             self.off_points[mine - p_a] = v.reference.points[v.contact_nodes]
+            self.off_nodes[mine - p_a] = v.contact_nodes
             col = f.face_columns(v.contact_nodes)                     # (p_k, 3) per global component
             for i in range(3):                                        # row 3m + i: t_i · u (frame column i)
                 for c in range(3):
