@@ -55,7 +55,10 @@ ASSEMBLY_DOCS = {
     "contacts": "A contact pair, `[[contacts]]`: `face = \"<body>.<part>\"` (its nodes carry the contact "
                 "forces), `counterpart = \"<body>.<part>\"` (an elastic counterpart) or a table with the keys of "
                 "[obstacle] (a rigid one), `friction` (else [friction] coefficient), `partner` (as "
-                "foundation.partner), `interference`, `initial_gap` (as in [body]), an optional `name`.",
+                "foundation.partner), `interference`, `initial_gap` (as in [body]), an optional `name`. With several "
+                "pairs every face lies on the face body (the body of the first pair's face), or on a counterpart "
+                "body of another pair against a third, elastic body (a chain such as head, plate, plate, nut; no "
+                "design moves that body; the condensation path only, the others refuse it by name).",
     "designs": "A designed face, `[[designs]]`: `face = \"<body>.<part>\"` and the keys of [design]. Several "
                "entries design several faces of the face body in a model of several pairs, each a pair's face (α "
                "their control points one after the other); after them, a counterpart body's part that is a "
@@ -212,6 +215,16 @@ def desugar(raw: dict, problems: list) -> tuple[dict, list]:
             problems.append(f"bodies.{name}: takes part in no contact pair (a body of an assembly is held by its "
                             "clamps and its contacts with the others)")
     counters = [c for _, _, c in pairs if isinstance(c, tuple)]
+    carriers = {b for b, _, _ in pairs if b != face_body}      # bodies that carry a face off the face body
+    for n, f in enumerate(faces):
+        if f[0] in carriers:
+            problems.append(f"designs[{n}].face = {'.'.join(map(_part_name, f))!r}: body {f[0]!r} carries the face "
+                            "of a pair (off the face body); a design moves the face body or a counterpart body "
+                            "that carries no face so far")
+        elif carriers and f[0] != face_body:
+            problems.append(f"designs[{n}].face = {'.'.join(map(_part_name, f))!r}: a design of a counterpart body "
+                            f"in a model whose faces lie on several bodies ({', '.join(sorted(carriers))} carry "
+                            "faces) is not taken so far; design the face body")
     own = [n for n, f in enumerate(faces) if f[0] == face_body]
     for n, f in enumerate(faces):
         if f[0] != face_body:
@@ -258,12 +271,15 @@ def _check_star(pairs: list, problems: list, bodies: dict | None = None) -> None
     with control = 'force', once however many pairs it holds): its translation is searched."""
     face_body = pairs[0][0]
     seen = {}
-    for n, (body, part, counter) in enumerate(pairs):
+    held = {c[0] for _, _, c in pairs if isinstance(c, tuple)}      # the counterpart bodies
+    off = []                                                        # the faces off the face body taken
+    for n, (body, _, counter) in enumerate(pairs):
         key = f"contacts[{n}]"
         if body != face_body:
-            problems.append(f"{key}.face = '{body}.{_part_name(part)}': with several pairs contactopt takes the "
-                            f"faces of every pair on one body so far ({face_body!r}, the face of contacts[0]); "
-                            "write the pair the other way round (face and counterpart swapped) where it can be")
+            before = len(problems)
+            _check_off_face(n, pairs, held, bodies or {}, problems)
+            if len(problems) == before:
+                off.append(key)
         if not isinstance(counter, tuple):
             _check_rigid_pair(counter, key, problems)
         elif counter in seen.values():
@@ -283,6 +299,12 @@ def _check_star(pairs: list, problems: list, bodies: dict | None = None) -> None
                 elastic[c[0]] = len(pressed)
                 pressed.append(None)
             pressed[elastic[c[0]]] = (pressed[elastic[c[0]]] or []) + [f"contacts[{n}]"]
+    if off and pressed:
+        names = {i: name for name, i in elastic.items()}
+        words = [w if isinstance(w, str) else f"bodies.{names[i]} ({' and '.join(w)})" for i, w in enumerate(pressed)]
+        problems.append(f"{' and '.join(words)}: a "
+                        f"counterpart pressed by control = 'force' in a model whose faces lie on several bodies "
+                        f"({', '.join(off)}) is not taken so far; press it by control = 'displacement'")
     if len(pressed) > 1:
         what = "rigid counterparts" if not elastic else "counterparts"
         names = {i: name for name, i in elastic.items()}
@@ -290,6 +312,61 @@ def _check_star(pairs: list, problems: list, bodies: dict | None = None) -> None
         problems.append(f"{' and '.join(words)}: {len(pressed)} {what} pressed by control = 'force'; "
                         "contactopt searches the translation of one counterpart per model so far (press the "
                         "others by control = 'displacement')")
+
+
+def _check_off_face(n: int, pairs: list, held: set, bodies: dict, problems: list) -> None:
+    """A pair whose face lies on a body other than the face body (fem.faces): that body is the
+    counterpart of another pair (condensed once onto its supports, its face's nodes among them), no
+    design moves it and no translation; the pair's counterpart is a part of a third body, elastic
+    (neither the face body, whose contact DOFs are those of its own faces, nor a rigid one). The
+    bodies that carry such faces must not form a cycle with their counterparts (each is condensed
+    before the counterpart of its face)."""
+    face_body = pairs[0][0]
+    body, part, counter = pairs[n]
+    key = f"contacts[{n}]"
+    face = (f"{key}.face = '{body}.{_part_name(part)}': with several pairs contactopt takes the faces of every pair "
+            f"on one body so far ({face_body!r}, the face of contacts[0]), or a face on a counterpart body of another "
+            "pair against a third, elastic body (paths: condensation)")
+    swap = "write the pair the other way round (face and counterpart swapped) where it can be"
+    if body not in held:
+        problems.append(f"{face}; {body!r} is the counterpart of no pair: {swap}")
+    elif not isinstance(counter, tuple):
+        problems.append(f"{face}; this face meets a rigid counterpart: make {body!r} the face body or {swap}")
+    elif counter[0] == face_body:
+        problems.append(f"{face}; its counterpart lies on the face body {face_body!r}, whose contact DOFs are those "
+                        f"of its own faces: {swap}")
+    elif isinstance(bodies.get(body), dict) and bodies[body].get("control", "fixed") != "fixed":
+        problems.append(f"{face}; body {body!r}, which carries it, is moved by control = "
+                        f"{bodies[body]['control']!r}: a body that carries such a face is fixed or held by its "
+                        "contacts so far")
+    elif isinstance(bodies.get(counter[0]), dict) and bodies[counter[0]].get("control") == "force":
+        problems.append(f"{face}; its counterpart body {counter[0]!r} is pressed by control = 'force': the "
+                        "counterpart of such a face is fixed or moved by control = 'displacement' so far")
+    elif _cycle(body, pairs):
+        problems.append(f"{face}; the bodies {' → '.join(_cycle(body, pairs))} carry each other's faces in a "
+                        "cycle; contactopt condenses a body that carries a face before the counterpart of that "
+                        "face, so such faces form a chain or a tree so far")
+
+
+def _cycle(start: str, pairs: list) -> list:
+    """The bodies of a cycle through ``start`` of the pairs whose faces lie off the face body (face
+    body → counterpart body), else []."""
+    face_body = pairs[0][0]
+    edges = {}
+    for b, _, c in pairs:
+        if b != face_body and isinstance(c, tuple):
+            edges.setdefault(b, []).append(c[0])
+
+    def walk(path):
+        for nxt in edges.get(path[-1], []):
+            if nxt == start:
+                return path + [nxt]
+            if nxt not in path:
+                found = walk(path + [nxt])
+                if found:
+                    return found
+        return []
+    return walk([start])
 
 
 def _check_rigid_pair(counter: dict, key: str, problems: list) -> None:
@@ -332,7 +409,8 @@ def _more_pairs(out: dict, raw: dict, bodies: dict, contacts: list, pairs: list,
     out.pop("obstacle", None)          # (the first pair's rigid counterpart is its own, not the model's)
     out["pairs"] = more
     out["friction"] = {**(raw.get("friction") or {}), "coefficient": base}
-    out["body"]["contact"] = copy.deepcopy(faces[0][1]) if faces else [copy.deepcopy(p[1]) for p in pairs]
+    own = [copy.deepcopy(p[1]) for p in pairs if p[0] == pairs[0][0]]     # (a face off it: fem.faces)
+    out["body"]["contact"] = copy.deepcopy(faces[0][1]) if faces else own if len(own) > 1 else own[0]
     for k in ("interference", "initial_gap"):
         given = {c[k] for c in contacts if k in c}
         if len(given) > 1:

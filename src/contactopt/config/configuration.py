@@ -109,6 +109,20 @@ class Config:
         (fem.cpdesigns); they follow the face body's designs."""
         return tuple((n, d) for n, d in enumerate(self.more_designs, start=1) if d.body is not None)
 
+    @property
+    def off_faces(self) -> dict:
+        """{pair k: the body its face lies on} of the pairs whose face lies on a body other than the
+        face body (a counterpart of another pair, fem.faces); empty for every other model."""
+        asm = self.assembly
+        if not self.pairs or asm is None:
+            return {}
+        out = {}
+        for k, c in enumerate(asm.contacts):
+            body = c.face.split(".", 1)[0]
+            if body != asm.bodies[0]:
+                out[k] = body
+        return out
+
     def face_body_designs(self) -> "Config":
         """This configuration with the designs of the face body alone (its mesh, morph and
         admissible set are built from them; the counterparts' designs by fem.cpdesigns)."""

@@ -385,7 +385,9 @@ CONTACTS = {
     "name": ("", lambda x: isinstance(x, str), "a name of letters, digits, _ and - (default: \"<face body>-<counterpart "
              "body>\", or \"<face body>-rigid\")"),
     "face": ("", lambda x: isinstance(x, (str, dict)), _BODY_REF + ", or a predicate table with body = \"<name>\" "
-             "(the side whose nodes carry the contact forces)"),
+             "(the side whose nodes carry the contact forces; with several pairs on the face body, the body of "
+             "contacts[0]'s face, or on a counterpart body of another pair against a third, elastic body: the "
+             "condensation path)"),
     "counterpart": ("", lambda x: isinstance(x, (str, dict)),
                     _BODY_REF + " (an elastic counterpart), or a table with the keys of [obstacle] (a rigid one: "
                     "{ shape = \"plane\" } is the fixed plane x3 = 0)"),

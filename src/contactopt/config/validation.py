@@ -543,6 +543,13 @@ def check_interactions(config, *, pinned: int = 0, rigid: str | None = None, pin
             problems.append("objective 'frictional_dissipation' with foundation.control = 'force': the objective "
                             "takes the slip relative to the foundation without its translation; prescribe the "
                             "foundation's displacement (control = 'displacement') instead")
+    if config.off_faces:             # faces on several bodies (fem.faces): ∂J/∂u on every DOF is not taken
+        types = config.objective.types | {t.type for t in config.constraints}
+        full = sorted(types & {"peak_stress", "frictional_dissipation"})
+        if full:
+            pairs = ", ".join(f"contacts[{k}]" for k in config.off_faces)
+            problems.append(f"objective {', '.join(map(repr, full))}: an objective of the whole displacement in a "
+                            f"model whose faces lie on several bodies ({pairs}) is not taken so far")
     if problems:
         raise ConfigError(problems)
 

@@ -48,7 +48,8 @@ def check_held(rigid, points, contact_nodes, frames, friction, loads: list, sour
     V = rigid.vectors(points)                                                    # (n, 3, k)
     G = np.einsum("mij,mik->mjk", R, V[contact_nodes])                          # (p, 3, k) per node frame
     scale = np.linalg.norm(V.reshape(-1, k), axis=0)
-    mu = np.broadcast_to(np.asarray(friction, dtype=float), (p,))
+    mu = np.asarray(friction, dtype=float)
+    mu = np.broadcast_to(mu[:p] if mu.ndim else mu, (p,))     # (rows of faces on other bodies follow: fem.faces)
     if np.any(mu > 0):       # per node the polygon's generators (all at the node's normal where F_m = 0)
         th = 2 * np.pi * np.arange(SIDES) / SIDES
         Fo = mu[:, None] / np.cos(np.pi / SIDES)

@@ -19,6 +19,10 @@ per design. One pair is the foundation itself (this class is not built for it).
 
 Contact convention: per contact node (t1, t2, ν) in the node's frame (ν from the counterpart to the
 face body), r the contact force on the face body, λ = r_ν ≥ 0; counterpart body b carries −Π_bᵀ r_b.
+
+A pair's face may also lie on a counterpart body of another pair (:mod:`contactopt.fem.faces`): its
+contact nodes are rows of the law after the face body's (``p`` counts them all), that body's support
+holds them too, and E (``face_map``) maps its support DOFs onto them; such a body carries +Eᵀ r_b.
 """
 
 from __future__ import annotations
@@ -30,6 +34,8 @@ import scipy.linalg as sla
 import scipy.sparse as sp
 
 from ..errors import ConfigError
+from .faces import FaceRows
+from .faceviews import face_frames
 
 log = logging.getLogger(__name__)
 
@@ -89,39 +95,81 @@ class RigidCounterpart:
 
 
 def build_counterparts(specs, body, source: str, check=None, normals=None, frames=None,
-                       names=None, rigid=None, condensed: bool = True) -> Counterparts:
+                       names=None, rigid=None, condensed: bool = True, faces=None) -> Counterparts:
     """The counterparts of the pairs ``specs`` (``[foundation]`` tables, one per pair) of ``body``:
     one :class:`~contactopt.fem.foundation.Foundation` per counterpart body, named per pair by
     ``names`` (None: each pair its own body), built on the pairs' views of the body (their faces
     and nodes); ``normals`` (p, 3) of a curved face, ``frames`` (p, 3, 3) the contact nodes' frames
     the coupling is expressed in. ``rigid``: {pair: (its ``[obstacle]``, the gaps of its contact
     nodes)} of the pairs against rigid counterparts (:class:`RigidCounterpart`; their ``specs``
-    entries are not read)."""
+    entries are not read).
+
+    ``faces``: {pair k: (the counterpart body its face lies on, its face part)} of the pairs whose
+    faces lie off the face body (:mod:`contactopt.fem.faces`): their rows follow the face body's,
+    pair after pair, each body condensed before the counterpart of its faces; ``frames`` are then
+    the face body's rows' (their own are their faces' frames)."""
     from .foundation import Foundation
     rigid = rigid or {}
+    faces = faces or {}
     names = list(range(len(specs))) if names is None else list(names)
     groups = {}
     for k, name in enumerate(names):
         groups.setdefault(("rigid", k) if k in rigid else name, []).append(k)
-    parts, rows = [], []
-    for key, pairs in groups.items():
+    built, views_of, order = {}, {}, _build_order(groups, faces)
+    p_a = body.contact_nodes.size
+    for key in order:
+        pairs = groups[key]
         if isinstance(key, tuple):
-            k = pairs[0]
-            parts.append(RigidCounterpart(*rigid[k]))
-            rows.append(np.flatnonzero(body.pair_of == k))
+            built[key] = RigidCounterpart(*rigid[pairs[0]])
             continue
-        views = [(specs[k], body.pair_view(k),
-                  None if normals is None else normals[np.flatnonzero(body.pair_of == k)]) for k in pairs]
+        views = []
+        for k in pairs:
+            if k in faces:
+                v = views_of[k]
+                v.owner = (faces[k][0], key)                  # (named in messages)
+                views.append((specs[k], v, v.normals))
+            else:
+                views.append((specs[k], body.pair_view(k),
+                              None if normals is None else normals[np.flatnonzero(body.pair_of == k)]))
         where = f"{source}: {_which(pairs)}"
         spec, view, n = views[0]
-        parts.append(Foundation(spec, view, source=where, check=check, normals=n, floating=True,
-                                shared=views if len(pairs) > 1 else None, condensed=condensed))
-        rows.append(np.concatenate([np.flatnonzero(body.pair_of == k) for k in pairs]))
-    out = Counterparts(parts, rows, body.contact_nodes.size, pairs=list(groups.values()),
-                       pair_rows=[np.flatnonzero(body.pair_of == k) for k in range(len(specs))])
-    if frames is not None:
+        mine = {k: part for k, (b, part) in faces.items() if b == key}
+        f = built[key] = Foundation(spec, view, source=where, check=check, normals=n, floating=True,
+                                    shared=views if len(pairs) > 1 else None, condensed=condensed, faces=mine)
+        views_of.update(f.face_views)
+    start, off_rows = p_a, {}
+    for k in sorted(faces):
+        off_rows[k] = np.arange(start, start + views_of[k].contact_nodes.size)
+        start += off_rows[k].size
+
+    def rows_of(k):
+        return off_rows[k] if k in faces else np.flatnonzero(body.pair_of == k)
+    parts = [built[key] for key in groups]
+    rows = [np.concatenate([rows_of(k) for k in pairs]) for pairs in groups.values()]
+    out = Counterparts(parts, rows, start, pairs=list(groups.values()),
+                       pair_rows=[rows_of(k) for k in range(len(specs))])
+    if faces:
+        out.set_faces(p_a, {k: views_of[k] for k in sorted(faces)}, off_rows, [built[faces[k][0]] for k in sorted(faces)],
+                      frames)
+    elif frames is not None:
         out.rotate(frames)
     return out
+
+
+def _build_order(groups: dict, faces: dict) -> list:
+    """The counterpart bodies (keys of ``groups``) in an order that builds each body that carries a
+    face (``faces``: {pair: (body, part)}) before the counterpart of that face (config.assembly
+    refuses a cycle)."""
+    need = {key: {faces[k][0] for k in pairs if k in faces} for key, pairs in groups.items()}
+    order, done = [], set()
+    while len(order) < len(groups):
+        ready = [key for key in groups if key not in done and need[key] <= done]
+        if not ready:
+            raise ConfigError(["contacts: the bodies that carry faces off the face body carry each other's faces "
+                               "in a cycle"])
+        order.append(ready[0])
+        done.add(ready[0])
+    return order
 
 
 def _which(pairs: list) -> str:
@@ -141,6 +189,8 @@ class Counterparts:
 
     basis = None          # mortar partners on six-node triangles: one pair only (Foundation)
     translation = None
+    face_rows = None      # faces on several bodies: the coupling's design-independent pieces (fem.faces)
+    face_map = None       # ... the face nodes of rows b on o: (rows, columns, entries of E)
 
     def __init__(self, parts: list, rows: list, p: int, pairs=None, pair_rows=None):
         self.parts, self.rows, self.p = list(parts), [np.asarray(r) for r in rows], p
@@ -191,7 +241,9 @@ class Counterparts:
         n = 3 * self.p
         self.P = sp.csr_matrix(self._stack([f.P for f in self.parts]))
         self.Pi = sp.csr_matrix(self._stack([f.Pi for f in self.parts]))
-        self.C = None if any(f.C is None for f in self.parts) else np.zeros((n, n))
+        # (faces on several bodies: the law's compliance is not P W Pᵀ, and the coupling forms S_eff, fem.faces)
+        held = self.face_map is None and all(f.C is not None for f in self.parts)
+        self.C = np.zeros((n, n)) if held else None
         self.q_f = np.zeros(n)
         self.motion = None if self.pressed is None else np.zeros(n)
         for k, f in enumerate(self.parts):
@@ -208,6 +260,49 @@ class Counterparts:
         self.load_displacement = None
         if self.C is not None and self.ell_o is not None and np.any(self.ell_o):
             self.load_displacement = np.asarray(self.P @ self.support_compliance(self.ell_o))
+
+    def set_faces(self, p_a: int, views: dict, off_rows: dict, carriers: list, frames) -> None:
+        """The pairs whose faces lie off the face body (fem.faces): ``views`` {k: its face}, ``off_rows``
+        {k: its rows}, ``carriers`` the bodies that carry them (in the order of ``views``), ``frames``
+        the face body's rows' frames (None: the axes). Sets every row's frames (``frames``), the rows b's
+        pinned frame components (``off_pinned``), areas, E and the coupling's pieces."""
+        R = np.zeros((self.p, 3, 3))
+        R[:p_a] = np.eye(3) if frames is None else frames
+        self.off_pinned = np.zeros((self.p - p_a, 3), bool)
+        self.off_areas = np.zeros(self.p - p_a)
+        self.off_pairs = np.zeros(self.p - p_a, np.int64)
+        self.off_points = np.zeros((self.p - p_a, 3))      # the rows' nodes on their bodies' reference meshes
+        self.off_nodes = np.zeros(self.p - p_a, np.int64)   # ... their numbers there
+        starts = {id(f): s for f, s in zip(self.parts, np.cumsum([0] + [f.P.shape[1] for f in self.parts]))}
+        rows, cols, vals = [], [], []
+        for (k, v), f in zip(views.items(), carriers):
+            mine = off_rows[k]
+            Rk, pinned = face_frames(v)
+            R[mine] = Rk
+            self.off_pinned[mine - p_a] = pinned
+            self.off_areas[mine - p_a] = v.areas
+            self.off_pairs[mine - p_a] = k
+            self.off_points[mine - p_a] = v.reference.points[v.contact_nodes]
+            self.off_nodes[mine - p_a] = v.contact_nodes
+            col = f.face_columns(v.contact_nodes)                     # (p_k, 3) per global component
+            for i in range(3):                                        # row 3m + i: t_i · u (frame column i)
+                for c in range(3):
+                    ok = (col[:, c] >= 0) & (np.abs(Rk[:, c, i]) > 0)
+                    rows.append(3 * mine[ok] + i)
+                    cols.append(starts[id(f)] + col[ok, c])
+                    vals.append(Rk[ok, c, i])
+        self.frames = R
+        self.off_views = views
+        self.face_map = tuple(np.concatenate(x) for x in (rows, cols, vals))
+        self.rotate(R)
+        self.face_rows = FaceRows.build(self, 3 * p_a)
+
+    def _relative(self) -> sp.csr_matrix:
+        """Π − E on the free support DOFs: the relative displacement of a motion o of the counterparts."""
+        if self.face_map is None:
+            return self.P
+        rows, cols, vals = self.face_map
+        return sp.csr_matrix(self.P - sp.csr_matrix((vals, (rows, cols)), shape=self.P.shape))
 
     def support_compliance(self, x: np.ndarray) -> np.ndarray:
         """W_o x = diag_b(W_b) x: the displacement of the counterparts' free support DOFs (in the
@@ -228,8 +323,9 @@ class Counterparts:
         counterparts' bodies in pair order)."""
         mu = np.broadcast_to(np.asarray(friction, float), (self.p,))
         problems = []
+        rel = self._relative()
         for b, f, R in self._floating():
-            G = np.asarray(self.P @ R).reshape(self.p, 3, -1)
+            G = np.asarray(rel @ R).reshape(self.p, 3, -1)
             scale = np.abs(G).max(initial=0.0)
             name, pairs = names[self.pairs[b][0]], self.pairs[b]
             for j, motion in enumerate(f.rigid.names()):
@@ -249,8 +345,9 @@ class Counterparts:
         the coupled stiffness S_eff is singular and the contact forces must balance the body's
         loads (paths/rigid.py); None when every counterpart is held."""
         cols, names = [], []
+        rel = self._relative()
         for b, f, R in self._floating():
-            cols.append(-(self.P @ R))
+            cols.append(-(rel @ R))
             names += [f"{n} of the counterpart of {_which(self.pairs[b])}" for n in f.rigid.names()]
         if not cols:
             return None

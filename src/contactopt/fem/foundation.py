@@ -47,6 +47,7 @@ from ..mesh.reference import FACE_CORNERS
 from .dense import cholesky_lower, cholesky_solve, spd_inverse, symmetrize_lower
 from .elasticity import ElasticityAssembler
 from .elements import element_type, face_type, tri_rule
+from .faceviews import check_apart, face_view
 from .loadset import load_set
 from .memory import CounterpartSize, matrix_entries
 from .mortar import MortarCoupling, mortar_matrices, transformed_basis
@@ -67,7 +68,7 @@ class Foundation:
     free support DOFs: the foundation's displacement for outputs)."""
 
     def __init__(self, spec, body, source: str = "<dict>", backend: str = "auto", check=None, normals=None,
-                 floating: bool = False, condensed: bool = True, shared=None):
+                 floating: bool = False, condensed: bool = True, shared=None, faces=None):
         """``spec`` the ``[foundation]`` section of the configuration read from ``source``;
         ``check(size)``: called with its :attr:`memory_sizes` (its sizes, counted from its mesh)
         before K_f is assembled and condensed (the model's memory check, on the path that will run),
@@ -82,11 +83,18 @@ class Foundation:
         pair's) and ``spec_k`` its ``[foundation]`` (the body's, ``top`` and ``partner`` the pair's):
         each pair's partners are searched on its own top part alone, and the body is condensed once
         onto the union of their supports, its rows the pairs' contact nodes one pair after the
-        other. ``spec``, ``body`` and ``normals`` are then the first pair's."""
+        other. ``spec``, ``body`` and ``normals`` are then the first pair's.
+
+        ``faces``: {pair k: its face part} of the pairs whose faces lie on this body
+        (:mod:`contactopt.fem.faces`): ``face_views`` {k: the pair's face as a body's contact face},
+        their contact nodes among the support (:meth:`face_columns`)."""
         views = [(spec, body, normals)] if shared is None else list(shared)
         contact_xy = body.reference.points[body.contact_nodes, :2]
         self.mesh = fm = build_foundation_mesh(spec, contact_xy, source, curved=normals is not None,
                                                floating=floating)
+        self.face_views = {}
+        if faces:
+            self.face_views = {k: face_view(fm, part, k, source) for k, part in faces.items()}
         ref = fm.reference
         self.loads = load_set(fm, spec.loads, where=f"{source}: foundation.loads")
         self.assembler = ElasticityAssembler(ref.cells, ref.n_nodes, fm.fixed_dofs, fm.E, fm.nu,
@@ -116,10 +124,14 @@ class Foundation:
         Pn.sum_duplicates()
         Pn.eliminate_zeros()
         self.support = np.unique(Pn.indices)                     # top-face nodes carrying partners
+        if self.face_views:             # ... and the nodes of the faces of pairs that lie on this body
+            check_apart(self.support, self.face_views, source)
+            self.support = np.unique(np.concatenate([self.support] + [v.contact_nodes for v in self.face_views.values()]))
         self.Pi = sp.kron(Pn[:, self.support], sp.identity(3), format="csr")
         free = self.assembler.full_to_free[(3 * self.support[:, None] + np.arange(3)).ravel()]
         keep = free >= 0                                         # clamped components do not move
         self._support_free = free[keep]
+        self._column = np.where(keep, np.cumsum(keep) - 1, -1).reshape(-1, 3)   # per support node: P's columns
         free_per_node = np.ones(3 * ref.n_nodes, bool)
         free_per_node[fm.fixed_dofs] = False
         nnz_K = matrix_entries(ref.cells, ref.n_nodes, free_per_node.reshape(-1, 3).sum(axis=1))
@@ -152,6 +164,12 @@ class Foundation:
                  self.support.size, p)
 
     coords = None         # the node coordinates K_f is formed on (None: the reference mesh's)
+    face_rows = None      # a pair's face on this body: the coupling's pieces are the counterparts' (fem.faces)
+
+    def face_columns(self, nodes: np.ndarray) -> np.ndarray:
+        """(len(nodes), 3): the columns of P (free support DOFs) of the support nodes ``nodes`` per
+        global component (u1, u2, u3), −1 where the component is clamped."""
+        return self._column[np.searchsorted(self.support, nodes)]
 
     def _condense(self, backend, P, p: int, coords=None) -> None:
         """K_f condensed onto the free support DOFs: ``condensation``, W_f and C = Π W_f Πᵀ (none
@@ -243,10 +261,13 @@ class Foundation:
         bad = np.flatnonzero(np.any(w & ~fixed[3 * partners + comp[:, None]], axis=1))
         if bad.size:
             i = bad[0]
-            raise ConfigError([f"{source}: body.clamped: {bad.size} tangential component(s) of contact nodes are "
+            # (a face on a counterpart body of another pair, fem.faces: the bodies by their names)
+            mine, theirs = (("body.clamped", "foundation.clamped") if body.owner is None else
+                            (f"bodies.{body.owner[0]}.clamped", f"bodies.{body.owner[1]}.clamped"))
+            raise ConfigError([f"{source}: {mine}: {bad.size} tangential component(s) of contact nodes are "
                                f"clamped (a symmetry plane through the contact face) but free at their partners on "
                                f"the foundation, first u{int(comp[i]) + 1} of body node {int(node[i])}: clamp the "
-                               "same plane of the foundation (foundation.clamped), else its compliance would add "
+                               f"same plane of the foundation ({theirs}), else its compliance would add "
                                "to the clamped direction"])
 
     def at_coordinates(self, coords: np.ndarray, backend: str = "auto") -> "Foundation":

@@ -196,7 +196,9 @@ class ElasticModel:
         face_frames = self._obstacle(cfg.obstacle, ref, body)
         self.foundation = None      # [foundation]: the elastic foundation under the contact face
         rigid = self._rigid_pairs(cfg, ref, body)      # several pairs, some against rigid counterparts
-        if (cfg.foundation is not None or cfg.pairs) and (body.chart is not None or body.pair_charts):
+        self.pair_of = body.pair_of   # (p,) the pair of each row of the law (rows b: fem.faces)
+        self._p_off = 0               # rows b: the contact nodes of faces off the face body (fem.faces)
+        if (cfg.foundation is not None or cfg.pairs) and (body.chart is not None or body.pair_charts or cfg.off_faces):
             self._curved_foundation(cfg, ref, body, check, rigid)
         elif rigid and any(np.abs(R - np.eye(3)).max() > 0 for _, rows, R, _ in rigid.values()):
             self._set_frames(ref, body, np.broadcast_to(np.eye(3), (body.contact_nodes.size, 3, 3)).copy(), rigid,
@@ -242,6 +244,14 @@ class ElasticModel:
                 self.gap_matrix[rows] = self._gap_factor(R[:, :, 2], self.contact_nodes[rows])[:, None] * \
                     self.gap_matrix[rows]
                 self.gap0[rows] = dist
+        if self._p_off:                          # rows b: no design moves them, their gaps are the partners'
+            self.gap_matrix = np.vstack([np.asarray(self.gap_matrix, float),
+                                         np.zeros((self._p_off, self.gap_matrix.shape[1]))])
+            self.contact_pinned = np.vstack([self.contact_pinned, self.foundation.off_pinned])
+            self.pair_of = np.concatenate([body.pair_of, self.foundation.off_pairs])
+            if cfg.pairs:
+                mu = np.array([pr.friction for pr in cfg.pairs])[self.pair_of]
+                self.contact_friction = None if np.all(mu == cfg.friction.coefficient) else mu
         self.loads = load_set(body, cfg.loads)
         self.body_force = self.loads.body_force
         if cfg.pairs and self.foundation is None:
@@ -510,10 +520,12 @@ class ElasticModel:
         else:
             self.frames = R
         if cfg.pairs:
+            faces = {k: (name, cfg.pairs[k].contact) for k, name in cfg.off_faces.items()}
             self.foundation = build_counterparts([pr.foundation for pr in cfg.pairs], body, cfg.source, check,
                                                  normals=n, frames=self.frames, rigid=self._rigid_specs(rigid),
-                                                 condensed=self._condensed,
+                                                 condensed=self._condensed, faces=faces,
                                                  names=[c.counterpart.split(".")[0] for c in cfg.assembly.contacts])
+            self._p_off = self.foundation.p - body.contact_nodes.size
         else:
             self.foundation = Foundation(cfg.foundation, body, source=cfg.source, check=check, normals=n,
                                          condensed=self._condensed)
@@ -714,7 +726,9 @@ class ElasticModel:
     # ------------------------------------------------------------------ sizes
     @property
     def n_contact(self) -> int:
-        return self.contact_nodes.size
+        """p, the rows of the contact law: the face body's contact nodes, then those of the faces of
+        pairs on other bodies (fem.faces)."""
+        return self.contact_nodes.size + self._p_off
 
     @property
     def n_design(self) -> int:
@@ -754,6 +768,8 @@ class ElasticModel:
         areas = areas[self.contact_nodes]
         if self.foundation is not None and self.foundation.basis is not None:
             return self.foundation.basis @ areas
+        if self._p_off:                      # rows b: the nodal areas of their faces (fem.faces)
+            return np.concatenate([areas, self.foundation.off_areas])
         return areas
 
     # ------------------------------------------------------------------ A(α), L(α)

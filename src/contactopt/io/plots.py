@@ -123,6 +123,7 @@ def contact_grid(model, values=None):
 def _categories(ax, model, codes, cmap, norm) -> None:
     """A per-node category (node class, stick/slip) on the contact face: cells on a grid face,
     coloured nodes on the triangulation of any other face."""
+    codes = _face_rows(model, codes)
     if _has_grid(model):
         _pcolor(ax, model, contact_grid(model, codes)[2], cmap=cmap, norm=norm, edgecolors="white", linewidth=0.3)
     else:
@@ -151,7 +152,7 @@ def face_triangulation(model):
     corners = faces[:, :4] if faces.shape[1] == 4 else faces[:, :3]
     tris = np.vstack([corners[:, [0, 1, 2]], corners[:, [0, 2, 3]]]) if corners.shape[1] == 4 else corners
     index = np.full(model.mesh.n_nodes, -1)
-    index[model.contact_nodes] = np.arange(model.n_contact)
+    index[model.contact_nodes] = np.arange(model.contact_nodes.size)
     tris = index[tris]
     tris = tris[np.all(tris >= 0, axis=1)]
     xy = np.asarray(model.mesh.contact_points(), float)
@@ -240,8 +241,15 @@ def _figsize_map(model, extra_width=1.6):
     return (w + extra_width, max(2.6, w * ratio + 1.1))
 
 
+def _face_rows(model, values):
+    """The values of the face body's contact nodes: a map of the face body's face leaves out the
+    rows of faces on other bodies (fem.faces), which follow them."""
+    return np.asarray(values)[:model.contact_nodes.size]
+
+
 def _field(ax, model, values, **kw):
     """Draw a per-contact-node field: dual cells on the block's grid, else the face triangulation."""
+    values = _face_rows(model, values)
     if _has_grid(model):
         return _pcolor(ax, model, contact_grid(model, values)[2], **kw)
     return ax.tripcolor(face_triangulation(model), np.asarray(values, float), shading="gouraud", **kw)
@@ -276,11 +284,20 @@ def _pair_maps(path, model, values, title, cmap, label, vmin, vmax) -> Path:
     hi = float(values.max()) if vmax is None else vmax
     fig = _new_figure((3.2 * len(pairs) + 1.6, 5.0))
     xlabel, ylabel = _axis_labels(model)
+    off = model.config.off_faces
+    if off:         # the rows of faces on other bodies (fem.faces): at their nodes' (x1, x2)
+        xy = np.vstack([xy, model.foundation.off_points[:, :2]])
     for k, pair in enumerate(pairs):
-        rows = np.flatnonzero(model.body.pair_of == k)
-        index = np.full(model.mesh.n_nodes, -1)
-        index[model.contact_nodes[rows]] = np.arange(rows.size)
-        faces = np.asarray(model.body.pair_faces[k].faces)
+        rows = np.flatnonzero(model.pair_of == k)
+        if k in off:
+            view = model.foundation.off_views[k]
+            index = np.full(view.reference.n_nodes, -1)
+            index[view.contact_nodes] = np.arange(rows.size)
+            faces = np.asarray(view.contact_face.faces)
+        else:
+            index = np.full(model.mesh.n_nodes, -1)
+            index[model.contact_nodes[rows]] = np.arange(rows.size)
+            faces = np.asarray(model.body.pair_faces[k].faces)
         corners = faces[:, :4] if faces.shape[1] == 4 else faces[:, :3]
         tris = np.vstack([corners[:, [0, 1, 2]], corners[:, [0, 2, 3]]]) if corners.shape[1] == 4 else corners
         tris = index[tris]

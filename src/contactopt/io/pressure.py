@@ -80,6 +80,9 @@ def contact_pressure(model, lam, coords) -> np.ndarray:
     docstring. Units: the unit of λ per unit of area of the mesh coordinates."""
     lam = np.asarray(lam, float)
     nodes = np.asarray(model.contact_nodes, np.int64)
+    if lam.shape == (model.n_contact,) and model.n_contact > nodes.size:   # faces on other bodies (fem.faces):
+        return np.concatenate([contact_pressure(model, lam[:nodes.size], coords),   # no design moves them
+                               lam[nodes.size:] / model.foundation.off_areas])
     if lam.shape != nodes.shape:
         raise ValueError(f"expected one force per contact node ({nodes.size},), got shape {lam.shape}")
     faces = np.asarray(model.body.contact_faces, np.int64)
@@ -141,7 +144,7 @@ def contact_pairs(model) -> list[tuple[object, np.ndarray]]:
     """The contact pairs of ``model`` (:class:`contactopt.config.assembly.Pair`, in ``[[contacts]]``
     order) with the contact-node indices m of each: every contact node belongs to one pair."""
     pairs = model.config.assembly.contacts
-    which = model.body.pair_of
+    which = model.pair_of
     if which is None:                       # one pair: every contact node
         return [(pair, np.arange(model.n_contact)) for pair in pairs]
     return [(pair, np.flatnonzero(which == k)) for k, pair in enumerate(pairs)]

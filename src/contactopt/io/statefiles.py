@@ -85,6 +85,7 @@ def state_json(model, state: State, config=None, warnings=None, objective=None, 
     chart of the face (its description and the names of the coordinates x1, x2), and
     ``warnings`` (e.g. the constraints of U the design breaks), ``objective`` ({type, value,
     terms}) and ``constraints`` ({name: {type, value, limit, margin}}) when given."""
+    rows = _rows(model)
     doc = {
         "format_version": FORMAT_VERSION,
         "summary": state.summary(),
@@ -96,9 +97,9 @@ def state_json(model, state: State, config=None, warnings=None, objective=None, 
         "chart": chart_summary(model.mesh.chart),
         "contacts": pair_reports(model, state),
         "contact": {
-            "node": np.asarray(model.contact_nodes).tolist(),
-            "x1": model.mesh.contact_points()[:, 0].tolist(),
-            "x2": model.mesh.contact_points()[:, 1].tolist(),
+            "node": rows[0].tolist(),
+            "x1": rows[1][:, 0].tolist(),
+            "x2": rows[1][:, 1].tolist(),
             "lam": np.asarray(state.lam, float).tolist(),
             "pressure": contact_pressure(model, state.lam, state.coords).tolist(),
             "tau": np.asarray(state.tau, float).tolist(),
@@ -108,6 +109,8 @@ def state_json(model, state: State, config=None, warnings=None, objective=None, 
             "class": [CLASS_NAMES[k] for k in np.asarray(state.classes, int)],
         },
     }
+    if model.n_contact > model.contact_nodes.size:     # faces on several bodies: each row's body
+        doc["contact"]["body"] = rows[3]
     if state.foundation is not None:          # an elastic foundation: u_c is w = u_body − u_partner
         doc["contact"]["u_body"] = np.asarray(state.foundation.u_body_c, float).tolist()
         doc["contact"]["u_partner"] = np.asarray(state.foundation.u_partner, float).tolist()
@@ -127,8 +130,26 @@ def state_json(model, state: State, config=None, warnings=None, objective=None, 
     return doc
 
 
+def _rows(model):
+    """(node numbers, (x1, x2) or chart coordinates, reference coordinates, body names) of the law's
+    rows: the face body's contact nodes, then those of the faces on other bodies (fem.faces), each
+    numbered and placed on its own body's mesh."""
+    nodes = np.asarray(model.contact_nodes, np.int64)
+    xy = np.asarray(model.mesh.contact_points(), float)
+    x = np.asarray(model.body.reference.points[nodes], float)
+    names = [model.config.assembly.bodies[0]] * nodes.size
+    if model.n_contact > nodes.size:
+        f = model.foundation
+        off = model.config.off_faces
+        nodes, xy, x = (np.concatenate([nodes, f.off_nodes]), np.vstack([xy, f.off_points[:, :2]]),
+                        np.vstack([x, f.off_points]))
+        names += [off[int(k)] for k in f.off_pairs]
+    return nodes, xy, x, names
+
+
 def _state_arrays(model, state: State) -> dict:
     scalars = state.scalars()
+    rows = _rows(model)
     return {
         "format_version": np.int64(FORMAT_VERSION),
         "alpha": np.asarray(state.alpha, float),
@@ -141,9 +162,9 @@ def _state_arrays(model, state: State) -> dict:
         "gap": np.asarray(state.gap, float),
         "classes": np.asarray(state.classes, np.int64),
         "class_names": np.array(CLASS_NAMES),
-        "contact_nodes": np.asarray(model.contact_nodes, np.int64),
-        "contact_points": np.asarray(model.mesh.contact_points(), float),
-        "contact_coords": np.asarray(model.body.reference.points[model.contact_nodes], float),
+        "contact_nodes": rows[0],
+        "contact_points": rows[1],
+        "contact_coords": rows[2],
         "contact_pair": pair_index(model),
         "friction": np.asarray(state.friction, np.float64),     # 0-d, or (p,) per contact node
         "method": np.array(str(state.method)),

@@ -49,11 +49,13 @@ import logging
 import math
 import os
 import xml.etree.ElementTree as ET
+from dataclasses import replace
 from pathlib import Path, PurePosixPath
 
 import meshio
 import numpy as np
 
+from ..contact.state import FoundationState
 from ..fem.stress import von_mises_points
 from .atomic import atomic_output, atomic_write_text
 from .pressure import contact_pressure, face_classes
@@ -89,6 +91,22 @@ def _on_nodes(name: str, values, n_nodes: int, contact_nodes: np.ndarray, fill=0
     return _finite(name, out)
 
 
+def face_body_rows(model, state):
+    """``state`` on the face body's contact nodes alone: the rows of faces on other bodies
+    (:mod:`contactopt.fem.faces`) are written with their bodies (:func:`write_foundation_vtu`)."""
+    p = np.asarray(model.contact_nodes).size
+    if np.shape(state.lam)[0] == p:
+        return state
+    cut = {name: (None if getattr(state, name) is None else np.asarray(getattr(state, name))[:p])
+           for name in ("u_c", "lam", "tau", "gap", "classes", "slip_ref", "slip")}
+    if np.ndim(state.friction):
+        cut["friction"] = np.asarray(state.friction)[:p]
+    f = state.foundation
+    if f is not None:
+        cut["foundation"] = FoundationState(f.u_body_c[:p], f.u_partner[:p], lambda: f.displacement)
+    return replace(state, **cut)
+
+
 def body_point_data(model, state, extra_point_data=None) -> dict:
     """The point-data dict written by :func:`write_body_vtu` (see the module docstring).
 
@@ -98,6 +116,7 @@ def body_point_data(model, state, extra_point_data=None) -> dict:
     n = model.mesh.n_nodes
     cn = np.asarray(model.contact_nodes)
     p = cn.size
+    state = face_body_rows(model, state)
     u = np.asarray(state.u, float)
     if u.size != 3 * n:
         raise ValueError(f"state.u has {u.size} entries, the mesh needs 3·{n} = {3 * n}")
@@ -198,6 +217,9 @@ def write_foundation_vtu(path, foundation, state, pair: int | None = None) -> Pa
         dofs = (3 * nodes[:, None] + np.arange(3)).ravel()
         f = np.zeros((n, 3))
         f[fnd.support] = -(fnd.Pi.T @ r[dofs]).reshape(-1, 3)
+        for j, view in fnd.face_views.items():   # a pair's face on this body (fem.faces)
+            mine = foundation.pair_rows[j]
+            f[view.contact_nodes] += np.einsum("mij,mj->mi", foundation.frames[mine], r.reshape(-1, 3)[mine])
         own = {"displacement": u, "contact_force": _finite("contact_force", f)}
         if len(parts) > 1 and pair is None:
             own["pair"] = np.full(n, k, np.int8)

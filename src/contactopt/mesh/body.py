@@ -70,6 +70,7 @@ class Body(HasParts):
     pair_of: np.ndarray | None = None   # (p,) the pair of each contact node, in [[contacts]] order
     pair_charts: tuple = ()       # several pairs, some off the designed face's chart: each pair's face's chart
     designs: tuple = ()           # several designs: every designed face (DesignedFace), the first the contact face
+    owner: tuple | None = None    # a pair's face on a counterpart body (fem.faces): (that body, its counterpart)
 
     @property
     def contact_faces(self) -> np.ndarray:
@@ -145,7 +146,10 @@ def build_body(cfg) -> Body:
         if p is not None:
             clamped.append((p, sorted({COMPONENTS[c] for c in clamp.components})))
     face = _union([part("contact", c) for c in _as_list(spec.contact)])
-    pair_faces = [part("contact", pr.contact) for pr in cfg.pairs]
+    off = cfg.off_faces                   # pairs whose face lies on another body (fem.faces): no part here
+    pair_faces = [Part(f"contacts[{k}].face", np.zeros(0, np.int64), np.zeros((0, FACE_CORNERS[ref.face_type]),
+                                                                              np.int64), "elsewhere")
+                  if k in off else part("contact", pr.contact) for k, pr in enumerate(cfg.pairs)]
     if problems:
         raise ConfigError([f"{cfg.source}: {p}" for p in problems])
     _check_pair_faces(pair_faces, cfg.source)
@@ -167,7 +171,7 @@ def build_body(cfg) -> Body:
         # between two others): each pair's face its own chart, which gives the frames of its nodes
         auto = SimpleNamespace(chart="auto", axis=None, origin=None)
         pair_charts = tuple(resolve_chart(auto, ref.points, pf, ref.face_type, gtol, cfg.source)
-                            for pf in pair_faces)
+                            if pf.nodes.size else None for pf in pair_faces)
     if pair_charts and not cfg.assembly.designs:
         face = Part(face.name, np.unique(face.faces), face.faces, face.origin)
     elif chart is None:
@@ -316,6 +320,8 @@ def _pair_outward(points, nodes, pair_faces, charts) -> np.ndarray:
     """(len(nodes), 3) outward normals at ``nodes`` from the chart of the pair each lies in."""
     out = np.zeros((nodes.size, 3))
     for pf, c in zip(pair_faces, charts):
+        if c is None:             # a pair whose face lies on another body
+            continue
         mine = np.isin(nodes, pf.nodes)
         out[mine] = c.outward(points[nodes[mine]])
     return out

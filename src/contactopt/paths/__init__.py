@@ -126,6 +126,11 @@ def select_path(config, n_free: int, pinned: int = 0, rigid=None, pinned_held: b
     name, ranks = ls.path, world_size()
     need = needs(config, pinned, ranks, rigid)
     fit = [cls for cls in PATHS.values() if not cls.capabilities.lacks(need)]
+    off = _off_faces(config, name)
+    if off is not None:                 # faces on several bodies: the condensation alone (fem.faces)
+        fit = [cls for cls in fit if cls.name in OFF_FACES_PATHS]
+        if name != "auto":
+            raise ConfigError([off] + (_refusal(name, need) if PATHS[name] not in fit and need else []))
     if name == "auto":
         chosen = _auto(fit, n_free, ls.crossover, ranks, need)
         if chosen is None:
@@ -144,6 +149,19 @@ def select_path(config, n_free: int, pinned: int = 0, rigid=None, pinned_held: b
     return chosen.name, library_for(chosen.name, ls.library)
 
 
+OFF_FACES_PATHS = ("condensation",)     # the paths that take a pair's face on a counterpart body (fem.faces)
+
+
+def _off_faces(config, name: str) -> str | None:
+    """The refusal of path ``name`` for a model whose faces lie on several bodies (a pair's face on a
+    counterpart body of another pair, fem.faces), None where the path takes it or the model has none."""
+    if not config.off_faces or name in OFF_FACES_PATHS + ("auto",):
+        return None
+    where = ", ".join(f"contacts[{k}].face lies on body {body!r}" for k, body in config.off_faces.items())
+    return (f"linear_solver.path = '{name}': {where}; a pair whose face lies on a counterpart body of another pair "
+            f"is solved on {_on(list(OFF_FACES_PATHS))} only so far; use path {_names(list(OFF_FACES_PATHS))} or 'auto'")
+
+
 def path_estimates(config, name: str, body) -> PathEstimates:
     """The memory estimate of path ``name``, which will run, and those of the other paths that
     take a configuration and its ``body`` (pinned components, free rigid motions) on this run's
@@ -151,6 +169,7 @@ def path_estimates(config, name: str, body) -> PathEstimates:
     need = needs(config, int(body.pinned_dofs.size), _mpi.world_size(), body.rigid)
     return PathEstimates(PATHS[name].memory_estimate, {
         n: cls.memory_estimate for n, cls in PATHS.items() if n != name and not cls.capabilities.lacks(need)
+        and (not config.off_faces or n in OFF_FACES_PATHS)
         and not any(map(missing_library, cls.capabilities.libraries))})
 
 

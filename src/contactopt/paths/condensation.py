@@ -57,6 +57,7 @@ from ..contact.zone import CoupledZoneProblem
 from ..errors import SolverError
 from ..fem import memory
 from ..fem.dense import mkl_threads, spd_inverse
+from ..fem.faces import FacesCoupling
 from ..fem.foundation import Coupling
 from ..fem.model import Assembled
 from ..sensitivity.adjoint import solve_adjoint, solve_adjoint_compliant
@@ -187,7 +188,9 @@ class CondensationPath(ZonePath):
         if couple is not None and self.model.cp_designs is not None:   # designed counterparts: formed at α
             couple = self.model.cp_designs.foundation_at(asm.alpha)
         if couple is not None:
-            system.coupling = Coupling(system.S, couple, anchored=mech.anchor is not None)
+            # faces on several bodies: S_eff of the face body's rows and the others' (fem.faces)
+            kind = Coupling if couple.face_rows is None else FacesCoupling
+            system.coupling = kind(system.S, couple, anchored=mech.anchor is not None)
         extra = None if couple is None else couple.kernel()   # counterparts held by contact
         if mech.anchor is not None or extra is not None:
             system.rigid = anchor(self.model, mech.anchor, asm, system.contact_S, mech.frames, mech.basis, extra)
@@ -280,6 +283,11 @@ class CondensationPath(ZonePath):
         if system.coupling is None:
             return None
         rot, basis = self.mechanics.rotate, self.mechanics.basis
+        if isinstance(system.coupling, FacesCoupling):    # every row's face side: the face body's and the others'
+            u = np.ravel(u_c) + (0.0 if system.shift is None else system.shift)
+            body = system.coupling.face_displacement(u, system.ell).reshape(-1, 3)
+            return FoundationState(u_body_c=body, u_partner=body - np.reshape(u_c, (-1, 3)),
+                                   displacement=self._foundation_displacement(system, u_c, r))
         body = (u_body if rot is None else rot.vector(np.ravel(u_body))).reshape(-1, 3)
         if basis is not None:
             body = basis.displacement(body).reshape(-1, 3)
@@ -336,6 +344,9 @@ class CondensationPath(ZonePath):
                 y_u = self.mechanics.rotate.vector(y_u)
             if self.mechanics.basis is not None:    # ... and into the transformed basis
                 y_u = self.mechanics.basis.vector(y_u)
+            if isinstance(system.coupling, FacesCoupling):
+                raise SolverError("an objective of the body's whole displacement is not taken with faces on several "
+                                  "bodies so far (contacts: a pair's face off the face body)")
             if system.coupling is not None:  # ∂J/∂w of the body's contact displacement
                 y_c, y_u = y_u, system.coupling.to_eff(y_u)
                 if carry is not None:

@@ -116,6 +116,8 @@ def anchor(model, modes, asm, S: np.ndarray, frames, basis=None, extra=None) -> 
         Rc = np.einsum("mij,mik->mjk", frames, Rc.reshape(-1, 3, modes.count)).reshape(-1, modes.count)
     if basis is not None:           # rigid motions are displacements: û = V⁻ᵀ u
         Rc = np.column_stack([basis.displacement(Rc[:, k]) for k in range(modes.count)])
+    if Rc.shape[0] < S.shape[0]:      # rows of faces on other bodies (fem.faces): the body's motion leaves them
+        Rc = np.vstack([Rc, np.zeros((S.shape[0] - Rc.shape[0], Rc.shape[1]))])
     names = modes.names()
     if extra is not None:
         Rc, names = np.column_stack([Rc, extra[0]]), names + list(extra[1])

@@ -135,7 +135,7 @@ def node_areas(model, contacts=(), key: str = "objective.contacts"):
 
 def pair_index_of(model) -> np.ndarray:
     """(p,) each contact node's pair, in ``[[contacts]]`` order (0 where the model has one pair)."""
-    return np.zeros(model.n_contact, int) if model.body.pair_of is None else model.body.pair_of
+    return np.zeros(model.n_contact, int) if model.pair_of is None else model.pair_of
 
 
 def pair_numbers(model, contacts, key: str) -> list[int]:
@@ -768,6 +768,8 @@ def target_values(spec, model, case: int = 0, solve=None) -> np.ndarray:
     of load case ``case``, by ``solve(alpha, case)``).
     """
     xy = model.mesh.contact_points()
+    if xy.shape[0] < model.n_contact:     # the rows of faces on other bodies (fem.faces), at their nodes
+        xy = np.vstack([xy, model.foundation.off_points[:, :2]])
     p = xy.shape[0]
     kind = spec.kind
     if kind == "constant":
