@@ -334,3 +334,15 @@ def test_an_objective_of_the_whole_displacement_is_refused_with_faces_on_several
                                           r"displacement in a model whose faces lie on several bodies "
                                           r"\(contacts\[2\]\) is not taken so far"):
         _chain(tmp_path, extra='[objective]\ntype = "frictional_dissipation"\n')
+
+
+def test_a_load_path_is_refused_with_faces_on_several_bodies(tmp_path):
+    """Its states are right (each row's law on the slip since the step before), but its subgradient
+    along the path disagreed with central differences by 5e-6 to 2e-5 (a chain with sliding rows on
+    every pair): refused by name until that is found."""
+    steps = ('[[load_steps]]\nname = "press"\n[[load_steps]]\nname = "shear"\n'
+             'traction = [{ on = "middle.right", value = [0.002, 0.0, 0.0] }]\n[state]')
+    text = _chain_text(tmp_path).replace("[state]", steps)
+    with pytest.raises(ConfigError, match=r"\[\[load_steps\]\]: a load path in a model whose faces lie on several "
+                                          r"bodies \(contacts\[2\]\) is not taken so far"):
+        ShapeProblem(load_config(_write(tmp_path, text)))
