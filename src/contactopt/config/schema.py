@@ -41,8 +41,8 @@ SCHEMA = {
                     _PART + "; or { on = <part>, components = [1, 3] } to fix some components; or a list of these. "
                     "On the contact face a clamped u1 or u2 (a symmetry plane) keeps the node a contact node "
                     "with friction in its free direction; a clamped u3 takes it out of the contact set. [] or "
-                    "clamps that leave rigid motions free: the contact holds them (a face body held only by "
-                    "contact: the condensation path; a counterpart body: also the full-space and PETSc paths)"),
+                    "clamps that leave rigid motions free: the contact holds them (the condensation, "
+                    "full-space and PETSc paths; not the Delassus path)"),
         "contact": ("contact", _part_specs, _PART + " (the designed contact face, on x3 = 0 in the mesh)"),
         "fixed_shape": ("auto", lambda x: x == "auto" or (isinstance(x, list) and all(_part_spec(v) for v in x)),
                         "'auto' (the named parts that share no node with the contact face) or a list of parts "
