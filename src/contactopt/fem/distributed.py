@@ -344,12 +344,16 @@ class DistributedBodies:
         """(positions in ``K.data``, row of each among ``sub_rows``, u_loc column) of the entries of D
         in the sub-assembler's rows ``sub_rows``: the clamped columns left out, a pinned DOF's row and
         column reduced to its diagonal."""
-        at = _ranges(K.indptr[sub_rows], K.indptr[sub_rows + 1] - K.indptr[sub_rows])
-        row = np.repeat(np.arange(sub_rows.size), np.diff(K.indptr)[sub_rows])
-        sc = K.indices[at]
-        col = self._sub_free[sc]
+        # the rows of a copy of K's structure whose values are their places: int32 throughout
+        S = sp.csr_matrix((np.arange(K.data.size, dtype=np.int32), K.indices, K.indptr), shape=K.shape)[sub_rows]
+        at, sc = S.data, S.indices
+        row = np.repeat(np.arange(sub_rows.size, dtype=np.int32), np.diff(S.indptr))
+        del S
+        free = self._sub_free.astype(np.int32)
+        col = free[sc]
         keep = col >= 0
-        keep &= ~((self._sub_pinned[sub_rows[row]] | self._sub_pinned[sc]) & (self._sub_free[sub_rows[row]] != col))
+        if self._sub_pinned.any():
+            keep &= ~((self._sub_pinned[sub_rows][row] | self._sub_pinned[sc]) & (free[sub_rows][row] != col))
         return at[keep], row[keep], col[keep]
 
     def owned_stiffness(self, coords: np.ndarray):
@@ -408,16 +412,16 @@ class DistributedBodies:
         at_b, row_b, col_b = self._entries(K, self._sub_of_R)
         fixed = (self._fixed_rows - self.rstart).astype(np.int64)
         i32 = np.int32
-        lrow = np.concatenate([self._row_of_R[self._R_body[row_b]].astype(i32), (self.dof_of_free[r_f] - self.rstart)
-                               .astype(i32), fixed.astype(i32)])
-        lcol = np.concatenate([self.dof_of_free[col_b].astype(i32), self.dof_of_free[c_f].astype(i32),
-                               self._fixed_rows.astype(i32)])
+        dof = self.dof_of_free.astype(i32)
+        lrow = np.concatenate([self._row_of_R[self._R_body].astype(i32)[row_b], dof[r_f] - i32(self.rstart),
+                               fixed.astype(i32)])
+        lcol = np.concatenate([dof[col_b], dof[c_f], self._fixed_rows.astype(i32)])
         if nK + v_f.size + 2 >= 2**31:
             raise ValueError("the owned rows have more than 2^31 values: run on more ranks")
         src = np.concatenate([at_b.astype(i32), (nK + np.arange(v_f.size)).astype(i32),
                               np.full(fixed.size, nK + v_f.size + 1, dtype=i32)])
         # for Δ: D[c, :] (the body's contact rows), D[R, c] (of R's body rows), D[c, c]
-        self._c_of = np.full(self.n_free, -1, dtype=np.int64)
+        self._c_of = np.full(self.n_free, -1, dtype=np.int32)
         self._c_of[self._cd] = np.arange(self._cd.size)
         at_c, row_c, col_c = self._entries(K, self._sub_of_c)
         in_c = self._c_of[col_b] >= 0
