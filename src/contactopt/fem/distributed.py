@@ -366,6 +366,7 @@ class DistributedBodies:
         from the body's local stiffness and the counterparts' rows, plus Δ[R], which is supported near
         the contact DOFs (as the pyamg backend's :meth:`~contactopt.paths.coupled.FullSpaceCouple.system`)."""
         K = self._sub.stiffness(coords[self._sub_nodes])
+        self._sub.release()               # its work arrays: made anew at the next design
         if self._fill is None:
             self._fill = self._structure(K)
         indptr, cols, src, d_keys, d_pos, sel = self._fill
