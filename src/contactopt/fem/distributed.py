@@ -224,13 +224,17 @@ class DistributedBodies:
     body's first and the counterparts' after, one contiguous range of PETSc DOFs 3·node + c. The
     DOFs outside u_loc (the clamped ones) keep a diagonal entry and nothing else.
 
-    Assembly of the owned rows R: (Tᵀ D T)[R] = T[need, R]ᵀ D[need] T, with ``need`` = R and the
-    contact DOFs (T differs from the identity there only). D[need]: the body's rows from the
-    elements at the owned and the contact nodes (a layer of the neighbours' elements and the
-    contact face's computed here too, with no communication), the counterparts' rows from their
-    stiffness K_f, which every rank holds (it is computed with the model; only the PETSc matrices,
-    the hierarchy and the Krylov vectors are distributed). The pattern is the structural product,
-    formed once, so that every design fills the same one.
+    Assembly of the owned rows R: with D = diag(A(α), K_1, …) and T = I + E, E nonzero on the
+    contact rows c only, (Tᵀ D T)[R] = D[R] + Δ[R], Δ = E_cᵀ D[c, :] + D[:, c] E_c + E_cᵀ D[c, c] E_c
+    supported near the contact DOFs — the pyamg backend's form of the same system
+    (:meth:`~contactopt.paths.coupled.FullSpaceCouple.system`). D[R] is copied from the body's
+    stiffness on the elements at the owned and the contact nodes (a layer of the neighbours'
+    elements and the contact face computed here too, with no communication) and from the
+    counterparts' owned rows of K_f (K_f is formed with the model on every rank; the PETSc path then
+    drops its assembler's work arrays); Δ[R] from small products of the contact rows. No
+    product of the whole T is formed: a new design's rows take about twice their own bytes to form.
+    The pattern is the structure of D[R] and of Δ[R] (every stored entry taken as 1: the structural
+    product Tᵀ D T), formed once, so that every design fills the same one.
 
     ``petsc_of_free`` and ``free_vector`` map between u_loc (the couple's order: the body's free
     DOFs, then every counterpart's) and PETSc's; ``contact`` (p, 3) the PETSc DOFs of the contact
