@@ -239,7 +239,7 @@ def test_a_two_body_load_path_run_killed_at_random_moments_resumes_bit_for_bit_o
     cfg = _config(FOUNDATIONS["point partners"], "petsc", name="bodies", load_steps=steps,
                   loads={"top_traction": [0.0] * 3, "right_traction": [0.0] * 3}, objective={"steps": "last"},
                   optimizer={"ftol": 0.0, "eps": 1e-8})
-    assert_kills_resume_bit_for_bit(tmp_path, write(tmp_path, cfg), 6, "kill -9 two bodies on PETSc")
+    assert_kills_resume_bit_for_bit(tmp_path, write(tmp_path, cfg), 6, "kill -9 slab on its foundation")
     assert "f_step_shear" in (tmp_path / "whole" / "history.csv").read_text().splitlines()[0]
     assert json.loads((tmp_path / "whole" / "summary.json").read_text())["serious_steps"] > 0
 
