@@ -21,6 +21,12 @@ optimization on many cores'); as root, OpenMPI's OMPI_ALLOW_RUN_AS_ROOT(_CONFIRM
 bench_two_bodies_scale.py: 200k, 367k, 1m); the rows add the relative differences of ξ and λ
 from the pyamg path's, and the parts of the time that the 16-rank estimate of docs/scaling.md
 reads (the Krylov solves, the work every rank repeats).
+
+``--setup``: the problem built only (no evaluation), on the PETSc path on 1 and 2 ranks: the
+set-up's time and peak RSS per rank (with ``--bodies``, the owned rows of the two bodies' system
+formed once, the PETSc matrices made).
+
+    python benchmarks/bench_petsc.py --bodies --setup --sizes 200k
 """
 
 from __future__ import annotations
@@ -42,9 +48,10 @@ from bench_two_bodies_scale import two_bodies  # noqa: E402
 GOAL_SPEEDUP, GOAL_SLOWDOWN = 1.7, 1.2
 
 
-def child(shape, path, step, repeat, arrays=None):
+def child(shape, path, step, repeat, arrays=None, setup=False):
     """One evaluation on ``path`` in this process (and its MPI ranks); rank 0 prints one JSON line
-    (and saves ξ and λ of α1 to ``arrays``). ``shape``: Example 1's mesh, or a key of ``BODIES``."""
+    (and saves ξ and λ of α1 to ``arrays``). ``shape``: Example 1's mesh, or a key of ``BODIES``;
+    ``setup``: the problem built only."""
     import numpy as np
 
     from contactopt.config import load_config
@@ -62,6 +69,8 @@ def child(shape, path, step, repeat, arrays=None):
         t0 = time.perf_counter()
         problem = ShapeProblem(cfg)
         t_setup = time.perf_counter() - t0
+        if setup:
+            return {"dofs": int(problem.path.n_unknowns), "setup_s": t_setup}
         a0 = problem.model.initial_design()
         d = design_direction(problem.model)
         a1 = a0 + step * d
@@ -101,10 +110,12 @@ def child(shape, path, step, repeat, arrays=None):
     print(json.dumps({**out, "path": path, "ranks": len(rss), "rss_gb": rss}), flush=True)
 
 
-def run(size, path, ranks, step, repeat, bodies=False, arrays=None):
+def run(size, path, ranks, step, repeat, bodies=False, arrays=None, setup=False):
     cmd = [sys.executable, __file__, "--child", size, path, str(step), str(repeat)]
     if bodies:
         cmd += ["--bodies", "--arrays", str(arrays)]
+    if setup:
+        cmd += ["--setup"]
     env = dict(os.environ)
     if ranks > 1:
         exe = shutil.which("mpiexec") or sys.exit("mpiexec not found")
@@ -137,11 +148,21 @@ def main(argv=None):
     ap.add_argument("--step", type=float, default=2e-4, help="h of the next design α0 + h·d")
     ap.add_argument("--repeat", type=int, default=3, help="evaluations timed at successive designs; "
                     "the fastest is reported (the machine may be shared)")
+    ap.add_argument("--setup", action="store_true", help="the problem built only: set-up time and peak memory "
+                    "per rank on the PETSc path, 1 and 2 ranks")
     ap.add_argument("--child", nargs=4, help=argparse.SUPPRESS)
     args = ap.parse_args(argv)
     if args.child:
         size, path, step, repeat = args.child
-        return child(size if args.bodies else _shape(size), path, float(step), int(repeat), args.arrays)
+        return child(size if args.bodies else _shape(size), path, float(step), int(repeat), args.arrays, args.setup)
+    if args.setup:
+        print(f"{'size':>6} {'DOFs':>8} {'ranks':>5} {'set-up s':>8} {'peak GB per rank':>18}")
+        for size in args.sizes:
+            for ranks in (1, 2):
+                r = run(size, "petsc", ranks, args.step, args.repeat, args.bodies, None, setup=True)
+                print(f"{size:>6} {r['dofs']:>8} {ranks:>5} {r['setup_s']:8.2f} "
+                      f"{' '.join(f'{g:.2f}' for g in r['rss_gb']):>18}", flush=True)
+        return 0
     print(f"{'size':>6} {'DOFs':>8} {'path':>9} {'ranks':>5} {'eval s':>7} {'state':>6} {'adjoint':>7} "
           f"{'design':>6} {'Newton':>6} {'GMRES':>5} {'krylov s':>8} {'peak GB per rank':>18}")
     import tempfile

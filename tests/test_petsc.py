@@ -399,34 +399,33 @@ def killed_at(seconds, *args):
 N_KILLS = 2
 
 
-def test_a_load_path_run_killed_at_random_moments_resumes_bit_for_bit_on_two_ranks(tmp_path):
-    """kill -9 of the whole mpiexec group at seeded random moments within the measured duration of
-    the 3-step run, then ``--resume`` on 2 ranks: J, α (summary.json, alpha.json) and history.csv
-    (every column but the times) bit for bit the uninterrupted run's; a run killed before its first
-    checkpoint is refused by --resume and started anew with --overwrite."""
+def history_outcome(run_dir):
+    """(J, iterations, evaluations, alpha.json, history.csv without the time columns) of a run."""
+    s = summary(run_dir)
+    rows = (run_dir / "history.csv").read_text().splitlines()
+    header = rows[0].split(",")
+    keep = [i for i, h in enumerate(header) if "time" not in h and "seconds" not in h]
+    return (s["J"], s["iterations"], s["evaluations"], (run_dir / "alpha.json").read_text(),
+            [[r.split(",")[i] for i in keep] for r in rows])
+
+
+def assert_kills_resume_bit_for_bit(tmp_path, cfg, iters, seed, n_kills=N_KILLS):
+    """The run of ``cfg`` on 2 ranks to ``iters`` iterations, then ``n_kills`` runs killed (kill -9
+    of the whole mpiexec group, :func:`killed_at`) at moments drawn by ``random.Random(seed)``
+    within its measured duration and resumed on 2 ranks: each outcome (:func:`history_outcome`)
+    bit for bit the uninterrupted run's; a run killed before its first checkpoint is refused by
+    --resume and started anew with --overwrite. Returns the uninterrupted outcome."""
     import random
-    cfg = tmp_path / "steps.toml"
-    cfg.write_text(tomli_w.dumps({**step_config(*STEP_PATHS["three steps"]).data, "name": "steps",
-                                  "linear_solver": {"path": "petsc"}, "optimizer": {"ftol": 0.0, "eps": 1e-8}}))
-    iters = "4"
+    iters = str(iters)
     t0 = time.perf_counter()
     proc = mpiexec(2, "-m", "contactopt.cli", "run", str(cfg), "--out", str(tmp_path / "whole"), "--max-iter", iters)
     wall = time.perf_counter() - t0
     assert proc.returncode == 0, proc.stderr[-3000:]
-
-    def outcome(d):
-        s = summary(tmp_path / d)
-        rows = (tmp_path / d / "history.csv").read_text().splitlines()
-        header = rows[0].split(",")
-        keep = [i for i, h in enumerate(header) if "time" not in h and "seconds" not in h]
-        return (s["J"], s["iterations"], s["evaluations"], (tmp_path / d / "alpha.json").read_text(),
-                [[r.split(",")[i] for i in keep] for r in rows])
-
-    whole = outcome("whole")
+    whole = history_outcome(tmp_path / "whole")
     assert whole[1] == int(iters) and len(whole[4]) > int(iters)
-    rng = random.Random("kill -9 a PETSc load path")
+    rng = random.Random(seed)
     killed = 0
-    for n in range(N_KILLS):
+    for n in range(n_kills):
         out, moment = tmp_path / f"kill{n}", rng.uniform(0.0, wall)
         t1 = time.perf_counter()
         hit = killed_at(moment, "run", cfg, "--out", out, "--max-iter", iters)
@@ -439,13 +438,25 @@ def test_a_load_path_run_killed_at_random_moments_resumes_bit_for_bit_on_two_ran
             resumed = mpiexec(2, "-m", "contactopt.cli", "run", str(cfg), "--out", str(out), "--max-iter", iters,
                               "--overwrite")
         assert resumed.returncode == 0, resumed.stderr[-3000:]
-        got = outcome(f"kill{n}")
+        got = history_outcome(out)
         assert got[0] == whole[0], (n, moment, got[0], whole[0])
         assert got == whole, (n, moment)
         print(f"\nkill -9 at {moment:.2f} s of {wall:.2f} s ({'killed' if hit else 'it had ended'}, "
               f"{time.perf_counter() - t1:.1f} s with the resume): checkpoint "
               f"{'none' if position is None else 'at iteration %d (%d evaluations)' % position}; bit-identical")
     assert killed, "every run ended before its moment"
+    return whole
+
+
+def test_a_load_path_run_killed_at_random_moments_resumes_bit_for_bit_on_two_ranks(tmp_path):
+    """kill -9 of the whole mpiexec group at seeded random moments within the measured duration of
+    the 3-step run, then ``--resume`` on 2 ranks: J, α (summary.json, alpha.json) and history.csv
+    (every column but the times) bit for bit the uninterrupted run's; a run killed before its first
+    checkpoint is refused by --resume and started anew with --overwrite."""
+    cfg = tmp_path / "steps.toml"
+    cfg.write_text(tomli_w.dumps({**step_config(*STEP_PATHS["three steps"]).data, "name": "steps",
+                                  "linear_solver": {"path": "petsc"}, "optimizer": {"ftol": 0.0, "eps": 1e-8}}))
+    assert_kills_resume_bit_for_bit(tmp_path, cfg, 4, "kill -9 a PETSc load path")
 
 
 # ---------------------------------------------------------------------------- load steps on tetrahedra

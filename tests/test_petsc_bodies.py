@@ -36,7 +36,7 @@ sys.path.insert(0, str(ROOT / "tests" / "mpi"))
 from compare_paths import evaluations  # noqa: E402
 
 from test_foundation_fullspace import FOUNDATIONS, _block, _config  # noqa: E402
-from test_petsc import mpiexec, run_here  # noqa: E402
+from test_petsc import assert_kills_resume_bit_for_bit, mpiexec, run_here  # noqa: E402
 
 MISSING = petsc_missing()
 pytestmark = pytest.mark.skipif(MISSING is not None, reason=f"PETSc path: {MISSING}")
@@ -239,6 +239,22 @@ def test_a_resumed_two_body_run_repeats_the_uninterrupted_one_on_two_ranks(tmp_p
         return [",".join(r.split(",")[:4]) for r in (tmp_path / d / "history.csv").read_text().splitlines()]
     assert len(values("whole")) > 3
     assert values("part") == values("whole")
+
+
+def test_a_two_body_load_path_run_killed_at_random_moments_resumes_bit_for_bit_on_two_ranks(tmp_path):
+    """The slab on its elastic foundation (point partners) pressed, then sheared, the target of the
+    last step: kill -9 of the whole mpiexec group at seeded random moments of the run on two ranks,
+    then ``--resume`` on two ranks: J, α and history.csv (every column but the times; the steps'
+    own columns included) bit for bit the uninterrupted run's, which takes serious steps (the
+    design moves) after null ones."""
+    steps = [{"name": "press", "top_traction": [0.0, 0.0, -8.0e-2]},
+             {"name": "shear", "top_traction": [0.0, 0.0, -8.0e-2], "right_traction": [4.0e-2, 0.01, 0.0]}]
+    cfg = _config(FOUNDATIONS["point partners"], "petsc", name="bodies", load_steps=steps,
+                  loads={"top_traction": [0.0] * 3, "right_traction": [0.0] * 3}, objective={"steps": "last"},
+                  optimizer={"ftol": 0.0, "eps": 1e-8})
+    assert_kills_resume_bit_for_bit(tmp_path, write(tmp_path, cfg), 6, "kill -9 slab on its foundation")
+    assert "f_step_shear" in (tmp_path / "whole" / "history.csv").read_text().splitlines()[0]
+    assert json.loads((tmp_path / "whole" / "summary.json").read_text())["serious_steps"] > 0
 
 
 def test_a_two_body_checkpoint_resumes_on_another_number_of_ranks(tmp_path):

@@ -69,15 +69,18 @@ def element_owners(cells: np.ndarray, n_nodes: int, points: np.ndarray, size: in
 def block_pattern(indptr, lcols, n_cols, nodes):
     """(block indptr, block columns (PETSc nodes), the position in the values of the owned
     rows (``indptr``, local columns ``lcols``: rows 3·node + c) of every entry of the 3×3
-    blocks, row-major)."""
+    blocks, row-major (0 for an entry outside the CSR pattern), the places of those outside)."""
     nnz = lcols.size
     tag = sp.csr_matrix((np.arange(1, nnz + 1, dtype=np.float64), lcols, indptr),
                         shape=(indptr.size - 1, n_cols))
     B = tag.tobsr(blocksize=(3, 3))
+    del tag
     B.sort_indices()
-    where = B.data.ravel().astype(np.int64) - 1       # −1: an entry outside the CSR pattern
-    where[where < 0] = nnz                             # ... reads the zero kept at the end of the buffer
-    return B.indptr.astype(np.int32), nodes[B.indices].astype(np.int32), where
+    where = B.data.ravel()
+    outside = np.flatnonzero(where == 0)               # an entry of a block outside the CSR pattern
+    where = (where - 1).astype(np.int32 if nnz < 2**31 else np.int64)
+    where[outside] = 0                                 # ... reads any value, then set to zero
+    return B.indptr.astype(np.int32), nodes[B.indices].astype(np.int32), where, outside
 
 
 class DistributedBody:
@@ -168,7 +171,6 @@ class DistributedBody:
             self._drop = (self.decoupled[rows] | self.decoupled[cols]) & (rows != cols)
             self._csr = (indptr.astype(np.int32), cols.astype(np.int32))
             self._bsr = block_pattern(self._csr[0], K.indices[lo:hi], K.shape[1], nodes)
-            self._ext = np.zeros(data.size + 1)
             self._blocks = np.empty(self._bsr[2].size)
         data[self._drop] = 0.0
         return self._csr[0], self._csr[1], data
@@ -177,9 +179,10 @@ class DistributedBody:
         """The values ``data`` of :meth:`owned_stiffness` as 3×3 blocks of the owned rows: (block
         indptr, block columns (PETSc nodes), values, block-row-major, 9 per block), the form of a
         matrix of block size 3 (MPIBAIJ)."""
-        bip, bcols, where = self._bsr
-        self._ext[:-1] = data         # buffers kept (overwritten by the next call): fresh pages
-        return bip, bcols, np.take(self._ext, where, out=self._blocks)     # cost more than the copy
+        bip, bcols, where, outside = self._bsr
+        blocks = np.take(data, where, out=self._blocks)     # a buffer kept (overwritten by the next call):
+        blocks[outside] = 0.0                               # fresh pages cost more than the copy
+        return bip, bcols, blocks
 
     def owned(self, v_full_petsc: np.ndarray) -> np.ndarray:
         return v_full_petsc[self.rstart:self.rend]
@@ -221,13 +224,17 @@ class DistributedBodies:
     body's first and the counterparts' after, one contiguous range of PETSc DOFs 3·node + c. The
     DOFs outside u_loc (the clamped ones) keep a diagonal entry and nothing else.
 
-    Assembly of the owned rows R: (Tᵀ D T)[R] = T[need, R]ᵀ D[need] T, with ``need`` = R and the
-    contact DOFs (T differs from the identity there only). D[need]: the body's rows from the
-    elements at the owned and the contact nodes (a layer of the neighbours' elements and the
-    contact face's computed here too, with no communication), the counterparts' rows from their
-    stiffness K_f, which every rank holds (it is computed with the model; only the PETSc matrices,
-    the hierarchy and the Krylov vectors are distributed). The pattern is the structural product,
-    formed once, so that every design fills the same one.
+    Assembly of the owned rows R: with D = diag(A(α), K_1, …) and T = I + E, E nonzero on the
+    contact rows c only, (Tᵀ D T)[R] = D[R] + Δ[R], Δ = E_cᵀ D[c, :] + D[:, c] E_c + E_cᵀ D[c, c] E_c
+    supported near the contact DOFs — the pyamg backend's form of the same system
+    (:meth:`~contactopt.paths.coupled.FullSpaceCouple.system`). D[R] is copied from the body's
+    stiffness on the elements at the owned and the contact nodes (a layer of the neighbours'
+    elements and the contact face computed here too, with no communication) and from the
+    counterparts' owned rows of K_f (K_f is formed with the model on every rank; the PETSc path then
+    drops its assembler's work arrays); Δ[R] from small products of the contact rows. No
+    product of the whole T is formed: a new design's rows take about twice their own bytes to form.
+    The pattern is the structure of D[R] and of Δ[R] (every stored entry taken as 1: the structural
+    product Tᵀ D T), formed once, so that every design fills the same one.
 
     ``petsc_of_free`` and ``free_vector`` map between u_loc (the couple's order: the body's free
     DOFs, then every counterpart's) and PETSc's; ``contact`` (p, 3) the PETSc DOFs of the contact
@@ -274,16 +281,28 @@ class DistributedBodies:
         cd = np.asarray(model.contact_dofs, np.int64)
         self.contact = self.dof_of_free[cd].reshape(-1, 3)
         self.owns_contact = (self.contact[:, 0] >= self.rstart) & (self.contact[:, 0] < self.rend)
-        self._T, self._cd = sp.csr_matrix(T), cd
-        # the owned rows of u_loc, by PETSc DOF, and the rows of D they need
+        n = self.n_free
+        # T = I + E with E on the contact rows only: E_c = T[c] − I[c] (|c| × n)
+        change = (sp.csr_matrix(T) - sp.identity(n, format="csr")).tocsr()
+        change.eliminate_zeros()
+        is_c = np.zeros(n, dtype=bool)
+        is_c[cd] = True
+        if not is_c[np.flatnonzero(np.diff(change.indptr))].all():
+            raise ValueError("the change of unknowns differs from the identity outside the contact DOFs")
+        self._Ec = sp.csr_matrix(change[cd])
+        self._Ec.sort_indices()
+        del change
+        self._cd = cd
+        # the owned rows R of u_loc, by PETSc DOF, and (E_c[:, R])ᵀ: the rows of Δ that E_cᵀ touches
         own = np.flatnonzero((self.dof_of_free >= self.rstart) & (self.dof_of_free < self.rend))
         self._R = own[np.argsort(self.dof_of_free[own], kind="stable")]
-        self._need = np.union1d(self._R, cd)
-        # the body's rows of ``need``: the elements at those nodes
+        self._row_of_R = (self.dof_of_free[self._R] - self.rstart).astype(np.int64)     # PETSc row − rstart
+        self._EcT_R = sp.csr_matrix(self._Ec[:, self._R].T)
+        # the body's rows of R and of the contact DOFs: the elements at those nodes
         n_body = asm.n_free
-        body_need = self._need[self._need < n_body]
+        body_R = self._R[self._R < n_body]
         nodes_needed = np.zeros(asm.n_nodes, dtype=bool)
-        nodes_needed[asm.free[body_need] // 3] = True
+        nodes_needed[asm.free[np.concatenate([body_R, cd])] // 3] = True
         cells = bodies[0][0]
         touch = np.flatnonzero(nodes_needed[cells].any(axis=1))
         nodes, local = np.unique(cells[touch], return_inverse=True)
@@ -296,26 +315,26 @@ class DistributedBodies:
         pinned[np.asarray(model.pinned_dofs, np.int64)] = True
         self._sub_free = asm.full_to_free[sub_full]                  # −1 on a clamped DOF
         self._sub_pinned = pinned[sub_full]
-        self._body_rows = np.searchsorted(sub_full, asm.free[body_need])
-        self._body_need = body_need
-        # the counterparts' rows of ``need`` (owned ones only: the contact DOFs are the body's)
-        cp_need = self._need[self._need >= n_body] - n_body
+        self._sub_of_R = np.searchsorted(sub_full, asm.free[body_R])  # the sub-assembler's rows of R's body rows
+        self._R_body = np.flatnonzero(self._R < n_body)               # ... their places in R
+        self._sub_of_c = np.searchsorted(sub_full, asm.free[cd])
+        # the counterparts' rows of R (K_f, which does not change with α), in u_loc
+        cp_R = self._R[self._R >= n_body] - n_body
         starts = np.concatenate([[0], np.cumsum([f.assembler.n_free for f in parts])]).astype(np.int64)
         blocks = []
         for f, a, b in zip(parts, starts[:-1], starts[1:]):
-            k = cp_need[(cp_need >= a) & (cp_need < b)]
+            k = cp_R[(cp_R >= a) & (cp_R < b)]
             blk = f.K[k - a].tocoo()
             blocks.append((k[blk.row] + n_body, blk.col + a + n_body, blk.data))
         r_f, c_f, v_f = np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros(0)
         if blocks:                       # none with rigid counterparts only
             r_f, c_f, v_f = (np.concatenate(x) for x in zip(*blocks))
-        self._rows_f = (np.searchsorted(self._need, r_f), c_f, v_f)
+        self._rows_f, self._values_f = (r_f, c_f), v_f      # the rows and columns: until the pattern is formed
         # a clamped DOF's diagonal: the mean of the counterparts' stiffness diagonal, or the body's
         # Young's modulus with rigid counterparts only (the same on every rank; a scale, any value holds)
         self._fixed_value = float(np.mean(np.concatenate([f.K.diagonal() for f in parts]))) if parts else E
         self._fixed_rows = np.flatnonzero(self.fixed[self.rstart:self.rend]) + self.rstart
-        self._pattern = None
-        self._last = None                # (indptr, indices, places in the pattern) of the last product
+        self._fill = None                # the pattern and where its values come from (first design)
         # the design term: this rank's own elements of the body
         own_cells = cells[self._parts_of[0] == rank]
         self.n_elements = int(own_cells.shape[0])
@@ -325,75 +344,121 @@ class DistributedBodies:
                                          nu, element=asm.element, formulation=asm.formulation), onodes)
         self._n_body_nodes = asm.n_nodes
 
-    def _rows(self, coords: np.ndarray) -> sp.csr_matrix:
-        """D[need] (|need| × n, u_loc columns) of the body at ``coords`` and the counterparts."""
-        K = self._sub.stiffness(coords[self._sub_nodes]).tocsr()
-        K = K[self._body_rows].tocoo()
-        rf, cf = self._sub_free[self._body_rows[K.row]], self._sub_free[K.col]
-        keep = cf >= 0
-        pin = (self._sub_pinned[self._body_rows[K.row]] | self._sub_pinned[K.col]) & (rf != cf)
-        keep &= ~pin
-        rows = np.searchsorted(self._need, rf[keep])
-        n = self._T.shape[0]
-        r_f, c_f, v_f = self._rows_f
-        return sp.csr_matrix((np.concatenate([K.data[keep], v_f]),
-                              (np.concatenate([rows, r_f]), np.concatenate([cf[keep], c_f]))),
-                             shape=(self._need.size, n))
+    def _entries(self, K, sub_rows):
+        """(positions in ``K.data``, row of each among ``sub_rows``, u_loc column) of the entries of D
+        in the sub-assembler's rows ``sub_rows``: the clamped columns left out, a pinned DOF's row and
+        column reduced to its diagonal."""
+        # the rows of a copy of K's structure whose values are their places: int32 throughout
+        S = sp.csr_matrix((np.arange(K.data.size, dtype=np.int32), K.indices, K.indptr), shape=K.shape)[sub_rows]
+        at, sc = S.data, S.indices
+        row = np.repeat(np.arange(sub_rows.size, dtype=np.int32), np.diff(S.indptr))
+        del S
+        free = self._sub_free.astype(np.int32)
+        col = free[sc]
+        keep = col >= 0
+        if self._sub_pinned.any():
+            keep &= ~((self._sub_pinned[sub_rows][row] | self._sub_pinned[sc]) & (free[sub_rows][row] != col))
+        return at[keep], row[keep], col[keep]
 
     def owned_stiffness(self, coords: np.ndarray):
         """The owned rows of Tᵀ diag(A(α), K_f) T as CSR (indptr, PETSc columns, values), body
         coordinates ``coords`` in the model's node order; every contact node's 3×3 block in the
-        pattern (the Newton systems add their Robin blocks there)."""
-        D = self._rows(coords)
-        Tsub = self._T[self._need][:, self._R]
-        law = (Tsub.T @ D @ self._T).tocsr()
-        if self._pattern is None:
-            self._pattern = self._structure(Tsub, D)
-        keys, indptr, cols, diag_at = self._pattern
-        law.sort_indices()
-        last = self._last
-        if last is not None and np.array_equal(last[0], law.indptr) and np.array_equal(last[1], law.indices):
-            pos = last[2]                # the product's pattern of the last design: its places kept
-        else:
-            got = self._keys(law)
-            pos = np.searchsorted(keys, got)
-            if np.any(pos >= keys.size) or np.any(keys[np.minimum(pos, keys.size - 1)] != got):
+        pattern (the Newton systems add their Robin blocks there).
+
+        With D = diag(A(α), K_f) and T = I + E (E_c = T[c] − I[c] on the contact rows c only), Tᵀ D T
+        = D + Δ, Δ = E_cᵀ D[c, :] + D[:, c] E_c + E_cᵀ D[c, c] E_c: the owned rows are D[R], copied
+        from the body's local stiffness and the counterparts' rows, plus Δ[R], which is supported near
+        the contact DOFs (as the pyamg backend's :meth:`~contactopt.paths.coupled.FullSpaceCouple.system`)."""
+        K = self._sub.stiffness(coords[self._sub_nodes])
+        self._sub.release()               # its work arrays: made anew at the next design
+        if self._fill is None:
+            self._fill = self._structure(K)
+        indptr, cols, src, d_keys, d_pos, sel = self._fill
+        ext = np.empty(K.data.size + self._values_f.size + 2)
+        ext[:K.data.size] = K.data
+        ext[K.data.size:-2] = self._values_f
+        ext[-2:] = 0.0, self._fixed_value
+        data = ext.take(src)
+        del ext
+        delta = self._delta(K.data, sel).tocoo()
+        if delta.nnz:
+            keys = self._row_of_R[delta.row] * np.int64(self.n) + self.dof_of_free[delta.col]
+            pos = np.searchsorted(d_keys, keys)
+            if np.any(pos >= d_keys.size) or np.any(d_keys[np.minimum(pos, d_keys.size - 1)] != keys):
                 raise RuntimeError("an entry of the two bodies' system is outside the pattern formed at the first "
                                    "design")
-            self._last = (law.indptr.copy(), law.indices.copy(), pos)
-        data = np.zeros(keys.size)
-        data[pos] = law.data
-        data[diag_at] = self._fixed_value
+            data[d_pos[pos]] += delta.data
         return indptr, cols, data
 
-    def _keys(self, law) -> np.ndarray:
-        """Sorted keys (PETSc row − rstart)·n + PETSc column of the entries of owned rows ``law``."""
-        rows = self.dof_of_free[self._R][np.repeat(np.arange(law.shape[0]), np.diff(law.indptr))] - self.rstart
-        return rows * np.int64(self.n) + self.dof_of_free[law.indices]
+    def _delta(self, values, sel, ones: bool = False) -> sp.csr_matrix:
+        """Δ[R] = (E_c[:, R])ᵀ D[c, :] + D[R, c] E_c + (E_c[:, R])ᵀ D[c, c] E_c (|R| × n, u_loc
+        columns) with the body's stiffness ``values`` (``K.data`` of the sub-assembler); ``ones``:
+        its structure (every stored entry of D and E_c taken as 1: no cancellation)."""
+        (at_c, row_c, col_c), (at_rc, row_rc, col_rc), cc = sel
+        nc, n = self._cd.size, self.n_free
+        v = (lambda at: np.ones(at.size)) if ones else (lambda at: values[at])
+        Ec = _ones(self._Ec) if ones else self._Ec
+        EcT_R = _ones(self._EcT_R) if ones else self._EcT_R
+        Dc = sp.csr_matrix((v(at_c), (row_c, col_c)), shape=(nc, n))
+        DRc = sp.csr_matrix((v(at_rc), (row_rc, col_rc)), shape=(self._R.size, nc))
+        Dcc = sp.csr_matrix((v(at_c[cc]), (row_c[cc], self._c_of[col_c[cc]])), shape=(nc, nc))
+        return (EcT_R @ Dc + DRc @ Ec + EcT_R @ (Dcc @ Ec)).tocsr()
 
-    def _structure(self, Tsub, D):
-        """(sorted keys, indptr, PETSc columns, positions of the clamped DOFs' diagonals) of the owned
-        rows' pattern: the product of the patterns (every stored entry 1: no cancellation, and no
-        entry lost where a design's value is an exact zero), the contact blocks and the clamped diagonals."""
-        S = (_ones(Tsub).T @ _ones(D) @ _ones(self._T)).tocsr()
-        S.sort_indices()
-        keys = [self._keys(S)]
-        cd = self.contact
-        own = cd[self.owns_contact]
-        r = np.repeat(own, 3, axis=1).ravel() - self.rstart
-        c = np.tile(own, (1, 3)).ravel()
-        keys.append(r * np.int64(self.n) + c)
-        fixed = self._fixed_rows - self.rstart
-        keys.append(fixed * np.int64(self.n) + self._fixed_rows)
-        keys = np.unique(np.concatenate(keys))
-        rows = keys // self.n
-        indptr = np.concatenate([[0], np.cumsum(np.bincount(rows, minlength=self.n_local))]).astype(np.int32)
-        cols = (keys % self.n).astype(np.int32)
-        diag_at = np.searchsorted(keys, fixed * np.int64(self.n) + self._fixed_rows)
+    def _structure(self, K):
+        """The owned rows' pattern and where each of its values comes from, formed at the first design
+        from the structures (every design fills the same pattern: a value that is an exact zero keeps
+        its entry): (indptr, PETSc columns, ``src`` — the place of each entry's value in K.data, the
+        counterparts' values, 0, the clamped diagonal —, the keys (row − rstart)·n + column of the
+        entries of the rows Δ reaches, their places, the selections of D for Δ)."""
+        n, nK = np.int64(self.n), K.data.size
+        (r_f, c_f), v_f = self._rows_f, self._values_f
+        del self._rows_f
+        # D[R]: the body's rows and the counterparts', and the clamped DOFs' diagonals
+        at_b, row_b, col_b = self._entries(K, self._sub_of_R)
+        fixed = (self._fixed_rows - self.rstart).astype(np.int64)
+        i32 = np.int32
+        dof = self.dof_of_free.astype(i32)
+        lrow = np.concatenate([self._row_of_R[self._R_body].astype(i32)[row_b], dof[r_f] - i32(self.rstart),
+                               fixed.astype(i32)])
+        lcol = np.concatenate([dof[col_b], dof[c_f], self._fixed_rows.astype(i32)])
+        if nK + v_f.size + 2 >= 2**31:
+            raise ValueError("the owned rows have more than 2^31 values: run on more ranks")
+        src = np.concatenate([at_b.astype(i32), (nK + np.arange(v_f.size)).astype(i32),
+                              np.full(fixed.size, nK + v_f.size + 1, dtype=i32)])
+        # for Δ: D[c, :] (the body's contact rows), D[R, c] (of R's body rows), D[c, c]
+        self._c_of = np.full(self.n_free, -1, dtype=np.int32)
+        self._c_of[self._cd] = np.arange(self._cd.size)
+        at_c, row_c, col_c = self._entries(K, self._sub_of_c)
+        in_c = self._c_of[col_b] >= 0
+        sel = ((at_c, row_c, col_c), (at_b[in_c], self._R_body[row_b[in_c]], self._c_of[col_b[in_c]]),
+               np.flatnonzero(self._c_of[col_c] >= 0))
+        # the entries only Δ and the contact nodes' blocks add
+        S = self._delta(None, sel, ones=True).tocoo()
+        own = self.contact[self.owns_contact]
+        extra = np.unique(np.concatenate([
+            self._row_of_R[S.row] * n + self.dof_of_free[S.col],
+            (np.repeat(own, 3, axis=1).ravel() - self.rstart) * n + np.tile(own, (1, 3)).ravel()]))
+        rows = np.zeros(self.n_local, dtype=bool)
+        rows[extra // n] = True
+        near = rows[lrow]
+        extra = np.setdiff1d(extra, lrow[near].astype(np.int64) * n + lcol[near])
+        lrow = np.concatenate([lrow, (extra // n).astype(i32)])
+        lcol = np.concatenate([lcol, (extra % n).astype(i32)])
+        src = np.concatenate([src, np.full(extra.size, nK + v_f.size, dtype=i32)])
+        count = src.size
+        P = sp.csr_matrix((src, (lrow, lcol)), shape=(self.n_local, self.n))
+        del lrow, lcol, src
+        if P.nnz != count:
+            raise RuntimeError("an entry of the two bodies' pattern is formed twice")
+        P.sort_indices()
+        indptr, cols = P.indptr.astype(np.int32, copy=False), P.indices.astype(np.int32, copy=False)
+        # the pattern's entries in the rows Δ reaches, as sorted keys, and their places
+        d_rows = np.flatnonzero(rows)
+        d_pos = _ranges(indptr[d_rows], indptr[d_rows + 1] - indptr[d_rows])
+        d_keys = np.repeat(d_rows, np.diff(indptr)[d_rows]) * n + cols[d_pos]
         self._bsr = block_pattern(indptr, cols, self.n, np.arange(self.n_nodes))
-        self._ext = np.zeros(keys.size + 1)
         self._blocks = np.empty(self._bsr[2].size)
-        return keys, indptr, cols, diag_at
+        return indptr, cols, P.data, d_keys, d_pos, sel
 
     owned_blocks = DistributedBody.owned_blocks
     owned = DistributedBody.owned
@@ -410,6 +475,16 @@ class DistributedBodies:
         dx = np.zeros((self._n_body_nodes, 3))
         dx[nodes] = d
         return model.mesh.contract_dx(dx)
+
+
+def _ranges(starts, counts) -> np.ndarray:
+    """The indices start_i, …, start_i + count_i − 1 of every i, one after the other."""
+    counts = np.asarray(counts, dtype=np.int64)
+    total = int(counts.sum())
+    if total == 0:
+        return np.zeros(0, dtype=np.int64)
+    first = np.concatenate([[0], np.cumsum(counts)[:-1]])
+    return np.repeat(np.asarray(starts, dtype=np.int64) - first, counts) + np.arange(total)
 
 
 def _ones(M) -> sp.csr_matrix:

@@ -271,6 +271,14 @@ class ElasticityAssembler:
             self._pattern = _LinearTetPairs(self) if self._pairs else _BlockPairs(self)
         return self._pattern.stiffness(coords)
 
+    def release(self, pattern: bool = False) -> None:
+        """Drop the work arrays of :meth:`stiffness` (and with ``pattern`` its pattern), made anew at
+        its next call: for an assembler whose matrix is formed once, or once per design beside
+        larger data (the PETSc path's ranks)."""
+        self._buffers = self._means = None
+        if pattern:
+            self._pattern = None
+
     def full_stiffness(self, coords: np.ndarray) -> sp.csr_matrix:
         """A on all 3·n_nodes DOFs, without Dirichlet elimination (singular: 6 rigid modes)."""
         Ke = self.element_matrices(coords[self.elements])

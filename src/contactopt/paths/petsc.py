@@ -133,6 +133,8 @@ class PetscPath(FullSpaceCommon):
             self.change = FrameChange(model.contact_dofs, self.mechanics.frames, model.assembler.n_free)
         if self.change is not None:
             self.dist = dist = DistributedBodies(model, self.change.T, list(self.change.parts), self.size, self.rank)
+            for part in self.change.parts:    # K_f, formed with the model, is not formed again here
+                part.assembler.release(pattern=True)
             self._T_inv = None          # T⁻¹, for A(α) x of an objective (built on first use)
         else:
             self.dist = dist = DistributedBody(model, self.size, self.rank)
