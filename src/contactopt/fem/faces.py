@@ -42,10 +42,8 @@ from dataclasses import dataclass
 
 import numpy as np
 import scipy.sparse as sp
-from scipy.linalg import solve_triangular
-from scipy.linalg.blas import dsyrk
 
-from .dense import cholesky_lower, symmetrize_lower
+from .dense import cholesky_lower
 from .foundation import Coupling
 
 
@@ -129,16 +127,9 @@ class FacesCoupling(Coupling):
         self._G = G
 
     @property
-    def S_eff(self) -> np.ndarray:
-        if self._S_eff is None:
-            self._woodbury()
-            if self._G.shape[1] == 0:
-                self._S_eff = self.S_c
-                return self._S_eff
-            Y = solve_triangular(self._L.T, self._G.T, lower=False, trans="T", check_finite=False)
-            YtY = dsyrk(1.0, Y.T, trans=0, lower=1)
-            self._S_eff = symmetrize_lower(np.ascontiguousarray(np.tril(self.S_c) - YtY))
-        return self._S_eff
+    def S_law(self) -> np.ndarray:
+        """S_c = diag(S, E S_ee Eᵀ): the law's own displacement's stiffness (module docstring)."""
+        return self.S_c
 
     def _pad(self, x: np.ndarray) -> np.ndarray:
         """A vector on the face body's rows (3p_a) with zeros on rows b."""

@@ -458,16 +458,23 @@ class Coupling:
 
     @property
     def S_eff(self) -> np.ndarray:
-        """S_eff = (S⁻¹ + C)⁻¹ (3p × 3p), formed on first use (class docstring)."""
+        """S_eff = (S⁻¹ + C)⁻¹ (3p × 3p), formed on first use (class docstring): S_law − G M⁻¹ Gᵀ,
+        S_law the stiffness of the law's own displacement (S here; fem.faces adds its rows)."""
         if self._S_eff is None:
             self._woodbury()
+            S = self.S_law
             if self._G.shape[1] == 0:
-                self._S_eff = self.S
+                self._S_eff = S
                 return self._S_eff
             Y = solve_triangular(self._L.T, self._G.T, lower=False, trans="T", check_finite=False)   # L_M⁻¹ Gᵀ
             YtY = dsyrk(1.0, Y.T, trans=0, lower=1)              # lower triangle of YᵀY (half a product)
-            self._S_eff = symmetrize_lower(np.ascontiguousarray(np.tril(self.S) - YtY))
+            self._S_eff = symmetrize_lower(np.ascontiguousarray(np.tril(S) - YtY))
         return self._S_eff
+
+    @property
+    def S_law(self) -> np.ndarray:
+        """The stiffness of the law's own displacement before the counterparts' coupling: S."""
+        return self.S
 
     def _solve_M(self, b: np.ndarray) -> np.ndarray:
         self._woodbury()

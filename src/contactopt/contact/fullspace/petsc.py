@@ -39,6 +39,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from ...errors import SolverError
+from ...fem.distributed import _ranges
 from ...fem.krylov import KrylovNotConverged
 from ..fallback import penetrating_start
 from .core import FullSpaceResult, finish, known_adjoint_part, newton_loop, rho_of, sliding_frame, start, start_forces
@@ -212,16 +213,6 @@ class PetscHierarchy:
 
     def destroy(self):
         self.ksp.destroy()
-
-
-def _ranges(starts, counts) -> np.ndarray:
-    """The indices start_i, …, start_i + count_i − 1 of every i, one after the other."""
-    counts = np.asarray(counts, dtype=np.int64)
-    total = int(counts.sum())
-    if total == 0:
-        return np.zeros(0, dtype=np.int64)
-    first = np.concatenate([[0], np.cumsum(counts)[:-1]])
-    return np.repeat(np.asarray(starts, dtype=np.int64) - first, counts) + np.arange(total)
 
 
 def _reason(code: int) -> str:
