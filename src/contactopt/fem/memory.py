@@ -62,8 +62,10 @@ KRYLOV_VECTORS = 130
 # ... with elastic counterparts in its Newton system (paths/coupled.py): the products Tᵀ diag(A, K_f) T
 # formed per design beside diag(A, K_f), a system denser than the bodies' blocks and a hierarchy of
 # operator complexity ≈ 1.9 (six near-null vectors per body): COUPLED_SPARSE_COPIES × 12 bytes per
-# entry of every body's stiffness, fitted to the peaks of Example 1 on its slab (docs/foundation.md).
-COUPLED_SPARSE_COPIES = 10.8
+# entry of every body's stiffness, fitted to the peaks of Example 1 on its slab since the system is
+# formed as diag(A, K_f) + Δ (docs/foundation.md, "Memory"): 0.44, 2.16, 3.71 and 9.53 GB at 26k, 191k,
+# 360k and 977k DOFs against 0.44, 2.12, 3.87 and 10.30 GB estimated (10.8 before: 10.65 GB at 977k)
+COUPLED_SPARSE_COPIES = 10.4
 # An elastic foundation (``[foundation]``, condensation path): K_f and the Schur-mode factor of it
 # onto the m free top-face DOFs that carry partners, held once per run, with dense S_f, W_f, M and
 # its Cholesky factor (m × m), C and S_eff (3p × 3p) and the products between them (3p × m).
