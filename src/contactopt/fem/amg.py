@@ -200,7 +200,7 @@ class ContactHierarchy:
     two bodies (``interface``, :func:`interface_rows`) with :data:`INTERFACE_SWEEPS` extra sweeps:
     the smoothing on the whole system leaves an error there that the coarse levels do not
     correct (at 80k DOFs 36 GMRES iterations of the adjoint with them against 46, 67 of the
-    state against 92; docs/scaling.md, "Two bodies at scale")."""
+    state against 92; docs/scaling.md, "Two bodies at scale on one process")."""
 
     def __init__(self, A, near_null=None, *, contact_dofs, max_coarse: int = 10,
                  precision: str = "single", body_modes: int | None = None, **amg_kw):
