@@ -24,6 +24,7 @@ __all__ = ["ContactHierarchy", "VCycle", "rigid_body_modes", "block_positions"]
 
 _COARSE_DIAG_MIN = 1e-10              # a coarse unknown whose diagonal fell below this fraction
                                       # of A(α_ref)'s lives (almost) inside D: decoupled
+_ROWS_AT_A_TIME = 1 << 16
 INTERFACE_SWEEPS = 2                  # extra symmetric Gauss–Seidel sweeps on the rows that couple
                                       # two bodies, before the pre- and after the post-smoothing
 
@@ -112,8 +113,13 @@ def interface_rows(A, B, body_modes: int) -> np.ndarray:
     label = np.zeros(A.shape[0], dtype=np.int64)
     for j in range(nb):
         label |= np.any(B[:, j * body_modes:(j + 1) * body_modes] != 0, axis=1).astype(np.int64) << j
-    rows = np.repeat(np.arange(A.shape[0], dtype=np.int64), np.diff(A.indptr))
-    return np.unique(rows[label[rows] != label[A.indices]])
+    out, ip = [], A.indptr
+    for start in range(0, A.shape[0], _ROWS_AT_A_TIME):        # a block of rows at a time: no array of nnz(A)
+        stop = min(start + _ROWS_AT_A_TIME, A.shape[0])
+        rows = np.repeat(np.arange(start, stop, dtype=np.int64), np.diff(ip[start:stop + 1]))
+        cross = label[rows] != label[A.indices[ip[start]:ip[stop]]]
+        out.append(np.unique(rows[cross]))
+    return np.concatenate(out + [np.zeros(0, np.int64)])
 
 
 def galerkin_near(delta, P):
@@ -199,7 +205,7 @@ class ContactHierarchy:
     body (docs/foundation.md, "At scale"). Its V-cycles then also smooth the rows that couple
     two bodies (``interface``, :func:`interface_rows`) with :data:`INTERFACE_SWEEPS` extra sweeps:
     the smoothing on the whole system leaves an error there that the coarse levels do not
-    correct (at 80k DOFs 36 GMRES iterations of the adjoint with them against 46, 67 of the
+    correct (at 80k DOFs 37 GMRES iterations of the adjoint with them against 46, 73 of the
     state against 92; docs/scaling.md, "Two bodies at scale on one process")."""
 
     def __init__(self, A, near_null=None, *, contact_dofs, max_coarse: int = 10,
@@ -244,8 +250,12 @@ class ContactHierarchy:
         self.contact_rows = A[cdofs]                 # rows of A(α_ref) at the contact DOFs
         # ... and their product with the first prolongation: Pᵀ Δ P of a Newton system from the
         # rows of its Dirichlet DOFs (:meth:`preconditioner`)
-        self._contact_P = (sp.csr_matrix(self.contact_rows @ sp.csr_matrix(self.P[0], dtype=np.float64))
-                           if self.P else None)
+        self._contact_P = None
+        if self.P:                                   # (the rows of P_0 that the contact rows reach only)
+            near = np.unique(self.contact_rows.indices)
+            cols = sp.csr_matrix((np.ones(near.size), (np.arange(near.size), near)), shape=(near.size, self.n))
+            self._contact_P = sp.csr_matrix((self.contact_rows @ cols.T)
+                                            @ sp.csr_matrix(self.P[0][near], dtype=np.float64))
         self.interface = (None if body_modes is None or near_null is None
                           else interface_rows(A, np.asarray(near_null), body_modes).astype(A.indptr.dtype))
         self._row_of = np.full(self.n, -1, dtype=np.int64)
