@@ -133,3 +133,23 @@ def test_the_two_body_estimate_against_the_peaks_measured_at_scale(mesh, cells, 
     n, est = _estimate_from_meshes(mesh, cells)
     assert n == dofs
     assert abs(est / peak - 1) <= 0.10, est
+
+
+def test_the_hierarchy_is_built_from_the_system_the_evaluation_holds(monkeypatch):
+    """The first evaluation forms the two bodies' Newton system once: the hierarchy's set-up (the
+    peak of an evaluation) takes the system the evaluation holds, not a second one formed for it
+    (8.60 GB against 9.53 GB at 977k DOFs), and gives the same state bit for bit."""
+    from contactopt.paths.fullspace import FullSpacePath
+    cfg = load_config(ROOT / "examples" / "example1_elastic.toml").with_updates({"linear_solver": {"path": "fullspace"}})
+    calls = []
+    real = FullSpacePath.prepare
+    monkeypatch.setattr(FullSpacePath, "prepare", lambda self, asm: calls.append(1) or real(self, asm))
+    pb = ShapeProblem(cfg)
+    a0 = pb.model.initial_design()
+    theta, xi = pb.evaluate(a0)
+    assert len(calls) == 1
+    again = pb.path.build_hierarchy(a0)               # as a resume rebuilds it, forming its own system
+    assert len(calls) == 2
+    first = pb.path._hierarchy
+    assert [P.nnz for P in again.P] == [P.nnz for P in first.P]
+    assert all(np.array_equal(P.data, Q.data) for P, Q in zip(again.P, first.P))
