@@ -24,6 +24,9 @@ __all__ = ["ContactHierarchy", "VCycle", "rigid_body_modes", "block_positions"]
 
 _COARSE_DIAG_MIN = 1e-10              # a coarse unknown whose diagonal fell below this fraction
                                       # of A(α_ref)'s lives (almost) inside D: decoupled
+_ROWS_AT_A_TIME = 1 << 16
+INTERFACE_SWEEPS = 2                  # extra symmetric Gauss–Seidel sweeps on the rows that couple
+                                      # two bodies, before the pre- and after the post-smoothing
 
 
 
@@ -99,6 +102,36 @@ def per_body_solver(A, B, body_modes: int, *, omega: float = 4.0 / 3.0, **amg_kw
     return [first] + list(ml.levels)
 
 
+def interface_rows(A, B, body_modes: int) -> np.ndarray:
+    """The rows of A (CSR) that couple two bodies: those with an entry in a column whose bodies —
+    the blocks of ``body_modes`` columns of the near-null space B nonzero there — are not the row's
+    own (A's pattern is symmetric, so the columns of those entries are among them). On the two
+    bodies' system of :mod:`contactopt.paths.coupled` these are the contact DOFs, the body's DOFs
+    next to them and the counterpart's DOFs under them: the band where Gauss–Seidel on the
+    whole system leaves the error that the coarse levels miss."""
+    nb = B.shape[1] // body_modes
+    label = np.zeros(A.shape[0], dtype=np.int64)
+    for j in range(nb):
+        label |= np.any(B[:, j * body_modes:(j + 1) * body_modes] != 0, axis=1).astype(np.int64) << j
+    out, ip = [], A.indptr
+    for start in range(0, A.shape[0], _ROWS_AT_A_TIME):        # a block of rows at a time: no array of nnz(A)
+        stop = min(start + _ROWS_AT_A_TIME, A.shape[0])
+        rows = np.repeat(np.arange(start, stop, dtype=np.int64), np.diff(ip[start:stop + 1]))
+        cross = label[rows] != label[A.indices[ip[start]:ip[stop]]]
+        out.append(np.unique(rows[cross]))
+    return np.concatenate(out + [np.zeros(0, np.int64)])
+
+
+def galerkin_near(delta, P):
+    """Pᵀ Δ P for Δ (sparse, symmetric pattern) supported on a few rows and columns S, formed from
+    the rows S of P only (P_Sᵀ Δ_SS P_S), in double precision."""
+    delta = sp.csr_matrix(delta)
+    S = np.union1d(np.flatnonzero(np.diff(delta.indptr)), delta.indices)
+    PS = sp.csr_matrix(P[S], dtype=np.float64)
+    dS = sp.csr_matrix(delta[S][:, S])
+    return sp.csr_matrix(sp.csr_matrix(PS.T) @ (dS @ PS))
+
+
 def drop_zero_columns(levels):
     """(P_l, A_l) of pyamg's ``levels`` (A_0 None) without the coarse unknowns whose column of
     P_l is zero — their rows and columns of A_{l+1} and rows of P_{l+1} are zero too: the same
@@ -169,7 +202,11 @@ class ContactHierarchy:
     body (the two bodies' system of :mod:`contactopt.paths.coupled`); every aggregate then takes
     the columns of its own bodies only (:func:`per_body_solver`) and the coarse unknowns left zero
     are dropped (:func:`drop_zero_columns`): half the coarse unknowns of an aggregate inside one
-    body (docs/foundation.md, "At scale")."""
+    body (docs/foundation.md, "At scale"). Its V-cycles then also smooth the rows that couple
+    two bodies (``interface``, :func:`interface_rows`) with :data:`INTERFACE_SWEEPS` extra sweeps:
+    the smoothing on the whole system leaves an error there that the coarse levels do not
+    correct (at 80k DOFs 37 GMRES iterations of the adjoint with them against 46, 73 of the
+    state against 92; docs/scaling.md, "Two bodies at scale on one process")."""
 
     def __init__(self, A, near_null=None, *, contact_dofs, max_coarse: int = 10,
                  precision: str = "single", body_modes: int | None = None, **amg_kw):
@@ -211,6 +248,16 @@ class ContactHierarchy:
             M_.sort_indices()
         cdofs = np.unique(np.asarray(contact_dofs, dtype=np.int64))
         self.contact_rows = A[cdofs]                 # rows of A(α_ref) at the contact DOFs
+        # ... and their product with the first prolongation: Pᵀ Δ P of a Newton system from the
+        # rows of its Dirichlet DOFs (:meth:`preconditioner`)
+        self._contact_P = None
+        if self.P:                                   # (the rows of P_0 that the contact rows reach only)
+            near = np.unique(self.contact_rows.indices)
+            cols = sp.csr_matrix((np.ones(near.size), (np.arange(near.size), near)), shape=(near.size, self.n))
+            self._contact_P = sp.csr_matrix((self.contact_rows @ cols.T)
+                                            @ sp.csr_matrix(self.P[0][near], dtype=np.float64))
+        self.interface = (None if body_modes is None or near_null is None
+                          else interface_rows(A, np.asarray(near_null), body_modes).astype(A.indptr.dtype))
         self._row_of = np.full(self.n, -1, dtype=np.int64)
         self._row_of[cdofs] = np.arange(cdofs.size)
         self.setup_seconds = time.perf_counter() - t0
@@ -260,22 +307,13 @@ class ContactHierarchy:
         D = np.flatnonzero(dirichlet)
         if D.size and np.any(self._row_of[D] < 0):
             raise SolverError("Dirichlet DOFs outside the contact DOFs of the hierarchy")
-        # Δ = Π (A_ref + K_t) Π − A_ref: minus the entries of A_ref in a row or column of D, plus K_t
-        n = self.n
-        if D.size:
-            rows = self.contact_rows[self._row_of[D]].tocoo()
-            Er = sp.csr_matrix((rows.data, (D[rows.row], rows.col)), shape=(n, n))
-            keep = dirichlet[rows.col]
-            Edd = sp.csr_matrix((rows.data[keep], (D[rows.row[keep]], rows.col[keep])), shape=(n, n))
-            delta = -(Er + Er.T - Edd)
-        else:
-            delta = sp.csr_matrix((n, n))
-        if kt is not None and kt.nnz:
-            delta = delta + kt
         ops = []
         for lvl in range(len(self.P)):
             Ac = self.A[lvl + 1]
-            delta = sp.csr_matrix(self.R[lvl] @ (delta @ self.P[lvl])) if delta.nnz else sp.csr_matrix(Ac.shape)
+            if lvl == 0:
+                delta = self._first_delta(D, kt)
+            else:
+                delta = galerkin_near(delta, self.P[lvl]) if delta.nnz else sp.csr_matrix(Ac.shape)
             Anew = (Ac + delta).tocsr() if delta.nnz else Ac
             d_ref, d_new = Ac.diagonal(), Anew.diagonal()
             bad = ~(d_new > _COARSE_DIAG_MIN * d_ref)
@@ -284,16 +322,35 @@ class ContactHierarchy:
                 Anew = (keepm @ Anew @ keepm + sp.diags(np.where(bad, d_ref, 0.0))).tocsr()
             Anew.sort_indices()
             ops.append(Anew)
-        return VCycle(H, dirichlet, self.P, self.R, ops, self.dtype)
+        return VCycle(H, dirichlet, self.P, self.R, ops, self.dtype, band=self.interface)
+
+    def _first_delta(self, D, kt):
+        """P_0ᵀ Δ P_0 on the first coarse level, Δ = Π (A_ref + K_t) Π − A_ref = −(E_r + E_rᵀ − E_DD)
+        + K_t with E_r the rows D of A_ref and E_DD its block D × D: P_0ᵀ E_r P_0 = P_0[D]ᵀ (A_ref P_0)[D]
+        from the rows of A_ref P_0 kept at set-up — a product over the Dirichlet DOFs only, not
+        one of Δ (whose rows at the contact DOFs of two bodies hold both bodies' entries) with P_0."""
+        nc = self.P[0].shape[1]
+        out = sp.csr_matrix((nc, nc))
+        if D.size:
+            r = self._row_of[D]
+            PD = sp.csr_matrix(self.P[0][D], dtype=np.float64)
+            PtE = sp.csr_matrix(sp.csr_matrix(PD.T) @ self._contact_P[r])
+            Edd = sp.csr_matrix(self.contact_rows[r][:, D])
+            out = -(PtE + PtE.T - sp.csr_matrix(PD.T) @ (Edd @ PD))
+        if kt is not None and kt.nnz:
+            out = out + galerkin_near(kt, self.P[0])
+        return sp.csr_matrix(out)
 
 
 class VCycle:
     """One V-cycle (symmetric Gauss–Seidel pre- and post-smoothing, a dense pseudo-inverse on the
     coarsest level) for H on the DOFs outside D, as a callable v ↦ M v with (M v)_D = 0: symmetric
     positive semi-definite, so usable by CG as well as GMRES. Computed in ``dtype`` (the
-    hierarchy's precision), returned in double precision."""
+    hierarchy's precision), returned in double precision. ``band``: fine rows smoothed
+    :data:`INTERFACE_SWEEPS` more times, before the pre-smoothing and after the post-smoothing
+    (so the cycle stays symmetric); its Dirichlet rows are left out."""
 
-    def __init__(self, H, dirichlet, P, R, ops, dtype=np.float64):
+    def __init__(self, H, dirichlet, P, R, ops, dtype=np.float64, band=None):
         self._gs, self._gs_idx = gauss_seidel, gauss_seidel_indexed
         if H.dtype != dtype:
             raise SolverError(f"the fine matrix is {H.dtype}, the hierarchy {np.dtype(dtype)}")
@@ -301,6 +358,7 @@ class VCycle:
         self.H = H
         self.D = np.flatnonzero(dirichlet)
         self.rows = np.flatnonzero(~np.asarray(dirichlet)).astype(H.indptr.dtype)
+        self.band = None if band is None else band[~np.asarray(dirichlet)[band]]
         self.P, self.R = P, R
         self.A = [H] + [sp.csr_matrix(o, dtype=dtype) for o in ops]
         Ac = ops[-1].toarray() if ops else H.toarray()
@@ -315,7 +373,13 @@ class VCycle:
     def _smooth(self, lvl, x, b, which):
         sweep = self.sweeps[which]
         if lvl == 0:
-            self._gs_idx(self.H, x, b, self.rows, sweep=sweep)
+            if which == 1:
+                self._gs_idx(self.H, x, b, self.rows, sweep=sweep)
+            if self.band is not None and self.band.size:      # pre: band, then all; post: all, then band
+                for _ in range(INTERFACE_SWEEPS):
+                    self._gs_idx(self.H, x, b, self.band, sweep="symmetric")
+            if which == 0:
+                self._gs_idx(self.H, x, b, self.rows, sweep=sweep)
         else:
             self._gs(self.A[lvl], x, b, sweep=sweep)
 

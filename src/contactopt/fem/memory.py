@@ -62,8 +62,10 @@ KRYLOV_VECTORS = 130
 # ... with elastic counterparts in its Newton system (paths/coupled.py): the products Tᵀ diag(A, K_f) T
 # formed per design beside diag(A, K_f), a system denser than the bodies' blocks and a hierarchy of
 # operator complexity ≈ 1.9 (six near-null vectors per body): COUPLED_SPARSE_COPIES × 12 bytes per
-# entry of every body's stiffness, fitted to the peaks of Example 1 on its slab (docs/foundation.md).
-COUPLED_SPARSE_COPIES = 10.8
+# entry of every body's stiffness, fitted to the peaks of Example 1 on its slab since the system is
+# formed as diag(A, K_f) + Δ (docs/foundation.md, "Memory"): 0.44, 2.16, 3.71 and 9.53 GB at 26k, 191k,
+# 360k and 977k DOFs against 0.44, 2.12, 3.87 and 10.30 GB estimated (10.8 before: 10.65 GB at 977k)
+COUPLED_SPARSE_COPIES = 10.4
 # An elastic foundation (``[foundation]``, condensation path): K_f and the Schur-mode factor of it
 # onto the m free top-face DOFs that carry partners, held once per run, with dense S_f, W_f, M and
 # its Cholesky factor (m × m), C and S_eff (3p × 3p) and the products between them (3p × m).
@@ -118,10 +120,12 @@ class MemoryEstimate:
 class PathEstimates:
     """The memory estimate of the solver path that will run (``run``, a function of a body and,
     keyword ``counterparts``, its elastic counterparts' sizes) and ``others``: {path: its
-    estimate} of the other paths that take the model, which a refusal names."""
+    estimate} of the other paths that take the model, which a refusal names; ``name`` the path
+    that will run, which the estimate's log line and a refusal name (None: not said)."""
 
     run: object
     others: dict = field(default_factory=dict)
+    name: str | None = None
 
 
 def fill_factor(n_dofs: int) -> float:
@@ -276,24 +280,27 @@ def available_memory() -> float:
     return float("inf")
 
 
-def check_memory(body, *, margin: float = 0.9, estimate=None, counterparts=(), alternatives=None) -> MemoryEstimate:
+def check_memory(body, *, margin: float = 0.9, estimate=None, counterparts=(), alternatives=None,
+                 path: str | None = None) -> MemoryEstimate:
     """Refuse (:class:`InsufficientMemoryError`) a body (or model) whose evaluation would need
     more than ``margin`` × the available memory; returns the estimate otherwise (logged at INFO).
     ``estimate``: the estimate of the solver path that will run, a function of the body and of
     its elastic ``counterparts`` (:class:`CounterpartSize`, those built so far; the condensation's
     by default). ``alternatives``: {path: its estimate} of the other paths that take the model,
-    whose estimates a refusal names (those that fit first)."""
+    whose estimates a refusal names (those that fit first); ``path``: the name of the path that
+    will run, said in the log line and the refusal."""
     est = _estimate(estimate or condensation_estimate, body, counterparts)
     avail = available_memory()
+    on = f" on the '{path}' path" if path else ""
     if est.total > margin * avail:
         raise InsufficientMemoryError(
-            f"the mesh is too large for the memory available: one evaluation needs about "
+            f"the mesh is too large for the memory available: one evaluation{on} needs about "
             f"{est.describe()}, and {avail / GB:.1f} GB are available (MemAvailable). "
             f"{_other_paths(body, counterparts, alternatives, margin * avail)}Use a coarser "
             f"[mesh] (the factor grows like n^{1 + FILL_EXPONENT:.2f}, the dense contact matrices like "
             f"(contact DOFs)²), free memory on this machine, or set [linear_solver] memory_check = false "
             f"to try anyway", est, avail / GB)
-    log.info("memory estimate of an evaluation: %s; %.1f GB available", est.describe(), avail / GB)
+    log.info("memory estimate of an evaluation%s: %s; %.1f GB available", on, est.describe(), avail / GB)
     return est
 
 

@@ -51,7 +51,7 @@ from .elements import element_type, face_type
 from .foundation import Foundation
 from .loads import face_areas_nodal
 from .loadset import LoadSet, load_set
-from .memory import PathEstimates, check_memory
+from .memory import InsufficientMemoryError, PathEstimates, check_memory
 from .mortar import dual_weighted
 from .weight import harmonic_weight
 
@@ -154,12 +154,20 @@ class ElasticModel:
         check = None
         if cfg.linear_solver.memory_check:   # refuse a mesh too large before building on it
             paths = memory_estimate if isinstance(memory_estimate, PathEstimates) else PathEstimates(memory_estimate)
-            check_memory(body, estimate=paths.run, alternatives=paths.others)
+            try:
+                check_memory(body, estimate=paths.run, alternatives=paths.others, path=paths.name)
+            except InsufficientMemoryError:
+                # an elastic [foundation], read next, only adds to the estimate of every path: the
+                # refusal waits for its sizes (its mesh, before K_f is assembled), so that the path it
+                # names as fitting is measured with the foundation counted, not the body alone
+                if cfg.foundation is None or cfg.pairs:
+                    raise
             counted = []
 
             def check(size):                       # an elastic counterpart, with those before it
                 counted.append(size)
-                return check_memory(body, estimate=paths.run, counterparts=counted, alternatives=paths.others)
+                return check_memory(body, estimate=paths.run, counterparts=counted, alternatives=paths.others,
+                                    path=paths.name)
         ref = body.reference
         d1, d2 = cfg.design.degree
         (x1lo, x1hi), (x2lo, x2hi) = body.domain

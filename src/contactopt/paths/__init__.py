@@ -170,7 +170,7 @@ def path_estimates(config, name: str, body) -> PathEstimates:
     return PathEstimates(PATHS[name].memory_estimate, {
         n: cls.memory_estimate for n, cls in PATHS.items() if n != name and not cls.capabilities.lacks(need)
         and (not config.off_faces or n in OFF_FACES_PATHS)
-        and not any(map(missing_library, cls.capabilities.libraries))})
+        and not any(map(missing_library, cls.capabilities.libraries))}, name)
 
 
 def _auto(fit: list, n_free: int, crossover: int, ranks: int, need=()):
