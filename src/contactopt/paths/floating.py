@@ -137,6 +137,25 @@ def floating_anchor(couple, diag: np.ndarray, face=None) -> FloatingAnchor | Non
     return FloatingAnchor(dofs_all, N, gamma, names, M)
 
 
+def first_anchored_solve(solve, beta0, stiffen):
+    """The first anchored solve of :func:`iterate_anchor`: ``solve(beta, last, fallbacks)`` at β₀
+    with the soft anchor and no fallbacks (at most the caller's few Newton steps); where that makes
+    no progress (a body pressed into two counterparts by an overlap: the soft anchor leaves the
+    Newton steps' Krylov error free along its rigid motions), ``stiffen()`` makes the anchor
+    :data:`STIFFER` times as stiff and the solve runs again with its fallbacks. Returns the result,
+    its Krylov iterations and Newton steps those of both attempts."""
+    first = solve(beta0, None, fallbacks=False)
+    if first.converged:
+        return first
+    log.debug("body held only by its contacts: the anchored solve stopped (%s); a stiffer anchor", first.reason)
+    spent, spent_steps = list(first.krylov_iterations), first.newton_steps
+    stiffen()
+    first = solve(beta0, None, fallbacks=True)
+    first.krylov_iterations = spent + list(first.krylov_iterations)
+    first.newton_steps += spent_steps
+    return first
+
+
 def anchor_imbalance(anchor: FloatingAnchor, u, beta, scale: float) -> float:
     """‖γ(Nᵀu − β)‖ / scale: the anchor's force relative to the problem's (module docstring)."""
     return float(np.linalg.norm(anchor.gamma * (anchor.position(u) - beta)) / max(scale, 1e-300))

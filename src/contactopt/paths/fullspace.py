@@ -55,7 +55,7 @@ from ..sensitivity.adjoint_fullspace import solve_adjoint_fullspace
 from .base import Adjoint, Capabilities, Context, SolverPath, SystemParts, check_design, counterpart_sizes
 from .coupled import FullSpaceCouple, with_contact_blocks
 from .coupled import force_terms as coupled_force_terms
-from .floating import floating_anchor, iterate_anchor
+from .floating import first_anchored_solve, floating_anchor, iterate_anchor
 from .force import normal_stiffness
 from .transforms import frame_rotation
 
@@ -454,22 +454,16 @@ class FullSpacePath(FullSpaceCommon):
             return solve_fullspace_with_fallbacks(current["A"], L, cd, gap, self.friction, **kw)
         an = system.anchor
         beta0 = an.position(u0) if u0 is not None else np.zeros(an.N.shape[1])
-        first = solve(beta0, None, fallbacks=False)
-        if not first.converged:
-            # a soft anchor leaves the Newton steps' Krylov error free along the rigid motions (a
-            # roller pressed into both races by an overlap): the anchor STIFFER times as stiff, with
-            # the fallbacks of every solve
-            log.debug("body held only by its contacts: the anchored solve stopped (%s); a stiffer anchor", first.reason)
-            spent, spent_steps = list(first.krylov_iterations), first.newton_steps
-            an = current["anchor"] = an.stiffer()
-            current["A"] = an.anchored(system.law_A)
+
+        def stiffen():
             # its own hierarchy, for its solves only (the shared one, the soft anchor's, stays:
             # a resume rebuilds that one from the design)
+            current["anchor"] = current["anchor"].stiffer()
+            current["A"] = current["anchor"].anchored(system.law_A)
             current["hierarchy"] = self.hierarchy_of(system, current["A"], options["coords"])
-            first = solve(beta0, None)
-            first.hierarchy = shared
-            first.krylov_iterations = spent + list(first.krylov_iterations)
-            first.newton_steps += spent_steps
+        first = first_anchored_solve(solve, beta0, stiffen)
+        first.hierarchy = shared
+        an = current["anchor"]
         try:
             free = solve_fullspace(system.law_A, system.law_L, cd, gap, self.friction,
                                    **dict(options, r0=first.r, u0=first.u, zone=first.zone, hierarchy=first.hierarchy,

@@ -49,7 +49,7 @@ from ..sensitivity.adjoint_fullspace import ADJOINT_RTOL, adjoint_classes, check
 from .base import Adjoint, Capabilities, Context, SolverPath, SystemParts
 from .coupled import FullSpaceCouple
 from .coupled import force_terms as coupled_force_terms
-from .floating import floating_anchor, iterate_anchor
+from .floating import first_anchored_solve, floating_anchor, iterate_anchor
 from .fullspace import COUPLED_FORCING, FREE_NEWTON_STEPS, SOFT_ANCHOR_STEPS, FullSpaceCommon, refuse_counterparts
 from .protocol import Call, Command, Problem, new_path_id, send
 from .transforms import FrameChange
@@ -445,13 +445,11 @@ class PetscPath(FullSpaceCommon):
             return replace(res, u=d.free_vector(res.u_all))      # u_loc: what the anchor reads
 
         beta0 = np.zeros(an.N.shape[1]) if u0_loc is None else an.position(u0_loc)
-        first = solve(beta0, None, fallbacks=False)
-        if not first.converged:          # a stiffer anchor, with the fallbacks (the pyamg backend's held_solve)
-            spent, spent_steps = list(first.krylov_iterations), first.newton_steps
-            an = current[0] = an.stiffer()
-            first = solve(beta0, None)
-            first.krylov_iterations = spent + list(first.krylov_iterations)
-            first.newton_steps += spent_steps
+
+        def stiffen():
+            current[0] = current[0].stiffer()
+        first = first_anchored_solve(solve, beta0, stiffen)
+        an = current[0]
         self._anchored(an, False)
         try:
             free = nw.solve(self._hier, system.L, gap, self.friction, **dict(
