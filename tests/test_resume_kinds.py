@@ -97,9 +97,17 @@ def two_designs():
     return data
 
 
+def floating_face_fullspace():
+    """The dovetail (examples/dovetail.toml: its blade held only by its two flanks, two designs)
+    on the full-space path: the blade's anchor rebuilt with the hierarchy at a resume."""
+    return load_config(ROOT / "examples" / "dovetail.toml").with_updates(
+        {"linear_solver": {"path": "fullspace"}}).to_dict()
+
+
 KINDS = {"load_cases": (load_cases, 14), "load_path": (load_path, 12), "constrained": (constrained, 14),
          "force_obstacle": (force_obstacle, 12), "assembly_path": (assembly_path, 12),
-         "foundation_fullspace": (foundation_fullspace, 12), "two_designs": (two_designs, 14)}
+         "foundation_fullspace": (foundation_fullspace, 12), "two_designs": (two_designs, 14),
+         "floating_face_fullspace": (floating_face_fullspace, 8)}
 
 
 def what_the_checkpoint_holds(ckpt: Checkpoint) -> dict:
@@ -123,7 +131,7 @@ def test_a_run_killed_at_random_moments_resumes_bit_for_bit(tmp_path, kind):
     assert {"load_cases": holds["cases"] == 2, "load_path": len(holds["steps"]) == 1 and holds["steps"][0] >= 2,
             "constrained": holds["penalty"], "force_obstacle": holds["steps"] == [1],
             "assembly_path": holds["steps"] == [2], "foundation_fullspace": holds["steps"] == [2],
-            "two_designs": holds["steps"] == [2]}[kind], holds
+            "two_designs": holds["steps"] == [2], "floating_face_fullspace": holds["steps"] == [1]}[kind], holds
     print(f"\n[{kind}] uninterrupted: {ref['iterations']} iterations, {ref['evaluations']} evaluations, "
           f"{ref_wall:.1f} s; the checkpoint holds {holds}")
     rng = random.Random(f"kill -9 a {kind} run")
