@@ -326,7 +326,7 @@ def _check_off_face(n: int, pairs: list, held: set, bodies: dict, problems: list
     key = f"contacts[{n}]"
     face = (f"{key}.face = '{body}.{_part_name(part)}': with several pairs contactopt takes the faces of every pair "
             f"on one body so far ({face_body!r}, the face of contacts[0]), or a face on a counterpart body of another "
-            "pair against a third, elastic body (paths: condensation)")
+            "pair against a third, elastic body (paths: condensation, fullspace)")
     swap = "write the pair the other way round (face and counterpart swapped) where it can be"
     if body not in held:
         problems.append(f"{face}; {body!r} is the counterpart of no pair: {swap}")

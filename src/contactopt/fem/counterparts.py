@@ -273,6 +273,7 @@ class Counterparts:
         self.off_pairs = np.zeros(self.p - p_a, np.int64)
         self.off_points = np.zeros((self.p - p_a, 3))      # the rows' nodes on their bodies' reference meshes
         self.off_nodes = np.zeros(self.p - p_a, np.int64)   # ... their numbers there
+        self.off_columns = np.full((self.p - p_a, 3), -1, np.int64)   # ... their columns of o per component (u1, u2, u3)
         starts = {id(f): s for f, s in zip(self.parts, np.cumsum([0] + [f.P.shape[1] for f in self.parts]))}
         rows, cols, vals = [], [], []
         for (k, v), f in zip(views.items(), carriers):
@@ -285,6 +286,7 @@ class Counterparts:
             self.off_points[mine - p_a] = v.reference.points[v.contact_nodes]
             self.off_nodes[mine - p_a] = v.contact_nodes
             col = f.face_columns(v.contact_nodes)                     # (p_k, 3) per global component
+            self.off_columns[mine - p_a] = np.where(col >= 0, starts[id(f)] + col, -1)
             for i in range(3):                                        # row 3m + i: t_i · u (frame column i)
                 for c in range(3):
                     ok = (col[:, c] >= 0) & (np.abs(Rk[:, c, i]) > 0)
@@ -295,7 +297,8 @@ class Counterparts:
         self.off_views = views
         self.face_map = tuple(np.concatenate(x) for x in (rows, cols, vals))
         self.rotate(R)
-        self.face_rows = FaceRows.build(self, 3 * p_a)
+        # (the condensation path's pieces; the full space keeps the bodies assembled, paths/coupled.py)
+        self.face_rows = None if self.condensation is None else FaceRows.build(self, 3 * p_a)
 
     def _relative(self) -> sp.csr_matrix:
         """Π − E on the free support DOFs: the relative displacement of a motion o of the counterparts."""

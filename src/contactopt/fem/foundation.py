@@ -165,6 +165,7 @@ class Foundation:
 
     coords = None         # the node coordinates K_f is formed on (None: the reference mesh's)
     face_rows = None      # a pair's face on this body: the coupling's pieces are the counterparts' (fem.faces)
+    face_map = None       # ... and the map of its nodes (fem.counterparts)
 
     def face_columns(self, nodes: np.ndarray) -> np.ndarray:
         """(len(nodes), 3): the columns of P (free support DOFs) of the support nodes ``nodes`` per

@@ -149,7 +149,7 @@ def select_path(config, n_free: int, pinned: int = 0, rigid=None, pinned_held: b
     return chosen.name, library_for(chosen.name, ls.library)
 
 
-OFF_FACES_PATHS = ("condensation",)     # the paths that take a pair's face on a counterpart body (fem.faces)
+OFF_FACES_PATHS = ("condensation", "fullspace")   # the paths that take a pair's face on a counterpart body (fem.faces)
 
 
 def _off_faces(config, name: str) -> str | None:
@@ -159,7 +159,7 @@ def _off_faces(config, name: str) -> str | None:
         return None
     where = ", ".join(f"contacts[{k}].face lies on body {body!r}" for k, body in config.off_faces.items())
     return (f"linear_solver.path = '{name}': {where}; a pair whose face lies on a counterpart body of another pair "
-            f"is solved on {_on(list(OFF_FACES_PATHS))} only so far; use path {_names(list(OFF_FACES_PATHS))} or 'auto'")
+            f"is solved on {_on(list(OFF_FACES_PATHS))} only so far; use path {_names(list(OFF_FACES_PATHS) + ['auto'])}")
 
 
 def path_estimates(config, name: str, body) -> PathEstimates:

@@ -59,14 +59,18 @@ class FullSpaceCouple:
         sizes = [part.assembler.n_free for part in self.parts]
         self._starts = np.concatenate([[0], np.cumsum(sizes)]).astype(np.int64)
         self.n_body, self.n = n_body, n_body + int(self._starts[-1])
-        p = contact_dofs.size // 3
-        R = np.broadcast_to(np.eye(3), (p, 3, 3)) if frames is None else np.asarray(frames)
-        self.cd = np.asarray(contact_dofs, np.int64)
-        Q = sp.block_diag(list(R), format="csr")
-        Pf = sp.csr_matrix(f.P)                       # Π_loc on the counterparts' free support DOFs
+        self.n_f = int(self._starts[-1])              # the counterparts' unknowns (then the pinned ones of rows b)
         cols_f = self.n_body + np.concatenate([start + np.asarray(part._support_free, np.int64)
                                                for start, part in zip(self._starts, self.parts)]
                                               + [np.zeros(0, np.int64)])
+        self.cd = np.asarray(contact_dofs, np.int64)
+        self.n_pinned = 0
+        if f.face_map is not None:                    # faces on several bodies: rows b on their carriers' DOFs
+            self.cd, frames = self._face_rows_dofs(f, cols_f), f.frames
+        p = self.cd.size // 3
+        R = np.broadcast_to(np.eye(3), (p, 3, 3)) if frames is None else np.asarray(frames)
+        Q = sp.block_diag(list(R), format="csr")
+        Pf = sp.csr_matrix(f.P)                       # Π_loc on the counterparts' free support DOFs
         QP = (Q @ Pf).tocoo()
         other = np.setdiff1d(np.arange(self.n), self.cd)
         Qc = Q.tocoo()
@@ -81,6 +85,23 @@ class FullSpaceCouple:
         q = np.zeros(3 * p) if f.q_f is None else np.asarray(f.q_f, float)
         self.offset = q.reshape(-1, 3).copy()
         self._kf_amg = [None] * len(self.parts)      # each K_f's AMG solver (compliance), built on first use
+
+    def _face_rows_dofs(self, f, cols_f: np.ndarray) -> np.ndarray:
+        """The Newton system's contact DOFs of every row (3p): the face body's (rows a), then per
+        row b its face node's DOFs on the carrier body (:mod:`contactopt.fem.faces`), in global
+        components as on the face body. A clamped component of such a node (a symmetry plane through
+        the carrier's face) is no DOF of the carrier: it gets an unknown of its own after all bodies',
+        a decoupled unit diagonal with no load (the pinned row of the law, u = r = 0 there), as a
+        pinned DOF of the face body is; its partners lie on the plane, clamped alike, so that Π_loc
+        has no entry in its row."""
+        cols = np.asarray(f.off_columns, np.int64).ravel()
+        pinned = cols < 0
+        self.n_pinned = int(pinned.sum())
+        law_b = np.empty(cols.size, np.int64)
+        law_b[~pinned] = cols_f[cols[~pinned]]
+        law_b[pinned] = self.n + np.arange(self.n_pinned)
+        self.n += self.n_pinned
+        return np.concatenate([self.cd, law_b])
 
     def inverse(self) -> sp.csr_matrix:
         """T⁻¹: the identity but at the contact DOFs, where w + q = Qᵀ u_c − Π_loc u_f."""
@@ -102,6 +123,8 @@ class FullSpaceCouple:
         took three)."""
         with task(f"forming the Newton system of {1 + len(self.parts)} bodies ({self.n:,} unknowns)"):
             cd, E = self.cd, self._E
+            if cd.size and cd.max() >= self.n_body:      # faces on several bodies: rows on the counterparts
+                return self._chain_system(A), self.T.T @ self.load(L)
             A = sp.csr_matrix(A)
             A_rows = sp.hstack([A[cd], sp.csr_matrix((cd.size, self.n - self.n_body))], format="csr")
             A_cols = sp.vstack([A[:, cd], sp.csr_matrix((self.n - self.n_body, cd.size))], format="csr")
@@ -109,9 +132,40 @@ class FullSpaceCouple:
             law_A = add_to_block_diagonal([A] + [part.K for part in self.parts], delta, self.cd)
         return law_A, self.T.T @ self.load(L)
 
+    def _blocks(self, A) -> list:
+        """The diagonal blocks of diag(A, K_1, …, I): the bodies' stiffnesses and the pinned unknowns'
+        unit diagonal (:meth:`_face_rows_dofs`)."""
+        pinned = [sp.identity(self.n_pinned, format="csr")] if self.n_pinned else []
+        return [sp.csr_matrix(A)] + [sp.csr_matrix(part.K) for part in self.parts] + pinned
+
+    def _chain_system(self, A) -> sp.csr_matrix:
+        """Tᵀ B T with rows of the law on several bodies: Δ of :meth:`system` with B_c the rows of
+        B = diag(A, K_1, …, I) at the contact DOFs of every body, taken block by block."""
+        blocks, cd, E = self._blocks(A), self.cd, self._E
+        starts = np.concatenate([[0], np.cumsum([B.shape[0] for B in blocks])])
+        rows, cols, vals, rows_t, cols_t, vals_t = [], [], [], [], [], []
+        for B, start, stop in zip(blocks, starts[:-1], starts[1:]):
+            at = np.flatnonzero((cd >= start) & (cd < stop))
+            if not at.size:
+                continue
+            Br = B[cd[at] - start].tocoo()            # B_c: rows at the contact DOFs
+            rows.append(at[Br.row])
+            cols.append(Br.col + start)
+            vals.append(Br.data)
+            Bc = B[:, cd[at] - start].tocoo()         # B_{:c}
+            rows_t.append(Bc.row + start)
+            cols_t.append(at[Bc.col])
+            vals_t.append(Bc.data)
+        B_rows = sp.csr_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))),
+                               shape=(cd.size, self.n))
+        B_cols = sp.csr_matrix((np.concatenate(vals_t), (np.concatenate(rows_t), np.concatenate(cols_t))),
+                               shape=(self.n, cd.size))
+        delta = E.T @ B_rows + B_cols @ E + E.T @ (B_rows[:, cd] @ E)
+        return add_to_block_diagonal(blocks, delta, cd)
+
     def load(self, L) -> np.ndarray:
-        """(L, f_f) on both bodies' free DOFs."""
-        return np.concatenate([np.asarray(L, float)] + [part.f_f for part in self.parts])
+        """(L, f_f) on both bodies' free DOFs (and no load on the pinned unknowns of rows b)."""
+        return np.concatenate([np.asarray(L, float)] + [part.f_f for part in self.parts] + [np.zeros(self.n_pinned)])
 
     def modes(self, coords_body: np.ndarray, free_body: np.ndarray) -> np.ndarray:
         """T⁻¹ (each body's rigid-body modes) (n × 6(1 + B)): the AMG near-null space in u_loc. T⁻¹
@@ -137,7 +191,10 @@ class FullSpaceCouple:
         frees = [np.asarray(free_body, np.int64)] + [part.assembler.free for part in self.parts]
         offsets = np.cumsum([0] + [3 * x.shape[0] for x in points])
         free = np.concatenate([f + o for f, o in zip(frees, offsets[:-1])])
-        return self._local(rigid_body_modes(np.concatenate(points), free))
+        M = rigid_body_modes(np.concatenate(points), free)
+        if self.n_pinned:                   # the pinned unknowns of rows b: no motion
+            M = np.vstack([M, np.zeros((self.n_pinned, M.shape[1]))])
+        return self._local(M)
 
     def _local(self, M: np.ndarray) -> np.ndarray:
         """T⁻¹ M for M (n × k) on the bodies' free DOFs: at the contact DOFs Qᵀ u_c − Π_loc u_f."""
@@ -150,11 +207,18 @@ class FullSpaceCouple:
     def split(self, u_loc: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """(u on the body's free DOFs, u_f on the foundation's) of a solution in u_loc."""
         u = self.T @ u_loc
-        return u[:self.n_body], u[self.n_body:]
+        return u[:self.n_body], u[self.n_body:self.n_body + self.n_f]
 
     def extend(self, y_body: np.ndarray) -> np.ndarray:
         """Tᵀ (y, 0): a derivative with respect to the body's free DOFs into u_loc."""
         return self.T.T @ np.concatenate([np.asarray(y_body, float), np.zeros(self.n - self.n_body)])
+
+    def face_side(self, u_free: np.ndarray, u_f: np.ndarray) -> np.ndarray:
+        """(p, 3) the face side's displacement of every row per node (t1, t2, ν): the face body's
+        contact nodes, then the faces on other bodies (:mod:`contactopt.fem.faces`); zero on a
+        pinned component."""
+        u = np.concatenate([np.asarray(u_free, float), np.asarray(u_f, float), np.zeros(self.n_pinned)])
+        return np.einsum("mij,mi->mj", self._R, u[self.cd].reshape(-1, 3))
 
     def foundation_displacement(self, u_f: np.ndarray, moved: float = 0.0) -> np.ndarray:
         """The counterparts' full displacements one body after the other (3·n_f each): u_f, zero
@@ -173,7 +237,7 @@ class FullSpaceCouple:
         the contact forces −x on the counterparts, by conjugate gradients on each K_f
         preconditioned by smoothed aggregation (built once), to a relative residual of 1e-13 — C
         itself, dense on the support, is never formed."""
-        b = np.zeros(self.n - self.n_body)
+        b = np.zeros(self.n_f)
         b[self._cols_f - self.n_body] = self._Pf.T @ np.ravel(x)
         y = np.zeros_like(b)
         for k, (start, stop, part) in enumerate(zip(self._starts[:-1], self._starts[1:], self.parts)):
@@ -303,7 +367,7 @@ def force_terms(path, system, ctx, state, v_lam, loads, y_u):
     ``last_adjoint(system, ctx)`` (ṽ_loc of the last adjoint), ``local_adjoint`` (the adjoint of
     a right-hand side in u_loc) and ``local_contraction(system, state, z, loads)`` (the design term
     of (T z) on the body)."""
-    m, cd = path.model, path.model.contact_dofs
+    m, cd = path.model, system.couple.cd
     f = m.obstacle_force
     c, e = f.gap_rate, f.slip
     dT_ds = -float(v_lam @ c)

@@ -123,8 +123,11 @@ def floating_anchor(couple, diag: np.ndarray, face=None) -> FloatingAnchor | Non
                                                        "the face body", avoid=face.body.contact_nodes)]
     for b, part in enumerate([] if couple is None else couple.parts):
         if part.rigid is not None:
-            names += add(part.mesh.reference, part.assembler.full_to_free, part.rigid,
-                         couple.n_body + int(couple._starts[b]), "a counterpart")
+            start = couple.n_body + int(couple._starts[b])
+            # the face nodes of rows b on this body (fem.faces): their unknowns hold w, not the body's
+            mine = couple.cd[(couple.cd >= start) & (couple.cd < start + part.assembler.n_free)] - start
+            names += add(part.mesh.reference, part.assembler.full_to_free, part.rigid, start, "a counterpart",
+                         avoid=np.unique(part.assembler.free[mine] // 3) if mine.size else None)
     if not dofs:
         return None
     dofs_all = np.concatenate(dofs)

@@ -208,9 +208,12 @@ class FullSpaceCommon(SolverPath):
         """The :class:`~contactopt.contact.state.FoundationState` of a two-body solve: the body's
         contact displacement and its partners' per node (t1, t2, ν) (their difference the law's
         w) and the foundation's whole displacement."""
-        u_c = u_free[self.model.contact_dofs].reshape(-1, 3)
-        if self.mechanics.frames is not None:
-            u_c = np.einsum("mij,mi->mj", self.mechanics.frames, u_c)
+        if couple.n_pinned or couple.cd.size > self.model.contact_dofs.size:    # faces on several bodies
+            u_c = couple.face_side(u_free, u_f)
+        else:
+            u_c = u_free[self.model.contact_dofs].reshape(-1, 3)
+            if self.mechanics.frames is not None:
+                u_c = np.einsum("mij,mi->mj", self.mechanics.frames, u_c)
         return FoundationState(u_body_c=u_c, u_partner=couple.partner(u_f, moved),
                                displacement=couple.foundation_displacement(u_f, moved))
 
@@ -284,6 +287,12 @@ class FullSpacePath(FullSpaceCommon):
         return self._couple
 
     @property
+    def law_dofs(self) -> np.ndarray:
+        """The Newton system's contact DOFs (3p), per row (t1, t2, ν): the body's contact DOFs, and
+        with faces on several bodies those of rows b on their carriers (:mod:`.coupled`)."""
+        return self.model.contact_dofs if self.couple is None else self.couple.cd
+
+    @property
     def n_unknowns(self) -> int:
         """The Newton system's unknowns: the body's free DOFs, and the foundation's."""
         return self.model.assembler.n_free if self.couple is None else self.couple.n
@@ -313,7 +322,7 @@ class FullSpacePath(FullSpaceCommon):
     # ------------------------------------------------------------------ a force-controlled obstacle (.force)
     def normal_stiffness(self, system):
         if system.couple is not None:       # the Newton system's own rows, in the nodes' frames
-            return normal_stiffness(system.law_A, self.model.contact_dofs, None)
+            return normal_stiffness(system.law_A, self.law_dofs, None)
         return normal_stiffness(system.assembled.A, self.model.contact_dofs, self.frames)
 
     def force_terms(self, system, ctx, state, v_lam, loads=None, *, v=None, y_u=None):
@@ -331,7 +340,7 @@ class FullSpacePath(FullSpaceCommon):
 
     def contact_diagonal(self, system) -> np.ndarray:
         """(p, 3) the diagonal of the Newton method's A at the contact DOFs, per node (t1, t2, ν)."""
-        return system.law_A.diagonal()[self.model.contact_dofs.reshape(-1, 3)]
+        return system.law_A.diagonal()[self.law_dofs.reshape(-1, 3)]
 
     def build_hierarchy(self, alpha, asm=None, system=None):
         """The AMG hierarchy of A(α) (:class:`~contactopt.fem.amg.ContactHierarchy`), of the Newton
@@ -365,7 +374,7 @@ class FullSpacePath(FullSpaceCommon):
                     modes = rigid_body_modes(coords, self.model.assembler.free)
                     if system.T is not None:
                         modes = np.asarray(system.T.T @ modes)
-                return ContactHierarchy(A, modes, contact_dofs=self.model.contact_dofs, body_modes=body_modes)
+                return ContactHierarchy(A, modes, contact_dofs=self.law_dofs, body_modes=body_modes)
         finally:
             np.random.set_state(saved)
 
@@ -405,7 +414,7 @@ class FullSpacePath(FullSpaceCommon):
                        **(COUPLED_FORCING if system.couple is not None or system.anchor is not None else {}))
         held = None
         if system.anchor is None:
-            res = solve_fullspace_with_fallbacks(system.law_A, system.law_L, self.model.contact_dofs, gap,
+            res = solve_fullspace_with_fallbacks(system.law_A, system.law_L, self.law_dofs, gap,
                                                  self.friction, r0=warm, u0=u0, hierarchy=self._hierarchy, **options)
         else:
             res, held = self.held_solve(system, gap, warm, u0, load_norm or options["force_scale"] or 1.0,
@@ -439,7 +448,7 @@ class FullSpacePath(FullSpaceCommon):
         every solve; the
         :class:`~contactopt.contact.state.RigidAnchor`: the anchored solves, the unbalanced load
         relative to ‖L‖)."""
-        n, cd = system.law_A.shape[0], self.model.contact_dofs
+        n, cd = system.law_A.shape[0], self.law_dofs
         current = {"anchor": system.anchor, "A": system.anchored_A, "hierarchy": None}
         shared = self._hierarchy          # (the hierarchy of the soft anchor, kept for later solves)
 
@@ -491,9 +500,9 @@ class FullSpacePath(FullSpaceCommon):
             y_u = np.asarray(y_u, float)[self.model.assembler.free]
         if system.couple is not None and full:
             y_u = system.couple.extend(y_u)   # ∂J/∂u of the body into both bodies' u_loc
-            ctx.adjoint_rhs_c = y_u[self.model.contact_dofs].copy()
+            ctx.adjoint_rhs_c = y_u[self.law_dofs].copy()
             if carry is not None:
-                y_u[self.model.contact_dofs] += carry
+                y_u[self.law_dofs] += carry
         elif system.T is not None and np.asarray(y_u).size == system.T.shape[0]:
             y_u = system.T.T @ y_u        # ∂J/∂u on the free DOFs into the nodes' frames
         return self.local_adjoint(system, ctx, state, y_u, y_lam, choices)
@@ -502,7 +511,7 @@ class FullSpacePath(FullSpaceCommon):
         """The adjoint of the Newton system's own unknowns: ``y_u`` on the contact DOFs (3p) or on
         every unknown of the system (in the nodes' frames, both bodies' with a foundation)."""
         u_law = self.law_displacement(state)
-        adj = solve_adjoint_fullspace(system.law_A, self.model.contact_dofs, state.classes, u_law,
+        adj = solve_adjoint_fullspace(system.law_A, self.law_dofs, state.classes, u_law,
                                       state.lam, y_u, y_lam, self.friction, hierarchy=self._hierarchy,
                                       choices=choices)
         ctx.adjoint_v = adj.v
@@ -520,7 +529,7 @@ class FullSpacePath(FullSpaceCommon):
 
     def adjoint_force(self, system, ctx, v_u):
         """S v_u = (A ṽ)_c: ṽ, the last adjoint's A-harmonic extension of v_u, has A ṽ = Bᵀ S v_u."""
-        return (system.law_A @ ctx.adjoint_v)[self.model.contact_dofs]
+        return (system.law_A @ ctx.adjoint_v)[self.law_dofs]
 
     def adjoint_carry(self, system, ctx, v_u, v_full, y_u):
         """As :meth:`SolverPath.adjoint_carry`; with an elastic foundation in u_loc, where the
