@@ -280,15 +280,15 @@ def test_the_cli_writes_the_state_of_a_chain(tmp_path, capsys):
     (('face = "upper.top"\ncounterpart = "top.bottom"', 'face = "top.bottom"\ncounterpart = "upper.top"'),
      "contacts[2].face = 'top.bottom': with several pairs contactopt takes the faces of every pair on one body so "
      "far ('middle', the face of contacts[0]), or a face on a counterpart body of another pair against a third, "
-     "elastic body (paths: condensation, fullspace); 'top' is the counterpart of no pair"),
+     "elastic body (paths: condensation, fullspace, petsc); 'top' is the counterpart of no pair"),
     (('face = "upper.top"\ncounterpart = "top.bottom"', 'face = "upper.top"\ncounterpart = "middle.top"'),
      "contacts[2].face = 'upper.top': with several pairs contactopt takes the faces of every pair on one body so "
      "far ('middle', the face of contacts[0]), or a face on a counterpart body of another pair against a third, "
-     "elastic body (paths: condensation, fullspace); its counterpart lies on the face body 'middle'"),
+     "elastic body (paths: condensation, fullspace, petsc); its counterpart lies on the face body 'middle'"),
     (('[state]', '[[contacts]]\nface = "top.front"\ncounterpart = "upper.front"\n[state]'),
      "contacts[3].face = 'top.front': with several pairs contactopt takes the faces of every pair on one body so "
      "far ('middle', the face of contacts[0]), or a face on a counterpart body of another pair against a third, "
-     "elastic body (paths: condensation, fullspace); the bodies top → upper → top carry each other's faces in a cycle"),
+     "elastic body (paths: condensation, fullspace, petsc); the bodies top → upper → top carry each other's faces in a cycle"),
     (('face = "upper.top"\ncounterpart = "top.bottom"', 'face = "upper.top"\ncounterpart = { shape = "plane" }'),
      "this face meets a rigid counterpart: make 'upper' the face body"),
     (('[bodies.upper]\n', '[bodies.upper]\ncontrol = "displacement"\nloaded = "top"\ndisplacement = [0.0, 0.0, 0.0]\n'),
@@ -319,14 +319,14 @@ def test_a_face_on_the_nodes_of_another_pairs_partners_is_refused_by_the_cli(tmp
     assert not out.exists()
 
 
-@pytest.mark.parametrize("path", ["petsc", "delassus"])
+@pytest.mark.parametrize("path", ["delassus"])
 def test_the_other_paths_refuse_a_face_off_the_face_body_by_name(path, tmp_path):
     extra = f'[linear_solver]\npath = "{path}"\n'
     with pytest.raises(ConfigError) as exc:
         _chain(tmp_path, extra=extra)
     assert (f"linear_solver.path = '{path}': contacts[2].face lies on body 'upper'; a pair whose face lies on a "
-            "counterpart body of another pair is solved on the 'condensation' and 'fullspace' paths only so far; "
-            "use path 'condensation', 'fullspace' or 'auto'") in str(exc.value)
+            "counterpart body of another pair is solved on the 'condensation', 'fullspace' and 'petsc' paths only "
+            "so far; use path 'condensation', 'fullspace', 'petsc' or 'auto'") in str(exc.value)
 
 
 def test_an_objective_of_the_whole_displacement_is_refused_with_faces_on_several_bodies(tmp_path):

@@ -58,7 +58,7 @@ ASSEMBLY_DOCS = {
                 "foundation.partner), `interference`, `initial_gap` (as in [body]), an optional `name`. With several "
                 "pairs every face lies on the face body (the body of the first pair's face), or on a counterpart "
                 "body of another pair against a third, elastic body (a chain such as head, plate, plate, nut; no "
-                "design moves that body; the condensation path only, the others refuse it by name).",
+                "design moves that body; the condensation, full-space and PETSc paths, Delassus refuses it by name).",
     "designs": "A designed face, `[[designs]]`: `face = \"<body>.<part>\"` and the keys of [design]. Several "
                "entries design several faces of the face body in a model of several pairs, each a pair's face (α "
                "their control points one after the other); after them, a counterpart body's part that is a "
@@ -326,7 +326,7 @@ def _check_off_face(n: int, pairs: list, held: set, bodies: dict, problems: list
     key = f"contacts[{n}]"
     face = (f"{key}.face = '{body}.{_part_name(part)}': with several pairs contactopt takes the faces of every pair "
             f"on one body so far ({face_body!r}, the face of contacts[0]), or a face on a counterpart body of another "
-            "pair against a third, elastic body (paths: condensation, fullspace)")
+            "pair against a third, elastic body (paths: condensation, fullspace, petsc)")
     swap = "write the pair the other way round (face and counterpart swapped) where it can be"
     if body not in held:
         problems.append(f"{face}; {body!r} is the counterpart of no pair: {swap}")

@@ -274,6 +274,7 @@ class Counterparts:
         self.off_points = np.zeros((self.p - p_a, 3))      # the rows' nodes on their bodies' reference meshes
         self.off_nodes = np.zeros(self.p - p_a, np.int64)   # ... their numbers there
         self.off_columns = np.full((self.p - p_a, 3), -1, np.int64)   # ... their columns of o per component (u1, u2, u3)
+        self.off_part = np.zeros(self.p - p_a, np.int64)    # ... the index of their body in ``parts``
         starts = {id(f): s for f, s in zip(self.parts, np.cumsum([0] + [f.P.shape[1] for f in self.parts]))}
         rows, cols, vals = [], [], []
         for (k, v), f in zip(views.items(), carriers):
@@ -287,6 +288,7 @@ class Counterparts:
             self.off_nodes[mine - p_a] = v.contact_nodes
             col = f.face_columns(v.contact_nodes)                     # (p_k, 3) per global component
             self.off_columns[mine - p_a] = np.where(col >= 0, starts[id(f)] + col, -1)
+            self.off_part[mine - p_a] = next(b for b, g in enumerate(self.parts) if g is f)
             for i in range(3):                                        # row 3m + i: t_i · u (frame column i)
                 for c in range(3):
                     ok = (col[:, c] >= 0) & (np.abs(Rk[:, c, i]) > 0)

@@ -240,7 +240,11 @@ class DistributedBodies:
     DOFs, then every counterpart's) and PETSc's; ``contact`` (p, 3) the PETSc DOFs of the contact
     nodes, per node (t1, t2, ν), where u_loc holds w."""
 
-    def __init__(self, model, T, parts, size: int, rank: int):
+    def __init__(self, model, T, parts, size: int, rank: int, law_dofs=None, pinned=()):
+        """``law_dofs`` the Newton system's contact DOFs in u_loc (the model's contact DOFs where
+        None; with faces on several bodies also those of rows b on their carriers, and the pinned
+        unknowns after all bodies', :mod:`contactopt.paths.coupled`); ``pinned`` per pinned unknown
+        (its carrier's index in ``parts``, node, component): its PETSc DOF is that clamped component's."""
         asm = model.assembler
         self.size, self.rank = size, rank
         bodies = [(np.asarray(asm.elements, np.int64), asm.n_nodes, model.body.reference.points, asm.free)]
@@ -274,11 +278,13 @@ class DistributedBodies:
         # u_loc -> PETSc: every body's free DOFs, in the couple's order
         self._new_of = [new_of[a:b] for a, b in zip(node_starts[:-1], node_starts[1:])]
         self.dof_of_free = np.concatenate([3 * nb[free // 3] + free % 3 for nb, (_, _, _, free)
-                                           in zip(self._new_of, bodies)]).astype(np.int64)
+                                           in zip(self._new_of, bodies)]
+                                          + [np.array([3 * self._new_of[1 + b][node] + c for b, node, c in pinned],
+                                                      dtype=np.int64)]).astype(np.int64)
         self.n_free = self.dof_of_free.size
         self.fixed = np.ones(self.n, dtype=bool)
         self.fixed[self.dof_of_free] = False
-        cd = np.asarray(model.contact_dofs, np.int64)
+        cd = np.asarray(model.contact_dofs if law_dofs is None else law_dofs, np.int64)
         self.contact = self.dof_of_free[cd].reshape(-1, 3)
         self.owns_contact = (self.contact[:, 0] >= self.rstart) & (self.contact[:, 0] < self.rend)
         n = self.n_free
@@ -301,8 +307,9 @@ class DistributedBodies:
         # the body's rows of R and of the contact DOFs: the elements at those nodes
         n_body = asm.n_free
         body_R = self._R[self._R < n_body]
+        self._body_c = np.flatnonzero(cd < n_body)     # the contact DOFs on the body (all, but for rows b)
         nodes_needed = np.zeros(asm.n_nodes, dtype=bool)
-        nodes_needed[asm.free[np.concatenate([body_R, cd])] // 3] = True
+        nodes_needed[asm.free[np.concatenate([body_R, cd[self._body_c]])] // 3] = True
         cells = bodies[0][0]
         touch = np.flatnonzero(nodes_needed[cells].any(axis=1))
         nodes, local = np.unique(cells[touch], return_inverse=True)
@@ -317,7 +324,7 @@ class DistributedBodies:
         self._sub_pinned = pinned[sub_full]
         self._sub_of_R = np.searchsorted(sub_full, asm.free[body_R])  # the sub-assembler's rows of R's body rows
         self._R_body = np.flatnonzero(self._R < n_body)               # ... their places in R
-        self._sub_of_c = np.searchsorted(sub_full, asm.free[cd])
+        self._sub_of_c = np.searchsorted(sub_full, asm.free[cd[self._body_c]])
         # the counterparts' rows of R (K_f, which does not change with α), in u_loc
         cp_R = self._R[self._R >= n_body] - n_body
         starts = np.concatenate([[0], np.cumsum([f.assembler.n_free for f in parts])]).astype(np.int64)
@@ -326,9 +333,13 @@ class DistributedBodies:
             k = cp_R[(cp_R >= a) & (cp_R < b)]
             blk = f.K[k - a].tocoo()
             blocks.append((k[blk.row] + n_body, blk.col + a + n_body, blk.data))
+        mine = self._R[self._R >= n_body + starts[-1]]       # the pinned unknowns of rows b: a unit diagonal
+        if mine.size:
+            blocks.append((mine, mine, np.ones(mine.size)))
         r_f, c_f, v_f = np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros(0)
         if blocks:                       # none with rigid counterparts only
             r_f, c_f, v_f = (np.concatenate(x) for x in zip(*blocks))
+        self._off = self._off_contact_rows(parts, cd, n_body, starts) if self._body_c.size < cd.size else None
         self._rows_f, self._values_f = (r_f, c_f), v_f      # the rows and columns: until the pattern is formed
         # a clamped DOF's diagonal: the mean of the counterparts' stiffness diagonal, or the body's
         # Young's modulus with rigid counterparts only (the same on every rank; a scale, any value holds)
@@ -343,6 +354,42 @@ class DistributedBodies:
         self._own = (ElasticityAssembler(olocal.reshape(-1, cells.shape[1]), onodes.size, np.zeros(0, np.int64), E,
                                          nu, element=asm.element, formulation=asm.formulation), onodes)
         self._n_body_nodes = asm.n_nodes
+
+    def _off_contact_rows(self, parts, cd, n_body, starts):
+        """(D[c, :], D[R, c], D[c, c]) of the contact DOFs off the body (rows b on their carriers, whose
+        K does not change with α, and the pinned unknowns' unit diagonal; zero on the body's rows), for
+        Δ: (|c| × n), (|R| × |c|), (|c| × |c|)."""
+        n, nc = self.n_free, cd.size
+        c_of = np.full(n, -1, dtype=np.int64)
+        c_of[cd] = np.arange(nc)
+        rows, cols, vals, r_rows, r_cols, r_vals = [], [], [], [], [], []
+        for f, a, b in zip(parts, starts[:-1], starts[1:]):
+            lo, hi = n_body + a, n_body + b
+            at = np.flatnonzero((cd >= lo) & (cd < hi))
+            if at.size:
+                blk = f.K[cd[at] - lo].tocoo()
+                rows.append(at[blk.row])
+                cols.append(blk.col + lo)
+                vals.append(blk.data)
+            pos = np.flatnonzero((self._R >= lo) & (self._R < hi))
+            if pos.size:
+                blk = f.K[self._R[pos] - lo].tocoo()
+                keep = c_of[blk.col + lo] >= 0
+                r_rows.append(pos[blk.row[keep]])
+                r_cols.append(c_of[blk.col[keep] + lo])
+                r_vals.append(blk.data[keep])
+        at = np.flatnonzero(cd >= n_body + starts[-1])
+        rows.append(at)
+        cols.append(cd[at])
+        vals.append(np.ones(at.size))
+        pos = np.flatnonzero(self._R >= n_body + starts[-1])
+        r_rows.append(pos)
+        r_cols.append(c_of[self._R[pos]])
+        r_vals.append(np.ones(pos.size))
+        Dc = sp.csr_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))), shape=(nc, n))
+        DRc = sp.csr_matrix((np.concatenate(r_vals), (np.concatenate(r_rows), np.concatenate(r_cols))),
+                            shape=(self._R.size, nc))
+        return Dc, DRc, sp.csr_matrix(Dc[:, cd])
 
     def _entries(self, K, sub_rows):
         """(positions in ``K.data``, row of each among ``sub_rows``, u_loc column) of the entries of D
@@ -402,6 +449,8 @@ class DistributedBodies:
         Dc = sp.csr_matrix((v(at_c), (row_c, col_c)), shape=(nc, n))
         DRc = sp.csr_matrix((v(at_rc), (row_rc, col_rc)), shape=(self._R.size, nc))
         Dcc = sp.csr_matrix((v(at_c[cc]), (row_c[cc], self._c_of[col_c[cc]])), shape=(nc, nc))
+        if self._off is not None:           # the contact DOFs off the body (faces on several bodies)
+            Dc, DRc, Dcc = (M + (_ones(O) if ones else O) for M, O in zip((Dc, DRc, Dcc), self._off))
         return (EcT_R @ Dc + DRc @ Ec + EcT_R @ (Dcc @ Ec)).tocsr()
 
     def _structure(self, K):
@@ -429,6 +478,8 @@ class DistributedBodies:
         self._c_of = np.full(self.n_free, -1, dtype=np.int32)
         self._c_of[self._cd] = np.arange(self._cd.size)
         at_c, row_c, col_c = self._entries(K, self._sub_of_c)
+        if self._off is not None:           # (the contact DOFs' places among all of them: rows b follow)
+            row_c = self._body_c[row_c]
         in_c = self._c_of[col_b] >= 0
         sel = ((at_c, row_c, col_c), (at_b[in_c], self._R_body[row_b[in_c]], self._c_of[col_b[in_c]]),
                np.flatnonzero(self._c_of[col_c] >= 0))

@@ -149,7 +149,7 @@ def select_path(config, n_free: int, pinned: int = 0, rigid=None, pinned_held: b
     return chosen.name, library_for(chosen.name, ls.library)
 
 
-OFF_FACES_PATHS = ("condensation", "fullspace")   # the paths that take a pair's face on a counterpart body (fem.faces)
+OFF_FACES_PATHS = ("condensation", "fullspace", "petsc")   # the paths that take a pair's face on a counterpart body (fem.faces)
 
 
 def _off_faces(config, name: str) -> str | None:

@@ -64,7 +64,7 @@ class FullSpaceCouple:
                                                for start, part in zip(self._starts, self.parts)]
                                               + [np.zeros(0, np.int64)])
         self.cd = np.asarray(contact_dofs, np.int64)
-        self.n_pinned = 0
+        self.n_pinned, self.pinned_nodes = 0, []
         if f.face_map is not None:                    # faces on several bodies: rows b on their carriers' DOFs
             self.cd, frames = self._face_rows_dofs(f, cols_f), f.frames
         p = self.cd.size // 3
@@ -97,6 +97,10 @@ class FullSpaceCouple:
         cols = np.asarray(f.off_columns, np.int64).ravel()
         pinned = cols < 0
         self.n_pinned = int(pinned.sum())
+        # per pinned unknown (its carrier's index in ``parts``, node, component): the PETSc path's DOF of it
+        at = [next(b for b, part in enumerate(self.parts) if part is f.parts[k]) for k in f.off_part]
+        m, c = np.divmod(np.flatnonzero(pinned), 3)
+        self.pinned_nodes = [(at[i], int(f.off_nodes[i]), int(j)) for i, j in zip(m, c)]
         law_b = np.empty(cols.size, np.int64)
         law_b[~pinned] = cols_f[cols[~pinned]]
         law_b[pinned] = self.n + np.arange(self.n_pinned)

@@ -133,10 +133,15 @@ def floating_anchor(couple, diag: np.ndarray, face=None) -> FloatingAnchor | Non
     dofs_all = np.concatenate(dofs)
     N = np.asarray(sp.block_diag(blocks).toarray())
     gamma = np.concatenate(gammas)
-    dense = (N * gamma) @ N.T
-    rows, cols = np.meshgrid(dofs_all, dofs_all, indexing="ij")
+    # γ N Nᵀ body by body: each anchored cell's own block (no entries between two bodies' cells,
+    # which no stiffness couples: the PETSc path's pattern has none there)
+    entries = []
+    for at, Q, g in zip(dofs, blocks, gammas):
+        rows, cols = np.meshgrid(at, at, indexing="ij")
+        entries.append((((Q * g) @ Q.T).ravel(), rows.ravel(), cols.ravel()))
+    vals, rows, cols = (np.concatenate(x) for x in zip(*entries))
     n = diag.size
-    M = sp.csr_matrix((dense.ravel(), (rows.ravel(), cols.ravel())), shape=(n, n))
+    M = sp.csr_matrix((vals, (rows, cols)), shape=(n, n))
     return FloatingAnchor(dofs_all, N, gamma, names, M)
 
 

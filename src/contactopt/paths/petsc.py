@@ -132,7 +132,8 @@ class PetscPath(FullSpaceCommon):
         elif self.mechanics.frames is not None:
             self.change = FrameChange(model.contact_dofs, self.mechanics.frames, model.assembler.n_free)
         if self.change is not None:
-            self.dist = dist = DistributedBodies(model, self.change.T, list(self.change.parts), self.size, self.rank)
+            self.dist = dist = DistributedBodies(model, self.change.T, list(self.change.parts), self.size, self.rank,
+                                                 law_dofs=self.change.cd, pinned=self.change.pinned_nodes)
             for part in self.change.parts:    # K_f, formed with the model, is not formed again here
                 part.assembler.release(pattern=True)
             self._T_inv = None          # T⁻¹, for A(α) x of an objective (built on first use)
@@ -480,9 +481,9 @@ class PetscPath(FullSpaceCommon):
             y_u = y_u[self.model.assembler.free]
             if self.change is not None:  # ... of the body, into u_loc
                 y_u = self.change.extend(y_u)
-                ctx.adjoint_rhs_c = y_u[self.model.contact_dofs].copy()
+                ctx.adjoint_rhs_c = y_u[self.change.cd].copy()
                 if carry is not None:
-                    y_u[self.model.contact_dofs] += carry
+                    y_u[self.change.cd] += carry
             y_u = self.dist.petsc_of_free(y_u)
         return self._adjoint_of(system, ctx, state, u_law, y_u, y_lam)
 

@@ -196,6 +196,7 @@ class FrameChange:
         self.T = frame_rotation(contact_dofs, frames, n_free)
         self.T.sort_indices()
         self.n = self.n_body = n_free
+        self.cd, self.pinned_nodes = np.asarray(contact_dofs, np.int64), []     # the Newton system's contact DOFs
 
     def split(self, u_loc: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """(T u_loc, no counterpart DOFs)."""
