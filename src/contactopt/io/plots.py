@@ -356,6 +356,7 @@ def plot_stress_comparison(path, model, target, initial, optimal, *,
     for name, g in zip(titles, fields):
         if not np.all(np.isfinite(g)):
             raise ValueError(f"plot_stress_comparison: {name!r} has non-finite values")
+    fields = [_face_rows(model, g) for g in fields]      # the face body's face (the pair maps show every pair)
     if not _has_grid(model):
         return _stress_maps(path, model, fields, titles, zlabel, suptitle)
     grids = [contact_grid(model, g)[2] for g in fields]

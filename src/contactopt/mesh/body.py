@@ -84,6 +84,8 @@ class Body(HasParts):
         """(p, 3) the outward unit normal of the face at each contact node, from the chart of the
         contact face or, where the pairs' faces have no common chart, from each pair's."""
         if not self.pair_charts:
+            if self.chart is None:        # the paper's face: ξ = (x1, x2), the counterpart below it
+                return np.tile([0.0, 0.0, -1.0], (self.contact_nodes.size, 1))
             return self.chart.outward(self.reference.points[self.contact_nodes])
         return _pair_outward(self.reference.points, self.contact_nodes, self.pair_faces, self.pair_charts)
 
