@@ -346,7 +346,7 @@ def _without_top(text: str) -> str:
 
 
 @pytest.mark.parametrize("case, q, slide", [("chain", 0.002, 0), ("chain, top sheared", -0.0005, 2),
-                                            ("every face on middle", 0.002, 0)])
+                                            ("chain, full space", 0.002, 0), ("every face on middle", 0.002, 0)])
 def test_a_load_path_on_a_chain_matches_central_differences(case, q, slide, tmp_path):
     """Pressed, then a traction q along x1 on the face body's right side in a second step, every
     block held in x1 by friction alone and at front and back by rollers u2 = 0 (contact nodes
@@ -354,9 +354,10 @@ def test_a_load_path_on_a_chain_matches_central_differences(case, q, slide, tmp_
     against central differences to 1e-6 with rows sliding (``slide`` the pair) in the shear step.
     "chain": the face body slides on its pairs; "chain, top sheared": a traction on the top block
     (in every step) slides the rows of the face on upper, the step pulls the face body back;
-    "every face on middle": the stack without its top block and third pair. Measured 3e-10 to 2.5e-9;
-    5e-6 to 2e-3 where the carry between the steps was zeroed on the clamped component's global
-    index (u2, the frames' t2) rather than on its column of the frame (t1)."""
+    "chain, full space": the first on the full-space path; "every face on middle": the stack without
+    its top block and third pair. Measured 7e-11 to 2.5e-9; 5e-6 to 2e-3 where the carry between
+    the steps was zeroed on the clamped component's global index (u2, the frames' t2) rather than
+    on its column of the frame (t1)."""
     steps = ('[[load_steps]]\nname = "press"\n[[load_steps]]\nname = "shear"\n'
              f'traction = [{{ on = "middle.right", value = [{q}, 0.0, 0.0] }}]\n'
              '[objective]\ntype = "target_normal_force"\n')
@@ -365,8 +366,11 @@ def test_a_load_path_on_a_chain_matches_central_differences(case, q, slide, tmp_
     text = _chain_text(tmp_path, friction=(0.3, 0.3, 0.15), sides=False, extra=DESIGN + steps)
     if case == "every face on middle":
         text = _without_top(text)
+    if case == "chain, full space":
+        text = text.replace("[state]", '[linear_solver]\npath = "fullspace"\n[state]')
     pb = ShapeProblem(load_config(_write(tmp_path, text)))
     m = pb.model
+    assert pb.path.name == ("fullspace" if case == "chain, full space" else "condensation")
     assert (m.n_contact > m.contact_nodes.size) == case.startswith("chain")
     held = m.contact_pinned[:m.contact_nodes.size]           # the face body's rows: u2 is t1
     assert np.any(held[:, 0]) and not np.any(held[:, 1:])
