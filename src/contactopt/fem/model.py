@@ -220,7 +220,8 @@ class ElasticModel:
         self.pinned_dofs = np.asarray(body.pinned_dofs, np.int64)       # full DOF indices
         self.pinned_free = self.assembler.full_to_free[self.pinned_dofs]
         # (p, 3) per contact node (t1, t2, ν): True on the pinned components; in global components
-        # (u1, u2, u3) for what is held per DOF of the body (they differ only where a pinned u3 is a tangent)
+        # (u1, u2, u3) for what is held per DOF of the body (they differ where a clamped component is
+        # another column of the node's frame: a pinned u3 that is a tangent, a pinned u2 made t1)
         self.contact_pinned_global = np.isin(full, self.pinned_dofs).reshape(-1, 3)
         self.contact_pinned = self.contact_pinned_global
         if self.pinned_columns is not None:

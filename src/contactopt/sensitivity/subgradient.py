@@ -71,7 +71,7 @@ def case_subgradient(parts, k: int, case, rhs: dict, choices):
     case k, backward through its solves; ``rhs`` {solve: Derivatives} the response's partials."""
     path, model = parts.path, parts.model
     loads, forces, ctxs = parts.loads(k), parts.forces(k), parts.contexts[k]
-    pinned = model.contact_pinned_global.ravel()
+    pinned = model.contact_pinned.ravel()      # per row of the law, in its frame (t1, t2, ν), as the carry
     contact = (3 * model.contact_nodes[:, None] + np.arange(3)).ravel()
     xi, carry, nd, out, t_adj, t_design = None, None, 0, None, 0.0, 0.0
     for j in range(max(rhs), -1, -1):
