@@ -68,7 +68,15 @@ def per_body_solver(A, B, body_modes: int, *, omega: float = 4.0 / 3.0, transfor
     The first level is pyamg's (symmetric strength, standard aggregation, four symmetric
     Gauss–Seidel sweeps on B, Jacobi smoothing of the tentative prolongator with ω/ρ(D⁻¹A)), built
     here so that its smoothing forms D⁻¹A T and not the two copies of D⁻¹A that pyamg keeps
-    beside A; the coarse operator is handed to pyamg in blocks of the near-null columns."""
+    beside A; the coarse operator is handed to pyamg in blocks of the near-null columns.
+
+    ``transform`` = (T, T⁻¹) of a two bodies' system A = Tᵀ diag(A_1, …) T (:mod:`contactopt.paths.coupled`):
+    the first level is then each body's own, built on the bodies' matrix T⁻ᵀ A T⁻¹
+    (:func:`bodies_matrix`) with the near-null space T B, and handed back as T⁻¹ P. With nothing
+    held at the contact its coarse operator is the bodies' own, Pᵀ diag(A_1, …) P; in A's unknowns a
+    slab's coarse unknown moves the contact DOFs above it by −Π_loc (the relative displacement w
+    that keeps the body still), which aggregates of A's own graph — a contact DOF in a body's
+    aggregate, its partners in the slab's — cannot represent."""
     A = sp.csr_matrix(A)
     A.symmetry = "hermitian"
     B = np.asarray(B, dtype=np.float64)
@@ -240,7 +248,16 @@ class ContactHierarchy:
     two bodies (``interface``, :func:`interface_rows`) with :data:`INTERFACE_SWEEPS` extra sweeps:
     the smoothing on the whole system leaves an error there that the coarse levels do not
     correct (at 80k DOFs 37 GMRES iterations of the adjoint with them against 46, 73 of the
-    state against 92; docs/scaling.md, "Two bodies at scale on one process")."""
+    state against 92; docs/scaling.md, "Two bodies at scale on one process").
+
+    ``transform`` = (T, T⁻¹), the change of unknowns of such a system (A = Tᵀ diag(A_1, …) T): the
+    first level is built in the bodies' own coordinates (:func:`per_body_solver`), and the band's
+    extra sweeps correct in the basis Z = T⁻¹ without the frames' rotation, on the contact DOFs
+    that the Newton system leaves free (:meth:`band_basis`): in A's unknowns a slab's DOF under the
+    contact carries the body's stiffness beside its own (moving it moves the body's contact DOFs),
+    so Gauss–Seidel there hardly corrects the slab's own error; in Z's, where moving it moves w
+    by −Π_loc, it does. At 80k DOFs 31 GMRES iterations of the adjoint against 37, 61 of the state
+    against 73, the same Θ and ξ (docs/scaling.md)."""
 
     def __init__(self, A, near_null=None, *, contact_dofs, max_coarse: int = 10,
                  precision: str = "single", body_modes: int | None = None, transform=None, **amg_kw):
@@ -377,9 +394,7 @@ class ContactHierarchy:
         if self._zoff is None or self.interface is None:
             return None
         J = self.interface[~np.asarray(dirichlet)[self.interface]]
-        Z = self._zoff[J][:, J].tocsr()
-        Z.data = Z.data.copy()
-        Z = sp.csr_matrix(sp.identity(J.size, format="csr") + Z, dtype=np.float64)
+        Z = sp.csr_matrix(sp.identity(J.size, format="csr") + self._zoff[J][:, J], dtype=np.float64)
         HJ = sp.csr_matrix(H[J][:, J], dtype=np.float64)
         Hy = sp.csr_matrix(Z.T @ (HJ @ Z), dtype=self.dtype)
         Hy.sort_indices()
