@@ -59,7 +59,7 @@ def block_positions(A, rows, cols):
     return out
 
 
-def per_body_solver(A, B, body_modes: int, *, omega: float = 4.0 / 3.0, **amg_kw):
+def per_body_solver(A, B, body_modes: int, *, omega: float = 4.0 / 3.0, transform=None, **amg_kw):
     """pyamg's smoothed aggregation of A (symmetric) with a near-null space B of ``body_modes``
     columns per body (each block zero off its body but at the DOFs coupling the bodies), its
     first tentative prolongator built per aggregate from the columns of the bodies its DOFs belong
@@ -68,22 +68,40 @@ def per_body_solver(A, B, body_modes: int, *, omega: float = 4.0 / 3.0, **amg_kw
     The first level is pyamg's (symmetric strength, standard aggregation, four symmetric
     Gauss–Seidel sweeps on B, Jacobi smoothing of the tentative prolongator with ω/ρ(D⁻¹A)), built
     here so that its smoothing forms D⁻¹A T and not the two copies of D⁻¹A that pyamg keeps
-    beside A; the coarse operator is handed to pyamg in blocks of the near-null columns."""
+    beside A; the coarse operator is handed to pyamg in blocks of the near-null columns.
+
+    ``transform`` = (T, T⁻¹) of a two bodies' system A = Tᵀ diag(A_1, …) T (:mod:`contactopt.paths.coupled`):
+    the first level is then each body's own, built on the bodies' matrix T⁻ᵀ A T⁻¹
+    (:func:`bodies_matrix`) with the near-null space T B, and handed back as T⁻¹ P. With nothing
+    held at the contact its coarse operator is the bodies' own, Pᵀ diag(A_1, …) P; in A's unknowns a
+    slab's coarse unknown moves the contact DOFs above it by −Π_loc (the relative displacement w
+    that keeps the body still), which aggregates of A's own graph — a contact DOF in a body's
+    aggregate, its partners in the slab's — cannot represent."""
     A = sp.csr_matrix(A)
     A.symmetry = "hermitian"
     B = np.asarray(B, dtype=np.float64)
     nb, k = B.shape[1] // body_modes, B.shape[1]
     owner = np.stack([np.any(B[:, j * body_modes:(j + 1) * body_modes] != 0, axis=1) for j in range(nb)], axis=1)
+    A_loc, Tinv = A, None
+    if transform is not None:
+        T, Tinv = (sp.csr_matrix(M_) for M_ in transform)
+        B = np.asarray(T @ B)
+        label = body_label(B, body_modes)
+        owner = np.stack([label == j for j in range(nb)], axis=1)
+        B = np.where(np.repeat(owner, body_modes, axis=1), B, 0.0)
+        A = bodies_matrix(A, Tinv, label)
     AggOp, _ = standard_aggregation(symmetric_strength_of_connection(A))
     AggOp = sp.csr_matrix(AggOp)
     relax = relaxation_as_linear_operator(("block_gauss_seidel", {"sweep": "symmetric", "iterations": 4}), A,
                                           np.zeros((A.shape[0], 1)))
     B = relax @ B
-    agg = AggOp.indices                  # the aggregate of each DOF (every DOF in one)
+    agg = np.full(A.shape[0], -1, dtype=np.int64)     # the aggregate of each DOF (−1: none, an
+    inside = np.diff(AggOp.indptr) > 0                 # isolated row of the bodies' own matrix)
+    agg[inside] = AggOp.indices
     held = np.zeros((AggOp.shape[1], nb), dtype=bool)
     for j in range(nb):
-        held[:, j] = np.bincount(agg, weights=owner[:, j], minlength=AggOp.shape[1]) > 0
-    B = np.where(np.repeat(held[agg], body_modes, axis=1), B, 0.0)
+        held[:, j] = np.bincount(agg[inside], weights=owner[inside, j], minlength=AggOp.shape[1]) > 0
+    B = np.where(np.repeat(held[agg] & inside[:, None], body_modes, axis=1), B, 0.0)
     T, B1 = fit_candidates(AggOp, B)
     del B
     T = sp.csr_matrix(T)
@@ -95,11 +113,35 @@ def per_body_solver(A, B, body_modes: int, *, omega: float = 4.0 / 3.0, **amg_kw
     U.data *= np.repeat((omega / rho) * d_inv, np.diff(U.indptr))
     P = sp.csr_matrix(T - U)
     del T, U
+    if Tinv is not None:
+        P = sp.csr_matrix(Tinv @ P)
+        A = A_loc
     A1 = sp.csr_matrix(P.T @ sp.csr_matrix(A @ P)).tobsr(blocksize=(k, k))
     first = type("Level", (), {})()
     first.P, first.R, first.A = P, None, None
     ml = pyamg.smoothed_aggregation_solver(A1, B=B1, improve_candidates=None, **amg_kw)
     return [first] + list(ml.levels)
+
+
+def body_label(B, body_modes: int) -> np.ndarray:
+    """The body of each row of a near-null space B in the bodies' own coordinates (blocks of
+    ``body_modes`` columns per body): the first block nonzero there."""
+    nb = B.shape[1] // body_modes
+    nz = np.stack([np.any(B[:, j * body_modes:(j + 1) * body_modes] != 0, axis=1) for j in range(nb)], axis=1)
+    return np.argmax(nz, axis=1)
+
+
+def bodies_matrix(A, Tinv, label):
+    """T⁻ᵀ A T⁻¹ without its entries between rows of different bodies (``label``): the bodies'
+    own block-diagonal stiffness diag(A, K_f) of a two bodies' system A = Tᵀ diag(A, K_f) T, its
+    round-off between the bodies dropped."""
+    Bm = sp.csr_matrix(Tinv.T @ sp.csr_matrix(A @ Tinv))
+    coo = Bm.tocoo()
+    keep = label[coo.row] == label[coo.col]
+    out = sp.csr_matrix((coo.data[keep], (coo.row[keep], coo.col[keep])), shape=Bm.shape)
+    out.sort_indices()
+    out.symmetry = "hermitian"
+    return out
 
 
 def interface_rows(A, B, body_modes: int) -> np.ndarray:
@@ -206,10 +248,19 @@ class ContactHierarchy:
     two bodies (``interface``, :func:`interface_rows`) with :data:`INTERFACE_SWEEPS` extra sweeps:
     the smoothing on the whole system leaves an error there that the coarse levels do not
     correct (at 80k DOFs 37 GMRES iterations of the adjoint with them against 46, 73 of the
-    state against 92; docs/scaling.md, "Two bodies at scale on one process")."""
+    state against 92; docs/scaling.md, "Two bodies at scale on one process").
+
+    ``transform`` = (T, T⁻¹), the change of unknowns of such a system (A = Tᵀ diag(A_1, …) T): the
+    first level is built in the bodies' own coordinates (:func:`per_body_solver`), and the band's
+    extra sweeps correct in the basis Z = T⁻¹ without the frames' rotation, on the contact DOFs
+    that the Newton system leaves free (:meth:`band_basis`): in A's unknowns a slab's DOF under the
+    contact carries the body's stiffness beside its own (moving it moves the body's contact DOFs),
+    so Gauss–Seidel there hardly corrects the slab's own error; in Z's, where moving it moves w
+    by −Π_loc, it does. At 80k DOFs 31 GMRES iterations of the adjoint against 37, 61 of the state
+    against 73, the same Θ and ξ (docs/scaling.md)."""
 
     def __init__(self, A, near_null=None, *, contact_dofs, max_coarse: int = 10,
-                 precision: str = "single", body_modes: int | None = None, **amg_kw):
+                 precision: str = "single", body_modes: int | None = None, transform=None, **amg_kw):
         try:
             import pyamg
         except ImportError as exc:
@@ -224,7 +275,7 @@ class ContactHierarchy:
         if body_modes is None:
             ml = pyamg.smoothed_aggregation_solver(A, B=near_null, max_coarse=max_coarse, **amg_kw)
         else:
-            ml = per_body_solver(A, near_null, body_modes, max_coarse=max_coarse, **amg_kw)
+            ml = per_body_solver(A, near_null, body_modes, max_coarse=max_coarse, transform=transform, **amg_kw)
         progress.log(progress_level(A.shape[0], t0), "AMG hierarchy of %d DOFs: %d levels in %.1f s",
                      A.shape[0], len(ml.levels) if body_modes is None else len(ml), time.perf_counter() - t0)
         self.n = A.shape[0]
@@ -258,6 +309,16 @@ class ContactHierarchy:
                                             @ sp.csr_matrix(self.P[0][near], dtype=np.float64))
         self.interface = (None if body_modes is None or near_null is None
                           else interface_rows(A, np.asarray(near_null), body_modes).astype(A.indptr.dtype))
+        # the band smoothed in the bodies' own coordinates: T⁻¹'s entries off the contact DOFs' own
+        # columns (rows c: −Π_loc on the counterparts' DOFs)
+        self._zoff = None
+        if transform is not None and self.interface is not None:
+            Tinv = sp.csr_matrix(transform[1])
+            rows = sp.csr_matrix((np.ones(cdofs.size), (cdofs, cdofs)), shape=(self.n, self.n))
+            Zc = sp.csr_matrix(rows @ Tinv)
+            Zc = sp.csr_matrix(Zc - Zc @ rows)
+            Zc.eliminate_zeros()
+            self._zoff = Zc
         self._row_of = np.full(self.n, -1, dtype=np.int64)
         self._row_of[cdofs] = np.arange(cdofs.size)
         self.setup_seconds = time.perf_counter() - t0
@@ -322,7 +383,22 @@ class ContactHierarchy:
                 Anew = (keepm @ Anew @ keepm + sp.diags(np.where(bad, d_ref, 0.0))).tocsr()
             Anew.sort_indices()
             ops.append(Anew)
-        return VCycle(H, dirichlet, self.P, self.R, ops, self.dtype, band=self.interface)
+        return VCycle(H, dirichlet, self.P, self.R, ops, self.dtype, band=self.interface,
+                      band_basis=self.band_basis(H, dirichlet))
+
+    def band_basis(self, H, dirichlet):
+        """(J, Z_J, Z_Jᵀ H_JJ Z_J): the band's free rows J and the basis Z_J of the subspace its
+        sweeps correct in, the bodies' own coordinates where the contact DOFs are not held
+        (a free contact DOF's correction moves its counterparts' DOFs with it, w − Π_loc δu_f;
+        a held one stays); None without a transform."""
+        if self._zoff is None or self.interface is None:
+            return None
+        J = self.interface[~np.asarray(dirichlet)[self.interface]]
+        Z = sp.csr_matrix(sp.identity(J.size, format="csr") + self._zoff[J][:, J], dtype=np.float64)
+        HJ = sp.csr_matrix(H[J][:, J], dtype=np.float64)
+        Hy = sp.csr_matrix(Z.T @ (HJ @ Z), dtype=self.dtype)
+        Hy.sort_indices()
+        return J, sp.csr_matrix(Z, dtype=self.dtype), sp.csr_matrix(H[J], dtype=self.dtype), Hy
 
     def _first_delta(self, D, kt):
         """P_0ᵀ Δ P_0 on the first coarse level, Δ = Π (A_ref + K_t) Π − A_ref = −(E_r + E_rᵀ − E_DD)
@@ -350,7 +426,7 @@ class VCycle:
     :data:`INTERFACE_SWEEPS` more times, before the pre-smoothing and after the post-smoothing
     (so the cycle stays symmetric); its Dirichlet rows are left out."""
 
-    def __init__(self, H, dirichlet, P, R, ops, dtype=np.float64, band=None):
+    def __init__(self, H, dirichlet, P, R, ops, dtype=np.float64, band=None, band_basis=None):
         self._gs, self._gs_idx = gauss_seidel, gauss_seidel_indexed
         if H.dtype != dtype:
             raise SolverError(f"the fine matrix is {H.dtype}, the hierarchy {np.dtype(dtype)}")
@@ -359,6 +435,7 @@ class VCycle:
         self.D = np.flatnonzero(dirichlet)
         self.rows = np.flatnonzero(~np.asarray(dirichlet)).astype(H.indptr.dtype)
         self.band = None if band is None else band[~np.asarray(dirichlet)[band]]
+        self.band_basis = band_basis
         self.P, self.R = P, R
         self.A = [H] + [sp.csr_matrix(o, dtype=dtype) for o in ops]
         Ac = ops[-1].toarray() if ops else H.toarray()
@@ -375,7 +452,13 @@ class VCycle:
         if lvl == 0:
             if which == 1:
                 self._gs_idx(self.H, x, b, self.rows, sweep=sweep)
-            if self.band is not None and self.band.size:      # pre: band, then all; post: all, then band
+            if self.band_basis is not None and self.band.size:
+                J, Z, HJ, Hy = self.band_basis
+                rhs = Z.T @ (b[J] - HJ @ x)
+                d = np.zeros_like(rhs)
+                self._gs(Hy, d, rhs, iterations=INTERFACE_SWEEPS, sweep="symmetric")
+                x[J] += Z @ d
+            elif self.band is not None and self.band.size:      # pre: band, then all; post: all, then band
                 for _ in range(INTERFACE_SWEEPS):
                     self._gs_idx(self.H, x, b, self.band, sweep="symmetric")
             if which == 0:

@@ -368,15 +368,18 @@ class FullSpacePath(FullSpaceCommon):
         np.random.seed(HIERARCHY_SEED)
         try:
             with sequential_openblas():
-                body_modes = None
+                body_modes, transform = None, None
                 if system.couple is not None:
                     modes = system.couple.modes(coords, self.model.assembler.free)
                     body_modes = 6 if modes.shape[1] > 6 else None     # six columns per body with DOFs
+                    if body_modes:
+                        transform = (system.couple.T, system.couple.inverse())
                 else:
                     modes = rigid_body_modes(coords, self.model.assembler.free)
                     if system.T is not None:
                         modes = np.asarray(system.T.T @ modes)
-                return ContactHierarchy(A, modes, contact_dofs=self.law_dofs, body_modes=body_modes)
+                return ContactHierarchy(A, modes, contact_dofs=self.law_dofs, body_modes=body_modes,
+                                        transform=transform)
         finally:
             np.random.set_state(saved)
 

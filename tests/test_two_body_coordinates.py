@@ -1,0 +1,79 @@
+"""The two bodies' V-cycle in the bodies' own coordinates (contactopt.fem.amg, docs/scaling.md, "Two
+bodies at scale on one process"): the first coarse space is T⁻¹ times each body's own, and the
+sweeps on the band coupling the bodies correct in the basis Z = T⁻¹ (off the held contact DOFs),
+in which the two bodies' system is each body's stiffness again; fewer Krylov iterations per
+evaluation for the same answer.
+
+Conventions: per contact node (t1, t2, ν); the contact DOFs of u_loc hold w = u_body − u_partner.
+"""
+
+import numpy as np
+import pytest
+import scipy.sparse as sp
+
+from contactopt.config import load_config
+from contactopt.fem.krylov import gmres
+from contactopt.problem import ShapeProblem
+
+E_BODY = 21.19
+
+
+@pytest.fixture(scope="module")
+def two_bodies():
+    foundation = {"block": {"size": [3.0, 2.0, 1.0], "cells": [12, 8, 4], "origin": [-0.5, -0.5],
+                            "element": "hexahedron"}, "partner": "point", "material": {"E": E_BODY / 10}}
+    cfg = load_config("example1").with_updates({"mesh": {"nx": 16, "ny": 8, "nz": 5}, "foundation": foundation,
+                                                "linear_solver": {"path": "fullspace"}})
+    pb = ShapeProblem(cfg)
+    path, m = pb.path, pb.model
+    alpha = m.initial_design()
+    asm = m.assemble(alpha, path.first_loads)
+    return pb, path.prepare(asm).law_A, path.build_hierarchy(alpha, asm)
+
+
+def test_the_first_coarse_space_is_each_body_s_own(two_bodies):
+    """T P_0: every coarse unknown moves one body only (P_0 = T⁻¹ P_B, P_B the smoothed
+    aggregation of diag(A, K_f) per body), so that with nothing held the first coarse operator is
+    the two bodies' own, P_Bᵀ diag(A, K_f) P_B."""
+    pb, A, h = two_bodies
+    nb = pb.model.assembler.n_free
+    TP = sp.csr_matrix(pb.path.couple.T @ sp.csr_matrix(h.P[0], dtype=np.float64)).tocoo()
+    body = TP.row < nb
+    on_body = np.bincount(TP.col[body], weights=np.abs(TP.data[body]), minlength=TP.shape[1])
+    on_slab = np.bincount(TP.col[~body], weights=np.abs(TP.data[~body]), minlength=TP.shape[1])
+    assert np.all(np.minimum(on_body, on_slab) <= 1e-5 * np.maximum(on_body, on_slab))
+    assert np.any(on_body > 0) and np.any(on_slab > 0)
+
+
+def test_the_band_is_smoothed_in_the_bodies_own_coordinates(two_bodies):
+    """With nothing held, the band's matrix in the basis Z_J (Z = T⁻¹ without the frames' rotation)
+    has no entry between the body's DOFs and the slab's: Z_Jᵀ H_JJ Z_J is each body's stiffness,
+    where the two bodies' system couples every contact DOF with its partners."""
+    pb, A, h = two_bodies
+    nb = pb.model.assembler.n_free
+    n = A.shape[0]
+    J, Z, HJ, Hy = h.band_basis(h.fine_matrix(A), np.zeros(n, dtype=bool))
+    assert np.array_equal(J, h.interface)
+    Hy = sp.csr_matrix(Hy, dtype=np.float64).tocoo()
+    cross = (J[Hy.row] < nb) != (J[Hy.col] < nb)
+    assert np.abs(Hy.data[cross]).max(initial=0.0) <= 1e-5 * np.abs(Hy.data).max()
+    AJ = sp.csr_matrix(A[J][:, J]).tocoo()
+    assert np.abs(AJ.data[(J[AJ.row] < nb) != (J[AJ.col] < nb)]).max() > 0.05 * np.abs(AJ.data).max()
+
+
+def test_fewer_krylov_iterations_for_the_same_evaluation(two_bodies):
+    """GMRES on the two bodies' system (3,996 unknowns) with nothing held: 13 iterations to 1e-10
+    (21 with the coarse space and the band's sweeps in the unknowns u_loc); one evaluation at α0:
+    51 Krylov iterations of the state over 6 Newton steps and 18 of the adjoint (69 and 24), the
+    same Θ (measured)."""
+    pb, A, h = two_bodies
+    n = A.shape[0]
+    b = np.random.default_rng(3).standard_normal(n)
+    res = gmres(A.dot, b, h.preconditioner(h.fine_matrix(A), np.zeros(n, dtype=bool)), rtol=1e-10,
+                restart=60, max_iter=300)
+    assert np.linalg.norm(A @ res.x - b) <= 1.1e-10 * np.linalg.norm(b)
+    assert res.iterations <= 15, res.iterations
+    r = pb.subgradient(pb.model.initial_design())
+    st = r.state
+    assert st.info["krylov_iterations"] <= 58 and st.info["adjoint_krylov"] <= 20, st.info
+    assert r.value == pytest.approx(4.954575375988e-05, rel=1e-10)
