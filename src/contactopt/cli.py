@@ -272,15 +272,17 @@ def _cmd_check_gradient(args) -> int:
     alpha = _read_alpha(args.alpha, model) if args.alpha else model.initial_design()
     model.admissible.require_feasible(alpha, tol=1e-8)
     passed = True
+    states = {} if args.state_method is None else {"state_method": args.state_method,
+                                                   "state_tol": 1e-13 if args.state_method == "newton" else 1e-14}
     for j in [None] + list(range(len(problem.constraints))):     # Θ, then each constraint's response
         if j is None:
-            rep = check_gradient(problem, alpha, seed=args.seed, n_directions=args.directions, h=args.h)
+            rep = check_gradient(problem, alpha, seed=args.seed, n_directions=args.directions, h=args.h, **states)
             print(f"gradient check of {problem.config.name}: Θ = {rep.value:.8e}, degenerate nodes "
                   f"{rep.n_degenerate} {rep.counts}")
         else:
             con = problem.constraints[j]
             rep = check_gradient(problem.for_constraint(j), alpha, seed=args.seed, n_directions=args.directions,
-                                 h=args.h)
+                                 h=args.h, **states)
             print(f"\nconstraint {con.name} (max {con.limit:g}): value = {rep.value:.8e}")
         passed = _print_check(rep) and passed
     return 0 if passed else 1
@@ -433,6 +435,10 @@ def build_parser() -> argparse.ArgumentParser:
     g.add_argument("--directions", type=int, default=10)
     g.add_argument("--h", type=float, default=1e-3, help="finite-difference step (relative to |α|)")
     g.add_argument("--alpha", help="design file; default α0")
+    g.add_argument("--state-method", choices=["fixed-point", "newton"],
+                   help="the states' method: the successive approximations to 1e-14 (default; Newton to 1e-13 "
+                        "where a body held only by contact keeps them from settling) or Newton to 1e-13 (faster "
+                        "where the successive approximations contract slowly)")
     g.set_defaults(func=_cmd_check_gradient)
 
     w = sub.add_parser("sweep", help="one optimization per combination of settings, on dask.distributed")
