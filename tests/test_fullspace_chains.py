@@ -159,3 +159,13 @@ def test_check_gradient_of_the_bolted_stack_with_newton_states_passes(capsys):
                  "--state-method", "newton"]) == 0
     out = capsys.readouterr().out
     assert "PASSED" in out and "observed order 2.0" in out, out
+
+
+def test_a_run_of_the_bolted_stack_writes_every_output(tmp_path):
+    """`contactopt run` of a chain to its figures: the comparison maps of λ and of the pressure show
+    the face body's rows (before, the maps drew the face body's face with every row's values and the
+    run failed at its outputs)."""
+    out = tmp_path / "run"
+    assert main(["run", str(ROOT / "examples" / "bolted_stack.toml"), "--out", str(out), "--max-iter", "2"]) == 0
+    for name in ("summary.json", "stress.png", "pressure.png", "surface.png", "contact.png", "optimal_plate1.vtu"):
+        assert (out / name).exists(), name
