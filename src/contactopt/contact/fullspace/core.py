@@ -157,7 +157,7 @@ class NewtonOutcome:
 
 
 def newton_loop(backend: NewtonBackend, u, zone, *, gap, mu_all, rho_all, tol, max_steps, krylov_rtol,
-                eta_max, eta_factor, zone_margin, timings, t_start, shift=None) -> NewtonOutcome:
+                eta_max, eta_factor, zone_margin, timings, t_start, shift=None, polish_below=0.0) -> NewtonOutcome:
     """The full-space semismooth Newton iteration from ``u`` on the contact ``zone`` (node
     indices), the same for the pyamg and the PETSc path: only the linear algebra is the
     ``backend``'s (:class:`NewtonBackend`). Per contact node ``gap`` (p,) the initial gap,
@@ -173,13 +173,18 @@ def newton_loop(backend: NewtonBackend, u, zone, *, gap, mu_all, rho_all, tol, m
     the nonmonotone Armijo search on ½‖Φ‖² + ½‖e_other‖² (reference the largest of the last four
     merits, 30 halvings). Adds its seconds to ``timings`` ("newton" and the backend's phases) and
     logs progress against ``t_start``. ``shift`` (p, 2): in a load step, u_t at the end of the
-    previous step; the tangential law acts on U_T = u_t − shift."""
+    previous step; the tangential law acts on U_T = u_t − shift. ``polish_below``: an iterate that
+    meets ``tol`` with its error or equilibrium above this takes one Newton step more (its system
+    solved to krylov_rtol), so that a state ends at round-off rather than just below ``tol`` — where
+    it stops there is a matter of where the iterates fall, and two backends' states (or a
+    subgradient's central differences) would then differ by the tolerance."""
     p = gap.size
     history, steps, recent = [], [], []
     growths = rescales = last_rescale = 0
     classes = np.zeros(p, dtype=np.int8)
     converged, reason = False, ""
     err = eq = np.inf
+    polished = False
     while True:
         t0 = time.perf_counter()
         z = zone
@@ -218,8 +223,10 @@ def newton_loop(backend: NewtonBackend, u, zone, *, gap, mu_all, rho_all, tol, m
                     log.debug("%s: %d node(s) outside the zone close their gap; zone %d -> %d nodes",
                               backend.label, missed.size, z.size, zone.size)
                     continue
-            converged = True
-            break
+            if polished or max(err, eq) <= polish_below or len(history) > max_steps:
+                converged = True
+                break
+            polished = True         # one step more: the Newton system solved to krylov_rtol below
         if len(history) > max_steps:
             reason = f"{max_steps} Newton steps used"
             break
@@ -238,7 +245,7 @@ def newton_loop(backend: NewtonBackend, u, zone, *, gap, mu_all, rho_all, tol, m
         t0 = time.perf_counter()
         settled, st, sl, tvec, k, coupling = piece_classes(piece, z, classes, rho, mu, len(history))
         eta = min(eta_max, max(krylov_rtol, eta_factor * err))
-        if settled and err <= _TIGHT_BELOW * np.sqrt(tol):
+        if (settled and err <= _TIGHT_BELOW * np.sqrt(tol)) or polished:
             eta = krylov_rtol
         timings["newton"] += time.perf_counter() - t0
         du, spent = backend.newton_step(u, uc, st, sl, tvec, k, coupling, eta, len(history))
