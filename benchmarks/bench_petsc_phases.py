@@ -86,7 +86,6 @@ def child(size: str, step: float, trim: bool, out: str) -> None:
     _instrument(meter)
     from bench_petsc import design_direction
     from bench_two_bodies_scale import two_bodies
-
     from contactopt.problem import ShapeProblem
     from contactopt.ranks import run_on_ranks
 
