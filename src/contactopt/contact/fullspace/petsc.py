@@ -183,7 +183,7 @@ class PetscHierarchy:
         C.transpose(delta)
         delta.axpy(1.0, C, structure=PETSc.Mat.Structure.DIFFERENT_NONZERO_PATTERN)
         # destroyed here, not left to Python: a product keeps references to its factors inside
-        # PETSc, so dropping the last Python reference frees none of them (78 MB a Newton system on
+        # PETSc, so dropping the last Python reference frees none of them (0.07 GB a Newton system on
         # each of 2 ranks at 200k DOFs, docs/scaling.md)
         temporaries = [Ym, C, delta]
         for lvl, M in enumerate(self._levels):
