@@ -177,7 +177,7 @@ def newton_loop(backend: NewtonBackend, u, zone, *, gap, mu_all, rho_all, tol, m
     meets ``tol`` with its error or equilibrium above this takes one Newton step more (its system
     solved to krylov_rtol), so that a state ends at round-off rather than just below ``tol`` — where
     it stops there is a matter of where the iterates fall, and two backends' states (or a
-    subgradient's central differences) would then differ by the tolerance."""
+    subgradient's central differences) would then differ by the tolerance; 0: none."""
     p = gap.size
     history, steps, recent = [], [], []
     growths = rescales = last_rescale = 0
@@ -223,7 +223,7 @@ def newton_loop(backend: NewtonBackend, u, zone, *, gap, mu_all, rho_all, tol, m
                     log.debug("%s: %d node(s) outside the zone close their gap; zone %d -> %d nodes",
                               backend.label, missed.size, z.size, zone.size)
                     continue
-            if polished or max(err, eq) <= polish_below or len(history) > max_steps:
+            if polished or not polish_below or max(err, eq) <= polish_below or len(history) > max_steps:
                 converged = True
                 break
             polished = True         # one step more: the Newton system solved to krylov_rtol below
