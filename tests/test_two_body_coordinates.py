@@ -11,24 +11,13 @@ import numpy as np
 import pytest
 import scipy.sparse as sp
 
-from contactopt.config import load_config
 from contactopt.fem.krylov import gmres
-from contactopt.problem import ShapeProblem
-
-E_BODY = 21.19
+from test_two_body_scale import two_body_problem
 
 
 @pytest.fixture(scope="module")
 def two_bodies():
-    foundation = {"block": {"size": [3.0, 2.0, 1.0], "cells": [12, 8, 4], "origin": [-0.5, -0.5],
-                            "element": "hexahedron"}, "partner": "point", "material": {"E": E_BODY / 10}}
-    cfg = load_config("example1").with_updates({"mesh": {"nx": 16, "ny": 8, "nz": 5}, "foundation": foundation,
-                                                "linear_solver": {"path": "fullspace"}})
-    pb = ShapeProblem(cfg)
-    path, m = pb.path, pb.model
-    alpha = m.initial_design()
-    asm = m.assemble(alpha, path.first_loads)
-    return pb, path.prepare(asm).law_A, path.build_hierarchy(alpha, asm)
+    return two_body_problem()
 
 
 def test_the_first_coarse_space_is_each_body_s_own(two_bodies):

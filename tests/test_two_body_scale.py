@@ -23,8 +23,8 @@ ROOT = Path(__file__).resolve().parents[1]
 E_BODY = 21.19
 
 
-@pytest.fixture(scope="module")
-def two_bodies():
+def two_body_problem():
+    """(problem, the Newton system at α0, its hierarchy) of Example 1 on a slab, 3,996 unknowns."""
     foundation = {"block": {"size": [3.0, 2.0, 1.0], "cells": [12, 8, 4], "origin": [-0.5, -0.5],
                             "element": "hexahedron"}, "partner": "point", "material": {"E": E_BODY / 10}}
     cfg = load_config("example1").with_updates({"mesh": {"nx": 16, "ny": 8, "nz": 5}, "foundation": foundation,
@@ -33,7 +33,13 @@ def two_bodies():
     path, m = pb.path, pb.model
     alpha = m.initial_design()
     asm = m.assemble(alpha, path.first_loads)
-    return m, path.prepare(asm).law_A, path.build_hierarchy(alpha, asm)
+    return pb, path.prepare(asm).law_A, path.build_hierarchy(alpha, asm)
+
+
+@pytest.fixture(scope="module")
+def two_bodies():
+    pb, A, h = two_body_problem()
+    return pb.model, A, h
 
 
 def test_the_sweeps_on_the_rows_coupling_the_bodies_cut_the_iterations(two_bodies):

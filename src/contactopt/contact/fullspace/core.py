@@ -264,8 +264,10 @@ def newton_loop(backend: NewtonBackend, u, zone, *, gap, mu_all, rho_all, tol, m
                 break
             t *= 0.5
         else:
-            reason = "line search found no decrease of the merit ½‖Φ‖²"
             timings["newton"] += time.perf_counter() - t0
+            # the step past the tolerance found no decrease: the iterate that met it stands
+            converged = polished and err <= tol and eq <= tol
+            reason = "" if converged else "line search found no decrease of the merit ½‖Φ‖²"
             break
         u = backend.advance(u, t, du)
         steps.append(t)
