@@ -104,10 +104,17 @@ def floating_face_fullspace():
         {"linear_solver": {"path": "fullspace"}}).to_dict()
 
 
+def chain_fullspace():
+    """The bolted stack (examples/bolted_stack.toml: three pairs in a chain, a face on a counterpart
+    body of another pair, the head held along the bolt by its contact alone) on the full-space path."""
+    return load_config(ROOT / "examples" / "bolted_stack.toml").with_updates(
+        {"linear_solver": {"path": "fullspace"}}).to_dict()
+
+
 KINDS = {"load_cases": (load_cases, 14), "load_path": (load_path, 12), "constrained": (constrained, 14),
          "force_obstacle": (force_obstacle, 12), "assembly_path": (assembly_path, 12),
          "foundation_fullspace": (foundation_fullspace, 12), "two_designs": (two_designs, 14),
-         "floating_face_fullspace": (floating_face_fullspace, 8)}
+         "floating_face_fullspace": (floating_face_fullspace, 8), "chain_fullspace": (chain_fullspace, 6)}
 
 
 def what_the_checkpoint_holds(ckpt: Checkpoint) -> dict:
@@ -131,7 +138,8 @@ def test_a_run_killed_at_random_moments_resumes_bit_for_bit(tmp_path, kind):
     assert {"load_cases": holds["cases"] == 2, "load_path": len(holds["steps"]) == 1 and holds["steps"][0] >= 2,
             "constrained": holds["penalty"], "force_obstacle": holds["steps"] == [1],
             "assembly_path": holds["steps"] == [2], "foundation_fullspace": holds["steps"] == [2],
-            "two_designs": holds["steps"] == [2], "floating_face_fullspace": holds["steps"] == [1]}[kind], holds
+            "two_designs": holds["steps"] == [2], "floating_face_fullspace": holds["steps"] == [1],
+            "chain_fullspace": holds["steps"] == [1]}[kind], holds
     print(f"\n[{kind}] uninterrupted: {ref['iterations']} iterations, {ref['evaluations']} evaluations, "
           f"{ref_wall:.1f} s; the checkpoint holds {holds}")
     rng = random.Random(f"kill -9 a {kind} run")
