@@ -145,6 +145,36 @@ def test_newton_failure_raises_with_its_history(case):
     assert not res.converged and res.newton_steps == 2
 
 
+def test_the_stall_forcing_takes_over_where_inexact_steps_stop_halving_the_error(case):
+    """A forcing so loose (10·error, at most 1) that its Krylov solves stop after one or two
+    iterations, and the stall forcing (1e-3·error, at most 1e-4) behind it: the Krylov tolerances
+    the solve used, read back, are the loose ones up to a step whose error is above half the one
+    before, the tight ones from there (1e-12 at the end: the classes settled or the step past the
+    tolerance), and the state is the condensed path's. The loose forcing alone stalls on Example 2
+    (its error stays at 7.8e-2) and reaches the same state on Example 1."""
+    kw = dict(tol=1e-11, krylov_rtol=1e-12, polish_below=1e-13, eta_factor=10.0, eta_max=1.0, max_steps=40)
+
+    def loose(h):
+        return min(1.0, max(1e-12, 10.0 * h))
+
+    def tight(h):
+        return min(1e-4, max(1e-12, 1e-3 * h))
+    res = case.solve(0, stall_forcing=(1e-3, 1e-4), **kw)
+    h, etas = res.history, res.krylov_rtol[1:]                # (the start solve's first)
+    assert res.converged and len(etas) == len(h) - 1 and etas[-1] == 1e-12
+    first = next(k for k, (e, x) in enumerate(zip(etas, h)) if e != loose(x) and e != 1e-12)
+    assert first > 1 and h[first] > 0.5 * h[first - 1]
+    assert all(e == loose(x) for e, x in zip(etas[:first], h))
+    assert all(e in (1e-12, tight(x)) for e, x in zip(etas[first:], h[first:]))
+    assert_same_state(res, case.states[0], case.problem.friction)
+    plain = case.solve(0, raise_on_failure=False, **kw)
+    assert all(e in (1e-12, loose(x)) for e, x in zip(plain.krylov_rtol[1:], plain.history))
+    if plain.converged:
+        assert_same_state(plain, case.states[0], case.problem.friction)
+    else:
+        assert plain.error > 1e-2
+
+
 def test_krylov_failure_raises_with_its_history(case):
     with pytest.raises(KrylovNotConverged) as info:
         case.solve(0, tol=1e-11, max_krylov=2)

@@ -64,11 +64,6 @@ log = logging.getLogger(__name__)
 FULLSPACE_TOL = 1e-10     # the Newton's Siconos error and equilibrium residual (at least): its
                           # GMRES then runs to 1e-11, near the AMG V-cycle's floor
 HIERARCHY_SEED = 20090101  # NumPy's global generator while pyamg builds a hierarchy
-# the inexact Newton's forcing term with elastic counterparts: η_k = clip(1e-3·error_k, 1e-13, 1e-4). The
-# one body's (0.1·error, 0.1·tol, 1e-2) leaves the Krylov steps of the two bodies' system too loose:
-# Lamé's shrink fit on meshes that do not match (mortar partners) stalls at an error of 3e-4 with it
-# (hub 32 × 64), and at 1.1e-10 with the tightest 1e-11 (hub 64 × 128); with this one both converge
-# in 4 Newton steps (26 and 40 Krylov iterations)
 # the unanchored Newton steps from the anchored state of counterparts held only by their contacts
 # (.floating) before the anchor's iteration takes over: a chain of three bodies held in x1 by friction
 # alone (tests/test_petsc_chains.py) needs 13 on the PETSc backend after a stiffer anchor, whose
@@ -77,10 +72,17 @@ FREE_NEWTON_STEPS = 30
 # the Newton steps of the first anchored solve (a soft anchor, .floating) before a stiffer anchor takes
 # over: those that converge on the examples take 7 to 16
 SOFT_ANCHOR_STEPS = 25
+# the inexact Newton's forcing term with elastic counterparts: the one body's η_k = clip(0.1·error_k, 1e-13,
+# 1e-2) while the error falls below half the one before, clip(1e-3·error_k, 1e-13, 1e-4) from the first step
+# that does not (``stall_forcing``, contact.fullspace.core.newton_loop). The loose forcing alone stalls Lamé's
+# shrink fit on meshes that do not match (mortar partners, hub 96 × 384): its Krylov solves start below
+# η·‖L‖ and return no step, at an error of 4.4e-5; the tight one alone took 61 Krylov iterations of the
+# state where the pair takes 44 (Example 1's elastic slab at 80k DOFs; docs/scaling.md)
 # ... and a state that meets the tolerance above 1e-12 takes one Newton step more: the friction work's ξ
 # along a load path on a slab moved 5e-9 between two hierarchies whose last iterates fell at 7e-11 and
 # 6e-14 (the PETSc and pyamg backends must agree to 1e-9)
-COUPLED_FORCING = MappingProxyType({"eta_factor": 1e-3, "eta_max": 1e-4, "krylov_rtol": 1e-13, "polish_below": 1e-12})
+COUPLED_FORCING = MappingProxyType({"eta_factor": 0.1, "eta_max": 1e-2, "stall_forcing": (1e-3, 1e-4),
+                                     "krylov_rtol": 1e-13, "polish_below": 1e-12})
 
 
 @dataclass

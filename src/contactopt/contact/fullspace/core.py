@@ -32,6 +32,7 @@ _TIGHT_BELOW = 0.01                   # error ≤ this·√tol and node classes 
                                       # at once (saves the last, equilibrium-only step)
 _STAGNATION_STEPS = 10                # no halving of the best error over this many steps:
 _RESCALE, _MAX_RESCALES = 0.25, 3     # ρ times _RESCALE, at most _MAX_RESCALES times
+_FORCING_STALL = 0.5                  # an error above this times the last one: the stall forcing
 
 
 @dataclass
@@ -157,7 +158,8 @@ class NewtonOutcome:
 
 
 def newton_loop(backend: NewtonBackend, u, zone, *, gap, mu_all, rho_all, tol, max_steps, krylov_rtol,
-                eta_max, eta_factor, zone_margin, timings, t_start, shift=None, polish_below=0.0) -> NewtonOutcome:
+                eta_max, eta_factor, zone_margin, timings, t_start, shift=None, polish_below=0.0,
+                stall_forcing=None) -> NewtonOutcome:
     """The full-space semismooth Newton iteration from ``u`` on the contact ``zone`` (node
     indices), the same for the pyamg and the PETSc path: only the linear algebra is the
     ``backend``'s (:class:`NewtonBackend`). Per contact node ``gap`` (p,) the initial gap,
@@ -177,7 +179,14 @@ def newton_loop(backend: NewtonBackend, u, zone, *, gap, mu_all, rho_all, tol, m
     meets ``tol`` with its error or equilibrium above this takes one Newton step more (its system
     solved to krylov_rtol), so that a state ends at round-off rather than just below ``tol`` — where
     it stops there is a matter of where the iterates fall, and two backends' states (or a
-    subgradient's central differences) would then differ by the tolerance; 0: none."""
+    subgradient's central differences) would then differ by the tolerance; 0: none.
+    ``stall_forcing`` = (eta_factor, eta_max): the forcing for the rest of the solve from the first
+    step whose error is above _FORCING_STALL times the error before it with the node classes of
+    the step before, or twice in a row (None: the one forcing throughout) — a loose forcing while
+    Newton converges, a tight one where an inexact step stops making progress (a Krylov solve
+    whose start already meets η·‖L‖ returns no step); one step that changes the classes may well
+    not halve the error, and does not count alone. A step along which the line search finds no
+    decrease is then solved again, to the stall forcing, before the solve gives up."""
     p = gap.size
     history, steps, recent = [], [], []
     growths = rescales = last_rescale = 0
@@ -185,6 +194,7 @@ def newton_loop(backend: NewtonBackend, u, zone, *, gap, mu_all, rho_all, tol, m
     converged, reason = False, ""
     err = eq = np.inf
     polished = False
+    stalled = slow = False
     while True:
         t0 = time.perf_counter()
         z = zone
@@ -244,6 +254,13 @@ def newton_loop(backend: NewtonBackend, u, zone, *, gap, mu_all, rho_all, tol, m
         # -- the Newton system of the current piece
         t0 = time.perf_counter()
         settled, st, sl, tvec, k, coupling = piece_classes(piece, z, classes, rho, mu, len(history))
+        slow_before, slow = slow, len(history) > 1 and err > _FORCING_STALL * history[-2]
+        if stall_forcing is not None and not stalled and slow and (settled or slow_before):
+            # no halving of the error on the classes of the step before, or twice: too inexact a step
+            stalled = True
+            eta_factor, eta_max = stall_forcing
+            log.debug("%s: error %.3e after %.3e on the same classes: the forcing (%g, %g) from here on",
+                      backend.label, err, history[-2], eta_factor, eta_max)
         eta = min(eta_max, max(krylov_rtol, eta_factor * err))
         if (settled and err <= _TIGHT_BELOW * np.sqrt(tol)) or polished:
             eta = krylov_rtol
@@ -265,6 +282,14 @@ def newton_loop(backend: NewtonBackend, u, zone, *, gap, mu_all, rho_all, tol, m
             t *= 0.5
         else:
             timings["newton"] += time.perf_counter() - t0
+            if stall_forcing is not None and not stalled:
+                # a direction too inexact to descend: the same step again, to the stall forcing
+                stalled = True
+                eta_factor, eta_max = stall_forcing
+                history.pop(), recent.pop()          # (the iterate is evaluated again)
+                log.debug("%s: no decrease along an inexact step: the forcing (%g, %g) from here on",
+                          backend.label, eta_factor, eta_max)
+                continue
             # the step past the tolerance found no decrease: the iterate that met it stands
             converged = polished and err <= tol and eq <= tol
             reason = "" if converged else "line search found no decrease of the merit ½‖Φ‖²"

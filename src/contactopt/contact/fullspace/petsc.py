@@ -356,7 +356,7 @@ class PetscNewton:
     def solve(self, hier: PetscHierarchy, L, gap, friction, *, r0=None, u0=None, tol=1e-10, zone=None,
               rho_scale=0.5, max_steps=50, krylov_rtol=None, eta_max=1e-2, eta_factor=0.1,
               zone_margin=0.1, compliance=None, slip_ref=None, force_scale=None,
-              raise_on_failure=True, polish_below=0.0) -> FullSpaceResult:
+              raise_on_failure=True, polish_below=0.0, stall_forcing=None) -> FullSpaceResult:
         """The contact state of load ``L`` (PETSc Vec) and gaps ``gap`` (p,) from the warm start
         ``r0`` (p, 3; FCLIB order) or ``u0`` (a PETSc Vec); the arguments and the stopping rule as
         :func:`contactopt.contact.fullspace.solve_fullspace`, whose Newton loop
@@ -401,7 +401,8 @@ class PetscNewton:
         backend = PetscBackend(self, hier, L, gap, Lnorm, krylov_its, shift)
         out = newton_loop(backend, u, st.zone, gap=gap, mu_all=st.mu, rho_all=rho_all, tol=tol, max_steps=max_steps,
                           krylov_rtol=st.krylov_rtol, eta_max=eta_max, eta_factor=eta_factor, zone_margin=zone_margin,
-                          timings=timings, t_start=t_start, shift=shift, polish_below=polish_below)
+                          timings=timings, t_start=t_start, shift=shift, polish_below=polish_below,
+                          stall_forcing=stall_forcing)
         u_all = self.everywhere(u)
         return finish(backend, out, u_c=u_all[cd], tol=tol, t_start=t_start, timings=timings,
                       krylov_iterations=krylov_its, u_all=u_all, raise_on_failure=raise_on_failure)

@@ -187,7 +187,7 @@ def solve_fullspace(A, L, contact_dofs, gap, friction, *, coords, free, r0=None,
                     eta_max: float = 1e-2, eta_factor: float = 0.1, restart: int = 60,
                     max_krylov: int = 400, zone_margin: float = 0.1, amg: dict | None = None,
                     raise_on_failure: bool = True, slip_ref=None, force_scale: float | None = None,
-                    polish_below: float = 0.0) -> FullSpaceResult:
+                    polish_below: float = 0.0, stall_forcing: tuple | None = None) -> FullSpaceResult:
     """Solve the discrete Coulomb problem A u = L + Bᵀ r with the contact law on the contact nodes
     (module docstring) by a full-space semismooth Newton method with AMG-preconditioned GMRES.
 
@@ -215,6 +215,8 @@ def solve_fullspace(A, L, contact_dofs, gap, friction, *, coords, free, r0=None,
         u_t − slip_ref, :mod:`contactopt.sensitivity.steps`); None: the static problem.
     polish_below : one Newton step more where the iterate that meets ``tol`` has its error or
         equilibrium above this (:func:`~contactopt.contact.fullspace.core.newton_loop`); 0: none.
+    stall_forcing : (eta_factor, eta_max) from the first step whose error is not below half the
+        one before (:func:`~contactopt.contact.fullspace.core.newton_loop`); None: none.
     force_scale : the force the equilibrium residual and the Krylov tolerances are measured
         against when L = 0 (a press fit: :func:`~contactopt.contact.fullspace.core.overlap_force`);
         None: 1. With a load it is ‖L‖.
@@ -226,7 +228,8 @@ def solve_fullspace(A, L, contact_dofs, gap, friction, *, coords, free, r0=None,
     with sequential_openblas():
         return _solve_fullspace(A, L, contact_dofs, gap, friction, coords, free, r0, u0, tol, hierarchy,
                                 zone, rho_scale, max_steps, krylov_rtol, eta_max, eta_factor, restart,
-                                max_krylov, zone_margin, amg, raise_on_failure, slip_ref, force_scale, polish_below)
+                                max_krylov, zone_margin, amg, raise_on_failure, slip_ref, force_scale, polish_below,
+                                stall_forcing)
 
 
 def sorted_csr(A):
@@ -241,7 +244,8 @@ def sorted_csr(A):
 
 def _solve_fullspace(A, L, contact_dofs, gap, friction, coords, free, r0, u0, tol, hierarchy, zone,
                      rho_scale, max_steps, krylov_rtol, eta_max, eta_factor, restart, max_krylov,
-                     zone_margin, amg, raise_on_failure, slip_ref=None, force_scale=None, polish_below=0.0):
+                     zone_margin, amg, raise_on_failure, slip_ref=None, force_scale=None, polish_below=0.0,
+                     stall_forcing=None):
     t_start = time.perf_counter()
     A = sorted_csr(A)
     n = A.shape[0]
@@ -295,7 +299,8 @@ def _solve_fullspace(A, L, contact_dofs, gap, friction, coords, free, r0, u0, to
                            krylov_eta, shift)
     out = newton_loop(backend, u, st.zone, gap=gap, mu_all=st.mu, rho_all=rho_all, tol=tol, max_steps=max_steps,
                       krylov_rtol=st.krylov_rtol, eta_max=eta_max, eta_factor=eta_factor, zone_margin=zone_margin,
-                      timings=timings, t_start=t_start, shift=shift, polish_below=polish_below)
+                      timings=timings, t_start=t_start, shift=shift, polish_below=polish_below,
+                      stall_forcing=stall_forcing)
     classes = out.classes
     return finish(backend, out, u_c=out.u[cd].copy(), tol=tol, t_start=t_start, timings=timings,
                   krylov_iterations=krylov_its, raise_on_failure=raise_on_failure, krylov_histories=krylov_hist,
