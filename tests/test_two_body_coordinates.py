@@ -66,3 +66,33 @@ def test_fewer_krylov_iterations_for_the_same_evaluation(two_bodies):
     st = r.state
     assert st.info["krylov_iterations"] <= 58 and st.info["adjoint_krylov"] <= 20, st.info
     assert r.value == pytest.approx(4.954575375988e-05, rel=1e-10)
+
+
+def test_the_bodies_matrix_is_the_products_and_the_strength_pattern_gives_pyamg_s_aggregates(two_bodies):
+    """``bodies_matrix`` (A + Δ near the contact DOFs) against T⁻ᵀ A T⁻¹ formed by two products of
+    the whole matrix: the same matrix to round-off, no entry between the bodies; and the
+    aggregates of ``strength_pattern`` (A's own pattern) against those of pyamg's symmetric
+    strength of connection at θ = 0, on the bodies' matrix and on the system."""
+    from pyamg.aggregation.aggregate import standard_aggregation
+    from pyamg.strength import symmetric_strength_of_connection
+
+    from contactopt.fem.amg import bodies_matrix, body_label, strength_pattern
+    pb, A, h = two_bodies
+    couple = pb.path.couple
+    Tinv = couple.inverse()
+    asm = pb.model.assemble(pb.model.initial_design(), pb.path.first_loads)
+    label = body_label(np.asarray(couple.T @ couple.modes(asm.coords, pb.model.assembler.free)), 6)
+    Bm = bodies_matrix(A, Tinv, label)
+    ref = sp.csr_matrix(Tinv.T @ sp.csr_matrix(A @ Tinv)).tocoo()
+    same = label[ref.row] == label[ref.col]
+    assert np.abs(ref.data[~same]).max(initial=0.0) <= 1e-12 * np.abs(ref.data).max()      # round-off only
+    ref = sp.csr_matrix((ref.data[same], (ref.row[same], ref.col[same])), shape=A.shape)
+    assert abs(Bm - ref).max() <= 1e-14 * abs(ref).max()
+    coo = Bm.tocoo()
+    assert np.all(label[coo.row] == label[coo.col]) and np.all(coo.data != 0)
+    assert abs(Bm - Bm.T).max() <= 1e-14 * abs(Bm).max()
+    for M in (Bm, sp.csr_matrix(A)):
+        M.sort_indices()
+        ours, _ = standard_aggregation(strength_pattern(M))
+        theirs, _ = standard_aggregation(symmetric_strength_of_connection(M))
+        assert ours.shape == theirs.shape and (sp.csr_matrix(ours) != sp.csr_matrix(theirs)).nnz == 0

@@ -157,7 +157,7 @@ def bodies_matrix(A, Tinv, label):
     Fc = sp.csr_matrix(F[c])
     Ac = sp.csr_matrix(A[c])
     cols = sp.csr_matrix((np.ones(c.size), (np.arange(c.size), c)), shape=(c.size, n))
-    left = sp.csr_matrix(Fc.T @ Ac)                       # F_cᵀ A_c; A_{:c} F_c is its transpose
+    left = sp.csr_matrix(Fc.T @ Ac)                       # F_cᵀ A_c; A_{:c} F_c is its transpose (A symmetric)
     delta = left + sp.csr_matrix(left.T) + sp.csr_matrix(Fc.T @ sp.csr_matrix((Ac @ cols.T) @ Fc))
     out = sp.csr_matrix(A + delta)
     del left, delta

@@ -259,7 +259,7 @@ def newton_loop(backend: NewtonBackend, u, zone, *, gap, mu_all, rho_all, tol, m
             # no halving of the error on the classes of the step before, or twice: too inexact a step
             stalled = True
             eta_factor, eta_max = stall_forcing
-            log.debug("%s: error %.3e after %.3e on the same classes: the forcing (%g, %g) from here on",
+            log.debug("%s: error %.3e after %.3e: the forcing (%g, %g) from here on",
                       backend.label, err, history[-2], eta_factor, eta_max)
         eta = min(eta_max, max(krylov_rtol, eta_factor * err))
         if (settled and err <= _TIGHT_BELOW * np.sqrt(tol)) or polished:
