@@ -88,6 +88,33 @@ def mpiexec(n, *args, timeout=600):
                           text=True, timeout=timeout, cwd=ROOT)
 
 
+def random_newton_piece(nw, seed):
+    """(D, the sliding nodes, their Robin blocks k t tᵀ) of a made-up Newton system of the PETSc
+    Newton object ``nw``: 40 sticking and 50 sliding contact nodes drawn with ``seed``, each sliding
+    node's direction t at a random angle and k in [1, 5]."""
+    cd = nw.cd
+    rng = np.random.default_rng(seed)
+    nodes = rng.permutation(cd.shape[0])
+    stick, slide = nodes[:40], nodes[40:90]
+    D = np.zeros(nw.dist.n, dtype=bool)
+    D[cd[stick].ravel()] = True
+    D[cd[slide, 2]] = True
+    angle = rng.uniform(0, 2 * np.pi, slide.size)
+    t = np.column_stack((np.cos(angle), np.sin(angle)))
+    blk = rng.uniform(1.0, 5.0, slide.size)[:, None, None] * t[:, :, None] * t[:, None, :]
+    return D, slide, blk
+
+
+def compare_on_two_ranks(tmp_path, config, *args):
+    """The arrays tests/mpi/compare_paths.py writes for the configuration file ``config`` (its
+    further ``args``: settings, ``--differences``) under ``mpiexec -n 2``."""
+    out = tmp_path / "petsc.npz"
+    proc = mpiexec(2, str(ROOT / "tests" / "mpi" / "compare_paths.py"), str(config), str(out), *args)
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    with np.load(out) as npz:
+        return dict(npz)
+
+
 @pytest.mark.parametrize("name", sorted(CASES))
 def test_one_rank_equals_the_pyamg_path(name):
     src, sets = CASES[name]
@@ -98,11 +125,7 @@ def test_one_rank_equals_the_pyamg_path(name):
 @pytest.mark.parametrize("name", sorted(CASES))
 def test_two_ranks_equal_the_pyamg_path(name, tmp_path):
     src, sets = CASES[name]
-    out = tmp_path / "petsc.npz"
-    proc = mpiexec(2, str(ROOT / "tests" / "mpi" / "compare_paths.py"), src, str(out), *sets)
-    assert proc.returncode == 0, proc.stderr[-3000:]
-    with np.load(out) as npz:
-        got = dict(npz)
+    got = compare_on_two_ranks(tmp_path, src, *sets)
     assert int(got.pop("ranks")) == 2
     assert_agree(reference(name), got, f"{name}, PETSc path on 2 ranks")
 
@@ -136,15 +159,7 @@ def test_the_coarse_operators_are_galerkin_products_of_the_reference_newton_matr
     nw, hier = problem.path.newton, problem.path._hier
     assert len(hier._levels) >= 2, [M.getSize() for M in hier._levels]
     cd = nw.cd
-    rng = np.random.default_rng(3)
-    nodes = rng.permutation(cd.shape[0])
-    stick, slide = nodes[:40], nodes[40:90]
-    D = np.zeros(nw.dist.n, dtype=bool)
-    D[cd[stick].ravel()] = True
-    D[cd[slide, 2]] = True
-    angle = rng.uniform(0, 2 * np.pi, slide.size)
-    t = np.column_stack((np.cos(angle), np.sin(angle)))
-    blk = rng.uniform(1.0, 5.0, slide.size)[:, None, None] * t[:, :, None] * t[:, None, :]
+    D, slide, blk = random_newton_piece(nw, 3)
     tt = cd[slide, :2]
 
     def levels_of(H):
@@ -331,11 +346,7 @@ def test_load_steps_on_one_rank_equal_the_pyamg_path(name):
 def test_load_steps_on_two_ranks_equal_the_pyamg_path(name, tmp_path):
     file = tmp_path / "steps.toml"
     file.write_text(tomli_w.dumps(step_config(*STEP_PATHS[name]).data))
-    out = tmp_path / "petsc.npz"
-    proc = mpiexec(2, str(ROOT / "tests" / "mpi" / "compare_paths.py"), str(file), str(out))
-    assert proc.returncode == 0, proc.stderr[-3000:]
-    with np.load(out) as npz:
-        got = dict(npz)
+    got = compare_on_two_ranks(tmp_path, file)
     assert int(got.pop("ranks")) == 2
     assert_differences(got, f"{name}, PETSc path on 2 ranks")
     assert_agree(step_reference(name), got, f"{name}, PETSc path on 2 ranks")
@@ -498,12 +509,9 @@ def test_load_steps_on_tetrahedra_equal_the_pyamg_path(name, ranks, tmp_path):
     if ranks == 1:
         got = evaluations(cfg, "petsc", differences=True)
     else:
-        file, out = tmp_path / "steps.toml", tmp_path / "petsc.npz"
+        file = tmp_path / "steps.toml"
         file.write_text(tomli_w.dumps(cfg.data))
-        proc = mpiexec(2, str(ROOT / "tests" / "mpi" / "compare_paths.py"), str(file), str(out))
-        assert proc.returncode == 0, proc.stderr[-3000:]
-        with np.load(out) as npz:
-            got = dict(npz)
+        got = compare_on_two_ranks(tmp_path, file)
         assert int(got.pop("ranks")) == 2
     solves = sum(s.get("substeps", 1) for s in TET_PATHS[name][0])
     assert sum(k.startswith("u1_step") for k in got) == solves
@@ -547,12 +555,9 @@ def whole_evaluations(name, ranks, tmp_path):
     cfg = whole_config(name)
     if ranks == 1:
         return evaluations(cfg, "petsc", differences=True)
-    file, out = tmp_path / "whole.toml", tmp_path / "petsc.npz"
+    file = tmp_path / "whole.toml"
     file.write_text(tomli_w.dumps(cfg.data))
-    proc = mpiexec(2, str(ROOT / "tests" / "mpi" / "compare_paths.py"), str(file), str(out), "--differences")
-    assert proc.returncode == 0, proc.stderr[-3000:]
-    with np.load(out) as npz:
-        got = dict(npz)
+    got = compare_on_two_ranks(tmp_path, file, "--differences")
     assert int(got.pop("ranks")) == 2
     return got
 

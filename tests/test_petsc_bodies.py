@@ -36,7 +36,7 @@ sys.path.insert(0, str(ROOT / "tests" / "mpi"))
 from compare_paths import evaluations  # noqa: E402
 
 from test_foundation_fullspace import FOUNDATIONS, _block, _config  # noqa: E402
-from test_petsc import assert_kills_resume_bit_for_bit, mpiexec, run_here  # noqa: E402
+from test_petsc import assert_kills_resume_bit_for_bit, compare_on_two_ranks, mpiexec, run_here  # noqa: E402
 
 MISSING = petsc_missing()
 pytestmark = pytest.mark.skipif(MISSING is not None, reason=f"PETSc path: {MISSING}")
@@ -181,12 +181,7 @@ def test_one_rank_equals_the_full_space(name):
                                   "a slab held only by its contacts", "the face body held only by contact on the plane",
                                   "the face body held only by contact on a slab"])
 def test_two_ranks_equal_the_full_space(name, tmp_path):
-    out = tmp_path / "petsc.npz"
-    proc = mpiexec(2, str(ROOT / "tests" / "mpi" / "compare_paths.py"), str(write(tmp_path, MODELS[name]("petsc"))),
-                   str(out))
-    assert proc.returncode == 0, proc.stderr[-3000:]
-    with np.load(out) as npz:
-        got = dict(npz)
+    got = compare_on_two_ranks(tmp_path, write(tmp_path, MODELS[name]("petsc")))
     assert int(got.pop("ranks")) == 2
     assert_agree(reference(name), got, f"{name}, PETSc path on 2 ranks")
 
@@ -194,13 +189,8 @@ def test_two_ranks_equal_the_full_space(name, tmp_path):
 def test_subgradient_matches_central_differences_on_two_ranks(tmp_path):
     """Mortar partners, friction 0.3 with sliding and sticking nodes: ξ·d against central
     differences of Θ (step 1e-6 of α, the states solved to 1e-10) on two ranks."""
-    out = tmp_path / "fd.npz"
-    cfg = MODELS["mortar partners"]("petsc")
-    proc = mpiexec(2, str(ROOT / "tests" / "mpi" / "compare_paths.py"), str(write(tmp_path, cfg)), str(out),
-                   "--differences")
-    assert proc.returncode == 0, proc.stderr[-3000:]
-    with np.load(out) as npz:
-        fd, xi, sliding = npz["fd"], npz["fd_xi"], int(npz["fd_M1"])
+    got = compare_on_two_ranks(tmp_path, write(tmp_path, MODELS["mortar partners"]("petsc")), "--differences")
+    fd, xi, sliding = got["fd"], got["fd_xi"], int(got["fd_M1"])
     assert sliding > 0
     err = np.abs(fd - xi) / np.abs(fd).max()
     assert err.max() <= 1e-6, (fd, xi)

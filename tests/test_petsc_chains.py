@@ -25,7 +25,7 @@ sys.path.insert(0, str(ROOT / "tests" / "mpi"))
 from compare_paths import evaluations  # noqa: E402
 
 from test_assembly_topology import DESIGN, _chain_text, _write  # noqa: E402
-from test_petsc import mpiexec  # noqa: E402
+from test_petsc import compare_on_two_ranks  # noqa: E402
 from test_petsc_bodies import TOL  # noqa: E402
 
 MISSING = petsc_missing()
@@ -62,11 +62,7 @@ def test_a_chain_on_one_and_two_ranks_equals_the_full_space(name, tmp_path):
     file = _config(tmp_path, name)
     ref = evaluations(load_config(file), "fullspace")
     assert_agree(ref, evaluations(load_config(file), "petsc"), f"{name}, PETSc path on 1 rank")
-    out = tmp_path / "petsc.npz"
-    proc = mpiexec(2, str(ROOT / "tests" / "mpi" / "compare_paths.py"), str(file), str(out))
-    assert proc.returncode == 0, proc.stderr[-3000:]
-    with np.load(out) as npz:
-        got = dict(npz)
+    got = compare_on_two_ranks(tmp_path, file)
     assert int(got.pop("ranks")) == 2
     assert_agree(ref, got, f"{name}, PETSc path on 2 ranks")
 
@@ -74,12 +70,8 @@ def test_a_chain_on_one_and_two_ranks_equals_the_full_space(name, tmp_path):
 def test_the_subgradient_of_a_sliding_chain_matches_central_differences_on_two_ranks(tmp_path):
     """Rows of the face on upper sliding, the face body held only by contact: ξ·d against central
     differences of Θ (step 1e-6 of α) on two ranks, to 1e-6."""
-    out = tmp_path / "fd.npz"
-    proc = mpiexec(2, str(ROOT / "tests" / "mpi" / "compare_paths.py"), str(_config(tmp_path, "sliding chain")),
-                   str(out), "--differences")
-    assert proc.returncode == 0, proc.stderr[-3000:]
-    with np.load(out) as npz:
-        fd, xi, sliding = npz["fd"], npz["fd_xi"], int(npz["fd_M1"])
+    got = compare_on_two_ranks(tmp_path, _config(tmp_path, "sliding chain"), "--differences")
+    fd, xi, sliding = got["fd"], got["fd_xi"], int(got["fd_M1"])
     assert sliding > 0
     err = np.abs(fd - xi) / np.abs(fd).max()
     assert err.max() <= 1e-6, (fd, xi)

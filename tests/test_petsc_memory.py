@@ -6,11 +6,11 @@ products are freed only when destroyed. Left to Python they stayed, one set per 
 each on every one of 2 ranks at 200k DOFs, docs/scaling.md): each product held a reference to its
 prolongation, whose reference count is what the test reads. Skipped without petsc4py/mpi4py."""
 
-import numpy as np
 import pytest
 
 from contactopt._mpi import petsc_missing
 from contactopt.config import load_config
+from test_petsc import random_newton_piece
 
 MISSING = petsc_missing()
 pytestmark = pytest.mark.skipif(MISSING is not None, reason=f"PETSc path: {MISSING}")
@@ -34,15 +34,7 @@ def test_the_coarse_operators_of_a_newton_system_keep_no_products():
     assert len(hier._P) >= 2, [M.getSize() for M in hier._levels]
     held = [P.getRefCount() for P in hier._P]
     cd = nw.cd
-    rng = np.random.default_rng(5)
-    nodes = rng.permutation(cd.shape[0])
-    stick, slide = nodes[:40], nodes[40:90]
-    D = np.zeros(nw.dist.n, dtype=bool)
-    D[cd[stick].ravel()] = True
-    D[cd[slide, 2]] = True
-    angle = rng.uniform(0, 2 * np.pi, slide.size)
-    t = np.column_stack((np.cos(angle), np.sin(angle)))
-    blk = rng.uniform(1.0, 5.0, slide.size)[:, None, None] * t[:, :, None] * t[:, None, :]
+    D, slide, blk = random_newton_piece(nw, 5)
     for _ in range(3):
         hier.coarse(D, (cd[slide, :2], blk))
     assert [P.getRefCount() for P in hier._P] == held
