@@ -88,6 +88,46 @@ def test_the_first_coarse_update_is_the_galerkin_product_of_the_change(two_bodie
     assert system.D.size and n > system.D.size
 
 
+def test_coarse_operators_updated_from_the_last_newton_system_equal_fresh_ones(two_bodies):
+    """A sequence of Newton systems whose Dirichlet DOFs change a little, then a lot, then not at all
+    (sticking and sliding nodes traded, nodes opened): the coarse operators updated from the last
+    system's (a Galerkin product of the change) equal those formed afresh to round-off, on every
+    level, and their V-cycles agree; after forget_updates the first system is formed afresh."""
+    m, A, h = two_bodies
+    cd = m.contact_dofs.reshape(-1, 3)
+    p = cd.shape[0]
+    rng = np.random.default_rng(11)
+    Ad = sp.csr_matrix(A, dtype=np.float64)
+    v = rng.standard_normal(A.shape[0])
+    cls = rng.integers(0, 3, p)                       # 0 open, 1 stick, 2 slide
+    h.forget_updates()
+    for change in (0, 3, 5, 0, p // 2 + 1, 2, 0):
+        flip = rng.choice(p, size=change, replace=False)
+        cls[flip] = (cls[flip] + rng.integers(1, 3, change)) % 3
+        stick, slide = np.flatnonzero(cls == 1), np.flatnonzero(cls == 2)
+        tvec = rng.standard_normal((slide.size, 2))
+        tvec /= np.linalg.norm(tvec, axis=1)[:, None]
+        k = rng.uniform(0.5, 2.0, slide.size) * float(A.diagonal().mean())
+        system = NewtonSystem(Ad, cd, stick, slide, tvec, k, np.zeros((slide.size, 2)))
+        H = system.fine_matrix(h)
+        updated = h.preconditioner(H, system.dirichlet, system.kt)
+        kept = h._held
+        h.forget_updates()
+        fresh = h.preconditioner(H, system.dirichlet, system.kt)
+        h._held = kept
+        for lvl in range(1, len(fresh.A)):
+            ref = fresh.A[lvl].toarray().astype(np.float64)
+            got = updated.A[lvl].toarray().astype(np.float64)
+            assert np.abs(got - ref).max() <= 1e-6 * np.abs(ref).max(), (change, lvl)
+        assert np.linalg.norm(updated(v) - fresh(v)) <= 1e-5 * np.linalg.norm(fresh(v))
+    # the fresh coarse operators in double precision: the update's round-off alone
+    keep = sp.diags((~system.dirichlet).astype(float))
+    P = sp.csr_matrix(h.P[0], dtype=np.float64)
+    ref = (P.T @ (keep @ Ad @ keep - Ad) @ P).toarray()
+    got = h._held[1][0].toarray()
+    assert np.abs(got - ref).max() <= 1e-12 * np.abs(ref).max()
+
+
 def test_a_refusal_on_the_body_alone_names_a_path_with_the_foundation_counted(monkeypatch):
     """Example 1 on its slab asked on the condensation path with less memory than the condensation
     needs for the body alone: the refusal waits for the slab's mesh and names the full space with

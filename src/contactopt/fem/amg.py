@@ -24,6 +24,8 @@ __all__ = ["ContactHierarchy", "VCycle", "rigid_body_modes", "block_positions"]
 _COARSE_DIAG_MIN = 1e-10              # a coarse unknown whose diagonal fell below this fraction
                                       # of A(α_ref)'s lives (almost) inside D: decoupled
 _ROWS_AT_A_TIME = 1 << 16
+_HELD_CHANGE_MAX = 0.5                # the coarse operators' update from the last Newton system's
+                                      # when at most this fraction of D changed, else afresh
 INTERFACE_SWEEPS = 2                  # extra symmetric Gauss–Seidel sweeps on the rows that couple
                                       # two bodies, before the pre- and after the post-smoothing
 
@@ -350,6 +352,8 @@ class ContactHierarchy:
             self._zoff = Zc
         self._row_of = np.full(self.n, -1, dtype=np.int64)
         self._row_of[cdofs] = np.arange(cdofs.size)
+        self._diagonals = [M_.diagonal() for M_ in self.A[1:]]
+        self._held = None
         self.setup_seconds = time.perf_counter() - t0
         self.uses = 0
         self.reference_iterations = None
@@ -392,21 +396,27 @@ class ContactHierarchy:
     def preconditioner(self, H, dirichlet, kt=None) -> "VCycle":
         """V-cycle for H (a :meth:`fine_matrix`) restricted to the DOFs outside ``dirichlet``
         (boolean mask); ``kt`` the sparse part H − A added on free rows (the Robin blocks), for the
-        coarse operators."""
+        coarse operators: A_l + P_{l−1}ᵀ ⋯ P_0ᵀ (Π A Π − A + K_t) P_0 ⋯ P_{l−1}, Π the projection
+        onto the DOFs outside D. The part of Π A Π − A is updated from the last Newton system's
+        (:meth:`_held_parts`); call :meth:`forget_updates` where a solve starts."""
         self.uses += 1
         D = np.flatnonzero(dirichlet)
         if D.size and np.any(self._row_of[D] < 0):
             raise SolverError("Dirichlet DOFs outside the contact DOFs of the hierarchy")
+        held = self._held_parts(D)
+        robin = [None] * len(self.P)
+        if kt is not None and kt.nnz:
+            robin[0] = galerkin_near(kt, self.P[0])
+            for lvl in range(1, len(self.P)):
+                robin[lvl] = galerkin_near(robin[lvl - 1], self.P[lvl])
         ops = []
         for lvl in range(len(self.P)):
             Ac = self.A[lvl + 1]
-            if lvl == 0:
-                delta = self._first_delta(D, kt)
-            else:
-                delta = galerkin_near(delta, self.P[lvl]) if delta.nnz else sp.csr_matrix(Ac.shape)
-            Anew = (Ac + delta).tocsr() if delta.nnz else Ac
-            d_ref, d_new = Ac.diagonal(), Anew.diagonal()
-            bad = ~(d_new > _COARSE_DIAG_MIN * d_ref)
+            delta = held[lvl] if robin[lvl] is None else sp.csr_matrix(held[lvl] + robin[lvl])
+            delta.sort_indices()
+            Anew = sp.csr_matrix(Ac + delta) if delta.nnz else Ac
+            d_ref = self._diagonals[lvl]
+            bad = ~(d_ref + delta.diagonal() > _COARSE_DIAG_MIN * d_ref)
             if np.any(bad):            # unknowns (almost) inside D: decouple, keep them harmless
                 keepm = sp.diags((~bad).astype(float))
                 Anew = (keepm @ Anew @ keepm + sp.diags(np.where(bad, d_ref, 0.0))).tocsr()
@@ -415,33 +425,85 @@ class ContactHierarchy:
         return VCycle(H, dirichlet, self.P, self.R, ops, self.dtype, band=self.interface,
                       band_basis=self.band_basis(H, dirichlet))
 
+    def forget_updates(self) -> None:
+        """Form the next Newton system's coarse operators afresh: a solve that starts here repeats
+        bit for bit whatever was solved with the hierarchy before it (a resumed run)."""
+        self._held = None
+
+    def _held_parts(self, D):
+        """[P_0ᵀ (Π A Π − A) P_0, P_1ᵀ P_0ᵀ (Π A Π − A) P_0 P_1, …] for the Dirichlet DOFs D: the last
+        Newton system's parts plus the Galerkin products of their change (:meth:`_held_change`),
+        supported near the DOFs that entered or left D — a few per Newton step, where the parts
+        themselves reach every DOF of D (at 360k DOFs 2,900 DOFs in D, 290 to 0 changed a step,
+        docs/scaling.md). Afresh after :meth:`forget_updates` or when most of D changed."""
+        nc = self.P[0].shape[1] if self.P else 0
+        last = self._held
+        added, removed = D, D[:0]
+        if last is not None:
+            added = np.setdiff1d(D, last[0], assume_unique=True)
+            removed = np.setdiff1d(last[0], D, assume_unique=True)
+            if added.size + removed.size > _HELD_CHANGE_MAX * max(D.size, 1):
+                last, added, removed = None, D, D[:0]
+        if last is not None and not added.size and not removed.size:
+            return last[1]
+        change = self._held_change(D, added, removed) if self.P else sp.csr_matrix((nc, nc))
+        parts = []
+        for lvl in range(len(self.P)):
+            if lvl:
+                change = galerkin_near(change, self.P[lvl]) if change.nnz else sp.csr_matrix((self.A[lvl + 1].shape))
+            parts.append(change if last is None else sp.csr_matrix(last[1][lvl] + change))
+        self._held = (D, parts)
+        return parts
+
+    def _held_change(self, D, added, removed):
+        """P_0ᵀ (Π' A Π' − Π A Π) P_0 on the first coarse level, for D' = D (Π' the projection onto
+        the DOFs outside it) from the last Dirichlet set (Π) with the DOFs ``added`` to it and
+        ``removed`` from it: with s = Π − Π' (+1 on the added DOFs C⁺, −1 on the removed C⁻, C = C⁺ ∪ C⁻),
+        Π' A Π' − Π A Π = −(s A Π' + Π' A s) − s A s, whose product is −(X + Xᵀ) − P_Cᵀ s A_CC s P_C with
+        X = P_Cᵀ s (A Π' P_0)_C = P_Cᵀ s ((A P_0)_C − A_{C,D'} P_{D'}) — from the rows of A and of
+        A P_0 at the contact DOFs kept at set-up, a product over C and D' only. From no Dirichlet
+        DOFs (C = D'): P_0ᵀ (Π' A Π' − A) P_0."""
+        nc = self.P[0].shape[1]
+        C = np.concatenate([added, removed])
+        if not C.size:
+            return sp.csr_matrix((nc, nc))
+        s = sp.diags(np.concatenate([np.ones(added.size), -np.ones(removed.size)]))
+        r = self._row_of[C]
+        rows = self.contact_rows[r]                             # A_{C,·}
+        PC = sp.csr_matrix(self.P[0][C], dtype=np.float64)
+        Y = self._contact_P[r]
+        if D.size:
+            Y = Y - sp.csr_matrix(rows[:, D]) @ sp.csr_matrix(self.P[0][D], dtype=np.float64)
+        PCs = sp.csr_matrix(s @ PC)                             # s P_C
+        X = sp.csr_matrix(sp.csr_matrix(PCs.T) @ Y)
+        out = -(X + sp.csr_matrix(X.T)) - sp.csr_matrix(PCs.T) @ (sp.csr_matrix(rows[:, C]) @ PCs)
+        out = sp.csr_matrix(out)
+        out.sum_duplicates()
+        return out
+
     def band_basis(self, H, dirichlet):
-        """(J, Z_J, Z_Jᵀ H_JJ Z_J): the band's free rows J and the basis Z_J of the subspace its
+        """(J, Z_J, H_J, Z_Jᵀ H_JJ Z_J): the band's free rows J, the basis Z_J of the subspace its
         sweeps correct in, the bodies' own coordinates where the contact DOFs are not held
         (a free contact DOF's correction moves its counterparts' DOFs with it, w − Π_loc δu_f;
-        a held one stays); None without a transform."""
+        a held one stays), and H's rows J; None without a transform. With Z_J = I + F (F: the
+        entries off the contact DOFs' own columns, in a few rows) and H symmetric,
+        Z_Jᵀ H_JJ Z_J = H_JJ + W + Wᵀ + Fᵀ W with W = H_JJ F: products over F's rows only."""
         if self._zoff is None or self.interface is None:
             return None
         J = self.interface[~np.asarray(dirichlet)[self.interface]]
-        Z = sp.csr_matrix(sp.identity(J.size, format="csr") + self._zoff[J][:, J], dtype=np.float64)
-        HJ = sp.csr_matrix(H[J][:, J], dtype=np.float64)
-        Hy = sp.csr_matrix(Z.T @ (HJ @ Z), dtype=self.dtype)
+        F = sp.csr_matrix(self._zoff[J][:, J], dtype=np.float64)
+        HJ = H[J]
+        HJJ = sp.csr_matrix(HJ[:, J], dtype=np.float64)
+        W = sp.csr_matrix(HJJ @ F)
+        Hy = sp.csr_matrix(HJJ + W + sp.csr_matrix(W.T) + sp.csr_matrix(F.T) @ W, dtype=self.dtype)
         Hy.sort_indices()
-        return J, sp.csr_matrix(Z, dtype=self.dtype), sp.csr_matrix(H[J], dtype=self.dtype), Hy
+        Z = sp.csr_matrix(sp.identity(J.size, format="csr") + F, dtype=self.dtype)
+        return J, Z, sp.csr_matrix(HJ, dtype=self.dtype), Hy
 
     def _first_delta(self, D, kt):
-        """P_0ᵀ Δ P_0 on the first coarse level, Δ = Π (A_ref + K_t) Π − A_ref = −(E_r + E_rᵀ − E_DD)
-        + K_t with E_r the rows D of A_ref and E_DD its block D × D: P_0ᵀ E_r P_0 = P_0[D]ᵀ (A_ref P_0)[D]
-        from the rows of A_ref P_0 kept at set-up — a product over the Dirichlet DOFs only, not
-        one of Δ (whose rows at the contact DOFs of two bodies hold both bodies' entries) with P_0."""
-        nc = self.P[0].shape[1]
-        out = sp.csr_matrix((nc, nc))
-        if D.size:
-            r = self._row_of[D]
-            PD = sp.csr_matrix(self.P[0][D], dtype=np.float64)
-            PtE = sp.csr_matrix(sp.csr_matrix(PD.T) @ self._contact_P[r])
-            Edd = sp.csr_matrix(self.contact_rows[r][:, D])
-            out = -(PtE + PtE.T - sp.csr_matrix(PD.T) @ (Edd @ PD))
+        """P_0ᵀ Δ P_0 on the first coarse level, Δ = Π (A_ref + K_t) Π − A_ref, afresh (what
+        :meth:`preconditioner` forms from no Dirichlet DOFs plus the Robin blocks' product)."""
+        out = self._held_change(D, D, D[:0])
         if kt is not None and kt.nnz:
             out = out + galerkin_near(kt, self.P[0])
         return sp.csr_matrix(out)

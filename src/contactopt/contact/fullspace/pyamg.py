@@ -268,6 +268,7 @@ def _solve_fullspace(A, L, contact_dofs, gap, friction, coords, free, r0, u0, to
         timings["amg_setup"] = time.perf_counter() - t0
     elif hierarchy.n != n:
         raise SolverError(f"the AMG hierarchy is of a matrix with {hierarchy.n} rows, A has {n}")
+    hierarchy.forget_updates()
 
     # ρ: the compliance of the body's global deformations from a coarse level of the hierarchy
     rho_all = rho_of(A.diagonal()[cd], hierarchy.coarse_compliance(cd.ravel()), rho_scale)
