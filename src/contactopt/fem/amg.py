@@ -510,12 +510,20 @@ class ContactHierarchy:
 
 
 class VCycle:
-    """One V-cycle (symmetric Gauss–Seidel pre- and post-smoothing, a dense pseudo-inverse on the
-    coarsest level) for H on the DOFs outside D, as a callable v ↦ M v with (M v)_D = 0: symmetric
-    positive semi-definite, so usable by CG as well as GMRES. Computed in ``dtype`` (the
-    hierarchy's precision), returned in double precision. ``band``: fine rows smoothed
-    :data:`INTERFACE_SWEEPS` more times, before the pre-smoothing and after the post-smoothing
-    (so the cycle stays symmetric); its Dirichlet rows are left out."""
+    """One multigrid cycle for H on the DOFs outside D, as a callable v ↦ M v with (M v)_D = 0:
+    symmetric Gauss–Seidel pre- and post-smoothing, a dense pseudo-inverse on the coarsest level,
+    and on every coarse level between a K-cycle (Notay and Vassilevski): two steps of flexible
+    conjugate gradients on A_l, each preconditioned by the cycle of that level, where a V-cycle
+    applies the cycle once. On the two bodies' system the V-cycle's coarse correction was the weak
+    part (with an exact solve on the first coarse level the last Newton system of the 360k model
+    took 18 GMRES iterations against 27, doubling the smoothing on the finest level 25 against 27);
+    the K-cycle took 16 (one body at 210k: 13 against 21), for about 30 % more work per cycle
+    (docs/scaling.md, "The K-cycle"). M is therefore not linear in v — GMRES keeps the
+    preconditioned directions (flexible, :func:`contactopt.fem.krylov.gmres`) — but a function of v
+    alone: the same v gives the same M v, bit for bit. Computed in ``dtype`` (the hierarchy's
+    precision), returned in double precision. ``band``: fine rows smoothed
+    :data:`INTERFACE_SWEEPS` more times, before the pre-smoothing and after the post-smoothing;
+    its Dirichlet rows are left out."""
 
     def __init__(self, H, dirichlet, P, R, ops, dtype=np.float64, band=None, band_basis=None):
         self._gs, self._gs_idx = gauss_seidel, gauss_seidel_indexed
@@ -566,12 +574,35 @@ class VCycle:
         r = b - A @ x
         if lvl == 0:
             r[self.D] = 0.0
-        e = self.P[lvl] @ self._cycle(lvl + 1, self.R[lvl] @ r)
+        e = self.P[lvl] @ self._coarse_solve(lvl + 1, self.R[lvl] @ r)
         if lvl == 0:
             e[self.D] = 0.0
         x += e
         self._smooth(lvl, x, b, 1)
         return x
+
+    def _coarse_solve(self, lvl, b):
+        """An approximate A_l⁻¹ b on coarse level l: the coarsest level's pseudo-inverse, else two
+        steps of flexible CG preconditioned by the level's cycle (the K-cycle; one cycle where the
+        first step leaves nothing to do or A_l is not positive along it)."""
+        if lvl == len(self.A) - 1:
+            return self._coarse @ b
+        A = self.A[lvl]
+        c1 = self._cycle(lvl, b)
+        v1 = A @ c1
+        rho1 = float(c1 @ v1)
+        if not rho1 > 0.0:
+            return c1
+        a1 = float(c1 @ b) / rho1
+        r = b - a1 * v1
+        c2 = self._cycle(lvl, r)
+        v2 = A @ c2
+        beta = float(c2 @ v1) / rho1
+        d = c2 - beta * c1
+        rho2 = float(d @ (v2 - beta * v1))
+        if not rho2 > 0.0:
+            return a1 * c1
+        return a1 * c1 + (float(d @ r) / rho2) * d
 
     def __call__(self, v):
         self.calls += 1
