@@ -84,6 +84,16 @@ def test_aggregates_bound_the_max():
         assert abs(fd - w[2]) <= 1e-7
 
 
+def test_the_max_picks_the_first_of_entries_tied_up_to_round_off():
+    """Two entries equal in exact arithmetic (mirror elements of a symmetric design) that round-off
+    set apart either way give the same subgradient, the first one's; entries 1e-6 apart do not tie."""
+    for a, b in ((3.0, 3.0 * (1 + 1e-13)), (3.0 * (1 + 1e-13), 3.0), (3.0, 3.0)):
+        value, w = aggregate(np.array([1.0, a, b, 2.0]), "max", 1.0, 1.0)
+        assert value == max(a, b) and w.tolist() == [0.0, 1.0, 0.0, 0.0]
+    _, w = aggregate(np.array([1.0, 3.0, 3.0 * (1 + 1e-6), 2.0]), "max", 1.0, 1.0)
+    assert w.tolist() == [0.0, 0.0, 1.0, 0.0]
+
+
 # ------------------------------------------------------------------ pressure uniformity
 def _box_file(tmp_path, element):
     """A box 1 × 0.7 × 0.5 with unevenly spaced nodes (the nodal areas differ from node to node)

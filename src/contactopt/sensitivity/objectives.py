@@ -157,16 +157,22 @@ def pair_numbers(model, contacts, key: str) -> list[int]:
     return out
 
 
+MAX_TIE = 1e-9      # entries within this fraction of the largest attain it (the aggregate ``max``)
+
+
 def aggregate(x: np.ndarray, kind: str, rho: float, p: float):
     """(value, weights ∂value/∂x) of the largest entry of x ≥ 0: ``max`` (the first index where
-    the largest value is attained: a Clarke subgradient), ``ks`` the Kreisselmeier–Steinhauser
+    the largest value is attained, within :data:`MAX_TIE` of it — the state's own accuracy, so that
+    entries equal in exact arithmetic, two mirror elements of a symmetric design, give the same
+    Clarke subgradient whatever the round-off of the path that solved the state), ``ks`` the Kreisselmeier–Steinhauser
     function max + ln Σ exp(ρ(x − max))/ρ (≥ max, at most ln(n)/ρ above it; ρ in 1/units of x),
     ``pnorm`` (Σ x^p)^(1/p) (≥ max, at most n^(1/p) times it)."""
     x = np.asarray(x, float)
     w = np.zeros_like(x)
     top = float(x.max())
     if kind == "max":
-        w[int(np.argmax(x))] = 1.0
+        tied = np.flatnonzero(x >= top - MAX_TIE * abs(top))
+        w[int(tied[0]) if tied.size else int(np.argmax(x))] = 1.0
         return top, w
     if kind == "ks":
         e = np.exp(rho * (x - top))
