@@ -48,8 +48,10 @@ def test_every_shipped_example_has_a_measured_stop_within_its_max_iter():
 
 # a peak pressure is a max over the contact nodes: its runs end in null steps that gather the
 # cuts of the nodes sharing the peak (47-67 iterations measured under four BLAS kernels); they
-# were capped at 40 iterations and ended "max_iter reached"; J/J0 as measured, to 1e-4
-PEAK_PRESSURE = {"roller_crowning": 0.56229, "vgroove": 0.41109, "roller_crowning_interference": 0.56150}
+# were capped at 40 iterations and ended "max_iter reached"; J/J0 as measured (the interference
+# fit's since the max's subgradient takes the first of the points tied to 1e-9: 0.5615270 under
+# three kernels), rounded up in the fifth digit
+PEAK_PRESSURE = {"roller_crowning": 0.56229, "vgroove": 0.41109, "roller_crowning_interference": 0.56153}
 
 
 @pytest.mark.integration
