@@ -404,11 +404,8 @@ class ContactHierarchy:
         if D.size and np.any(self._row_of[D] < 0):
             raise SolverError("Dirichlet DOFs outside the contact DOFs of the hierarchy")
         held = self._held_parts(D)
-        robin = [None] * len(self.P)
-        if kt is not None and kt.nnz:
-            robin[0] = galerkin_near(kt, self.P[0])
-            for lvl in range(1, len(self.P)):
-                robin[lvl] = galerkin_near(robin[lvl - 1], self.P[lvl])
+        robin = (self._down_levels(galerkin_near(kt, self.P[0])) if kt is not None and kt.nnz and self.P
+                 else [None] * len(self.P))
         ops = []
         for lvl in range(len(self.P)):
             Ac = self.A[lvl + 1]
@@ -436,7 +433,8 @@ class ContactHierarchy:
         supported near the DOFs that entered or left D — a few per Newton step, where the parts
         themselves reach every DOF of D (at 360k DOFs 2,900 DOFs in D, 290 to 0 changed a step,
         docs/scaling.md). Afresh after :meth:`forget_updates` or when most of D changed."""
-        nc = self.P[0].shape[1] if self.P else 0
+        if not self.P:
+            return []
         last = self._held
         added, removed = D, D[:0]
         if last is not None:
@@ -446,14 +444,19 @@ class ContactHierarchy:
                 last, added, removed = None, D, D[:0]
         if last is not None and not added.size and not removed.size:
             return last[1]
-        change = self._held_change(D, added, removed) if self.P else sp.csr_matrix((nc, nc))
-        parts = []
-        for lvl in range(len(self.P)):
-            if lvl:
-                change = galerkin_near(change, self.P[lvl]) if change.nnz else sp.csr_matrix((self.A[lvl + 1].shape))
-            parts.append(change if last is None else sp.csr_matrix(last[1][lvl] + change))
+        changes = self._down_levels(self._held_change(D, added, removed))
+        parts = changes if last is None else [sp.csr_matrix(old + ch) for old, ch in zip(last[1], changes)]
         self._held = (D, parts)
         return parts
+
+    def _down_levels(self, first):
+        """[M, P_1ᵀ M P_1, P_2ᵀ P_1ᵀ M P_1 P_2, …] from M on the first coarse level: the Galerkin
+        products of a change near the contact, level by level (:func:`galerkin_near`)."""
+        out = [first]
+        for lvl in range(1, len(self.P)):
+            prev = out[-1]
+            out.append(galerkin_near(prev, self.P[lvl]) if prev.nnz else sp.csr_matrix(self.A[lvl + 1].shape))
+        return out
 
     def _held_change(self, D, added, removed):
         """P_0ᵀ (Π' A Π' − Π A Π) P_0 on the first coarse level, for D' = D (Π' the projection onto
@@ -515,9 +518,9 @@ class VCycle:
     and on every coarse level between a K-cycle (Notay and Vassilevski): two steps of flexible
     conjugate gradients on A_l, each preconditioned by the cycle of that level, where a V-cycle
     applies the cycle once. On the two bodies' system the V-cycle's coarse correction was the weak
-    part (with an exact solve on the first coarse level the last Newton system of the 360k model
-    took 18 GMRES iterations against 27, doubling the smoothing on the finest level 25 against 27);
-    the K-cycle took 16 (one body at 210k: 13 against 21), for about 30 % more work per cycle
+    part (on the last Newton system of the 80k model, an exact solve on the first coarse level took
+    18 GMRES iterations against 29, twice the finest level's smoothing 27); at 360k the K-cycle
+    took 16 against 27 (one body at 210k: 13 against 21), for about 30 % more work per cycle
     (docs/scaling.md, "The K-cycle"). M is therefore not linear in v — GMRES keeps the
     preconditioned directions (flexible, :func:`contactopt.fem.krylov.gmres`) — but a function of v
     alone: the same v gives the same M v, bit for bit. Computed in ``dtype`` (the hierarchy's
